@@ -1,0 +1,1 @@
+"""Hardware adapters: instrument protocols, transports, serial drivers, acquisition runner."""

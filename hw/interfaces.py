@@ -1,0 +1,88 @@
+"""The contracts every instrument kind implements: the twin's simulated instruments, the serial
+drivers and the emulators' backends alike (bluesky ``protocols.py`` style; ophyd-style conformance
+is checked in ``tests/test_conformance.py``).
+
+Return shapes are plain dicts with units in the keys, so a reading can go straight into a journal
+line or a dataset row. Every reading carries ``t_s`` (seconds on the runner's clock: simulated for
+the twin, monotonic wall time for hardware) and ``status`` ("ok" or a short reason such as
+"no_signal", "out_of_range"). Instruments never sleep; a runner owns the clock.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Instrument(Protocol):
+    """Anything on the bench. ``describe()`` returns at least
+    ``{"name": str, "kind": str, "model": str, "units": {field: unit}}`` plus kind-specific
+    metadata (range, resolution); it must not talk to the instrument's settings."""
+
+    name: str
+
+    def describe(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class DisplacementProbe(Instrument, Protocol):
+    """Inductive/lever probe. ``read()`` -> ``{"value_um": float, "t_s": float, "status": str}``;
+    ``value_um`` is the displacement along the probe's measuring axis (see docs/conventions.md)."""
+
+    def read(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class AngleEncoder(Instrument, Protocol):
+    """Encoder counter/display with one or more heads. ``read()`` ->
+    ``{"heads_deg": [azimuth of each head], "angle_deg": [reading of each head], "t_s", "status"}``;
+    head 1 is the bench's reference reading."""
+
+    def read(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class Autocollimator(Instrument, Protocol):
+    """Two-axis autocollimator. ``read()`` -> ``{"x_arcsec": float, "y_arcsec": float, "t_s", "status"}``;
+    X is the rotation plane (the axis the polygon calibration uses)."""
+
+    def read(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class RotaryStage(Instrument, Protocol):
+    """The drive. ``move_to(target_deg)`` commands a position in encoder degrees (the bench stops at
+    commanded encoder readings) and returns ``{"target_deg", "t_s", "status"}`` when settled, without
+    sleeping: it reports the time the move took via ``duration_s``. ``position()`` ->
+    ``{"angle_deg", "t_s", "status"}``. Soft limits and speed limits are honoured by the stage."""
+
+    def move_to(self, target_deg: float) -> dict[str, Any]: ...
+
+    def position(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class Camera(Instrument, Protocol):
+    """Microscope camera. ``capture()`` -> ``{"image": 2-D np.ndarray (uint8 or uint16, greyscale),
+    "t_s": float, "status": str}``."""
+
+    def capture(self) -> dict[str, Any]: ...
+
+
+INSTRUMENT_KINDS: dict[str, type] = {
+    "probe": DisplacementProbe,
+    "encoder": AngleEncoder,
+    "autocollimator": Autocollimator,
+    "stage": RotaryStage,
+    "camera": Camera,
+}
+
+
+def check_image(image: Any) -> np.ndarray:
+    """Validate a captured frame: 2-D greyscale uint8/uint16."""
+    arr = np.asarray(image)
+    if arr.ndim != 2 or arr.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"expected a 2-D uint8/uint16 greyscale image, got shape {arr.shape} dtype {arr.dtype}")
+    return arr

@@ -1,0 +1,1 @@
+"""The twin: scenario -> MuJoCo model -> posed bodies -> instruments -> procedures -> dataset + truth/."""
