@@ -1,0 +1,289 @@
+"""Load and validate scenario files (TOML with units in the values) into SI.
+
+``load_scenario(path)`` reads a file, checks every key against ``scenario_schema.SCHEMA``
+(unknown key, missing section or key, wrong unit dimension, out-of-range value, wrong type) and
+returns a ``Scenario``: a mapping ``section -> {key: SI value}``. Every error is a
+``ScenarioError`` whose message names the file, the key path (``bench.L1``) and what was
+expected, so a metrologist can fix the file without reading code.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from benchtwin.units import UnitError, parse_quantity
+
+from .scenario_schema import HIDDEN_EFFECTS, REQUIRED_SECTIONS, SCHEMA, Field
+
+DEFAULT_SCENARIO = "jia2019.toml"
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be used; the message names file, key path and expectation."""
+
+
+class Scenario(Mapping):
+    """A validated scenario: ``sc["bench"]["L1"]`` is in metres, ``sc.seed`` an int.
+
+    Instrument sections are nested: ``sc["instruments"]["probe"]["repeatability"]``.
+    ``raw`` keeps the file's own text values, for writing into a dataset's truth/.
+    """
+
+    def __init__(self, data: dict[str, Any], raw: dict[str, Any], path: Path | None):
+        self._data = data
+        self.raw = raw
+        self.path = path
+
+    def __getitem__(self, key: str) -> Any:
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    @property
+    def seed(self) -> int:
+        return self._data["scenario"]["seed"]
+
+    @property
+    def name(self) -> str:
+        return self._data["scenario"]["name"]
+
+    @property
+    def hidden(self) -> dict[str, dict[str, Any]]:
+        return self._data["hidden"]
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain nested dict (JSON-ready: SI floats, ints, strings, lists)."""
+        return _plain(self._data)
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> "Scenario":
+        """A copy with ``{"bench.L1": "10 mm", ...}`` applied to the file's text values and
+        re-validated (used by design studies: overrides are written with units too)."""
+        import copy
+
+        raw = copy.deepcopy(self.raw)
+        for dotted, value in overrides.items():
+            parts = dotted.split(".")
+            node = raw
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = value
+        return validate(raw, str(self.path or "<overrides>"))
+
+
+def _plain(x: Any) -> Any:
+    if isinstance(x, Mapping):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return x
+
+
+def default_scenario_path() -> Path:
+    """The embedded default scenario (Jia 2019), shipped inside the package."""
+    return Path(str(resources.files("benchtwin.scenarios").joinpath(DEFAULT_SCENARIO)))
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Read and validate a scenario file; ``None`` loads the embedded default (jia2019)."""
+    p = Path(path) if path is not None else default_scenario_path()
+    if not p.is_file():
+        raise ScenarioError(f"{p}: no such scenario file")
+    try:
+        raw = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{p}: not UTF-8 text: {exc}") from None
+    sc = validate(raw, str(p))
+    sc.path = p
+    return sc
+
+
+def validate(raw: Mapping[str, Any], where: str = "<scenario>") -> Scenario:
+    """Validate a parsed TOML mapping; raises ``ScenarioError`` on the first problem found."""
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(f"{where}: expected a table at the top level")
+    known_top = {s.split(".")[0] for s in SCHEMA} | {"hidden"}
+    for key in raw:
+        if key not in known_top:
+            raise ScenarioError(
+                f"{where}: unknown section [{key}]; expected one of "
+                f"{', '.join('[' + s + ']' for s in sorted(known_top))}"
+            )
+    for section in REQUIRED_SECTIONS:
+        if section not in raw:
+            raise ScenarioError(f"{where}: missing section [{section}]")
+
+    data: dict[str, Any] = {}
+    for section, fields in SCHEMA.items():
+        node = _get_section(raw, section, where)
+        values = _validate_section(node, fields, section, where)
+        if "." in section:
+            outer, inner = section.split(".", 1)
+            data.setdefault(outer, {})[inner] = values
+        else:
+            data[section] = values
+    # Instrument sub-tables not in the schema are unknown keys too.
+    for inner in raw.get("instruments", {}) or {}:
+        if f"instruments.{inner}" not in SCHEMA:
+            known = sorted(s.split(".", 1)[1] for s in SCHEMA if s.startswith("instruments."))
+            raise ScenarioError(f"{where}: unknown section [instruments.{inner}]; expected one of {known}")
+    data["hidden"] = _validate_hidden(raw.get("hidden", {}), where)
+    _cross_checks(data, where)
+    return Scenario(data, dict(raw), None)
+
+
+def _get_section(raw: Mapping[str, Any], section: str, where: str) -> Mapping[str, Any]:
+    node: Any = raw
+    for part in section.split("."):
+        node = node.get(part, {}) if isinstance(node, Mapping) else None
+        if not isinstance(node, Mapping):
+            raise ScenarioError(f"{where}: [{section}] must be a table")
+    return node
+
+
+def _validate_section(node: Mapping[str, Any], fields: Mapping[str, Field], section: str, where: str) -> dict:
+    out: dict[str, Any] = {}
+    for key in node:
+        if key not in fields:
+            raise ScenarioError(
+                f"{where}: unknown key {section}.{key}; expected one of {', '.join(sorted(fields))}"
+            )
+    for key, field in fields.items():
+        path = f"{section}.{key}"
+        if key not in node:
+            if field.required:
+                raise ScenarioError(f"{where}: missing key {path} ({_expect(field)})")
+            out[key] = field.default
+            continue
+        out[key] = _convert(node[key], field, path, where)
+    return out
+
+
+def _expect(field: Field) -> str:
+    if field.dim in ("int", "bool", "str"):
+        what = {"int": "an integer", "bool": "true or false", "str": "a string"}[field.dim]
+    elif field.dim == "lobes":
+        what = "a list of {order, amplitude, phase} tables"
+    elif field.dim.startswith("list["):
+        what = f"a list of {field.dim[5:-1]} values with units"
+    elif field.dim == "dimensionless":
+        what = "a number"
+    else:
+        from benchtwin.units import units_of
+
+        what = f"a {field.dim} with a unit ({', '.join(units_of(field.dim))})"
+    if field.choices:
+        what += f", one of {', '.join(field.choices)}"
+    return "expected " + what
+
+
+def _convert(value: Any, field: Field, path: str, where: str) -> Any:
+    def fail(msg: str) -> ScenarioError:
+        return ScenarioError(f"{where}: {path}: {msg}")
+
+    dim = field.dim
+    if dim == "str":
+        if not isinstance(value, str):
+            raise fail(f"{_expect(field)}, got {value!r}")
+        if field.choices and value not in field.choices:
+            raise fail(f"{value!r} is not one of {', '.join(field.choices)}")
+        return value
+    if dim == "bool":
+        if not isinstance(value, bool):
+            raise fail(f"expected true or false, got {value!r}")
+        return value
+    if dim == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise fail(f"expected an integer, got {value!r}")
+        if field.choices and str(value) not in field.choices:
+            raise fail(f"{value} is not one of {', '.join(field.choices)}")
+        _check_range(value, field, fail)
+        return value
+    if dim == "lobes":
+        if not isinstance(value, list):
+            raise fail(f"{_expect(field)}, got {value!r}")
+        lobes = []
+        for i, item in enumerate(value):
+            if not isinstance(item, Mapping) or set(item) != {"order", "amplitude", "phase"}:
+                raise fail(f"item {i}: expected a table with exactly order, amplitude, phase; got {item!r}")
+            if isinstance(item["order"], bool) or not isinstance(item["order"], int) or not 1 <= item["order"] <= 1000:
+                raise fail(f"item {i}: order must be an integer 1…1000, got {item['order']!r}")
+            try:
+                amp = parse_quantity(item["amplitude"], "length")
+                phase = parse_quantity(item["phase"], "angle")
+            except UnitError as exc:
+                raise fail(f"item {i}: {exc}") from None
+            if not 0 <= amp <= 1e-3:
+                raise fail(f"item {i}: amplitude {item['amplitude']!r} outside 0…1 mm")
+            lobes.append({"order": item["order"], "amplitude": amp, "phase": phase})
+        return lobes
+    if dim.startswith("list["):
+        inner = dim[5:-1]
+        if not isinstance(value, list) or not value:
+            raise fail(f"{_expect(field)}, got {value!r}")
+        if inner == "str":
+            for v in value:
+                if not isinstance(v, str) or (field.choices and v not in field.choices):
+                    raise fail(f"{v!r} is not one of {', '.join(field.choices or ())}")
+            return list(value)
+        out = []
+        for i, v in enumerate(value):
+            try:
+                out.append(parse_quantity(v, inner))
+            except UnitError as exc:
+                raise fail(f"item {i}: {exc}") from None
+        return out
+    try:
+        x = parse_quantity(value, dim)
+    except UnitError as exc:
+        raise fail(str(exc)) from None
+    _check_range(x, field, fail)
+    return x
+
+
+def _check_range(x: float, field: Field, fail) -> None:
+    if field.lo is not None and x < field.lo:
+        raise fail(f"value {x:g} (SI) is below the minimum {field.lo:g} (SI)")
+    if field.hi is not None and x > field.hi:
+        raise fail(f"value {x:g} (SI) is above the maximum {field.hi:g} (SI)")
+
+
+def _validate_hidden(node: Any, where: str) -> dict[str, dict[str, Any]]:
+    if not isinstance(node, Mapping):
+        raise ScenarioError(f"{where}: [hidden] must be a table of effects")
+    out: dict[str, dict[str, Any]] = {}
+    for name, params in node.items():
+        if name not in HIDDEN_EFFECTS:
+            known = ", ".join(sorted(HIDDEN_EFFECTS)) or "(none registered yet)"
+            raise ScenarioError(f"{where}: hidden.{name}: unknown effect; the twin simulates: {known}")
+        if not isinstance(params, Mapping):
+            raise ScenarioError(f"{where}: hidden.{name}: expected a table of parameters")
+        out[name] = _validate_section(params, HIDDEN_EFFECTS[name], f"hidden.{name}", where)
+    return out
+
+
+def _cross_checks(data: dict[str, Any], where: str) -> None:
+    """Relations between keys that single-key ranges cannot express."""
+    b = data["bench"]
+    if b["L1"] >= b["L2"]:
+        raise ScenarioError(f"{where}: bench.L1 ({b['L1']:g} m) must be smaller than bench.L2 "
+                            f"({b['L2']:g} m): the disk lies between the two spheres (Jia fig. 8)")
+    if b["scale_edge_radius"] < b["optical_radius"]:
+        raise ScenarioError(f"{where}: bench.scale_edge_radius must be at least bench.optical_radius")
+    if b["grating_line_length"] >= b["scale_edge_radius"]:
+        raise ScenarioError(f"{where}: bench.grating_line_length must be shorter than bench.scale_edge_radius")
+    e = data["errors"]["eccentricity"]
+    if e > 0.05 * b["optical_radius"]:
+        raise ScenarioError(f"{where}: errors.eccentricity ({e:g} m) is over 5 % of bench.optical_radius")
+    if data["procedure"]["traditional_start_face"] > b["polygon_faces"]:
+        raise ScenarioError(f"{where}: procedure.traditional_start_face must be in 1…bench.polygon_faces "
+                            f"({b['polygon_faces']})")

@@ -1,0 +1,144 @@
+"""The scenario schema: every key a scenario file may hold, its dimension, default and range.
+
+Kept apart from the loader (``scenario.py``) so that adding a parameter is a one-line change
+here. Physics parameters (``[bench]``, ``[bearings]``, ``[errors]``: they edit the MuJoCo model)
+are kept apart from measurement parameters (``[instruments.*]``: they act on the signals), as
+MuJoCo's sysid module separates model and sensor parameters.
+
+A field's ``dim`` is a dimension of ``benchtwin.units`` ("length", "angle", …), or one of the
+plain kinds "int", "bool", "str", or a list kind "list[<dim>]" / "lobes" (a list of
+``{order, amplitude, phase}`` tables).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+_REQUIRED = object()
+
+
+@dataclass(frozen=True)
+class Field:
+    dim: str
+    default: Any = _REQUIRED
+    lo: float | None = None  # inclusive bounds, in SI
+    hi: float | None = None
+    choices: tuple[str, ...] | None = None
+    doc: str = ""
+
+    @property
+    def required(self) -> bool:
+        return self.default is _REQUIRED
+
+
+MM, UM = 1e-3, 1e-6
+DEG = 3.141592653589793 / 180
+ARCSEC = DEG / 3600
+
+SCHEMA: dict[str, dict[str, Field]] = {
+    "scenario": {
+        "name": Field("str"),
+        "description": Field("str", ""),
+        "seed": Field("int", lo=0, hi=2**63 - 1),
+    },
+    "bench": {
+        "optical_radius": Field("length", lo=1 * MM, hi=1.0, doc="r of Jia eq. 5"),
+        "scale_edge_radius": Field("length", lo=1 * MM, hi=1.0),
+        "grating_period": Field("length", 20 * UM, lo=0.1 * UM, hi=1 * MM),
+        "grating_line_length": Field("length", 1.2 * MM, lo=10 * UM, hi=50 * MM),
+        "grating_duty": Field("dimensionless", 0.5, lo=0.05, hi=0.95),
+        "encoder_lines": Field("int", 0, lo=0, hi=10_000_000, doc="0: derive from period and radius"),
+        "encoder_resolution": Field("angle", lo=0.0, hi=1 * DEG),
+        "heads": Field("list[angle]", [0.0], doc="head azimuths from head 1, CCW"),
+        "L1": Field("length", lo=0.0, hi=2.0, doc="top sphere -> disk"),
+        "L2": Field("length", lo=1 * MM, hi=2.0, doc="top sphere -> bottom sphere"),
+        "bearing_top_z": Field("length", lo=-2.0, hi=2.0, doc="from the disk plane"),
+        "bearing_bottom_z": Field("length", lo=-2.0, hi=2.0),
+        "shaft_mass": Field("mass", 1.0, lo=1e-3, hi=1e4),
+        "polygon_faces": Field("int", lo=3, hi=360),
+        "polygon_z": Field("length", lo=-2.0, hi=2.0),
+        "ccd_position": Field("angle", 180 * DEG, lo=0.0, hi=360 * DEG),
+        "gravity_direction": Field("str", "-z", choices=("-x", "+x", "-y", "+y", "-z", "+z", "none")),
+    },
+    "bearings": {
+        "radial_stiffness": Field("stiffness", lo=1e3, hi=1e12),
+        "radial_damping": Field("damping", 1e3, lo=0.0, hi=1e9),
+        "tilt_stiffness": Field("torsional_stiffness", 0.0, lo=0.0, hi=1e9),
+        "friction_torque": Field("torque", 0.0, lo=0.0, hi=100.0),
+        "waviness_top": Field("lobes", []),
+        "waviness_bottom": Field("lobes", []),
+        "unbalance": Field("unbalance", 0.0, lo=0.0, hi=1.0),
+        "async_rms": Field("length", 0.0, lo=0.0, hi=1 * MM),
+        "drive_torsional_stiffness": Field("torsional_stiffness", 1e4, lo=1.0, hi=1e12),
+        "shaft_torsional_stiffness": Field("torsional_stiffness", 1e5, lo=1.0, hi=1e12),
+    },
+    "errors": {
+        "eccentricity": Field("length", lo=0.0, hi=1 * MM),
+        "theta0": Field("angle", lo=-360 * DEG, hi=360 * DEG),
+        "disk_tilt": Field("angle", 0.0, lo=0.0, hi=1 * DEG),
+        "sphere_top_centring": Field("length", 0.0, lo=0.0, hi=1 * MM),
+        "sphere_top_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "sphere_bottom_centring": Field("length", 0.0, lo=0.0, hi=1 * MM),
+        "sphere_bottom_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "sphere_form": Field("length", 0.0, lo=0.0, hi=10 * UM),
+        "polygon_pitch_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
+        "polygon_eccentricity": Field("length", 0.0, lo=0.0, hi=5 * MM),
+        "graduation_error_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
+    },
+    "instruments.probe": {
+        "repeatability": Field("length", 0.1 * UM, lo=0.0, hi=100 * UM),
+        "linearity_a": Field("length", 0.2 * UM, lo=0.0, hi=100 * UM),
+        "linearity_b": Field("length", 50 * UM, lo=0.0, hi=1 * MM, doc="µm per mm² of deflection"),
+        "range": Field("length", 0.3 * MM, lo=1 * UM, hi=10 * MM),
+        "resolution": Field("length", 0.01 * UM, lo=0.0, hi=10 * UM),
+        "x_probes": Field("bool", False),
+    },
+    "instruments.encoder": {
+        "noise": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
+        "interpolation_error": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
+    },
+    "instruments.autocollimator": {
+        "resolution": Field("angle", 0.005 * ARCSEC, lo=0.0, hi=10 * ARCSEC),
+        "accuracy": Field("angle", 0.25 * ARCSEC, lo=0.0, hi=60 * ARCSEC),
+        "range": Field("angle", 1000 * ARCSEC, lo=1 * ARCSEC, hi=10 * DEG),
+        "noise": Field("angle", 0.0, lo=0.0, hi=10 * ARCSEC),
+        "drift_rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3),
+    },
+    "instruments.ccd": {
+        "width": Field("pixels", 2048, lo=16, hi=20000),
+        "height": Field("pixels", 1536, lo=16, hi=20000),
+        "pixel_pitch": Field("pixel_pitch", 0.667 * UM, lo=0.01 * UM, hi=100 * UM),
+        "bit_depth": Field("int", 8, choices=("8", "12", "16")),
+        "numerical_aperture": Field("dimensionless", 0.1, lo=0.001, hi=1.5),
+        "defocus": Field("length", 0.0, lo=-1 * MM, hi=1 * MM),
+        "vignetting": Field("dimensionless", 0.0, lo=0.0, hi=0.9),
+        "full_well": Field("electrons", 20000, lo=10, hi=1e7),
+        "read_noise": Field("electrons", 0.0, lo=0.0, hi=1e4),
+        "exposure": Field("dimensionless", 0.7, lo=0.01, hi=10.0),
+        "dust_count": Field("int", 0, lo=0, hi=1000),
+        "scratch_count": Field("int", 0, lo=0, hi=100),
+        "rotation": Field("angle", 0.0, lo=-10 * DEG, hi=10 * DEG),
+        "pixel_scale_error": Field("dimensionless", 0.0, lo=-0.1, hi=0.1),
+    },
+    "procedure": {
+        "radial_reps": Field("int", 3, lo=1, hi=100),
+        "radial_positions": Field("int", 360, lo=8, hi=100_000),
+        "ccd_step": Field("angle", 6 * DEG, lo=0.01 * DEG, hi=180 * DEG),
+        "polygon_shifts": Field("list[angle]", [0.0]),
+        "traditional_start_face": Field("int", 1, lo=1, hi=360),
+        "selfcal": Field("bool", False),
+        "selfcal_step": Field("angle", 1 * DEG, lo=0.001 * DEG, hi=90 * DEG),
+        "directions": Field("list[str]", ["forward"], choices=("forward", "backward")),
+        "dwell": Field("time", 0.5, lo=0.0, hi=3600.0),
+        "polygon_reps": Field("int", 1, lo=1, hi=100),
+    },
+}
+
+# Sections that must be present in every scenario file (others take their defaults).
+REQUIRED_SECTIONS = ("scenario", "bench", "bearings", "errors")
+
+# [hidden]: effects the twin simulates without declaring them to the analysis. Each entry maps an
+# effect name to the schema of its parameters; a name not registered here is an error, so a typo
+# can never silently give a "null" scenario. Effects register here as the twin learns them.
+HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {}
