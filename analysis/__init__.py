@@ -1,1 +1,1 @@
-"""The analysis pipeline. Reads datasets only: never imports the twin or hw, never opens truth/."""
+"""The analysis pipeline. Reads datasets only: never imports the twin or hw, never opens the truth folder."""

@@ -127,6 +127,9 @@ def parse_quantity(value: str | int | float, dimension: str) -> float:
     if not m:
         raise UnitError(f"cannot read {value!r} as a number followed by a unit")
     number, unit = float(m.group(1)), m.group(2) or ""
+    if not unit and dimension != "dimensionless":
+        raise UnitError(f"expected a {dimension} with a unit (one of {', '.join(units_of(dimension))}), "
+                        f"got the bare number {value!r}")
     if unit not in _UNITS:
         raise UnitError(f"unknown unit {unit!r} in {value!r}; known units for {dimension}: "
                         f"{', '.join(units_of(dimension)) or '(none: write a bare number)'}")

@@ -74,7 +74,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "shaft_torsional_stiffness": Field("torsional_stiffness", 1e5, lo=1.0, hi=1e12),
     },
     "errors": {
-        "eccentricity": Field("length", lo=0.0, hi=1 * MM),
+        "eccentricity": Field("length", lo=0.0, hi=5 * MM),
         "theta0": Field("angle", lo=-360 * DEG, hi=360 * DEG),
         "disk_tilt": Field("angle", 0.0, lo=0.0, hi=1 * DEG),
         "sphere_top_centring": Field("length", 0.0, lo=0.0, hi=1 * MM),
