@@ -119,3 +119,12 @@ def test_overrides_revalidate():
     assert sc["bench"]["L1"] == pytest.approx(6.81e-3)  # original untouched
     with pytest.raises(ScenarioError, match="bench.L1"):
         sc.with_overrides({"bench.L1": "10 kg"})
+
+
+def test_scenario_format_doc_matches_schema():
+    """docs/scenario-format.md's reference table is generated from the schema; regenerate it with
+    `python -c 'from benchtwin.twin.scenario_schema import schema_markdown; print(schema_markdown())'`."""
+    from benchtwin.twin.scenario_schema import schema_markdown
+
+    doc = (SCEN.parent / "docs" / "scenario-format.md").read_text()
+    assert schema_markdown() in doc

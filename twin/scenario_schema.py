@@ -142,3 +142,28 @@ REQUIRED_SECTIONS = ("scenario", "bench", "bearings", "errors")
 # effect name to the schema of its parameters; a name not registered here is an error, so a typo
 # can never silently give a "null" scenario. Effects register here as the twin learns them.
 HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {}
+
+
+def schema_markdown() -> str:
+    """The reference table of docs/scenario-format.md, generated from SCHEMA (a test keeps the
+    committed document equal to this)."""
+    from benchtwin.units import units_of
+
+    lines = []
+    for section, fields in list(SCHEMA.items()) + [(f"hidden.{k}", v) for k, v in HIDDEN_EFFECTS.items()]:
+        lines += [f"### [{section}]", "", "| key | kind | default | range | note |", "| --- | --- | --- | --- | --- |"]
+        for key, f in fields.items():
+            if f.dim in ("int", "bool", "str", "lobes", "dimensionless") or f.dim.startswith("list["):
+                kind = f.dim
+            else:
+                kind = f"{f.dim} ({', '.join(units_of(f.dim)[:4])})"
+            default = ("**required**" if f.required else
+                       f"`{f.default:g}` (SI)" if isinstance(f.default, float) else f"`{f.default!r}`")
+            rng = ""
+            if f.choices:
+                rng = " / ".join(f.choices)
+            elif f.lo is not None or f.hi is not None:
+                rng = f"{f.lo:g} … {f.hi:g} (SI)"
+            lines.append(f"| `{key}` | {kind} | {default} | {rng} | {f.doc} |")
+        lines.append("")
+    return "\n".join(lines)
