@@ -1,0 +1,1 @@
+"""Report: figures (matplotlib, Agg) and the self-contained HTML report."""

@@ -1,0 +1,89 @@
+"""The HTML report: one self-contained file (figures embedded as PNG data URIs), so a report can be
+mailed or archived with its dataset without losing pictures.
+
+``Report`` collects sections (headings, paragraphs, key/value tables with units and uncertainties,
+figures) and ``write(path)`` renders them. Figures are matplotlib Figures rendered with the Agg
+backend (no screen needed) and closed after rendering to keep memory flat over long studies.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+_CSS = """
+body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222;line-height:1.4}
+h1{border-bottom:2px solid #335;padding-bottom:.2em} h2{margin-top:2em;color:#335}
+table{border-collapse:collapse;margin:.5em 0} td,th{border:1px solid #ccc;padding:.25em .6em;text-align:left}
+th{background:#eef} td.num{text-align:right;font-variant-numeric:tabular-nums}
+figure{margin:1em 0} figcaption{font-size:.9em;color:#555} img{max-width:100%}
+.note{background:#fff8e0;border-left:4px solid #d9a400;padding:.4em .8em}
+"""
+
+
+@dataclass
+class Report:
+    title: str
+    blocks: list[str] = field(default_factory=list)
+
+    def heading(self, text: str, level: int = 2) -> None:
+        self.blocks.append(f"<h{level}>{html.escape(text)}</h{level}>")
+
+    def paragraph(self, text: str, note: bool = False) -> None:
+        cls = ' class="note"' if note else ""
+        self.blocks.append(f"<p{cls}>{html.escape(text)}</p>")
+
+    def table(self, rows: list[list[Any]], header: list[str] | None = None) -> None:
+        out = ["<table>"]
+        if header:
+            out.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in header) + "</tr>")
+        for row in rows:
+            out.append("<tr>" + "".join(_td(v) for v in row) + "</tr>")
+        out.append("</table>")
+        self.blocks.append("".join(out))
+
+    def figure(self, fig: Any, caption: str) -> None:
+        import matplotlib.pyplot as plt
+
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        data = base64.b64encode(buf.getvalue()).decode()
+        self.blocks.append(f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
+                           f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+    def render(self) -> str:
+        body = "\n".join(self.blocks)
+        return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+                f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>\n{body}\n</body></html>\n")
+
+    def write(self, path: str | Path) -> Path:
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp = p.with_suffix(p.suffix + ".tmp")
+        tmp.write_text(self.render(), encoding="utf-8")
+        tmp.replace(p)
+        return p
+
+
+def _td(v: Any) -> str:
+    if isinstance(v, float):
+        return f'<td class="num">{v:.4g}</td>'
+    if isinstance(v, int) and not isinstance(v, bool):
+        return f'<td class="num">{v}</td>'
+    return f"<td>{html.escape(str(v))}</td>"
+
+
+def value_with_u(x: float, u: float, unit: str, k: float | None = None) -> str:
+    """'7.10 ± 0.05 µm' with u shown to two significant digits and x rounded to match (GUM 7.2.6)."""
+    import math
+
+    if not (math.isfinite(u) and u > 0):
+        return f"{x:.4g} {unit}"
+    digits = max(0, 1 - int(math.floor(math.log10(u))))
+    s = f"{x:.{digits}f} ± {u:.{digits}f} {unit}"
+    return s + (f" (k = {k:g})" if k else " (standard uncertainty)")
