@@ -1,0 +1,135 @@
+"""Subcommands that need the twin or the analysis (imported lazily by ``benchtwin.cli``).
+
+A command is registered only if the module that does its work is importable, so the CLI never
+offers a capability that does not exist yet.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+from pathlib import Path
+from typing import Any
+
+from benchtwin.cli import InputError, command
+
+
+def _have(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def _scenario(path: Path | None):
+    from benchtwin.twin.scenario import ScenarioError, load_scenario
+
+    try:
+        return load_scenario(path)
+    except ScenarioError as exc:
+        raise InputError(str(exc)) from None
+
+
+# ----------------------------------------------------------------------------- simulate
+
+def _simulate_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", type=Path, nargs="?", default=None,
+                   help="scenario file (default: the embedded jia2019 scenario)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
+    p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto",
+                   help="CCD renderer (auto: pyrender when OpenGL is available)")
+
+
+def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.twin.simulate import simulate
+
+    sc = _scenario(ns.scenario)
+    out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend)
+    return {"ok": True, "dataset": str(out), "scenario": sc.name, "seed": sc.seed,
+            "message": f"dataset written: {out}"}
+
+
+# ----------------------------------------------------------------------------- analyze
+
+def _analyze_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dataset", type=Path, help="dataset directory (format v1)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="output directory (results.json, report.html)")
+    p.add_argument("--order", type=int, default=10, help="Fourier order (Jia eqs. 6, 10); default 10")
+    p.add_argument("--model", type=Path, default=None,
+                   help="a model file from close-loop: its effects join the error model")
+
+
+def cmd_analyze(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.analysis.dataset import DatasetError
+    from benchtwin.analysis.pipeline import analyze
+
+    try:
+        res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
+                      progress=not (ns.quiet or ns.json), close_loop=False)
+    except DatasetError as exc:
+        raise InputError(str(exc)) from None
+    return {"ok": True, **res["paths"], "message": f"report: {res['paths']['report']}"}
+
+
+def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.analysis.dataset import DatasetError
+    from benchtwin.analysis.pipeline import analyze
+
+    try:
+        res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
+                      progress=not (ns.quiet or ns.json), close_loop=True)
+    except DatasetError as exc:
+        raise InputError(str(exc)) from None
+    names = [e["name"] for e in res["results"].get("identified_effects", [])]
+    return {"ok": True, **res["paths"], "identified_effects": names,
+            "message": f"identified: {', '.join(names) or 'none'}; report: {res['paths']['report']}"}
+
+
+# ----------------------------------------------------------------------------- run
+
+def _run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", type=Path, nargs="?", default=None,
+                   help="scenario file (default: the embedded jia2019 scenario)")
+    p.add_argument("-o", "--out", type=Path, default=None,
+                   help="output directory (default: out/<scenario name>); the dataset goes to OUT/dataset")
+    p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto")
+    p.add_argument("--no-close-loop", action="store_true", help="stop after the Jia/Hsieh analysis")
+
+
+def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.analysis.pipeline import analyze
+    from benchtwin.twin.simulate import simulate
+
+    sc = _scenario(ns.scenario)
+    out = ns.out or Path("out") / sc.name
+    quiet = ns.quiet or ns.json
+    ds = simulate(sc, out / "dataset", progress=not quiet, backend=ns.backend)
+    res = analyze(ds, out, progress=not quiet, close_loop=not ns.no_close_loop)
+    return {"ok": True, "dataset": str(ds), **res["paths"], "message": f"report: {res['paths']['report']}"}
+
+
+if _have("benchtwin.twin.simulate"):
+    command("simulate", "simulate a scenario on the twin and write a dataset (+ truth/)", _simulate_args)(cmd_simulate)
+if _have("benchtwin.analysis.pipeline"):
+    command("analyze", "analyse a dataset: results.json + report.html", _analyze_args)(cmd_analyze)
+    if _have("benchtwin.analysis.tracing"):
+        command("close-loop", "analyse, trace the residual to an effect, add it, report before/after",
+                _analyze_args)(cmd_close_loop)
+if _have("benchtwin.twin.simulate") and _have("benchtwin.analysis.pipeline"):
+    command("run", "simulate -> analyze -> report (default: the embedded jia2019 scenario)", _run_args)(cmd_run)
+if _have("benchtwin.twin.study"):
+    def _study_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument("study", type=Path, help="study file (TOML)")
+        p.add_argument("-o", "--out", type=Path, default=None, help="output directory (default: out/<study name>)")
+        p.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://HOST:PORT (default: local pool)")
+        p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+
+    @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
+    def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:
+        from benchtwin.twin.study import run_study
+
+        out = ns.out or Path("out") / ns.study.stem
+        res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers, progress=not (ns.quiet or ns.json))
+        return {"ok": True, **{k: str(v) for k, v in res.items() if isinstance(v, (str, Path))},
+                "message": res.get("message", f"study written to {out}")}
+
