@@ -1,0 +1,647 @@
+"""Eccentricity of the grating disk from CCD images of the scale edge (Jia 2019, sec. 4.2).
+
+Jia et al., Appl. Sci. 9 (2019) 3415, sec. 4.2.1-4.2.2, eqs. 10-13:
+
+- per image: greyscale → histogram threshold → binary → inverted → connected parts → remove small
+  parts (dust) → middle point of the outer ("right") edge of each line → least-squares circle
+  (centre O_p, radius r_fitting) → ``l = |O_p − R|`` with R the reference point (image centre,
+  (1024, 768) for 2048×1536) → ``d_ref = l − r_fitting`` (px);
+- pixel scale from the grating period (eq. 13): 3 periods counted over m_p = 90 px → 0.667 µm/px;
+- over the sweep (60 images every 6°): ``d_ref(θ) = c0 + Σ (c_i sin iθ + d_i cos iθ)`` (eq. 10,
+  order 10), ``e = sqrt(c1² + d1²)`` (eq. 11), ``θ0 = atan2(c1, d1)`` (eq. 12, all quadrants).
+
+Conventions (docs/conventions.md): image +x points radially outward, pixel (x, y) = (column, row)
+with the origin at the centre of the top-left pixel. For a camera at 180° from the head,
+``d_ref(θ) = const + e·cos(θ − θ0)``. For a camera at azimuth ψ (counter-clockwise from the head)
+the radial unit vector at the camera is at lab polar angle 90° + ψ and the disk centre at
+90° − θ0 + θ, so ``d_ref = const − e·cos(θ − θ0 − ψ) = const + e·cos(θ − (θ0 + ψ − 180°))``: the
+fitted phase is θ0 + (ψ − 180°), and the analysis rotates it back, ``θ0 = atan2(c1, d1) − (ψ − 180°)``.
+
+Choices where the paper is silent (each is a parameter):
+
+- threshold: Otsu on a 256-bin histogram (works for 8/16-bit and float images);
+- polarity ("the value of the binary image is reversed"): the lines are the class that splits into
+  many separate parts; the other class (gaps + glass beyond the edge) is one connected region.
+  Reported as ``"dark"`` (chrome on bright glass, transmitted light) or ``"bright"``;
+- parts whose area is below ``min_area_frac`` (0.3) × the median part area are dust; parts touching
+  the top, bottom or right image border are dropped (their end, or their width, is cut);
+  a part touching the left border (the inner end of the line, outside the view) is kept;
+- sub-pixel edge: the binary edge is only the start. Along each fully covered row of a line the
+  50 % point between the line's level and the glass level is located by the area (zeroth-moment)
+  method, ``x_e = x_a − ½ + Σ f_i`` with ``f_i = (G − I_i)/(G − C)`` the chrome fraction over a
+  window across the edge: exact for a pixel-integrated step and for any symmetric blur, where
+  linear interpolation between the two samples around 50 % is biased by up to ~0.1 px
+  (``edge_method="crossing"`` gives that variant). ``x_e(y)`` is fitted by a straight line over the
+  rows and taken at the line's centre row ``y_m``, the centroid of the chrome fraction across the
+  line just inside its end;
+- circle: algebraic fit (Kasa, on centred and scaled coordinates) as the start, then a geometric
+  Levenberg-Marquardt fit (scipy ``least_squares``); covariance ``s²(JᵀJ)⁻¹`` from the residuals
+  (or a given ``u_px``). With a known radius only the centre is fitted. ``d_ref``'s uncertainty
+  uses the full covariance (l and r are strongly correlated on a short arc; d_ref is not);
+- pixel scale: the paper's count (pixels over three periods, integer, along a column near the edge)
+  and a better one: a linear fit of the positions of the line ends along the edge circle against
+  their index (lines are radial, their spacing grows with radius; measured on the edge circle itself
+  it is the period at the edge radius). If the catalogue period refers to another radius
+  (``period_radius_um``), it is scaled to the edge radius.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from benchtwin.analysis.fourier import FourierFit, amplitude_phase, fit_fourier
+
+__all__ = [
+    "ImageAnalysisError",
+    "LineEdges",
+    "to_grey",
+    "otsu_threshold",
+    "segment_lines",
+    "edge_points",
+    "edge_details",
+    "fit_circle",
+    "d_ref_px",
+    "pixel_scale_um",
+    "eccentricity_from_dref",
+    "eccentricity_monte_carlo",
+    "eccentricity_from_images",
+]
+
+MIN_LINES = 5
+
+
+class ImageAnalysisError(ValueError):
+    """An image the pipeline cannot analyse; the message names the image and what was expected."""
+
+
+def _where(name: str | int | None) -> str:
+    if name is None:
+        return "image"
+    if isinstance(name, (int, np.integer)):
+        return f"image #{int(name)}"
+    return f"image {name!r}"
+
+
+# --------------------------------------------------------------------------- greyscale, threshold
+
+
+def to_grey(image: np.ndarray, name: str | int | None = None) -> tuple[np.ndarray, float]:
+    """Greyscale float image and its full-scale value (255 / 65535 for integer images; for float
+    images 1, 255 or 65535, whichever is the smallest not below the maximum).
+
+    Colour images (H×W×3, BGR as OpenCV reads them, or H×W×4) are converted with the ITU-R 601
+    weights. Raises ImageAnalysisError for anything that is not a 2-D image.
+    """
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        b, g, r = (img[..., i].astype(float) for i in range(3))
+        grey = 0.114 * b + 0.587 * g + 0.299 * r
+    elif img.ndim == 2:
+        grey = img.astype(float)
+    else:
+        raise ImageAnalysisError(f"{_where(name)}: expected a 2-D greyscale or H×W×3 colour image, got shape {img.shape}")
+    if grey.shape[0] < 20 or grey.shape[1] < 20:
+        raise ImageAnalysisError(f"{_where(name)}: image {grey.shape[1]}×{grey.shape[0]} px is too small (need ≥ 20×20)")
+    if np.issubdtype(img.dtype, np.integer):
+        full = float(np.iinfo(img.dtype).max)
+    else:
+        if not np.all(np.isfinite(grey)):
+            raise ImageAnalysisError(f"{_where(name)}: non-finite pixel values")
+        mx = float(grey.max())
+        # float images: assume the nearest usual full scale (1, 8-bit or 16-bit range)
+        full = 1.0 if mx <= 1.0 else 255.0 if mx <= 255.0 else 65535.0 if mx <= 65535.0 else mx
+    return grey, full
+
+
+def check_frame(grey: np.ndarray, full_scale: float, name: str | int | None = None,
+                min_contrast: float = 0.08, max_saturated: float = 0.5) -> None:
+    """Blank / saturated frame check. Raises ImageAnalysisError when the 1-99 % percentile spread is
+    below ``min_contrast`` × full scale (uniform frame: no grating), or when more than
+    ``max_saturated`` of the pixels sit at full scale (or at zero: a black frame)."""
+    n = grey.size
+    sat = np.count_nonzero(grey >= full_scale - 0.5) / n
+    black = np.count_nonzero(grey <= 0.5) / n if full_scale > 1.5 else 0.0
+    if sat > max_saturated:
+        raise ImageAnalysisError(f"{_where(name)}: saturated frame ({sat:.0%} of the pixels at full scale "
+                                 f"{full_scale:g}); expected grating lines on glass below saturation")
+    if black > max_saturated:
+        raise ImageAnalysisError(f"{_where(name)}: black frame ({black:.0%} of the pixels at 0); "
+                                 "expected an exposed image of the grating")
+    p1, p99 = np.percentile(grey, [1, 99])
+    if p99 - p1 < min_contrast * full_scale:
+        raise ImageAnalysisError(f"{_where(name)}: blank frame (grey levels {p1:.1f}…{p99:.1f}, spread < "
+                                 f"{min_contrast:.0%} of full scale {full_scale:g}); expected grating lines")
+
+
+def otsu_threshold(grey: np.ndarray, bins: int = 256) -> float:
+    """Otsu's threshold (maximum between-class variance) on a ``bins``-bin histogram."""
+    lo, hi = float(grey.min()), float(grey.max())
+    if hi <= lo:
+        return lo
+    hist, edges = np.histogram(grey, bins=bins, range=(lo, hi))
+    p = hist.astype(float) / hist.sum()
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    w0 = np.cumsum(p)
+    m = np.cumsum(p * centres)
+    mt = m[-1]
+    w1 = 1.0 - w0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        between = (mt * w0 - m) ** 2 / (w0 * w1)
+    between[~np.isfinite(between)] = -1.0
+    k = int(np.argmax(between))
+    return float(edges[k + 1])
+
+
+# --------------------------------------------------------------------------- segmentation
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    labels: np.ndarray       # int32 label image of the chosen polarity
+    stats: np.ndarray        # cv2 stats (x, y, w, h, area) per label
+    lines: np.ndarray        # labels kept as graduation lines
+    polarity: str            # "dark" or "bright"
+    threshold: float
+    removed_dust: int
+    removed_border: int
+
+
+def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac: float = 0.3,
+                  min_area_px: int = 20) -> Segmentation:
+    """Threshold (Otsu), choose the polarity, label parts, drop dust and border-cut parts."""
+    import cv2
+
+    t = otsu_threshold(grey)
+    best = None
+    for pol, binary in (("dark", grey < t), ("bright", grey > t)):
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(binary.astype(np.uint8), connectivity=8)
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        big = int(np.count_nonzero(areas >= min_area_px))
+        if best is None or big > best[0]:
+            best = (big, pol, labels, stats)
+    assert best is not None
+    _, pol, labels, stats = best
+    H, W = grey.shape
+    ids = np.arange(1, stats.shape[0])
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    cand = ids[areas >= min_area_px]
+    if cand.size == 0:
+        raise ImageAnalysisError(f"{_where(name)}: no grating found (no connected parts ≥ {min_area_px} px after "
+                                 f"thresholding at {t:.1f}); expected ≥ {MIN_LINES} graduation lines")
+    med = float(np.median(stats[cand, cv2.CC_STAT_AREA]))
+    keep = cand[stats[cand, cv2.CC_STAT_AREA] >= min_area_frac * med]
+    n_dust = int(ids.size - keep.size)
+    x, y, w, h = (stats[keep, i] for i in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+    border = (y <= 0) | (y + h >= H) | (x + w >= W)
+    lines = keep[~border]
+    return Segmentation(labels, stats, lines, pol, t, n_dust, int(np.count_nonzero(border)))
+
+
+# --------------------------------------------------------------------------- edge points
+
+
+@dataclass(frozen=True)
+class LineEdges:
+    """Per-line results of :func:`edge_details` (one row per kept line, sorted by y).
+
+    ``points_px``: (N, 2) middle points of the outer edge (x, y); ``centre_col_px``: the column
+    (mean) where the line centre ``points_px[:, 1]`` was measured; ``rows_used``: rows per line;
+    ``edge_scatter_px``: RMS of the row edges about their straight-line fit (per line).
+    """
+
+    points_px: np.ndarray
+    centre_col_px: np.ndarray
+    rows_used: np.ndarray
+    edge_scatter_px: np.ndarray
+    polarity: str
+    threshold: float
+    glass_level: np.ndarray
+    line_level: np.ndarray
+    removed_dust: int
+    removed_border: int
+
+
+def edge_details(image: np.ndarray, name: str | int | None = None, half_window_px: int = 6,
+                 edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES) -> LineEdges:
+    """Sub-pixel middle points of the outer edge of each graduation line, with details.
+
+    See the module docstring for the method. Raises ImageAnalysisError for blank, saturated or black
+    frames, frames without a grating, and frames with fewer than ``min_lines`` usable line ends.
+    """
+    if edge_method not in ("area", "crossing"):
+        raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
+    grey, full = to_grey(image, name)
+    check_frame(grey, full, name)
+    seg = segment_lines(grey, name, min_area_frac)
+    H, W = grey.shape
+    hw = int(half_window_px)
+    lev = 6  # pixels used for each level, beyond the edge window
+    pts, cols, nrows, scat, glv, lnv = [], [], [], [], [], []
+    for lab in seg.lines:
+        x0, y0, w, h = (int(seg.stats[lab, i]) for i in range(4))
+        # end region of the part: its last 2·hw + lev + 4 columns (lines are tilted by up to a few
+        # degrees, so rows further left belong to the line's sides, not to its end)
+        xr_ = x0 + w - 1
+        xa_ = max(x0, xr_ - (2 * hw + lev + 4))
+        sub = seg.labels[y0:y0 + h, xa_:xr_ + 1] == lab
+        rows = np.flatnonzero(sub.any(axis=1))
+        if rows.size < 3:
+            continue
+        xb = xa_ + (sub.shape[1] - 1 - np.argmax(sub[rows, ::-1], axis=1))  # last line pixel per row
+        end_rows = xb >= xr_ - 3
+        rows, xb = rows[end_rows], xb[end_rows]
+        ys = y0 + rows
+        y_lo, y_hi = int(ys.min()), int(ys.max())
+        ok = (xb - hw - lev >= 0) & (xb + hw + lev < W)
+        if np.count_nonzero(ok) < 3:
+            continue
+        ys, xb = ys[ok], xb[ok]
+        g_idx = xb[:, None] + hw + 1 + np.arange(lev)[None, :]
+        c_idx = xb[:, None] - hw - 1 - np.arange(lev)[None, :]
+        G_rows = np.median(grey[ys[:, None], g_idx], axis=1)
+        C_rows = np.median(grey[ys[:, None], c_idx], axis=1)
+        G = float(np.median(G_rows))
+        contrast = G - C_rows
+        cmax = np.max(np.abs(contrast))
+        if cmax <= 0:
+            continue
+        # interior rows (fully covered by the line): near-full contrast, and never the first or last
+        # row of the end (a line side crosses those rows)
+        inner = (ys > y_lo) & (ys < y_hi)
+        full_rows = inner & (np.abs(contrast) >= 0.95 * cmax)
+        if np.count_nonzero(full_rows) < 3:
+            full_rows = inner & (np.abs(contrast) >= 0.85 * cmax)
+        if np.count_nonzero(full_rows) < 2:
+            continue
+        ys_f, xb_f, C_f = ys[full_rows], xb[full_rows], C_rows[full_rows]
+        win = xb_f[:, None] + np.arange(-hw, hw + 1)[None, :]
+        prof = grey[ys_f[:, None], win]
+        f = (G - prof) / (G - C_f)[:, None]  # chrome fraction, 1 on the line, 0 on glass
+        if edge_method == "area":
+            xe = (xb_f - hw - 0.5) + f.sum(axis=1)
+        else:
+            xe = np.empty(ys_f.size)
+            for k in range(ys_f.size):
+                fk = f[k]
+                below = np.flatnonzero((fk[:-1] >= 0.5) & (fk[1:] < 0.5))
+                if below.size == 0:
+                    xe[k] = np.nan
+                    continue
+                i = below[-1]
+                xe[k] = win[k, i] + (fk[i] - 0.5) / (fk[i] - fk[i + 1])
+            good = np.isfinite(xe)
+            ys_f, xe, C_f = ys_f[good], xe[good], C_f[good]
+            if ys_f.size < 2:
+                continue
+        # centre row: centroid of the chrome fraction across the line, in columns just inside the end
+        C = float(np.median(C_f))
+        xe_med = float(np.median(xe))
+        cs = np.arange(int(round(xe_med)) - hw - lev, int(round(xe_med)) - hw)
+        cs = cs[(cs >= 0) & (cs < W)]
+        ya, yb = max(y_lo - 4, 0), min(y_hi + 5, H)
+        yy = np.arange(ya, yb)
+        fc = (G - grey[ya:yb][:, cs]) / (G - C)
+        wsum = fc.sum(axis=0)
+        if np.any(wsum <= 0):
+            continue
+        y_cent = float(np.mean((fc * yy[:, None]).sum(axis=0) / wsum))
+        # straight line through the row edges, taken at the centre row
+        if ys_f.size >= 2 and np.ptp(ys_f) > 0:
+            pf = np.polyfit(ys_f.astype(float), xe, 1)
+            x_mid = float(np.polyval(pf, y_cent))
+            sc = float(np.sqrt(np.mean((xe - np.polyval(pf, ys_f)) ** 2)))
+        else:
+            x_mid, sc = float(np.mean(xe)), float("nan")
+        pts.append((x_mid, y_cent))
+        cols.append(float(np.mean(cs)))
+        nrows.append(int(ys_f.size))
+        scat.append(sc)
+        glv.append(G)
+        lnv.append(C)
+    if len(pts) < min_lines:
+        raise ImageAnalysisError(
+            f"{_where(name)}: too few edge points: {len(pts)} usable line ends (need ≥ {min_lines}); "
+            f"{seg.lines.size} parts kept as lines, {seg.removed_dust} small parts (dust) and "
+            f"{seg.removed_border} border-cut parts removed, threshold {seg.threshold:.1f}, "
+            f"{seg.polarity} lines; expected radial graduation lines ending inside the field of view")
+    order = np.argsort([p[1] for p in pts])
+    a = lambda v: np.asarray(v)[order]  # noqa: E731
+    return LineEdges(np.asarray(pts, dtype=float)[order], a(cols), a(nrows), a(scat), seg.polarity,
+                     seg.threshold, a(glv), a(lnv), seg.removed_dust, seg.removed_border)
+
+
+def edge_points(image: np.ndarray, name: str | int | None = None, **kw) -> np.ndarray:
+    """(N, 2) sub-pixel middle points (x, y) in px of the outer edge of each graduation line."""
+    return edge_details(image, name, **kw).points_px
+
+
+# --------------------------------------------------------------------------- circle fit
+
+
+def _kasa(points: np.ndarray) -> tuple[float, float, float]:
+    """Algebraic circle fit (Kasa) on centred, scaled coordinates."""
+    m = points.mean(axis=0)
+    q = points - m
+    s = float(np.sqrt(np.mean(np.sum(q**2, axis=1)))) or 1.0
+    q = q / s
+    A = np.column_stack([q[:, 0], q[:, 1], np.ones(len(q))])
+    bvec = np.sum(q**2, axis=1)
+    sol, *_ = np.linalg.lstsq(A, bvec, rcond=None)
+    a, b, c = sol
+    cx, cy = a / 2, b / 2
+    r = math.sqrt(max(c + cx**2 + cy**2, 0.0))
+    return cx * s + m[0], cy * s + m[1], r * s
+
+
+def fit_circle(points: np.ndarray, radius: float | None = None, u_px: float | None = None,
+               start: tuple[float, float] | None = None) -> tuple[float, float, float, np.ndarray]:
+    """Least-squares circle through ``points`` (N×2, px): returns (cx, cy, r, cov).
+
+    Kasa's algebraic fit gives the start (or ``start`` = (cx, cy) for the centre), then a geometric
+    Levenberg-Marquardt fit minimises Σ(|p_i − c| − r)². With ``radius`` given, only the centre is
+    fitted and ``r = radius``; ``cov`` is 3×3 in (cx, cy, r) with zero row/column for r in that
+    case. ``cov = s²(JᵀJ)⁻¹`` with ``s² = RSS/(N − p)``, or ``u_px²(JᵀJ)⁻¹`` if ``u_px`` is given.
+    """
+    from scipy.optimize import least_squares
+
+    P = np.asarray(points, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 2:
+        raise ValueError(f"points must be N×2, got shape {P.shape}")
+    npar = 2 if radius is not None else 3
+    if P.shape[0] < npar + 1:
+        raise ValueError(f"need at least {npar + 1} points for a circle fit, got {P.shape[0]}")
+    cx0, cy0, r0 = _kasa(P)
+    if start is not None:
+        cx0, cy0 = start
+    if radius is not None:
+        # start: move the algebraic centre along its direction to the known radius
+        m = P.mean(axis=0)
+        d = np.array([cx0, cy0]) - m
+        nd = float(np.hypot(*d)) or 1.0
+        c = m + d / nd * radius
+        cx0, cy0 = float(c[0]), float(c[1])
+    # work relative to the data mean for conditioning
+    m = P.mean(axis=0)
+    Q = P - m
+
+    if radius is None:
+        def res(p):
+            return np.hypot(Q[:, 0] - p[0], Q[:, 1] - p[1]) - p[2]
+
+        def jac(p):
+            d = np.hypot(Q[:, 0] - p[0], Q[:, 1] - p[1])
+            return np.column_stack([-(Q[:, 0] - p[0]) / d, -(Q[:, 1] - p[1]) / d, -np.ones(len(Q))])
+
+        x0 = np.array([cx0 - m[0], cy0 - m[1], r0])
+    else:
+        R = float(radius)
+
+        def res(p):
+            return np.hypot(Q[:, 0] - p[0], Q[:, 1] - p[1]) - R
+
+        def jac(p):
+            d = np.hypot(Q[:, 0] - p[0], Q[:, 1] - p[1])
+            return np.column_stack([-(Q[:, 0] - p[0]) / d, -(Q[:, 1] - p[1]) / d])
+
+        x0 = np.array([cx0 - m[0], cy0 - m[1]])
+    sol = least_squares(res, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
+    p = sol.x
+    J = jac(p)
+    rr = res(p)
+    dof = P.shape[0] - npar
+    s2 = (u_px**2) if u_px is not None else (float(rr @ rr) / dof if dof > 0 else float("nan"))
+    try:
+        cov_p = np.linalg.inv(J.T @ J) * s2
+    except np.linalg.LinAlgError:
+        cov_p = np.full((npar, npar), np.nan)
+    cov = np.zeros((3, 3))
+    cov[:npar, :npar] = cov_p
+    r = float(p[2]) if radius is None else float(radius)
+    return float(p[0] + m[0]), float(p[1] + m[1]), r, cov
+
+
+# --------------------------------------------------------------------------- d_ref and scale
+
+
+def _dref_from_circle(cx: float, cy: float, r: float, cov: np.ndarray, reference_px: Sequence[float]) -> tuple[float, float, float]:
+    xr, yr = float(reference_px[0]), float(reference_px[1])
+    l = math.hypot(cx - xr, cy - yr)
+    g = np.array([(cx - xr) / l, (cy - yr) / l, -1.0])
+    var = float(g @ cov @ g)
+    return l - r, math.sqrt(var) if var >= 0 else float("nan"), l
+
+
+def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
+             name: str | int | None = None, u_px: float | None = None, **edge_kw) -> dict:
+    """Jia's d_ref = l − r_fitting (px) of one image: edge points → circle → distance to R.
+
+    ``reference_px``: the reference point R (default: the image centre (W/2, H/2), (1024, 768) for
+    2048×1536 as in the paper). ``radius_px``: known edge radius (circle fit with the radius fixed);
+    otherwise the radius is fitted. After a first fit the line-centre points are moved along their
+    radial line (through the fitted centre) from the column where the centre was measured to the
+    edge, and the circle is refitted.
+
+    Keys: d_ref_px, u_d_ref_px, l_px, centre_px (cx, cy), radius_px, cov_circle (cx, cy, r),
+    points_px, residual_rms_px, n_lines, polarity, edges (LineEdges).
+    """
+    ed = edge_details(image, name, **edge_kw)
+    H, W = np.asarray(image).shape[:2]
+    ref = (W / 2.0, H / 2.0) if reference_px is None else (float(reference_px[0]), float(reference_px[1]))
+    P = ed.points_px.copy()
+    try:
+        cx, cy, r, cov = fit_circle(P, radius_px, u_px)
+        # y of the line centre was measured at column centre_col_px; follow the radial line to x_mid
+        t = (P[:, 0] - cx) / (ed.centre_col_px - cx)
+        P[:, 1] = cy + (P[:, 1] - cy) * t
+        cx, cy, r, cov = fit_circle(P, radius_px, u_px, start=(cx, cy))
+    except ValueError as exc:
+        raise ImageAnalysisError(f"{_where(name)}: circle fit failed: {exc}") from None
+    if cx > ref[0]:
+        raise ImageAnalysisError(f"{_where(name)}: fitted disk centre ({cx:.1f}, {cy:.1f}) px lies on the outward "
+                                 "side (+x) of the reference point; expected the disk centre at −x (image +x is "
+                                 "radially outward), check the image orientation")
+    d, ud, l = _dref_from_circle(cx, cy, r, cov, ref)
+    resid = np.hypot(P[:, 0] - cx, P[:, 1] - cy) - r
+    return {
+        "d_ref_px": d, "u_d_ref_px": ud, "l_px": l, "centre_px": (cx, cy), "radius_px": r, "cov_circle": cov,
+        "points_px": P, "residual_rms_px": float(np.sqrt(np.mean(resid**2))), "n_lines": int(P.shape[0]),
+        "polarity": ed.polarity, "reference_px": ref, "edges": ed,
+    }
+
+
+def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None = None,
+                   period_radius_um: float | None = None, edge_radius_um: float | None = None,
+                   periods: int = 3, **edge_kw) -> dict:
+    """Object-side pixel size (µm/px) from the grating period (Jia eq. 13 and a better estimate).
+
+    - ``um_per_px_count``: the paper's way: the pixels over ``periods`` (3) periods, counted as an
+      integer along a column near the edge (``m_p_px``, Jia: 90 px → 0.667 µm/px); the median over
+      all runs of 3 periods in the column;
+    - ``um_per_px`` (recommended): the middle points of the line ends lie on the edge circle, so the
+      distance between neighbours along the edge is the period at the edge radius, exactly (the line
+      centres are measured a few px inside the end and moved along their radial line to the edge,
+      see :func:`d_ref_px`). Cumulative chord length (= arc length to 1e-8) fitted linearly against
+      the line index (missing lines allowed) gives the pitch in px, independent of the fitted
+      centre and radius (which are poorly determined on a short arc).
+      ``u_um_per_px``: its standard uncertainty from that linear fit.
+
+    ``period_um`` is the period at the edge radius, unless ``period_radius_um`` says at which radius
+    it is specified; then ``edge_radius_um`` (the scale edge radius) is needed to refer it to the edge.
+    """
+    if not period_um > 0:
+        raise ValueError(f"period_um must be > 0, got {period_um}")
+    p_edge = float(period_um)
+    if period_radius_um is not None:
+        if edge_radius_um is None:
+            raise ValueError("period_radius_um given: edge_radius_um is needed to refer the period to the edge")
+        p_edge = period_um * edge_radius_um / period_radius_um
+    res = d_ref_px(image, None, name=name, **edge_kw)
+    ed: LineEdges = res["edges"]
+    r = res["radius_px"]
+    P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
+    chords = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
+    step = float(np.median(chords))
+    gaps = np.round(chords / step)
+    if np.any(gaps < 1) or np.any(np.abs(chords / gaps - step) > 0.25 * step):
+        raise ImageAnalysisError(f"{_where(name)}: line spacing is irregular (chords {np.round(chords, 1)} px)")
+    idx = np.concatenate([[0.0], np.cumsum(gaps)])
+    arc = np.concatenate([[0.0], np.cumsum(chords)])  # chord = arc to (p/R)²/24 ≈ 1e-8
+    A = np.column_stack([idx, np.ones_like(idx)])
+    sol, *_ = np.linalg.lstsq(A, arc, rcond=None)
+    resid = arc - A @ sol
+    dof = idx.size - 2
+    if dof > 0:
+        s2 = float(resid @ resid) / dof
+        u_slope = math.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0])
+    else:
+        u_slope = float("nan")
+    pitch_px = float(sol[0])
+    um_per_px = p_edge / pitch_px
+    u_um = um_per_px * u_slope / pitch_px
+    # the paper's count along one column, a little inside the line ends
+    grey, _ = to_grey(image, name)
+    col = int(round(float(np.median(ed.points_px[:, 0])) - 10))
+    col = min(max(col, 0), grey.shape[1] - 1)
+    prof = grey[:, col]
+    is_line = prof < ed.threshold if ed.polarity == "dark" else prof > ed.threshold
+    starts = np.flatnonzero(~is_line[:-1] & is_line[1:]) + 1
+    if starts.size > periods:
+        runs = starts[periods:] - starts[:-periods]
+        m_p = int(np.median(runs))
+        um_count = periods * p_edge / m_p
+    else:
+        m_p, um_count = 0, float("nan")
+    return {
+        "um_per_px": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
+        "edge_radius_px": r, "period_at_edge_um": p_edge, "m_p_px": m_p, "um_per_px_count": um_count,
+        "count_column_px": col, "n_lines": int(idx.size),
+    }
+
+
+# --------------------------------------------------------------------------- sweep → e, θ0
+
+
+def eccentricity_from_dref(theta_deg: np.ndarray, dref_um: np.ndarray, camera_azimuth_deg: float = 180.0,
+                           order: int = 10, u_dref_um: float | np.ndarray | None = None) -> dict:
+    """e (eq. 11) and θ0 (eq. 12) from d_ref(θ) (eq. 10), with GUM uncertainties.
+
+    The Fourier covariance comes from the fit residuals (or ``u_dref_um`` per point). θ0 is rotated
+    by the camera azimuth: ``θ0 = atan2(c1, d1) − (ψ − 180°)`` (module docstring), in [0°, 360°).
+
+    Keys: e_um, e_u_um, theta0_deg, theta0_u_deg, cov_e_theta0 (µm·deg), c0_um, c1_um, d1_um,
+    coefficients (FourierFit of d_ref, µm), harmonics_um (amplitudes of harmonics 1…order),
+    residual_rms_um, phase_fit_deg (atan2(c1, d1) before the camera rotation), camera_azimuth_deg.
+    """
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    d = np.asarray(dref_um, dtype=float).ravel()
+    if th.size != d.size:
+        raise ValueError(f"theta_deg has {th.size} values, dref_um {d.size}")
+    fit = fit_fourier(th, d, order, u_dref_um)
+    ap = amplitude_phase(fit, 1)
+    phase_fit = ap["phase_deg"]
+    theta0 = (phase_fit - (camera_azimuth_deg - 180.0)) % 360.0
+    harm = np.hypot(fit.a, fit.b)
+    return {
+        "e_um": ap["amplitude"], "e_u_um": ap["u_amplitude"],
+        "theta0_deg": theta0, "theta0_u_deg": ap["u_phase_deg"],
+        "cov_e_theta0": float(math.degrees(ap["cov_amp_phase"][0, 1])),
+        "c0_um": fit.a0, "c1_um": ap["a"], "d1_um": ap["b"],
+        "coefficients": fit, "harmonics_um": harm,
+        "residual_rms_um": float(np.sqrt(np.mean(fit.residual**2))),
+        "phase_fit_deg": phase_fit, "camera_azimuth_deg": float(camera_azimuth_deg),
+        "phase_defined": ap["phase_defined"],
+    }
+
+
+def eccentricity_monte_carlo(theta_deg: np.ndarray, dref_um: np.ndarray, u_dref_um: float | np.ndarray | None = None,
+                             n: int = 2000, seed: int = 0, camera_azimuth_deg: float = 180.0, order: int = 10) -> dict:
+    """Monte Carlo check of the GUM uncertainties of e and θ0 (GUM Supplement 1 style).
+
+    The fitted series is taken as the truth; ``n`` data sets = series + Gaussian noise of standard
+    deviation ``u_dref_um`` (default: the residual σ of the fit) are refitted. Returns e_mean_um,
+    e_std_um, theta0_mean_deg (circular mean), theta0_std_deg (circular), e_u_gum_um,
+    theta0_u_gum_deg, samples_e_um, samples_theta0_deg.
+    """
+    base = eccentricity_from_dref(theta_deg, dref_um, camera_azimuth_deg, order, u_dref_um)
+    fit: FourierFit = base["coefficients"]
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    sigma = fit.sigma if u_dref_um is None else np.broadcast_to(np.asarray(u_dref_um, dtype=float), th.shape)
+    rng = np.random.default_rng(seed)
+    from benchtwin.analysis.fourier import design_matrix
+
+    A = design_matrix(th, order)
+    y0 = A @ fit.params
+    Y = y0[None, :] + rng.normal(size=(n, th.size)) * sigma
+    P, *_ = np.linalg.lstsq(A, Y.T, rcond=None)
+    c1, d1 = P[1], P[2]
+    e = np.hypot(c1, d1)
+    ph = np.arctan2(c1, d1) - math.radians(camera_azimuth_deg - 180.0)
+    mc = np.angle(np.mean(np.exp(1j * ph)))
+    dev = np.angle(np.exp(1j * (ph - mc)))
+    return {
+        "e_mean_um": float(e.mean()), "e_std_um": float(e.std(ddof=1)),
+        "theta0_mean_deg": math.degrees(mc) % 360.0, "theta0_std_deg": float(np.degrees(dev.std(ddof=1))),
+        "e_u_gum_um": base["e_u_um"], "theta0_u_gum_deg": base["theta0_u_deg"],
+        "samples_e_um": e, "samples_theta0_deg": np.degrees(ph) % 360.0,
+    }
+
+
+def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], period_um: float | None = None,
+                             um_per_px: float | None = None, reference_px: Sequence[float] | None = None,
+                             camera_azimuth_deg: float = 180.0, order: int = 10, radius_px: float | None = None,
+                             names: Sequence[str] | None = None, **edge_kw) -> dict:
+    """The whole sweep (sec. 4.2): d_ref per image, scale, e and θ0. Pure: images are arrays.
+
+    The scale is ``um_per_px`` if given, else the median of :func:`pixel_scale_um` over the images
+    (needs ``period_um``). Errors name the image (``names[k]`` or its index).
+
+    Keys: as :func:`eccentricity_from_dref`, plus theta_deg, dref_px, u_dref_px, dref_um, um_per_px,
+    um_per_px_count, per_image (list of d_ref_px dicts without the edge details).
+    """
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    if len(images) != th.size:
+        raise ValueError(f"{len(images)} images but {th.size} angles")
+    per, dpx, upx, scales, counts = [], [], [], [], []
+    for k, img in enumerate(images):
+        nm = names[k] if names is not None else k
+        r = d_ref_px(img, reference_px, radius_px, name=nm, **edge_kw)
+        dpx.append(r["d_ref_px"])
+        upx.append(r["u_d_ref_px"])
+        per.append({k2: v for k2, v in r.items() if k2 != "edges"})
+        if um_per_px is None:
+            if period_um is None:
+                raise ValueError("give um_per_px or period_um")
+            s = pixel_scale_um(img, period_um, name=nm, **edge_kw)
+            scales.append(s["um_per_px"])
+            counts.append(s["um_per_px_count"])
+    scale = float(um_per_px) if um_per_px is not None else float(np.median(scales))
+    dref_um = np.asarray(dpx) * scale
+    out = eccentricity_from_dref(th, dref_um, camera_azimuth_deg, order)
+    out.update(theta_deg=th, dref_px=np.asarray(dpx), u_dref_px=np.asarray(upx), dref_um=dref_um,
+               um_per_px=scale, um_per_px_count=float(np.nanmedian(counts)) if counts else float("nan"),
+               per_image=per)
+    return out

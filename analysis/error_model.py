@@ -1,0 +1,297 @@
+"""Angle measurement error model of a rotary encoder (Jia 2019, eq. 5) and its comparison with a
+measured encoder error.
+
+Jia et al., Appl. Sci. 9 (2019) 3415, eq. 5:
+
+    Δθ(θ) = [ e·sin(θ − θ0) + ∫_0^θ δY(θ') dθ' ] / r
+
+with e, θ0 the disk eccentricity and its phase (eqs. 11-12, :mod:`benchtwin.analysis.eccentricity`),
+δY the radial error motion of the disk along the reading head (eq. 9,
+:mod:`benchtwin.analysis.radial_motion`) and r the optical radius. Sign: Δθ is "reading − true"
+like the encoder error α of docs/conventions.md. Results in arcsec.
+
+The model is a sum of named terms (:class:`ErrorModel`), so that further effects can be added as
+terms of their own. Each term may carry a standard-uncertainty function; terms flagged
+``inverse_r`` scale with 1/r and share the uncertainty of r (a correlated contribution, added
+linearly over those terms before squaring).
+
+Integration of δY (the paper is silent on the numerics): the samples are taken as one period of a
+periodic function; the integral is that of the piecewise-linear interpolant (trapezoid rule), exact
+between the grid points (piecewise quadratic). ∫δY over a full turn is 2π·mean(δY); a series without
+0th harmonic (eq. 7) has zero mean, so the integral is periodic. On a grid where the trapezoid mean
+is not exactly zero (non-uniform θ, or δY not from eq. 7) the mean is removed first by default and
+reported (``radial_motion_term(...).removed_mean_um``), otherwise Δθ would not be periodic.
+
+Comparison with a measured α(θ) (e.g. polygon + autocollimator, sec. 4.3, fig. 16): α is known only
+up to a constant (polygon set-up / closure), so the mean of both curves is removed before
+comparing; the residual is measured − model. Jia: residual within ±6″, 9 % of the angle error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from benchtwin.units import ARCSEC
+
+__all__ = [
+    "ErrorModel",
+    "Term",
+    "eccentricity_term",
+    "radial_motion_term",
+    "radial_motion_term_fourier",
+    "periodic_integral",
+    "jia_error_model",
+    "compare_with_measured",
+]
+
+TermFn = Callable[[np.ndarray], np.ndarray]  # θ [rad] → arcsec
+
+
+@dataclass
+class Term:
+    """One named contribution: ``fn(θ_rad) → arcsec``; ``u_fn(θ_rad) → arcsec`` (standard
+    uncertainty, independent of the other terms) or None; ``inverse_r``: the term is ∝ 1/r."""
+
+    fn: TermFn
+    u_fn: TermFn | None = None
+    inverse_r: bool = False
+    info: dict = field(default_factory=dict)
+
+    def __call__(self, theta_rad: np.ndarray) -> np.ndarray:
+        return self.fn(theta_rad)
+
+
+class ErrorModel:
+    """Δθ(θ) as a sum of named terms (Jia eq. 5 and whatever is added).
+
+    ``terms``: dict name → :class:`Term` (a bare callable θ_rad → arcsec is accepted by
+    :meth:`add_term`). ``r_um``, ``u_r_um``: optical radius and its uncertainty.
+    """
+
+    def __init__(self, r_um: float, u_r_um: float = 0.0, terms: dict[str, Term | TermFn] | None = None):
+        if not (r_um > 0):
+            raise ValueError(f"optical radius must be > 0, got {r_um} µm")
+        self.r_um = float(r_um)
+        self.u_r_um = float(u_r_um)
+        self.terms: dict[str, Term] = {}
+        for k, v in (terms or {}).items():
+            self.add_term(k, v)
+
+    def add_term(self, name: str, fn: Term | TermFn, u_fn: TermFn | None = None, inverse_r: bool = False) -> None:
+        """Add (or replace) a named term; ``fn(θ_rad) → arcsec``."""
+        if not isinstance(fn, Term):
+            fn = Term(fn, u_fn, inverse_r)
+        self.terms[name] = fn
+
+    def predict_terms(self, theta_deg: np.ndarray) -> dict[str, np.ndarray]:
+        th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+        return {k: np.asarray(t(th), dtype=float) * np.ones_like(th) for k, t in self.terms.items()}
+
+    def predict(self, theta_deg: np.ndarray, terms: list[str] | None = None) -> np.ndarray:
+        """Δθ in arcsec at the encoder angles ``theta_deg`` (sum of all or the listed terms)."""
+        parts = self.predict_terms(theta_deg)
+        names = list(parts) if terms is None else terms
+        missing = [n for n in names if n not in parts]
+        if missing:
+            raise KeyError(f"unknown terms {missing}; have {list(parts)}")
+        return sum((parts[n] for n in names), np.zeros(np.shape(theta_deg)))
+
+    def uncertainty(self, theta_deg: np.ndarray) -> np.ndarray:
+        """Standard uncertainty u(Δθ) in arcsec: per-term u in quadrature, plus u(r) acting on all
+        ``inverse_r`` terms together (∂Δθ/∂r = −Δθ_{1/r}/r)."""
+        th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+        var = np.zeros(th.shape)
+        inv = np.zeros(th.shape)
+        for t in self.terms.values():
+            if t.u_fn is not None:
+                var = var + np.asarray(t.u_fn(th), dtype=float) ** 2
+            if t.inverse_r:
+                inv = inv + np.asarray(t.fn(th), dtype=float)
+        var = var + (inv * self.u_r_um / self.r_um) ** 2
+        return np.sqrt(var)
+
+    def __repr__(self) -> str:
+        return f"ErrorModel(r_um={self.r_um}, terms={list(self.terms)})"
+
+
+def eccentricity_term(e_um: float, theta0_deg: float, r_um: float, u_e_um: float = 0.0,
+                      u_theta0_deg: float = 0.0, cov_e_theta0: float = 0.0) -> Term:
+    """Jia eq. 3: (e/r)·sin(θ − θ0) in arcsec. ``cov_e_theta0`` in µm·deg (from the Fourier fit)."""
+    e, th0, r = float(e_um), math.radians(theta0_deg), float(r_um)
+    ut0 = math.radians(u_theta0_deg)
+    c = math.radians(cov_e_theta0)
+
+    def fn(theta_rad: np.ndarray) -> np.ndarray:
+        return e / r * np.sin(theta_rad - th0) / ARCSEC
+
+    def u_fn(theta_rad: np.ndarray) -> np.ndarray:
+        de = np.sin(theta_rad - th0) / r
+        dt = -e / r * np.cos(theta_rad - th0)
+        var = (de * u_e_um) ** 2 + (dt * ut0) ** 2 + 2 * de * dt * c
+        return np.sqrt(np.clip(var, 0, None)) / ARCSEC
+
+    return Term(fn, u_fn, inverse_r=True, info={"e_um": e, "theta0_deg": theta0_deg, "u_e_um": u_e_um,
+                                                 "u_theta0_deg": u_theta0_deg})
+
+
+def periodic_integral(theta_deg: np.ndarray, y: np.ndarray, remove_mean: bool = True):
+    """Antiderivative Y(θ) = ∫_0^θ y dθ' [y·rad] of periodic samples, as a callable of θ in degrees.
+
+    Trapezoid rule on the periodic grid (the last interval wraps from the largest θ to the smallest
+    + 360°); between grid points the exact integral of the linear interpolant. With ``remove_mean``
+    the trapezoid mean ȳ = ∫y/2π is subtracted first so that Y is periodic. Returns (callable,
+    removed mean).
+    """
+    th = np.asarray(theta_deg, dtype=float).ravel() % 360.0
+    yy = np.asarray(y, dtype=float).ravel()
+    if th.size != yy.size or th.size < 2:
+        raise ValueError(f"need ≥ 2 samples of equal length, got {th.size} θ and {yy.size} values")
+    order = np.argsort(th)
+    th, yy = th[order], yy[order]
+    if np.any(np.diff(th) <= 0):
+        raise ValueError("duplicate angles in the δY grid (average repetitions first)")
+    x = np.deg2rad(np.concatenate([th, [th[0] + 360.0]]))
+    v = np.concatenate([yy, [yy[0]]])
+    h = np.diff(x)
+    seg = 0.5 * h * (v[:-1] + v[1:])
+    mean = float(seg.sum() / (2 * math.pi))
+    if remove_mean:
+        v = v - mean
+        seg = 0.5 * h * (v[:-1] + v[1:])
+    cum = np.concatenate([[0.0], np.cumsum(seg)])  # ∫ from x[0] to x[k]
+    total = cum[-1]  # 0 when the mean is removed
+
+    def prim(theta_rad: np.ndarray) -> np.ndarray:
+        """∫ from x[0] to θ (θ in rad, any real value)."""
+        t = np.asarray(theta_rad, dtype=float)
+        turns = np.floor((t - x[0]) / (2 * math.pi))
+        tt = t - turns * 2 * math.pi  # in [x0, x0 + 2π)
+        k = np.clip(np.searchsorted(x, tt, side="right") - 1, 0, x.size - 2)
+        dt = tt - x[k]
+        slope = (v[k + 1] - v[k]) / h[k]
+        return cum[k] + v[k] * dt + 0.5 * slope * dt**2 + turns * total
+
+    p0 = prim(np.array(0.0))
+
+    def Y(theta_deg_q: np.ndarray) -> np.ndarray:
+        return prim(np.deg2rad(np.asarray(theta_deg_q, dtype=float))) - p0
+
+    return Y, mean
+
+
+def radial_motion_term(theta_grid_deg: np.ndarray, dY_um: np.ndarray, r_um: float,
+                       u_dY_um: float | np.ndarray = 0.0, correlated: bool = False,
+                       remove_mean: bool = True) -> Term:
+    """Jia eq. 5, second part: (1/r)·∫_0^θ δY dθ' in arcsec, δY sampled on ``theta_grid_deg``.
+
+    ``u_dY_um``: standard uncertainty of δY (scalar or per grid point). ``correlated=False``: the
+    grid values are independent, u(∫) is the trapezoid weights' root-sum-square up to θ;
+    ``correlated=True``: fully correlated, u(∫) = ∫ u dθ' (an upper bound). The paper is silent; the
+    default treats the per-point values as independent.
+    """
+    th = np.asarray(theta_grid_deg, dtype=float).ravel()
+    Y, mean = periodic_integral(th, dY_um, remove_mean)
+    uu = np.broadcast_to(np.asarray(u_dY_um, dtype=float), th.shape)
+    r = float(r_um)
+
+    def fn(theta_rad: np.ndarray) -> np.ndarray:
+        return Y(np.rad2deg(theta_rad)) / r / ARCSEC
+
+    if correlated:
+        U, _ = periodic_integral(th, uu, remove_mean=False)
+
+        def u_fn(theta_rad: np.ndarray) -> np.ndarray:
+            return np.abs(U(np.rad2deg(theta_rad))) / r / ARCSEC
+    else:
+        U2, _ = periodic_integral(th, uu**2, remove_mean=False)
+        # trapezoid weights ~ h: Var(Σ w_k y_k) = Σ w_k² u_k² ≈ h̄ · ∫ u² dθ (uniform grid)
+        hbar = 2 * math.pi / th.size
+
+        def u_fn(theta_rad: np.ndarray) -> np.ndarray:
+            return np.sqrt(np.clip(hbar * np.abs(U2(np.rad2deg(theta_rad))), 0, None)) / r / ARCSEC
+
+    t = Term(fn, u_fn, inverse_r=True, info={"removed_mean_um": mean, "correlated": correlated})
+    t.removed_mean_um = mean  # type: ignore[attr-defined]
+    return t
+
+
+def radial_motion_term_fourier(params_um: np.ndarray, r_um: float) -> Term:
+    """∫_0^θ δY dθ' / r for δY given as a Fourier series [a0, a1, b1, ...] (µm), analytically:
+    ∫_0^θ (a_i sin iθ' + b_i cos iθ') dθ' = a_i (1 − cos iθ)/i + b_i sin(iθ)/i (a0 must be 0 for a
+    periodic result; it is integrated as a0·θ)."""
+    p = np.asarray(params_um, dtype=float)
+    order = (p.size - 1) // 2
+    r = float(r_um)
+
+    def fn(theta_rad: np.ndarray) -> np.ndarray:
+        t = np.asarray(theta_rad, dtype=float)
+        s = p[0] * t
+        for i in range(1, order + 1):
+            s = s + p[2 * i - 1] * (1 - np.cos(i * t)) / i + p[2 * i] * np.sin(i * t) / i
+        return s / r / ARCSEC
+
+    return Term(fn, None, inverse_r=True)
+
+
+def jia_error_model(e_um: float, theta0_deg: float, r_um: float, theta_grid_deg: np.ndarray | None = None,
+                    dY_um: np.ndarray | None = None, u_e_um: float = 0.0, u_theta0_deg: float = 0.0,
+                    u_dY_um: float | np.ndarray = 0.0, u_r_um: float = 0.0, cov_e_theta0: float = 0.0,
+                    dY_correlated: bool = False) -> ErrorModel:
+    """Jia eq. 5 as an :class:`ErrorModel` with terms "eccentricity" and (if δY given) "radial_motion"."""
+    m = ErrorModel(r_um, u_r_um)
+    m.add_term("eccentricity", eccentricity_term(e_um, theta0_deg, r_um, u_e_um, u_theta0_deg, cov_e_theta0))
+    if dY_um is not None:
+        if theta_grid_deg is None:
+            raise ValueError("dY_um given without theta_grid_deg")
+        m.add_term("radial_motion", radial_motion_term(theta_grid_deg, dY_um, r_um, u_dY_um, dY_correlated))
+    return m
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def compare_with_measured(theta_deg: np.ndarray, measured_arcsec: np.ndarray,
+                          model: ErrorModel | np.ndarray) -> dict:
+    """Residual = measured − model at the measured angles, both with their mean removed.
+
+    The measured α (polygon + autocollimator) is only known up to a constant, hence the mean of
+    each curve is removed (reported as ``measured_mean_arcsec``, ``model_mean_arcsec``).
+
+    Keys: theta_deg, measured_arcsec, model_arcsec (both mean-free), residual_arcsec,
+    residual_pv_arcsec, residual_rms_arcsec, residual_max_abs_arcsec, measured_pv_arcsec,
+    measured_rms_arcsec, model_pv_arcsec, fraction_of_error (RMS(residual)/RMS(measured)),
+    pv_ratio (P-V(residual)/P-V(measured)), measured_mean_arcsec, model_mean_arcsec, note.
+    """
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    meas = np.asarray(measured_arcsec, dtype=float).ravel()
+    if th.size != meas.size or th.size == 0:
+        raise ValueError(f"theta_deg ({th.size}) and measured_arcsec ({meas.size}) must have equal, non-zero length")
+    pred = model.predict(th) if isinstance(model, ErrorModel) else np.asarray(model, dtype=float).ravel()
+    if pred.size != th.size:
+        raise ValueError(f"model has {pred.size} values for {th.size} angles")
+    mm, pm = float(meas.mean()), float(pred.mean())
+    meas0, pred0 = meas - mm, pred - pm
+    res = meas0 - pred0
+    rms_meas = _rms(meas0)
+    return {
+        "theta_deg": th,
+        "measured_arcsec": meas0,
+        "model_arcsec": pred0,
+        "residual_arcsec": res,
+        "residual_pv_arcsec": float(np.ptp(res)),
+        "residual_rms_arcsec": _rms(res),
+        "residual_max_abs_arcsec": float(np.max(np.abs(res))),
+        "measured_pv_arcsec": float(np.ptp(meas0)),
+        "measured_rms_arcsec": rms_meas,
+        "model_pv_arcsec": float(np.ptp(pred0)),
+        "fraction_of_error": _rms(res) / rms_meas if rms_meas > 0 else float("nan"),
+        "pv_ratio": float(np.ptp(res) / np.ptp(meas0)) if np.ptp(meas0) > 0 else float("nan"),
+        "measured_mean_arcsec": mm,
+        "model_mean_arcsec": pm,
+        "note": "mean of measured and model removed before comparison (α known up to a constant)",
+    }

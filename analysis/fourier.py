@@ -1,0 +1,233 @@
+"""Least-squares Fourier series over one turn (Jia et al. 2019, eqs. 6, 7, 10, 11, 12).
+
+Jia et al., "A New Method of Angle Measurement Error Analysis of Rotary Encoders",
+Appl. Sci. 9 (2019) 3415:
+
+- eq. 6 / eq. 10: ``y(θ) = a0 + Σ_{i=1}^{order} (a_i sin iθ + b_i cos iθ)``, order 10 in the paper,
+  coefficients by least squares. The samples may be non-uniform in θ (the fit is a plain linear
+  least-squares problem, not an FFT).
+- eq. 7: the radial error motion is the series without the 0th (probe position) and 1st (sphere
+  centring) harmonics.
+- eqs. 11-12: amplitude and phase of a harmonic, ``c sin iθ + d cos iθ = A cos(iθ − φ)`` with
+  ``A = sqrt(c² + d²)`` and ``φ = atan2(c, d)``. ``atan2`` covers all four quadrants, which is what
+  the case analysis of eq. 12 spells out (d > 0: arctan(c/d); d < 0: arctan(c/d) + π; ...).
+
+Parameter order everywhere in this module: ``[a0, a1, b1, a2, b2, ..., a_order, b_order]``
+(``a`` multiplies sin, ``b`` multiplies cos). Angles in, degrees (``theta_deg``); the series is
+in radians internally.
+
+Covariance of the coefficients (GUM, linear least squares):
+
+- no ``u`` given: ``s² (AᵀA)⁻¹`` with ``s² = RSS / (n − p)`` (type A, from the residual scatter);
+- ``u`` given (standard uncertainty per point, same unit as ``y``): weighted least squares and the
+  absolute covariance ``(Aᵀ W A)⁻¹`` with ``W = diag(1/u²)`` (the residual scatter is reported,
+  not used).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "FourierFit",
+    "design_matrix",
+    "fit_fourier",
+    "evaluate",
+    "remove_harmonics",
+    "amplitude_phase",
+    "param_index",
+]
+
+
+def param_index(harmonic: int) -> tuple[int, ...]:
+    """Indices of the parameters of one harmonic: (0,) for the mean, (2i−1, 2i) for (a_i, b_i)."""
+    if harmonic < 0:
+        raise ValueError(f"harmonic must be >= 0, got {harmonic}")
+    return (0,) if harmonic == 0 else (2 * harmonic - 1, 2 * harmonic)
+
+
+def design_matrix(theta_deg: np.ndarray, order: int, harmonics: Iterable[int] | None = None) -> np.ndarray:
+    """Columns ``[1, sin θ, cos θ, sin 2θ, cos 2θ, ...]`` (n × (2·order+1)).
+
+    With ``harmonics`` the columns of the harmonics not listed are zero (the shape stays the same,
+    so the matrix can be applied to the full parameter vector).
+    """
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
+    A = np.empty((th.size, 2 * order + 1))
+    A[:, 0] = 1.0
+    for i in range(1, order + 1):
+        A[:, 2 * i - 1] = np.sin(i * th)
+        A[:, 2 * i] = np.cos(i * th)
+    if harmonics is not None:
+        keep = set(int(h) for h in harmonics)
+        bad = [h for h in keep if h < 0 or h > order]
+        if bad:
+            raise ValueError(f"harmonics {sorted(bad)} outside 0…{order}")
+        mask = np.zeros(2 * order + 1, dtype=bool)
+        for h in keep:
+            mask[list(param_index(h))] = True
+        A[:, ~mask] = 0.0
+    return A
+
+
+@dataclass(frozen=True)
+class FourierFit:
+    """Result of :func:`fit_fourier`.
+
+    ``params`` = [a0, a1, b1, ...]; ``a`` (sin) and ``b`` (cos) are views by harmonic 1…order;
+    ``cov`` the parameter covariance; ``sigma`` the residual standard deviation ``sqrt(RSS/dof)``
+    (NaN when dof = 0); ``u_given`` whether the covariance came from per-point uncertainties.
+    """
+
+    order: int
+    params: np.ndarray
+    cov: np.ndarray
+    residual: np.ndarray
+    sigma: float
+    dof: int
+    u_given: bool
+
+    @property
+    def a0(self) -> float:
+        return float(self.params[0])
+
+    @property
+    def a(self) -> np.ndarray:
+        """Sine coefficients a_1…a_order (eq. 6; c_i of eq. 10)."""
+        return self.params[1::2]
+
+    @property
+    def b(self) -> np.ndarray:
+        """Cosine coefficients b_1…b_order (eq. 6; d_i of eq. 10)."""
+        return self.params[2::2]
+
+    def __call__(self, theta_deg: np.ndarray, harmonics: Iterable[int] | None = None) -> np.ndarray:
+        return evaluate(self, theta_deg, harmonics)
+
+    def u_evaluate(self, theta_deg: np.ndarray, harmonics: Iterable[int] | None = None) -> np.ndarray:
+        """Standard uncertainty of the evaluated series at ``theta_deg`` (from ``cov``)."""
+        A = design_matrix(np.asarray(theta_deg, dtype=float), self.order, harmonics)
+        var = np.einsum("ij,jk,ik->i", A, self.cov, A)
+        return np.sqrt(np.clip(var, 0.0, None)).reshape(np.shape(theta_deg))
+
+    def as_dict(self) -> dict:
+        return {"order": self.order, "a0": self.a0, "a": self.a.copy(), "b": self.b.copy(),
+                "params": self.params.copy(), "cov": self.cov.copy(), "sigma": self.sigma, "dof": self.dof}
+
+
+def fit_fourier(theta_deg: np.ndarray, y: np.ndarray, order: int = 10, u: np.ndarray | float | None = None) -> FourierFit:
+    """Least-squares Fourier series of ``order`` to samples ``y(θ)`` (eq. 6 / eq. 10).
+
+    ``u``: optional standard uncertainty of each ``y`` (scalar or per point). Raises ValueError for
+    mismatched/non-finite input or fewer samples than parameters (2·order+1), or when the
+    θ samples do not determine the series (rank deficient, e.g. too few distinct angles).
+    """
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    yy = np.asarray(y, dtype=float).ravel()
+    if order < 0:
+        raise ValueError(f"order must be >= 0, got {order}")
+    if th.size != yy.size:
+        raise ValueError(f"theta_deg has {th.size} samples, y has {yy.size}")
+    if not (np.all(np.isfinite(th)) and np.all(np.isfinite(yy))):
+        raise ValueError("theta_deg and y must be finite")
+    p = 2 * order + 1
+    if th.size < p:
+        raise ValueError(f"a Fourier series of order {order} has {p} parameters; got only {th.size} samples")
+    A = design_matrix(th, order)
+    if u is not None:
+        uu = np.broadcast_to(np.asarray(u, dtype=float), yy.shape)
+        if np.any(~np.isfinite(uu)) or np.any(uu <= 0):
+            raise ValueError("u must be finite and > 0")
+        w = 1.0 / uu
+    else:
+        w = np.ones_like(yy)
+    Aw = A * w[:, None]
+    # Orthogonal factorisation; rank check on the singular values.
+    U, s, Vt = np.linalg.svd(Aw, full_matrices=False)
+    if s[-1] <= s[0] * 1e-10:
+        raise ValueError(f"the θ samples do not determine a Fourier series of order {order} "
+                         f"(rank deficient; {np.unique(np.round(th % 360, 9)).size} distinct angles)")
+    params = Vt.T @ ((U.T @ (yy * w)) / s)
+    inv = (Vt.T / s**2) @ Vt  # (Aᵀ W A)⁻¹
+    resid = yy - A @ params
+    dof = th.size - p
+    sigma = float(math.sqrt(np.sum(resid**2) / dof)) if dof > 0 else float("nan")
+    if u is not None:
+        cov = inv
+    else:
+        cov = inv * (sigma**2 if dof > 0 else np.nan)
+    return FourierFit(order, params, cov, resid, sigma, dof, u is not None)
+
+
+def evaluate(fit: FourierFit | np.ndarray, theta_deg: np.ndarray, harmonics: Iterable[int] | None = None,
+             order: int | None = None) -> np.ndarray:
+    """Evaluate the series (all harmonics, or only those listed) at ``theta_deg``.
+
+    ``fit`` may be a :class:`FourierFit` or a parameter vector [a0, a1, b1, ...].
+    """
+    params = fit.params if isinstance(fit, FourierFit) else np.asarray(fit, dtype=float)
+    n_ord = (params.size - 1) // 2 if order is None else order
+    th = np.asarray(theta_deg, dtype=float)
+    A = design_matrix(th.ravel(), n_ord, harmonics)
+    return (A @ params).reshape(th.shape)
+
+
+def remove_harmonics(theta_deg: np.ndarray, y: np.ndarray, order: int = 10, remove: Iterable[int] = (0, 1),
+                     keep_residual: bool = False, u: np.ndarray | float | None = None) -> tuple[np.ndarray, FourierFit]:
+    """Eq. 7: the series of ``order`` fitted to ``y`` without the harmonics in ``remove``.
+
+    Default (``keep_residual=False``) is eq. 7 literally: ``Σ_{i=2}^{order} (a_i sin iθ + b_i cos iθ)``
+    evaluated at the samples (content above ``order`` and noise are dropped). With
+    ``keep_residual=True`` the result is ``y`` minus the removed harmonics (all other content kept).
+    Returns (values at ``theta_deg``, the fit).
+    """
+    fit = fit_fourier(theta_deg, y, order, u)
+    rem = set(int(h) for h in remove)
+    if keep_residual:
+        out = np.asarray(y, dtype=float) - evaluate(fit, theta_deg, rem)
+    else:
+        out = evaluate(fit, theta_deg, [h for h in range(order + 1) if h not in rem])
+    return out, fit
+
+
+def amplitude_phase(fit: FourierFit, harmonic: int = 1) -> dict:
+    """Amplitude and phase of one harmonic with GUM uncertainties (eqs. 11 and 12).
+
+    ``a_i sin iθ + b_i cos iθ = A cos(iθ − φ)``: ``A = sqrt(a_i² + b_i²)`` (eq. 11),
+    ``φ = atan2(a_i, b_i)`` in [0°, 360°) (eq. 12, all quadrants). Uncertainties by first-order
+    propagation of the 2×2 coefficient covariance (``J = [[a/A, b/A], [b/A², −a/A²]]``); they are
+    meaningless when ``A`` is comparable to ``u(A)`` (the phase is then undefined), which is flagged
+    by ``phase_defined = A > 3 u(A)``.
+
+    Keys: amplitude, u_amplitude, phase_deg, u_phase_deg, cov_amp_phase (A [unit], φ [rad]),
+    a (sin coefficient), b (cos coefficient), cov_ab, phase_defined.
+    """
+    if not 1 <= harmonic <= fit.order:
+        raise ValueError(f"harmonic must be in 1…{fit.order}, got {harmonic}")
+    ia, ib = param_index(harmonic)
+    a, b = float(fit.params[ia]), float(fit.params[ib])
+    cov_ab = fit.cov[np.ix_([ia, ib], [ia, ib])]
+    A = math.hypot(a, b)
+    phi = math.atan2(a, b)
+    if A > 0:
+        J = np.array([[a / A, b / A], [b / A**2, -a / A**2]])
+        cov_ap = J @ cov_ab @ J.T
+    else:
+        cov_ap = np.full((2, 2), np.nan)
+    uA = float(math.sqrt(max(cov_ap[0, 0], 0.0))) if np.isfinite(cov_ap[0, 0]) else float("nan")
+    uphi = float(math.sqrt(max(cov_ap[1, 1], 0.0))) if np.isfinite(cov_ap[1, 1]) else float("nan")
+    return {
+        "amplitude": A,
+        "u_amplitude": uA,
+        "phase_deg": math.degrees(phi) % 360.0,
+        "u_phase_deg": math.degrees(uphi),
+        "cov_amp_phase": cov_ap,
+        "a": a,
+        "b": b,
+        "cov_ab": cov_ab,
+        "phase_defined": bool(np.isfinite(uA) and A > 3 * uA) if uA > 0 else A > 0,
+    }

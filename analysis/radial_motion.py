@@ -1,0 +1,255 @@
+"""Radial error motion of the shaft and of the grating disk from two test spheres (Jia 2019, sec. 4.1).
+
+Jia et al., Appl. Sci. 9 (2019) 3415, sec. 4.1 and sec. 5:
+
+- each probe's readings, per repetition, are fitted with a Fourier series of order 10 (eq. 6);
+- the 0th harmonic (probe position) and the 1st (test-sphere centring) are removed (eq. 7):
+  ``δ(θ) = Σ_{i=2}^{10} (a_i sin iθ + b_i cos iθ)``;
+- tilt (eq. 8): ``ε_X(θ) = (δ_{Y,L1}(θ) − δ_{Y,L2}(θ)) / L2``;
+- radial motion of the disk along the head direction (eq. 9):
+  ``δ_Y(θ) = ((L2 − L1)/L2) δ_{Y,L1}(θ) + (L1/L2) δ_{Y,L2}(θ)``;
+  L1: top sphere → disk, L2: top sphere → bottom sphere (docs/conventions.md, "Spheres and probes");
+- repeatability (sec. 5): range over the n repetitions at each θ divided by d_n (d_3 = 1.69).
+
+ISO 230-7:2015 decomposition (fixed sensitive direction): the synchronous error motion is the
+average over the repetitions at each angle, the asynchronous error motion the deviation of each
+repetition from it. Error-motion values (all P-V type for a fixed sensitive direction):
+
+- ``total_um``: range of all repetitions' δ(θ) together;
+- ``synchronous_um``: range of the synchronous δ(θ);
+- ``asynchronous_um``: maximum over θ of the range over repetitions at that θ (ISO 230-7 value);
+  ``asynchronous_pv_um``: range of all asynchronous values together (reported as well).
+
+Signs: probe readings are the displacement of the sphere surface along lab +Y (+X for ``_x_um``).
+``tilt_x_urad`` is eq. 8 as printed, positive when the top sphere moves further toward +Y than the
+bottom one (this is a right-handed rotation about −X); ``tilt_y_urad = (δ_{X,L1} − δ_{X,L2})/L2``
+is a right-handed rotation about +Y. µm/mm = mrad, reported in µrad.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from benchtwin.analysis.fourier import FourierFit, design_matrix, evaluate, fit_fourier
+
+__all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights"]
+
+# d_n of the range method (mean range of n normal samples / σ), n = 2…10. Jia uses 1.69 for n = 3.
+D_N: dict[int, float] = {2: 1.128, 3: 1.693, 4: 2.059, 5: 2.326, 6: 2.534, 7: 2.704, 8: 2.847, 9: 2.970, 10: 3.078}
+
+
+def disk_weights(L1_mm: float, L2_mm: float) -> tuple[float, float]:
+    """Weights (w_top, w_bottom) of eq. 9: ((L2 − L1)/L2, L1/L2)."""
+    if not (L2_mm > 0 and math.isfinite(L1_mm) and math.isfinite(L2_mm)):
+        raise ValueError(f"need L2 > 0 and finite L1, got L1={L1_mm}, L2={L2_mm}")
+    return (L2_mm - L1_mm) / L2_mm, L1_mm / L2_mm
+
+
+def range_method_u(values_reps: np.ndarray, d_n: float | None = None) -> np.ndarray:
+    """Range method (Jia sec. 5): (max − min over repetitions, axis 0) / d_n, at each θ.
+
+    The result estimates the standard deviation of one repetition; Jia takes it as the
+    uncertainty of δY. ``d_n`` defaults to :data:`D_N` [n] (1.693 for n = 3; the paper rounds 1.69).
+    """
+    v = np.asarray(values_reps, dtype=float)
+    n = v.shape[0]
+    if d_n is None:
+        if n not in D_N:
+            raise ValueError(f"no d_n tabulated for n = {n} repetitions (2…10); pass d_n")
+        d_n = D_N[n]
+    return (v.max(axis=0) - v.min(axis=0)) / d_n
+
+
+def error_motion_values(values_reps: np.ndarray) -> dict[str, float]:
+    """ISO 230-7 error-motion values (fixed sensitive direction) of δ(θ) given per repetition
+    (shape n_reps × n_theta, common grid): total, synchronous, asynchronous (max range at one θ)
+    and asynchronous P-V."""
+    v = np.asarray(values_reps, dtype=float)
+    sync = v.mean(axis=0)
+    asyn = v - sync
+    return {
+        "total_um": float(np.ptp(v)),
+        "synchronous_um": float(np.ptp(sync)),
+        "asynchronous_um": float(np.max(np.ptp(v, axis=0))) if v.shape[0] > 1 else 0.0,
+        "asynchronous_pv_um": float(np.ptp(asyn)),
+    }
+
+
+def _check(name: str, a: np.ndarray | None, n: int) -> np.ndarray | None:
+    if a is None:
+        return None
+    x = np.asarray(a, dtype=float).ravel()
+    if x.size != n:
+        raise ValueError(f"{name}: expected {n} values (as many as rep), got {x.size}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name}: non-finite value at index {int(np.flatnonzero(~np.isfinite(x))[0])}")
+    return x
+
+
+def radial_motion(
+    rep: np.ndarray,
+    theta_deg: np.ndarray,
+    probe_top_um: np.ndarray,
+    probe_bottom_um: np.ndarray,
+    L1_mm: float,
+    L2_mm: float,
+    probe_top_x_um: np.ndarray | None = None,
+    probe_bottom_x_um: np.ndarray | None = None,
+    order: int = 10,
+    u_probe_um: float | None = None,
+    u_L1_mm: float = 0.0,
+    u_L2_mm: float = 0.0,
+    grid_deg: np.ndarray | None = None,
+    d_n: float | None = None,
+) -> dict:
+    """Radial error motion of the spheres and the disk (Jia eqs. 6-9), per repetition and averaged.
+
+    Inputs are the columns of ``radial_motion.csv`` (one row per reading). Each repetition is
+    fitted separately (order ``order``, eq. 6) and its harmonics 2…order kept (eq. 7). Everything
+    is then evaluated on a common grid: the measured angles when every repetition has the same set
+    (the usual case), otherwise ``grid_deg`` or, if not given, 360 points at 1°.
+
+    ``u_probe_um``: standard uncertainty of one probe reading; when given it weights the fit and the
+    GUM covariance is absolute, otherwise the residual scatter of each fit is used.
+    ``u_L1_mm``, ``u_L2_mm``: uncertainty of the lengths (propagated through eq. 9).
+
+    Returns a dict (arrays on the grid ``theta_deg``; ``*_reps_*`` are n_reps × n_theta):
+
+    - ``theta_deg``, ``reps`` (repetition labels), ``n_reps``, ``order``
+    - ``delta_top_um``, ``delta_bottom_um``: synchronous (mean) sphere motion; ``*_reps_um`` per rep
+    - ``dY_um``: synchronous disk motion δY (eq. 9); ``dY_reps_um``; ``dY_async_um`` (reps − mean)
+    - ``tilt_x_urad`` (eq. 8, synchronous) and ``tilt_x_reps_urad``
+    - ``dY_fn``: callable θ[deg] → δY[µm] (the mean Fourier series, exact between grid points)
+    - ``dY_params``: [0, 0, 0, a2, b2, ...] of that mean series (µm), ``dY_cov``: its GUM covariance
+    - ``summary``: {"top"|"bottom"|"disk" [|"top_x"|"bottom_x"|"disk_x"]: error_motion_values}
+    - ``u_dY_range_theta_um``: range method per θ (σ of one repetition); ``u_dY_range_um``: its
+      maximum over θ (the single number Jia quotes, 0.18 µm); ``d_n``
+    - ``u_dY_gum_theta_um``: GUM standard uncertainty of the synchronous δY at each θ from the fit
+      covariances (probe noise) and u(L1), u(L2) — it does not contain the asynchronous motion, which
+      is a real motion and is reported by the range method; ``u_dY_gum_um``: its maximum
+    - ``fits``: {"top": [FourierFit per rep], "bottom": [...]} (and x)
+    - with X probes: ``delta_top_x_um``, ``delta_bottom_x_um``, ``dX_um``, ``dX_reps_um``,
+      ``dX_async_um``, ``tilt_y_urad``, ``dX_fn``, ``u_dX_range_theta_um``
+    """
+    rep_a = np.asarray(rep).ravel()
+    n = rep_a.size
+    th = _check("theta_deg", theta_deg, n)
+    top = _check("probe_top_um", probe_top_um, n)
+    bot = _check("probe_bottom_um", probe_bottom_um, n)
+    topx = _check("probe_top_x_um", probe_top_x_um, n)
+    botx = _check("probe_bottom_x_um", probe_bottom_x_um, n)
+    if (topx is None) != (botx is None):
+        raise ValueError("probe_top_x_um and probe_bottom_x_um must be given together")
+    w_top, w_bot = disk_weights(L1_mm, L2_mm)
+    reps = np.unique(rep_a)
+    if reps.size == 0:
+        raise ValueError("no readings")
+
+    # Common evaluation grid.
+    sets = [np.unique(np.round(th[rep_a == r] % 360.0, 9)) for r in reps]
+    if grid_deg is not None:
+        grid = np.asarray(grid_deg, dtype=float).ravel()
+    elif all(s.size == sets[0].size and np.allclose(s, sets[0]) for s in sets):
+        grid = sets[0]
+    else:
+        grid = np.arange(360) * 1.0
+
+    G = design_matrix(grid, order, harmonics=range(2, order + 1))  # eq. 7 on the grid
+
+    def per_channel(values: np.ndarray, label: str):
+        fits: list[FourierFit] = []
+        curves = []
+        for r in reps:
+            m = rep_a == r
+            try:
+                f = fit_fourier(th[m], values[m], order, u_probe_um)
+            except ValueError as exc:
+                raise ValueError(f"{label}, repetition {r}: {exc}") from None
+            fits.append(f)
+            curves.append(G @ f.params)
+        return fits, np.array(curves)
+
+    out: dict = {"theta_deg": grid, "reps": reps, "n_reps": int(reps.size), "order": order}
+    fits: dict[str, list[FourierFit]] = {}
+    fits["top"], top_r = per_channel(top, "probe_top_um")
+    fits["bottom"], bot_r = per_channel(bot, "probe_bottom_um")
+    dY_r = w_top * top_r + w_bot * bot_r
+    tilt_r = (top_r - bot_r) / L2_mm * 1e3  # µm/mm = mrad → µrad
+    out.update(
+        delta_top_reps_um=top_r, delta_bottom_reps_um=bot_r,
+        delta_top_um=top_r.mean(axis=0), delta_bottom_um=bot_r.mean(axis=0),
+        dY_reps_um=dY_r, dY_um=dY_r.mean(axis=0), dY_async_um=dY_r - dY_r.mean(axis=0),
+        tilt_x_reps_urad=tilt_r, tilt_x_urad=tilt_r.mean(axis=0),
+    )
+    summary = {"top": error_motion_values(top_r), "bottom": error_motion_values(bot_r), "disk": error_motion_values(dY_r)}
+
+    def mean_series(fa: list[FourierFit], fb: list[FourierFit]):
+        """Mean over reps of w_top·(top series) + w_bot·(bottom series), harmonics 2…order."""
+        keep = np.zeros(2 * order + 1)
+        keep[3:] = 1.0
+        k = len(fa)
+        p = sum(w_top * f.params + w_bot * g.params for f, g in zip(fa, fb)) / k * keep
+        cov = sum(w_top**2 * f.cov + w_bot**2 * g.cov for f, g in zip(fa, fb)) / k**2
+        cov = cov * np.outer(keep, keep)
+        return p, cov
+
+    dY_params, dY_cov = mean_series(fits["top"], fits["bottom"])
+    out["dY_params"], out["dY_cov"] = dY_params, dY_cov
+    out["dY_fn"] = _series_fn(dY_params, order)
+
+    # GUM: fit covariance (probe noise) + lengths.
+    var_fit = np.einsum("ij,jk,ik->i", G, dY_cov, G)
+    dtop, dbot = out["delta_top_um"], out["delta_bottom_um"]
+    dd_dL1 = (dbot - dtop) / L2_mm  # ∂δY/∂L1
+    dd_dL2 = L1_mm * (dtop - dbot) / L2_mm**2  # ∂δY/∂L2
+    var = np.nan_to_num(var_fit, nan=0.0) + (dd_dL1 * u_L1_mm) ** 2 + (dd_dL2 * u_L2_mm) ** 2
+    if np.all(np.isnan(var_fit)):
+        var = var + np.nan  # no residual dof and no u given: unknown
+    out["u_dY_gum_theta_um"] = np.sqrt(var)
+    out["u_dY_gum_um"] = float(np.max(out["u_dY_gum_theta_um"]))
+
+    if reps.size >= 2:
+        dn = d_n if d_n is not None else D_N.get(int(reps.size))
+        if dn is None:
+            raise ValueError(f"no d_n tabulated for {reps.size} repetitions; pass d_n")
+        out["u_dY_range_theta_um"] = range_method_u(dY_r, dn)
+        out["u_dY_range_um"] = float(np.max(out["u_dY_range_theta_um"]))
+        out["d_n"] = dn
+    else:
+        out["u_dY_range_theta_um"] = np.full(grid.size, np.nan)
+        out["u_dY_range_um"] = float("nan")
+        out["d_n"] = float("nan")
+
+    if topx is not None and botx is not None:
+        fits["top_x"], topx_r = per_channel(topx, "probe_top_x_um")
+        fits["bottom_x"], botx_r = per_channel(botx, "probe_bottom_x_um")
+        dX_r = w_top * topx_r + w_bot * botx_r
+        tilty_r = (topx_r - botx_r) / L2_mm * 1e3
+        out.update(
+            delta_top_x_reps_um=topx_r, delta_bottom_x_reps_um=botx_r,
+            delta_top_x_um=topx_r.mean(axis=0), delta_bottom_x_um=botx_r.mean(axis=0),
+            dX_reps_um=dX_r, dX_um=dX_r.mean(axis=0), dX_async_um=dX_r - dX_r.mean(axis=0),
+            tilt_y_reps_urad=tilty_r, tilt_y_urad=tilty_r.mean(axis=0),
+        )
+        pX, cX = mean_series(fits["top_x"], fits["bottom_x"])
+        out["dX_params"], out["dX_cov"], out["dX_fn"] = pX, cX, _series_fn(pX, order)
+        out["u_dX_range_theta_um"] = (range_method_u(dX_r, out["d_n"]) if reps.size >= 2
+                                      else np.full(grid.size, np.nan))
+        summary.update(top_x=error_motion_values(topx_r), bottom_x=error_motion_values(botx_r),
+                       disk_x=error_motion_values(dX_r))
+    out["summary"] = summary
+    out["fits"] = fits
+    return out
+
+
+def _series_fn(params: np.ndarray, order: int) -> Callable[[np.ndarray], np.ndarray]:
+    p = np.array(params, dtype=float)
+
+    def fn(theta_deg: np.ndarray) -> np.ndarray:
+        """δ(θ) in µm at θ in degrees (mean Fourier series, harmonics 2…order)."""
+        return evaluate(p, theta_deg, order=order)
+
+    return fn
