@@ -1,0 +1,161 @@
+"""Tests of the Jia 2019 eq. 5 error model and the comparison with a measured encoder error."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from benchtwin.analysis.error_model import (
+    ErrorModel,
+    compare_with_measured,
+    eccentricity_term,
+    jia_error_model,
+    periodic_integral,
+    radial_motion_term,
+    radial_motion_term_fourier,
+)
+from benchtwin.units import ARCSEC
+
+R_UM = 22000.0
+E_UM, TH0 = 7.1, 192.08  # Jia sec. 5
+
+
+def test_eccentricity_alone_is_eq3():
+    th = np.linspace(0, 360, 721)
+    m = jia_error_model(E_UM, TH0, R_UM)
+    expect = (E_UM / R_UM) * np.sin(np.radians(th - TH0)) / ARCSEC
+    np.testing.assert_allclose(m.predict(th), expect, rtol=1e-12, atol=1e-12)
+    # 7.1 µm at r = 22 mm: 66.57″ amplitude; zero crossing rising at θ0
+    assert np.max(m.predict(th)) == pytest.approx(E_UM / R_UM / ARCSEC, rel=1e-6)
+    assert m.predict(np.array([TH0]))[0] == pytest.approx(0.0, abs=1e-9)
+    assert m.predict(np.array([TH0 + 1.0]))[0] > 0
+
+
+def _dY(th_deg):
+    t = np.radians(th_deg)
+    return 0.15 * np.sin(2 * t + 0.5) + 0.10 * np.cos(3 * t - 1.0) + 0.04 * np.sin(7 * t)
+
+
+def _int_dY(th_deg):
+    """Analytic ∫_0^θ of _dY (µm·rad)."""
+    t = np.radians(th_deg)
+    # sin(2t+.5) → (cos(.5) − cos(2t+.5))/2 ; cos(3t−1) → (sin(3t−1) − sin(−1))/3 ; sin 7t → (1 − cos 7t)/7
+    return (0.15 * (math.cos(0.5) - np.cos(2 * t + 0.5)) / 2 + 0.10 * (np.sin(3 * t - 1.0) + math.sin(1.0)) / 3
+            + 0.04 * (1 - np.cos(7 * t)) / 7)
+
+
+def test_integral_term_against_analytic_uniform_grid():
+    grid = np.arange(360.0)
+    term = radial_motion_term(grid, _dY(grid), R_UM)
+    q = np.linspace(-30, 400, 431)
+    got = term(np.radians(q))
+    expect = _int_dY(q) / R_UM / ARCSEC
+    # trapezoid error ~ (k·h)²/12 relative for harmonic k: < 0.5 % of the amplitude here
+    assert np.max(np.abs(got - expect)) < 5e-3 * np.max(np.abs(expect))
+    assert np.max(np.abs(expect)) > 0.1  # arcsec: the test is not vacuous
+    assert term(np.array(0.0)) == pytest.approx(0.0, abs=1e-15)
+    assert abs(term.removed_mean_um) < 1e-12  # a series without 0th harmonic on a uniform grid
+
+
+def test_integral_term_nonuniform_grid_and_mean_removal():
+    rng = np.random.default_rng(4)
+    grid = np.sort(rng.uniform(0, 360, 500))
+    term = radial_motion_term(grid, _dY(grid) + 0.02, R_UM)  # offset: not periodic unless removed
+    assert term.removed_mean_um == pytest.approx(0.02, abs=2e-4)
+    q = np.linspace(0, 360, 200)
+    expect = _int_dY(q) / R_UM / ARCSEC
+    assert np.max(np.abs(term(np.radians(q)) - expect)) < 0.01 * np.max(np.abs(expect))
+    # periodic after mean removal
+    assert term(np.radians(np.array(360.0 + 17.0))) == pytest.approx(term(np.radians(np.array(17.0))), abs=1e-12)
+    # without removal the integral drifts by 2π·mean per turn
+    Y, mean = periodic_integral(grid, _dY(grid) + 0.02, remove_mean=False)
+    assert Y(np.array(360.0)) - Y(np.array(0.0)) == pytest.approx(2 * math.pi * mean, rel=1e-9)
+
+
+def test_fourier_term_is_exact():
+    p = np.zeros(21)
+    p[3], p[4] = 0.15 * math.cos(0.5), 0.15 * math.sin(0.5)  # 0.15 sin(2t+.5) = a sin2t + b cos2t
+    p[5], p[6] = 0.10 * math.sin(-1.0) * -1, 0.10 * math.cos(1.0)  # 0.10 cos(3t−1)
+    p[13] = 0.04
+    q = np.linspace(0, 720, 97)
+    got = radial_motion_term_fourier(p, R_UM)(np.radians(q))
+    np.testing.assert_allclose(got, _int_dY(q) / R_UM / ARCSEC, atol=1e-12)
+
+
+def test_terms_sum_and_add_term():
+    grid = np.arange(0, 360, 2.0)
+    m = jia_error_model(E_UM, TH0, R_UM, grid, _dY(grid))
+    th = np.arange(0, 360, 15.0)
+    parts = m.predict_terms(th)
+    assert set(parts) == {"eccentricity", "radial_motion"}
+    np.testing.assert_allclose(m.predict(th), parts["eccentricity"] + parts["radial_motion"])
+    m.add_term("graduation", lambda t: 0.5 * np.sin(23 * t))
+    np.testing.assert_allclose(m.predict(th) - parts["eccentricity"] - parts["radial_motion"],
+                               0.5 * np.sin(23 * np.radians(th)), atol=1e-12)
+    np.testing.assert_allclose(m.predict(th, terms=["graduation"]), 0.5 * np.sin(23 * np.radians(th)), atol=1e-12)
+    with pytest.raises(KeyError):
+        m.predict(th, terms=["nope"])
+    with pytest.raises(ValueError):
+        ErrorModel(0.0)
+
+
+def test_uncertainty_propagation():
+    th = np.array([TH0, TH0 + 90.0])
+    m = jia_error_model(E_UM, TH0, R_UM, u_e_um=0.24, u_theta0_deg=1.13)
+    u = m.uncertainty(th)
+    # at θ = θ0: only the phase contributes, (e/r)·u(θ0); at θ0 + 90°: only e, u(e)/r
+    assert u[0] == pytest.approx(E_UM / R_UM * math.radians(1.13) / ARCSEC, rel=1e-9)
+    assert u[1] == pytest.approx(0.24 / R_UM / ARCSEC, rel=1e-9)
+    # u(r): relative, on both 1/r terms together
+    m2 = jia_error_model(E_UM, TH0, R_UM, u_r_um=22.0)
+    assert m2.uncertainty(np.array([TH0 + 90.0]))[0] == pytest.approx(E_UM / R_UM / ARCSEC * 1e-3, rel=1e-9)
+    # Monte Carlo of e, θ0, r
+    rng = np.random.default_rng(9)
+    q = np.array([30.0, 120.0, 250.0])
+    m3 = jia_error_model(E_UM, TH0, R_UM, u_e_um=0.24, u_theta0_deg=1.13, u_r_um=50.0)
+    e = rng.normal(E_UM, 0.24, 20000)
+    t0 = rng.normal(TH0, 1.13, 20000)
+    r = rng.normal(R_UM, 50.0, 20000)
+    samples = (e[:, None] / r[:, None]) * np.sin(np.radians(q[None, :] - t0[:, None])) / ARCSEC
+    np.testing.assert_allclose(m3.uncertainty(q), samples.std(axis=0), rtol=0.05)
+
+
+def test_radial_uncertainty_independent_vs_correlated():
+    grid = np.arange(360.0)
+    ind = radial_motion_term(grid, _dY(grid), R_UM, u_dY_um=0.18)
+    cor = radial_motion_term(grid, _dY(grid), R_UM, u_dY_um=0.18, correlated=True)
+    t = np.radians(np.array([90.0, 360.0 - 1e-9]))
+    # fully correlated: u·θ/r ; independent: sqrt(h·θ)·u/r
+    np.testing.assert_allclose(cor.u_fn(t), 0.18 * t / R_UM / ARCSEC, rtol=1e-6)
+    np.testing.assert_allclose(ind.u_fn(t), 0.18 * np.sqrt(np.radians(1.0) * t) / R_UM / ARCSEC, rtol=1e-6)
+
+
+def test_compare_removes_means_and_reports_fraction():
+    th = np.arange(23) * 360.0 / 23  # polygon positions
+    m = jia_error_model(E_UM, TH0, R_UM)
+    model = m.predict(th)
+    rng = np.random.default_rng(12)
+    extra = 0.09 * np.sqrt(np.mean((model - model.mean()) ** 2)) * rng.standard_normal(th.size)
+    extra -= extra.mean()
+    extra *= 0.09 * np.sqrt(np.mean((model - model.mean()) ** 2)) / np.sqrt(np.mean(extra**2))
+    measured = model + extra + 123.4  # unknown constant of the polygon set-up
+    c = compare_with_measured(th, measured, m)
+    np.testing.assert_allclose(c["residual_arcsec"], extra, atol=1e-9)
+    assert c["measured_mean_arcsec"] == pytest.approx(123.4 + model.mean())
+    assert abs(np.mean(c["measured_arcsec"])) < 1e-9 and abs(np.mean(c["model_arcsec"])) < 1e-9
+    # measured RMS includes the residual: RMS(res)/RMS(meas) = 0.09/sqrt(1 + 0.09²) (uncorrelated-ish)
+    assert c["fraction_of_error"] == pytest.approx(0.09, rel=0.1)
+    assert c["pv_ratio"] == pytest.approx(np.ptp(extra) / np.ptp(measured), rel=1e-9)
+    assert "mean" in c["note"]
+    # the model may also be passed as values
+    c2 = compare_with_measured(th, measured, model)
+    assert c2["residual_rms_arcsec"] == pytest.approx(c["residual_rms_arcsec"])
+    with pytest.raises(ValueError):
+        compare_with_measured(th, measured[:-1], m)
+
+
+def test_duplicate_grid_angles_raise():
+    with pytest.raises(ValueError, match="duplicate"):
+        periodic_integral(np.array([0.0, 10.0, 10.0, 20.0]), np.zeros(4))
