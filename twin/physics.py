@@ -1,0 +1,547 @@
+"""The bench's physics: a MuJoCo model of the shaft on two bearings, posed by a static solve.
+
+What is modelled, and why (the error motion definitions are those of ISO 230-7:2015 sec. 3 /
+ASME B89.3.4, which Jia et al. 2019 (Appl. Sci. 9, 3415) sec. 2 follows: radial error motion of
+the axis of rotation, its synchronous (repeating) and asynchronous (non-repeating) parts, the
+axis average line as reference):
+
+- The shaft is rigid, carried by two bearings at ``bench.bearing_top_z`` / ``bearing_bottom_z``.
+  Each bearing is a radial spring-damper per lab axis (a MuJoCo fixed tendon over the carrier's
+  slide and tilt joints, see models/bench.xml) whose REST POSITION is the bearing's rolling-path
+  offset. Radial error motion is never prescribed on the shaft: it is what the shaft does when
+  its bearings' rolling paths move, under gravity and the other loads — so the disk, the spheres
+  and the polygon move as one rigid body and the disk-plane motion follows from the bearing
+  geometry (Jia sec. 6: "reduce the distance between the grating disk and the bearing").
+- Rolling-path offsets (per bearing, lab x/y):
+  * race waviness ``waviness_top/bottom``: lobes of the rotating (inner) race, synchronous with
+    the shaft. A lobe {order k, amplitude a, phase ψ} moves the rolling-path centre by
+    a·(cos(kθ − ψ), sin(kθ − ψ)) at shaft angle θ: a whirl at k cycles/rev (ISO 230-7 polar
+    plot of a k-lobed path). Stationary (outer) race waviness is a constant offset and belongs to
+    the housing position, which the axis-average-line centring below absorbs — so both races are
+    accounted for consistently.
+  * rolling-element / cage lobing: the ball set turns with the cage at ``cage_ratio`` (≈ 0.4 for
+    an angular-contact bearing: ½·(1 − D_w·cos α / D_pw)) of the shaft speed, so its lobes are NOT
+    harmonics of the shaft rotation; the cage slips between runs, so its phase is drawn per rep.
+  * a small random non-repeating part (non-integer frequencies, spectrum ∝ 1/f), drawn per rep
+    from the scenario seed. The two parts share ``async_rms`` (per bearing, per axis RMS).
+  * ``motion_table`` (optional): a measured axis motion (θ, dx, dy, tilt_x, tilt_y in the disk
+    plane) replaces the waviness: it is converted to the rolling-path offsets of the two bearings
+    that make an unloaded rigid shaft follow it, so gravity and the rest still act physically.
+- Gravity along ``bench.gravity_direction`` acts on every rotating mass (sag, and the moment of
+  the unbalance about the axis). Unbalance U = m·r is a point mass on the shaft. The poses are
+  QUASI-STATIC stops (the bench stops before each reading), so the centrifugal force m·r·ω² is
+  zero; unbalance acts through its weight only (a radial force m·g and a gravity torque U·g that
+  changes the torque carried by the drive, hence the twist).
+- Drive and torsion: a position actuator (the drive, stiffness ``drive_torsional_stiffness``)
+  turns the polygon-side shaft end; the shaft twists between polygon and disk section
+  (``shaft_torsional_stiffness``); bearing friction ``friction_torque`` acts on the disk section.
+  A quasi-static approach in direction ±1 ends with the friction at its sliding value opposing
+  the motion (static friction then holds the transmitted torque), so the twist changes sign with
+  the direction: hysteresis. This static state is checked against a dynamic MuJoCo run with
+  ``frictionloss`` in tests/twin/test_physics.py.
+
+Lab frame (docs/conventions.md): the housings are placed so that the axis average line (least-
+squares axis over one revolution of the synchronous motion) is the lab z axis through the origin
+in the disk plane.
+
+Statics instead of stepping: a pose is the equilibrium qfrc_smooth(q) = 0 of the 6 DOFs (radial
+x/y, tilt x/y, spin, twist) for the commanded drive angle. It is found by Newton iterations with a
+constant stiffness matrix (finite differences of MuJoCo's generalized forces, once per bench):
+each iteration is one ``mj_forward``; a pose converges in 3–4 iterations to |Δq| < 1e-14 m /
+1e-14 rad (+ 4 ulp of q), far below 1 nm / 0.001″ (4.8e-9 rad). MuJoCo warnings are checked
+after each pose. Nothing here computes an encoder or probe reading: that is the instruments' job,
+from the poses returned here.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
+from .pose import BenchPose, BodyPose
+
+ARCSEC = math.pi / 648000.0
+TWO_PI = 2.0 * math.pi
+
+# Seeded random streams: one independent stream per generated quantity, so adding a quantity
+# never changes the others for a given scenario seed.
+_STREAM = {
+    "polygon_pitch": 1,
+    "polygon_eccentricity_phase": 2,
+    "unbalance_phase": 3,
+    "cage_lobes": 4,
+    "sphere_form": 5,
+    "rep_cage_phase": 6,
+    "rep_async": 7,
+}
+
+# Joints of the model in the order of the solve vector q (names in models/bench.xml).
+JOINTS = ("radial_x", "radial_y", "tilt_x", "tilt_y", "spin", "shaft_twist")
+_LINEAR = np.array([True, True, False, False, False, False])
+
+# Settle criterion: |Δq_i| <= ATOL + 4·eps·|q_i| on the last Newton step (m for slides, rad for
+# hinges). 1e-14 m = 1e-5 nm and 1e-14 rad = 2e-9″: the pose noise is then the float64 rounding.
+SETTLE_ATOL = 1e-14
+SETTLE_MAX_ITER = 30
+
+# Cage lobing (rolling-element set) and random non-repeating motion: model constants.
+CAGE_ORDERS = (1, 2, 3)              # low orders: ball diameter variation around the set
+ASYNC_COMPONENTS = 24                # random components per bearing, axis, rep
+ASYNC_FREQ_RANGE = (0.5, 30.0)       # cycles per revolution, non-integer (drawn uniformly)
+SPHERE_FORM_ORDERS = tuple(range(2, 16))
+AXIS_AVERAGE_POINTS = 64             # poses per revolution for the axis-average-line centring
+
+
+def _rng(seed: int, stream: str, *more: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAM[stream], *more]))
+
+
+def _opt(sc, section: str, key: str, default):
+    """A scenario value that the schema may not have (yet): the default when absent."""
+    try:
+        sec = sc[section]
+    except KeyError:
+        return default
+    v = sec.get(key) if hasattr(sec, "get") else None
+    return default if v is None else v
+
+
+def _seed_of(sc) -> int:
+    s = getattr(sc, "seed", None)
+    return int(s if s is not None else sc["scenario"]["seed"])
+
+
+def _lobes_arrays(lobes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    k = np.array([int(l["order"]) for l in lobes], dtype=float)
+    a = np.array([float(l["amplitude"]) for l in lobes], dtype=float)
+    p = np.array([float(l["phase"]) for l in lobes], dtype=float)
+    return k, a, p
+
+
+def _lobes_json(lobes) -> list[dict]:
+    return [{"order": int(l["order"]), "amplitude_m": float(l["amplitude"]),
+             "phase_rad": float(l["phase"])} for l in lobes]
+
+
+def _table_column(table, *names):
+    for n in names:
+        if n in table:
+            return np.asarray(table[n], dtype=float)
+    return None
+
+
+class Bench:
+    """The posed bench of one scenario.
+
+    ``pose_at(shaft_angle_rad, rep, t_s, direction)`` commands the drive to ``shaft_angle_rad``
+    (approached in ``direction`` = +1 / −1), solves the statics and returns the posed bodies;
+    ``BenchPose.shaft_angle_rad`` is the TRUE rotation of the disk section (the command minus the
+    torsional lag). ``truth()`` lists every generated parameter; ``disk_plane_motion`` gives the
+    true radial motion of the axis of rotation in the disk plane.
+    """
+
+    def __init__(self, sc: Any):
+        self.sc = sc
+        self.seed = _seed_of(sc)
+        b, br, er = sc["bench"], sc["bearings"], sc["errors"]
+        self.n_faces = int(b["polygon_faces"])
+        self.friction_torque_Nm = float(br["friction_torque"])
+        self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))
+        self.async_cage_fraction = float(_opt(sc, "bearings", "async_cage_fraction", 0.5))
+        self.async_rms_m = float(br["async_rms"])
+
+        self._generate(sc)
+        place = Placement(
+            disk_offset_m=self.disk_offset_m,
+            disk_tilt_rad=float(er["disk_tilt"]),
+            disk_tilt_azimuth_rad=float(_opt(sc, "errors", "disk_tilt_phase", 0.0)),
+            sphere_top_offset_m=self.sphere_offset_m["top"],
+            sphere_bottom_offset_m=self.sphere_offset_m["bottom"],
+            polygon_offset_m=self.polygon_offset_m,
+            polygon_tilt_rad=float(_opt(sc, "errors", "polygon_tilt", 0.0)),
+            polygon_tilt_azimuth_rad=float(_opt(sc, "errors", "polygon_tilt_phase", 0.0)),
+            unbalance_kgm=float(br["unbalance"]),
+            unbalance_phase_rad=self.unbalance_phase_rad,
+            unbalance_z_m=0.5 * (b["bearing_top_z"] + b["bearing_bottom_z"]),
+        )
+        self.placement = place
+        self.model, self.geometry = build_model(sc, place)
+        m = self.model
+        # Statics: no constraint rows (no contacts, friction is applied as its sliding value).
+        m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        self.data = mujoco.MjData(m)
+        self._qadr = np.array([m.joint(n).qposadr[0] for n in JOINTS])
+        self._dadr = np.array([m.joint(n).dofadr[0] for n in JOINTS])
+        if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dadr, np.arange(6))):
+            raise RuntimeError("bench.xml: expected the six compliant joints in solve order")
+        self._ten = np.array([m.tendon(n).id for n in BEARING_TENDONS])
+        self._act = m.actuator("drive").id
+        self._bid = {n: m.body(n).id for n in
+                     ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom")}
+        self._housing_m = np.zeros(4)      # constant race offsets (housing position), per tendon
+        self._rep_cache: dict[int, dict] = {}
+        self._q_last = np.zeros(6)
+        self._cmd_last = 0.0
+        self.last_iterations = 0
+        self.total_iterations = 0
+        self.n_poses = 0
+
+        self._K = self._stiffness_matrix()
+        self._Kinv = np.linalg.inv(self._K)
+        self._center_axis_average_line()
+
+    # ------------------------------------------------------------------ generated parameters --
+    def _generate(self, sc) -> None:
+        b, br, er = sc["bench"], sc["bearings"], sc["errors"]
+        seed = self.seed
+        # Disk: geometric centre at body polar angle 90° − θ0, distance e (docs/conventions.md).
+        e, th0 = float(er["eccentricity"]), float(er["theta0"])
+        self.disk_eccentricity_azimuth_rad = 0.5 * math.pi - th0
+        self.disk_offset_m = e * np.array([math.cos(self.disk_eccentricity_azimuth_rad),
+                                           math.sin(self.disk_eccentricity_azimuth_rad), 0.0])
+        # Spheres: centring error at body polar angle sphere_*_phase (shaft frame).
+        self.sphere_offset_m = {}
+        for s in ("top", "bottom"):
+            c, ph = float(er[f"sphere_{s}_centring"]), float(er[f"sphere_{s}_phase"])
+            self.sphere_offset_m[s] = c * np.array([math.cos(ph), math.sin(ph), 0.0])
+        # Sphere form: equatorial lobes (orders 2…15, random phases, 1/k amplitudes) scaled so that
+        # the peak deviation equals errors.sphere_form (Jia sec. 4.1 gives a max value).
+        self.sphere_form = {}
+        form = float(er["sphere_form"])
+        for i, s in enumerate(("top", "bottom")):
+            r = _rng(seed, "sphere_form", i)
+            k = np.array(SPHERE_FORM_ORDERS, dtype=float)
+            a = r.uniform(0.3, 1.0, k.size) / k
+            p = r.uniform(0, TWO_PI, k.size)
+            grid = np.linspace(0, TWO_PI, 2048, endpoint=False)
+            peak = np.max(np.abs((a[:, None] * np.cos(k[:, None] * grid - p[:, None])).sum(0)))
+            a = a * (form / peak) if peak > 0 else a * 0
+            self.sphere_form[s] = [{"order": int(kk), "amplitude": float(aa), "phase": float(pp)}
+                                   for kk, aa, pp in zip(k, a, p)]
+        # Polygon pitch deviations β_k (k = 1…N): angle from face k's normal to face k+1's normal
+        # minus 2π/N; Σβ = 0 closes the polygon (Hsieh 2022 eq. 1). Face 1 defines body +x.
+        N = self.n_faces
+        beta = _rng(seed, "polygon_pitch").normal(0.0, float(er["polygon_pitch_rms"]), N)
+        beta -= beta.mean()
+        self.polygon_pitch_deviation_rad = beta
+        cum = np.concatenate([[0.0], np.cumsum(beta[:-1])])
+        self.polygon_face_normal_angle_rad = TWO_PI * np.arange(N) / N + cum
+        ph = _opt(sc, "errors", "polygon_eccentricity_phase", None)
+        if ph is None:
+            ph = _rng(seed, "polygon_eccentricity_phase").uniform(0, TWO_PI)
+        self.polygon_eccentricity_phase_rad = float(ph)
+        pe = float(er["polygon_eccentricity"])
+        self.polygon_offset_m = pe * np.array([math.cos(ph), math.sin(ph), 0.0])
+        ph = _opt(sc, "bearings", "unbalance_phase", None)
+        if ph is None:
+            ph = _rng(seed, "unbalance_phase").uniform(0, TWO_PI)
+        self.unbalance_phase_rad = float(ph)
+        # Synchronous race waviness, per bearing.
+        self.waviness = {"top": list(br["waviness_top"]), "bottom": list(br["waviness_bottom"])}
+        self._wav = {s: _lobes_arrays(self.waviness[s]) for s in ("top", "bottom")}
+        # Cage lobing: fixed property of each bearing's ball set (orders 1…3, random phases),
+        # scaled so its per-axis RMS is sqrt(async_cage_fraction)·async_rms.
+        self.cage_lobes = {}
+        rms_cage = math.sqrt(self.async_cage_fraction) * float(br["async_rms"])
+        for i, s in enumerate(("top", "bottom")):
+            r = _rng(seed, "cage_lobes", i)
+            k = np.array(CAGE_ORDERS, dtype=float)
+            a = r.uniform(0.5, 1.0, k.size)
+            # per-axis RMS of whirls a·(cos, sin) is sqrt(Σa²/2)
+            a *= rms_cage / math.sqrt(0.5 * np.sum(a**2)) if rms_cage > 0 else 0.0
+            p = r.uniform(0, TWO_PI, k.size)
+            self.cage_lobes[s] = (k, a, p)
+        # Optional measured motion table: replaces the synchronous waviness.
+        self.motion_table = None
+        table = sc.get("motion_table") if hasattr(sc, "get") else None
+        if table:
+            self._set_motion_table(table, b)
+
+    def _set_motion_table(self, table, b) -> None:
+        th = _table_column(table, "theta", "theta_rad")
+        if th is None:
+            raise ValueError("motion_table: needs a theta column (rad)")
+        cols = {}
+        for name, alias in (("dx", "dx_m"), ("dy", "dy_m"), ("tilt_x", "tilt_x_rad"), ("tilt_y", "tilt_y_rad")):
+            c = _table_column(table, name, alias)
+            cols[name] = np.zeros_like(th) if c is None else c
+        order = np.argsort(np.mod(th, TWO_PI))
+        th = np.mod(th, TWO_PI)[order]
+        # Rolling-path offsets that carry an unloaded rigid shaft along the table's motion:
+        # x(z) = dx + z·tilt_y, y(z) = dy − z·tilt_x at each bearing (same kinematics as the tendons).
+        off = []
+        for z in (b["bearing_top_z"], b["bearing_bottom_z"]):
+            off.append(cols["dx"][order] + z * cols["tilt_y"][order])
+            off.append(cols["dy"][order] - z * cols["tilt_x"][order])
+        off = np.array(off)                                   # (4, n)
+        th_p = np.concatenate([th, [th[0] + TWO_PI]])
+        off_p = np.concatenate([off, off[:, :1]], axis=1)
+        self.motion_table = {"theta_rad": th.tolist(), **{k: cols[k][order].tolist() for k in cols}}
+        self._table_spline = CubicSpline(th_p, off_p, axis=1, bc_type="periodic")
+
+    # --------------------------------------------------------------- rolling-path offsets ----
+    def _rep_params(self, rep: int) -> dict:
+        p = self._rep_cache.get(rep)
+        if p is None:
+            rms_rand = math.sqrt(max(0.0, 1.0 - self.async_cage_fraction)) * self.async_rms_m
+            r = _rng(self.seed, "rep_async", rep)
+            f = r.uniform(*ASYNC_FREQ_RANGE, (4, ASYNC_COMPONENTS))
+            a = 1.0 / f
+            # per-series RMS sqrt(Σa²/2) -> rms_rand
+            a *= (rms_rand / np.sqrt(0.5 * np.sum(a**2, axis=1)))[:, None] if rms_rand > 0 else 0.0
+            ph = r.uniform(0, TWO_PI, (4, ASYNC_COMPONENTS))
+            cage_phase = _rng(self.seed, "rep_cage_phase", rep).uniform(0, TWO_PI, 2)
+            p = {"f": f, "a": a, "ph": ph, "cage_phase": cage_phase}
+            self._rep_cache[rep] = p
+        return p
+
+    def race_offsets_m(self, theta_rad: float, rep: int = 0, include_async: bool = True) -> np.ndarray:
+        """Rolling-path offsets (top_x, top_y, bottom_x, bottom_y) at shaft angle θ, without the
+        constant housing position: the rest positions of the four bearing springs."""
+        th = float(theta_rad)
+        out = np.zeros(4)
+        if self.motion_table is not None:
+            out += self._table_spline(math.fmod(th, TWO_PI) % TWO_PI)
+        else:
+            for i, s in enumerate(("top", "bottom")):
+                k, a, p = self._wav[s]
+                if k.size:
+                    arg = k * th - p
+                    out[2 * i] += np.dot(a, np.cos(arg))
+                    out[2 * i + 1] += np.dot(a, np.sin(arg))
+        if include_async and self.async_rms_m > 0:
+            rp = self._rep_params(rep)
+            for i, s in enumerate(("top", "bottom")):
+                k, a, p = self.cage_lobes[s]
+                arg = k * (self.cage_ratio * th + rp["cage_phase"][i]) - p
+                out[2 * i] += np.dot(a, np.cos(arg))
+                out[2 * i + 1] += np.dot(a, np.sin(arg))
+            out += np.sum(rp["a"] * np.cos(rp["f"] * th + rp["ph"]), axis=1)
+        return out
+
+    # --------------------------------------------------------------------------- statics -----
+    def _residual(self, q: np.ndarray) -> np.ndarray:
+        d = self.data
+        d.qpos[:] = q
+        mujoco.mj_forward(self.model, d)
+        return d.qfrc_smooth.copy()
+
+    def _set_loads(self, cmd_rad: float, direction: int) -> None:
+        d = self.data
+        d.qvel[:] = 0.0
+        d.ctrl[self._act] = cmd_rad
+        d.qfrc_applied[:] = 0.0
+        # Sliding bearing friction opposing the approach direction (see module docstring).
+        d.qfrc_applied[4] = -float(np.sign(direction)) * self.friction_torque_Nm
+
+    def _set_springs(self, offsets: np.ndarray) -> None:
+        ls = self.model.tendon_lengthspring
+        ls[self._ten, 0] = offsets
+        ls[self._ten, 1] = offsets
+
+    def _stiffness_matrix(self) -> np.ndarray:
+        """K = −∂qfrc_smooth/∂q by central differences at the unposed state (springs held)."""
+        self._set_loads(0.0, +1)
+        self._set_springs(np.zeros(4))
+        q0 = np.zeros(6)
+        h = np.where(_LINEAR, 1e-8, 1e-7)
+        K = np.zeros((6, 6))
+        for i in range(6):
+            dq = np.zeros(6)
+            dq[i] = h[i]
+            K[:, i] = -(self._residual(q0 + dq) - self._residual(q0 - dq)) / (2 * h[i])
+        return K
+
+    def _solve(self, cmd_rad: float, direction: int, rep: int, include_async: bool = True,
+               housing_m: np.ndarray | None = None) -> int:
+        """Static equilibrium for drive command ``cmd_rad``; leaves ``self.data`` posed there.
+        Returns the number of Newton iterations."""
+        housing = self._housing_m if housing_m is None else housing_m
+        self._set_loads(cmd_rad, direction)
+        q = self._q_last.copy()
+        q[4] += cmd_rad - self._cmd_last          # warm start: keep the previous lag
+        d = self.data
+        for it in range(1, SETTLE_MAX_ITER + 1):
+            self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+            r = self._residual(q)
+            dq = self._Kinv @ r
+            q = q + dq
+            if np.all(np.abs(dq) <= SETTLE_ATOL + 4 * np.finfo(float).eps * np.abs(q)):
+                break
+        else:
+            raise RuntimeError(f"static solve did not converge at command {cmd_rad} rad: |dq| = {np.abs(dq).max():g}")
+        # Final evaluation at the converged q, so the poses read from d are those of q.
+        self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+        d.qpos[:] = q
+        mujoco.mj_forward(self.model, d)
+        if np.any(d.warning.number):
+            raise RuntimeError(f"MuJoCo warnings during the static solve: {d.warning.number}")
+        self._q_last = q
+        self._cmd_last = cmd_rad
+        return it
+
+    def _axis_line(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current shaft axis: a point (its intersection with the lab plane z = 0) and direction."""
+        d = self.data
+        p = d.xpos[self._bid["shaft"]]
+        a = d.xmat[self._bid["shaft"]].reshape(3, 3)[:, 2]
+        return p - a * (p[2] / a[2]), a / a[2]
+
+    def _center_axis_average_line(self) -> None:
+        """Place the housings so that the axis average line (least-squares axis over a revolution
+        of the synchronous motion, ISO 230-7) is the lab z axis: origin of docs/conventions.md."""
+        def mean_axis(housing):
+            pts, dirs = [], []
+            for th in TWO_PI * np.arange(AXIS_AVERAGE_POINTS) / AXIS_AVERAGE_POINTS:
+                self._solve(th, +1, 0, include_async=False, housing_m=housing)
+                p, a = self._axis_line()
+                pts.append(p[:2])
+                dirs.append(a[:2])
+            return np.concatenate([np.mean(pts, axis=0), np.mean(dirs, axis=0)])
+
+        h0 = np.zeros(4)
+        y0 = mean_axis(h0)
+        # The statics are linear in the housing offsets: one sensitivity matrix, one correction.
+        J = np.zeros((4, 4))
+        for i in range(4):
+            dh = np.zeros(4)
+            dh[i] = 1e-6
+            self._solve(0.0, +1, 0, include_async=False, housing_m=dh)
+            p1, a1 = self._axis_line()
+            self._solve(0.0, +1, 0, include_async=False, housing_m=h0)
+            p0, a0 = self._axis_line()
+            J[:, i] = (np.concatenate([p1[:2], a1[:2]]) - np.concatenate([p0[:2], a0[:2]])) / 1e-6
+        self._housing_m = -np.linalg.solve(J, y0)
+        self.axis_average_residual = mean_axis(self._housing_m)
+        self._q_last = np.zeros(6)
+        self._cmd_last = 0.0
+        self.total_iterations = 0
+        self.n_poses = 0
+
+    # ----------------------------------------------------------------------------- API -------
+    def _body(self, name: str) -> BodyPose:
+        i = self._bid[name]
+        return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
+
+    def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1) -> BenchPose:
+        """Command the drive to ``shaft_angle_rad`` approached in ``direction`` (+1 CCW, −1 CW),
+        settle to static equilibrium and return the posed bodies (lab frame, m).
+
+        ``rep`` selects the run (the non-repeating motion and cage phase differ between reps);
+        ``t_s`` is recorded only (no time-dependent physics yet)."""
+        if direction not in (1, -1):
+            raise ValueError("direction must be +1 or -1")
+        it = self._solve(float(shaft_angle_rad), direction, int(rep))
+        self.last_iterations = it
+        self.total_iterations += it
+        self.n_poses += 1
+        d = self.data
+        q = d.qpos
+        axis_p, _ = self._axis_line()
+        extra = {
+            "shaft": self._body("shaft"),
+            "polygon_section": self._body("polygon_section"),
+            "drive_angle_rad": float(shaft_angle_rad),
+            "twist_disk_to_polygon_rad": float(q[5]),
+            "drive_torque_Nm": float(d.actuator_force[self._act]),
+            "axis_disk_plane_m": axis_p[:2].copy(),
+            "polygon_face_normal_angle_rad": self.polygon_face_normal_angle_rad,
+            "settle_iterations": it,
+            "rep": int(rep),
+            "direction": int(direction),
+        }
+        return BenchPose(
+            t_s=float(t_s),
+            shaft_angle_rad=float(q[4]),
+            disk=self._body("disk"),
+            polygon=self._body("polygon"),
+            sphere_top=self._body("sphere_top"),
+            sphere_bottom=self._body("sphere_bottom"),
+            extra=extra,
+        )
+
+    def disk_plane_motion(self, angles_rad, rep: int = 0, direction: int = +1) -> tuple[np.ndarray, np.ndarray]:
+        """True motion (dx, dy) of the axis of rotation (the shaft's spin axis) where it crosses
+        the disk plane z = 0, relative to the axis average line, at each commanded angle."""
+        angles = np.atleast_1d(np.asarray(angles_rad, dtype=float))
+        out = np.zeros((angles.size, 2))
+        for i, th in enumerate(angles):
+            self._solve(float(th), direction, int(rep))
+            out[i] = self._axis_line()[0][:2]
+        return out[:, 0].copy(), out[:, 1].copy()
+
+    def sphere_form_deviation_m(self, which: str, polar_angle_body_rad) -> np.ndarray:
+        """Radius deviation of sphere ``which`` ("top"/"bottom") at a body-frame polar angle
+        (equatorial lobing model; probes touch near the equator)."""
+        k, a, p = _lobes_arrays(self.sphere_form[which])
+        g = np.asarray(polar_angle_body_rad, dtype=float)
+        return np.sum(a[:, None] * np.cos(k[:, None] * g.ravel()[None, :] - p[:, None]), axis=0).reshape(g.shape)
+
+    def polygon_face_normals_body(self) -> np.ndarray:
+        """(N, 3) outward unit normals of faces 1…N in the polygon body frame (pitch deviations
+        included)."""
+        g = self.polygon_face_normal_angle_rad
+        return np.stack([np.cos(g), np.sin(g), np.zeros_like(g)], axis=1)
+
+    def truth(self) -> dict:
+        """Every generated or derived physical parameter, JSON-ready, SI, unit-suffixed keys."""
+        sc = self.sc
+        br = sc["bearings"]
+        tf = self.friction_torque_Nm
+        truth = {
+            "model": "benchtwin.models/bench.xml + twin/build.py",
+            "model_template": template_path().name,
+            "mujoco_version": mujoco.__version__,
+            "seed": self.seed,
+            "gravity_m_s2": list(map(float, self.model.opt.gravity)),
+            "geometry": {k: v for k, v in self.geometry.items()},
+            "disk_eccentricity_m": float(np.hypot(*self.disk_offset_m[:2])),
+            "disk_eccentricity_azimuth_body_rad": self.disk_eccentricity_azimuth_rad,
+            "theta0_rad": float(sc["errors"]["theta0"]),
+            "disk_centre_body_m": self.disk_offset_m.tolist(),
+            "disk_tilt_rad": self.placement.disk_tilt_rad,
+            "disk_tilt_azimuth_rad": self.placement.disk_tilt_azimuth_rad,
+            "sphere_top_centre_body_m": (self.sphere_offset_m["top"] + [0, 0, self.geometry["sphere_top_z_m"]]).tolist(),
+            "sphere_bottom_centre_body_m": (self.sphere_offset_m["bottom"] + [0, 0, self.geometry["sphere_bottom_z_m"]]).tolist(),
+            "sphere_top_form": _lobes_json(self.sphere_form["top"]),
+            "sphere_bottom_form": _lobes_json(self.sphere_form["bottom"]),
+            "polygon_faces": self.n_faces,
+            "polygon_pitch_deviation_rad": self.polygon_pitch_deviation_rad.tolist(),
+            "polygon_pitch_deviation_arcsec": (self.polygon_pitch_deviation_rad / ARCSEC).tolist(),
+            "polygon_face_normal_angle_body_rad": self.polygon_face_normal_angle_rad.tolist(),
+            "polygon_centre_body_m": self.polygon_offset_m.tolist(),
+            "polygon_eccentricity_phase_rad": self.polygon_eccentricity_phase_rad,
+            "polygon_tilt_rad": self.placement.polygon_tilt_rad,
+            "polygon_tilt_azimuth_rad": self.placement.polygon_tilt_azimuth_rad,
+            "waviness_top": _lobes_json(self.waviness["top"]),
+            "waviness_bottom": _lobes_json(self.waviness["bottom"]),
+            "motion_table": self.motion_table,
+            "cage_ratio": self.cage_ratio,
+            "async_rms_m": self.async_rms_m,
+            "async_cage_fraction": self.async_cage_fraction,
+            "cage_lobes_top": [{"order": int(k), "amplitude_m": float(a), "phase_rad": float(p)}
+                               for k, a, p in zip(*self.cage_lobes["top"])],
+            "cage_lobes_bottom": [{"order": int(k), "amplitude_m": float(a), "phase_rad": float(p)}
+                                  for k, a, p in zip(*self.cage_lobes["bottom"])],
+            "unbalance_kgm": float(br["unbalance"]),
+            "unbalance_phase_body_rad": self.unbalance_phase_rad,
+            "unbalance_radius_m": UNBALANCE_RADIUS_M,
+            "unbalance_z_m": self.placement.unbalance_z_m,
+            "housing_offsets_m": dict(zip(BEARING_TENDONS, self._housing_m.tolist())),
+            "bearing_radial_stiffness_N_m": float(br["radial_stiffness"]),
+            "bearing_tilt_stiffness_Nm_rad": float(br["tilt_stiffness"]),
+            "friction_torque_Nm": tf,
+            "drive_torsional_stiffness_Nm_rad": float(br["drive_torsional_stiffness"]),
+            "shaft_torsional_stiffness_Nm_rad": float(br["shaft_torsional_stiffness"]),
+            # Nominal (no unbalance torque) lags: what hysteresis to expect per direction.
+            "twist_disk_to_polygon_nominal_rad": tf / float(br["shaft_torsional_stiffness"]),
+            "lag_disk_behind_drive_nominal_rad": tf * (1 / float(br["drive_torsional_stiffness"])
+                                                       + 1 / float(br["shaft_torsional_stiffness"])),
+            "settle_atol": SETTLE_ATOL,
+        }
+        return truth
