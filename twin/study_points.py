@@ -1,0 +1,181 @@
+"""Point functions of a design study: one resolved scenario (+ repetition) -> a dict of outputs.
+
+Why a separate module: the runner (``study.py``) only schedules, caches and tabulates; what a
+point *costs* is decided here, by fidelity, so that a study whose outputs need no images and no
+dynamics never pays for them:
+
+- ``physics``: build the twin's ``Bench`` (MuJoCo, quasi-static poses) and read the posed disk
+  with exact trigonometry. Outputs: ``PHYSICS_OUTPUTS``. Milliseconds to a second per point.
+- ``full``: the whole simulate → analyze pipeline (rendered CCD images, instruments, analysis).
+  Outputs are keys of the pipeline's ``results.json``, written ``results.<dotted.path>``. This
+  needs the lead's entry point ``FULL_ENTRY_POINT``; until it exists, a full point raises
+  ``NotImplementedError`` naming it (never a stand-in result).
+
+Point functions are module-level (picklable by reference) and build every MuJoCo object inside
+the worker process: MuJoCo models and data cannot be pickled. A small per-process cache keeps the
+last benches so that the repetitions of one point share one model.
+
+A point function has the signature ``fn(task: dict) -> list[dict]``: ``task`` holds
+``scenario`` (a validated ``Scenario``), ``reps`` (repetition indices), ``rep_seeds``
+(``numpy.random.SeedSequence([study seed, rep])`` states) and ``angles`` (shaft positions per
+turn); it returns one dict of outputs per repetition, in order.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+
+from benchtwin.units import ARCSEC, UM
+
+# name -> what it is (units in the name; docs/studies.md lists them too).
+PHYSICS_OUTPUTS: dict[str, str] = {
+    "angle_error_pv_arcsec": "peak-to-valley over one turn of the encoder error α = reading − true "
+                             "angle (mean of the heads' readings), exact reading of the posed disk",
+    "angle_error_rms_arcsec": "RMS about the mean of the same α over one turn (the index offset is "
+                              "arbitrary, so the mean is removed)",
+    "disk_radial_motion_pv_um": "largest peak-to-valley, over all fixed sensitive directions in the "
+                                "disk plane, of the disk's radial motion over one turn",
+    "disk_motion_x_pv_um": "peak-to-valley of the disk's motion along lab X (the direction that "
+                           "changes head 1's reading: α ≈ −δx/r)",
+    "disk_motion_y_pv_um": "peak-to-valley of the disk's motion along lab Y (towards head 1)",
+    "disk_tilt_max_arcsec": "largest angle between the disk normal and the lab z axis over one turn",
+}
+
+FULL_PREFIX = "results."
+# The lead's simulate -> analyze entry point (module, function). Contract:
+#   simulate_and_analyze(scenario: Scenario, out_dir: pathlib.Path, rep_seed: int,
+#                        progress: bool = False) -> dict   # the contents of results.json
+FULL_ENTRY_POINT = ("benchtwin.twin.run", "simulate_and_analyze")
+
+_BENCHES: OrderedDict[str, Any] = OrderedDict()
+_BENCH_CACHE_SIZE = 4
+
+
+def output_fidelity(output: str) -> str:
+    """The cheapest fidelity that can compute ``output``; ``KeyError`` for an unknown name."""
+    if output in PHYSICS_OUTPUTS:
+        return "physics"
+    if output.startswith(FULL_PREFIX) and len(output) > len(FULL_PREFIX):
+        return "full"
+    raise KeyError(output)
+
+
+def full_entry_point():
+    """The lead's simulate→analyze function, or ``NotImplementedError`` naming what is missing."""
+    mod, fn = FULL_ENTRY_POINT
+    try:
+        return getattr(importlib.import_module(mod), fn)
+    except (ImportError, AttributeError):
+        raise NotImplementedError(
+            f"fidelity 'full' needs {mod}.{fn}(scenario, out_dir, rep_seed, progress=False) -> "
+            "results dict (the simulate → analyze pipeline), which has not landed yet; use outputs "
+            f"from the physics set ({', '.join(PHYSICS_OUTPUTS)}) or wait for it") from None
+
+
+# ----------------------------------------------------------------------------------- physics
+
+
+def _bench_for(task: dict) -> Any:
+    """One ``Bench`` per resolved scenario per worker process (reps of a point share it)."""
+    key = task["scenario_key"]
+    if key in _BENCHES:
+        _BENCHES.move_to_end(key)
+        return _BENCHES[key]
+    from benchtwin.twin.physics import Bench  # MuJoCo is built here, inside the worker
+
+    bench = Bench(task["scenario"])
+    _BENCHES[key] = bench
+    while len(_BENCHES) > _BENCH_CACHE_SIZE:
+        _BENCHES.popitem(last=False)
+    return bench
+
+
+def physics_point(task: dict) -> list[dict[str, float]]:
+    """Exact encoder error and disk motion from the twin's posed disk, one dict per repetition."""
+    sc = task["scenario"]
+    bench = _bench_for(task)
+    n = int(task["angles"])
+    angles = 2.0 * math.pi * np.arange(n) / n
+    r = float(sc["bench"]["optical_radius"])
+    heads = np.asarray(sc["bench"]["heads"], dtype=float)
+    dwell = float(sc["procedure"]["dwell"])
+    out = []
+    for rep in task["reps"]:
+        err = np.empty(n)
+        tilt = np.empty(n)
+        for i, a in enumerate(angles):
+            pose = bench.pose_at(float(a), rep=int(rep), t_s=i * dwell, direction=+1)
+            err[i] = _exact_reading_error_rad(pose, r, heads).mean()
+            nz = float(np.clip(pose.disk.R[2, 2], -1.0, 1.0))
+            tilt[i] = math.acos(nz)
+        dx, dy = bench.disk_plane_motion(angles, int(rep))
+        dx, dy = np.asarray(dx, float), np.asarray(dy, float)
+        out.append({
+            "angle_error_pv_arcsec": float(np.ptp(err)) / ARCSEC,
+            "angle_error_rms_arcsec": float(np.sqrt(np.mean((err - err.mean()) ** 2))) / ARCSEC,
+            "disk_radial_motion_pv_um": _worst_direction_pv(dx, dy) / UM,
+            "disk_motion_x_pv_um": float(np.ptp(dx)) / UM,
+            "disk_motion_y_pv_um": float(np.ptp(dy)) / UM,
+            "disk_tilt_max_arcsec": float(tilt.max()) / ARCSEC,
+        })
+    return out
+
+
+def _exact_reading_error_rad(pose: Any, r: float, heads_rad: np.ndarray) -> np.ndarray:
+    """Exact reading error of each head (rad) for one posed disk.
+
+    Head j sits at lab azimuth a_j = 90° + ψ_j (head 1 on +Y, docs/conventions.md) at radius r and
+    looks along lab z. Its line of sight meets the disk plane at q; the graduation under it is the
+    polar angle g of q in the disk body frame, about the disk's geometric centre. At the ideal pose
+    g = a_j − t, so the head reads a_j − g, and its error is (a_j − g) − t with t the true shaft
+    angle. No small-angle approximation: the intersection and atan2 are exact.
+    """
+    c = np.asarray(pose.disk.pos, float)
+    R = np.asarray(pose.disk.R, float)
+    n = R[:, 2]
+    a = 0.5 * math.pi + np.asarray(heads_rad, float)
+    p0 = np.stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)], axis=1)  # (H, 3)
+    s = ((c - p0) @ n) / n[2]  # distance along +z to the disk plane
+    q = p0 + s[:, None] * np.array([0.0, 0.0, 1.0])
+    b = (q - c) @ R  # body frame
+    g = np.arctan2(b[:, 1], b[:, 0])
+    err = (a - g) - float(pose.shaft_angle_rad)
+    return (err + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _worst_direction_pv(dx: np.ndarray, dy: np.ndarray, n_dir: int = 180) -> float:
+    """Largest peak-to-valley of u·(dx, dy) over fixed unit directions u (radial error motion)."""
+    phi = np.pi * np.arange(n_dir) / n_dir
+    proj = np.outer(np.cos(phi), dx) + np.outer(np.sin(phi), dy)
+    return float(np.max(np.ptp(proj, axis=1)))
+
+
+# -------------------------------------------------------------------------------------- full
+
+
+def full_point(task: dict) -> list[dict[str, float]]:
+    """The whole simulate → analyze pipeline per repetition; outputs are ``results.<path>`` keys."""
+    import tempfile
+    from pathlib import Path
+
+    fn = full_entry_point()
+    wanted = [o for o in task["outputs"] if o.startswith(FULL_PREFIX)]
+    out = []
+    for rep, seed in zip(task["reps"], task["rep_seeds"]):
+        with tempfile.TemporaryDirectory(prefix="benchtwin-study-") as tmp:
+            results = fn(task["scenario"], Path(tmp), rep_seed=int(seed), progress=False)
+        row = {}
+        for o in wanted:
+            node: Any = results
+            for part in o[len(FULL_PREFIX):].split("."):
+                if not isinstance(node, dict) or part not in node:
+                    raise KeyError(f"output {o!r}: the pipeline's results have no key {part!r}")
+                node = node[part]
+            row[o] = float(node)
+        out.append(row)
+    return out
