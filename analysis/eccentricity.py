@@ -23,7 +23,8 @@ Choices where the paper is silent (each is a parameter):
 - polarity ("the value of the binary image is reversed"): the lines are the class that splits into
   many separate parts; the other class (gaps + glass beyond the edge) is one connected region.
   Reported as ``"dark"`` (chrome on bright glass, transmitted light) or ``"bright"``;
-- parts whose area is below ``min_area_frac`` (0.3) × the median part area are dust; parts touching
+- parts that are not elongated along x (bounding-box width < 2 × mean thickness area/width) and
+  parts whose area is below ``min_area_frac`` (0.3) × the median line area are dust; parts touching
   the top, bottom or right image border are dropped (their end, or their width, is cut);
   a part touching the left border (the inner end of the line, outside the view) is kept;
 - sub-pixel edge: the binary edge is only the start. Along each fully covered row of a line the
@@ -133,7 +134,7 @@ def check_frame(grey: np.ndarray, full_scale: float, name: str | int | None = No
                                  "expected an exposed image of the grating")
     p1, p99 = np.percentile(grey, [1, 99])
     if p99 - p1 < min_contrast * full_scale:
-        raise ImageAnalysisError(f"{_where(name)}: blank frame (grey levels {p1:.1f}…{p99:.1f}, spread < "
+        raise ImageAnalysisError(f"{_where(name)}: blank frame, no grating visible (grey levels {p1:.1f}…{p99:.1f}, spread < "
                                  f"{min_contrast:.0%} of full scale {full_scale:g}); expected grating lines")
 
 
@@ -192,6 +193,12 @@ def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac
     if cand.size == 0:
         raise ImageAnalysisError(f"{_where(name)}: no grating found (no connected parts ≥ {min_area_px} px after "
                                  f"thresholding at {t:.1f}); expected ≥ {MIN_LINES} graduation lines")
+    # line-like: longer (radially, along x) than twice the mean thickness area/width; dust is not
+    wid = stats[cand, cv2.CC_STAT_WIDTH].astype(float)
+    cand = cand[wid >= 2.0 * stats[cand, cv2.CC_STAT_AREA] / wid]
+    if cand.size == 0:
+        raise ImageAnalysisError(f"{_where(name)}: no grating found (no elongated parts after thresholding at "
+                                 f"{t:.1f}); expected ≥ {MIN_LINES} radial graduation lines along image x")
     med = float(np.median(stats[cand, cv2.CC_STAT_AREA]))
     keep = cand[stats[cand, cv2.CC_STAT_AREA] >= min_area_frac * med]
     n_dust = int(ids.size - keep.size)

@@ -1,0 +1,244 @@
+"""Tests of the CCD eccentricity pipeline (Jia 2019 sec. 4.2, eqs. 10-13) on rendered grating images."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from benchtwin.analysis.eccentricity import (
+    ImageAnalysisError,
+    d_ref_px,
+    eccentricity_from_dref,
+    eccentricity_from_images,
+    eccentricity_monte_carlo,
+    edge_details,
+    edge_points,
+    fit_circle,
+    pixel_scale_um,
+)
+
+UM_PER_PX = 0.667  # Jia eq. 13
+R_UM = 22500.0  # scale edge radius (scenario jia2019)
+R_PX = R_UM / UM_PER_PX
+PERIOD_UM = 20.0
+E_UM, TH0 = 7.1, 192.08
+
+
+def _geom(W, H, dref_px, dy_px):
+    ref = (W / 2.0, H / 2.0)
+    centre = (ref[0] - (R_PX + dref_px), ref[1] + dy_px)
+    exact = math.hypot(centre[0] - ref[0], centre[1] - ref[1]) - R_PX
+    return ref, centre, exact
+
+
+def test_full_size_image_d_ref(grating_renderer):
+    W, H = 2048, 1536  # Jia's camera; reference point (1024, 768)
+    ref, centre, exact = _geom(W, H, 4.37, -55.3)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, phase_rad=2.1e-4)
+    res = d_ref_px(img, ref)
+    assert res["reference_px"] == (1024.0, 768.0)
+    assert res["n_lines"] >= 45
+    assert res["polarity"] == "dark"
+    assert abs(res["d_ref_px"] - exact) < 0.02
+    assert res["residual_rms_px"] < 0.01
+    # known radius: the same
+    res_r = d_ref_px(img, ref, radius_px=R_PX)
+    assert abs(res_r["d_ref_px"] - exact) < 0.02
+    # pixel scale: the paper's count (90 px over 3 periods) and the line-spacing estimate
+    sc = pixel_scale_um(img, PERIOD_UM)
+    assert sc["m_p_px"] == 90 and sc["um_per_px_count"] == pytest.approx(0.6667, abs=1e-4)
+    assert sc["um_per_px"] == pytest.approx(UM_PER_PX, rel=5e-5)
+    assert abs(sc["um_per_px"] - UM_PER_PX) < 5 * sc["u_um_per_px"] + 1e-6
+
+
+@pytest.mark.parametrize("dref_px,dy_px,phase", [(3.3, 0.0, 0.0), (-5.71, 37.4, 3e-4), (12.25, -120.0, 7.7e-4)])
+def test_crop_d_ref_exact(grating_renderer, dref_px, dy_px, phase):
+    W, H = 400, 300
+    ref, centre, exact = _geom(W, H, dref_px, dy_px)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, phase_rad=phase)
+    res = d_ref_px(img, ref)
+    assert abs(res["d_ref_px"] - exact) < 0.02
+    assert abs(d_ref_px(img, ref, radius_px=R_PX)["d_ref_px"] - exact) < 0.02
+    pts = edge_points(img)
+    assert pts.shape == (res["n_lines"], 2) and res["n_lines"] >= 8
+    # every middle point lies on the edge circle
+    r = np.hypot(res["points_px"][:, 0] - centre[0], res["points_px"][:, 1] - centre[1])
+    assert np.max(np.abs(r - R_PX)) < 0.02
+
+
+def test_bright_lines_colour_and_uint8(grating_renderer):
+    W, H = 400, 300
+    ref, centre, exact = _geom(W, H, 2.0, 10.0)
+    dark = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, to_uint8=True)
+    bright = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, glass=25.0, chrome=210.0, to_uint8=True)
+    rd, rb = d_ref_px(dark, ref), d_ref_px(bright, ref)
+    assert rd["polarity"] == "dark" and rb["polarity"] == "bright"
+    assert abs(rd["d_ref_px"] - exact) < 0.02 and abs(rb["d_ref_px"] - exact) < 0.02
+    colour = np.repeat(dark[:, :, None], 3, axis=2)
+    assert d_ref_px(colour, ref)["d_ref_px"] == pytest.approx(rd["d_ref_px"], abs=1e-9)
+
+
+def test_blur_noise_and_dust(grating_renderer):
+    W, H = 400, 300
+    ref, centre, exact = _geom(W, H, 1.5, -20.0)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, blur_px=1.2, noise=1.0, seed=3, to_uint8=True)
+    clean = d_ref_px(img, ref)
+    assert abs(clean["d_ref_px"] - exact) < 0.05
+    assert clean["u_d_ref_px"] < 0.05
+    # dust: dark specks on the glass beyond the edge and on the lines (not on the line ends)
+    dusty = img.copy()
+    yy, xx = np.mgrid[0:H, 0:W]
+    for (x, y, r) in [(300, 40, 4), (350, 200, 3), (250, 260, 5), (80, 150, 4), (330, 120, 2), (120, 30, 3)]:
+        dusty[(xx - x) ** 2 + (yy - y) ** 2 <= r * r] = 35
+    res = d_ref_px(dusty, ref)
+    assert res["edges"].removed_dust >= 4
+    assert res["n_lines"] == clean["n_lines"]
+    assert res["d_ref_px"] == pytest.approx(clean["d_ref_px"], abs=0.01)
+
+
+def test_edge_method_crossing_is_a_variant(grating_renderer):
+    W, H = 400, 300
+    ref, centre, exact = _geom(W, H, 3.0, 0.0)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX)
+    a = d_ref_px(img, ref, edge_method="area")["d_ref_px"]
+    c = d_ref_px(img, ref, edge_method="crossing")["d_ref_px"]
+    assert abs(a - exact) < 0.02
+    assert abs(c - exact) < 0.15  # linear interpolation of the 50 % crossing: biased on a sharp step
+
+
+def test_fit_circle_exact_and_covariance():
+    rng = np.random.default_rng(7)
+    cx, cy = -32700.0, 768.0
+    phi = np.linspace(-0.02, 0.02, 40)
+    pts = np.column_stack([cx + R_PX * np.cos(phi), cy + R_PX * np.sin(phi)])
+    fx, fy, fr, cov = fit_circle(pts)
+    assert fx == pytest.approx(cx, abs=1e-4) and fy == pytest.approx(cy, abs=1e-4) and fr == pytest.approx(R_PX, abs=1e-4)
+    fx, fy, fr, cov = fit_circle(pts, radius=R_PX)
+    assert (fx, fy, fr) == pytest.approx((cx, cy, R_PX), abs=1e-5)
+    assert cov[2, 2] == 0.0
+    # covariance of d_ref (= l − r) vs Monte Carlo, σ = 0.02 px
+    ref = np.array([1024.0, 768.0])
+    d_true = math.hypot(cx - ref[0], cy - ref[1]) - R_PX
+    D, U = [], []
+    for _ in range(300):
+        noisy = pts + rng.normal(0, 0.02, pts.shape)
+        fx, fy, fr, cov = fit_circle(noisy)
+        l = math.hypot(fx - ref[0], fy - ref[1])
+        g = np.array([(fx - ref[0]) / l, (fy - ref[1]) / l, -1.0])
+        D.append(l - fr)
+        U.append(math.sqrt(g @ cov @ g))
+    assert np.mean(D) == pytest.approx(d_true, abs=0.005)
+    assert np.std(D, ddof=1) == pytest.approx(np.mean(U), rel=0.2)
+    with pytest.raises(ValueError):
+        fit_circle(pts[:3])
+
+
+def test_eccentricity_from_dref_camera_azimuth(lab_centre):
+    # d_ref from the exact geometry of docs/conventions.md, cameras at 180° and at 150°
+    th = np.arange(60) * 6.0
+    ref = (200.0, 150.0)
+    for psi in (180.0, 150.0, 90.0):
+        d = []
+        for t in th:
+            c = lab_centre(t, E_UM, TH0, R_UM + 2.0, UM_PER_PX, ref, camera_azimuth_deg=psi)
+            d.append((math.hypot(c[0] - ref[0], c[1] - ref[1]) - R_PX) * UM_PER_PX)
+        out = eccentricity_from_dref(th, np.array(d), camera_azimuth_deg=psi)
+        assert out["e_um"] == pytest.approx(E_UM, abs=1e-3)
+        assert out["theta0_deg"] == pytest.approx(TH0, abs=0.01)
+        assert out["c0_um"] == pytest.approx(2.0, abs=1e-3)
+    # d_ref = e cos(θ − θ0) for the camera at 180°: c1 = e sin θ0, d1 = e cos θ0
+    out = eccentricity_from_dref(th, E_UM * np.cos(np.radians(th - TH0)))
+    assert out["c1_um"] == pytest.approx(E_UM * math.sin(math.radians(TH0)))
+    assert out["d1_um"] == pytest.approx(E_UM * math.cos(math.radians(TH0)))
+    assert out["coefficients"].order == 10 and out["harmonics_um"].shape == (10,)
+
+
+def test_monte_carlo_agrees_with_gum():
+    rng = np.random.default_rng(17)
+    th = np.arange(60) * 6.0
+    d = 3.0 + E_UM * np.cos(np.radians(th - TH0)) + 0.3 * np.sin(np.radians(2 * th)) + rng.normal(0, 0.2, th.size)
+    mc = eccentricity_monte_carlo(th, d, n=3000, seed=4)
+    assert mc["e_std_um"] == pytest.approx(mc["e_u_gum_um"], rel=0.1)
+    assert mc["theta0_std_deg"] == pytest.approx(mc["theta0_u_gum_deg"], rel=0.1)
+    assert mc["e_mean_um"] == pytest.approx(E_UM, abs=4 * mc["e_u_gum_um"])
+    assert mc["theta0_mean_deg"] == pytest.approx(TH0, abs=4 * mc["theta0_u_gum_deg"])
+
+
+def test_sweep_of_60_images(grating_renderer, lab_centre):
+    W, H = 400, 300
+    ref = (W / 2.0, H / 2.0)
+    th = np.arange(60) * 6.0
+    pitch_rad = PERIOD_UM / R_UM
+    images = []
+    for t in th:
+        c = lab_centre(t, E_UM, TH0, R_UM + 2.0, UM_PER_PX, ref)
+        # the grating turns with the disk: the lines' phase in the image follows θ
+        images.append(grating_renderer(W, H, c, R_PX, PERIOD_UM / UM_PER_PX,
+                                       phase_rad=(0.1 + math.radians(t)) % pitch_rad))
+    out = eccentricity_from_images(images, th, period_um=PERIOD_UM, reference_px=ref,
+                                   names=[f"ccd/img_{k:03d}.png" for k in range(60)])
+    assert out["e_um"] == pytest.approx(E_UM, abs=0.01)
+    assert out["theta0_deg"] == pytest.approx(TH0, abs=0.1)
+    assert out["e_u_um"] < 0.01 and out["theta0_u_deg"] < 0.1
+    assert out["um_per_px"] == pytest.approx(UM_PER_PX, rel=3e-4)
+    assert out["um_per_px_count"] == pytest.approx(0.6667, abs=1e-4)
+    assert out["c0_um"] == pytest.approx(2.0, abs=0.01)
+    assert out["dref_um"].shape == (60,)
+    # the paper's fixed scale gives the same answer
+    out2 = eccentricity_from_images(images[::2], th[::2], um_per_px=UM_PER_PX, reference_px=ref, order=5)
+    assert out2["e_um"] == pytest.approx(E_UM, abs=0.01)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def test_blank_saturated_black_frames_raise():
+    rng = np.random.default_rng(1)
+    blank = np.clip(180 + rng.normal(0, 1.0, (300, 400)), 0, 255).astype(np.uint8)
+    with pytest.raises(ImageAnalysisError, match=r"img_003\.png.*blank"):
+        d_ref_px(blank, name="ccd/img_003.png")
+    sat = np.full((300, 400), 255, np.uint8)
+    sat[100:115, :150] = 30
+    with pytest.raises(ImageAnalysisError, match="saturated"):
+        edge_points(sat, name=7)
+    with pytest.raises(ImageAnalysisError, match="image #7"):
+        edge_points(sat, name=7)
+    with pytest.raises(ImageAnalysisError, match="black"):
+        edge_points(np.zeros((300, 400), np.uint16))
+    assert issubclass(ImageAnalysisError, ValueError)
+
+
+def test_no_grating_raises():
+    # bright glass with dust only
+    rng = np.random.default_rng(2)
+    img = np.full((300, 400), 200.0)
+    yy, xx = np.mgrid[0:300, 0:400]
+    for x, y, r in zip(rng.uniform(10, 390, 60), rng.uniform(10, 290, 60), rng.uniform(2, 7, 60)):
+        img[(xx - x) ** 2 + (yy - y) ** 2 <= r * r] = 30.0
+    with pytest.raises(ImageAnalysisError, match=r"frame_9.*(no grating found|too few edge points)"):
+        d_ref_px(img, name="frame_9")
+    few = np.full((300, 400), 200.0)
+    few[(xx - 200) ** 2 + (yy - 150) ** 2 <= 36] = 30.0
+    with pytest.raises(ImageAnalysisError, match=r"frame_9.*no grating"):
+        d_ref_px(few, name="frame_9")
+
+
+def test_too_few_lines_raise(grating_renderer):
+    W, H = 400, 110  # about three lines in view
+    ref, centre, _ = _geom(W, H, 3.0, 0.0)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX)
+    with pytest.raises(ImageAnalysisError, match=r"too few edge points: \d usable line ends \(need ≥ 5\)"):
+        d_ref_px(img, ref, name="narrow.png")
+    # mirrored image: the line ends leave the field on the right → no usable ends
+    W, H = 400, 300
+    ref, centre, _ = _geom(W, H, 3.0, 0.0)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX)
+    with pytest.raises(ImageAnalysisError, match="too few edge points"):
+        edge_details(np.ascontiguousarray(img[:, ::-1]))
+
+
+def test_bad_shape_raises():
+    with pytest.raises(ImageAnalysisError, match="2-D"):
+        edge_points(np.zeros((10, 10, 10, 2)))
