@@ -1,0 +1,750 @@
+"""Shift-angle method and polygon cross-calibration (Hsieh, Watanabe, Hsu 2022).
+
+T.-H. Hsieh, T. Watanabe, P.-E. Hsu, "Calibration of Rotary Encoders Using a Shift-Angle Method",
+Appl. Sci. 12 (2022) 5008. Signs and frames: docs/conventions.md ("Polygon and autocollimator").
+
+Model (eq. 3), step ``i`` and start face ``j`` in 1…N, shift ``S``::
+
+    ε_ij(S) = α((i−1)·360/N + S) + Σ_{k=j}^{j+i−1 (mod N)} β_k + U_j(S)
+
+- eq. 1: Σβ = 0 (circle closure of the polygon);
+- eq. 2: Σ_i α((i−1)·360/N + S) = 0 for every shift (circle closure of the encoder);
+- Table 1: the N×N readings at one shift. **Layout here: ``table[j−1, i−1]``** (start face = row,
+  step = column, as in the paper's Table 1);
+- eqs. 5–6 / Table 2: δ_{l,l−1,n} = ε_{l,n} − ε_{l−1,n} with ε_{N+1,n} ≡ ε_{1,n}; the row of Table 2
+  whose differences all contain β_p has n = p − l + 1 (mod N); the row average is β_p because the
+  α differences telescope over the full circle (:func:`table2_arcsec`, :func:`pitch_deviation_arcsec`);
+- eq. 7: Σ_i ε_ij = Σ_i α + Σ_i B_ij + N·U_j, with eq. 2 → U_j = mean_i(ε_ij − B_ij), generalised
+  from j = 1 (the paper) to any start face (:func:`setup_error_arcsec`);
+- eq. 3 again: α(θ_i + S) = ε_ij − B_ij − U_j; with several start faces at one shift (always at
+  S = 0, the full table) the estimates of the start faces are averaged (:func:`encoder_error_arcsec`);
+- sec. 3.1: the curve-fit check of U, α = A·sin(2θ + B) + U (:func:`fit_sine2_offset`), and a
+  general K-harmonic version (:func:`fit_harmonic_offset`, :func:`setup_error_by_curve_fit`).
+
+Traditional cross-calibration: (a) with a calibrated polygon, one start face and the certificate β
+(:func:`cross_calibrate_with_certificate`); (b) without one, the N×N closure over all start faces
+(:func:`cross_calibrate_closure`), which is the S = 0 part of the shift-angle method.
+
+Estimators and their uncertainty
+--------------------------------
+For one observation per cell, the paper's row averages are the ordinary least-squares estimates of
+the three-way additive (Latin-square) model ε_ij = α_i + φ_{j+i−1} + V_j with φ the cumulative β.
+All estimators are linear in the readings, so their standard uncertainties are propagated exactly
+through the Jacobians (GUM, linear model) from ``u(ε)`` of each cell (e.g. the standard deviation
+of the mean of its repetitions) and ``u(β)`` / cov(β) of a certificate. At S = 0 the correlation
+between α and β (same readings) is taken into account.
+
+What the method cannot see (not stated in the paper)
+----------------------------------------------------
+Harmonics of α whose order is a multiple of N sum to N·(their value at S) over the N steps; eq. 2
+assumes that sum is zero, so such a harmonic is absorbed into U_j(S) and lost (it changes with S, so
+every shift loses it). The combined shift-angle curve therefore lacks the harmonics k·N of α; compare
+with self-calibration after removing those harmonics from the latter as well.
+
+Decisions where the paper is silent
+-----------------------------------
+- θ of a reading is the nominal (i−1)·360/N + S (mod 360). A ``theta_deg`` column is only checked:
+  a reading further than a quarter pitch from its nominal angle is a data error (usually a wrong N).
+- Repetitions (``rep``; and ``direction`` forward/backward) of the same (shift, start_face, step)
+  are averaged; their sample standard deviation is the repeatability and sd/√n the u(ε) of the cell.
+  Without a ``rep``/``direction`` column a repeated (shift, start_face, step) is an error.
+- Shifts are matched after rounding to 1e-9 deg.
+- A certificate β that does not sum to zero is made to (its mean is subtracted, eq. 1); the removed
+  mean is reported.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "PolygonDataError",
+    "PolygonTable",
+    "tabulate_polygon",
+    "nominal_theta_deg",
+    "cumulative_pitch_sum_arcsec",
+    "table2_arcsec",
+    "pitch_deviation_operator",
+    "pitch_deviation_arcsec",
+    "setup_error_arcsec",
+    "encoder_error_arcsec",
+    "cross_calibrate_closure",
+    "cross_calibrate_with_certificate",
+    "ShiftResult",
+    "ShiftAngleResult",
+    "shift_angle_analysis",
+    "combined_curve",
+    "fit_sine2_offset",
+    "fit_harmonic_offset",
+    "setup_error_by_curve_fit",
+    "synthesize_readings",
+]
+
+_SHIFT_DECIMALS = 9
+_MAX_LISTED = 10
+
+
+class PolygonDataError(ValueError):
+    """Polygon readings that cannot be analysed; the message names the rows (0-based index) and column."""
+
+
+def _rows(idx: Sequence[int] | np.ndarray) -> str:
+    idx = [int(i) for i in np.asarray(idx).ravel()]
+    s = ", ".join(str(i) for i in idx[:_MAX_LISTED])
+    if len(idx) > _MAX_LISTED:
+        s += f", … ({len(idx) - _MAX_LISTED} more)"
+    return ("row " if len(idx) == 1 else "rows ") + s
+
+
+def _cells(cells: Sequence[tuple[int, int]]) -> str:
+    s = ", ".join(f"(start_face={j}, step={i})" for j, i in cells[:_MAX_LISTED])
+    if len(cells) > _MAX_LISTED:
+        s += f", … ({len(cells) - _MAX_LISTED} more)"
+    return s
+
+
+def _shift_key(s: float) -> float:
+    return float(np.round(float(s), _SHIFT_DECIMALS)) + 0.0
+
+
+def nominal_theta_deg(n_faces: int, shift_deg: float = 0.0) -> np.ndarray:
+    """Encoder angles of steps i = 1…N at shift S: (i−1)·360/N + S, wrapped into [0, 360)."""
+    return np.mod(np.arange(n_faces) * 360.0 / n_faces + shift_deg, 360.0)
+
+
+# --------------------------------------------------------------------------- Table 1 from columns
+
+
+@dataclass(frozen=True)
+class PolygonTable:
+    """Table 1 for every shift: ``eps_arcsec[S][j−1, i−1]`` (NaN where not measured).
+
+    ``sd_arcsec``: sample standard deviation of the repetitions of a cell (NaN with < 2);
+    ``n_rep``: number of repetitions averaged; ``u_arcsec``: sd/√n (NaN with < 2 repetitions).
+    """
+
+    n_faces: int
+    shifts_deg: np.ndarray
+    eps_arcsec: dict[float, np.ndarray]
+    sd_arcsec: dict[float, np.ndarray]
+    n_rep: dict[float, np.ndarray]
+    theta_offset_max_deg: float = float("nan")
+
+    @property
+    def u_arcsec(self) -> dict[float, np.ndarray]:
+        return {s: self.sd_arcsec[s] / np.sqrt(np.maximum(self.n_rep[s], 1)) for s in self.shifts_deg}
+
+    def start_faces(self, shift_deg: float) -> np.ndarray:
+        """1-based start faces that have at least one reading at this shift."""
+        e = self.eps_arcsec[_shift_key(shift_deg)]
+        return np.flatnonzero(np.any(np.isfinite(e), axis=1)) + 1
+
+    def is_complete(self, shift_deg: float) -> bool:
+        return bool(np.all(np.isfinite(self.eps_arcsec[_shift_key(shift_deg)])))
+
+
+def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.ndarray, ac_arcsec: np.ndarray,
+                     n_faces: int, *, theta_deg: np.ndarray | None = None, rep: np.ndarray | None = None,
+                     direction: np.ndarray | None = None) -> PolygonTable:
+    """Build Table 1 (eq. 3 layout) per shift from the dataset's columns; validate them.
+
+    Raises :class:`PolygonDataError` naming rows (0-based index into the arrays) and the column for:
+    a wrong ``n_faces`` (< 3 or not an integer), columns of different lengths, NaN/inf, start face or
+    step not an integer in 1…N, repeated readings without a ``rep``/``direction`` column (or repeated
+    (shift, start_face, step, rep, direction)), a ``theta_deg`` more than a quarter pitch away from
+    (i−1)·360/N + S, and a start face whose row at a shift misses steps (eq. 7 needs all N; the message
+    suggests a wrong face count when every row stops at the same step).
+    """
+    if isinstance(n_faces, bool) or int(n_faces) != n_faces or n_faces < 3:
+        raise PolygonDataError(f"n_faces: expected an integer >= 3, got {n_faces!r}")
+    N = int(n_faces)
+    cols: dict[str, np.ndarray] = {
+        "shift_deg": np.asarray(shift_deg, dtype=float).ravel(),
+        "start_face": np.asarray(start_face).ravel(),
+        "step": np.asarray(step).ravel(),
+        "ac_arcsec": np.asarray(ac_arcsec, dtype=float).ravel(),
+    }
+    if theta_deg is not None:
+        cols["theta_deg"] = np.asarray(theta_deg, dtype=float).ravel()
+    if rep is not None:
+        cols["rep"] = np.asarray(rep).ravel()
+    if direction is not None:
+        cols["direction"] = np.asarray(direction).ravel()
+    n = cols["shift_deg"].size
+    bad_len = {k: v.size for k, v in cols.items() if v.size != n}
+    if bad_len:
+        raise PolygonDataError(f"columns of different lengths: shift_deg has {n} rows, {bad_len}")
+    if n == 0:
+        raise PolygonDataError("no polygon readings (0 rows)")
+    for name in ("shift_deg", "start_face", "step", "ac_arcsec", "theta_deg", "rep"):
+        if name not in cols:
+            continue
+        try:
+            v = cols[name].astype(float)
+        except (TypeError, ValueError):
+            raise PolygonDataError(f"column {name!r}: non-numeric values") from None
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise PolygonDataError(f"{_rows(bad)}, column {name!r}: not a finite number (NaN or inf)")
+        cols[name] = v
+    for name in ("start_face", "step"):
+        v = cols[name]
+        bad = np.flatnonzero((v != np.round(v)) | (v < 1) | (v > N))
+        if bad.size:
+            raise PolygonDataError(f"{_rows(bad)}, column {name!r}: expected an integer in 1…{N} (n_faces={N}), "
+                                   f"got {v[bad[:_MAX_LISTED]].tolist()}")
+    face = cols["start_face"].astype(int)
+    stp = cols["step"].astype(int)
+    shifts = np.array([_shift_key(s) for s in cols["shift_deg"]])
+    # repeated readings
+    key_cols = ["rep"] if "rep" in cols else []
+    key_cols += ["direction"] if "direction" in cols else []
+    seen: dict[tuple, int] = {}
+    for r in range(n):
+        key = (shifts[r], face[r], stp[r]) + tuple(cols[c][r] for c in key_cols)
+        if key in seen:
+            what = f"shift_deg={shifts[r]:g}, start_face={face[r]}, step={stp[r]}"
+            what += "".join(f", {c}={cols[c][r]}" for c in key_cols)
+            hint = "" if key_cols else " (no 'rep' column, so repetitions are not expected)"
+            raise PolygonDataError(f"rows {seen[key]} and {r}, columns shift_deg/start_face/step"
+                                   f"{'/' + '/'.join(key_cols) if key_cols else ''}: duplicated reading ({what}){hint}")
+        seen[key] = r
+    # theta consistency
+    off_max = float("nan")
+    if "theta_deg" in cols:
+        nominal = (stp - 1) * 360.0 / N + shifts
+        off = np.abs(np.mod(cols["theta_deg"] - nominal + 180.0, 360.0) - 180.0)
+        bad = np.flatnonzero(off > 0.25 * 360.0 / N)
+        if bad.size:
+            raise PolygonDataError(
+                f"{_rows(bad)}, column 'theta_deg': more than a quarter pitch from (step−1)·360/N + shift_deg "
+                f"with N={N} (offsets up to {off[bad].max():.4g} deg): wrong face count or step numbering?")
+        off_max = float(off.max())
+    # aggregate
+    uniq = np.unique(shifts)
+    eps, sd, nrep = {}, {}, {}
+    for s in uniq:
+        m = shifts == s
+        f, i, a = face[m] - 1, stp[m] - 1, cols["ac_arcsec"][m]
+        cnt = np.zeros((N, N), dtype=int)
+        sm = np.zeros((N, N))
+        np.add.at(cnt, (f, i), 1)
+        np.add.at(sm, (f, i), a)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(cnt > 0, sm / np.maximum(cnt, 1), np.nan)
+        ss = np.zeros((N, N))
+        np.add.at(ss, (f, i), (a - mean[f, i]) ** 2)
+        sdev = np.where(cnt > 1, np.sqrt(ss / np.maximum(cnt - 1, 1)), np.nan)
+        # every start face present must have its full row (eq. 7)
+        present = np.flatnonzero(cnt.sum(axis=1) > 0)
+        missing = [(int(j) + 1, int(k) + 1) for j in present for k in range(N) if cnt[j, k] == 0]
+        if missing:
+            last = {int(j) + 1: int(np.flatnonzero(cnt[j] > 0).max()) + 1 for j in present}
+            hint = ""
+            if len(set(last.values())) == 1 and next(iter(last.values())) < N:
+                hint = (f"; every start face stops at step {next(iter(last.values()))}: "
+                        f"wrong face count (n_faces={N})?")
+            raise PolygonDataError(f"shift_deg={s:g}: columns start_face/step: missing readings {_cells(missing)} "
+                                   f"(each start face needs steps 1…{N}){hint}")
+        eps[float(s)], sd[float(s)], nrep[float(s)] = mean, sdev, cnt
+    return PolygonTable(N, uniq.astype(float), eps, sd, nrep, off_max)
+
+
+# --------------------------------------------------------------------------- eq. 3, Table 2, eq. 5-7
+
+
+def _cumsum_indicator(N: int) -> np.ndarray:
+    """C[j−1, i−1, k−1] = 1 if β_k is in Σ_{k=j}^{j+i−1 mod N} (i terms starting at face j)."""
+    C = np.zeros((N, N, N))
+    for j in range(N):
+        for i in range(N):
+            C[j, i, (j + np.arange(i + 1)) % N] = 1.0
+    return C
+
+
+def cumulative_pitch_sum_arcsec(beta_arcsec: np.ndarray) -> np.ndarray:
+    """B[j−1, i−1] = Σ_{k=j}^{j+i−1 (mod N)} β_k of eq. 3 (i terms, starting at face j)."""
+    b = np.asarray(beta_arcsec, dtype=float).ravel()
+    N = b.size
+    ext = np.concatenate([[0.0], np.cumsum(np.concatenate([b, b]))])  # ext[m] = Σ_{k<m} b2[k]
+    j = np.arange(N)[:, None]
+    i = np.arange(N)[None, :]
+    return ext[j + i + 1] - ext[j]
+
+
+def _check_square(table: np.ndarray, what: str = "table") -> np.ndarray:
+    t = np.asarray(table, dtype=float)
+    if t.ndim != 2 or t.shape[0] != t.shape[1] or t.shape[0] < 3:
+        raise PolygonDataError(f"{what}: expected an N×N Table 1 (N >= 3), got shape {t.shape}")
+    bad = np.argwhere(~np.isfinite(t))
+    if bad.size:
+        raise PolygonDataError(f"{what}: missing readings {_cells([(int(j) + 1, int(i) + 1) for j, i in bad])} "
+                               f"(the closure needs all N×N = {t.size} cells)")
+    return t
+
+
+def table2_arcsec(table1_arcsec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Table 2 (eqs. 5-6): ``delta[p−1, l−2] = δ_{l,l−1,n}`` = ε_{l,n} − ε_{l−1,n} for l = 2…N+1.
+
+    Row p collects the N differences that contain β_p: n = p − l + 1 (mod N), and ε_{N+1,n} ≡ ε_{1,n}.
+    Returns ``(delta, n)`` with ``n[p−1, l−2]`` the 1-based start face of each entry.
+    """
+    t = _check_square(table1_arcsec, "table1_arcsec")
+    N = t.shape[0]
+    p = np.arange(N)[:, None]  # 0-based p−1
+    lm2 = np.arange(N)[None, :]  # l−2, l = 2…N+1
+    n0 = (p - lm2 - 1) % N  # 0-based n: n = p − l + 1 → (p−1) − (l−2) − 1
+    l0 = (lm2 + 1) % N  # 0-based l−1 (wraps N+1 → 1)
+    lm0 = lm2  # 0-based (l−1)−1
+    delta = t[n0, l0] - t[n0, lm0]
+    return delta, n0 + 1
+
+
+def pitch_deviation_operator(n_faces: int) -> np.ndarray:
+    """L (N × N²) with β̂ = L @ table1.ravel() (row-major ``[j−1, i−1]``): the row averages of Table 2."""
+    N = int(n_faces)
+    L = np.zeros((N, N * N))
+    for p in range(N):
+        for lm2 in range(N):
+            n0 = (p - lm2 - 1) % N
+            L[p, n0 * N + (lm2 + 1) % N] += 1.0 / N
+            L[p, n0 * N + lm2] -= 1.0 / N
+    return L
+
+
+def pitch_deviation_arcsec(table1_arcsec: np.ndarray, u_table1_arcsec: np.ndarray | float | None = None
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """β from the row averages of Table 2 (eqs. 5-6); Σβ = 0 (eq. 1) holds identically.
+
+    Returns ``(beta, u_beta, cov_beta)``; u from ``u_table1_arcsec`` (per cell or scalar, independent
+    cells), NaN if not given.
+    """
+    t = _check_square(table1_arcsec, "table1_arcsec")
+    N = t.shape[0]
+    delta, _ = table2_arcsec(t)
+    beta = delta.mean(axis=1)
+    if u_table1_arcsec is None:
+        cov = np.full((N, N), np.nan)
+    else:
+        u = np.broadcast_to(np.asarray(u_table1_arcsec, dtype=float), (N, N)).ravel()
+        L = pitch_deviation_operator(N)
+        cov = (L * u**2) @ L.T
+    return beta, np.sqrt(np.diag(cov)), cov
+
+
+def _prep_rows(eps_rows: np.ndarray, start_faces: Sequence[int] | np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
+    e = np.atleast_2d(np.asarray(eps_rows, dtype=float))
+    f = np.atleast_1d(np.asarray(start_faces)).astype(int).ravel()
+    if e.shape[1] != N:
+        raise PolygonDataError(f"eps rows have {e.shape[1]} steps, expected N = {N} (length of beta)")
+    if e.shape[0] != f.size:
+        raise PolygonDataError(f"{e.shape[0]} rows of readings but {f.size} start faces")
+    if np.any((f < 1) | (f > N)):
+        raise PolygonDataError(f"start faces {f.tolist()}: expected 1…{N}")
+    bad = np.argwhere(~np.isfinite(e))
+    if bad.size:
+        raise PolygonDataError(f"missing readings {_cells([(int(f[r]), int(c) + 1) for r, c in bad])}")
+    return e, f
+
+
+def setup_error_arcsec(eps_rows_arcsec: np.ndarray, start_faces: Sequence[int] | np.ndarray,
+                       beta_arcsec: np.ndarray) -> np.ndarray:
+    """U_j of eq. 7 for each given start face: U_j = mean_i(ε_ij − Σ_{k=j}^{j+i−1} β_k), using eq. 2.
+
+    ``eps_rows_arcsec``: (m, N) readings, row r for start face ``start_faces[r]``, steps 1…N.
+    """
+    b = np.asarray(beta_arcsec, dtype=float).ravel()
+    e, f = _prep_rows(eps_rows_arcsec, start_faces, b.size)
+    B = cumulative_pitch_sum_arcsec(b)[f - 1]
+    return (e - B).mean(axis=1)
+
+
+def _alpha_jacobians(f: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Linear maps of :func:`encoder_error_arcsec`: α = Je @ eps.ravel() + Jb @ β, U = Ke @ eps.ravel() + Kb @ β."""
+    m = f.size
+    C = _cumsum_indicator(N)[f - 1]  # (m, N, N)
+    Je = np.zeros((N, m * N))
+    Ke = np.zeros((m, m * N))
+    center = np.eye(N) - 1.0 / N
+    for r in range(m):
+        Je[:, r * N:(r + 1) * N] = center / m
+        Ke[r, r * N:(r + 1) * N] = 1.0 / N
+    Cbar = C.mean(axis=1)  # (m, N): mean over steps
+    Kb = -Cbar
+    Jb = (-(C - Cbar[:, None, :])).mean(axis=0)  # (N, N)
+    return Je, Jb, Ke, Kb
+
+
+def encoder_error_arcsec(eps_rows_arcsec: np.ndarray, start_faces: Sequence[int] | np.ndarray, beta_arcsec: np.ndarray,
+                         shift_deg: float = 0.0, *, u_eps_arcsec: np.ndarray | float | None = None,
+                         cov_beta_arcsec2: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """α at θ_i = (i−1)·360/N + S from eq. 3 with U_j from eq. 7; averaged over the start faces given.
+
+    Returns a dict: ``theta_deg`` (N, nominal, wrapped), ``alpha`` (N), ``u_alpha`` (N), ``U`` (m),
+    ``u_U`` (m), ``alpha_by_face`` (m, N), ``cov_alpha`` (N, N). Uncertainties propagate ``u_eps``
+    (per reading or scalar, independent) and ``cov_beta`` (β treated as independent of these readings;
+    see :func:`shift_angle_analysis` for the S = 0 case where they are not).
+    """
+    b = np.asarray(beta_arcsec, dtype=float).ravel()
+    N = b.size
+    e, f = _prep_rows(eps_rows_arcsec, start_faces, N)
+    B = cumulative_pitch_sum_arcsec(b)[f - 1]
+    r = e - B
+    U = r.mean(axis=1)
+    by_face = r - U[:, None]
+    alpha = by_face.mean(axis=0)
+    Je, Jb, Ke, Kb = _alpha_jacobians(f, N)
+    cov = np.zeros((N, N))
+    covU = np.zeros((f.size, f.size))
+    if u_eps_arcsec is not None:
+        u2 = np.broadcast_to(np.asarray(u_eps_arcsec, dtype=float), e.shape).ravel() ** 2
+        cov += (Je * u2) @ Je.T
+        covU += (Ke * u2) @ Ke.T
+    if cov_beta_arcsec2 is not None:
+        cb = np.asarray(cov_beta_arcsec2, dtype=float)
+        cov += Jb @ cb @ Jb.T
+        covU += Kb @ cb @ Kb.T
+    if u_eps_arcsec is None and cov_beta_arcsec2 is None:
+        cov[:] = np.nan
+        covU[:] = np.nan
+    return {"theta_deg": nominal_theta_deg(N, shift_deg), "alpha": alpha, "u_alpha": np.sqrt(np.diag(cov)),
+            "U": U, "u_U": np.sqrt(np.diag(covU)), "alpha_by_face": by_face, "cov_alpha": cov}
+
+
+def cross_calibrate_closure(table1_arcsec: np.ndarray, u_table1_arcsec: np.ndarray | float | None = None
+                            ) -> dict[str, np.ndarray]:
+    """Traditional cross-calibration without a calibrated polygon: N×N closure over all start faces.
+
+    β from Table 2 (eqs. 5-6), U_j of every start face (eq. 7), α at 0, 360/N, … averaged over the N
+    start faces (eq. 3). u propagated from ``u_table1_arcsec`` including the α-β correlation.
+    Returns ``beta, u_beta, cov_beta, U, u_U, theta_deg, alpha, u_alpha, cov_alpha``.
+    """
+    t = _check_square(table1_arcsec, "table1_arcsec")
+    N = t.shape[0]
+    beta, u_beta, cov_beta = pitch_deviation_arcsec(t, u_table1_arcsec)
+    faces = np.arange(1, N + 1)
+    res = encoder_error_arcsec(t, faces, beta, 0.0)
+    if u_table1_arcsec is not None:
+        u2 = np.broadcast_to(np.asarray(u_table1_arcsec, dtype=float), (N, N)).ravel() ** 2
+        L = pitch_deviation_operator(N)
+        Je, Jb, Ke, Kb = _alpha_jacobians(faces, N)
+        Ja, Ju = Je + Jb @ L, Ke + Kb @ L
+        cov_a, cov_u = (Ja * u2) @ Ja.T, (Ju * u2) @ Ju.T
+    else:
+        cov_a, cov_u = np.full((N, N), np.nan), np.full((N, N), np.nan)
+    return {"beta": beta, "u_beta": u_beta, "cov_beta": cov_beta, "U": res["U"], "u_U": np.sqrt(np.diag(cov_u)),
+            "theta_deg": res["theta_deg"], "alpha": res["alpha"], "u_alpha": np.sqrt(np.diag(cov_a)),
+            "cov_alpha": cov_a, "alpha_by_face": res["alpha_by_face"]}
+
+
+def _certificate(beta_cert: np.ndarray, N: int, u_cert: np.ndarray | float | None) -> tuple[np.ndarray, np.ndarray, float]:
+    b = np.asarray(beta_cert, dtype=float).ravel()
+    if b.size != N:
+        raise PolygonDataError(f"certificate_beta_arcsec: {b.size} pitch deviations, expected N = {N} faces")
+    bad = np.flatnonzero(~np.isfinite(b))
+    if bad.size:
+        raise PolygonDataError(f"certificate_beta_arcsec: entries {bad.tolist()} (0-based faces) not finite")
+    mean = float(b.mean())
+    b = b - mean
+    if u_cert is None:
+        cov = np.zeros((N, N))
+    else:
+        u = np.broadcast_to(np.asarray(u_cert, dtype=float), (N,))
+        P = np.eye(N) - 1.0 / N  # the mean removal is part of the estimator
+        cov = P @ np.diag(u**2) @ P.T
+    return b, cov, mean
+
+
+def cross_calibrate_with_certificate(eps_row_arcsec: np.ndarray, certificate_beta_arcsec: np.ndarray,
+                                     start_face: int = 1, shift_deg: float = 0.0, *,
+                                     u_eps_arcsec: np.ndarray | float | None = None,
+                                     u_certificate_arcsec: np.ndarray | float | None = None) -> dict[str, np.ndarray]:
+    """Traditional cross-calibration with a calibrated polygon: one start face, β from a certificate.
+
+    eq. 3 with known β and U from eq. 7. The certificate is made to close (Σβ = 0, eq. 1) by subtracting
+    its mean, returned as ``certificate_mean_arcsec``.
+    """
+    e = np.atleast_2d(np.asarray(eps_row_arcsec, dtype=float))
+    N = e.shape[1]
+    b, cov, mean = _certificate(certificate_beta_arcsec, N, u_certificate_arcsec)
+    res = encoder_error_arcsec(e, [start_face] * e.shape[0], b, shift_deg, u_eps_arcsec=u_eps_arcsec,
+                               cov_beta_arcsec2=cov)
+    res["certificate_mean_arcsec"] = mean
+    res["beta"] = b
+    return res
+
+
+# --------------------------------------------------------------------------- all shifts
+
+
+@dataclass(frozen=True)
+class ShiftResult:
+    """α at one shift: ``theta_deg`` (N), ``alpha_arcsec``, ``u_alpha_arcsec`` (from u(ε), u(β)),
+    ``start_faces`` used, their setup errors ``U_arcsec`` and ``u_U_arcsec``."""
+
+    shift_deg: float
+    theta_deg: np.ndarray
+    alpha_arcsec: np.ndarray
+    u_alpha_arcsec: np.ndarray
+    start_faces: np.ndarray
+    U_arcsec: np.ndarray
+    u_U_arcsec: np.ndarray
+    alpha_by_face_arcsec: np.ndarray
+
+
+@dataclass(frozen=True)
+class ShiftAngleResult:
+    n_faces: int
+    beta_arcsec: np.ndarray
+    u_beta_arcsec: np.ndarray
+    cov_beta_arcsec2: np.ndarray
+    beta_source: str  # "closure" or "certificate"
+    shifts: list[ShiftResult]
+    table: PolygonTable
+    beta_closure_arcsec: np.ndarray | None = None  # closure β when the certificate was used but S=0 is full
+    notes: list[str] = field(default_factory=list)
+
+
+def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
+                         u_certificate_arcsec: np.ndarray | float | None = None,
+                         u_eps_arcsec: float | None = None, beta_source: str = "auto") -> ShiftAngleResult:
+    """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
+
+    β: from the full N×N table at S = 0 (eqs. 5-6; ``beta_source="closure"``) or from a certificate
+    (``"certificate"``); ``"auto"`` uses the closure when the S = 0 table is complete, else the
+    certificate, else raises :class:`PolygonDataError` naming the missing cells. Then, at every shift,
+    every start face measured gets its own setup error (eq. 7) and α is averaged over those faces.
+
+    u(ε) of a cell: sd/√n of its repetitions, or ``u_eps_arcsec`` where that is not available (fewer
+    than 2 repetitions); if neither, uncertainties are NaN.
+    """
+    N = table.n_faces
+    notes: list[str] = []
+    s0 = _shift_key(0.0)
+    have_full0 = s0 in table.eps_arcsec and table.is_complete(s0)
+    if beta_source not in ("auto", "closure", "certificate"):
+        raise ValueError(f"beta_source must be auto/closure/certificate, got {beta_source!r}")
+    src = beta_source
+    if src == "auto":
+        src = "closure" if (have_full0 or certificate_beta_arcsec is None) else "certificate"
+    if src == "certificate" and certificate_beta_arcsec is None:
+        raise PolygonDataError("beta_source='certificate' but no certificate_beta_arcsec given")
+
+    def u_cells(s: float) -> np.ndarray | None:
+        u = table.u_arcsec[s].copy()
+        if u_eps_arcsec is not None:
+            u = np.where(np.isfinite(u), u, float(u_eps_arcsec))
+        return None if np.all(np.isnan(u)) else np.where(np.isfinite(u), u, 0.0)
+
+    beta_closure = None
+    L = pitch_deviation_operator(N)
+    if have_full0:
+        u0 = u_cells(s0)
+        beta_closure, ub, cb = pitch_deviation_arcsec(table.eps_arcsec[s0], u0)
+    if src == "closure":
+        if not have_full0:
+            if s0 not in table.eps_arcsec:
+                raise PolygonDataError(f"no readings at shift_deg=0: the closure (eqs. 5-6) needs the full N×N "
+                                       f"table at S = 0 (N={N}), or pass certificate_beta_arcsec")
+            e0 = table.eps_arcsec[s0]
+            missing = [(int(j) + 1, int(i) + 1) for j, i in np.argwhere(~np.isfinite(e0))]
+            raise PolygonDataError(f"shift_deg=0, columns start_face/step: incomplete Table 1, missing readings "
+                                   f"{_cells(missing)} (the closure needs all N×N = {N * N})")
+        beta, u_beta, cov_beta = beta_closure, ub, cb
+    else:
+        beta, cov_beta, mean = _certificate(certificate_beta_arcsec, N, u_certificate_arcsec)
+        u_beta = np.sqrt(np.diag(cov_beta)) if u_certificate_arcsec is not None else np.full(N, np.nan)
+        if abs(mean) > 0:
+            notes.append(f"certificate β summed to {N * mean:.6g} arcsec; its mean was removed (eq. 1)")
+    results = []
+    for s in table.shifts_deg:
+        s = float(s)
+        faces = table.start_faces(s)
+        e = table.eps_arcsec[s][faces - 1]
+        uc = u_cells(s)
+        u_rows = None if uc is None else uc[faces - 1]
+        res = encoder_error_arcsec(e, faces, beta, s)
+        Je, Jb, Ke, Kb = _alpha_jacobians(faces, N)
+        cb = cov_beta if np.all(np.isfinite(cov_beta)) else None
+        if src == "closure" and s == s0 and u_rows is not None:
+            # same readings give β and α: total Jacobian w.r.t. the full table
+            u2 = u_rows.ravel() ** 2  # faces == 1…N here (full table)
+            Ja, Ju = Je + Jb @ L, Ke + Kb @ L
+            cov_a, cov_u = (Ja * u2) @ Ja.T, (Ju * u2) @ Ju.T
+        else:
+            cov_a = np.zeros((N, N))
+            cov_u = np.zeros((faces.size, faces.size))
+            ok = False
+            if u_rows is not None:
+                u2 = u_rows.ravel() ** 2
+                cov_a += (Je * u2) @ Je.T
+                cov_u += (Ke * u2) @ Ke.T
+                ok = True
+            if cb is not None:
+                cov_a += Jb @ cb @ Jb.T
+                cov_u += Kb @ cb @ Kb.T
+                ok = True
+            if not ok:
+                cov_a[:] = np.nan
+                cov_u[:] = np.nan
+        results.append(ShiftResult(s, res["theta_deg"], res["alpha"], np.sqrt(np.diag(cov_a)), faces, res["U"],
+                                   np.sqrt(np.diag(cov_u)), res["alpha_by_face"]))
+    return ShiftAngleResult(N, beta, u_beta, cov_beta, src, results, table,
+                            beta_closure if src == "certificate" else None, notes)
+
+
+def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals: int = 9
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The encoder error curve over all shifts, sorted by θ in [0, 360): ``(theta_deg, alpha, u_alpha)``.
+
+    Points of different shifts at the same θ (e.g. S = 0 and S = 360/N) are averaged; their u is the
+    root-mean-square u divided by √m (treated as independent, which ignores the common β).
+    """
+    shifts = result.shifts if isinstance(result, ShiftAngleResult) else list(result)
+    th = np.concatenate([np.round(s.theta_deg, decimals) % 360.0 for s in shifts])
+    a = np.concatenate([s.alpha_arcsec for s in shifts])
+    u = np.concatenate([s.u_alpha_arcsec for s in shifts])
+    uth, inv, cnt = np.unique(th, return_inverse=True, return_counts=True)
+    am = np.bincount(inv, weights=a) / cnt
+    um = np.sqrt(np.bincount(inv, weights=u**2) / cnt) / np.sqrt(cnt)
+    return uth, am, um
+
+
+# --------------------------------------------------------------------------- sec. 3.1 curve fits
+
+
+def _harmonic_design(theta_deg: np.ndarray, harmonics: Sequence[int]) -> np.ndarray:
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
+    cols = []
+    for k in harmonics:
+        cols += [np.sin(k * th), np.cos(k * th)]
+    return np.column_stack(cols) if cols else np.zeros((th.size, 0))
+
+
+def fit_harmonic_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, harmonics: Sequence[int] = (2,), *,
+                        fixed_coef: np.ndarray | None = None) -> dict[str, object]:
+    """Least squares y(θ) = U + Σ_k (a_k sin kθ + b_k cos kθ) (sec. 3.1, generalised to K harmonics).
+
+    With ``fixed_coef`` (the ``coef`` of an earlier fit, ``[a_k1, b_k1, a_k2, …]``) only U is fitted,
+    as the paper does at S = 5° and 10°. Returns ``U``, ``coef``, ``harmonics``, ``residual`` and
+    ``rms``. Raises ValueError if the design is rank deficient (e.g. a harmonic that is a multiple of
+    the number of equally spaced points, indistinguishable from U).
+    """
+    y = np.asarray(y_arcsec, dtype=float).ravel()
+    hs = [int(k) for k in harmonics]
+    if any(k < 1 for k in hs):
+        raise ValueError(f"harmonics must be >= 1, got {hs}")
+    A = _harmonic_design(theta_deg, hs)
+    if A.shape[0] != y.size:
+        raise ValueError(f"theta_deg has {A.shape[0]} points, y_arcsec {y.size}")
+    if fixed_coef is not None:
+        c = np.asarray(fixed_coef, dtype=float).ravel()
+        if c.size != A.shape[1]:
+            raise ValueError(f"fixed_coef has {c.size} entries, expected {A.shape[1]}")
+        U = float(np.mean(y - A @ c))
+    else:
+        M = np.column_stack([np.ones(y.size), A])
+        if np.linalg.matrix_rank(M) < M.shape[1]:
+            raise ValueError(f"harmonics {hs} with offset are not identifiable from {y.size} points "
+                             f"(a harmonic aliases onto the offset or another harmonic)")
+        sol, *_ = np.linalg.lstsq(M, y, rcond=None)
+        U, c = float(sol[0]), sol[1:]
+    res = y - U - A @ c
+    return {"U": U, "coef": c, "harmonics": hs, "residual": res, "rms": float(np.sqrt(np.mean(res**2)))}
+
+
+def fit_sine2_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, *, A_arcsec: float | None = None,
+                     B_rad: float | None = None) -> dict[str, float]:
+    """Sec. 3.1: y(θ) = A·sin(2θ + B) + U by least squares; with A and B given, only U is fitted.
+
+    Returns ``A_arcsec``, ``B_rad`` (B in radians, as the paper's B = −2.4233), ``U_arcsec``, ``rms_arcsec``.
+    """
+    if (A_arcsec is None) != (B_rad is None):
+        raise ValueError("give both A_arcsec and B_rad, or neither")
+    fixed = None if A_arcsec is None else np.array([A_arcsec * math.cos(B_rad), A_arcsec * math.sin(B_rad)])
+    f = fit_harmonic_offset(theta_deg, y_arcsec, (2,), fixed_coef=fixed)
+    a, b = f["coef"]
+    return {"A_arcsec": float(math.hypot(a, b)), "B_rad": float(math.atan2(b, a)), "U_arcsec": f["U"],
+            "rms_arcsec": f["rms"]}
+
+
+def setup_error_by_curve_fit(result: ShiftAngleResult, harmonics: Sequence[int] = (2,), *,
+                             reference_shift_deg: float = 0.0) -> list[dict[str, float]]:
+    """Cross-check of U (sec. 3.1): fit U + harmonics to y_i = ε_ij − B_ij = α(θ_i) + U_j at the reference
+    shift (start face = the first measured there), then at every shift and start face fit only U with the
+    shape fixed. Returns rows ``shift_deg, start_face, U_fit_arcsec, U_eq7_arcsec, diff_arcsec`` (+ the
+    reference fit's ``A_arcsec, B_rad`` when ``harmonics == (2,)``).
+
+    With N equally spaced steps and no harmonic a multiple of N, the fitted offset equals the mean,
+    i.e. eq. 7 to rounding: the check verifies the computation, as in the paper (< 1e-4″).
+    """
+    tab = result.table
+    N = result.n_faces
+    B = cumulative_pitch_sum_arcsec(result.beta_arcsec)
+    by_shift = {s.shift_deg: s for s in result.shifts}
+    ref = _shift_key(reference_shift_deg)
+    if ref not in by_shift:
+        raise PolygonDataError(f"reference_shift_deg={reference_shift_deg:g}: no readings at that shift")
+    sr = by_shift[ref]
+    j0 = int(sr.start_faces[0])
+    y0 = tab.eps_arcsec[ref][j0 - 1] - B[j0 - 1]
+    f0 = fit_harmonic_offset(sr.theta_deg, y0, harmonics)
+    extra = {}
+    if tuple(harmonics) == (2,):
+        a, b = f0["coef"]
+        extra = {"A_arcsec": float(math.hypot(a, b)), "B_rad": float(math.atan2(b, a))}
+    rows = []
+    for s in result.shifts:
+        for r, j in enumerate(s.start_faces):
+            y = tab.eps_arcsec[s.shift_deg][j - 1] - B[j - 1]
+            if s.shift_deg == ref and j == j0:
+                U_fit = f0["U"]
+            else:
+                U_fit = fit_harmonic_offset(s.theta_deg, y, harmonics, fixed_coef=f0["coef"])["U"]
+            rows.append({"shift_deg": s.shift_deg, "start_face": int(j), "U_fit_arcsec": U_fit,
+                         "U_eq7_arcsec": float(s.U_arcsec[r]), "diff_arcsec": U_fit - float(s.U_arcsec[r]), **extra})
+    del N
+    return rows
+
+
+# --------------------------------------------------------------------------- synthetic data (tests, demos)
+
+
+def synthesize_readings(alpha_fn, beta_arcsec: np.ndarray, setup_error_fn, shifts_deg: Sequence[float], *,
+                        start_faces_at: Mapping[float, Sequence[int]] | None = None, n_rep: int = 1,
+                        noise_arcsec: float = 0.0, rng: np.random.Generator | None = None) -> dict[str, np.ndarray]:
+    """Columns of a polygon table generated from eq. 3 (for tests and demos; pure given ``rng``).
+
+    ``alpha_fn(theta_deg) -> arcsec``; ``setup_error_fn(shift_deg, start_face) -> arcsec``. At S = 0 all
+    N start faces are measured; at other shifts the faces in ``start_faces_at[S]`` (default: face 1).
+    Returns ``shift_deg, start_face, step, theta_deg, ac_arcsec, t_s`` and ``rep`` when ``n_rep > 1``.
+    """
+    beta = np.asarray(beta_arcsec, dtype=float).ravel()
+    N = beta.size
+    B = cumulative_pitch_sum_arcsec(beta)
+    if noise_arcsec > 0 and rng is None:
+        raise ValueError("noise needs an explicit rng (np.random.default_rng(seed))")
+    out: dict[str, list] = {k: [] for k in ("shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s", "rep")}
+    t = 0.0
+    for S in shifts_deg:
+        faces = range(1, N + 1) if _shift_key(S) == 0.0 else (start_faces_at or {}).get(S, [1])
+        for rep in range(n_rep):
+            for j in faces:
+                U = setup_error_fn(S, j)
+                for i in range(1, N + 1):
+                    th = ((i - 1) * 360.0 / N + S) % 360.0
+                    val = float(alpha_fn(np.array([th]))[0]) + B[j - 1, i - 1] + U
+                    if noise_arcsec > 0:
+                        val += float(rng.normal(0.0, noise_arcsec))
+                    for k, v in zip(("shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s", "rep"),
+                                    (float(S), j, i, th, val, t, rep)):
+                        out[k].append(v)
+                    t += 1.0
+    cols = {k: np.asarray(v) for k, v in out.items()}
+    if n_rep == 1:
+        del cols["rep"]
+    return cols
