@@ -494,7 +494,8 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
       see :func:`d_ref_px`). Cumulative chord length (= arc length to 1e-8) fitted linearly against
       the line index (missing lines allowed) gives the pitch in px, independent of the fitted
       centre and radius (which are poorly determined on a short arc).
-      ``u_um_per_px``: its standard uncertainty from that linear fit.
+      ``u_um_per_px``: its standard uncertainty from that linear fit. ``pixel_um`` is an alias of
+      ``um_per_px`` (the manifest's ``ccd.pixel_um`` name).
 
     ``period_um`` is the period at the edge radius, unless ``period_radius_um`` says at which radius
     it is specified; then ``edge_radius_um`` (the scale edge radius) is needed to refer it to the edge.
@@ -543,7 +544,7 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     else:
         m_p, um_count = 0, float("nan")
     return {
-        "um_per_px": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
+        "um_per_px": um_per_px, "pixel_um": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
         "edge_radius_px": r, "period_at_edge_um": p_edge, "m_p_px": m_p, "um_per_px_count": um_count,
         "count_column_px": col, "n_lines": int(idx.size),
     }

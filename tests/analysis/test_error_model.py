@@ -159,3 +159,31 @@ def test_compare_removes_means_and_reports_fraction():
 def test_duplicate_grid_angles_raise():
     with pytest.raises(ValueError, match="duplicate"):
         periodic_integral(np.array([0.0, 10.0, 10.0, 20.0]), np.zeros(4))
+
+
+def test_figures_jia_smoke():
+    from matplotlib.figure import Figure
+
+    from benchtwin.analysis.eccentricity import eccentricity_from_dref
+    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.report.figures_jia import fig_comparison, fig_dref, fig_predicted_error, fig_radial_motion
+
+    rng = np.random.default_rng(0)
+    th = np.tile(np.arange(0, 360, 2.0), 3)
+    rep = np.repeat([0, 1, 2], 180)
+    t = np.radians(th)
+    rm = radial_motion(rep, th, 3 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.01, th.size),
+                       4 * np.sin(t) + 0.1 * np.cos(3 * t), 6.81, 122.96)
+    fig = fig_radial_motion(rm)
+    assert isinstance(fig, Figure) and len(fig.axes[0].lines) == 3 + 3 * 3
+    thc = np.arange(60) * 6.0
+    d = 3 + E_UM * np.cos(np.radians(thc - TH0)) + rng.normal(0, 0.05, 60)
+    ecc = eccentricity_from_dref(thc, d)
+    assert isinstance(fig_dref(ecc, thc, d), Figure)
+    m = jia_error_model(ecc["e_um"], ecc["theta0_deg"], R_UM, rm["theta_deg"], rm["dY_um"], u_e_um=ecc["e_u_um"])
+    f15 = fig_predicted_error(m)
+    assert {ln.get_label() for ln in f15.axes[0].lines} >= {"eccentricity", "radial_motion", "Δθ (eq. 5)"}
+    tp = np.arange(23) * 360 / 23
+    f16 = fig_comparison(compare_with_measured(tp, m.predict(tp) + rng.normal(0, 2, 23), m))
+    assert len(f16.axes) == 2
+    f16.canvas.draw()  # renders without a display
