@@ -69,6 +69,7 @@ __all__ = [
     "pixel_scale_um",
     "eccentricity_from_dref",
     "eccentricity_monte_carlo",
+    "eccentricity_range_method",
     "eccentricity_from_images",
 ]
 
@@ -616,6 +617,28 @@ def eccentricity_monte_carlo(theta_deg: np.ndarray, dref_um: np.ndarray, u_dref_
         "e_u_gum_um": base["e_u_um"], "theta0_u_gum_deg": base["theta0_u_deg"],
         "samples_e_um": e, "samples_theta0_deg": np.degrees(ph) % 360.0,
     }
+
+
+def eccentricity_range_method(e_um: Sequence[float], theta0_deg: Sequence[float], d_n: float | None = None) -> dict:
+    """Jia sec. 5: uncertainty of e and θ0 from repeated sweeps by the range method, u = range / d_n
+    (Jia: range of e 0.4 µm → u_e = 0.24 µm; range of θ0 1.91° → u_θ0 = 1.13°, n = 3, d_n = 1.69).
+    The range of θ0 is taken on the circle (the smallest arc containing all values)."""
+    from benchtwin.analysis.radial_motion import D_N
+
+    e = np.asarray(e_um, dtype=float).ravel()
+    t = np.asarray(theta0_deg, dtype=float).ravel() % 360.0
+    n = e.size
+    if n < 2 or t.size != n:
+        raise ValueError(f"need ≥ 2 repeated sweeps with e and θ0 each, got {e.size} and {t.size}")
+    if d_n is None:
+        if n not in D_N:
+            raise ValueError(f"no d_n tabulated for n = {n}; pass d_n")
+        d_n = D_N[n]
+    ts = np.sort(t)
+    gaps = np.diff(np.concatenate([ts, [ts[0] + 360.0]]))
+    rng_t = 360.0 - float(gaps.max())
+    return {"e_range_um": float(np.ptp(e)), "theta0_range_deg": rng_t, "e_u_um": float(np.ptp(e)) / d_n,
+            "theta0_u_deg": rng_t / d_n, "d_n": d_n, "n": n}
 
 
 def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], period_um: float | None = None,

@@ -45,6 +45,7 @@ __all__ = [
     "radial_motion_term_fourier",
     "periodic_integral",
     "jia_error_model",
+    "error_model_from_results",
     "compare_with_measured",
 ]
 
@@ -249,6 +250,33 @@ def jia_error_model(e_um: float, theta0_deg: float, r_um: float, theta_grid_deg:
             raise ValueError("dY_um given without theta_grid_deg")
         m.add_term("radial_motion", radial_motion_term(theta_grid_deg, dY_um, r_um, u_dY_um, dY_correlated))
     return m
+
+
+def error_model_from_results(ecc: dict, rm: dict | None, r_um: float, u_r_um: float = 0.0,
+                             dY_uncertainty: str = "range", dY_correlated: bool = False) -> ErrorModel:
+    """Eq. 5 from the dicts of :func:`benchtwin.analysis.eccentricity.eccentricity_from_dref` (or
+    ``eccentricity_from_images``) and :func:`benchtwin.analysis.radial_motion.radial_motion`.
+
+    ``dY_uncertainty``: "range" (Jia sec. 5: one number, max range over the repetitions / d_n — the
+    σ of one repetition, as the paper uses it), "range_mean" (range / d_n per θ, divided by √n: the
+    uncertainty of the synchronous mean actually used), "gum" (the fit covariance propagation of
+    radial_motion), or "none".
+    """
+    grid = dY = None
+    u_dY: float | np.ndarray = 0.0
+    if rm is not None:
+        grid, dY = np.asarray(rm["theta_deg"]), np.asarray(rm["dY_um"])
+        if dY_uncertainty == "range":
+            u_dY = float(np.nan_to_num(rm["u_dY_range_um"]))
+        elif dY_uncertainty == "range_mean":
+            u_dY = np.nan_to_num(np.asarray(rm["u_dY_range_theta_um"])) / math.sqrt(rm["n_reps"])
+        elif dY_uncertainty == "gum":
+            u_dY = np.nan_to_num(np.asarray(rm["u_dY_gum_theta_um"]))
+        elif dY_uncertainty != "none":
+            raise ValueError(f"dY_uncertainty must be 'range', 'range_mean', 'gum' or 'none', got {dY_uncertainty!r}")
+    return jia_error_model(ecc["e_um"], ecc["theta0_deg"], r_um, grid, dY, u_e_um=ecc.get("e_u_um", 0.0),
+                           u_theta0_deg=ecc.get("theta0_u_deg", 0.0), u_dY_um=u_dY, u_r_um=u_r_um,
+                           cov_e_theta0=ecc.get("cov_e_theta0", 0.0), dY_correlated=dY_correlated)
 
 
 def _rms(x: np.ndarray) -> float:

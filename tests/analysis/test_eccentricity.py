@@ -242,3 +242,17 @@ def test_too_few_lines_raise(grating_renderer):
 def test_bad_shape_raises():
     with pytest.raises(ImageAnalysisError, match="2-D"):
         edge_points(np.zeros((10, 10, 10, 2)))
+
+
+def test_range_method_for_repeated_sweeps():
+    from benchtwin.analysis.eccentricity import eccentricity_range_method
+
+    # Jia sec. 5: range of e 0.4 µm, of θ0 1.91°, n = 3 → 0.24 µm, 1.13°
+    r = eccentricity_range_method([7.0, 7.4, 7.1], [191.0, 192.91, 192.3], d_n=1.69)
+    assert r["e_u_um"] == pytest.approx(0.24, abs=0.005)
+    assert r["theta0_u_deg"] == pytest.approx(1.13, abs=0.005)
+    # θ0 across 0°: the range is taken on the circle
+    r = eccentricity_range_method([1.0, 1.0, 1.0], [359.0, 0.5, 1.0])
+    assert r["theta0_range_deg"] == pytest.approx(2.0)
+    with pytest.raises(ValueError):
+        eccentricity_range_method([1.0], [2.0])

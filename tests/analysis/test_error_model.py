@@ -187,3 +187,28 @@ def test_figures_jia_smoke():
     f16 = fig_comparison(compare_with_measured(tp, m.predict(tp) + rng.normal(0, 2, 23), m))
     assert len(f16.axes) == 2
     f16.canvas.draw()  # renders without a display
+
+
+def test_error_model_from_results_dicts():
+    from benchtwin.analysis.error_model import error_model_from_results
+
+    th = np.tile(np.arange(0, 360, 3.0), 3)
+    rep = np.repeat([0, 1, 2], 120)
+    rng = np.random.default_rng(3)
+    t = np.radians(th)
+    rm_in = dict(rep=rep, theta_deg=th, probe_top_um=2 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.02, th.size),
+                 probe_bottom_um=1 + 0.1 * np.cos(3 * t) + rng.normal(0, 0.02, th.size), L1_mm=6.81, L2_mm=122.96)
+    from benchtwin.analysis.radial_motion import radial_motion
+
+    rm = radial_motion(**rm_in)
+    ecc = {"e_um": E_UM, "theta0_deg": TH0, "e_u_um": 0.24, "theta0_u_deg": 1.13, "cov_e_theta0": 0.0}
+    q = np.arange(0, 360, 10.0)
+    models = {k: error_model_from_results(ecc, rm, R_UM, dY_uncertainty=k) for k in ("range", "range_mean", "gum", "none")}
+    ref = jia_error_model(E_UM, TH0, R_UM, rm["theta_deg"], rm["dY_um"])
+    for m in models.values():
+        np.testing.assert_allclose(m.predict(q), ref.predict(q), atol=1e-12)
+    u = {k: m.uncertainty(q) for k, m in models.items()}
+    assert np.all(u["range"] >= u["none"]) and np.all(u["range"] >= u["range_mean"] - 1e-12)
+    assert np.any(u["range"] > u["none"])
+    with pytest.raises(ValueError):
+        error_model_from_results(ecc, rm, R_UM, dY_uncertainty="bogus")
