@@ -231,6 +231,7 @@ class Bench:
         self.polygon_pitch_deviation_rad = beta
         cum = np.concatenate([[0.0], np.cumsum(beta[:-1])])
         self.polygon_face_normal_angle_rad = TWO_PI * np.arange(N) / N + cum
+        self.polygon_face_normal_angle_rad.flags.writeable = False   # shared with every pose
         ph = _opt(sc, "errors", "polygon_eccentricity_phase", None)
         if ph is None:
             ph = _rng(seed, "polygon_eccentricity_phase").uniform(0, TWO_PI)
