@@ -320,6 +320,13 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
         # straight line through the row edges, taken at the centre row
         if ys_f.size >= 2 and np.ptp(ys_f) > 0:
             pf = np.polyfit(ys_f.astype(float), xe, 1)
+            # rows spoilt by dust or a scratch at the line end: robust rejection, then refit
+            rr = xe - np.polyval(pf, ys_f)
+            sig = 1.4826 * float(np.median(np.abs(rr - np.median(rr))))
+            good = np.abs(rr) <= max(4.0 * sig, 0.25)
+            if 3 <= np.count_nonzero(good) < good.size:
+                ys_f, xe = ys_f[good], xe[good]
+                pf = np.polyfit(ys_f.astype(float), xe, 1)
             x_mid = float(np.polyval(pf, y_cent))
             sc = float(np.sqrt(np.mean((xe - np.polyval(pf, ys_f)) ** 2)))
         else:
@@ -444,28 +451,43 @@ def _dref_from_circle(cx: float, cy: float, r: float, cov: np.ndarray, reference
 
 
 def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
-             name: str | int | None = None, u_px: float | None = None, **edge_kw) -> dict:
+             name: str | int | None = None, u_px: float | None = None, reject_outliers: bool = True,
+             min_lines: int = MIN_LINES, **edge_kw) -> dict:
     """Jia's d_ref = l − r_fitting (px) of one image: edge points → circle → distance to R.
 
     ``reference_px``: the reference point R (default: the image centre (W/2, H/2), (1024, 768) for
     2048×1536 as in the paper). ``radius_px``: known edge radius (circle fit with the radius fixed);
     otherwise the radius is fitted. After a first fit the line-centre points are moved along their
     radial line (through the fitted centre) from the column where the centre was measured to the
-    edge, and the circle is refitted.
+    edge, and the circle is refitted. With ``reject_outliers`` line ends further than
+    max(5 robust σ, 0.05 px) from the circle are dropped one at a time (``rejected_points_px``).
 
     Keys: d_ref_px, u_d_ref_px, l_px, centre_px (cx, cy), radius_px, cov_circle (cx, cy, r),
-    points_px, residual_rms_px, n_lines, polarity, edges (LineEdges).
+    points_px, residual_rms_px, n_lines, polarity, reference_px, edges (LineEdges),
+    rejected_points_px.
     """
-    ed = edge_details(image, name, **edge_kw)
+    ed = edge_details(image, name, min_lines=min_lines, **edge_kw)
     H, W = np.asarray(image).shape[:2]
     ref = (W / 2.0, H / 2.0) if reference_px is None else (float(reference_px[0]), float(reference_px[1]))
     P = ed.points_px.copy()
+    cols = ed.centre_col_px.copy()
+    rejected = np.empty((0, 2))
     try:
         cx, cy, r, cov = fit_circle(P, radius_px, u_px)
         # y of the line centre was measured at column centre_col_px; follow the radial line to x_mid
-        t = (P[:, 0] - cx) / (ed.centre_col_px - cx)
+        t = (P[:, 0] - cx) / (cols - cx)
         P[:, 1] = cy + (P[:, 1] - cy) * t
         cx, cy, r, cov = fit_circle(P, radius_px, u_px, start=(cx, cy))
+        # one bad line end (dust on the end, a merged part) at a time: reject if > 5 robust σ
+        while reject_outliers and P.shape[0] > max(min_lines, 5):
+            res_ = np.hypot(P[:, 0] - cx, P[:, 1] - cy) - r
+            sig = 1.4826 * float(np.median(np.abs(res_ - np.median(res_))))
+            worst = int(np.argmax(np.abs(res_)))
+            if abs(res_[worst]) <= max(5.0 * sig, 0.05):
+                break
+            rejected = np.vstack([rejected, P[worst]])
+            P = np.delete(P, worst, axis=0)
+            cx, cy, r, cov = fit_circle(P, radius_px, u_px, start=(cx, cy))
     except ValueError as exc:
         raise ImageAnalysisError(f"{_where(name)}: circle fit failed: {exc}") from None
     if cx > ref[0]:
@@ -477,7 +499,7 @@ def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, rad
     return {
         "d_ref_px": d, "u_d_ref_px": ud, "l_px": l, "centre_px": (cx, cy), "radius_px": r, "cov_circle": cov,
         "points_px": P, "residual_rms_px": float(np.sqrt(np.mean(resid**2))), "n_lines": int(P.shape[0]),
-        "polarity": ed.polarity, "reference_px": ref, "edges": ed,
+        "polarity": ed.polarity, "reference_px": ref, "edges": ed, "rejected_points_px": rejected,
     }
 
 

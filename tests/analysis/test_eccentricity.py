@@ -96,6 +96,14 @@ def test_blur_noise_and_dust(grating_renderer):
     assert res["edges"].removed_dust >= 4
     assert res["n_lines"] == clean["n_lines"]
     assert res["d_ref_px"] == pytest.approx(clean["d_ref_px"], abs=0.01)
+    # a speck on a line end spoils that line's edge: the line is rejected from the circle fit
+    x, y = clean["points_px"][3]
+    spoilt = img.copy()
+    spoilt[(xx - (x + 2)) ** 2 + (yy - (y + 3)) ** 2 <= 9] = 35
+    res = d_ref_px(spoilt, ref)
+    assert len(res["rejected_points_px"]) == 1 and res["n_lines"] == clean["n_lines"] - 1
+    assert abs(res["d_ref_px"] - exact) < 0.05
+    assert abs(d_ref_px(spoilt, ref, reject_outliers=False)["d_ref_px"] - exact) > 0.1  # the check has teeth
 
 
 def test_edge_method_crossing_is_a_variant(grating_renderer):
