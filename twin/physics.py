@@ -29,9 +29,12 @@ axis average line as reference):
     that make an unloaded rigid shaft follow it, so gravity and the rest still act physically.
 - Gravity along ``bench.gravity_direction`` acts on every rotating mass (sag, and the moment of
   the unbalance about the axis). Unbalance U = m·r is a point mass on the shaft. The poses are
-  QUASI-STATIC stops (the bench stops before each reading), so the centrifugal force m·r·ω² is
-  zero; unbalance acts through its weight only (a radial force m·g and a gravity torque U·g that
-  changes the torque carried by the drive, hence the twist).
+  QUASI-STATIC stops (the bench stops before each reading), so by default the centrifugal force
+  m·r·ω² is zero and the unbalance acts through its weight only (a radial force m·g and a
+  gravity torque U·g that changes the torque carried by the drive, hence the twist). For readings
+  taken on the fly at a steady speed (optional key ``bench.speed``, rad/s) the force U·ω² turns
+  with the shaft (xfrc_applied on the unbalance body); the rotor's kHz modes make the steady
+  response the static one.
 - Drive and torsion: a position actuator (the drive, stiffness ``drive_torsional_stiffness``)
   turns the polygon-side shaft end; the shaft twists between polygon and disk section
   (``shaft_torsional_stiffness``); bearing friction ``friction_torque`` acts on the disk section.
@@ -154,6 +157,8 @@ class Bench:
         self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))
         self.async_cage_fraction = float(_opt(sc, "bearings", "async_cage_fraction", 0.5))
         self.async_rms_m = float(br["async_rms"])
+        # Shaft speed while measuring: 0 = stop-and-go (quasi-static stops, the default).
+        self.speed_rad_s = float(_opt(sc, "bench", "speed", 0.0))
 
         self._generate(sc)
         place = Placement(
@@ -182,7 +187,8 @@ class Bench:
         self._ten = np.array([m.tendon(n).id for n in BEARING_TENDONS])
         self._act = m.actuator("drive").id
         self._bid = {n: m.body(n).id for n in
-                     ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom")}
+                     ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom", "unbalance")}
+        self._centrifugal_N = float(br["unbalance"]) * self.speed_rad_s**2
         self._housing_m = np.zeros(4)      # constant race offsets (housing position), per tendon
         self._rep_cache: dict[int, dict] = {}
         self._q_last = np.zeros(6)
@@ -340,6 +346,15 @@ class Bench:
         # Sliding bearing friction opposing the approach direction (see module docstring).
         d.qfrc_applied[4] = -float(np.sign(direction)) * self.friction_torque_Nm
 
+    def _set_centrifugal(self, spin_rad: float) -> None:
+        """Unbalance force U·ω² at steady speed ``bench.speed`` (0 for stop-and-go readings):
+        radial, through the unbalance mass, turning with the shaft. The rotor's modes (kHz) are
+        far above the rotation frequency, so the steady response is the static one."""
+        if self._centrifugal_N == 0.0:
+            return
+        a = spin_rad + self.unbalance_phase_rad
+        self.data.xfrc_applied[self._bid["unbalance"], :3] = self._centrifugal_N * np.array([math.cos(a), math.sin(a), 0.0])
+
     def _set_springs(self, offsets: np.ndarray) -> None:
         ls = self.model.tendon_lengthspring
         ls[self._ten, 0] = offsets
@@ -369,6 +384,7 @@ class Bench:
         d = self.data
         for it in range(1, SETTLE_MAX_ITER + 1):
             self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+            self._set_centrifugal(q[4])
             r = self._residual(q)
             dq = self._Kinv @ r
             q = q + dq
@@ -378,6 +394,7 @@ class Bench:
             raise RuntimeError(f"static solve did not converge at command {cmd_rad} rad: |dq| = {np.abs(dq).max():g}")
         # Final evaluation at the converged q, so the poses read from d are those of q.
         self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+        self._set_centrifugal(q[4])
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
         if np.any(d.warning.number):

@@ -367,3 +367,22 @@ def test_l1_design_study_follows_shaft_tilt(jia, delta_mm):
         expect = p[:2] + ax[:2] * delta               # axis of bench a at height delta
         dx, dy = b.disk_plane_motion([th], rep=1)
         np.testing.assert_allclose([dx[0], dy[0]], expect, atol=1e-12)
+
+
+def test_unbalance_at_speed_gives_once_per_rev_motion(jia):
+    """bench.speed > 0: the centrifugal force U·ω² turns with the shaft -> a 1×/rev whirl whose
+    size is U·ω² over the bearings' stiffness (lever rule for the unbalance's axial position)."""
+    s = quiet(jia, unbalance=20e-6)
+    b0 = Bench(s)
+    s["bench"]["speed"] = 2 * np.pi * 20.0          # 20 rev/s
+    b1 = Bench(s)
+    dx0, dy0 = b0.disk_plane_motion(ANGLES)
+    dx1, dy1 = b1.disk_plane_motion(ANGLES)
+    h = harmonics(dy1 - dy0)
+    F = 20e-6 * (2 * np.pi * 20.0) ** 2
+    zt, zb, zu = jia["bench"]["bearing_top_z"], jia["bench"]["bearing_bottom_z"], b1.placement.unbalance_z_m
+    # rigid shaft on two springs k: force F at zu -> bearing loads, disk-plane displacement
+    k = jia["bearings"]["radial_stiffness"]
+    Ft, Fb = F * (zu - zb) / (zt - zb), F * (zt - zu) / (zt - zb)
+    expect = (Ft / k) * (0 - zb) / (zt - zb) + (Fb / k) * (zt - 0) / (zt - zb)
+    assert np.argmax(h) == 1 and h[1] == pytest.approx(abs(expect), rel=1e-3)
