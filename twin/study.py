@@ -94,6 +94,7 @@ class Parameter:
     sets: dict[str, tuple[float, float, str]] = field(default_factory=dict)  # key -> (scale, offset SI, unit)
     key: str | None = None
     dim: str = ""
+    table_keys: list[str] = field(default_factory=list)  # keys set by labelled override tables
 
     @property
     def column(self) -> str:
@@ -268,7 +269,7 @@ def load_study(path: str | Path) -> Study:
     names = [q.name for q in params]
     if len(set(names)) != len(names):
         raise fail("study.parameters: two parameters have the same name/key")
-    touched = [k for q in params for k in ([q.key] if q.key else list(q.sets))]
+    touched = [k for q in params for k in ([q.key] if q.key else list(q.sets) + q.table_keys)]
     if len(set(touched)) != len(touched):
         raise fail("study.parameters: a scenario key is set by two parameters")
     for k in touched:
@@ -309,8 +310,13 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
         if k not in _PARAM_KEYS:
             raise fail(f"{at}: unknown key {k!r}; expected one of {', '.join(sorted(_PARAM_KEYS))}")
     key, name, sets = pr.get("key"), pr.get("name"), pr.get("set")
+    vals = pr.get("values")
+    tables = isinstance(vals, list) and bool(vals) and all(isinstance(v, Mapping) for v in vals) and key is None
+    if tables:
+        return _parse_table_parameter(i, pr, fail)
     if (key is None) == (sets is None):
-        raise fail(f"{at}: give either key = \"section.key\" or name = ... with set = {{ ... }}")
+        raise fail(f"{at}: give either key = \"section.key\", or name = ... with set = {{ ... }}, or name = ... "
+                   "with labels = [...] and values = [{ \"section.key\" = ..., ... }, ...]")
     if key is not None:
         if not isinstance(key, str) or _field(key) is None:
             raise fail(f"{at}.key: unknown scenario key {key!r} (see docs/scenario-format.md)")
@@ -445,6 +451,37 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
     # resolve overrides of value levels
     p.levels = [(v, ov if ov is not None else p.overrides_for(v)) for v, ov in p.levels]
     return p
+
+
+def _parse_table_parameter(i: int, pr: Mapping[str, Any], fail) -> Parameter:
+    """A labelled parameter whose values are tables of overrides (e.g. a bearing grade that sets
+    both races' waviness and the asynchronous motion)."""
+    at = f"study.parameters[{i}]"
+    name = pr.get("name")
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.]+", name):
+        raise fail(f"{at}.name: a parameter whose values are tables needs name = \"...\" (a column name)")
+    for k in ("set", "low", "high", "n", "sampling"):
+        if k in pr:
+            raise fail(f"{at}.{k} ({name}): not allowed with values that are tables of overrides")
+    values, labels = pr["values"], pr.get("labels")
+    if not isinstance(labels, list) or len(labels) != len(values) or not all(isinstance(s, str) for s in labels):
+        raise fail(f"{at}.labels ({name}): values that are tables need labels = [...] of the same length")
+    if len(set(labels)) != len(labels):
+        raise fail(f"{at}.labels ({name}): a label is listed twice")
+    p = Parameter(name=name, kind="label", unit="", sampling="grid")
+    for j, (lab, v) in enumerate(zip(labels, values)):
+        ov = _flatten_overrides(v)
+        for k in ov:
+            if _field(k) is None:
+                raise fail(f"{at}.values[{j}] ({name}): unknown scenario key {k!r}")
+        p.levels.append((lab, ov))
+    p.table_keys = sorted({k for _, ov in p.levels for k in ov})
+    return p
+
+
+def _flatten_overrides(node: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Dotted keys from quoted ("bench.L1") or nested TOML tables; lobe lists stay values."""
+    return _flatten(node, prefix)
 
 
 def _flatten_set(sets: Mapping[str, Any]) -> dict[str, Any]:
@@ -861,7 +898,8 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
         "computed": computed, "cached": cached, "wall_s": wall_s, "executor": where,
         "fidelity": fidelity, "output_fidelity": fid_map, "code_version": version,
         "table_csv": str(out / "table.csv"), "table_parquet": str(out / "table.parquet"),
-        "summary_csv": str(out / "summary.csv"), "summary_md": str(out / "summary.md"),
+        "summary_csv": str(out / "summary.csv"), "summary_parquet": str(out / "summary.parquet"),
+        "summary_md": str(out / "summary.md"),
         "summary_html": str(out / "summary.html"), "figures": [str(f) for f in figures],
         "target": verdict,
         "message": (verdict or {}).get("sentence") or
@@ -965,9 +1003,11 @@ def _figures(study: Study, rows: list[dict], points: list[Point], done: dict, ou
             x = np.array([r["values"][xp.name] for r in grs], float)
             m = np.array([r[o][0] for r in grs])
             u = np.nan_to_num(np.array([r[o][2] for r in grs]))
+            s = np.nan_to_num(np.array([r[o][1] for r in grs]))
             label = ", ".join(f"{n} = {_fmt(grs[0]['values'][n])}" for n in others) or "mean"
             line, = ax.plot(x, m, "o-", ms=4, label=label)
-            ax.fill_between(x, m - k * u, m + k * u, color=line.get_color(), alpha=0.25, lw=0)
+            ax.fill_between(x, m - k * s, m + k * s, color=line.get_color(), alpha=0.12, lw=0)
+            ax.fill_between(x, m - k * u, m + k * u, color=line.get_color(), alpha=0.35, lw=0)
             for r in grs:
                 reps = [done[(r["point"], j)]["outputs"][o] for j in range(study.repetitions)]
                 ax.plot([r["values"][xp.name]] * len(reps), reps, ".", color=line.get_color(), ms=2, alpha=0.5)
@@ -975,8 +1015,8 @@ def _figures(study: Study, rows: list[dict], points: list[Point], done: dict, ou
             ax.axhline(study.target.below, ls="--", color="k", lw=1, label=f"target {study.target.below:g}")
         ax.set_xlabel(xp.column)
         ax.set_ylabel(o)
-        ax.set_title(f"{study.name}: {o}\n(mean ± {k:g}·u over {study.repetitions} reps; dots: single reps)",
-                     fontsize=9)
+        ax.set_title(f"{study.name}: {o}\nmean over {study.repetitions} reps; dark band ± {k:g}·u(mean), "
+                     f"light band ± {k:g}·s (single run), dots: single runs", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
         fig.tight_layout()

@@ -108,13 +108,18 @@ def physics_point(task: dict) -> list[dict[str, float]]:
     for rep in task["reps"]:
         err = np.empty(n)
         tilt = np.empty(n)
+        axis = np.full((n, 2), np.nan)
         for i, a in enumerate(angles):
             pose = bench.pose_at(float(a), rep=int(rep), t_s=i * dwell, direction=+1)
             err[i] = _exact_reading_error_rad(pose, r, heads).mean()
             nz = float(np.clip(pose.disk.R[2, 2], -1.0, 1.0))
             tilt[i] = math.acos(nz)
-        dx, dy = bench.disk_plane_motion(angles, int(rep))
-        dx, dy = np.asarray(dx, float), np.asarray(dy, float)
+            if "axis_disk_plane_m" in pose.extra:  # same solve: no second pass over the turn
+                axis[i] = pose.extra["axis_disk_plane_m"]
+        if np.isnan(axis).any():
+            dx, dy = (np.asarray(v, float) for v in bench.disk_plane_motion(angles, int(rep)))
+        else:
+            dx, dy = axis[:, 0], axis[:, 1]
         out.append({
             "angle_error_pv_arcsec": float(np.ptp(err)) / ARCSEC,
             "angle_error_rms_arcsec": float(np.sqrt(np.mean((err - err.mean()) ** 2))) / ARCSEC,

@@ -1,0 +1,394 @@
+"""Design-study runner: sampling with units and seeds, validation errors, the on-disk cache (re-run
+recomputes nothing; an interrupted study finishes only its missing points), the Dask cluster giving
+the same table as the local pool, the tidy CSV/Parquet round trip, and one small run of the real
+physics point function against closed-form expectations.
+
+Runner tests use a cheap stand-in point function (module-level, so worker processes import it by
+reference) that counts its calls by writing one file per call.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchtwin.twin import study as st
+from benchtwin.twin.study import StudyError, expand_points, load_study, run_study
+from benchtwin.units import ARCSEC
+
+HERE = Path(__file__).resolve().parent
+
+
+# ----------------------------------------------------------------------------- stand-ins
+
+
+def counting_point(task: dict, count_dir: str | None = None, delay_s: float = 0.0) -> list[dict]:
+    """Cheap analytic outputs of L1 (and the rep seed); one file per call in ``count_dir``."""
+    if count_dir:
+        Path(count_dir, uuid.uuid4().hex).write_text(str(task["point"]))
+    if delay_s:
+        time.sleep(delay_s)
+    L1_mm = task["scenario"]["bench"]["L1"] * 1e3
+    out = []
+    for seed in task["rep_seeds"]:
+        rng = np.random.default_rng(seed)
+        out.append({"angle_error_pv_arcsec": 0.1 * L1_mm + 0.01 * rng.standard_normal(),
+                    "disk_motion_x_pv_um": 0.02 * L1_mm})
+    return out
+
+
+def _calls(d: Path) -> int:
+    return len(list(d.iterdir()))
+
+
+def _write(tmp_path: Path, body: str, name: str = "s.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(body), encoding="utf-8")
+    return p
+
+
+BASIC = """
+[study]
+name = "basic"
+base = "jia2019"
+seed = 7
+repetitions = 2
+outputs = ["angle_error_pv_arcsec", "disk_motion_x_pv_um"]
+[[study.parameters]]
+key = "bench.L1"
+values = ["2 mm", "5 mm", "10 mm", "20 mm"]
+[study.target]
+output = "angle_error_pv_arcsec"
+below = "1.2 arcsec"
+"""
+
+
+# ------------------------------------------------------------------------------ sampling
+
+
+def test_grid_with_units_and_int_grid(tmp_path):
+    p = _write(tmp_path, """
+        [study]
+        name = "g"
+        base = "jia2019"
+        outputs = ["angle_error_pv_arcsec"]
+        [[study.parameters]]
+        key = "bench.L1"
+        low = "2 mm"
+        high = "3000 um"
+        n = 3
+        [[study.parameters]]
+        key = "bench.polygon_faces"
+        low = 12
+        high = 24
+        n = 3
+        [[study.parameters]]
+        key = "bearings.radial_stiffness"
+        values = ["100 N/um", "2e8 N/m"]
+    """)
+    study = load_study(p)
+    pts = expand_points(study)
+    assert len(pts) == 3 * 3 * 2
+    L1 = sorted({pt.values["bench.L1"] for pt in pts})
+    assert np.allclose(L1, [2.0, 2.5, 3.0])  # shown in the unit of `low` (mm)
+    assert sorted({pt.values["bench.polygon_faces"] for pt in pts}) == [12, 18, 24]
+    assert sorted({pt.values["bearings.radial_stiffness"] for pt in pts}) == [100.0, 200.0]  # N/um
+    sc = next(pt.scenario for pt in pts if pt.values["bench.L1"] == 2.5)
+    assert sc["bench"]["L1"] == pytest.approx(2.5e-3)
+    assert all(pt.scenario.seed == 0 for pt in pts)  # study seed default 0 -> scenario.seed
+    assert [q.column for q in study.parameters] == ["bench.L1_mm", "bench.polygon_faces",
+                                                    "bearings.radial_stiffness_N_per_um"]
+
+
+@pytest.mark.parametrize("sampling", ["random", "lhs"])
+def test_random_and_lhs_sampling_are_seeded_and_in_range(tmp_path, sampling):
+    body = f"""
+        [study]
+        name = "r"
+        base = "jia2019"
+        seed = {{seed}}
+        outputs = ["angle_error_pv_arcsec"]
+        [[study.parameters]]
+        key = "bench.L1"
+        low = "2 mm"
+        high = "30 mm"
+        n = 20
+        sampling = "{sampling}"
+        [[study.parameters]]
+        key = "errors.eccentricity"
+        low = "0 um"
+        high = "10 um"
+        n = 20
+        sampling = "{sampling}"
+    """
+    a = expand_points(load_study(_write(tmp_path, body.format(seed=1), "a.toml")))
+    b = expand_points(load_study(_write(tmp_path, body.format(seed=1), "b.toml")))
+    c = expand_points(load_study(_write(tmp_path, body.format(seed=2), "c.toml")))
+    va = np.array([[pt.values["bench.L1"], pt.values["errors.eccentricity"]] for pt in a])
+    vb = np.array([[pt.values["bench.L1"], pt.values["errors.eccentricity"]] for pt in b])
+    vc = np.array([[pt.values["bench.L1"], pt.values["errors.eccentricity"]] for pt in c])
+    assert va.shape == (20, 2)
+    assert np.array_equal(va, vb) and not np.array_equal(va, vc)
+    assert (va[:, 0] >= 2).all() and (va[:, 0] <= 30).all() and (va[:, 1] >= 0).all() and (va[:, 1] <= 10).all()
+    assert a[3].scenario["bench"]["L1"] == pytest.approx(va[3, 0] * 1e-3)
+    if sampling == "lhs":  # Latin hypercube: one sample in each of the n strata of every dimension
+        for j, (lo, hi) in enumerate([(2, 30), (0, 10)]):
+            strata = np.floor((va[:, j] - lo) / (hi - lo) * 20).astype(int)
+            assert sorted(strata) == list(range(20))
+
+
+def test_affine_set_and_labelled_tables(tmp_path):
+    p = _write(tmp_path, """
+        [study]
+        name = "t"
+        base = "jia2019"
+        outputs = ["angle_error_pv_arcsec"]
+        [[study.parameters]]
+        name = "disk_to_bearing"
+        values = ["2 mm", "20 mm"]
+        set = { "bench.bearing_top_z" = { scale = -1 }, "bench.bearing_bottom_z" = { scale = -1, offset = "-88 mm" } }
+        [[study.parameters]]
+        name = "grade"
+        labels = ["base", "better"]
+        [[study.parameters.values]]
+        [[study.parameters.values]]
+        "bearings.async_rms" = "0.03 um"
+    """)
+    pts = expand_points(load_study(p))
+    assert len(pts) == 4
+    pt = next(q for q in pts if q.values == {"disk_to_bearing": 20.0, "grade": "better"})
+    assert pt.scenario["bench"]["bearing_top_z"] == pytest.approx(-0.020)
+    assert pt.scenario["bench"]["bearing_bottom_z"] == pytest.approx(-0.108)
+    assert pt.scenario["bearings"]["async_rms"] == pytest.approx(0.03e-6)
+    base = next(q for q in pts if q.values == {"disk_to_bearing": 2.0, "grade": "base"})
+    assert base.scenario["bearings"]["async_rms"] == pytest.approx(0.06e-6)
+
+
+def test_shipped_bearing_distance_study_validates():
+    path = Path(__file__).resolve().parents[2] / "scenarios" / "studies" / "bearing_distance.toml"
+    study = load_study(path)
+    pts = expand_points(study)
+    assert study.run_fidelity == "physics"
+    assert len(pts) == len(study.parameters[0].levels) * 2
+    assert all(pt.scenario["errors"]["eccentricity"] == 0 for pt in pts)
+
+
+# ---------------------------------------------------------------------------- validation
+
+
+@pytest.mark.parametrize("patch, expect", [
+    (("seed = 7", "seed = 7\nreps = 3"), "unknown key study.reps"),
+    (('values = ["2 mm", "5 mm", "10 mm", "20 mm"]', 'values = ["2 mm", "5 deg"]'),
+     "study.parameters[0].values[1] (bench.L1): '5 deg' is a angle"),
+    (('values = ["2 mm", "5 mm", "10 mm", "20 mm"]', 'values = ["2 mm", "5"]'),
+     "study.parameters[0].values[1] (bench.L1)"),
+    (('key = "bench.L1"', 'key = "bench.L11"'), "study.parameters[0].key: unknown scenario key 'bench.L11'"),
+    (('"disk_motion_x_pv_um"]', '"disk_motion_z_pv_um"]'), "unknown output 'disk_motion_z_pv_um'"),
+    (('below = "1.2 arcsec"', 'below = "1.2 um"'), "study.target.below"),
+    (('output = "angle_error_pv_arcsec"', 'output = "angle_error_rms_arcsec"'), "study.target.output"),
+    (('"20 mm"]', '"200 mm"]'), "point 3 (bench.L1 = '200 mm') does not give a valid scenario: bench.L1"),
+    (('base = "jia2019"', 'base = "nope.toml"'), "study.base: 'nope.toml' is neither"),
+    (("repetitions = 2", "repetitions = 0"), "study.repetitions"),
+    (("repetitions = 2", 'repetitions = 2\nfidelity = "physics"\n'
+      'outputs = ["results.error_model.residual_pv_arcsec"]'), None),  # duplicate key: TOML error
+])
+def test_validation_errors_name_file_and_key(tmp_path, patch, expect):
+    body = BASIC.replace(*patch)
+    assert body != BASIC
+    p = _write(tmp_path, body)
+    with pytest.raises(StudyError) as ei:
+        expand_points(load_study(p))
+    msg = str(ei.value)
+    assert msg.startswith(str(p))
+    if expect:
+        assert expect in msg
+
+
+def test_physics_fidelity_refuses_pipeline_outputs(tmp_path):
+    p = _write(tmp_path, BASIC.replace('seed = 7', 'seed = 7\nfidelity = "physics"').replace(
+        '"disk_motion_x_pv_um"]', '"results.error_model.residual_pv_arcsec"]'))
+    with pytest.raises(StudyError, match="needs fidelity 'full'"):
+        load_study(p)
+
+
+def test_full_fidelity_says_what_is_missing(tmp_path):
+    from benchtwin.twin import study_points
+
+    try:
+        study_points.full_entry_point()
+        pytest.skip("the simulate → analyze entry point exists now")
+    except NotImplementedError:
+        pass
+    p = _write(tmp_path, BASIC.replace('"disk_motion_x_pv_um"]', '"results.error_model.residual_pv_arcsec"]'))
+    assert load_study(p).run_fidelity == "full"
+    with pytest.raises(NotImplementedError, match="benchtwin.twin.run.simulate_and_analyze"):
+        run_study(p, tmp_path / "out", workers=0, progress=False)
+
+
+# ------------------------------------------------------------------------- cache, resume
+
+
+def test_rerun_recomputes_nothing(tmp_path):
+    p = _write(tmp_path, BASIC)
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    fn = functools.partial(counting_point, count_dir=str(calls))
+    r1 = run_study(p, tmp_path / "out", workers=2, progress=False, point_fn=fn)
+    assert (r1["computed"], r1["cached"]) == (8, 0)
+    assert _calls(calls) == 4  # one task per point (both reps)
+    r2 = run_study(p, tmp_path / "out", workers=2, progress=False, point_fn=fn)
+    assert (r2["computed"], r2["cached"]) == (0, 8)
+    assert _calls(calls) == 4
+    assert (tmp_path / "out" / "table.csv").read_text() == (tmp_path / "out" / "table.csv").read_text()
+    # a new point only computes that point; a changed repetition count only the new reps
+    p.write_text(BASIC.replace('"20 mm"]', '"20 mm", "30 mm"]').replace("repetitions = 2", "repetitions = 3"))
+    r3 = run_study(p, tmp_path / "out", workers=0, progress=False, point_fn=fn)
+    assert (r3["computed"], r3["cached"]) == (15 - 8, 8)
+    assert r3["target"]["groups"][0]["crossing"] == pytest.approx(11.8, abs=0.3)
+
+
+def test_interrupted_study_finishes_only_missing_points(tmp_path):
+    body = BASIC.replace('values = ["2 mm", "5 mm", "10 mm", "20 mm"]',
+                         'values = ["1 mm", "2 mm", "3 mm", "4 mm", "5 mm", "6 mm", "7 mm", "8 mm"]')
+    p = _write(tmp_path, body)
+    out = tmp_path / "out"
+    script = textwrap.dedent(f"""
+        import functools, sys
+        sys.path.insert(0, {str(HERE)!r})
+        from test_study import counting_point
+        from benchtwin.twin.study import run_study
+        run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
+                  point_fn=functools.partial(counting_point, delay_s=0.4))
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    try:
+        deadline = time.monotonic() + 40
+        while time.monotonic() < deadline:
+            n = len(list((out / "cache").rglob("*.json"))) if (out / "cache").exists() else 0
+            if n >= 6:  # 3 points × 2 reps
+                break
+            assert proc.poll() is None, "the study ended before it could be interrupted"
+            time.sleep(0.05)
+        else:
+            pytest.fail("no progress from the study subprocess")
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    cached = len(list((out / "cache").rglob("*.json")))
+    assert 6 <= cached < 16
+    assert not (out / "table.csv").exists()
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    r = run_study(p, out, workers=2, progress=False, point_fn=functools.partial(counting_point, count_dir=str(calls)))
+    assert r["cached"] == cached and r["computed"] == 16 - cached
+    assert _calls(calls) == (16 - cached) // 2
+    assert r["rows"] == 16
+
+
+# ------------------------------------------------------------------- executors and table
+
+
+def test_dask_localcluster_gives_the_same_table_as_the_local_pool(tmp_path):
+    import pyarrow.parquet as pq
+    from distributed import LocalCluster
+
+    p = _write(tmp_path, BASIC)
+    fn = functools.partial(counting_point)
+    local = run_study(p, tmp_path / "local", workers=2, progress=False, point_fn=fn)
+    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        remote = run_study(p, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False, point_fn=fn)
+    assert remote["computed"] == 8 and remote["executor"].startswith("dask tcp://127.0.0.1")
+    a = pq.read_table(local["table_parquet"]).drop(["elapsed_s"])
+    b = pq.read_table(remote["table_parquet"]).drop(["elapsed_s"])
+    assert a.equals(b)
+
+
+def test_tidy_csv_parquet_round_trip_and_summary(tmp_path):
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    p = _write(tmp_path, BASIC)
+    r = run_study(p, tmp_path / "out", workers=0, progress=False, point_fn=counting_point)
+    t_pq = pq.read_table(r["table_parquet"])
+    t_csv = pacsv.read_csv(r["table_csv"])
+    assert t_pq.column_names == ["point", "rep", "rep_seed", "bench.L1_mm", "angle_error_pv_arcsec",
+                                 "disk_motion_x_pv_um", "elapsed_s", "cache_key"]
+    assert t_pq.num_rows == 8
+    for name in t_pq.column_names:
+        a, b = t_pq[name].to_pylist(), t_csv[name].to_pylist()
+        if isinstance(a[0], float):
+            assert np.allclose(a, b, rtol=0, atol=0)
+        else:
+            assert a == b
+    meta = t_pq.schema.metadata
+    assert meta[b"study"] == b"basic" and b"angle_error_pv_arcsec" in meta[b"fidelity"]
+    assert t_pq["rep_seed"].to_pylist()[:2] == [st.rep_seed(7, 0), st.rep_seed(7, 1)]
+    s = pq.read_table(r["summary_parquet"])
+    x = np.array(t_pq["angle_error_pv_arcsec"].to_pylist()).reshape(4, 2)
+    assert np.allclose(s["angle_error_pv_arcsec_mean"].to_pylist(), x.mean(axis=1))
+    assert np.allclose(s["angle_error_pv_arcsec_std"].to_pylist(), x.std(axis=1, ddof=1))
+    assert np.allclose(s["angle_error_pv_arcsec_u"].to_pylist(), x.std(axis=1, ddof=1) / math.sqrt(2))
+    md = Path(r["summary_md"]).read_text()
+    assert "bench.L1 = 2, 5, 10 mm" in md and "custom:" in md
+    assert Path(r["summary_html"]).read_text().startswith("<section")
+    assert all(Path(f).is_file() for f in r["figures"])
+
+
+# ---------------------------------------------------------------------- the real physics
+
+
+def test_physics_point_function_on_the_real_bench(tmp_path):
+    """Exact reading of the posed disk: eccentricity e gives P-V 2e/r; two opposite heads cancel it;
+    without eccentricity the error is the disk's X motion over r (α ≈ −δx/r, docs/conventions.md)."""
+    pytest.importorskip("benchtwin.twin.physics")
+    p = _write(tmp_path, """
+        [study]
+        name = "phys"
+        base = "jia2019"
+        seed = 5
+        repetitions = 1
+        angles = 72
+        outputs = ["angle_error_pv_arcsec", "disk_motion_x_pv_um", "disk_radial_motion_pv_um"]
+        [[study.parameters]]
+        name = "case"
+        labels = ["ecc_only", "ecc_two_heads", "motion_only"]
+        [[study.parameters.values]]
+        "bearings.waviness_top" = []
+        "bearings.waviness_bottom" = []
+        "bearings.async_rms" = "0 um"
+        [[study.parameters.values]]
+        "bearings.waviness_top" = []
+        "bearings.waviness_bottom" = []
+        "bearings.async_rms" = "0 um"
+        "bench.heads" = ["0 deg", "180 deg"]
+        [[study.parameters.values]]
+        "errors.eccentricity" = "0 um"
+    """)
+    r = run_study(p, tmp_path / "out", workers=0, progress=False)
+    assert r["output_fidelity"] == {o: "physics" for o in r["output_fidelity"]}
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(r["table_parquet"]).to_pylist()
+    by = {row["case"]: row for row in t}
+    e, rad = 7.1e-6, 22e-3
+    motion = by["ecc_only"]["disk_motion_x_pv_um"] * 1e-6  # gravity/unbalance remain: small
+    th = 2 * np.pi * np.arange(72) / 72  # Jia eq. 3 sampled at the study's 72 angles
+    expected = e / rad * np.ptp(np.sin(th - np.deg2rad(192.08))) / ARCSEC
+    assert by["ecc_only"]["angle_error_pv_arcsec"] == pytest.approx(expected, abs=motion / rad / ARCSEC + 0.02)
+    assert by["ecc_two_heads"]["angle_error_pv_arcsec"] < 0.05 * by["ecc_only"]["angle_error_pv_arcsec"]
+    m = by["motion_only"]
+    assert m["angle_error_pv_arcsec"] == pytest.approx(m["disk_motion_x_pv_um"] * 1e-6 / rad / ARCSEC, rel=0.05)
+    assert m["disk_radial_motion_pv_um"] >= m["disk_motion_x_pv_um"] - 1e-9
