@@ -104,6 +104,7 @@ def radial_motion(
     u_L2_mm: float = 0.0,
     grid_deg: np.ndarray | None = None,
     d_n: float | None = None,
+    keep_residual: bool = False,
 ) -> dict:
     """Radial error motion of the spheres and the disk (Jia eqs. 6-9), per repetition and averaged.
 
@@ -115,6 +116,10 @@ def radial_motion(
     ``u_probe_um``: standard uncertainty of one probe reading; when given it weights the fit and the
     GUM covariance is absolute, otherwise the residual scatter of each fit is used.
     ``u_L1_mm``, ``u_L2_mm``: uncertainty of the lengths (propagated through eq. 9).
+    ``keep_residual``: instead of eq. 7's series (harmonics 2…order: content above the order and
+    probe noise are filtered out), keep the data minus the fitted 0th and 1st harmonics (ISO 230-7
+    evaluates asynchronous motion unfiltered); needs every repetition at the same angles. ``dY_fn``
+    is then the periodic linear interpolant of ``dY_um`` and ``dY_params`` the series part only.
 
     Returns a dict (arrays on the grid ``theta_deg``; ``*_reps_*`` are n_reps × n_theta):
 
@@ -158,6 +163,12 @@ def radial_motion(
         grid = np.arange(360) * 1.0
 
     G = design_matrix(grid, order, harmonics=range(2, order + 1))  # eq. 7 on the grid
+    if keep_residual:
+        if grid_deg is not None or not all(s.size == sets[0].size and np.allclose(s, sets[0]) for s in sets):
+            raise ValueError("keep_residual=True needs every repetition at the same angles (no grid_deg)")
+
+    def G01(t_deg: np.ndarray) -> np.ndarray:
+        return design_matrix(t_deg, order, harmonics=(0, 1))
 
     def per_channel(values: np.ndarray, label: str):
         fits: list[FourierFit] = []
@@ -169,7 +180,15 @@ def radial_motion(
             except ValueError as exc:
                 raise ValueError(f"{label}, repetition {r}: {exc}") from None
             fits.append(f)
-            curves.append(G @ f.params)
+            if keep_residual:
+                # data minus the 0th and 1st harmonics, at the measured angles (sorted onto the grid)
+                tm = np.round(th[m] % 360.0, 9)
+                o = np.argsort(tm, kind="stable")
+                tm, vm = tm[o], values[m][o] - (G01(th[m]) @ f.params)[o]
+                _, first = np.unique(tm, return_index=True)
+                curves.append(vm[first])
+            else:
+                curves.append(G @ f.params)
         return fits, np.array(curves)
 
     out: dict = {"theta_deg": grid, "reps": reps, "n_reps": int(reps.size), "order": order}
@@ -198,7 +217,7 @@ def radial_motion(
 
     dY_params, dY_cov = mean_series(fits["top"], fits["bottom"])
     out["dY_params"], out["dY_cov"] = dY_params, dY_cov
-    out["dY_fn"] = _series_fn(dY_params, order)
+    out["dY_fn"] = _interp_fn(grid, out["dY_um"]) if keep_residual else _series_fn(dY_params, order)
 
     # GUM: fit covariance (probe noise) + lengths.
     var_fit = np.einsum("ij,jk,ik->i", G, dY_cov, G)
@@ -206,6 +225,12 @@ def radial_motion(
     dd_dL1 = (dbot - dtop) / L2_mm  # ∂δY/∂L1
     dd_dL2 = L1_mm * (dtop - dbot) / L2_mm**2  # ∂δY/∂L2
     var = np.nan_to_num(var_fit, nan=0.0) + (dd_dL1 * u_L1_mm) ** 2 + (dd_dL2 * u_L2_mm) ** 2
+    if keep_residual:
+        # the kept residual carries the reading noise itself (σ of each fit, or u_probe_um)
+        def s2(fl: list[FourierFit]) -> float:
+            return float(np.mean([(u_probe_um if u_probe_um is not None else f.sigma) ** 2 for f in fl]))
+
+        var = var + (w_top**2 * s2(fits["top"]) + w_bot**2 * s2(fits["bottom"])) / reps.size
     if np.all(np.isnan(var_fit)):
         var = var + np.nan  # no residual dof and no u given: unknown
     out["u_dY_gum_theta_um"] = np.sqrt(var)
@@ -235,7 +260,8 @@ def radial_motion(
             tilt_y_reps_urad=tilty_r, tilt_y_urad=tilty_r.mean(axis=0),
         )
         pX, cX = mean_series(fits["top_x"], fits["bottom_x"])
-        out["dX_params"], out["dX_cov"], out["dX_fn"] = pX, cX, _series_fn(pX, order)
+        out["dX_params"], out["dX_cov"] = pX, cX
+        out["dX_fn"] = _interp_fn(grid, out["dX_um"]) if keep_residual else _series_fn(pX, order)
         out["u_dX_range_theta_um"] = (range_method_u(dX_r, out["d_n"]) if reps.size >= 2
                                       else np.full(grid.size, np.nan))
         summary.update(top_x=error_motion_values(topx_r), bottom_x=error_motion_values(botx_r),
@@ -251,5 +277,16 @@ def _series_fn(params: np.ndarray, order: int) -> Callable[[np.ndarray], np.ndar
     def fn(theta_deg: np.ndarray) -> np.ndarray:
         """δ(θ) in µm at θ in degrees (mean Fourier series, harmonics 2…order)."""
         return evaluate(p, theta_deg, order=order)
+
+    return fn
+
+
+def _interp_fn(grid_deg: np.ndarray, values: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    g = np.asarray(grid_deg, dtype=float)
+    v = np.asarray(values, dtype=float)
+
+    def fn(theta_deg: np.ndarray) -> np.ndarray:
+        """δ(θ) in µm at θ in degrees (periodic linear interpolation of the grid values)."""
+        return np.interp(np.asarray(theta_deg, dtype=float) % 360.0, g, v, period=360.0)
 
     return fn

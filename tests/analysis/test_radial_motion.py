@@ -183,3 +183,19 @@ def test_error_motion_values_single_rep():
     v = np.array([[0.0, 0.2, -0.1]])
     s = error_motion_values(v)
     assert s["total_um"] == pytest.approx(0.3) and s["asynchronous_um"] == 0.0
+
+
+def test_keep_residual_keeps_content_above_the_order():
+    cols, truth = synthetic(n=360)
+    t = np.radians(cols["theta_deg"])
+    hf = 0.03 * np.cos(15 * t)  # order 15: eq. 7 (order 10) filters it, keep_residual keeps it
+    cols["probe_top_um"] = cols["probe_top_um"] + hf
+    cols["probe_bottom_um"] = cols["probe_bottom_um"] + hf
+    lit = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    raw = radial_motion(L1_mm=L1, L2_mm=L2, keep_residual=True, **cols)
+    tg = np.radians(truth["theta_deg"])
+    np.testing.assert_allclose(lit["dY_um"], truth["dY"], atol=1e-9)
+    np.testing.assert_allclose(raw["dY_um"], truth["dY"] + 0.03 * np.cos(15 * tg), atol=1e-9)
+    np.testing.assert_allclose(raw["dY_fn"](truth["theta_deg"]), raw["dY_um"], atol=1e-12)
+    with pytest.raises(ValueError, match="same angles"):
+        radial_motion(L1_mm=L1, L2_mm=L2, keep_residual=True, grid_deg=np.arange(0, 360, 2.0), **cols)
