@@ -13,7 +13,6 @@ Run: .venv/bin/python benchmarks/l1_figure.py  ->  docs/img/l1_study.png
 
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import matplotlib
@@ -22,20 +21,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchtwin.twin.physics import Bench  # noqa: E402
+from benchtwin.twin.physics import Bench, shift_disk  # noqa: E402
 from benchtwin.twin.scenario import load_scenario  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "l1_study.png"
-
-
-def shifted(sc: dict, delta_m: float) -> dict:
-    """The disk mounted delta_m higher on the same rotor (see tests/twin/test_physics.py)."""
-    s = copy.deepcopy(sc)
-    b = s["bench"]
-    b["L1"] -= delta_m
-    for k in ("bearing_top_z", "bearing_bottom_z", "polygon_z"):
-        b[k] -= delta_m
-    return s
 
 
 def main() -> None:
@@ -50,12 +39,12 @@ def main() -> None:
     pp_x, pp_y, curves = [], [], {}
     for d in dist_mm:
         delta = d * 1e-3 + zt0                  # disk shift that puts it d above the top bearing
-        b = Bench(shifted(sc, delta))
+        b = Bench(shift_disk(sc, delta))
         dx, dy = b.disk_plane_motion(theta)
         pp_x.append(np.ptp(dx) * 1e6)
         pp_y.append(np.ptp(dy) * 1e6)
     for d in (-(zt0 - zb0) * 1e3 / 2, -zt0 * 1e3, -zt0 * 1e3 + 6.0):
-        b = Bench(shifted(sc, d * 1e-3 + zt0))
+        b = Bench(shift_disk(sc, d * 1e-3 + zt0))
         curves[d] = b.disk_plane_motion(theta)[1] * 1e6
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))

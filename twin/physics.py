@@ -138,6 +138,34 @@ def _table_column(table, *names):
     return None
 
 
+def disk_shift_overrides(sc, delta_m: float) -> dict[str, str]:
+    """Design-study hook (Jia 2019 sec. 6: "reduce the distance between the grating disk and the
+    bearing"): scenario overrides that mount the disk ``delta_m`` higher on the SAME rotor.
+
+    Every axial position in a scenario is measured from the disk plane, so moving the disk along
+    the shaft changes L1 (top sphere -> disk) and the bearing and polygon positions together; L2
+    does not change. (Changing ``bench.L1`` alone moves the top sphere instead: disk and bearings
+    stay, the disk-plane motion does not change, only the spheres' readings do.)
+    Use with ``Scenario.with_overrides``; values are written with units, like a scenario file."""
+    b = sc["bench"]
+    out = {"bench.L1": b["L1"] - delta_m}
+    for k in ("bearing_top_z", "bearing_bottom_z", "polygon_z"):
+        out[f"bench.{k}"] = b[k] - delta_m
+    return {k: f"{v * 1e3:.12g} mm" for k, v in out.items()}
+
+
+def shift_disk(sc: dict, delta_m: float) -> dict:
+    """``disk_shift_overrides`` for a plain nested dict of SI values (returns a copy)."""
+    import copy
+
+    s = copy.deepcopy(sc)
+    b = s["bench"]
+    b["L1"] -= delta_m
+    for k in ("bearing_top_z", "bearing_bottom_z", "polygon_z"):
+        b[k] -= delta_m
+    return s
+
+
 class Bench:
     """The posed bench of one scenario.
 

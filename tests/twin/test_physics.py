@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from benchtwin.twin.build import build_model
-from benchtwin.twin.physics import ARCSEC, Bench
+from benchtwin.twin.physics import ARCSEC, Bench, disk_shift_overrides, shift_disk
 from benchtwin.twin.scenario import load_scenario
 
 NM = 1e-9
@@ -342,17 +342,6 @@ def test_pose_cost_is_a_fraction_of_a_millisecond(bench):
 
 
 # ---------------------------------------------------------------------- design study -------
-def shifted(sc: dict, delta_m: float) -> dict:
-    """The same rotor with the disk mounted delta_m higher on the shaft (bearings, spheres and
-    polygon unchanged on the shaft): every axial position measured from the disk drops by delta."""
-    s = copy.deepcopy(sc)
-    b = s["bench"]
-    b["L1"] -= delta_m
-    for k in ("bearing_top_z", "bearing_bottom_z", "polygon_z"):
-        b[k] -= delta_m
-    return s
-
-
 @pytest.mark.parametrize("delta_mm", [-5.0, 4.0, 6.0])
 def test_l1_design_study_follows_shaft_tilt(jia, delta_mm):
     """Moving the disk along the shaft (changing L1 and the bearing-to-disk distance) changes the
@@ -360,7 +349,7 @@ def test_l1_design_study_follows_shaft_tilt(jia, delta_mm):
     s = copy.deepcopy(jia)
     s["bench"]["gravity_direction"] = "none"   # the sag differs with the shaft's extent
     delta = delta_mm * 1e-3
-    a, b = Bench(s), Bench(shifted(s, delta))
+    a, b = Bench(s), Bench(shift_disk(s, delta))
     for th in ANGLES[::8]:
         a.pose_at(th, rep=1)
         p, ax = a._axis_line()
@@ -386,3 +375,16 @@ def test_unbalance_at_speed_gives_once_per_rev_motion(jia):
     Ft, Fb = F * (zu - zb) / (zt - zb), F * (zt - zu) / (zt - zb)
     expect = (Ft / k) * (0 - zb) / (zt - zb) + (Fb / k) * (zt - 0) / (zt - zb)
     assert np.argmax(h) == 1 and h[1] == pytest.approx(abs(expect), rel=1e-3)
+
+
+def test_disk_shift_overrides_on_a_scenario_file():
+    """The hook as a design study uses it: overrides with units on the loaded Scenario give the
+    same bench as the plain-dict shift; changing L1 alone leaves the disk-plane motion alone."""
+    sc = load_scenario()
+    delta = -4e-3
+    b1 = Bench(sc.with_overrides(disk_shift_overrides(sc, delta)))
+    b2 = Bench(shift_disk(sc.to_dict(), delta))
+    np.testing.assert_allclose(b1.disk_plane_motion(ANGLES[::4]), b2.disk_plane_motion(ANGLES[::4]), atol=1e-15)
+    b3 = Bench(sc.with_overrides({"bench.L1": "10 mm"}))
+    np.testing.assert_allclose(b3.disk_plane_motion(ANGLES[::4]), Bench(sc).disk_plane_motion(ANGLES[::4]),
+                               atol=1e-15)
