@@ -174,12 +174,17 @@ class Bench:
     ``BenchPose.shaft_angle_rad`` is the TRUE rotation of the disk section (the command minus the
     torsional lag). ``truth()`` lists every generated parameter; ``disk_plane_motion`` gives the
     true radial motion of the axis of rotation in the disk plane.
+
+    One ``MjData`` per bench: not thread-safe; use one ``Bench`` per worker.
     """
 
     def __init__(self, sc: Any):
         self.sc = sc
         self.seed = _seed_of(sc)
         b, br, er = sc["bench"], sc["bearings"], sc["errors"]
+        if abs(b["bearing_top_z"] - b["bearing_bottom_z"]) < 1e-3:
+            raise ValueError("bench.bearing_top_z and bench.bearing_bottom_z must be at least 1 mm apart: "
+                             "two bearings at one place cannot hold the shaft's tilt")
         self.n_faces = int(b["polygon_faces"])
         self.friction_torque_Nm = float(br["friction_torque"])
         self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))

@@ -388,3 +388,24 @@ def test_disk_shift_overrides_on_a_scenario_file():
     b3 = Bench(sc.with_overrides({"bench.L1": "10 mm"}))
     np.testing.assert_allclose(b3.disk_plane_motion(ANGLES[::4]), Bench(sc).disk_plane_motion(ANGLES[::4]),
                                atol=1e-15)
+
+
+def test_template_loads_on_its_own_with_named_elements():
+    """models/bench.xml is a complete model (Menagerie style): it compiles without build.py."""
+    from benchtwin.twin.build import template_path
+
+    m = mujoco.MjModel.from_xml_path(str(template_path()))
+    for body in ("base", "shaft_carrier", "shaft", "disk", "sphere_top", "sphere_bottom", "polygon_section", "polygon"):
+        m.body(body)
+    for j in ("radial_x", "radial_y", "tilt_x", "tilt_y", "spin", "shaft_twist"):
+        m.joint(j)
+    for t in ("bearing_top_x", "bearing_top_y", "bearing_bottom_x", "bearing_bottom_y", "drive_angle"):
+        m.tendon(t)
+    m.actuator("drive")
+
+
+def test_coincident_bearings_are_rejected(jia):
+    s = copy.deepcopy(jia)
+    s["bench"]["bearing_bottom_z"] = s["bench"]["bearing_top_z"]
+    with pytest.raises(ValueError, match="bearing"):
+        Bench(s)
