@@ -310,6 +310,8 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
         xe_med = float(np.median(xe))
         cs = np.arange(int(round(xe_med)) - hw - lev, int(round(xe_med)) - hw)
         cs = cs[(cs >= 0) & (cs < W)]
+        if cs.size == 0:
+            continue
         ya, yb = max(y_lo - 4, 0), min(y_hi + 5, H)
         yy = np.arange(ya, yb)
         fc = (G - grey[ya:yb][:, cs]) / (G - C)
