@@ -74,6 +74,7 @@ __all__ = [
     "encoder_error_arcsec",
     "cross_calibrate_closure",
     "cross_calibrate_with_certificate",
+    "closure_residual_sd_arcsec",
     "ShiftResult",
     "ShiftAngleResult",
     "shift_angle_analysis",
@@ -439,6 +440,22 @@ def cross_calibrate_closure(table1_arcsec: np.ndarray, u_table1_arcsec: np.ndarr
     return {"beta": beta, "u_beta": u_beta, "cov_beta": cov_beta, "U": res["U"], "u_U": np.sqrt(np.diag(cov_u)),
             "theta_deg": res["theta_deg"], "alpha": res["alpha"], "u_alpha": np.sqrt(np.diag(cov_a)),
             "cov_alpha": cov_a, "alpha_by_face": res["alpha_by_face"]}
+
+
+def closure_residual_sd_arcsec(table1_arcsec: np.ndarray) -> tuple[float, int]:
+    """Pooled standard deviation of one reading from the residuals of the N×N closure (S = 0).
+
+    Residual r_ij = ε_ij − (α̂_i + B̂_ij + Û_j); ν = N² − (N−1) − (N−1) − N = (N−1)(N−2) (α and β each
+    closed, eqs. 1-2; one U per start face). Used as u(ε) when the readings have no repetitions.
+    Returns ``(s, nu)``.
+    """
+    t = _check_square(table1_arcsec, "table1_arcsec")
+    N = t.shape[0]
+    r = cross_calibrate_closure(t)
+    B = cumulative_pitch_sum_arcsec(r["beta"])
+    res = t - (r["alpha"][None, :] + B + r["U"][:, None])
+    nu = (N - 1) * (N - 2)
+    return float(np.sqrt(np.sum(res**2) / nu)), nu
 
 
 def _certificate(beta_cert: np.ndarray, N: int, u_cert: np.ndarray | float | None) -> tuple[np.ndarray, np.ndarray, float]:
