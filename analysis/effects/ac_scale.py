@@ -1,0 +1,70 @@
+"""Autocollimator scale error and non-linearity: a residual ∝ reading and reading².
+
+Hsieh et al. 2022, eq. 3: everything rests on the autocollimator reading ε_ij (their sec. 3.3
+budgets its "angle error" at 0.07″/√3 over ±1000″). A scale error k multiplies every ε; because β
+(eq. 6, averages of differences) and U (eq. 7, sums) are linear in ε, the α they deliver is
+scaled by the same (1 + k): the linear part of the residual is k·α ≈ k·model (the model, not the measured
+α, is the regressor, so that the residual's own noise is not on both sides) — on polygon data
+exactly collinear with a gain on the model (``optical_radius``), separated only by the self-calibration, which does not see
+the reference chain. A quadratic term q·ε² does not pass through the linear analysis unchanged;
+to first order it adds q·ε² to the reading (its per-run mean goes into U_j). ε is ``ac_arcsec``
+when the evidence has it, else α (then the quadratic column differs from q·ε² by the Σβ + U
+cross terms — noted in the result).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._base import linear_predict
+
+NAME = "ac_scale"
+MEANING = (
+    "The autocollimator's scale is wrong by k % and/or non-linear (q·ε²). The linear part scales "
+    "the whole measured α (hence looks like a gain on the model); the quadratic part follows the "
+    "raw reading ε, which differs from α by the polygon's pitch sums and setup errors. Not an "
+    "encoder error: absent from the self-calibration."
+)
+PARAMS = {"gain_pct": "%", "quad_per_arcsec": "1/arcsec"}
+CHANNELS = {
+    "alpha": "(k/100)·α + q·ε² (α ≈ model in the design)",
+    "selfcal": "none (reference chain)",
+    "radial": "none", "ccd": "none", "heads": "none",
+}
+#: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
+SUBSETS = [["gain_pct"], ["quad_per_arcsec"], ["gain_pct", "quad_per_arcsec"]]
+SEEN_BY_SELFCAL = False
+SEPARATED_BY = "Self-calibration (absent there); readings with large setup offsets U (tilt the polygon) for the quadratic part."
+SEPARATES_FROM = {
+    "optical_radius": "multi-head self-calibration, or calibrate the autocollimator against a small-angle generator",
+    "ccd_pixel_scale": "multi-head self-calibration, or calibrate the autocollimator",
+    "graduation_error": "re-measure with deliberately offset setup errors U_j (tilted polygon): the quadratic term moves, a division error does not",
+}
+
+
+def _eps(ev):
+    ac = getattr(ev, "ac_arcsec", None)
+    return np.asarray(ac if ac is not None else ev.alpha_arcsec, dtype=float)
+
+
+def available(ev, ctx=None):
+    return True, "" if getattr(ev, "ac_arcsec", None) is not None else "no raw autocollimator readings: ε ≈ α used for the quadratic term"
+
+
+def design(ev, ctx=None):
+    # α ≈ the model: the measured α itself would put the residual (and its noise) into the regressor
+    a = sum(np.asarray(v, dtype=float) for v in ev.model_terms.values()) + np.zeros(len(ev.theta_deg))
+    e = _eps(ev)
+    return np.column_stack([a / 100.0, e * e]), ["gain_pct", "quad_per_arcsec"]
+
+
+def predict(ev, params, ctx=None):
+    return linear_predict(design, ev, params, ctx)
+
+
+def aux(ev, ctx=None):
+    return {}
+
+
+def term(params, aux, base_terms=None):
+    return None

@@ -1,0 +1,90 @@
+"""Graduation (division) error of the grating disk: low-order harmonics fixed to the disk.
+
+Jia et al. 2019, sec. 6: "imperfect manufacturing of the grating disk and other minor errors also
+cause angle measurement error" — one of the candidate causes of the ±6″ (9 %) residual that eq. 5
+does not contain. Hsieh et al. 2022, eqs. 8–9: a multi-head self-calibration sees the division
+error of head 1 directly (except the harmonics that are multiples of the number of heads).
+
+Order set: k = 2…10.
+- k = 1 is excluded: a first-order division error is indistinguishable from the eccentricity of the
+  ruling with respect to the disk (it is what the CCD's edge fit of eqs. 10–12 measures as e), so
+  it belongs to the eccentricity term (see ``ccd_pixel_scale``, ``optical_radius``).
+- k ≤ 10 follows the order of the series of Jia eqs. 6, 7 and 10 and the Nyquist limit of a single
+  23-face polygon sweep (11.5 harmonics on a 23-point grid); shifts extend it, but higher orders of
+  real disks are small and periodic errors at the grating pitch are ``interpolation_error``.
+- Inside that set the fit uses only the harmonics that the harmonic-by-harmonic test of the
+  residual found significant (context key ``harmonics``), so that the effect costs two parameters
+  per harmonic actually seen, not 18 — otherwise the information criterion punishes it for
+  harmonics it does not need and it could never compete with one-parameter effects.
+"""
+
+from __future__ import annotations
+
+from ._base import harmonic_columns, linear_predict
+
+NAME = "graduation_error"
+MEANING = (
+    "Division error of the grating disk: the lines are not at their nominal angles. The error is "
+    "fixed to the disk, so it is a function of the encoder angle θ only, repeats identically every "
+    "turn, in both directions and for every polygon start face and shift, and it is seen "
+    "identically by a multi-head self-calibration (Hsieh eqs. 8–9), except harmonics that are "
+    "multiples of the number of heads. Low orders (2…10) dominate for ruled or replicated disks."
+)
+PARAMS = {"a{k}_arcsec": "arcsec", "b{k}_arcsec": "arcsec"}
+ORDERS = tuple(range(2, 11))
+CHANNELS = {
+    "alpha": "Σ_k a_k sin kθ + b_k cos kθ added to the encoder error",
+    "selfcal": "the same harmonics, identical amplitude and phase (multiples of the head count are blind)",
+    "radial": "none",
+    "ccd": "none (the CCD sees the scale's edge, not the division)",
+    "heads": "δ_(1,j)(θ) = g(θ) − g(θ + ψ_j): the raw head differences carry it with the head spacing",
+}
+SEEN_BY_SELFCAL = True
+SEPARATED_BY = ("Self-calibration curve (sees it identically; reference-chain effects are absent "
+                "there); re-mounting the disk rotated on the shaft (the error moves with the disk, "
+                "shaft motion does not); rep-to-rep repeatability (perfectly synchronous).")
+SEPARATES_FROM = {
+    "sphere_form": "Donaldson reversal of the test sphere (or re-clamp it rotated by 180°/k): a form "
+                   "error moves with the sphere and leaves the encoder alone, a division error does not",
+    "tangential_motion": "X probes on both spheres (eq. 9 applied to δX), or re-mount the disk rotated "
+                         "on the shaft: a division error moves with the disk, motion stays with the bearing",
+    "interpolation_error": "polygon shift angles S that are not multiples of the grating pitch, or "
+                           "self-calibration on a grid finer than the pitch",
+}
+
+
+def _orders(ev, ctx):
+    kmax = int(ev.kmax) if getattr(ev, "kmax", None) else max(ORDERS)
+    ks = [k for k in ORDERS if k <= kmax]
+    if ctx and ctx.get("harmonics") is not None:
+        ks = [k for k in ks if k in set(ctx["harmonics"])]
+    return ks
+
+
+def available(ev, ctx=None):
+    ks = _orders(ev, ctx)
+    return (bool(ks), "" if ks else "no significant harmonic of order 2…10 in the residual")
+
+
+def design(ev, ctx=None):
+    return harmonic_columns(ev.theta_deg, _orders(ev, ctx))
+
+
+def predict(ev, params, ctx=None):
+    return linear_predict(design, ev, params, ctx)
+
+
+def aux(ev, ctx=None):
+    return {"orders": _orders(ev, ctx)}
+
+
+def term(params, aux, base_terms=None):
+    import numpy as np
+
+    ks = aux["orders"]
+
+    def fn(theta_rad):
+        th = np.asarray(theta_rad, dtype=float)
+        return sum(params.get(f"a{k}_arcsec", 0.0) * np.sin(k * th) + params.get(f"b{k}_arcsec", 0.0) * np.cos(k * th)
+                   for k in ks) + 0.0 * th
+    return fn

@@ -1,0 +1,1023 @@
+"""Close the loop: trace the residual between Jia's model and the measured encoder error to the effect
+the model lacks.
+
+Jia et al. 2019 (Appl. Sci. 9, 3415) validate their model Δθ = [e·sin(θ−θ0) + ∫δY dθ]/r (eq. 5)
+against an autocollimator and a 23-face polygon and are left with a residual within ±6″, 9 % of the
+encoder error, whose cause they only guess ("imperfect manufacturing of the grating disk and other
+minor errors", sec. 6). Hsieh et al. 2022 (Appl. Sci. 12, 5008) give the polygon data's structure
+(eq. 3: ε_ij = α((i−1)·360/N + S) + Σβ + U_j, start faces j, shift angles S) and the multi-head
+self-calibration (eqs. 8–9) that sees the encoder's own errors but not the reference chain's.
+
+This module takes everything the analysis knows about a dataset, per polygon reading
+(:class:`Evidence`), and answers, in order:
+
+1. Is there anything to explain? χ² of the residual against the combined uncertainty of the
+   measurement and of the model (model parameter uncertainties enter as nuisance columns with a
+   unit Gaussian prior, i.e. the covariance diag(u²) + S·Sᵀ), and a harmonic-by-harmonic test.
+2. Its signature: harmonic spectrum, drift with time, repetition (synchronous or not), start face
+   and shift (polygon-related or not), direction (hysteresis), self-calibration, correlation with
+   the radial motion and with each of the model's own terms.
+3. Which effect of the library (:mod:`benchtwin.analysis.effects`) explains it: each candidate alone
+   and in pairs, weighted least squares, BIC and AICc, leave-one-group-out cross-validation,
+   significance gates against over-fitting; ambiguity sets with the separating measurement;
+   "unexplained" when nothing brings the residual down to the noise.
+
+The polygon closure (Hsieh eq. 2: Σα = 0 per run; eq. 7 solves U_j from it) leaves α known only up
+to a constant per set of readings that share one setup error U ("closure group", default: one
+(shift, start face) mounting). Every fit here therefore removes the weighted mean per closure group
+from the residual and from every column (equivalent to free offsets per group); the degrees of
+freedom count them.
+
+Thresholds (tuned on the synthetic tests, see docs/effects.md): ``P_SIG`` = 1e-3 for χ² tests,
+harmonic flags at a Bonferroni-corrected 1e-3, candidate gates ``Z_GATE`` = 4 and ``DBIC_GATE`` = 10,
+ambiguity when ΔBIC < ``AMBIG_DBIC`` = 2 and the predictions' cos² > ``COLLINEAR`` = 0.9.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .effects import ALL
+from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
+                            perturbation_columns)
+
+__all__ = [
+    "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
+    "save_model", "load_model", "model_terms_from_payload", "add_to_error_model",
+    "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR",
+]
+
+P_SIG = 1e-3        # χ² tests (residual before/after, nested signature tests)
+Z_GATE = 4.0        # a candidate's parameters must be ≥ 4 standard uncertainties from zero (jointly)
+DBIC_GATE = 10.0    # ... and lower the BIC by ≥ 10 ("very strong" on Kass & Raftery's scale)
+AMBIG_DBIC = 2.0    # candidates within 2 BIC units ...
+COLLINEAR = 0.9     # ... whose predictions have cos² > 0.9 cannot be told apart
+MAX_CV_FOLDS = 12
+THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
+
+
+# ----------------------------------------------------------------------------------------------
+# evidence containers
+# ----------------------------------------------------------------------------------------------
+
+@dataclass
+class RadialMotion:
+    """Sphere probe readings on a θ grid (radial_motion.csv), µm, all reps pooled.
+
+    Each channel is reduced to its Fourier series of orders 2…10 (Jia eq. 7: orders 0 and 1 are
+    probe position and sphere centring); δY at the disk by eq. 9, δX likewise from the X probes.
+    Channels: ``top_um``, ``bottom_um``, ``dY_um`` and, with X probes, ``top_x_um``,
+    ``bottom_x_um``, ``dX_um``. ``at``/``integral_at`` evaluate a channel or its antiderivative in θ
+    (radians; µm·rad) anywhere.
+    """
+
+    theta_deg: np.ndarray
+    top_um: np.ndarray
+    bottom_um: np.ndarray
+    L1_mm: float
+    L2_mm: float
+    top_x_um: np.ndarray | None = None
+    bottom_x_um: np.ndarray | None = None
+    orders: tuple = RADIAL_ORDERS
+    _coefs: dict = field(default_factory=dict, init=False, repr=False)
+    _u: dict = field(default_factory=dict, init=False, repr=False)
+
+    def __post_init__(self):
+        th = np.asarray(self.theta_deg, dtype=float)
+        wt, wb = (self.L2_mm - self.L1_mm) / self.L2_mm, self.L1_mm / self.L2_mm
+        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um}
+        if self.has_x:
+            raw.update(top_x_um=self.top_x_um, bottom_x_um=self.bottom_x_um)
+        for name, y in raw.items():
+            # orders 0 and 1 fitted and dropped (eq. 7), orders 2…10 kept, with their type-A u
+            self._coefs[name], self._u[name] = fourier_fit(th, y, self.orders, nuisance_ks=(1,), return_u=True)
+        self.combos = {n: {n: 1.0} for n in raw}
+        self.combos["dY_um"] = {"top_um": wt, "bottom_um": wb}
+        if self.has_x:
+            self.combos["dX_um"] = {"top_x_um": wt, "bottom_x_um": wb}
+        self.combos["bottom_minus_top_um"] = {"bottom_um": 1.0, "top_um": -1.0}
+        for out, combo in self.combos.items():
+            if out not in self._coefs:
+                self._coefs[out] = {k: (sum(w * self._coefs[c][k][0] for c, w in combo.items()),
+                                        sum(w * self._coefs[c][k][1] for c, w in combo.items())) for k in self.orders}
+
+    def perturbations(self, theta_deg, name: str, kind: str = "value") -> np.ndarray:
+        """(n × m) change of channel ``name`` (value, integral or quadrature) at θ for a 1-u change of
+        each raw Fourier coefficient it is made of (the probe data's own uncertainty)."""
+        return np.hstack([perturbation_columns(theta_deg, self._u[c], w, kind) for c, w in self.combos[name].items()])
+
+    @property
+    def has_x(self) -> bool:
+        return self.top_x_um is not None and self.bottom_x_um is not None
+
+    @property
+    def channels(self) -> list[str]:
+        return [c for c in self._coefs if c != "bottom_minus_top_um"]
+
+    def coefs(self, name: str) -> dict[int, tuple[float, float]]:
+        return self._coefs[name]
+
+    def at(self, theta_deg, name: str) -> np.ndarray:
+        return fourier_eval(theta_deg, self._coefs[name])
+
+    def integral_at(self, theta_deg, name: str) -> np.ndarray:
+        return fourier_integral(theta_deg, self._coefs[name])
+
+
+@dataclass
+class SelfCal:
+    """Multi-head self-calibration curve μ(θ) of head 1 (Hsieh eq. 9), arcsec, on its own θ grid.
+
+    Harmonics that are multiples of ``n_heads`` are blind (eq. 9 removes them); ``model_terms``
+    (and ``model_sensitivity`` if the evidence has one) are the model's terms at ``theta_deg``.
+    """
+
+    theta_deg: np.ndarray
+    value_arcsec: np.ndarray
+    u_arcsec: np.ndarray | float
+    n_heads: int
+    model_terms: dict[str, np.ndarray]
+    model_sensitivity: dict[str, np.ndarray] | None = None
+
+
+@dataclass
+class CCDData:
+    """CCD d_ref(θ) (Jia eqs. 10–13), µm."""
+
+    theta_deg: np.ndarray
+    d_ref_um: np.ndarray
+    u_um: np.ndarray | float | None = None
+
+
+@dataclass
+class Evidence:
+    """Everything the analysis has about one dataset, per polygon reading.
+
+    Per reading (arrays of length n):
+
+    - ``theta_deg``: encoder reading at the stop (Hsieh eq. 3's (i−1)·360/N + S, as read).
+    - ``alpha_arcsec``: the measured α contribution: ε − Σβ − U (the polygon's pitch sums and the
+      setup error removed), i.e. the measured encoder error at θ (conventions: reading − true).
+    - ``u_arcsec``: standard uncertainty of ``alpha_arcsec`` (scalar or per reading).
+    - ``model_terms``: the model's own named terms at θ, arcsec (e.g. ``"eccentricity"``,
+      ``"radial_motion_integral"``; the residual is alpha − Σ terms).
+    - ``t_s`` (time of the reading), ``rep`` (int), ``direction`` (+1 forward / −1 backward),
+      ``start_face`` (1…N), ``shift_deg`` (S), ``step`` (position index i, 1…N; derived from θ and
+      S if omitted), ``face`` (face under the autocollimator, derived as (j + i − 2) mod N + 1).
+    - ``ac_arcsec``: raw autocollimator reading ε (optional; used by ``ac_scale``).
+    - ``closure_group``: readings sharing one setup error U (default: one per (shift, start face)).
+    - ``model_sensitivity``: optional dict name → per-reading change of the model (arcsec) for a
+      one-standard-uncertainty change of one model parameter (e.g. u(e), u(θ0), u(δY) per
+      harmonic) — the model's uncertainty, entered as nuisance columns with a unit prior.
+
+    Bench: ``n_faces``, ``optical_radius_mm``, ``L1_mm``, ``L2_mm``, ``grating_period_um``,
+    ``encoder_lines``; ``radial``: :class:`RadialMotion` (the measured radial motion; evaluated at
+    θ as ``radial_at``), ``selfcal``: :class:`SelfCal`, ``ccd``: :class:`CCDData`.
+
+    ``radial_term``: name of the model term computed from ``radial`` (∫δY/r, eq. 5); when set and
+    present, the probe data's own uncertainty (type A, per Fourier coefficient) is added to the
+    model's uncertainty as nuisance columns. ``None`` if the term comes from elsewhere.
+    """
+
+    theta_deg: np.ndarray
+    alpha_arcsec: np.ndarray
+    u_arcsec: np.ndarray | float
+    model_terms: dict[str, np.ndarray]
+    t_s: np.ndarray | None = None
+    rep: np.ndarray | None = None
+    direction: np.ndarray | None = None
+    start_face: np.ndarray | None = None
+    shift_deg: np.ndarray | None = None
+    step: np.ndarray | None = None
+    face: np.ndarray | None = None
+    n_faces: int = 23
+    optical_radius_mm: float = 22.0
+    L1_mm: float = 6.81
+    L2_mm: float = 122.96
+    grating_period_um: float | None = 20.0
+    encoder_lines: int | None = None
+    radial: RadialMotion | None = None
+    ac_arcsec: np.ndarray | None = None
+    selfcal: SelfCal | None = None
+    ccd: CCDData | None = None
+    model_sensitivity: dict[str, np.ndarray] | None = None
+    closure_group: np.ndarray | None = None
+    eccentricity_term: str = "eccentricity"
+    radial_term: str | None = "radial_motion_integral"
+
+    def __post_init__(self):
+        self.theta_deg = np.asarray(self.theta_deg, dtype=float).ravel()
+        n = self.theta_deg.size
+        self.alpha_arcsec = np.asarray(self.alpha_arcsec, dtype=float).ravel()
+        if self.alpha_arcsec.size != n:
+            raise ValueError("alpha_arcsec and theta_deg differ in length")
+        self.u_arcsec = np.broadcast_to(np.asarray(self.u_arcsec, dtype=float), (n,)).copy()
+        if np.any(~np.isfinite(self.u_arcsec)) or np.any(self.u_arcsec <= 0):
+            raise ValueError("u_arcsec must be finite and > 0")
+        self.model_terms = {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy() for k, v in self.model_terms.items()}
+        self.t_s = np.arange(n, dtype=float) if self.t_s is None else np.asarray(self.t_s, dtype=float)
+        self.rep = np.zeros(n, int) if self.rep is None else np.asarray(self.rep).astype(int)
+        self.direction = np.ones(n, int) if self.direction is None else np.sign(np.asarray(self.direction, dtype=float)).astype(int)
+        self.start_face = np.ones(n, int) if self.start_face is None else np.asarray(self.start_face).astype(int)
+        self.shift_deg = np.zeros(n) if self.shift_deg is None else np.broadcast_to(np.asarray(self.shift_deg, dtype=float), (n,)).copy()
+        N = int(self.n_faces)
+        if self.step is None:
+            self.step = (np.round((self.theta_deg - self.shift_deg) / (360.0 / N)).astype(int) % N) + 1
+        self.step = np.asarray(self.step).astype(int)
+        if self.face is None:
+            self.face = (self.start_face + self.step - 2) % N + 1
+        self.face = np.asarray(self.face).astype(int)
+        if self.ac_arcsec is not None:
+            self.ac_arcsec = np.asarray(self.ac_arcsec, dtype=float)
+        if self.closure_group is None:
+            keys = np.round(self.shift_deg, 6) * 1000 + self.start_face
+            self.closure_group = np.unique(keys, return_inverse=True)[1]
+        else:
+            self.closure_group = np.unique(np.asarray(self.closure_group), return_inverse=True)[1]
+        if self.model_sensitivity:
+            self.model_sensitivity = {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()
+                                      for k, v in self.model_sensitivity.items()}
+        # stop positions to THETA_BIN_DEG (stop jitter of a few arcsec is not a new position)
+        self.theta_bin = np.round((self.theta_deg % 360.0) / THETA_BIN_DEG).astype(int) % int(round(360 / THETA_BIN_DEG))
+        n_theta = np.unique(self.theta_bin).size
+        self.kmax = int(min(20, max(1, (n_theta - 1) // 2)))
+
+    @property
+    def n(self) -> int:
+        return self.theta_deg.size
+
+    @property
+    def model_arcsec(self) -> np.ndarray:
+        return sum(self.model_terms.values()) + np.zeros(self.n) if self.model_terms else np.zeros(self.n)
+
+    @property
+    def residual_arcsec(self) -> np.ndarray:
+        return self.alpha_arcsec - self.model_arcsec
+
+    @property
+    def radial_at(self) -> dict[str, np.ndarray]:
+        """The measured radial motion channels (µm) at the readings' θ."""
+        if self.radial is None:
+            return {}
+        return {c: self.radial.at(self.theta_deg, c) for c in self.radial.channels}
+
+    def selfcal_view(self) -> "_View | None":
+        if self.selfcal is None:
+            return None
+        sc = self.selfcal
+        return _View(theta_deg=np.asarray(sc.theta_deg, dtype=float), alpha_arcsec=np.asarray(sc.value_arcsec, dtype=float),
+                     model_terms={k: np.asarray(v, dtype=float) for k, v in sc.model_terms.items()}, parent=self)
+
+
+@dataclass
+class _View:
+    """The self-calibration grid seen as evidence (θ-related attributes only)."""
+
+    theta_deg: np.ndarray
+    alpha_arcsec: np.ndarray
+    model_terms: dict
+    parent: Evidence
+
+    def __getattr__(self, name):
+        if name in ("optical_radius_mm", "L1_mm", "L2_mm", "grating_period_um", "encoder_lines", "radial", "n_faces",
+                    "eccentricity_term", "kmax"):
+            return getattr(self.parent, name)
+        if name == "ac_arcsec":
+            return None
+        raise AttributeError(name)
+
+
+# ----------------------------------------------------------------------------------------------
+# the weighted least-squares problem (closure groups, self-calibration rows, model nuisance)
+# ----------------------------------------------------------------------------------------------
+
+def _z_from_chi2(d: float, k: int) -> float:
+    """Two-sided normal z equivalent of a χ²_k statistic d (Δχ² of k parameters)."""
+    d = max(float(d), 0.0)
+    k = max(int(k), 1)
+    if k == 1:
+        return math.sqrt(d)
+    lp = float(stats.chi2.logsf(d, k))
+    if lp > -700:
+        return float(stats.norm.isf(math.exp(lp) / 2.0))
+    return math.sqrt(-2.0 * lp)
+
+
+def _center(x: np.ndarray, groups: np.ndarray, w2: np.ndarray) -> np.ndarray:
+    """Remove the w²-weighted mean of each group from each column of x."""
+    x2 = x if x.ndim == 2 else x[:, None]
+    ng = int(groups.max()) + 1
+    sw = np.bincount(groups, weights=w2, minlength=ng)
+    out = np.empty_like(x2, dtype=float)
+    for c in range(x2.shape[1]):
+        m = np.bincount(groups, weights=w2 * x2[:, c], minlength=ng) / np.where(sw > 0, sw, 1.0)
+        out[:, c] = x2[:, c] - m[groups]
+    return out if x.ndim == 2 else out[:, 0]
+
+
+class _Problem:
+    """Rows: the polygon readings (closure-centred) and, optionally, the self-calibration curve
+    (centred, harmonics that are multiples of the head count projected out)."""
+
+    def __init__(self, ev: Evidence, use_selfcal: bool = True):
+        self.ev = ev
+        n = ev.n
+        self.view = ev.selfcal_view() if use_selfcal else None
+        w_a = 1.0 / ev.u_arcsec
+        self.n_alpha = n
+        y_a = _center(ev.residual_arcsec, ev.closure_group, w_a ** 2)
+        self.n_groups = int(ev.closure_group.max()) + 1
+        sens_keys = sorted(ev.model_sensitivity) if ev.model_sensitivity else []
+        S_a = (np.column_stack([ev.model_sensitivity[k] for k in sens_keys]) if sens_keys else np.zeros((n, 0)))
+        S_a = np.hstack([S_a, self._radial_nuisance(ev)])
+        S_a = _center(S_a, ev.closure_group, w_a ** 2) if S_a.shape[1] else S_a
+        if self.view is not None:
+            sc = ev.selfcal
+            m = self.view.theta_deg.size
+            w_s = np.broadcast_to(1.0 / np.asarray(sc.u_arcsec, dtype=float), (m,)).astype(float)
+            th = np.deg2rad(self.view.theta_deg)
+            blind = [np.ones(m)]
+            k = int(sc.n_heads)
+            while k > 0 and k <= (m - 1) // 2 and k <= 60:
+                blind += [np.sin(k * th), np.cos(k * th)]
+                k += int(sc.n_heads)
+            self._Q = np.linalg.qr(np.column_stack(blind))[0]
+            y_s = self._filt(self.view.alpha_arcsec - sum(self.view.model_terms.values()))
+            if sens_keys:
+                if not sc.model_sensitivity or set(sc.model_sensitivity) != set(sens_keys):
+                    raise ValueError("selfcal.model_sensitivity must have the same keys as evidence.model_sensitivity")
+                S_s = np.column_stack([sc.model_sensitivity[k] for k in sens_keys])
+            else:
+                S_s = np.zeros((m, 0))
+            S_s = self._filt(np.hstack([S_s, self._radial_nuisance(self.view)]))
+            self.y = np.concatenate([y_a, y_s])
+            self.w = np.concatenate([w_a, w_s])
+            self.S = np.vstack([S_a, S_s])
+            self.n_groups += 1
+        else:
+            self.y, self.w, self.S = y_a, w_a, S_a
+        self.n_rows = self.y.size
+        self.alpha_rows = np.zeros(self.n_rows, bool)
+        self.alpha_rows[:n] = True
+        self.folds = self._folds()
+        self.null = self.fit(np.zeros((self.n_rows, 0)))
+
+    def _radial_nuisance(self, e) -> np.ndarray:
+        ev = self.ev
+        if ev.radial is None or not ev.radial_term or ev.radial_term not in ev.model_terms:
+            return np.zeros((len(e.theta_deg), 0))
+        return ev.radial.perturbations(e.theta_deg, "dY_um", "integral") * (ARCSEC_PER_RAD / (ev.optical_radius_mm * 1000.0))
+
+    def regressor_nuisance(self, modules, params_by_member, ctx) -> np.ndarray:
+        """Nuisance columns for the uncertainty of measured regressors (radial motion), scaled by the
+        fitted parameters: errors in variables, linearised."""
+        cols = []
+        for mod, P in zip(modules, params_by_member):
+            fn = getattr(mod, "regressor_perturbations", None)
+            if fn is None:
+                continue
+            R_a = np.asarray(fn(self.ev, P, ctx), dtype=float)
+            if R_a.shape[1] == 0:
+                continue
+            R_a = _center(R_a, self.ev.closure_group, self.w[: self.ev.n] ** 2)
+            if self.view is not None:
+                R_s = self._filt(np.asarray(fn(self.view, P, ctx), dtype=float)) if mod.SEEN_BY_SELFCAL else \
+                    np.zeros((self.n_rows - self.ev.n, R_a.shape[1]))
+                R_a = np.vstack([R_a, R_s])
+            cols.append(R_a)
+        return np.hstack(cols) if cols else np.zeros((self.n_rows, 0))
+
+    def _filt(self, x):
+        x2 = x if x.ndim == 2 else x[:, None]
+        out = x2 - self._Q @ (self._Q.T @ x2)
+        return out if x.ndim == 2 else out[:, 0]
+
+    def _folds(self):
+        ev = self.ev
+        f = np.full(self.n_rows, -1)
+        for key in (ev.shift_deg, ev.rep, ev.start_face):
+            u, inv = np.unique(np.round(np.asarray(key, dtype=float), 6), return_inverse=True)
+            if u.size >= 3:
+                f[: ev.n] = inv % MAX_CV_FOLDS
+                return f
+        return None
+
+    # -- columns -----------------------------------------------------------------------------
+    def columns(self, module, ctx) -> tuple[np.ndarray, list[str]]:
+        ev = self.ev
+        X_a, names = module.design(ev, ctx)
+        X_a = np.asarray(X_a, dtype=float).reshape(ev.n, -1)
+        X_a = _center(X_a, ev.closure_group, self.w[: ev.n] ** 2) if X_a.shape[1] else X_a
+        if self.view is None:
+            return X_a, list(names)
+        m = self.view.theta_deg.size
+        if module.SEEN_BY_SELFCAL and X_a.shape[1]:
+            X_s, names_s = module.design(self.view, ctx)
+            X_s = np.asarray(X_s, dtype=float).reshape(m, -1)
+            if list(names_s) != list(names):
+                raise RuntimeError(f"{module.NAME}: self-calibration design has other parameters")
+            X_s = self._filt(X_s)
+        else:
+            X_s = np.zeros((m, X_a.shape[1]))
+        return np.vstack([X_a, X_s]), list(names)
+
+    # -- fits --------------------------------------------------------------------------------
+    def fit(self, X: np.ndarray, train: np.ndarray | None = None, extra: np.ndarray | None = None) -> dict:
+        w = self.w
+        rows = np.ones(self.n_rows, bool) if train is None else train
+        S = self.S if extra is None or extra.shape[1] == 0 else np.hstack([self.S, extra])
+        p, q = X.shape[1], S.shape[1]
+        A = np.hstack([X, S])[rows] * w[rows, None]
+        b = self.y[rows] * w[rows]
+        if q:
+            prior = np.hstack([np.zeros((q, p)), np.eye(q)])
+            A = np.vstack([A, prior])
+            b = np.concatenate([b, np.zeros(q)])
+        if A.shape[1]:
+            scale = np.linalg.norm(A, axis=0)
+            scale[scale == 0] = 1.0
+            As = A / scale
+            sol, _, rank, sv = np.linalg.lstsq(As, b, rcond=None)
+            beta_all = sol / scale
+            covs = np.linalg.pinv(As.T @ As, rcond=1e-10, hermitian=True)
+            cov_all = covs / np.outer(scale, scale)
+            rank_x = int(np.linalg.matrix_rank(X[rows] * w[rows, None] / np.where(scale[:p] > 0, scale[:p], 1), tol=1e-8)) if p else 0
+            chi2 = float(np.sum((b - A @ beta_all) ** 2))
+        else:
+            beta_all, cov_all, rank_x = np.zeros(0), np.zeros((0, 0)), 0
+            chi2 = float(np.sum(b ** 2))
+        n_fit = int(rows.sum())
+        dof = max(n_fit - self.n_groups - rank_x, 1)
+        return {"beta": beta_all[:p], "cov": cov_all[:p, :p], "nuis": beta_all[p:], "chi2": chi2, "dof": dof,
+                "k": rank_x, "n": n_fit, "S": S}
+
+    def predict_rows(self, X, fit, rows=None, nuisance=True):
+        rows = np.ones(self.n_rows, bool) if rows is None else rows
+        out = X[rows] @ fit["beta"] if X.shape[1] else np.zeros(int(rows.sum()))
+        if nuisance and fit["S"].shape[1]:
+            out = out + fit["S"][rows] @ fit["nuis"]
+        return out
+
+    def cv(self, X, extra=None) -> float | None:
+        """Held-out weighted χ² summed over leave-one-group-out folds (None without folds)."""
+        if self.folds is None:
+            return None
+        tot = 0.0
+        for f in np.unique(self.folds[self.folds >= 0]):
+            test = self.folds == f
+            fit = self.fit(X, train=~test, extra=extra)
+            r = (self.y[test] - self.predict_rows(X, fit, test)) * self.w[test]
+            tot += float(np.sum(r ** 2))
+        return tot
+
+    def ic(self, fit) -> tuple[float, float]:
+        n, k, chi2 = fit["n"], fit["k"], fit["chi2"]
+        bic = chi2 + k * math.log(n)
+        aicc = chi2 + 2 * k + (2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else math.inf)
+        return bic, aicc
+
+
+# ----------------------------------------------------------------------------------------------
+# 1. anything to explain?
+# ----------------------------------------------------------------------------------------------
+
+def _rms(x):
+    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
+
+
+def residual_test(ev: Evidence) -> dict:
+    """χ² of the (closure-centred) residual against the combined uncertainty, and its summary."""
+    pb = _Problem(ev, use_selfcal=False)
+    r = pb.y[: ev.n]
+    chi2, dof = pb.null["chi2"], pb.null["dof"]
+    return {"rms_arcsec": _rms(r), "pv_arcsec": float(np.ptp(r)) if r.size else 0.0,
+            "fraction_of_error": _rms(r) / max(_rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2)), 1e-300),
+            "chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof))}
+
+
+def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
+    """Each harmonic 1…kmax of θ fitted jointly; amplitude, its u and a χ²_2 test (Bonferroni over
+    the harmonics tested; u scaled by √(χ²/dof) when that exceeds 1)."""
+    pb = pb or _Problem(ev, use_selfcal=False)
+    ks = list(range(1, ev.kmax + 1))
+    th = np.deg2rad(ev.theta_deg)
+    X = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
+    X = _center(X, ev.closure_group, pb.w ** 2)
+    fit = pb.fit(X)
+    scale = max(1.0, fit["chi2"] / fit["dof"])
+    out = []
+    for i, k in enumerate(ks):
+        a, b = fit["beta"][2 * i], fit["beta"][2 * i + 1]
+        C = fit["cov"][2 * i:2 * i + 2, 2 * i:2 * i + 2] * scale
+        amp = math.hypot(a, b)
+        try:
+            q = float(np.array([a, b]) @ np.linalg.solve(C, np.array([a, b])))
+        except np.linalg.LinAlgError:
+            q = 0.0
+        g = np.array([a, b]) / amp if amp > 0 else np.array([1.0, 0.0])
+        u_amp = float(math.sqrt(max(g @ C @ g, 0.0)))
+        p = float(stats.chi2.sf(q, 2))
+        out.append({"k": k, "amplitude_arcsec": amp, "u_arcsec": u_amp, "phase_deg": math.degrees(math.atan2(a, b)),
+                    "a_arcsec": float(a), "b_arcsec": float(b), "z": _z_from_chi2(q, 2), "p_value": p,
+                    "significant": bool(p * len(ks) < P_SIG)})
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. signature
+# ----------------------------------------------------------------------------------------------
+
+def _one_column(pb: _Problem, col: np.ndarray, name: str) -> dict:
+    ev = pb.ev
+    X = _center(np.asarray(col, dtype=float)[:, None], ev.closure_group, pb.w ** 2)
+    if not np.any(np.abs(X) > 1e-12 * (np.max(np.abs(col)) + 1e-300)):
+        return {"available": False, "reason": f"{name}: no variation inside the closure groups"}
+    fit = pb.fit(X)
+    scale = max(1.0, fit["chi2"] / fit["dof"])
+    g = float(fit["beta"][0])
+    u = float(math.sqrt(fit["cov"][0, 0] * scale))
+    xw, yw = X[:, 0] * pb.w, pb.y * pb.w
+    corr = float(xw @ yw / math.sqrt((xw @ xw) * (yw @ yw))) if (xw @ xw) > 0 and (yw @ yw) > 0 else 0.0
+    return {"available": True, "gain": g, "u": u, "z": abs(g) / u if u > 0 else math.inf, "corr": corr,
+            "significant": bool(u > 0 and abs(g) / u > Z_GATE)}
+
+
+def _nested(pb: _Problem, X0: np.ndarray, X1: np.ndarray) -> dict:
+    f0, f1 = pb.fit(X0), pb.fit(np.hstack([X0, X1]))
+    d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
+    if k <= 0:
+        return {"available": False}
+    p = float(stats.chi2.sf(d, k))
+    return {"available": True, "delta_chi2": float(d), "dof": int(k), "p_value": p, "significant": bool(p < P_SIG)}
+
+
+def _dummies(keys: np.ndarray) -> np.ndarray:
+    inv = np.unique(keys, return_inverse=True)[1]
+    X = np.zeros((keys.size, inv.max() + 1))
+    X[np.arange(keys.size), inv] = 1.0
+    return X
+
+
+def signature(ev: Evidence, harmonics: list[dict] | None = None) -> dict:
+    """The residual's signature (JSON-ready): see the module docstring, step 2."""
+    pb = _Problem(ev, use_selfcal=False)
+    harmonics = harmonics if harmonics is not None else harmonic_test(ev, pb)
+    sig: dict[str, Any] = {"harmonics": harmonics,
+                           "significant_harmonics": [h["k"] for h in harmonics if h["significant"]]}
+    d = _one_column(pb, ev.t_s, "t_s")
+    sig["drift"] = {"slope_arcsec_per_s": d.get("gain"), "u": d.get("u"), "z": d.get("z"),
+                    "significant": d.get("significant", False), "available": d["available"]}
+    # repetition: synchronous (same at the same θ in every rep) or not
+    if np.unique(ev.rep).size >= 2:
+        cell = ev.theta_bin * 10 + ev.direction
+        inv = np.unique(cell, return_inverse=True)[1]
+        w2 = pb.w ** 2
+        m = np.bincount(inv, weights=w2 * pb.y) / np.bincount(inv, weights=w2)
+        dev = pb.y - m[inv]
+        chi2 = float(np.sum(w2 * dev ** 2))
+        dof = max(ev.n - inv.max() - 1, 1)
+        p = float(stats.chi2.sf(chi2, dof))
+        sig["repetition"] = {"available": True, "n_reps": int(np.unique(ev.rep).size), "synchronous_rms_arcsec": _rms(m[inv]),
+                             "asynchronous_rms_arcsec": _rms(dev), "chi2_async": chi2, "dof": int(dof), "p_value": p,
+                             "synchronous": bool(p >= P_SIG)}
+    else:
+        sig["repetition"] = {"available": False, "reason": "one repetition"}
+    # polygon-related: a pattern fixed to the face (moves with the start face)?
+    base = _center(_dummies(ev.theta_bin * 10 + ev.direction), ev.closure_group, pb.w ** 2)
+    if np.unique(ev.start_face).size >= 2:
+        fx = _center(_dummies(ev.face), ev.closure_group, pb.w ** 2)
+        sig["start_face"] = {"test": "face pattern beyond the θ pattern", **_nested(pb, base, fx)}
+    else:
+        sig["start_face"] = {"available": False, "reason": "one start face: face ≡ θ"}
+    # shift: does the θ pattern depend on the shift angle (beyond a function of θ)?
+    shifts = np.unique(np.round(ev.shift_deg, 6))
+    if shifts.size >= 2:
+        kk = range(1, max(1, (int(ev.n_faces) - 1) // 2) + 1)
+        th = np.deg2rad(ev.theta_deg)
+        H = np.column_stack([f(k * th) for k in kk for f in (np.sin, np.cos)])
+        Hs = np.column_stack([H * (np.round(ev.shift_deg, 6) == s)[:, None] for s in shifts[1:]])
+        sig["shift"] = {"test": "harmonics 1…(N−1)/2 differing between shifts",
+                        **_nested(pb, _center(H, ev.closure_group, pb.w ** 2), _center(Hs, ev.closure_group, pb.w ** 2))}
+    else:
+        sig["shift"] = {"available": False, "reason": "one shift angle"}
+    # direction of rotation
+    dd = _one_column(pb, ev.direction.astype(float), "direction")
+    sig["direction"] = {"half_difference_arcsec": dd.get("gain"), "u": dd.get("u"), "z": dd.get("z"),
+                        "significant": dd.get("significant", False), "available": dd["available"]}
+    # self-calibration
+    sig["selfcal"] = _selfcal_signature(ev, pb)
+    # correlation with the radial motion and with the model's own terms
+    cor = {}
+    for name, v in ev.model_terms.items():
+        cor[f"term:{name}"] = _one_column(pb, v, name)
+    ecc = ev.model_terms.get(ev.eccentricity_term)
+    if ecc is not None and np.any(ecc != 0):
+        c1 = fourier_fit(ev.theta_deg, ecc, [1])
+        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, fourier_eval(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
+    if ev.radial is not None:
+        for c in ev.radial.channels:
+            cor[f"radial:{c}"] = _one_column(pb, ev.radial.at(ev.theta_deg, c), c)
+            cor[f"radial:integral_{c}"] = _one_column(pb, ev.radial.integral_at(ev.theta_deg, c), c)
+    sig["correlations"] = cor
+    if ev.ccd is not None:
+        cc = fourier_fit(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
+        c1, d1 = cc[1]
+        higher = fourier_eval(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
+        sig["ccd"] = {"e_um": math.hypot(c1, d1), "theta0_deg": math.degrees(math.atan2(c1, d1)) % 360,
+                      "rms_orders_2_10_um": _rms(higher)}
+    return sig
+
+
+def _selfcal_signature(ev: Evidence, pb: _Problem) -> dict:
+    if ev.selfcal is None:
+        return {"available": False, "reason": "no self-calibration curve"}
+    full = _Problem(ev, use_selfcal=True)
+    m = full.n_rows - ev.n
+    r_s = full.y[ev.n:]
+    th_s = np.asarray(ev.selfcal.theta_deg, dtype=float) % 360
+    o = np.argsort(th_s)
+    interp = np.interp(ev.theta_deg % 360, th_s[o], r_s[o], period=360.0)
+    one = _one_column(pb, interp, "selfcal")
+    return {"available": True, "rms_selfcal_residual_arcsec": _rms(r_s), "n_points": int(m),
+            "gain_polygon_on_selfcal": one.get("gain"), "u": one.get("u"),
+            "consistent": bool(one.get("available") and one["u"] > 0 and abs(one["gain"] - 1) < 3 * max(one["u"], 0.05)),
+            "note": "a residual absent from the self-calibration belongs to the reference chain (polygon, autocollimator, drive)"}
+
+
+# ----------------------------------------------------------------------------------------------
+# 3. selection
+# ----------------------------------------------------------------------------------------------
+
+@dataclass
+class _Cand:
+    names: tuple[str, ...]
+    X: np.ndarray
+    pnames: list[list[str]]         # per member
+    fit: dict = field(default_factory=dict)
+    bic: float = math.inf
+    aicc: float = math.inf
+    z: dict = field(default_factory=dict)
+    cv: float | None = None
+    notes: list[str] = field(default_factory=list)
+    passed: bool = False
+    reasons: list[str] = field(default_factory=list)
+    extra: np.ndarray | None = None
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def key(self):
+        return "+".join(self.names)
+
+
+def _params_u(c: _Cand, scale: float):
+    out_p, out_u, i = {}, {}, 0
+    for member, names in zip(c.names, c.pnames):
+        P, U = {}, {}
+        for n in names:
+            P[n] = float(c.fit["beta"][i])
+            U[n] = float(math.sqrt(max(c.fit["cov"][i, i], 0.0) * scale))
+            i += 1
+        out_p[member], out_u[member] = P, U
+    return out_p, out_u
+
+
+def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
+    ok, reason = module.available(pb.ev, ctx)
+    if not ok:
+        return [], reason
+    X, names = pb.columns(module, ctx)
+    if not names:
+        return [], reason or "no columns"
+    norms = np.linalg.norm(X * pb.w[:, None], axis=0)
+    raw = np.linalg.norm(np.asarray(module.design(pb.ev, ctx)[0]).reshape(pb.ev.n, -1) * pb.w[: pb.ev.n, None], axis=0)
+    keep = norms > 1e-6 * np.maximum(raw, 1e-300)
+    if not np.any(keep):
+        return [], "unobservable with this sampling: the closure (per-run constant) removes it"
+    notes = [reason] if reason else []
+    if not np.all(keep):
+        notes.append("unobservable parameters (removed by the closure): " + ", ".join(n for n, k in zip(names, keep) if not k))
+    X = X[:, keep]
+    names = [n for n, k in zip(names, keep) if k]
+    subsets = getattr(module, "SUBSETS", None)
+    out = []
+    if subsets:
+        for sub in subsets:
+            idx = [i for i, n in enumerate(names) if n in sub]
+            if idx:
+                out.append(_Cand((name,), X[:, idx], [[names[i] for i in idx]], notes=list(notes)))
+    else:
+        out.append(_Cand((name,), X, [names], notes=list(notes)))
+    return out, ""
+
+
+def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
+    c.fit = pb.fit(c.X)
+    members = [mods[n] for n in c.names]
+    if any(hasattr(m, "regressor_perturbations") for m in members):
+        P, _ = _params_u(c, 1.0)
+        c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
+        c.extra = np.hstack(list(c.extras.values()))
+        if c.extra.shape[1]:
+            c.fit = pb.fit(c.X, extra=c.extra)
+    c.bic, c.aicc = pb.ic(c.fit)
+    scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+    # joint z of each member: Δχ² when its columns are dropped, scaled by the reduced χ² if > 1
+    i = 0
+    for member, names in zip(c.names, c.pnames):
+        idx = list(range(i, i + len(names)))
+        rest = [j for j in range(c.X.shape[1]) if j not in idx]
+        others = [c.extras[n] for n in c.names if n != member and n in c.extras]
+        ex = np.hstack(others) if others else None
+        f0 = pb.fit(c.X[:, rest], extra=ex) if rest else pb.null
+        d = (f0["chi2"] - c.fit["chi2"]) / scale
+        c.z[member] = _z_from_chi2(d, max(c.fit["k"] - f0["k"], 1))
+        i += len(names)
+
+
+def _cos2(pb, a, b):
+    wa, wb = a * pb.w, b * pb.w
+    na, nb = wa @ wa, wb @ wb
+    return float((wa @ wb) ** 2 / (na * nb)) if na > 0 and nb > 0 else 0.0
+
+
+def _sep_text(names) -> str:
+    texts = []
+    for a, b in itertools.combinations(names, 2):
+        t = ALL[a].SEPARATES_FROM.get(b) if a in ALL else None
+        t = t or (ALL[b].SEPARATES_FROM.get(a) if b in ALL else None)
+        if not t:
+            t = f"{a}: {ALL[a].SEPARATED_BY} / {b}: {ALL[b].SEPARATED_BY}"
+        texts.append(f"{a} vs {b}: {t}")
+    return "; ".join(texts)
+
+
+def trace(evidence: Evidence, candidates=None) -> dict:
+    """Trace the residual of ``evidence`` to the candidate effects (default: all of ``effects.ALL``).
+
+    Returns a JSON-ready dict: ``status``, ``residual_before``, ``signature``,
+    ``identified_effects``, ``ambiguous``, ``partial_effects``, ``residual_after``, ``unexplained``,
+    ``unexplained_signature``, ``candidates`` (every fit's numbers), ``skipped``, ``thresholds``,
+    ``model_file`` (payload for :func:`save_model`).
+    """
+    ev = evidence
+    cands_mod = ALL if candidates is None else {n: ALL[n] for n in candidates} if not isinstance(candidates, dict) else candidates
+    before = residual_test(ev)
+    pa = _Problem(ev, use_selfcal=False)
+    harm = harmonic_test(ev, pa)
+    sig = signature(ev, harm)
+    flagged = sig["significant_harmonics"]
+    significant = bool(before["p_value"] < P_SIG or flagged or sig["drift"]["significant"] or sig["direction"]["significant"]
+                       or sig["start_face"].get("significant", False))
+    before["significant"] = significant
+    ctx = {"harmonics": flagged}
+
+    pb = _Problem(ev, use_selfcal=True)
+    skipped, singles = {}, []
+    for name, mod in cands_mod.items():
+        cs, why = _prepare(pb, name, mod, ctx)
+        if not cs:
+            skipped[name] = why
+        singles += cs
+    for c in singles:
+        _evaluate(pb, c, cands_mod, ctx)
+    # per effect keep its best variant (SUBSETS)
+    best_var: dict[str, _Cand] = {}
+    for c in singles:
+        if c.names[0] not in best_var or c.bic < best_var[c.names[0]].bic:
+            best_var[c.names[0]] = c
+    singles = list(best_var.values())
+    bic0, aicc0 = pb.ic(pb.null)
+    cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
+
+    def gate(c: _Cand, single_bics: dict | None = None):
+        c.reasons = []
+        if min(c.z.values()) < Z_GATE:
+            c.reasons.append(f"z = {min(c.z.values()):.1f} < {Z_GATE}")
+        if bic0 - c.bic < DBIC_GATE:
+            c.reasons.append(f"ΔBIC = {bic0 - c.bic:.1f} < {DBIC_GATE}")
+        if single_bics is not None and c.bic > min(single_bics[n] for n in c.names) - DBIC_GATE:
+            c.reasons.append("the pair does not beat its members by ΔBIC ≥ 10")
+        scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+        P, U = _params_u(c, scale)
+        for member in c.names:
+            pl = getattr(cands_mod[member], "plausible", None)
+            if pl:
+                ok, why = pl(ev, P[member], U[member], ctx)
+                if not ok:
+                    c.reasons.append(why)
+        if single_bics is not None and best_single is not None and c.bic > best_single - DBIC_GATE:
+            c.reasons.append("the pair does not beat the best single effect by ΔBIC ≥ 10")
+        if not c.reasons:
+            c.cv = pb.cv(c.X, extra=c.extra)
+            if c.cv is not None and cv0 is not None and c.cv >= cv0:
+                c.reasons.append("cross-validation no better than no effect")
+        c.passed = not c.reasons
+
+    best_single = None
+    for c in singles:
+        gate(c)
+    single_bics = {c.names[0]: c.bic for c in singles}
+    best_single = min((c.bic for c in singles if c.passed), default=None)
+    pairs = []
+    for a, b in itertools.combinations(singles, 2):
+        c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
+        _evaluate(pb, c, cands_mod, ctx)
+        gate(c, single_bics)
+        pairs.append(c)
+    passed = sorted([c for c in singles + pairs if c.passed], key=lambda c: c.bic)
+
+    def cand_json(c: _Cand) -> dict:
+        scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+        P, U = _params_u(c, scale)
+        return {"names": list(c.names), "params": P, "u": U, "chi2": c.fit["chi2"], "dof": c.fit["dof"], "k": c.fit["k"],
+                "bic": c.bic, "aicc": c.aicc, "delta_bic": bic0 - c.bic, "delta_aicc": aicc0 - c.aicc, "z": c.z,
+                "cv_gain": (None if c.cv is None or not cv0 else 1.0 - c.cv / cv0), "passed": c.passed,
+                "rejected_because": c.reasons, "notes": c.notes}
+
+    alpha = pb.alpha_rows
+    r0 = pb.y[alpha]
+    result: dict[str, Any] = {"residual_before": before, "signature": sig, "identified_effects": [], "ambiguous": [],
+                              "partial_effects": [], "skipped": skipped,
+                              "thresholds": {"P_SIG": P_SIG, "Z_GATE": Z_GATE, "DBIC_GATE": DBIC_GATE,
+                                             "AMBIG_DBIC": AMBIG_DBIC, "COLLINEAR": COLLINEAR},
+                              "candidates": [cand_json(c) for c in sorted(singles + pairs, key=lambda c: c.bic)][:30]}
+    total_err = _rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2))
+    chosen = passed[0] if passed else None
+    if chosen is None:
+        result["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
+        result["unexplained"] = significant
+        result["status"] = "unexplained" if significant else "no_significant_residual"
+        result["unexplained_signature"] = _short_signature(sig) if significant else None
+        result["model_file"] = _payload(ev, [], [], result["status"], ctx)
+        return result
+
+    pred = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
+    # χ² after: the alpha rows with the chosen effect's prediction removed (nuisance refitted)
+    r1 = r0 - pred[alpha]
+    # χ² after: the alpha rows without the chosen effect, model nuisance (and the chosen effect's
+    # regressor uncertainty) refitted
+    pa_y = pa.y
+    pa.y = r1
+    ex = chosen.extra[: ev.n] if chosen.extra is not None and chosen.extra.shape[1] else None
+    f_after = pa.fit(np.zeros((ev.n, 0)), extra=ex)
+    pa.y = pa_y
+    chi2_a = f_after["chi2"]
+    dof_a = max(f_after["dof"] - chosen.fit["k"], 1)
+    p_after = float(stats.chi2.sf(chi2_a, dof_a))
+    result["residual_after"] = {"rms_arcsec": _rms(r1), "pv_arcsec": float(np.ptp(r1)),
+                                "fraction_of_error": _rms(r1) / max(total_err, 1e-300), "chi2": chi2_a, "dof": dof_a,
+                                "p_value": p_after}
+    scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
+    P, U = _params_u(chosen, scale)
+    cj = cand_json(chosen)
+    effects = []
+    for member in chosen.names:
+        effects.append({"name": member, "params": P[member], "u": U[member],
+                        "evidence": {"delta_bic": cj["delta_bic"], "delta_aicc": cj["delta_aicc"], "cv_gain": cj["cv_gain"],
+                                     "z": chosen.z[member], "chi2": chosen.fit["chi2"], "dof": chosen.fit["dof"],
+                                     "with": [n for n in chosen.names if n != member], "notes": chosen.notes}})
+    # ambiguity: other passing candidates within AMBIG_DBIC whose predictions are nearly collinear
+    amb_names, amb_fits = set(chosen.names), {chosen.key: cj}
+    for c in passed[1:]:
+        if c.bic - chosen.bic < AMBIG_DBIC:
+            pc = pb.predict_rows(c.X, c.fit, nuisance=False)
+            if _cos2(pb, pc, pred) > COLLINEAR:
+                amb_names |= set(c.names)
+                amb_fits[c.key] = cand_json(c)
+    generic = "tangential_motion" in chosen.names and ALL["tangential_motion"].is_generic(ev)
+    if generic:
+        amb_names.add("graduation_error")
+        for c in singles:
+            if c.names == ("graduation_error",):
+                amb_fits[c.key] = cand_json(c)
+    if len(amb_names) > 1:
+        names = sorted(amb_names)
+        result["ambiguous"].append({"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
+                                    "generic_basis": generic})
+    if p_after < P_SIG:
+        result["partial_effects"] = effects
+        result["unexplained"] = True
+        result["status"] = "unexplained"
+        sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - pred[alpha]))
+        result["unexplained_signature"] = _short_signature(sig_after)
+    else:
+        result["identified_effects"] = effects
+        result["unexplained"] = False
+        result["status"] = "ambiguous" if result["ambiguous"] else "explained"
+        result["unexplained_signature"] = None
+    result["model_file"] = _payload(ev, effects if not result["unexplained"] else [], result["ambiguous"], result["status"], ctx)
+    return result
+
+
+def _replace_alpha(ev: Evidence, alpha: np.ndarray) -> Evidence:
+    import copy
+    e2 = copy.copy(ev)
+    e2.alpha_arcsec = np.asarray(alpha, dtype=float)
+    return e2
+
+
+def _short_signature(sig: dict) -> dict:
+    return {"significant_harmonics": sig["significant_harmonics"],
+            "top_harmonics": sorted(({"k": h["k"], "amplitude_arcsec": h["amplitude_arcsec"], "z": h["z"]} for h in sig["harmonics"]),
+                                    key=lambda h: -h["z"])[:5],
+            "drift": sig["drift"], "direction": sig["direction"],
+            "repetition_synchronous": sig["repetition"].get("synchronous"),
+            "face_pattern": sig["start_face"].get("significant"), "shift_dependent": sig["shift"].get("significant"),
+            "selfcal_consistent": sig["selfcal"].get("consistent")}
+
+
+# ----------------------------------------------------------------------------------------------
+# model file
+# ----------------------------------------------------------------------------------------------
+
+def _payload(ev: Evidence, effects: list[dict], ambiguous: list[dict], status: str, ctx: dict) -> dict:
+    out = []
+    for e in effects:
+        mod = ALL[e["name"]]
+        out.append({"name": e["name"], "params": e["params"], "u": e["u"], "aux": _jsonable(mod.aux(ev, ctx)),
+                    "encoder_error": bool(mod.SEEN_BY_SELFCAL)})
+    return {"format": "benchtwin-traced-effects", "version": 1, "status": status, "effects": out,
+            "ambiguous": [{"names": a["names"], "separating_measurement": a["separating_measurement"]} for a in ambiguous],
+            "created_by": "benchtwin.analysis.tracing.trace"}
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def save_model(path, payload: dict) -> None:
+    """Write the ``model_file`` payload as JSON, atomically (temporary file, fsync, rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(payload), f, indent=2, allow_nan=False)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _read(path_or_payload) -> dict:
+    if isinstance(path_or_payload, dict):
+        return path_or_payload
+    d = json.loads(Path(path_or_payload).read_text(encoding="utf-8"))
+    if d.get("format") != "benchtwin-traced-effects" or d.get("version") != 1:
+        raise ValueError(f"{path_or_payload}: not a benchtwin-traced-effects v1 file")
+    for e in d["effects"]:
+        if e["name"] not in ALL:
+            raise ValueError(f"{path_or_payload}: unknown effect {e['name']!r}")
+    return d
+
+
+def load_model(path) -> list[tuple[str, dict[str, float]]]:
+    """[(effect_name, params)] from a file written by :func:`save_model`."""
+    return [(e["name"], {k: float(v) for k, v in e["params"].items()}) for e in _read(path)["effects"]]
+
+
+def model_terms_from_payload(path_or_payload, base_terms: dict | None = None) -> dict:
+    """Named terms {name: callable(theta_rad) -> arcsec} for ``ErrorModel.add_term``.
+
+    Only encoder errors give terms (reference-chain effects — drift, autocollimator scale,
+    hysteresis, polygon pitch — correct the reference data, not the encoder). Effects that scale
+    the model's own terms (optical_radius, ccd_pixel_scale) need ``base_terms`` (the ErrorModel's
+    ``terms``); without them they are left out.
+    """
+    d = _read(path_or_payload)
+    out = {}
+    for e in d["effects"]:
+        fn = ALL[e["name"]].term(e["params"], e["aux"], base_terms)
+        if fn is not None:
+            out[f"traced:{e['name']}"] = fn
+    return out
+
+
+def add_to_error_model(model, path_or_payload) -> list[str]:
+    """Add the traced effects to an ``ErrorModel`` (anything with ``terms`` and ``add_term``)."""
+    base = dict(getattr(model, "terms", {}) or {})
+    terms = model_terms_from_payload(path_or_payload, base)
+    for name, fn in terms.items():
+        model.add_term(name, fn)
+    return list(terms)
