@@ -121,7 +121,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     if 0.0 in table.eps_arcsec and table.is_complete(0.0):
         closure_s, closure_nu = sa.closure_residual_sd_arcsec(table.eps_arcsec[0.0])
     if n_rep_min >= 2:
-        u_fill, u_src, dof_rep = u_eps_arcsec, "repetitions (sd/sqrt(n) per reading)", n_rep_min - 1
+        u_fill, u_src, dof_rep = u_eps_arcsec, "pooled repeatability s_p/sqrt(n)", n_rep_min - 1
     elif u_eps_arcsec is not None:
         u_fill, u_src, dof_rep = float(u_eps_arcsec), "given u_eps_arcsec", math.inf
     elif math.isfinite(closure_s):

@@ -46,7 +46,8 @@ Decisions where the paper is silent
 - θ of a reading is the nominal (i−1)·360/N + S (mod 360). A ``theta_deg`` column is only checked:
   a reading further than a quarter pitch from its nominal angle is a data error (usually a wrong N).
 - Repetitions (``rep``; and ``direction`` forward/backward) of the same (shift, start_face, step)
-  are averaged; their sample standard deviation is the repeatability and sd/√n the u(ε) of the cell.
+  are averaged; their sample standard deviation is the repeatability; u(ε) of a cell is the pooled
+  repeatability over all cells divided by √n (or, optionally, the cell's own sd/√n).
   Without a ``rep``/``direction`` column a repeated (shift, start_face, step) is an error.
 - Shifts are matched after rounding to 1e-9 deg.
 - A certificate β that does not sum to zero is made to (its mean is subtracted, eq. 1); the removed
@@ -137,7 +138,23 @@ class PolygonTable:
 
     @property
     def u_arcsec(self) -> dict[float, np.ndarray]:
+        """Per-cell sd/√n (NaN with < 2 repetitions)."""
         return {s: self.sd_arcsec[s] / np.sqrt(np.maximum(self.n_rep[s], 1)) for s in self.shifts_deg}
+
+    def pooled_sd(self) -> tuple[float, int]:
+        """Pooled repeatability s_p = √(Σ(n−1)·s² / Σ(n−1)) over all cells of all shifts, and its dof."""
+        num, dof = 0.0, 0
+        for s in self.shifts_deg:
+            ok = self.n_rep[s] > 1
+            num += float(np.sum((self.n_rep[s][ok] - 1) * self.sd_arcsec[s][ok] ** 2))
+            dof += int(np.sum(self.n_rep[s][ok] - 1))
+        return (float(np.sqrt(num / dof)) if dof else float("nan")), dof
+
+    def u_pooled_arcsec(self) -> dict[float, np.ndarray]:
+        """s_p/√n per cell (NaN where the cell has no reading or no repetitions exist anywhere)."""
+        sp, _ = self.pooled_sd()
+        return {s: np.where(self.n_rep[s] > 0, sp / np.sqrt(np.maximum(self.n_rep[s], 1)), np.nan)
+                for s in self.shifts_deg}
 
     def start_faces(self, shift_deg: float) -> np.ndarray:
         """1-based start faces that have at least one reading at this shift."""
@@ -528,7 +545,8 @@ class ShiftAngleResult:
 
 def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
                          u_certificate_arcsec: np.ndarray | float | None = None,
-                         u_eps_arcsec: float | None = None, beta_source: str = "auto") -> ShiftAngleResult:
+                         u_eps_arcsec: float | None = None, beta_source: str = "auto",
+                         pool_repeatability: bool = True) -> ShiftAngleResult:
     """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
 
     β: from the full N×N table at S = 0 (eqs. 5-6; ``beta_source="closure"``) or from a certificate
@@ -536,8 +554,10 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     certificate, else raises :class:`PolygonDataError` naming the missing cells. Then, at every shift,
     every start face measured gets its own setup error (eq. 7) and α is averaged over those faces.
 
-    u(ε) of a cell: sd/√n of its repetitions, or ``u_eps_arcsec`` where that is not available (fewer
-    than 2 repetitions); if neither, uncertainties are NaN.
+    u(ε) of a cell: s/√n with s the repeatability pooled over all cells (``pool_repeatability=True``,
+    default: a sample sd from 2-3 repetitions is too uncertain to weigh a single cell — a cell whose
+    few readings agree by chance would get a tiny u) or the cell's own sd (``False``); where that is
+    not available (no repetitions), ``u_eps_arcsec``; if neither, uncertainties are NaN.
     """
     N = table.n_faces
     notes: list[str] = []
@@ -552,7 +572,7 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         raise PolygonDataError("beta_source='certificate' but no certificate_beta_arcsec given")
 
     def u_cells(s: float) -> np.ndarray | None:
-        u = table.u_arcsec[s].copy()
+        u = (table.u_pooled_arcsec() if pool_repeatability else table.u_arcsec)[s].copy()
         if u_eps_arcsec is not None:
             u = np.where(np.isfinite(u), u, float(u_eps_arcsec))
         return None if np.all(np.isnan(u)) else np.where(np.isfinite(u), u, 0.0)
