@@ -64,7 +64,7 @@ def dof_from_relative_uncertainty(relative: float) -> float:
     """GUM eq. G.3: ν ≈ ½·(Δu/u)⁻²; 10 % → 50, 0 % → ∞."""
     if relative < 0:
         raise ValueError("relative uncertainty must be >= 0")
-    return INF if relative == 0 else 0.5 / relative**2
+    return INF if relative == 0 else float(f"{0.5 / relative**2:.12g}")  # 10 % → exactly 50
 
 
 def estler_sensitivity(n_faces: int) -> float:
