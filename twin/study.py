@@ -761,17 +761,26 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
                 bar.update(len(res["reps"]))
         else:
             n_workers = workers or _cpu_count()
-            with cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks)), mp_context=_mp_context()) as pool:
+            pool = cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks)), mp_context=_mp_context())
+            try:
                 futs = [pool.submit(_run_task, t) for t in tasks]
-                try:
-                    for fut in cf.as_completed(futs):
-                        res = fut.result()
-                        store(res)
-                        bar.update(len(res["reps"]))
-                except BaseException:
-                    for f in futs:
-                        f.cancel()
-                    raise
+                for fut in cf.as_completed(futs):
+                    res = fut.result()
+                    store(res)
+                    bar.update(len(res["reps"]))
+            except cf.process.BrokenProcessPool as exc:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise RuntimeError(
+                    "a worker process of the study pool died (killed, out of memory, or — when run_study "
+                    "is called from a script — the script lacks the `if __name__ == \"__main__\":` guard "
+                    "that spawned worker processes need); finished points are cached: re-run to resume"
+                ) from exc
+            except BaseException:
+                # interrupted or a point failed: what is stored stays cached; a re-run resumes
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            else:
+                pool.shutdown(wait=True)
     finally:
         bar.close()
     wall_s = time.perf_counter() - t0
@@ -888,7 +897,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     pacsv.write_csv(stable, out / "summary.csv")
 
     verdict = _target_verdict(study, summary_rows) if study.target else None
-    figures = _figures(study, summary_rows, points, done, out)
+    figures = _figures(study, summary_rows, done, out, verdict)
     md = _markdown(study, summary_rows, verdict, fid_map, fidelity, computed, cached, wall_s, where, version)
     (out / "summary.md").write_text(md, encoding="utf-8")
     (out / "summary.html").write_text(_html(md), encoding="utf-8")
@@ -976,7 +985,7 @@ def _target_verdict(study: Study, rows: list[dict]) -> dict[str, Any]:
             "groups": result_groups, "sentence": "; ".join(sentences) + "."}
 
 
-def _figures(study: Study, rows: list[dict], points: list[Point], done: dict, out: Path) -> list[Path]:
+def _figures(study: Study, rows: list[dict], done: dict, out: Path, verdict: dict | None) -> list[Path]:
     """Each output against the first numeric parameter: mean with a k·u band, individual reps as dots,
     one line per combination of the other parameters, and the target as a dashed line."""
     import matplotlib
@@ -1012,7 +1021,14 @@ def _figures(study: Study, rows: list[dict], points: list[Point], done: dict, ou
                 reps = [done[(r["point"], j)]["outputs"][o] for j in range(study.repetitions)]
                 ax.plot([r["values"][xp.name]] * len(reps), reps, ".", color=line.get_color(), ms=2, alpha=0.5)
         if study.target and study.target.output == o:
-            ax.axhline(study.target.below, ls="--", color="k", lw=1, label=f"target {study.target.below:g}")
+            unit, _ = _output_dim(o)
+            ax.axhline(study.target.below, ls="--", color="k", lw=1, label=f"target {study.target.below:g} {unit}")
+            if verdict and study.target.parameter == xp.name:
+                for g in verdict["groups"]:
+                    if g["crossing"] is not None:
+                        ax.axvline(g["crossing"], ls=":", color="0.3", lw=1)
+                        ax.annotate(f"{g['crossing']:.3g} {xp.unit}", (g["crossing"], study.target.below),
+                                    textcoords="offset points", xytext=(4, 6), fontsize=8)
         ax.set_xlabel(xp.column)
         ax.set_ylabel(o)
         ax.set_title(f"{study.name}: {o}\nmean over {study.repetitions} reps; dark band ± {k:g}·u(mean), "

@@ -1,0 +1,159 @@
+"""Design-study throughput: points per second on 1 and 2 local workers and on a 2-worker Dask
+LocalCluster, and the runner's overhead against the bare simulation of the same points.
+
+Why: a study is only useful if the runner costs little next to the simulation it schedules; this
+measures it on the shipped study (scenarios/studies/bearing_distance.toml, physics fidelity), with
+a fresh cache for every timed run (a cached re-run is timed separately). "Bare" is the physics
+point function called in a loop in this process: no validation, no pool, no cache, no table.
+
+    .venv/bin/python benchmarks/study_bench.py [--reps N] [--no-write]
+
+Prints a markdown table and writes it under "## Design studies" in docs/benchmarks.md (only that
+section is replaced; the rest of the file is left as it is).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import re
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "scenarios" / "studies" / "bearing_distance.toml"
+DOC = ROOT / "docs" / "benchmarks.md"
+SECTION = "## Design studies"
+
+
+def _study_copy(tmp: Path, reps: int) -> Path:
+    """The shipped study with its base path made absolute and ``repetitions`` set to ``reps``."""
+    text = STUDY.read_text(encoding="utf-8")
+    text = text.replace('base = "../jia2019.toml"', f'base = "{(STUDY.parent.parent / "jia2019.toml").as_posix()}"')
+    text = re.sub(r"(?m)^repetitions = \d+", f"repetitions = {reps}", text)
+    p = tmp / "bench_study.toml"
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def bare(study_path: Path) -> tuple[float, int]:
+    """Sequential physics point function over the study's points, no runner around it."""
+    from benchtwin.twin import study as st
+    from benchtwin.twin import study_points as sp
+
+    study = st.load_study(study_path)
+    points = st.expand_points(study)
+    seeds = [st.rep_seed(study.seed, k) for k in range(study.repetitions)]
+    t0 = time.perf_counter()
+    n = 0
+    for pt in points:
+        task = {"scenario": pt.scenario, "scenario_key": pt.scenario_key, "reps": list(range(study.repetitions)),
+                "rep_seeds": seeds, "angles": study.angles, "outputs": study.outputs}
+        n += len(sp.physics_point(task))
+    return time.perf_counter() - t0, n
+
+
+def timed(study_path: Path, out: Path, **kw) -> tuple[float, dict]:
+    """Wall time of one run_study; ``r["point_s"]`` = Σ of the point functions' own times (workers)."""
+    import pyarrow.parquet as pq
+
+    from benchtwin.twin.study import run_study
+
+    t0 = time.perf_counter()
+    r = run_study(study_path, out, progress=False, **kw)
+    wall = time.perf_counter() - t0
+    r["point_s"] = float(sum(pq.read_table(r["table_parquet"])["elapsed_s"].to_pylist()))
+    return wall, r
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--reps", type=int, default=4, help="repetitions per point (default 4)")
+    ap.add_argument("--repeat", type=int, default=2,
+                    help="time every run this many times (fresh cache each time) and keep the fastest: "
+                         "the machine may be shared (default 2)")
+    ap.add_argument("--no-write", action="store_true", help="print only; leave docs/benchmarks.md alone")
+    ns = ap.parse_args()
+
+    load0 = f"{os.getloadavg()[0]:.2f}"
+    tmp = Path(tempfile.mkdtemp(prefix="study-bench-"))
+    try:
+        sp = _study_copy(tmp, ns.reps)
+        rows = []
+        best = lambda ts: min(ts, key=lambda x: x[0])  # noqa: E731
+        t_bare, n = best([bare(sp) for _ in range(ns.repeat)])
+        rows.append(("bare physics point function, in-process loop", t_bare, n, 1, t_bare))
+        from distributed import LocalCluster
+
+        for label, nw, kw in (("runner, in-process (workers=0)", 1, {"workers": 0}),
+                              ("runner, local pool, 1 worker", 1, {"workers": 1}),
+                              ("runner, local pool, 2 workers", 2, {"workers": 2}),
+                              ("runner, Dask LocalCluster, 2 workers", 2, {"scheduler": "dask"})):
+            ts = []
+            for i in range(ns.repeat):
+                out = tmp / f"{len(rows)}_{i}"
+                if kw.get("scheduler") == "dask":
+                    # cluster start-up is outside the timing: a cluster is started once and reused
+                    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
+                                      dashboard_address=None) as cluster:
+                        ts.append(timed(sp, out, scheduler=cluster.scheduler_address))
+                else:
+                    ts.append(timed(sp, out, **kw))
+            t, r = best(ts)
+            rows.append((label, t, r["rows"], nw, r["point_s"]))
+        t, r = timed(sp, out, workers=2)
+        assert r["computed"] == 0
+        rows.append(("re-run, all points cached", t, r["rows"], 2, float("nan")))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    from benchtwin.twin.study import code_version, expand_points, load_study
+
+    n_points = len(expand_points(load_study(STUDY)))
+    lines = [
+        SECTION,
+        "",
+        f"`benchmarks/study_bench.py` on `scenarios/studies/bearing_distance.toml` (physics fidelity, "
+        f"{n_points} points × {ns.reps} repetitions = {n} point-runs, 360 shaft positions each; "
+        f"{os.cpu_count()} cores, {platform.processor() or platform.machine()}, Python {platform.python_version()}; "
+        f"code {code_version()}). Wall time includes validation, pool start-up (not the Dask cluster's), "
+        "cache writes, tables, figures and the written summary; every timed run starts with an empty "
+        f"cache; best of {ns.repeat} (the machine may be shared). Overhead = wall time / bare in-process loop "
+        "over the same point-runs; with 2 workers, 0.5 would be perfect scaling. Σ point time = the point "
+        "functions' own times summed over workers; runner share = 1 − Σ point time / (workers · wall): "
+        "the part of the workers' wall time not spent simulating (start-up, scheduling, cache, tables, "
+        "figures, idle tail). Load average of the machine (shared with other work) before/after: "
+        f"{load0} / {os.getloadavg()[0]:.2f}.",
+        "",
+        "| run | wall time (s) | point-runs/s | overhead vs bare | Σ point time (s) | runner share |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for label, t, k, nw, pt in rows:
+        share = "" if math.isnan(pt) else f"{1 - pt / (nw * t):.0%}"
+        pts = "" if math.isnan(pt) else f"{pt:.2f}"
+        lines.append(f"| {label} | {t:.2f} | {k / t:.1f} | {t / t_bare:.2f} | {pts} | {share} |")
+    lines.append("")
+    text = "\n".join(lines)
+    print(text)
+    if not ns.no_write:
+        _write_section(text)
+        print(f"written to {DOC}")
+
+
+def _write_section(section: str) -> None:
+    """Replace (or append) only the "## Design studies" section of docs/benchmarks.md."""
+    old = DOC.read_text(encoding="utf-8") if DOC.exists() else "# Benchmarks\n\n"
+    m = re.search(rf"(?ms)^{re.escape(SECTION)}\n.*?(?=^## |\Z)", old)
+    if m:
+        new = old[:m.start()] + section + ("\n" if old[m.end():] else "") + old[m.end():]
+    else:
+        new = old.rstrip("\n") + "\n\n" + section
+    DOC.write_text(new, encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
