@@ -118,8 +118,10 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     n_rep_min = int(min(int(table.n_rep[s][table.n_rep[s] > 0].min()) for s in table.shifts_deg))
     sd_all = np.concatenate([table.sd_arcsec[s][np.isfinite(table.sd_arcsec[s])] for s in table.shifts_deg])
     closure_s, closure_nu = (float("nan"), 0)
-    if 0.0 in table.eps_arcsec and table.is_complete(0.0):
-        closure_s, closure_nu = sa.closure_residual_sd_arcsec(table.eps_arcsec[0.0])
+    complete = [float(s) for s in table.shifts_deg if table.is_complete(float(s))]
+    if complete:
+        ref = 0.0 if 0.0 in complete else complete[0]
+        closure_s, closure_nu = sa.closure_residual_sd_arcsec(table.eps_arcsec[ref])
     if n_rep_min >= 2:
         u_fill, u_src, dof_rep = u_eps_arcsec, "pooled repeatability s_p/sqrt(n)", n_rep_min - 1
     elif u_eps_arcsec is not None:
@@ -137,7 +139,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     th, alpha, u_prop = sa.combined_curve(res)
     # ---- sec. 3.1 curve-fit check
     try:
-        fit_rows = sa.setup_error_by_curve_fit(res, fit_harmonics, reference_shift_deg=float(table.shifts_deg[0]))
+        fit_rows = sa.setup_error_by_curve_fit(res, fit_harmonics)
         setup_residual = max(abs(r["diff_arcsec"]) for r in fit_rows)
     except ValueError as exc:  # e.g. a harmonic aliasing onto the offset
         fit_rows, setup_residual = [], 0.0
@@ -166,6 +168,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         "n_faces": N,
         "shifts_deg": table.shifts_deg,
         "beta_source": res.beta_source,
+        "reference_shift_deg": res.reference_shift_deg,
         "polygon_pitch_deviation_arcsec": res.beta_arcsec,
         "polygon_pitch_deviation_u_arcsec": res.u_beta_arcsec,
         "setup_error_arcsec": {_skey(s.shift_deg): s.U_arcsec for s in res.shifts},

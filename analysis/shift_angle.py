@@ -541,17 +541,21 @@ class ShiftAngleResult:
     table: PolygonTable
     beta_closure_arcsec: np.ndarray | None = None  # closure β when the certificate was used but S=0 is full
     notes: list[str] = field(default_factory=list)
+    reference_shift_deg: float = 0.0  # the shift whose full table gave the closure β
 
 
 def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
                          u_certificate_arcsec: np.ndarray | float | None = None,
                          u_eps_arcsec: float | None = None, beta_source: str = "auto",
-                         pool_repeatability: bool = True) -> ShiftAngleResult:
+                         pool_repeatability: bool = True, reference_shift_deg: float | None = None
+                         ) -> ShiftAngleResult:
     """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
 
-    β: from the full N×N table at S = 0 (eqs. 5-6; ``beta_source="closure"``) or from a certificate
-    (``"certificate"``); ``"auto"`` uses the closure when the S = 0 table is complete, else the
-    certificate, else raises :class:`PolygonDataError` naming the missing cells. Then, at every shift,
+    β: from the full N×N table at the reference shift (eqs. 5-6; ``beta_source="closure"``) or from a
+    certificate (``"certificate"``); ``"auto"`` uses the closure when the reference table is complete,
+    else the certificate, else raises :class:`PolygonDataError` naming the missing cells. The reference
+    shift is ``reference_shift_deg``, by default S = 0 when there are readings at 0 (the paper), else the
+    smallest shift with a complete N×N table (eqs. 5-6 hold at any S). Then, at every shift,
     every start face measured gets its own setup error (eq. 7) and α is averaged over those faces.
 
     u(ε) of a cell: s/√n with s the repeatability pooled over all cells (``pool_repeatability=True``,
@@ -561,7 +565,11 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     """
     N = table.n_faces
     notes: list[str] = []
-    s0 = _shift_key(0.0)
+    if reference_shift_deg is None:
+        complete = [float(x) for x in table.shifts_deg if table.is_complete(float(x))]
+        s0 = 0.0 if (0.0 in table.eps_arcsec or not complete) else complete[0]
+    else:
+        s0 = _shift_key(reference_shift_deg)
     have_full0 = s0 in table.eps_arcsec and table.is_complete(s0)
     if beta_source not in ("auto", "closure", "certificate"):
         raise ValueError(f"beta_source must be auto/closure/certificate, got {beta_source!r}")
@@ -585,11 +593,11 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     if src == "closure":
         if not have_full0:
             if s0 not in table.eps_arcsec:
-                raise PolygonDataError(f"no readings at shift_deg=0: the closure (eqs. 5-6) needs the full N×N "
-                                       f"table at S = 0 (N={N}), or pass certificate_beta_arcsec")
+                raise PolygonDataError(f"no readings at shift_deg={s0:g}: the closure (eqs. 5-6) needs the full "
+                                       f"N×N table at one shift (N={N}), or pass certificate_beta_arcsec")
             e0 = table.eps_arcsec[s0]
             missing = [(int(j) + 1, int(i) + 1) for j, i in np.argwhere(~np.isfinite(e0))]
-            raise PolygonDataError(f"shift_deg=0, columns start_face/step: incomplete Table 1, missing readings "
+            raise PolygonDataError(f"shift_deg={s0:g}, columns start_face/step: incomplete Table 1, missing readings "
                                    f"{_cells(missing)} (the closure needs all N×N = {N * N})")
         beta, u_beta, cov_beta = beta_closure, ub, cb
     else:
@@ -631,7 +639,7 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         results.append(ShiftResult(s, res["theta_deg"], res["alpha"], np.sqrt(np.diag(cov_a)), faces, res["U"],
                                    np.sqrt(np.diag(cov_u)), res["alpha_by_face"]))
     return ShiftAngleResult(N, beta, u_beta, cov_beta, src, results, table,
-                            beta_closure if src == "certificate" else None, notes)
+                            beta_closure if src == "certificate" else None, notes, s0)
 
 
 def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals: int = 9
@@ -710,10 +718,10 @@ def fit_sine2_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, *, A_arcsec: f
 
 
 def setup_error_by_curve_fit(result: ShiftAngleResult, harmonics: Sequence[int] = (2,), *,
-                             reference_shift_deg: float = 0.0) -> list[dict[str, float]]:
+                             reference_shift_deg: float | None = None) -> list[dict[str, float]]:
     """Cross-check of U (sec. 3.1): fit U + harmonics to y_i = ε_ij − B_ij = α(θ_i) + U_j at the reference
     shift (start face = the first measured there), then at every shift and start face fit only U with the
-    shape fixed. Returns rows ``shift_deg, start_face, U_fit_arcsec, U_eq7_arcsec, diff_arcsec`` (+ the
+    shape fixed (reference: the result's reference shift). Returns rows ``shift_deg, start_face, U_fit_arcsec, U_eq7_arcsec, diff_arcsec`` (+ the
     reference fit's ``A_arcsec, B_rad`` when ``harmonics == (2,)``).
 
     With N equally spaced steps and no harmonic a multiple of N, the fitted offset equals the mean,
@@ -723,6 +731,9 @@ def setup_error_by_curve_fit(result: ShiftAngleResult, harmonics: Sequence[int] 
     N = result.n_faces
     B = cumulative_pitch_sum_arcsec(result.beta_arcsec)
     by_shift = {s.shift_deg: s for s in result.shifts}
+    if reference_shift_deg is None:
+        reference_shift_deg = result.reference_shift_deg if result.reference_shift_deg in by_shift \
+            else result.shifts[0].shift_deg
     ref = _shift_key(reference_shift_deg)
     if ref not in by_shift:
         raise PolygonDataError(f"reference_shift_deg={reference_shift_deg:g}: no readings at that shift")

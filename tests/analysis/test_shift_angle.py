@@ -468,3 +468,37 @@ def test_figures_render(tmp_path):
         fig = fn(r)
         fig.savefig(tmp_path / f"{fn.__name__}.png")
         assert (tmp_path / f"{fn.__name__}.png").stat().st_size > 1000
+
+
+def test_closure_at_a_nonzero_reference_shift():
+    N = 9
+    beta = make_beta(N, 50)
+    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(51), [0.0])
+    cols["shift_deg"] = cols["shift_deg"] + 4.0  # the full table measured at S = 4°
+    cols["theta_deg"] = np.mod(cols["theta_deg"] + 4.0, 360.0)
+    cols["ac_arcsec"] = cols["ac_arcsec"] - ALPHA(cols["theta_deg"] - 4.0) + ALPHA(cols["theta_deg"])
+    _, res = analyse(cols, N)
+    assert res.reference_shift_deg == 4.0 and res.beta_source == "closure"
+    np.testing.assert_allclose(res.beta_arcsec, beta, atol=1e-9)
+    np.testing.assert_allclose(res.shifts[0].alpha_arcsec, ALPHA(res.shifts[0].theta_deg), atol=1e-9)
+    assert sa.setup_error_by_curve_fit(res)[0]["shift_deg"] == 4.0
+
+
+def test_pipeline_forward_backward_directions_and_theta_jitter():
+    """Twin-like table: both directions (a hysteresis ±h cancels in the average), θ read with jitter."""
+    N, h = 12, 0.3
+    rng = np.random.default_rng(60)
+    beta = make_beta(N, 61)
+    base = sa.synthesize_readings(ALPHA, beta, setup_fn(62), [0.0, 10.0])
+    n = base["ac_arcsec"].size
+    cols = {k: np.concatenate([v, v]) for k, v in base.items()}
+    cols["direction"] = np.array(["forward"] * n + ["backward"] * n, dtype=object)
+    cols["ac_arcsec"] = cols["ac_arcsec"] + np.r_[np.full(n, h), np.full(n, -h)] + rng.normal(0, 0.01, 2 * n)
+    cols["theta_deg"] = np.mod(cols["theta_deg"] + rng.normal(0, 1e-4, 2 * n), 360.0)
+    r = analyze_polygon(cols, N)
+    e = r["encoder_error_arcsec"]
+    np.testing.assert_allclose(e["value"], ALPHA(np.array(e["theta_deg"])), atol=0.03)
+    assert r["repeatability"]["n_rep_min"] == 2
+    assert r["repeatability"]["max_sd_eps_arcsec"] > h  # the two directions differ by 2h
+    with pytest.raises(sa.PolygonDataError, match="direction"):
+        analyze_polygon({k: np.concatenate([v, v[:1]]) for k, v in cols.items()}, N)
