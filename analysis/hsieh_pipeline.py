@@ -199,8 +199,10 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         ht = sc.tabulate_heads(heads["theta_deg"], heads["head"], heads["delta_arcsec"], nh, rep=heads.get("rep"),
                                direction=heads.get("direction"))
         u_d = None
-        if np.all(ht["n_rep"][:, 1:] >= 2):
-            u_d = np.where(np.isfinite(ht["sd_arcsec"]), ht["sd_arcsec"] / np.sqrt(ht["n_rep"]), 0.0)
+        if np.all(ht["n_rep"][:, 1:] >= 2):  # pooled repeatability of δ over θ and heads 2…, / √n per cell
+            nr, sdv = ht["n_rep"][:, 1:], ht["sd_arcsec"][:, 1:]
+            sp = math.sqrt(float(np.sum((nr - 1) * sdv**2)) / float(np.sum(nr - 1)))
+            u_d = sp / np.sqrt(ht["n_rep"].astype(float))
         scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=selfcal_sets, u_delta_arcsec=u_d)
         u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
         u_self = np.sqrt(scr.u_arcsec**2 + u_res**2)
