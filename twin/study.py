@@ -621,23 +621,21 @@ def rep_seed(study_seed: int, rep: int) -> int:
     return int(np.random.SeedSequence([study_seed, rep]).generate_state(1, np.uint64)[0]) & _SEED_MAX
 
 
-_CODE_VERSION: dict[str, str] = {}
-
-
 def code_version() -> str:
-    """benchtwin.__version__ plus a hash of the twin/ and analysis/ sources (cache invalidation)."""
-    if "v" not in _CODE_VERSION:
-        import benchtwin.analysis
-        import benchtwin.twin
+    """benchtwin.__version__ plus a hash of the twin/ and analysis/ sources (cache invalidation).
 
-        h = hashlib.sha256()
-        for pkg in (benchtwin.twin, benchtwin.analysis):
-            root = Path(list(pkg.__path__)[0])
-            for f in sorted(root.rglob("*.py")):
-                h.update(str(f.relative_to(root.parent)).encode())
-                h.update(f.read_bytes())
-        _CODE_VERSION["v"] = f"{benchtwin.__version__}+{h.hexdigest()[:16]}"
-    return _CODE_VERSION["v"]
+    Computed afresh by every ``run_study`` (a few ms): pool workers import the code as it is on
+    disk now, so a version remembered from an earlier run could be stale."""
+    import benchtwin.analysis
+    import benchtwin.twin
+
+    h = hashlib.sha256()
+    for pkg in (benchtwin.twin, benchtwin.analysis):
+        root = Path(list(pkg.__path__)[0])
+        for f in sorted(root.rglob("*.py")):
+            h.update(str(f.relative_to(root.parent)).encode())
+            h.update(f.read_bytes())
+    return f"{benchtwin.__version__}+{h.hexdigest()[:16]}"
 
 
 # --------------------------------------------------------------------------------- execution

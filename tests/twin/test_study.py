@@ -30,6 +30,12 @@ from benchtwin.units import ARCSEC
 HERE = Path(__file__).resolve().parent
 
 
+@pytest.fixture
+def fixed_code_version(monkeypatch):
+    """Cache tests must not depend on other work editing twin/ or analysis/ meanwhile."""
+    monkeypatch.setattr(st, "code_version", lambda: "test-fixed")
+
+
 # ----------------------------------------------------------------------------- stand-ins
 
 
@@ -239,7 +245,7 @@ def test_full_fidelity_says_what_is_missing(tmp_path):
 # ------------------------------------------------------------------------- cache, resume
 
 
-def test_rerun_recomputes_nothing(tmp_path):
+def test_rerun_recomputes_nothing(tmp_path, fixed_code_version, monkeypatch):
     p = _write(tmp_path, BASIC)
     calls = tmp_path / "calls"
     calls.mkdir()
@@ -256,9 +262,13 @@ def test_rerun_recomputes_nothing(tmp_path):
     r3 = run_study(p, tmp_path / "out", workers=0, progress=False, point_fn=fn)
     assert (r3["computed"], r3["cached"]) == (15 - 8, 8)
     assert r3["target"]["groups"][0]["crossing"] == pytest.approx(11.8, abs=0.3)
+    # a change of the code (version) recomputes everything
+    monkeypatch.setattr(st, "code_version", lambda: "test-changed")
+    r4 = run_study(p, tmp_path / "out", workers=0, progress=False, point_fn=fn)
+    assert (r4["computed"], r4["cached"]) == (15, 0)
 
 
-def test_interrupted_study_finishes_only_missing_points(tmp_path):
+def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_version):
     body = BASIC.replace('values = ["2 mm", "5 mm", "10 mm", "20 mm"]',
                          'values = ["1 mm", "2 mm", "3 mm", "4 mm", "5 mm", "6 mm", "7 mm", "8 mm"]')
     p = _write(tmp_path, body)
@@ -267,8 +277,9 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path):
         import functools, sys
         sys.path.insert(0, {str(HERE)!r})
         from test_study import counting_point
-        from benchtwin.twin.study import run_study
-        run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
+        import benchtwin.twin.study as st
+        st.code_version = lambda: "test-fixed"
+        st.run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
                   point_fn=functools.partial(counting_point, delay_s=0.4))
     """)
     proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
