@@ -179,6 +179,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         "encoder_error_arcsec": {"theta_deg": th, "value": alpha, "u": u_tot, "u_propagated": u_prop, "U": k * u_tot},
         "curve_fit": fit_rows,
         "repeatability": {"max_sd_eps_arcsec": float(np.max(sd_all)) if sd_all.size else None,
+                          "pooled_sd_eps_arcsec": table.pooled_sd()[0], "pooled_dof": table.pooled_sd()[1],
                           "n_rep_min": n_rep_min, "u_eps_source": u_src,
                           "closure_residual_sd_arcsec": closure_s, "closure_dof": closure_nu,
                           "theta_offset_max_deg": table.theta_offset_max_deg},

@@ -275,12 +275,13 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
 # --------------------------------------------------------------------------- eq. 3, Table 2, eq. 5-7
 
 
-def _cumsum_indicator(N: int) -> np.ndarray:
-    """C[j−1, i−1, k−1] = 1 if β_k is in Σ_{k=j}^{j+i−1 mod N} (i terms starting at face j)."""
-    C = np.zeros((N, N, N))
-    for j in range(N):
-        for i in range(N):
-            C[j, i, (j + np.arange(i + 1)) % N] = 1.0
+def _cumsum_indicator(N: int, faces: np.ndarray) -> np.ndarray:
+    """C[r, i−1, k−1] = 1 if β_k is in Σ_{k=j}^{j+i−1 mod N} (i terms from face j = faces[r])."""
+    i = np.arange(N)[:, None]
+    k = np.arange(N)[None, :]
+    C = np.empty((len(faces), N, N))
+    for r, j in enumerate(np.asarray(faces, dtype=int)):
+        C[r] = ((k - (j - 1)) % N <= i).astype(float)
     return C
 
 
@@ -384,7 +385,7 @@ def setup_error_arcsec(eps_rows_arcsec: np.ndarray, start_faces: Sequence[int] |
 def _alpha_jacobians(f: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Linear maps of :func:`encoder_error_arcsec`: α = Je @ eps.ravel() + Jb @ β, U = Ke @ eps.ravel() + Kb @ β."""
     m = f.size
-    C = _cumsum_indicator(N)[f - 1]  # (m, N, N)
+    C = _cumsum_indicator(N, f)  # (m, N, N)
     Je = np.zeros((N, m * N))
     Ke = np.zeros((m, m * N))
     center = np.eye(N) - 1.0 / N
