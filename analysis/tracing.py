@@ -30,7 +30,7 @@ freedom count them.
 
 Thresholds (tuned on the synthetic tests, see docs/effects.md): ``P_SIG`` = 1e-3 for χ² tests,
 harmonic flags at a Bonferroni-corrected 1e-3, candidate gates ``Z_GATE`` = 4 and ``DBIC_GATE`` = 10,
-ambiguity when ΔBIC < ``AMBIG_DBIC`` = 2 and the predictions' cos² > ``COLLINEAR`` = 0.9.
+ambiguity when ΔBIC < ``AMBIG_DBIC`` = 6 and the predictions' cos² > ``COLLINEAR`` = 0.9.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ __all__ = [
 P_SIG = 1e-3        # χ² tests (residual before/after, nested signature tests)
 Z_GATE = 4.0        # a candidate's parameters must be ≥ 4 standard uncertainties from zero (jointly)
 DBIC_GATE = 10.0    # ... and lower the BIC by ≥ 10 ("very strong" on Kass & Raftery's scale)
-AMBIG_DBIC = 2.0    # candidates within 2 BIC units ...
+AMBIG_DBIC = 6.0    # candidates within 6 BIC units (less than "strong" evidence, Kass & Raftery) ...
 COLLINEAR = 0.9     # ... whose predictions have cos² > 0.9 cannot be told apart
 MAX_CV_FOLDS = 12
 THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
@@ -894,16 +894,21 @@ def trace(evidence: Evidence, candidates=None) -> dict:
             if _cos2(pb, pc, pred) > COLLINEAR:
                 amb_names |= set(c.names)
                 amb_fits[c.key] = cand_json(c)
-    generic = "tangential_motion" in chosen.names and ALL["tangential_motion"].is_generic(ev)
-    if generic:
-        amb_names.add("graduation_error")
+    forced = set()
+    for member in chosen.names:
+        fn = getattr(cands_mod[member], "ambiguous_with", None)
+        forced |= set(fn(ev)) if fn else set()
+    forced -= set(chosen.names)
+    generic = bool(forced)
+    for other in sorted(forced):
+        amb_names.add(other)
         for c in singles:
-            if c.names == ("graduation_error",):
+            if c.names == (other,):
                 amb_fits[c.key] = cand_json(c)
     if len(amb_names) > 1:
         names = sorted(amb_names)
         result["ambiguous"].append({"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
-                                    "generic_basis": generic})
+                                    "forced_by_design": generic})
     if p_after < P_SIG:
         result["partial_effects"] = effects
         result["unexplained"] = True

@@ -5,12 +5,14 @@ interpolator's error repeats every grating line, angular period 360°/L (L lines
 only r and the period p are known). Its first two orders are fitted:
 Σ_m c_m,s sin(2π m L θ/360°) + c_m,c cos(2π m L θ/360°).
 
-Sampling: on the polygon grid θ_i = (i−1)·360°/N + S the phase m·L·θ/360° advances by m·L/N per
+Sampling: on the polygon grid of Hsieh et al. 2022 eq. 3, θ_i = (i−1)·360°/N + S, the phase m·L·θ/360° advances by m·L/N per
 step, so the error shows up as the alias harmonic (m·L mod N) folded into 0…N/2 — for L = 36000,
 N = 23 a 5th harmonic. If m·L is a multiple of N (and all shifts S are multiples of 360°/(m·L)),
 every reading of a run has the same phase: the error is a per-run constant that the closure
-removes, and this sampling cannot see it (``visibility`` reports that). Shifts that are not
-multiples of 360°/(N·...) or a jitter of the stops separate it from a real harmonic of that order.
+removes, and this sampling cannot see it (``available`` says so; ``visibility`` gives the alias).
+Shift angles S change the alias's phase differently from a real harmonic's (k·S versus
+m·L·S/360° of a period), and a jitter of the stops spreads the phase: both separate it from a
+division error of the alias order.
 """
 
 from __future__ import annotations
@@ -58,19 +60,54 @@ def lines(ev):
     return None
 
 
+#: an order is visible when, inside the runs (closure groups), its phases are spread: mean resultant
+#: length of exp(i·m·phase) below this (1 = all readings of a run at one phase of the period).
+MAX_RESULTANT = 0.8
+
+
+def _phase(theta_deg, L):
+    return 2 * np.pi * ((np.asarray(theta_deg, dtype=float) * L / 360.0) % 1.0)
+
+
+def visible_orders(ev) -> list[int]:
+    """Orders whose phase the polygon sampling spreads inside a run (computed on the polygon
+    readings, also for the self-calibration view, so that both give the same parameters)."""
+    pe = getattr(ev, "parent", ev)
+    L = lines(pe)
+    if L is None:
+        return []
+    ph = _phase(pe.theta_deg, L)
+    g = np.asarray(pe.closure_group)
+    out = []
+    for m in ORDERS:
+        z = np.exp(1j * m * ph)
+        R = [abs(z[g == k].mean()) for k in np.unique(g)]
+        if float(np.mean(R)) < MAX_RESULTANT:
+            out.append(m)
+    return out
+
+
 def available(ev, ctx=None):
     L = lines(ev)
-    return (L is not None, "" if L else "no encoder line count or grating period")
+    if L is None:
+        return False, "no encoder line count or grating period"
+    vis = visible_orders(ev)
+    if not vis:
+        N = int(getattr(ev, "n_faces", 0) or 0)
+        return False, (f"the sampling cannot see it: inside each run the stops fall at (nearly) one phase of the "
+                       f"grating period (L = {L} lines, N = {N} faces: m·L/N integer or shifts at whole periods); "
+                       "change the shift angle by a fraction of 360°/L or use a polygon with N not dividing L")
+    return True, "" if len(vis) == len(ORDERS) else f"only orders {vis} visible with this sampling"
 
 
 def design(ev, ctx=None):
     L = lines(ev)
-    ph = 2 * np.pi * ((np.asarray(ev.theta_deg, dtype=float) * L / 360.0) % 1.0)
+    ph = _phase(ev.theta_deg, L)
     cols, names = [], []
-    for m in ORDERS:
+    for m in visible_orders(ev):
         cols += [np.sin(m * ph), np.cos(m * ph)]
         names += [f"c{m}_sin_arcsec", f"c{m}_cos_arcsec"]
-    return np.column_stack(cols), names
+    return (np.column_stack(cols) if cols else np.zeros((ph.size, 0))), names
 
 
 def predict(ev, params, ctx=None):

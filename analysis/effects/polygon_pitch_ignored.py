@@ -48,6 +48,12 @@ def available(ev, ctx=None):
     return True, ""
 
 
+def ambiguous_with(ev):
+    """With one start face the face under the autocollimator is fixed by θ: any error of the
+    encoder with that θ pattern fits as well."""
+    return ["graduation_error"] if len(np.unique(ev.start_face)) < 2 else []
+
+
 def design(ev, ctx=None):
     f = faces(ev)
     N = int(ev.n_faces)

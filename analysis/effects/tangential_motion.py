@@ -61,6 +61,11 @@ def is_generic(ev):
     return not _has_x(ev)
 
 
+def ambiguous_with(ev):
+    """Effects this one cannot be told from with these data, whatever the information criterion says."""
+    return ["graduation_error"] if is_generic(ev) else []
+
+
 def design(ev, ctx=None):
     r = radius_um(ev)
     if _has_x(ev):
