@@ -935,7 +935,8 @@ def _target_verdict(study: Study, rows: list[dict]) -> dict[str, Any]:
     assert t is not None
     param = next(p for p in study.parameters if p.name == t.parameter)
     unit, _ = _output_dim(t.output)
-    others = [p.name for p in study.parameters if p.name != t.parameter]
+    # group by the other grid parameters; sampled (random/lhs) ones vary within a group
+    others = [p.name for p in study.parameters if p.name != t.parameter and p.sampling == "grid"]
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault(tuple(repr(r["values"][o]) for o in others), []).append(r)
@@ -995,7 +996,8 @@ def _figures(study: Study, rows: list[dict], done: dict, out: Path, verdict: dic
     if not numeric:
         return []
     xp = next((p for p in numeric if study.target and p.name == study.target.parameter), numeric[0])
-    others = [p.name for p in study.parameters if p.name != xp.name]
+    others = [p.name for p in study.parameters if p.name != xp.name and p.sampling == "grid"]
+    scattered = any(p.sampling != "grid" for p in study.parameters)  # no lines through sampled points
     k = study.target.coverage if study.target else 2.0
     figdir = out / "figures"
     figdir.mkdir(exist_ok=True)
@@ -1012,9 +1014,12 @@ def _figures(study: Study, rows: list[dict], done: dict, out: Path, verdict: dic
             u = np.nan_to_num(np.array([r[o][2] for r in grs]))
             s = np.nan_to_num(np.array([r[o][1] for r in grs]))
             label = ", ".join(f"{n} = {_fmt(grs[0]['values'][n])}" for n in others) or "mean"
-            line, = ax.plot(x, m, "o-", ms=4, label=label)
-            ax.fill_between(x, m - k * s, m + k * s, color=line.get_color(), alpha=0.12, lw=0)
-            ax.fill_between(x, m - k * u, m + k * u, color=line.get_color(), alpha=0.35, lw=0)
+            if scattered:
+                line = ax.errorbar(x, m, yerr=k * u, fmt="o", ms=4, capsize=2, label=label).lines[0]
+            else:
+                line, = ax.plot(x, m, "o-", ms=4, label=label)
+                ax.fill_between(x, m - k * s, m + k * s, color=line.get_color(), alpha=0.12, lw=0)
+                ax.fill_between(x, m - k * u, m + k * u, color=line.get_color(), alpha=0.35, lw=0)
             for r in grs:
                 reps = [done[(r["point"], j)]["outputs"][o] for j in range(study.repetitions)]
                 ax.plot([r["values"][xp.name]] * len(reps), reps, ".", color=line.get_color(), ms=2, alpha=0.5)
@@ -1029,8 +1034,10 @@ def _figures(study: Study, rows: list[dict], done: dict, out: Path, verdict: dic
                                     textcoords="offset points", xytext=(4, 6), fontsize=8)
         ax.set_xlabel(xp.column)
         ax.set_ylabel(o)
-        ax.set_title(f"{study.name}: {o}\nmean over {study.repetitions} reps; dark band ± {k:g}·u(mean), "
-                     f"light band ± {k:g}·s (single run), dots: single runs", fontsize=8)
+        bands = (f"error bars ± {k:g}·u(mean); other sampled parameters vary between points" if scattered else
+                 f"dark band ± {k:g}·u(mean), light band ± {k:g}·s (single run)")
+        ax.set_title(f"{study.name}: {o}\nmean over {study.repetitions} reps; {bands}; dots: single runs",
+                     fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
         fig.tight_layout()

@@ -181,13 +181,19 @@ def test_affine_set_and_labelled_tables(tmp_path):
     assert base.scenario["bearings"]["async_rms"] == pytest.approx(0.06e-6)
 
 
-def test_shipped_bearing_distance_study_validates():
-    path = Path(__file__).resolve().parents[2] / "scenarios" / "studies" / "bearing_distance.toml"
-    study = load_study(path)
+def test_shipped_studies_validate():
+    studies = Path(__file__).resolve().parents[2] / "scenarios" / "studies"
+    study = load_study(studies / "bearing_distance.toml")
     pts = expand_points(study)
     assert study.run_fidelity == "physics"
     assert len(pts) == len(study.parameters[0].levels) * 2
     assert all(pt.scenario["errors"]["eccentricity"] == 0 for pt in pts)
+    at12 = next(pt for pt in pts if pt.values == {"disk_to_bearing": 12.0, "bearing_grade": "jia2019"})
+    base = study.base.to_dict()["bench"]  # d = 12 mm is jia2019.toml's layout exactly
+    for k in ("bearing_top_z", "bearing_bottom_z", "polygon_z", "L1", "L2"):
+        assert at12.scenario["bench"][k] == pytest.approx(base[k], abs=1e-12)
+    hm = load_study(studies / "heads_mounting.toml")
+    assert len(expand_points(hm)) == 16 * 2 and hm.run_fidelity == "physics"
 
 
 # ---------------------------------------------------------------------------- validation
