@@ -742,6 +742,10 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
     def store(res: dict) -> None:
         per_rep = res["elapsed_s"] / max(1, len(res["reps"]))
         for k, outs in zip(res["reps"], res["results"]):
+            missing = [o for o in study.outputs if o not in outs]
+            if missing:
+                raise StudyError(f"{study.path}: point {res['point']} rep {k}: the point function "
+                                 f"({', '.join(fn_ids)}) returned no {', '.join(missing)}")
             entry = {"outputs": outs, "elapsed_s": per_rep, "code": version}
             cache.put(keys[(res["point"], k)], entry)
             done[(res["point"], k)] = entry
