@@ -62,8 +62,60 @@ Z_GATE = 4.0        # a candidate's parameters must be ≥ 4 standard uncertaint
 DBIC_GATE = 10.0    # ... and lower the BIC by ≥ 10 ("very strong" on Kass & Raftery's scale)
 AMBIG_DBIC = 6.0    # candidates within 6 BIC units (less than "strong" evidence, Kass & Raftery) ...
 COLLINEAR = 0.9     # ... whose predictions have cos² > 0.9 cannot be told apart
+Z_PAIR = 2.0        # a pair is tried only if one of its members alone reaches z ≥ 2 (saves fits on nulls)
 MAX_CV_FOLDS = 12
 THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
+
+
+# ----------------------------------------------------------------------------------------------
+# BLAS threads: the fits are hundreds of small least-squares problems; a multi-threaded OpenBLAS
+# on a busy machine spends more time spinning than computing (measured: 25× slower on 2 busy
+# cores). Run them on one thread and restore the setting afterwards (no-op if not found).
+# ----------------------------------------------------------------------------------------------
+
+def _openblas():
+    import ctypes
+    import glob
+
+    d = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
+    for f in glob.glob(os.path.join(d, "*openblas*")):
+        try:
+            lib = ctypes.CDLL(f)
+            for pre in ("scipy_openblas_", "openblas_"):
+                for suf in ("64_", ""):
+                    g, s_ = getattr(lib, f"{pre}get_num_threads{suf}", None), getattr(lib, f"{pre}set_num_threads{suf}", None)
+                    if g is not None and s_ is not None:
+                        s_.argtypes = [ctypes.c_int]
+                        return g, s_
+        except OSError:
+            continue
+    return None
+
+
+_BLAS = None
+
+
+def _one_blas_thread(fn):
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*a, **k):
+        global _BLAS
+        if _BLAS is None:
+            try:
+                _BLAS = _openblas() or False
+            except Exception:  # pragma: no cover - platform specific
+                _BLAS = False
+        if not _BLAS:
+            return fn(*a, **k)
+        get, set_ = _BLAS
+        n = int(get())
+        set_(1)
+        try:
+            return fn(*a, **k)
+        finally:
+            set_(n)
+    return wrapper
 
 
 # ----------------------------------------------------------------------------------------------
@@ -495,6 +547,7 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
 
 
+@_one_blas_thread
 def residual_test(ev: Evidence) -> dict:
     """χ² of the (closure-centred) residual against the combined uncertainty, and its summary."""
     pb = _Problem(ev, use_selfcal=False)
@@ -505,6 +558,7 @@ def residual_test(ev: Evidence) -> dict:
             "chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof))}
 
 
+@_one_blas_thread
 def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
     """Each harmonic 1…kmax of θ fitted jointly; amplitude, its u and a χ²_2 test (Bonferroni over
     the harmonics tested; u scaled by √(χ²/dof) when that exceeds 1)."""
@@ -568,6 +622,7 @@ def _dummies(keys: np.ndarray) -> np.ndarray:
     return X
 
 
+@_one_blas_thread
 def signature(ev: Evidence, harmonics: list[dict] | None = None) -> dict:
     """The residual's signature (JSON-ready): see the module docstring, step 2."""
     pb = _Problem(ev, use_selfcal=False)
@@ -761,6 +816,7 @@ def _sep_text(names) -> str:
     return "; ".join(texts)
 
 
+@_one_blas_thread
 def trace(evidence: Evidence, candidates=None) -> dict:
     """Trace the residual of ``evidence`` to the candidate effects (default: all of ``effects.ALL``).
 
@@ -776,8 +832,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     harm = harmonic_test(ev, pa)
     sig = signature(ev, harm)
     flagged = sig["significant_harmonics"]
-    significant = bool(before["p_value"] < P_SIG or flagged or sig["drift"]["significant"] or sig["direction"]["significant"]
-                       or sig["start_face"].get("significant", False))
+    significant = bool(before["p_value"] < P_SIG or _significant_parts(sig))
     before["significant"] = significant
     ctx = {"harmonics": flagged}
 
@@ -830,6 +885,8 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     best_single = min((c.bic for c in singles if c.passed), default=None)
     pairs = []
     for a, b in itertools.combinations(singles, 2):
+        if max(a.z[a.names[0]], b.z[b.names[0]]) < Z_PAIR:
+            continue
         c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
         _evaluate(pb, c, cands_mod, ctx)
         gate(c, single_bics)
@@ -857,9 +914,10 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         result["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
         result["unexplained"] = significant
         result["status"] = "unexplained" if significant else "no_significant_residual"
-        result["unexplained_signature"] = _short_signature(sig) if significant else None
+        result["unexplained_signature"] = ({**_short_signature(sig), "left": _significant_parts(sig)}
+                                           if significant else None)
         result["model_file"] = _payload(ev, [], [], result["status"], ctx)
-        return result
+        return _jsonable(result)
 
     pred = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
     # χ² after: the alpha rows with the chosen effect's prediction removed (nuisance refitted)
@@ -909,19 +967,43 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         names = sorted(amb_names)
         result["ambiguous"].append({"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
                                     "forced_by_design": generic})
+    # the residual after must show no signature left either (same tests as "anything to explain?")
+    adj = np.zeros(ev.n)
+    q0 = pb.S.shape[1]
+    if chosen.fit["S"].shape[1] > q0:
+        adj = chosen.fit["S"][: ev.n, q0:] @ chosen.fit["nuis"][q0:]  # regressor uncertainty, used
+    sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - pred[alpha] - adj))
+    left = _significant_parts(sig_after)
     if p_after < P_SIG:
+        left.insert(0, f"χ² after: p = {p_after:.2g}")
+    result["residual_after"]["signature_left"] = left
+    if left:
         result["partial_effects"] = effects
         result["unexplained"] = True
         result["status"] = "unexplained"
-        sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - pred[alpha]))
-        result["unexplained_signature"] = _short_signature(sig_after)
+        result["unexplained_signature"] = {**_short_signature(sig), "after_best_candidate": _short_signature(sig_after),
+                                           "left": left}
     else:
         result["identified_effects"] = effects
         result["unexplained"] = False
         result["status"] = "ambiguous" if result["ambiguous"] else "explained"
         result["unexplained_signature"] = None
     result["model_file"] = _payload(ev, effects if not result["unexplained"] else [], result["ambiguous"], result["status"], ctx)
-    return result
+    return _jsonable(result)
+
+
+def _significant_parts(sig: dict) -> list[str]:
+    """The parts of a signature that are significant (harmonics, drift, direction, face pattern)."""
+    out = []
+    if sig["significant_harmonics"]:
+        out.append(f"harmonics {sig['significant_harmonics']}")
+    if sig["drift"].get("significant"):
+        out.append("drift with time")
+    if sig["direction"].get("significant"):
+        out.append("direction of rotation")
+    if sig["start_face"].get("significant"):
+        out.append("pattern fixed to the polygon face")
+    return out
 
 
 def _replace_alpha(ev: Evidence, alpha: np.ndarray) -> Evidence:
@@ -957,14 +1039,17 @@ def _payload(ev: Evidence, effects: list[dict], ambiguous: list[dict], status: s
 
 
 def _jsonable(x):
+    """Plain JSON types; non-finite floats become None."""
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
     if isinstance(x, np.ndarray):
-        return x.tolist()
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
     return x
 
 

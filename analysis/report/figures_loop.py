@@ -1,0 +1,152 @@
+"""Figures of the "close the loop" analysis (:mod:`benchtwin.analysis.tracing`).
+
+Jia et al. 2019, fig. 16 compares the polygon-measured encoder error with eq. 5's prediction and
+leaves a ±6″ residual; these figures show what happened to that residual here:
+
+- :func:`plot_residual_before_after`: the (closure-centred) residual vs θ before, the identified
+  effect's contribution, and the residual after;
+- :func:`plot_harmonic_spectrum`: the residual's harmonic amplitudes with their standard
+  uncertainties and the significance threshold;
+- :func:`plot_signature`: residual vs reading time (drift), vs the polygon face under the
+  autocollimator (a pattern that moves with the start face), and by direction of rotation.
+
+Object-oriented matplotlib on the Agg canvas (no pyplot, no global backend switch). Each function
+returns the Figure and writes it to ``path`` when given.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..effects import ALL
+from ..tracing import Z_GATE, Evidence, _center
+
+__all__ = ["effect_contribution", "plot_residual_before_after", "plot_harmonic_spectrum", "plot_signature",
+           "figures_loop"]
+
+
+def _fig(w=8.0, h=4.5, nrows=1, ncols=1):
+    fig = Figure(figsize=(w, h), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def _save(fig, path):
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def _centred_residual(ev: Evidence) -> np.ndarray:
+    return _center(ev.residual_arcsec, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
+
+
+def effect_contribution(ev: Evidence, result: dict) -> np.ndarray:
+    """Sum of the identified (else the best partial / ambiguous) effects' predictions at the
+    readings, closure-centred like the residual."""
+    effects = result.get("identified_effects") or result.get("partial_effects") or []
+    ctx = {"harmonics": result["signature"]["significant_harmonics"]}
+    total = np.zeros(ev.n)
+    for e in effects:
+        total += ALL[e["name"]].predict(ev, e["params"], ctx)
+    return _center(total, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
+
+
+def plot_residual_before_after(ev: Evidence, result: dict, path=None) -> Figure:
+    fig, ax = _fig(9, 5, 2, 1)
+    th = ev.theta_deg % 360
+    r0 = _centred_residual(ev)
+    c = effect_contribution(ev, result)
+    o = np.argsort(th)
+    names = [e["name"] for e in (result.get("identified_effects") or result.get("partial_effects") or [])]
+    a = ax[0, 0]
+    a.plot(th, r0, ".", ms=3, color="0.4", label=f"residual before (rms {result['residual_before']['rms_arcsec']:.3f}″)")
+    if names:
+        a.plot(th[o], c[o], "-", lw=1, color="C3", label="contribution of " + " + ".join(names))
+    a.set_ylabel("α − model [arcsec]")
+    a.legend(loc="upper right", fontsize=8)
+    a.set_title(f"status: {result['status']}", fontsize=10)
+    b = ax[1, 0]
+    b.plot(th, r0 - c, ".", ms=3, color="C0", label=f"residual after (rms {result['residual_after']['rms_arcsec']:.3f}″)")
+    u = float(np.sqrt(np.mean(ev.u_arcsec ** 2)))
+    b.axhspan(-2 * u, 2 * u, color="C2", alpha=0.15, label="±2u (measurement)")
+    b.set_xlabel("θ [deg]")
+    b.set_ylabel("arcsec")
+    b.legend(loc="upper right", fontsize=8)
+    return _save(fig, path)
+
+
+def plot_harmonic_spectrum(result: dict, path=None) -> Figure:
+    fig, ax = _fig(8, 4)
+    a = ax[0, 0]
+    h = result["signature"]["harmonics"]
+    k = np.array([x["k"] for x in h])
+    amp = np.array([x["amplitude_arcsec"] for x in h])
+    u = np.array([x["u_arcsec"] if x["u_arcsec"] is not None else np.nan for x in h])
+    sig = np.array([x["significant"] for x in h])
+    a.bar(k[~sig], amp[~sig], color="0.6", label="not significant")
+    a.bar(k[sig], amp[sig], color="C3", label="significant")
+    a.errorbar(k, amp, yerr=u, fmt="none", ecolor="k", capsize=2, lw=0.8, label="± u")
+    a.plot(k, Z_GATE * u, "_", color="C0", ms=12, mew=1.5, label=f"{Z_GATE:g}·u")
+    a.set_xlabel("harmonic k (per turn)")
+    a.set_ylabel("amplitude [arcsec]")
+    a.set_xticks(k)
+    a.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
+    fig, ax = _fig(12, 4, 1, 3)
+    r = _centred_residual(ev)
+    w2 = 1.0 / ev.u_arcsec ** 2
+    # vs time
+    a = ax[0, 0]
+    a.plot(ev.t_s, r, ".", ms=3, color="0.4")
+    d = result["signature"]["drift"]
+    if d.get("slope_arcsec_per_s") is not None:
+        tc = ev.t_s - np.bincount(ev.closure_group, w2 * ev.t_s)[ev.closure_group] / np.bincount(ev.closure_group, w2)[ev.closure_group]
+        o = np.argsort(ev.t_s)
+        a.plot(ev.t_s[o], (d["slope_arcsec_per_s"] * tc)[o], "-", color="C3", lw=0.8,
+               label=f"drift {d['slope_arcsec_per_s']:.2e} ± {d['u']:.1e} ″/s")
+        a.legend(fontsize=8)
+    a.set_xlabel("t [s]")
+    a.set_ylabel("residual [arcsec]")
+    a.set_title("vs reading time", fontsize=10)
+    # vs face under the autocollimator
+    b = ax[0, 1]
+    faces = np.unique(ev.face)
+    m = np.array([np.average(r[ev.face == f], weights=w2[ev.face == f]) for f in faces])
+    s = np.array([1.0 / np.sqrt(np.sum(w2[ev.face == f])) for f in faces])
+    b.errorbar(faces, m, yerr=s, fmt="o", ms=3, color="C0")
+    sf = result["signature"]["start_face"]
+    b.set_title("vs polygon face" + (f" (p = {sf['p_value']:.2g})" if sf.get("p_value") is not None else ""), fontsize=10)
+    b.set_xlabel("face under the autocollimator")
+    # by direction
+    c = ax[0, 2]
+    th = ev.theta_deg % 360
+    for dval, col, lab in ((1, "C0", "forward"), (-1, "C1", "backward")):
+        sel = ev.direction == dval
+        if np.any(sel):
+            c.plot(th[sel], r[sel], ".", ms=3, color=col, label=lab)
+    dd = result["signature"]["direction"]
+    c.set_title("by direction" + (f" (half diff. {dd['half_difference_arcsec']:.3f}″)" if dd.get("half_difference_arcsec") is not None else ""),
+                fontsize=10)
+    c.set_xlabel("θ [deg]")
+    c.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def figures_loop(ev: Evidence, result: dict, outdir) -> list[Path]:
+    """All three figures as PNG files in ``outdir``; returns their paths."""
+    outdir = Path(outdir)
+    paths = [outdir / "loop_residual.png", outdir / "loop_spectrum.png", outdir / "loop_signature.png"]
+    plot_residual_before_after(ev, result, paths[0])
+    plot_harmonic_spectrum(result, paths[1])
+    plot_signature(ev, result, paths[2])
+    return paths

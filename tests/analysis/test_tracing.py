@@ -1,0 +1,246 @@
+"""trace(): is there anything to explain, the signature, nulls, the unexplained case, the model
+file, the figures. Synthetic evidence from ``benchtwin.analysis.effects.synthetic`` with explicit
+seeds."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from benchtwin.analysis.effects.synthetic import make_evidence
+from benchtwin.analysis.tracing import (Evidence, add_to_error_model, harmonic_test, load_model,
+                                        model_terms_from_payload, residual_test, save_model, signature, trace)
+
+NULL_CONFIGS = {
+    "all_start_faces": dict(),
+    "rich": dict(start_faces=range(1, 24, 4), reps=2, directions=(1, -1), x_probes=True, selfcal=True),
+    "shifts": dict(start_faces=range(1, 24, 5), shifts=(0.0, 5.0, 10.0)),
+}
+
+
+def _h7(th, t):
+    """Outside the library: a 7th harmonic whose amplitude grows during the session."""
+    return 0.6 * (t / t.max()) * np.sin(7 * np.deg2rad(th) + 0.3)
+
+
+# ---------------------------------------------------------------------------------------------
+# evidence
+# ---------------------------------------------------------------------------------------------
+
+def test_evidence_validates_and_derives_faces():
+    with pytest.raises(ValueError):
+        Evidence(theta_deg=[0, 1, 2], alpha_arcsec=[0, 1], u_arcsec=0.1, model_terms={})
+    with pytest.raises(ValueError):
+        Evidence(theta_deg=[0, 1], alpha_arcsec=[0, 1], u_arcsec=0.0, model_terms={})
+    N = 23
+    th = np.arange(N) * 360 / N
+    ev = Evidence(theta_deg=np.tile(th, 2), alpha_arcsec=np.zeros(2 * N), u_arcsec=0.1, model_terms={},
+                  start_face=np.repeat([1, 5], N), n_faces=N)
+    np.testing.assert_array_equal(ev.step[:N], np.arange(1, N + 1))
+    np.testing.assert_array_equal(ev.face[N:], (5 + np.arange(1, N + 1) - 2) % N + 1)  # face = (j + i − 2) mod N + 1
+    assert ev.closure_group.max() == 1
+    assert ev.kmax == 11  # 23 stop positions: harmonics up to 11
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. anything to explain?
+# ---------------------------------------------------------------------------------------------
+
+def test_residual_test_is_calibrated_on_nulls():
+    p = [residual_test(make_evidence(np.random.default_rng(s))[0])["p_value"] for s in range(30, 40)]
+    assert min(p) > 1e-3 and 0.2 < float(np.mean(p)) < 0.8
+
+
+def test_harmonic_test_finds_an_injected_harmonic():
+    ev, _ = make_evidence(np.random.default_rng(8), inject={"graduation_error": {4: (0.15, 2.0)}})
+    h = {x["k"]: x for x in harmonic_test(ev)}
+    assert [k for k, x in h.items() if x["significant"]] == [4]
+    assert abs(h[4]["amplitude_arcsec"] - 0.15) < 3 * h[4]["u_arcsec"]
+    assert abs(h[4]["a_arcsec"] - 0.15 * math.cos(2.0)) < 3 * h[4]["u_arcsec"]
+
+
+def test_residual_within_model_uncertainty_is_nothing_to_explain():
+    """A 1 % error of e is inside u(e) = 0.24 µm (3.4 %, Jia sec. 5): with the model's uncertainty
+    in the evidence, nothing is significant; without it, it is."""
+    ev, _ = make_evidence(np.random.default_rng(4), inject={"ccd_pixel_scale": {"scale_error_pct": 1.0}})
+    assert trace(ev)["residual_before"]["significant"]
+    ev.model_sensitivity = {"u_e": ev.model_terms["eccentricity"] * 0.24 / 7.1}
+    res = trace(ev)
+    assert res["status"] == "no_significant_residual", res["status"]
+    assert not res["identified_effects"]
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. signature
+# ---------------------------------------------------------------------------------------------
+
+def test_signature_drift_direction_face_and_terms():
+    ev, _ = make_evidence(np.random.default_rng(12), start_faces=range(1, 24, 2),
+                          inject={"ac_drift": {"drift_arcsec_per_s": 5e-4}})
+    s = signature(ev)
+    assert s["drift"]["significant"] and abs(s["drift"]["slope_arcsec_per_s"] - 5e-4) < 3 * s["drift"]["u"]
+    assert not s["start_face"]["significant"] and not s["direction"]["available"]
+    json.dumps(s)
+    ev1, _ = make_evidence(np.random.default_rng(12), directions=(1, -1), start_faces=range(1, 24, 2),
+                           inject={"torsion_hysteresis": {"half_hysteresis_arcsec": 0.2}})
+    s1 = signature(ev1)
+    assert s1["direction"]["significant"]
+    assert abs(s1["direction"]["half_difference_arcsec"] - 0.2) < 3 * s1["direction"]["u"]
+    ev2, _ = make_evidence(np.random.default_rng(12), inject={"polygon_pitch_ignored": {"rms_arcsec": 0.3}})
+    s2 = signature(ev2)
+    assert s2["start_face"]["significant"]
+    ev3, _ = make_evidence(np.random.default_rng(12), inject={"optical_radius": {"delta_r_mm": 0.1}})
+    s3 = signature(ev3)
+    g = s3["correlations"]["term:eccentricity"]
+    assert g["significant"] and abs(g["gain"] + 0.1 / 22.1) < 3 * g["u"]  # gain −Δr/(r+Δr)
+
+
+def test_signature_repetition_and_selfcal():
+    ev, _ = make_evidence(np.random.default_rng(13), reps=3, start_faces=range(1, 24, 4), extra=_h7)
+    assert not signature(ev)["repetition"]["synchronous"]
+    ev2, _ = make_evidence(np.random.default_rng(13), reps=3, start_faces=range(1, 24, 4), selfcal=True,
+                           inject={"graduation_error": {2: (0.4, 0.3)}})
+    s2 = signature(ev2)
+    assert s2["repetition"]["synchronous"]
+    assert s2["selfcal"]["consistent"]  # an encoder error: the self-calibration sees the same
+    ev3, _ = make_evidence(np.random.default_rng(13), selfcal=True, inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}})
+    s3 = signature(ev3)
+    assert s3["selfcal"]["rms_selfcal_residual_arcsec"] < 0.03  # the reference chain's drift is not there
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. selection: nulls, unexplained, result format
+# ---------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("config", sorted(NULL_CONFIGS))
+@pytest.mark.parametrize("seed", [101, 102, 103, 104, 105])
+def test_nulls_give_no_effect(config, seed):
+    ev, _ = make_evidence(np.random.default_rng(seed), **NULL_CONFIGS[config])
+    res = trace(ev)
+    assert res["status"] == "no_significant_residual", (res["status"], [c["names"] for c in res["candidates"] if c["passed"]])
+    assert not res["identified_effects"] and not res["ambiguous"] and not res["unexplained"]
+    assert res["model_file"]["effects"] == []
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_effect_outside_the_library_is_unexplained(seed):
+    ev, _ = make_evidence(np.random.default_rng(seed), extra=_h7)
+    res = trace(ev)
+    assert res["unexplained"] and res["status"] == "unexplained"
+    assert res["identified_effects"] == []
+    assert 7 in res["unexplained_signature"]["significant_harmonics"]  # the residual's signature
+    assert res["unexplained_signature"]["left"]  # and what the best candidate leaves
+    assert res["residual_after"]["p_value"] < 1e-3
+    assert res["model_file"]["effects"] == []  # never force a fit into the model file
+
+
+def test_result_is_json_ready_and_complete():
+    ev, _ = make_evidence(np.random.default_rng(21), inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}})
+    res = trace(ev)
+    text = json.dumps(res, allow_nan=False)
+    assert json.loads(text)["status"] == "explained"
+    for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value", "significant"):
+        assert k in res["residual_before"]
+    for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error"):
+        assert k in res["residual_after"]
+    e = res["identified_effects"][0]
+    assert e["name"] == "ac_drift"
+    for k in ("delta_bic", "delta_aicc", "cv_gain", "z"):
+        assert e["evidence"][k] is not None
+    assert e["evidence"]["delta_bic"] > 10 and e["evidence"]["cv_gain"] > 0 and e["evidence"]["z"] > 4
+    assert res["residual_after"]["fraction_of_error"] < res["residual_before"]["fraction_of_error"]
+
+
+def test_candidates_subset():
+    ev, _ = make_evidence(np.random.default_rng(22), inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}})
+    res = trace(ev, candidates=["graduation_error", "optical_radius"])
+    assert res["status"] == "unexplained"  # the true effect is not among the candidates: no forced fit
+    assert not res["identified_effects"]
+
+
+# ---------------------------------------------------------------------------------------------
+# model file
+# ---------------------------------------------------------------------------------------------
+
+class _Model:
+    def __init__(self, terms):
+        self.terms = dict(terms)
+
+    def add_term(self, name, fn):
+        self.terms[name] = fn
+
+    def predict(self, theta_deg):
+        th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+        return sum(np.asarray(f(th), dtype=float) for f in self.terms.values())
+
+
+def test_model_file_round_trip(tmp_path):
+    ev, _ = make_evidence(np.random.default_rng(31), inject={"graduation_error": {2: (0.4, 0.3), 5: (0.2, 1.0)}})
+    res = trace(ev)
+    payload = res["model_file"]
+    assert payload["effects"] and payload["effects"][0]["name"] == "graduation_error"
+    path = tmp_path / "traced.json"
+    save_model(path, payload)
+    loaded = load_model(path)
+    assert loaded == [(e["name"], e["params"]) for e in payload["effects"]]
+    terms = model_terms_from_payload(path)
+    fn = terms["traced:graduation_error"]
+    th = np.linspace(0, 2 * np.pi, 50)
+    p = payload["effects"][0]["params"]
+    expect = p["a2_arcsec"] * np.sin(2 * th) + p["b2_arcsec"] * np.cos(2 * th) + p["a5_arcsec"] * np.sin(5 * th) + p["b5_arcsec"] * np.cos(5 * th)
+    np.testing.assert_allclose(fn(th), expect, atol=1e-12)
+    # the correction closes the loop: model + traced term reproduces α at the readings
+    m = _Model({})
+    assert add_to_error_model(m, path) == ["traced:graduation_error"]
+    r_after = ev.residual_arcsec - m.predict(ev.theta_deg)
+    r_after -= np.bincount(ev.closure_group, r_after)[ev.closure_group] / np.bincount(ev.closure_group)[ev.closure_group]
+    assert float(np.sqrt(np.mean(r_after ** 2))) < 1.5 * 0.07
+    with pytest.raises(ValueError):
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps({"format": "x", "version": 1, "effects": []}))
+        load_model(bad)
+
+
+def test_model_file_gain_effect_uses_the_model_terms(tmp_path):
+    ev, _ = make_evidence(np.random.default_rng(32), selfcal=True, inject={"optical_radius": {"delta_r_mm": 0.1}})
+    res = trace(ev)
+    names = [e["name"] for e in res["identified_effects"]]
+    assert names and names[0] in ("optical_radius", "ccd_pixel_scale")
+    save_model(tmp_path / "m.json", res["model_file"])
+    assert model_terms_from_payload(tmp_path / "m.json") == {}  # scaling effects need the base terms
+    ecc = lambda th: 66.57 * np.sin(th - math.radians(192.08))  # noqa: E731
+    m = _Model({"eccentricity": ecc})
+    added = add_to_error_model(m, tmp_path / "m.json")
+    assert added == [f"traced:{names[0]}"]
+    th = np.linspace(0, 2 * np.pi, 7)
+    g = m.terms[added[0]](th) / ecc(th)
+    assert np.allclose(g, g[0]) and -0.006 < g[0] < -0.003  # −Δr/r ≈ −0.45 %
+
+
+def test_with_the_project_error_model(tmp_path):
+    em = pytest.importorskip("benchtwin.analysis.error_model")
+    ev, _ = make_evidence(np.random.default_rng(33), inject={"graduation_error": {3: (0.3, 0.5)}})
+    res = trace(ev)
+    save_model(tmp_path / "m.json", res["model_file"])
+    model = em.ErrorModel(r_um=22000.0)
+    add_to_error_model(model, tmp_path / "m.json")
+    y = model.predict(np.array([0.0, 30.0]))
+    assert y.shape == (2,) and np.all(np.isfinite(y))
+
+
+# ---------------------------------------------------------------------------------------------
+# figures
+# ---------------------------------------------------------------------------------------------
+
+def test_figures(tmp_path):
+    from benchtwin.analysis.report.figures_loop import figures_loop
+
+    ev, _ = make_evidence(np.random.default_rng(41), directions=(1, -1), start_faces=range(1, 24, 3),
+                          inject={"graduation_error": {2: (0.4, 0.3)}})
+    res = trace(ev)
+    paths = figures_loop(ev, res, tmp_path)
+    for p in paths:
+        assert p.exists() and p.stat().st_size > 10_000
