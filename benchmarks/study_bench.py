@@ -74,7 +74,7 @@ def timed(study_path: Path, out: Path, **kw) -> tuple[float, dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--reps", type=int, default=4, help="repetitions per point (default 4)")
-    ap.add_argument("--repeat", type=int, default=2,
+    ap.add_argument("--repeat", type=int, default=3,
                     help="time every run this many times (fresh cache each time) and keep the fastest: "
                          "the machine may be shared (default 2)")
     ap.add_argument("--no-write", action="store_true", help="print only; leave docs/benchmarks.md alone")
@@ -88,27 +88,31 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="study-bench-"))
     try:
         sp = _study_copy(tmp, ns.reps)
-        rows = []
         best = lambda ts: min(ts, key=lambda x: x[0])  # noqa: E731
-        t_bare, n = best([bare(sp) for _ in range(ns.repeat)])
-        rows.append(("bare physics point function, in-process loop", t_bare, n, 1, t_bare))
         from distributed import LocalCluster
 
-        for label, nw, kw in (("runner, in-process (workers=0)", 1, {"workers": 0}),
-                              ("runner, local pool, 1 worker", 1, {"workers": 1}),
-                              ("runner, local pool, 2 workers", 2, {"workers": 2}),
-                              ("runner, Dask LocalCluster, 2 workers", 2, {"scheduler": "dask"})):
-            ts = []
-            for i in range(ns.repeat):
-                out = tmp / f"{len(rows)}_{i}"
+        configs = (("runner, in-process (workers=0)", 1, {"workers": 0}),
+                   ("runner, local pool, 1 worker", 1, {"workers": 1}),
+                   ("runner, local pool, 2 workers", 2, {"workers": 2}),
+                   ("runner, Dask LocalCluster, 2 workers", 2, {"scheduler": "dask"}))
+        times: dict[str, list] = {"bare": []}
+        times.update({label: [] for label, _, _ in configs})
+        # round robin over the configurations, so that bursts of other work hit them alike
+        for i in range(ns.repeat):
+            times["bare"].append(bare(sp))
+            for j, (label, _, kw) in enumerate(configs):
+                out = tmp / f"{j}_{i}"
                 if kw.get("scheduler") == "dask":
-                    # cluster start-up is outside the timing: a cluster is started once and reused
+                    # the cluster's start-up is outside the timing (a cluster usually outlives a study)
                     with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
                                       dashboard_address=None) as cluster:
-                        ts.append(timed(sp, out, scheduler=cluster.scheduler_address))
+                        times[label].append(timed(sp, out, scheduler=cluster.scheduler_address))
                 else:
-                    ts.append(timed(sp, out, **kw))
-            t, r = best(ts)
+                    times[label].append(timed(sp, out, **kw))
+        t_bare, n = best(times["bare"])
+        rows = [("bare physics point function, in-process loop", t_bare, n, 1, t_bare)]
+        for label, nw, _ in configs:
+            t, r = best(times[label])
             rows.append((label, t, r["rows"], nw, r["point_s"]))
         t, r = timed(sp, out, workers=2)
         assert r["computed"] == 0
