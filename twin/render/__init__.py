@@ -59,11 +59,11 @@ class Renderer:
     size is the camera's) and recreated only if the frame size changes.
     """
 
-    def __init__(self, backend: str = "auto", supersample: int = 1, jitter: int = 8):
+    def __init__(self, backend: str = "auto", supersample: int = 1, jitter: int = 2, end_band: bool = True):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         self.backend = backend
-        self.supersample, self.jitter = supersample, jitter
+        self.supersample, self.jitter, self.end_band = supersample, jitter, end_band
         self._gl = None
         self._gl_failed = False
 
@@ -75,7 +75,7 @@ class Renderer:
             self._gl.close()
             self._gl = None
         if self._gl is None:
-            self._gl = GlCoverageRenderer(w, h, self.supersample, self.jitter)
+            self._gl = GlCoverageRenderer(w, h, self.supersample, self.jitter, self.end_band)
         return self._gl
 
     def coverage(self, disk: BodyPose, grating: GratingSpec, camera: CcdCamera) -> tuple[np.ndarray, SceneGeometry, str]:
@@ -84,7 +84,8 @@ class Renderer:
         w, h = camera.width_px, camera.height_px
         if self.backend in ("auto", "pyrender") and not self._gl_failed:
             try:
-                return self._gl_renderer(w, h).coverage(scene.polygons), scene, "pyrender"
+                cov = self._gl_renderer(w, h).coverage(scene.polygons, scene.end_x_px(camera.reference_px))
+                return cov, scene, "pyrender"
             except Exception as exc:
                 if self.backend == "pyrender":
                     raise

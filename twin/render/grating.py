@@ -153,6 +153,13 @@ class SceneGeometry:
     edge_radius_px: float
     info: dict = field(default_factory=dict)
 
+    def end_x_px(self, ref_px: tuple[float, float]) -> np.ndarray:
+        """Image x of every outer-end vertex (the first n_arc + 1 vertices of each polygon)."""
+        n = self.info.get("n_arc", 0) + 1
+        if not self.polygons:
+            return np.zeros(0)
+        return np.concatenate([p[:n, 0] for p in self.polygons]) + ref_px[0]
+
 
 def _view_angles(disk: BodyPose, camera: CcdCamera, grating: GratingSpec, margin_px: float) -> tuple[float, float]:
     """Range of body polar angles whose lines can reach the view (+margin)."""
@@ -210,7 +217,8 @@ def build_scene(disk: BodyPose, grating: GratingSpec, camera: CcdCamera, margin_
     return SceneGeometry(polygons=[local[i] for i in np.flatnonzero(keep)], line_index=ks[keep],
                          end_mid_px=end_mid[keep], centre_px=(float(centre[0]), float(centre[1])),
                          edge_radius_px=R / camera.true_pixel_m,
-                         info={"n_lines_total": grating.n_lines, "pitch_rad": p})
+                         info={"n_lines_total": grating.n_lines, "pitch_rad": p, "n_arc": n_arc})
+
 
 
 def to_trimesh(polygons: list[np.ndarray], offset_px: tuple[float, float] = (0.0, 0.0), flip_y: bool = True,

@@ -56,6 +56,18 @@ def _lean_read(self, scene, flags):
     return np.frombuffer(buf, dtype=np.uint8).reshape(height, width)  # bottom row first
 
 
+def _aniso_ortho_camera(pr, xmag: float, ymag: float, znear: float, zfar: float):
+    """An orthographic camera whose xmag is honoured: pyrender's OrthographicCamera replaces xmag
+    by width/height·ymag whenever it knows the viewport, which forbids the end band's anisotropic
+    (x-only) magnification."""
+
+    class AnisoOrthographicCamera(pr.OrthographicCamera):
+        def get_projection_matrix(self, width=None, height=None):
+            return super().get_projection_matrix(None, None)
+
+    return AnisoOrthographicCamera(xmag=xmag, ymag=ymag, znear=znear, zfar=zfar)
+
+
 class GlCoverageRenderer:
     """Persistent off-screen GL context rendering line coverage images of W×H px.
 
@@ -63,33 +75,68 @@ class GlCoverageRenderer:
     pyrender context tears down the EGL display they share).
     """
 
-    def __init__(self, width_px: int, height_px: int, supersample: int = 1, jitter: int = 8):
+    def __init__(self, width_px: int, height_px: int, supersample: int = 1, jitter: int = 2,
+                 end_band: bool = True, band_jitter: int = 2, band_margin_px: float = 4.0):
         if supersample < 1 or jitter < 1:
             raise ValueError("supersample and jitter must be ≥ 1")
         self.width_px, self.height_px = int(width_px), int(height_px)
         self.k, self.n = int(supersample), int(jitter)
+        self.end_band, self.band_jitter, self.band_margin_px = bool(end_band), int(band_jitter), float(band_margin_px)
         pr = gl.pyrender()
         self._pr = pr
         self._r = pr.OffscreenRenderer(self.width_px * self.k, self.height_px * self.k)
         self._r._renderer._read_main_framebuffer = types.MethodType(_lean_read, self._r._renderer)
         self._scene = pr.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1.0, 1.0, 1.0])
-        cam = pr.OrthographicCamera(xmag=self.width_px / 2.0, ymag=self.height_px / 2.0, znear=0.5, zfar=10.0)
-        self._cam_node = self._scene.add(cam, pose=self._cam_pose(0.0))
+        cam = _aniso_ortho_camera(pr, self.width_px / 2.0, self.height_px / 2.0, 0.5, 10.0)
+        self._cam = cam
+        self._cam_node = self._scene.add(cam, pose=self._cam_pose(0.0, 0.0))
         self._mesh_node = None
 
     @staticmethod
-    def _cam_pose(shift: float) -> np.ndarray:
+    def _cam_pose(shift_x: float, shift_y: float, x_centre: float = 0.0) -> np.ndarray:
         pose = np.eye(4)
-        pose[:3, 3] = (shift, shift, 2.0)  # looking down −z onto the z = 0 plane
+        pose[:3, 3] = (x_centre + shift_x, shift_y, 2.0)  # looking down −z onto the z = 0 plane
         return pose
 
-    def shifts(self) -> np.ndarray:
-        m = np.arange(self.n)
-        return (m / (4.0 * self.n) - (self.n - 1) / (8.0 * self.n)) / self.k
+    def shifts(self, n: int | None = None) -> np.ndarray:
+        """Stratified sub-pixel camera shifts (output px) for n passes: with the 4 MSAA positions
+        (2j+1)/8 of a rendered pixel they give the positions (2q+1)/(8n) of a box filter."""
+        n = self.n if n is None else n
+        m = np.arange(n)
+        return (m / (4.0 * n) - (n - 1) / (8.0 * n)) / self.k
 
-    def coverage(self, polygons: list[np.ndarray]) -> np.ndarray:
+    def _band_columns(self, end_x_px: np.ndarray | None) -> tuple[int, int] | None:
+        """(first column, width) of the end band, or None. The width divides W so that the band
+        camera's x magnification W/width is an integer (whole sub-columns per output column)."""
+        if end_x_px is None or len(end_x_px) == 0 or not self.end_band:
+            return None
+        W = self.width_px
+        lo = int(np.floor(np.min(end_x_px) - self.band_margin_px))
+        hi = int(np.ceil(np.max(end_x_px) + self.band_margin_px))
+        lo, hi = max(lo, 0), min(hi, W - 1)
+        if hi < lo:
+            return None  # no line end in view
+        need = hi - lo + 1
+        widths = [d for d in range(need, W // 4 + 1) if W % d == 0]
+        if not widths:
+            return None  # ends spread over too wide a band: uniform jitter only
+        wb = widths[0]
+        c0 = min(max(lo - (wb - need) // 2, 0), W - wb)
+        return c0, wb
+
+    def _accumulate(self, xmag: float, x_centre: float, shifts_x: np.ndarray, shifts_y: np.ndarray) -> np.ndarray:
+        pr = self._pr
+        self._cam.xmag = xmag
+        acc = np.zeros((self.height_px * self.k, self.width_px * self.k), np.uint16)
+        for sx, sy in zip(shifts_x, shifts_y):
+            self._scene.set_pose(self._cam_node, self._cam_pose(float(sx), float(sy), x_centre))
+            acc += self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
+        return acc
+
+    def coverage(self, polygons: list[np.ndarray], end_x_px: np.ndarray | None = None) -> np.ndarray:
         """Coverage in [0, 1] (float64, H×W) of polygons given in camera-local px relative to the
-        reference point (W/2, H/2); pixel (x, y) centre at x, y."""
+        reference point (W/2, H/2); pixel (x, y) centre at x, y. ``end_x_px``: image x of the
+        line-end vertices, which sets the end band (rendered at W/width× in x)."""
         from benchtwin.twin.render.grating import to_trimesh
 
         pr = self._pr
@@ -98,21 +145,32 @@ class GlCoverageRenderer:
         if self._mesh_node is not None:
             self._scene.remove_node(self._mesh_node)
             self._mesh_node = None
-        W, H = self.width_px, self.height_px
+        W, H, k = self.width_px, self.height_px, self.k
         if polygons:
             # camera-local px (origin at the reference point W/2, H/2) → GL world: origin at the
             # image's geometric centre ((W−1)/2, (H−1)/2 in pixel-centre coordinates), y up
             tm = to_trimesh(polygons, offset_px=(W / 2.0 - (W - 1) / 2.0, H / 2.0 - (H - 1) / 2.0))
             tm.visual.vertex_colors = np.tile(np.array([0, 0, 0, 255], np.uint8), (len(tm.vertices), 1))
             self._mesh_node = self._scene.add(pr.Mesh.from_trimesh(tm, smooth=False))
-        acc = np.zeros((H * self.k, W * self.k), np.uint32)
-        for s in self.shifts():
-            self._scene.set_pose(self._cam_node, self._cam_pose(float(s)))
-            acc += self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
-        if self.k > 1:
-            acc = acc.reshape(H, self.k, W, self.k).sum(axis=(1, 3))
-        white = 255.0 * self.n * self.k * self.k
-        return (1.0 - acc[::-1].astype(np.float64) / white)
+        shifts = self.shifts()
+        acc = self._accumulate(W / 2.0, 0.0, shifts, shifts)  # diagonal: stratified in x and y
+        if k > 1:
+            acc = acc.reshape(H, k, W, k).sum(axis=(1, 3), dtype=np.uint32)
+        cov = 1.0 - acc[::-1].astype(np.float64) / (255.0 * len(shifts) * k * k)
+        band = self._band_columns(end_x_px)
+        if band is not None:
+            c0, wb = band
+            m = W // wb  # output columns are m·k rendered columns wide in the band pass
+            x_centre = (c0 - 0.5 + wb / 2.0) - (W - 1) / 2.0  # band centre in GL world units
+            # x is resolved by the magnification; y is stratified by y-only shifts (an x shift
+            # would smear the band's box filter by whole band sub-columns)
+            nb = self.band_jitter
+            sy = self.shifts(nb)
+            accb = self._accumulate(wb / 2.0, x_centre, np.zeros(nb), sy)
+            accb = accb.reshape(H, k, wb, m * k).sum(axis=(1, 3), dtype=np.uint32)
+            cov[:, c0:c0 + wb] = 1.0 - accb[::-1].astype(np.float64) / (255.0 * nb * m * k * k)
+        self._cam.xmag = W / 2.0
+        return cov
 
     def close(self) -> None:
         if self._r is not None:
