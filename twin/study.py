@@ -154,6 +154,11 @@ def _text(value: float, unit: str) -> str:
     return f"{float(value):.12g} {unit}"
 
 
+def _round(x: float) -> float:
+    """Undo unit-conversion round-off ("7 arcsec" -> 6.999999999999999 -> 7.0)."""
+    return float(f"{x:.12g}")
+
+
 def _split_unit(text: str) -> str:
     m = re.match(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(\S*)\s*$", text)
     return m.group(1) if m else ""
@@ -360,7 +365,7 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
                     x_si = parse_quantity(v, dim)
                 except UnitError as exc:
                     raise fail(f"{at}.values[{j}] ({name}): {exc}") from None
-                shown = x_si / _factor(p.unit, dim) if p.unit else x_si
+                shown = _round(x_si / _factor(p.unit, dim)) if p.unit else x_si
                 p.levels.append((shown, None))
         elif dim == "dimensionless" and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             p.kind = "number"
@@ -408,8 +413,8 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
                 raise fail(f"{at} ({name}): low/high/n needs a quantity or integer key; {key} is {dim}")
             try:
                 f = _factor(p.unit, dim)
-                lo_v = parse_quantity(lo, dim) / f
-                hi_v = parse_quantity(hi, dim) / f
+                lo_v = _round(parse_quantity(lo, dim) / f)
+                hi_v = _round(parse_quantity(hi, dim) / f)
             except UnitError as exc:
                 raise fail(f"{at}.low/high ({name}): {exc}") from None
         elif dim == "dimensionless" and isinstance(lo, (int, float)) and isinstance(hi, (int, float)):
@@ -424,7 +429,7 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
             if p.kind == "int":
                 p.levels = [(int(v), None) for v in np.unique(np.round(grid).astype(int))]
             else:
-                p.levels = [(float(v), None) for v in grid]
+                p.levels = [(_round(float(v)), None) for v in grid]
     p.dim = dim
     if sets is not None:
         if not isinstance(sets, Mapping) or not sets:
@@ -523,7 +528,7 @@ def _parse_target(t: Any, outputs: list[str], params: list[Parameter], fail) -> 
         raise fail("study.target: missing key below (e.g. below = \"1 arcsec\")")
     unit, dim = _output_dim(out)
     try:
-        below = parse_quantity(t["below"], dim) / _factor(unit, dim)
+        below = _round(parse_quantity(t["below"], dim) / _factor(unit, dim))
     except UnitError as exc:
         raise fail(f"study.target.below: {exc} (the output {out} is in {unit or 'no unit'})") from None
     pname = t.get("parameter", params[0].name)
