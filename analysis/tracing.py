@@ -910,6 +910,15 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                               "candidates": [cand_json(c) for c in sorted(singles + pairs, key=lambda c: c.bic)][:30]}
     total_err = _rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2))
     chosen = passed[0] if passed else None
+    # the three criteria side by side (the choice is BIC among candidates that pass all gates, CV
+    # included; AICc, which penalises less, is reported so that a disagreement is visible)
+    result["selection"] = {
+        "by_bic": passed[0].key if passed else None,
+        "by_aicc": min(passed, key=lambda c: c.aicc).key if passed else None,
+        "by_cv": min((c for c in passed if c.cv is not None), key=lambda c: c.cv).key if any(c.cv is not None for c in passed) else None,
+        "n_passed": len(passed), "cv_folds": None if pb.folds is None else int(len(np.unique(pb.folds[pb.folds >= 0]))),
+    }
+    result["selection"]["agree"] = len({v for k, v in result["selection"].items() if k.startswith("by_") and v}) <= 1
     if chosen is None:
         result["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
         result["unexplained"] = significant

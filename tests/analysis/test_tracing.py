@@ -244,3 +244,17 @@ def test_figures(tmp_path):
     paths = figures_loop(ev, res, tmp_path)
     for p in paths:
         assert p.exists() and p.stat().st_size > 10_000
+
+
+def test_docs_list_every_effect_and_threshold():
+    from pathlib import Path
+
+    from benchtwin.analysis import tracing
+    from benchtwin.analysis.effects import ALL
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "effects.md").read_text(encoding="utf-8")
+    for name in ALL:
+        assert f"`{name}`" in text, name
+    for const in ("P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR"):
+        v = getattr(tracing, const)
+        assert f"`{const}` = {v:g}" in text, (const, v)
