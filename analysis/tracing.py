@@ -582,7 +582,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
         u_amp = float(math.sqrt(max(g @ C @ g, 0.0)))
         p = float(stats.chi2.sf(q, 2))
         out.append({"k": k, "amplitude_arcsec": amp, "u_arcsec": u_amp, "phase_deg": math.degrees(math.atan2(a, b)),
-                    "a_arcsec": float(a), "b_arcsec": float(b), "z": _z_from_chi2(q, 2), "p_value": p,
+                    "a_arcsec": float(a), "b_arcsec": float(b), "chi2": q, "z": _z_from_chi2(q, 2), "p_value": p,
                     "significant": bool(p * len(ks) < P_SIG)})
     return out
 
@@ -832,7 +832,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     harm = harmonic_test(ev, pa)
     sig = signature(ev, harm)
     flagged = sig["significant_harmonics"]
-    significant = bool(before["p_value"] < P_SIG or _significant_parts(sig))
+    significant = bool(before["p_value"] < P_SIG or _significant_parts(sig, ev.n))
     before["significant"] = significant
     ctx = {"harmonics": flagged}
 
@@ -923,7 +923,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         result["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
         result["unexplained"] = significant
         result["status"] = "unexplained" if significant else "no_significant_residual"
-        result["unexplained_signature"] = ({**_short_signature(sig), "left": _significant_parts(sig)}
+        result["unexplained_signature"] = ({**_short_signature(sig), "left": _significant_parts(sig, ev.n)}
                                            if significant else None)
         result["model_file"] = _payload(ev, [], [], result["status"], ctx)
         return _jsonable(result)
@@ -954,35 +954,38 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                                      "z": chosen.z[member], "chi2": chosen.fit["chi2"], "dof": chosen.fit["dof"],
                                      "with": [n for n in chosen.names if n != member], "notes": chosen.notes}})
     # ambiguity: other passing candidates within AMBIG_DBIC whose predictions are nearly collinear
-    amb_names, amb_fits = set(chosen.names), {chosen.key: cj}
+    amb_cands, amb_fits = [set(chosen.names)], {chosen.key: cj}
     for c in passed[1:]:
         if c.bic - chosen.bic < AMBIG_DBIC:
             pc = pb.predict_rows(c.X, c.fit, nuisance=False)
             if _cos2(pb, pc, pred) > COLLINEAR:
-                amb_names |= set(c.names)
+                amb_cands.append(set(c.names))
                 amb_fits[c.key] = cand_json(c)
     forced = set()
     for member in chosen.names:
         fn = getattr(cands_mod[member], "ambiguous_with", None)
         forced |= set(fn(ev)) if fn else set()
     forced -= set(chosen.names)
-    generic = bool(forced)
     for other in sorted(forced):
-        amb_names.add(other)
+        amb_cands.append({other})
         for c in singles:
             if c.names == (other,):
                 amb_fits[c.key] = cand_json(c)
-    if len(amb_names) > 1:
+    # members shared by every alternative are identified whatever the choice: not part of the set
+    common = set.intersection(*amb_cands)
+    amb_names = set.union(*amb_cands) - (common if len(amb_cands) > 1 else set())
+    if len(amb_cands) > 1 and len(amb_names) > 1:
         names = sorted(amb_names)
         result["ambiguous"].append({"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
-                                    "forced_by_design": generic})
+                                    "alternatives": ["+".join(sorted(a)) for a in amb_cands],
+                                    "forced_by_design": sorted(forced)})
     # the residual after must show no signature left either (same tests as "anything to explain?")
     adj = np.zeros(ev.n)
     q0 = pb.S.shape[1]
     if chosen.fit["S"].shape[1] > q0:
         adj = chosen.fit["S"][: ev.n, q0:] @ chosen.fit["nuis"][q0:]  # regressor uncertainty, used
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - pred[alpha] - adj))
-    left = _significant_parts(sig_after)
+    left = _significant_parts(sig_after, ev.n)
     if p_after < P_SIG:
         left.insert(0, f"χ² after: p = {p_after:.2g}")
     result["residual_after"]["signature_left"] = left
@@ -1001,11 +1004,16 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     return _jsonable(result)
 
 
-def _significant_parts(sig: dict) -> list[str]:
-    """The parts of a signature that are significant (harmonics, drift, direction, face pattern)."""
+def _significant_parts(sig: dict, n: int) -> list[str]:
+    """The parts of a signature that would pass as an effect themselves: a harmonic whose χ²₂ clears
+    both candidate gates (z ≥ Z_GATE and ΔBIC = χ² − 2 ln n ≥ DBIC_GATE), a drift or direction
+    offset with z ≥ Z_GATE, a significant face pattern. (The Bonferroni flags of the signature are
+    laxer: a harmonic can be flagged yet too small for any two-parameter effect to earn its BIC.)"""
     out = []
-    if sig["significant_harmonics"]:
-        out.append(f"harmonics {sig['significant_harmonics']}")
+    hk = [h["k"] for h in sig["harmonics"]
+          if h["significant"] and h["z"] >= Z_GATE and h["chi2"] - 2 * math.log(n) >= DBIC_GATE]
+    if hk:
+        out.append(f"harmonics {hk}")
     if sig["drift"].get("significant"):
         out.append("drift with time")
     if sig["direction"].get("significant"):
