@@ -13,6 +13,8 @@ from . import (ac_drift, ac_scale, ccd_pixel_scale, graduation_error, interpolat
 _MODULES = (graduation_error, optical_radius, ccd_pixel_scale, tangential_motion, tilt_abbe, ac_drift,
             ac_scale, sphere_form, torsion_hysteresis, polygon_pitch_ignored, interpolation_error)
 
+from ._base import forward  # noqa: E402
+
 ALL = {m.NAME: m for m in _MODULES}
 
-__all__ = ["ALL"] + [m.NAME for m in _MODULES]
+__all__ = ["ALL", "forward"] + [m.NAME for m in _MODULES]

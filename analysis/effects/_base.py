@@ -133,3 +133,39 @@ def alias_harmonic(k_true: int, n_faces: int) -> int:
     """Harmonic k_true seen on an N-point equally spaced grid: folded into 0…N/2."""
     k = int(k_true) % int(n_faces)
     return min(k, int(n_faces) - k)
+
+
+def disk_fixed_heads(fn, theta_deg, heads_deg) -> np.ndarray:
+    """Multi-head channel (Hsieh eq. 8) of an error g fixed to the disk: head j at azimuth ψ_j reads
+    the disk at θ + ψ_j, so δ_(1,j)(θ) = g(θ) − g(θ + ψ_j). Returns (n, n_heads), head 1 = 0."""
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+    g1 = np.asarray(fn(th), dtype=float) + 0.0 * th
+    return np.column_stack([g1 - (np.asarray(fn(th + np.deg2rad(p)), dtype=float) + 0.0 * th) for p in heads_deg])
+
+
+def forward(module, ev, params: dict, ctx=None, heads_deg=None) -> dict:
+    """The effect's contribution to every channel the library models numerically:
+
+    - ``alpha``: per polygon reading (arcsec);
+    - ``selfcal``: on the self-calibration grid (arcsec), zero for reference-chain effects, None
+      without a self-calibration curve (before removing the blind harmonics);
+    - ``heads``: δ_(1,j) at the readings for ``heads_deg`` (arcsec, (n, n_heads)) where the module
+      has a ``heads`` forward model, zeros for reference-chain effects, else None (see CHANNELS).
+    The other channels (radial, CCD) are described in ``module.CHANNELS``.
+    """
+    out = {"alpha": module.predict(ev, params, ctx)}
+    view = ev.selfcal_view() if hasattr(ev, "selfcal_view") else None
+    if view is None:
+        out["selfcal"] = None
+    elif module.SEEN_BY_SELFCAL:
+        out["selfcal"] = module.predict(view, params, ctx)
+    else:
+        out["selfcal"] = np.zeros(len(view.theta_deg))
+    if heads_deg is not None:
+        if not module.SEEN_BY_SELFCAL:
+            out["heads"] = np.zeros((len(ev.theta_deg), len(heads_deg)))
+        elif hasattr(module, "heads"):
+            out["heads"] = module.heads(ev, params, heads_deg, ctx)
+        else:
+            out["heads"] = None
+    return out

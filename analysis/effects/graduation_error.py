@@ -20,7 +20,7 @@ Order set: k = 2…10.
 
 from __future__ import annotations
 
-from ._base import harmonic_columns, linear_predict
+from ._base import disk_fixed_heads, harmonic_columns, linear_predict
 
 NAME = "graduation_error"
 MEANING = (
@@ -68,6 +68,11 @@ def available(ev, ctx=None):
 
 def design(ev, ctx=None):
     return harmonic_columns(ev.theta_deg, _orders(ev, ctx))
+
+
+def heads(ev, params, heads_deg, ctx=None):
+    """δ_(1,j)(θ) = g(θ) − g(θ + ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
+    return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
 
 def predict(ev, params, ctx=None):

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ._base import alias_harmonic, linear_predict
+from ._base import disk_fixed_heads, alias_harmonic, linear_predict
 
 NAME = "interpolation_error"
 MEANING = (
@@ -108,6 +108,11 @@ def design(ev, ctx=None):
         cols += [np.sin(m * ph), np.cos(m * ph)]
         names += [f"c{m}_sin_arcsec", f"c{m}_cos_arcsec"]
     return (np.column_stack(cols) if cols else np.zeros((ph.size, 0))), names
+
+
+def heads(ev, params, heads_deg, ctx=None):
+    """δ_(1,j)(θ) = g(θ) − g(θ + ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
+    return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
 
 def predict(ev, params, ctx=None):

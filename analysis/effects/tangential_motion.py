@@ -85,6 +85,18 @@ def regressor_perturbations(ev, params, ctx=None):
                 + float(params.get("quadrature_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "quadrature"))
 
 
+def heads(ev, params, heads_deg, ctx=None):
+    """Head j at azimuth ψ_j (CCW from head 1 on +Y) reads the disk-centre motion c along its
+    tangent (−cos ψ, −sin ψ): error_j = −(cos ψ·c_x + sin ψ·c_y)/r. The part this effect adds is
+    the missing δX share: error_j = −g·cos ψ_j·δX/r, so δ_(1,j) = −g·(1 − cos ψ_j)·δX/r.
+    Only with X probes (the generic basis has no δX)."""
+    if not _has_x(ev):
+        return None
+    g = float(params.get("gain", 0.0))
+    dx = ev.radial.at(ev.theta_deg, "dX_um") / radius_um(ev) * ARCSEC_PER_RAD
+    return np.column_stack([-g * (1 - np.cos(np.deg2rad(p))) * dx for p in heads_deg])
+
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

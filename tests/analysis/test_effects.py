@@ -161,3 +161,26 @@ def test_effect_protocol(name):
         assert X.shape == (ev.n, len(names))
         p = {n: 0.1 * (i + 1) for i, n in enumerate(names)}
         np.testing.assert_allclose(m.predict(ev, p, ctx), X @ np.array([p[n] for n in names]))
+
+
+def test_forward_channels():
+    """alpha / selfcal / multi-head δ (Hsieh eq. 8) contributions of the effects."""
+    from benchtwin.analysis.effects import forward
+
+    ev, _ = make_evidence(np.random.default_rng(9), x_probes=True, selfcal=True)
+    heads = [0.0, 120.0, 240.0]
+    g = ALL["graduation_error"]
+    p = {"a2_arcsec": 0.3, "b2_arcsec": -0.1}
+    f = forward(g, ev, p, {"harmonics": [2]}, heads)
+    th = np.deg2rad(ev.theta_deg)
+    gfun = lambda t: 0.3 * np.sin(2 * t) - 0.1 * np.cos(2 * t)  # noqa: E731
+    np.testing.assert_allclose(f["alpha"], gfun(th))
+    np.testing.assert_allclose(f["selfcal"], gfun(np.deg2rad(ev.selfcal.theta_deg)))
+    np.testing.assert_allclose(f["heads"][:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(f["heads"][:, 1], gfun(th) - gfun(th + np.deg2rad(120)))
+    # reference-chain effects: nothing in the self-calibration or the heads
+    d = forward(ALL["ac_drift"], ev, {"drift_arcsec_per_s": 1e-3}, None, heads)
+    assert np.all(d["selfcal"] == 0) and np.all(d["heads"] == 0) and np.ptp(d["alpha"]) > 0
+    # tangential motion: head j sees −g·cos ψ_j·δX/r, head 1 the whole −g·δX/r
+    t = forward(ALL["tangential_motion"], ev, {"gain": 1.0}, None, [0.0, 180.0])
+    np.testing.assert_allclose(t["heads"][:, 1], 2 * t["alpha"])
