@@ -53,7 +53,7 @@ from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier
 
 __all__ = [
     "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
-    "save_model", "load_model", "model_terms_from_payload", "add_to_error_model",
+    "save_model", "load_model", "model_terms_from_payload", "add_to_error_model", "evidence_from_polygon",
     "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR",
 ]
 
@@ -292,10 +292,10 @@ class Evidence:
         if self.ac_arcsec is not None:
             self.ac_arcsec = np.asarray(self.ac_arcsec, dtype=float)
         if self.closure_group is None:
-            keys = np.round(self.shift_deg, 6) * 1000 + self.start_face
-            self.closure_group = np.unique(keys, return_inverse=True)[1]
+            keys = np.column_stack([np.round(self.shift_deg, 6), self.start_face])
+            self.closure_group = np.unique(keys, axis=0, return_inverse=True)[1].ravel()
         else:
-            self.closure_group = np.unique(np.asarray(self.closure_group), return_inverse=True)[1]
+            self.closure_group = np.unique(np.asarray(self.closure_group), return_inverse=True)[1].ravel()
         if self.model_sensitivity:
             self.model_sensitivity = {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()
                                       for k, v in self.model_sensitivity.items()}
@@ -347,6 +347,47 @@ class _View:
         if name == "ac_arcsec":
             return None
         raise AttributeError(name)
+
+
+def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model, *, n_faces: int,
+                          u_arcsec=0.07, radial: RadialMotion | None = None, selfcal_theta_deg=None,
+                          selfcal_value_arcsec=None, selfcal_u_arcsec=None, n_heads: int | None = None,
+                          **bench) -> Evidence:
+    """Evidence from the polygon table (dataset ``polygon.csv`` columns) and the shift-angle results.
+
+    ``columns``: ``shift_deg``, ``start_face``, ``step``, ``theta_deg``, ``ac_arcsec``, ``t_s`` and
+    optionally ``rep``, ``direction`` (+1/−1 or "forward"/"backward"). ``beta_arcsec``: the N pitch
+    deviations used; ``setup_error_arcsec``: {(shift_deg, start_face): U} (Hsieh eq. 7) or a callable
+    (shift, face) → U. α per reading = ε − Σ_{k=j}^{j+i−1} β_k − U_j (eq. 3). ``model``: anything with
+    ``predict_terms(theta_deg) -> {name: arcsec}`` (the project's ErrorModel) or a callable doing the
+    same. ``bench``: further Evidence keywords (optical_radius_mm, L1_mm, L2_mm, encoder_lines, ...).
+    """
+    N = int(n_faces)
+    c = {k: np.asarray(v) for k, v in columns.items()}
+    S = c["shift_deg"].astype(float)
+    j = c["start_face"].astype(int)
+    i = c["step"].astype(int)
+    th = c["theta_deg"].astype(float)
+    beta = np.asarray(beta_arcsec, dtype=float)
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
+    sumbeta = cum[j - 1 + i] - cum[j - 1]  # Σ_{k=j}^{j+i−1} β_k, indices mod N via the doubled sum
+    U_of = setup_error_arcsec if callable(setup_error_arcsec) else (
+        lambda s, f: setup_error_arcsec[(float(s), int(f))])
+    U = np.array([U_of(float(s), int(f)) for s, f in zip(S, j)], dtype=float)
+    alpha = c["ac_arcsec"].astype(float) - sumbeta - U
+    terms_fn = model.predict_terms if hasattr(model, "predict_terms") else model
+    direction = None
+    if "direction" in c:
+        d = c["direction"]
+        direction = np.where(np.char.startswith(d.astype(str), "b"), -1, 1) if d.dtype.kind in "US" else d.astype(float)
+    sc = None
+    if selfcal_theta_deg is not None:
+        tsc = np.asarray(selfcal_theta_deg, dtype=float)
+        sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float),
+                     0.01 if selfcal_u_arcsec is None else selfcal_u_arcsec, int(n_heads or 1), dict(terms_fn(tsc)))
+    return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=u_arcsec, model_terms=dict(terms_fn(th)),
+                    t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, start_face=j, shift_deg=S, step=i,
+                    n_faces=N, radial=radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc, **bench)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -929,7 +970,6 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         return _jsonable(result)
 
     pred = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
-    # χ² after: the alpha rows with the chosen effect's prediction removed (nuisance refitted)
     r1 = r0 - pred[alpha]
     # χ² after: the alpha rows without the chosen effect, model nuisance (and the chosen effect's
     # regressor uncertainty) refitted

@@ -161,5 +161,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
                   L1_mm=L1_MM, L2_mm=L2_MM, grating_period_um=20.0, encoder_lines=encoder_lines, radial=radial,
                   ac_arcsec=eps, selfcal=sc)
     truth = {"top": top, "bottom": bot, "top_x": top_x, "bottom_x": bot_x, "dbeta": dbeta, "cum": cum, "inject": inj,
-             "encoder_error": encoder_error}
+             "encoder_error": encoder_error, "beta": beta, "U": U, "alpha_true": alpha_true,
+             "model_terms": model_terms, "grid_deg": np.concatenate(g_all), "top_um": np.concatenate(t_all),
+             "bottom_um": np.concatenate(b_all)}
     return ev, truth
