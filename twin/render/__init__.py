@@ -79,7 +79,8 @@ class Renderer:
         return self._gl
 
     def coverage(self, disk: BodyPose, grating: GratingSpec, camera: CcdCamera) -> tuple[np.ndarray, SceneGeometry, str]:
-        """Chrome coverage in [0, 1] (H×W float64), the scene geometry, and the backend used."""
+        """Chrome coverage in [0, 1] (H×W; float32 from GL, float64 analytic), the scene geometry,
+        and the backend used."""
         scene = build_scene(disk, grating, camera)
         w, h = camera.width_px, camera.height_px
         if self.backend in ("auto", "pyrender") and not self._gl_failed:
@@ -99,7 +100,7 @@ class Renderer:
     def irradiance(self, disk: BodyPose, grating: GratingSpec, camera: CcdCamera) -> tuple[np.ndarray, SceneGeometry, str]:
         """Noise-free irradiance in [0, 1]: glass where no chrome, chrome transmission on lines."""
         cov, scene, used = self.coverage(disk, grating, camera)
-        irr = grating.glass_transmission + (grating.chrome_transmission - grating.glass_transmission) * cov
+        irr = np.float32(grating.glass_transmission) + np.float32(grating.chrome_transmission - grating.glass_transmission) * cov.astype(np.float32, copy=False)
         return irr, scene, used
 
     # ------------------------------------------------------------------ frames

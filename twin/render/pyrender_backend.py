@@ -68,6 +68,44 @@ def _aniso_ortho_camera(pr, xmag: float, ymag: float, znear: float, zfar: float)
     return AnisoOrthographicCamera(xmag=xmag, ymag=ymag, znear=znear, zfar=zfar)
 
 
+def _lean_framebuffer(self):
+    """pyrender's main framebuffers, but one 8-bit channel and no depth (bound to one Renderer).
+
+    Coverage needs neither colour nor depth: the lines never overlap. A GL_R8 multisample buffer
+    is a quarter of the RGBA8 + DEPTH24 traffic per sample that llvmpipe clears, fills and resolves.
+    """
+    from OpenGL.GL import (GL_COLOR_ATTACHMENT0, GL_DRAW_FRAMEBUFFER, GL_R8, GL_RENDERBUFFER,
+                           glBindFramebuffer, glBindRenderbuffer, glFramebufferRenderbuffer,
+                           glGenFramebuffers, glGenRenderbuffers, glRenderbufferStorage,
+                           glRenderbufferStorageMultisample)
+
+    if self._main_fb is not None and (self.viewport_width, self.viewport_height) != self._main_fb_dims:
+        self._delete_main_framebuffer()
+    if self._main_fb is None:
+        self._main_cb, self._main_cb_ms = glGenRenderbuffers(2)
+        glBindRenderbuffer(GL_RENDERBUFFER, self._main_cb)
+        glRenderbufferStorage(GL_RENDERBUFFER, GL_R8, self.viewport_width, self.viewport_height)
+        glBindRenderbuffer(GL_RENDERBUFFER, self._main_cb_ms)
+        glRenderbufferStorageMultisample(GL_RENDERBUFFER, 4, GL_R8, self.viewport_width, self.viewport_height)
+        self._main_fb, self._main_fb_ms = glGenFramebuffers(2)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, self._main_fb)
+        glFramebufferRenderbuffer(GL_DRAW_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, self._main_cb)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, self._main_fb_ms)
+        glFramebufferRenderbuffer(GL_DRAW_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, self._main_cb_ms)
+        self._main_fb_dims = (self.viewport_width, self.viewport_height)
+
+
+def _lean_delete_framebuffer(self):
+    from OpenGL.GL import glDeleteFramebuffers, glDeleteRenderbuffers
+
+    if self._main_fb is not None:
+        glDeleteFramebuffers(2, [self._main_fb, self._main_fb_ms])
+        glDeleteRenderbuffers(2, [self._main_cb, self._main_cb_ms])
+    self._main_fb = self._main_cb = self._main_fb_ms = self._main_cb_ms = None
+    self._main_db = self._main_db_ms = None
+    self._main_fb_dims = (None, None)
+
+
 class GlCoverageRenderer:
     """Persistent off-screen GL context rendering line coverage images of W×H px.
 
@@ -76,7 +114,8 @@ class GlCoverageRenderer:
     """
 
     def __init__(self, width_px: int, height_px: int, supersample: int = 1, jitter: int = 2,
-                 end_band: bool = True, band_jitter: int = 2, band_margin_px: float = 4.0):
+                 end_band: bool = True, band_jitter: int = 2, band_margin_px: float = 4.0,
+                 lean_framebuffer: bool = True):
         if supersample < 1 or jitter < 1:
             raise ValueError("supersample and jitter must be ≥ 1")
         self.width_px, self.height_px = int(width_px), int(height_px)
@@ -85,7 +124,12 @@ class GlCoverageRenderer:
         pr = gl.pyrender()
         self._pr = pr
         self._r = pr.OffscreenRenderer(self.width_px * self.k, self.height_px * self.k)
-        self._r._renderer._read_main_framebuffer = types.MethodType(_lean_read, self._r._renderer)
+        rr = self._r._renderer
+        rr._read_main_framebuffer = types.MethodType(_lean_read, rr)
+        if lean_framebuffer:
+            rr._delete_main_framebuffer()  # (none yet) then replace how it is (re)built
+            rr._configure_main_framebuffer = types.MethodType(_lean_framebuffer, rr)
+            rr._delete_main_framebuffer = types.MethodType(_lean_delete_framebuffer, rr)
         self._scene = pr.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1.0, 1.0, 1.0])
         cam = _aniso_ortho_camera(pr, self.width_px / 2.0, self.height_px / 2.0, 0.5, 10.0)
         self._cam = cam
@@ -134,7 +178,7 @@ class GlCoverageRenderer:
         return acc
 
     def coverage(self, polygons: list[np.ndarray], end_x_px: np.ndarray | None = None) -> np.ndarray:
-        """Coverage in [0, 1] (float64, H×W) of polygons given in camera-local px relative to the
+        """Coverage in [0, 1] (float32, H×W) of polygons given in camera-local px relative to the
         reference point (W/2, H/2); pixel (x, y) centre at x, y. ``end_x_px``: image x of the
         line-end vertices, which sets the end band (rendered at W/width× in x)."""
         from benchtwin.twin.render.grating import to_trimesh
@@ -156,7 +200,8 @@ class GlCoverageRenderer:
         acc = self._accumulate(W / 2.0, 0.0, shifts, shifts)  # diagonal: stratified in x and y
         if k > 1:
             acc = acc.reshape(H, k, W, k).sum(axis=(1, 3), dtype=np.uint32)
-        cov = 1.0 - acc[::-1].astype(np.float64) / (255.0 * len(shifts) * k * k)
+        # float32: 8-bit passes averaged need no more, and it halves the memory traffic per frame
+        cov = 1.0 - acc[::-1].astype(np.float32) * np.float32(1.0 / (255.0 * len(shifts) * k * k))
         band = self._band_columns(end_x_px)
         if band is not None:
             c0, wb = band
@@ -168,7 +213,7 @@ class GlCoverageRenderer:
             sy = self.shifts(nb)
             accb = self._accumulate(wb / 2.0, x_centre, np.zeros(nb), sy)
             accb = accb.reshape(H, k, wb, m * k).sum(axis=(1, 3), dtype=np.uint32)
-            cov[:, c0:c0 + wb] = 1.0 - accb[::-1].astype(np.float64) / (255.0 * nb * m * k * k)
+            cov[:, c0:c0 + wb] = 1.0 - accb[::-1].astype(np.float64) / (255.0 * nb * m * k * k)  # (float32 store)
         self._cam.xmag = W / 2.0
         return cov
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -130,51 +131,50 @@ def _disk_kernel(radius_px: float) -> np.ndarray:
     return k / k.sum()
 
 
+@lru_cache(maxsize=4)
 def vignetting_map(h: int, w: int, fraction: float) -> np.ndarray:
     """Relative illumination, 1 at the centre, 1 − fraction at the corners (cos⁴ law shape)."""
     if fraction <= 0:
-        return np.ones((h, w), np.float32)
+        v = np.ones((h, w), np.float32)
+        v.flags.writeable = False
+        return v
     y = (np.arange(h, dtype=np.float32) - (h - 1) / 2.0)[:, None]
     x = (np.arange(w, dtype=np.float32) - (w - 1) / 2.0)[None, :]
     rho2 = (x * x + y * y) / np.float32(((w - 1) / 2.0) ** 2 + ((h - 1) / 2.0) ** 2)
     tan_c2 = math.tan(math.radians(30.0)) ** 2  # cos⁴ over a ±30° field: the law's shape, rescaled
     cos4 = 1.0 / (1.0 + rho2 * np.float32(tan_c2)) ** 2
     cos4_corner = 1.0 / (1.0 + tan_c2) ** 2
-    return (1.0 - fraction * (1.0 - cos4) / (1.0 - cos4_corner)).astype(np.float32)
+    v = (1.0 - fraction * (1.0 - cos4) / (1.0 - cos4_corner)).astype(np.float32)
+    v.flags.writeable = False  # cached and shared between frames
+    return v
 
 
 def dust_map(h: int, w: int, dust_count: int, scratch_count: int, rng: np.random.Generator) -> np.ndarray:
     """Transmission (float32, ≤ 1) of dust specks (several sizes) and scratches on the disk."""
     import cv2
 
-    t = np.ones((h, w), np.float32)
+    opacity = np.zeros((h, w), np.float32)
     if dust_count <= 0 and scratch_count <= 0:
-        return t
-    ss = 4  # draw at 4× with sub-pixel coordinates (cv2 shift) and area-average: smooth, sized
-    big = np.zeros((h * ss, w * ss), np.float32)
-    sh = 4  # cv2 fractional bits
+        return 1.0 - opacity
+    sh = 4  # cv2 fractional bits: sub-pixel positions and sizes; LINE_AA gives area-like rims
+    f = float(2 ** sh)
     for _ in range(dust_count):
-        # log-uniform radius 1–12 px: many specks, a few large lint blobs
-        r = math.exp(rng.uniform(math.log(1.0), math.log(12.0)))
-        opacity = rng.uniform(0.5, 0.95)
+        # log-uniform radius 1–12 px: many specks, a few large lint blobs; irregular = ellipses
+        r = math.exp(rng.uniform(0.0, math.log(12.0)))
+        op = float(rng.uniform(0.5, 0.95))
         cx, cy = rng.uniform(0, w), rng.uniform(0, h)
-        ax1, ax2 = r, r * rng.uniform(0.5, 1.0)  # irregular: ellipses
-        layer = np.zeros_like(big)
-        cv2.ellipse(layer, (int(cx * ss * 2 ** sh), int(cy * ss * 2 ** sh)),
-                    (int(ax1 * ss * 2 ** sh), int(ax2 * ss * 2 ** sh)), float(rng.uniform(0, 180)), 0, 360,
-                    float(opacity), -1, cv2.LINE_8, sh)
-        np.maximum(big, layer, out=big)
+        axes = (int(r * f), int(r * rng.uniform(0.5, 1.0) * f))
+        cv2.ellipse(opacity, (int(cx * f), int(cy * f)), axes, float(rng.uniform(0, 180)), 0, 360, op, -1,
+                    cv2.LINE_AA, sh)
     for _ in range(scratch_count):
         length = rng.uniform(0.1, 0.6) * max(w, h)
-        width = rng.uniform(0.5, 3.0)
+        width = max(1, int(round(rng.uniform(1.0, 3.0))))
         ang = rng.uniform(0, math.pi)
         cx, cy = rng.uniform(0, w), rng.uniform(0, h)
         dx, dy = 0.5 * length * math.cos(ang), 0.5 * length * math.sin(ang)
-        p1 = (int((cx - dx) * ss * 2 ** sh), int((cy - dy) * ss * 2 ** sh))
-        p2 = (int((cx + dx) * ss * 2 ** sh), int((cy + dy) * ss * 2 ** sh))
-        cv2.line(big, p1, p2, float(rng.uniform(0.3, 0.8)), max(1, int(round(width * ss))), cv2.LINE_8, sh)
-    opacity = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
-    return (1.0 - opacity).astype(np.float32)
+        cv2.line(opacity, (int((cx - dx) * f), int((cy - dy) * f)), (int((cx + dx) * f), int((cy + dy) * f)),
+                 float(rng.uniform(0.3, 0.8)), width, cv2.LINE_AA, sh)
+    return 1.0 - np.clip(opacity, 0.0, 1.0)
 
 
 def apply_sensor(irradiance: np.ndarray, sensor: SensorParams, rng: np.random.Generator,
@@ -198,13 +198,14 @@ def apply_sensor(irradiance: np.ndarray, sensor: SensorParams, rng: np.random.Ge
     if sensor.vignetting > 0:
         img = img * vignetting_map(h, w, sensor.vignetting)
     lam = np.clip(img, 0.0, None) * np.float32(sensor.exposure * sensor.full_well_e)
-    # shot noise: Gaussian of variance λ where λ ≥ 100 e⁻, exact Poisson below
-    e = lam + np.sqrt(lam) * rng.standard_normal(lam.shape, dtype=np.float32)
+    read2 = np.float32(sensor.read_noise_e ** 2)
+    # shot + read noise as ONE Gaussian of variance λ + σ_read² where λ ≥ 100 e⁻ (the sum of two
+    # independent Gaussians; one draw instead of two), exact Poisson + Gaussian read noise below
+    e = lam + np.sqrt(lam + read2) * rng.standard_normal(lam.shape, dtype=np.float32)
     low = lam < 100.0
     if low.any():
-        e[low] = rng.poisson(lam[low]).astype(np.float32)
-    if sensor.read_noise_e > 0:
-        e += np.float32(sensor.read_noise_e) * rng.standard_normal(lam.shape, dtype=np.float32)
+        nl = int(low.sum())
+        e[low] = rng.poisson(lam[low]).astype(np.float32) + np.float32(sensor.read_noise_e) * rng.standard_normal(nl, dtype=np.float32)
     np.clip(e, 0.0, sensor.full_well_e, out=e)  # saturation at the full well; no negative charge
     dn = np.rint(e * np.float32(sensor.max_dn / sensor.full_well_e))
     return dn.astype(sensor.dtype)
