@@ -7,8 +7,9 @@ leaves a ±6″ residual; these figures show what happened to that residual here
   effect's contribution, and the residual after;
 - :func:`plot_harmonic_spectrum`: the residual's harmonic amplitudes with their standard
   uncertainties and the significance threshold;
-- :func:`plot_signature`: residual vs reading time (drift), vs the polygon face under the
-  autocollimator (a pattern that moves with the start face), and by direction of rotation.
+- :func:`plot_signature`: residual vs reading time (drift), vs start face (spread per run), vs the
+  polygon face under the autocollimator (a pattern that moves with the start face), and by
+  direction of rotation.
 
 Object-oriented matplotlib on the Agg canvas (no pyplot, no global backend switch). Each function
 returns the Figure and writes it to ``path`` when given.
@@ -90,8 +91,10 @@ def plot_harmonic_spectrum(result: dict, path=None) -> Figure:
     amp = np.array([x["amplitude_arcsec"] for x in h])
     u = np.array([x["u_arcsec"] if x["u_arcsec"] is not None else np.nan for x in h])
     sig = np.array([x["significant"] for x in h])
-    a.bar(k[~sig], amp[~sig], color="0.6", label="not significant")
-    a.bar(k[sig], amp[sig], color="C3", label="significant")
+    if np.any(~sig):
+        a.bar(k[~sig], amp[~sig], color="0.6", label="not significant")
+    if np.any(sig):
+        a.bar(k[sig], amp[sig], color="C3", label="significant (Bonferroni p·K < 1e-3)")
     a.errorbar(k, amp, yerr=u, fmt="none", ecolor="k", capsize=2, lw=0.8, label="± u")
     a.plot(k, Z_GATE * u, "_", color="C0", ms=12, mew=1.5, label=f"{Z_GATE:g}·u")
     a.set_xlabel("harmonic k (per turn)")
@@ -102,7 +105,7 @@ def plot_harmonic_spectrum(result: dict, path=None) -> Figure:
 
 
 def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
-    fig, ax = _fig(12, 4, 1, 3)
+    fig, ax = _fig(15, 4, 1, 4)
     r = _centred_residual(ev)
     w2 = 1.0 / ev.u_arcsec ** 2
     # vs time
@@ -118,8 +121,16 @@ def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
     a.set_xlabel("t [s]")
     a.set_ylabel("residual [arcsec]")
     a.set_title("vs reading time", fontsize=10)
+    # vs start face: the closure removes each run's mean, so what is left to see is the spread
+    e = ax[0, 1]
+    sfs = np.unique(ev.start_face)
+    e.plot(ev.start_face + 0.15 * (np.random.default_rng(0).random(ev.n) - 0.5), r, ".", ms=2, color="0.6")
+    e.plot(sfs, [np.sqrt(np.mean(r[ev.start_face == j] ** 2)) for j in sfs], "o-", ms=3, color="C3", label="rms per start face")
+    e.set_xlabel("start face j")
+    e.set_title("vs start face", fontsize=10)
+    e.legend(fontsize=8)
     # vs face under the autocollimator
-    b = ax[0, 1]
+    b = ax[0, 2]
     faces = np.unique(ev.face)
     m = np.array([np.average(r[ev.face == f], weights=w2[ev.face == f]) for f in faces])
     s = np.array([1.0 / np.sqrt(np.sum(w2[ev.face == f])) for f in faces])
@@ -128,7 +139,7 @@ def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
     b.set_title("vs polygon face" + (f" (p = {sf['p_value']:.2g})" if sf.get("p_value") is not None else ""), fontsize=10)
     b.set_xlabel("face under the autocollimator")
     # by direction
-    c = ax[0, 2]
+    c = ax[0, 3]
     th = ev.theta_deg % 360
     for dval, col, lab in ((1, "C0", "forward"), (-1, "C1", "backward")):
         sel = ev.direction == dval
