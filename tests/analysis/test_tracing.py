@@ -276,3 +276,16 @@ def test_evidence_from_polygon_table():
     np.testing.assert_array_equal(ev2.face, ev.face)
     assert set(ev2.model_terms) == {"eccentricity", "radial_motion_integral"}
     assert trace(ev2)["status"] == "no_significant_residual"  # α exact: the model explains it (to the probe noise)
+
+
+def test_signature_ccd_eccentricity():
+    """CCD d_ref (Jia eqs. 10–12): first harmonic → e, θ0 of eq. 3 (camera at 180°)."""
+    from benchtwin.analysis.tracing import CCDData
+
+    ev, _ = make_evidence(np.random.default_rng(61))
+    th = np.arange(0.0, 360.0, 6.0)
+    d = 3.0 + 7.1 * np.cos(np.deg2rad(th - 192.08)) + 0.05 * np.sin(np.deg2rad(4 * th))
+    ev.ccd = CCDData(th, d + np.random.default_rng(62).normal(0, 0.02, th.size))
+    s = signature(ev)["ccd"]
+    assert abs(s["e_um"] - 7.1) < 0.02 and abs(s["theta0_deg"] - 192.08) < 0.3
+    assert 0.02 < s["rms_orders_2_10_um"] < 0.06
