@@ -323,6 +323,18 @@ class Evidence:
             return {}
         return {c: self.radial.at(self.theta_deg, c) for c in self.radial.channels}
 
+    def add_eccentricity_uncertainty(self, e_um: float, theta0_deg: float, u_e_um: float, u_theta0_deg: float) -> None:
+        """Add u(e) and u(θ0) of the CCD eccentricity (Jia sec. 5: 0.24 µm, 1.13°) to the model's
+        uncertainty: the sensitivities of e/r·sin(θ−θ0) (eq. 3) times u, at the readings and on the
+        self-calibration grid."""
+        def sens(th_deg):
+            t = np.deg2rad(np.asarray(th_deg, dtype=float) - theta0_deg)
+            k = ARCSEC_PER_RAD / (self.optical_radius_mm * 1000.0)
+            return {"u_e": k * u_e_um * np.sin(t), "u_theta0": -k * e_um * np.cos(t) * math.radians(u_theta0_deg)}
+        self.model_sensitivity = {**(self.model_sensitivity or {}), **sens(self.theta_deg)}
+        if self.selfcal is not None:
+            self.selfcal.model_sensitivity = {**(self.selfcal.model_sensitivity or {}), **sens(self.selfcal.theta_deg)}
+
     def selfcal_view(self) -> "_View | None":
         if self.selfcal is None:
             return None

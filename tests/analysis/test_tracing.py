@@ -289,3 +289,15 @@ def test_signature_ccd_eccentricity():
     s = signature(ev)["ccd"]
     assert abs(s["e_um"] - 7.1) < 0.02 and abs(s["theta0_deg"] - 192.08) < 0.3
     assert 0.02 < s["rms_orders_2_10_um"] < 0.06
+
+
+def test_jia_eccentricity_uncertainty_hides_a_gain_on_the_eccentricity():
+    """With Jia's u(e) = 0.24 µm and u(θ0) = 1.13° (sec. 5), a 1 % pixel-scale error is within the
+    model's own uncertainty; with a self-calibration too (the same nuisance acts on its rows)."""
+    for selfcal in (False, True):
+        ev, _ = make_evidence(np.random.default_rng(71), selfcal=selfcal,
+                              inject={"ccd_pixel_scale": {"scale_error_pct": 1.0}})
+        ev.add_eccentricity_uncertainty(7.1, 192.08, 0.24, 1.13)
+        assert set(ev.model_sensitivity) == {"u_e", "u_theta0"}
+        res = trace(ev)
+        assert res["status"] == "no_significant_residual", res["status"]
