@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import codecs
 import re
+import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -37,7 +38,7 @@ import serial
 
 from benchtwin.hw.transport import Transport
 
-__all__ = ["Command", "CommandTable", "InstrumentError", "FormatError", "SerialInstrument", "to_bytes"]
+__all__ = ["Command", "CommandTable", "InstrumentError", "FormatError", "SerialInstrument", "SharedPort", "to_bytes"]
 
 
 class InstrumentError(RuntimeError):
@@ -151,6 +152,15 @@ class CommandTable(dict):
                 for n, c in self.items()}
 
 
+class SharedPort:
+    """One open transport shared by several driver objects (e.g. the channels of a multi-channel
+    amplifier). Exchanges are serialised with a lock, and a reconnect by any sharer is seen by all."""
+
+    def __init__(self, transport: Transport) -> None:
+        self.transport = transport
+        self.lock = threading.RLock()
+
+
 Parser = Callable[["SerialInstrument", re.Match[bytes], Command], dict[str, Any]]
 
 
@@ -162,7 +172,8 @@ class SerialInstrument:
     """Base of the serial drivers. Subclasses set ``KIND``, ``MODEL``, ``UNITS``, ``SERIAL_SETTINGS``
     (what the caller passes to ``open_transport``), ``DEFAULT_COMMANDS`` and ``PARSERS``.
 
-    Constructor arguments common to every driver: ``name``; ``transport`` (an open ``Transport``);
+    Constructor arguments common to every driver: ``name``; ``transport`` (an open ``Transport``, or a
+    ``SharedPort`` when several driver objects share one port);
     ``commands`` (bench-file overrides of the command table); ``retries`` (extra attempts after the
     first, default 2); ``backoff_s``/``backoff_factor`` (wait before retry k is
     ``backoff_s * backoff_factor**k``); ``sleep`` (callable taking seconds; default ``time.sleep``,
@@ -185,7 +196,7 @@ class SerialInstrument:
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
         self.name = str(name)
-        self.transport = transport
+        self.port = transport if isinstance(transport, SharedPort) else SharedPort(transport)
         self.commands = CommandTable.build(self.DEFAULT_COMMANDS, commands)
         for cmd in self.commands.values():
             if cmd.parse not in self.PARSERS:
@@ -198,6 +209,14 @@ class SerialInstrument:
         self.clock = clock if clock is not None else time.monotonic
         self.reconnect = reconnect
         self.last_raw = b""
+
+    @property
+    def transport(self) -> Transport:
+        return self.port.transport
+
+    @transport.setter
+    def transport(self, value: Transport) -> None:
+        self.port.transport = value
 
     @classmethod
     def serial_settings(cls, **overrides: Any) -> dict[str, Any]:
@@ -225,8 +244,17 @@ class SerialInstrument:
         """Send a command that has no reply (``lines = 0``); disconnects handled as in ``query``."""
         self.query(command, **fields)
 
-    def query(self, command: str, **fields: Any) -> dict[str, Any]:
-        """Send ``command`` and return the parse function's dict; see the module docstring."""
+    def query(self, command: str, _post: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+              **fields: Any) -> dict[str, Any]:
+        """Send ``command`` and return the parse function's dict; see the module docstring.
+
+        ``_post`` (optional) turns the parsed dict into the driver's result inside the retry loop, so a
+        ``ValueError`` it raises (say, too few fields) is retried like any format error."""
+        with self.port.lock:
+            return self._query(command, _post, **fields)
+
+    def _query(self, command: str, _post: Callable[[dict[str, Any]], dict[str, Any]] | None,
+               **fields: Any) -> dict[str, Any]:
         try:
             cmd = self.commands[command]
         except KeyError:
@@ -271,7 +299,8 @@ class SerialInstrument:
                 reason = f"garbled reply (does not match {cmd.response!r})"
                 continue
             try:
-                return parser(self, m, cmd)
+                result = parser(self, m, cmd)
+                return _post(result) if _post is not None else result
             except InstrumentError:
                 raise
             except (ValueError, IndexError) as exc:

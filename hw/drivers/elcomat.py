@@ -45,7 +45,7 @@ class Elcomat(SerialInstrument):
 
     KIND = "autocollimator"
     MODEL = "Möller-Wedel ELCOMAT 3000 family"
-    UNITS = {"x_arcsec": "arcsec", "y_arcsec": "arcsec"}
+    UNITS = {"x_arcsec": "arcsec", "y_arcsec": "arcsec", "x_raw_arcsec": "arcsec", "y_raw_arcsec": "arcsec"}
     SERIAL_SETTINGS = {"baudrate": 19200, "bytesize": 8, "parity": "N", "stopbits": 1, "timeout": 0.5}
     PROTOCOL_DOC = "docs/protocols/elcomat.md"
     DEFAULT_COMMANDS = {

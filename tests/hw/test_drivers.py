@@ -138,3 +138,258 @@ def test_elcomat_garbage_never_parses_silently(junk):
     # only a well-formed line can get through, and then its numbers are exactly the bytes sent
     assert junk.endswith(b"\r") and Elcomat.DEFAULT_COMMANDS["read_absolute"].compiled().fullmatch(junk)
     assert r["status"] == "ok" or r["status"].startswith("code_")
+
+
+# --- TriAngle -------------------------------------------------------------------------------------
+from benchtwin.hw.drivers.triangle import TriAngle, format_triangle  # noqa: E402
+
+
+def test_triangle_replay_fields_no_signal_and_short_reply():
+    rt = replay("triangle_basic.jsonl")
+    ac = TriAngle("tri", rt, sleep=Sleeps(), clock=Clock())
+    r = ac.read()
+    assert (r["x_arcsec"], r["y_arcsec"], r["signal"], r["status"]) == (12.5, -3.25, 0.85, "ok")
+    r = ac.read()
+    assert r["status"] == "no_signal" and math.isnan(r["x_arcsec"]) and math.isnan(r["y_arcsec"])
+    r = ac.read()  # two fields only: a format error, retried
+    assert (r["x_arcsec"], r["y_arcsec"]) == (2.0, 1.0)
+    rt.assert_done()
+
+
+@given(fields=st.lists(st.floats(min_value=-5000, max_value=5000, allow_nan=False).map(lambda v: round(v, 3)),
+                       min_size=4, max_size=6))
+@settings(max_examples=60, deadline=None)
+def test_triangle_parser_round_trip(fields):
+    rt = ReplayTransport([{"request": "P 1\r\n", "response": format_triangle(fields).decode()}])
+    r = TriAngle("tri", rt, sleep=Sleeps(), retries=0).read()
+    if fields[3] <= 0.01:
+        assert r["status"] == "no_signal"
+    else:
+        assert r["x_arcsec"] == pytest.approx(fields[1]) and r["y_arcsec"] == pytest.approx(fields[0])
+
+
+@given(junk=st.binary(max_size=40))
+@settings(max_examples=80, deadline=None)
+def test_triangle_garbage_never_parses_silently(junk):
+    rt = ReplayTransport([{"request": "P 1\r\n", "response": junk.decode("latin-1")}])
+    try:
+        r = TriAngle("tri", rt, sleep=Sleeps(), retries=0).read()
+    except InstrumentError:
+        return
+    assert TriAngle.DEFAULT_COMMANDS["poll"].compiled().fullmatch(junk) and junk.count(b";") >= 3
+    assert r["status"] in ("ok", "no_signal")
+
+
+# --- TESA -----------------------------------------------------------------------------------------
+from benchtwin.hw.drivers.tesa import TesaTT, format_tesa  # noqa: E402
+
+
+def test_tesa_replay():
+    rt = replay("tesa_basic.jsonl")
+    sleeps = Sleeps()
+    p = TesaTT("probe_top", rt, sleep=sleeps, clock=Clock())
+    assert p.read()["value_um"] == 12.34
+    assert p.read()["value_um"] == -3.5
+    assert p.read()["value_um"] == 0.0 and len(sleeps) == 1  # timeout, retry
+    r = p.read()
+    assert r["status"] == "instrument_message" and r["message"] == "ERR23" and math.isnan(r["value_um"])
+    rt.assert_done()
+    assert TesaTT.serial_settings() == {"baudrate": 4800, "bytesize": 7, "parity": "E", "stopbits": 2, "timeout": 0.5}
+
+
+@given(v=st.floats(min_value=-9999.99, max_value=9999.99, allow_nan=False).map(lambda v: round(v, 2)))
+@settings(max_examples=60, deadline=None)
+def test_tesa_parser_round_trip(v):
+    rt = ReplayTransport([{"request": "?\r", "response": format_tesa(v).decode()}])
+    assert TesaTT("p", rt, sleep=Sleeps(), retries=0).read()["value_um"] == pytest.approx(v, abs=1e-9)
+
+
+@given(junk=st.binary(max_size=20))
+@settings(max_examples=80, deadline=None)
+def test_tesa_garbage_never_parses_silently(junk):
+    rt = ReplayTransport([{"request": "?\r", "response": junk.decode("latin-1")}])
+    try:
+        r = TesaTT("p", rt, sleep=Sleeps(), retries=0).read()
+    except InstrumentError:
+        return
+    assert TesaTT.DEFAULT_COMMANDS["read"].compiled().fullmatch(junk)
+    assert r["status"] == "ok" or (r["status"] == "instrument_message" and math.isnan(r["value_um"]))
+
+
+# --- Millimar -------------------------------------------------------------------------------------
+from benchtwin.hw.drivers.millimar import MillimarC1202, format_millimar  # noqa: E402
+
+
+def test_millimar_two_channels_share_a_port():
+    rt = replay("millimar_two_channels.jsonl")
+    ch = MillimarC1202.channels(rt, {1: "probe_top", 2: "probe_bottom"}, sleep=Sleeps(), clock=Clock())
+    assert ch[1].transport is ch[2].transport
+    assert ch[1].read()["value_um"] == 12.34
+    r = ch[2].read()
+    assert r["value_um"] == pytest.approx(-50.0) and r["tolerance"] == "above" and r["status"] == "ok"
+    r = ch[1].read()
+    assert r["status"] == "feature_off" and math.isnan(r["value_um"])
+    r = ch[2].read()  # first reply is for channel 1: retried
+    assert r["value_um"] == pytest.approx(100.0) and r["warning"] == "within"
+    rt.assert_done()
+
+
+def test_millimar_angle_unit_refused_without_retry():
+    rt = ReplayTransport([{"request": "M1?\r", "response": "1 +001.50 deg\r"}])
+    with pytest.raises(InstrumentError, match="not a length"):
+        MillimarC1202("p", rt, sleep=Sleeps()).read()
+    rt.assert_done()
+
+
+@given(ch=st.integers(1, 3), v=st.floats(min_value=-999.99, max_value=999.99, allow_nan=False).map(lambda v: round(v, 2)),
+       unit=st.sampled_from(["um", "mm", "inch"]), tol=st.sampled_from([None, "<", "=", ">"]))
+@settings(max_examples=60, deadline=None)
+def test_millimar_parser_round_trip(ch, v, unit, tol):
+    rt = ReplayTransport([{"request": f"M{ch}?\r", "response": format_millimar(ch, v, unit, tol=tol).decode()}])
+    r = MillimarC1202("p", rt, channel=ch, sleep=Sleeps(), retries=0).read()
+    assert r["value_um"] == pytest.approx(v * {"um": 1, "mm": 1000, "inch": 25400}[unit], abs=1e-6)
+
+
+@given(junk=st.binary(max_size=30))
+@settings(max_examples=80, deadline=None)
+def test_millimar_garbage_never_parses_silently(junk):
+    rt = ReplayTransport([{"request": "M1?\r", "response": junk.decode("latin-1")}])
+    try:
+        r = MillimarC1202("p", rt, sleep=Sleeps(), retries=0).read()
+    except InstrumentError:
+        return
+    assert MillimarC1202.DEFAULT_COMMANDS["read"].compiled().fullmatch(junk) and junk.startswith(b"1 ")
+    assert r["status"] in ("ok", "feature_off") or r["status"].startswith("error_")
+
+
+# --- Heidenhain -----------------------------------------------------------------------------------
+from benchtwin.hw.drivers.heidenhain import HeidenhainND, format_heidenhain  # noqa: E402
+
+
+def test_heidenhain_two_heads_and_error_text():
+    rt = replay("heidenhain_two_heads.jsonl")
+    enc = HeidenhainND("encoder", rt, heads_deg=[0.0, 180.0], decimals=4, sleep=Sleeps(), clock=Clock())
+    r = enc.read()
+    assert r["heads_deg"] == [0.0, 180.0] and r["angle_deg"] == pytest.approx([123.4567, -0.5])
+    r = enc.read()  # "FORMAT ERROR" text: garbled, retried
+    assert r["angle_deg"] == pytest.approx([360.0, 180.0])
+    rt.assert_done()
+
+
+def test_heidenhain_heads_must_start_at_zero():
+    with pytest.raises(ValueError, match="starts with 0"):
+        HeidenhainND("e", ReplayTransport([]), heads_deg=[90.0])
+
+
+@given(counts=st.lists(st.integers(-999_999_999, 999_999_999), min_size=1, max_size=4), dec=st.integers(0, 6))
+@settings(max_examples=60, deadline=None)
+def test_heidenhain_parser_round_trip(counts, dec):
+    heads = [0.0] + [90.0 * i for i in range(1, len(counts))]
+    rt = ReplayTransport([{"request": "\x1bA0200\r", "response": format_heidenhain(counts).decode("latin-1")}])
+    r = HeidenhainND("e", rt, heads_deg=heads, decimals=dec, sleep=Sleeps(), retries=0).read()
+    assert r["angle_deg"] == pytest.approx([c / 10**dec for c in counts])
+
+
+@given(junk=st.binary(max_size=30))
+@settings(max_examples=80, deadline=None)
+def test_heidenhain_garbage_never_parses_silently(junk):
+    rt = ReplayTransport([{"request": "\x1bA0200\r", "response": junk.decode("latin-1")}])
+    try:
+        HeidenhainND("e", rt, sleep=Sleeps(), retries=0).read()
+    except InstrumentError:
+        return
+    assert HeidenhainND.DEFAULT_COMMANDS["read"].compiled().fullmatch(junk)
+
+
+# --- Zaber ----------------------------------------------------------------------------------------
+from benchtwin.hw.drivers.zaber import ZaberRotaryStage, format_zaber_reply  # noqa: E402
+
+STAGE = dict(microsteps_per_deg=1000.0, soft_limits_deg=(-10.0, 370.0), max_speed_deg_s=20.0)
+
+
+def test_zaber_move_polls_through_injected_sleep():
+    rt = replay("zaber_move.jsonl")
+    clock = Clock(0.0)
+    sleeps = []
+
+    def sleep(s):
+        sleeps.append(s)
+        clock.sleep(s)
+
+    st_ = ZaberRotaryStage("stage", rt, sleep=sleep, clock=clock, poll_interval_s=0.25, **STAGE)
+    r = st_.move_to(90.0)
+    assert r["target_deg"] == 90.0 and r["status"] == "ok" and r["duration_s"] == pytest.approx(0.5)
+    assert sleeps == [0.25, 0.25]
+    p = st_.position()
+    assert p["angle_deg"] == 90.0 and p["status"] == "ok"
+    rt.assert_done()
+
+
+def test_zaber_soft_limit_refused_before_anything_is_sent():
+    rt = ReplayTransport([])
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), **STAGE)
+    for bad in (400.0, -10.5, float("nan")):
+        with pytest.raises(InstrumentError, match="soft limits"):
+            st_.move_to(bad)
+    assert rt.written == []
+    rt.assert_done()
+
+
+def test_zaber_speed_limit_refused():
+    rt = ReplayTransport([{"request": "/1 1 get maxspeed\n", "response": "@01 1 OK IDLE -- 163840\r\n"}])
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), **STAGE)  # 100 deg/s on the stage > 20 deg/s
+    with pytest.raises(InstrumentError, match="speed limit"):
+        st_.move_to(1.0)
+    rt.assert_done()  # only the read of maxspeed went out, no move
+    with pytest.raises(InstrumentError, match="speed limit"):
+        ZaberRotaryStage("s", ReplayTransport([]), write_settings=True, settings={"maxspeed": 1e6}, **STAGE)
+
+
+def test_zaber_settings_need_explicit_flag_and_dict():
+    with pytest.raises(ValueError, match="write_settings is False"):
+        ZaberRotaryStage("s", ReplayTransport([]), settings={"maxspeed": 100}, **STAGE)
+    with pytest.raises(ValueError, match="explicit settings"):
+        ZaberRotaryStage("s", ReplayTransport([]), write_settings=True, **STAGE)
+
+
+def test_zaber_writes_settings_then_rejects_and_faults():
+    rt = replay("zaber_settings.jsonl")
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), write_settings=True, settings={"maxspeed": 8192}, **STAGE)
+    assert st_.move_to(-5.0)["status"] == "ok"
+    with pytest.raises(InstrumentError, match="rejected.*BADDATA") as exc:
+        st_.move_to(5.0)
+    assert exc.value.raw == b"@01 1 RJ IDLE -- BADDATA\r\n"
+    with pytest.raises(InstrumentError, match="fault FS"):
+        st_.position()
+    rt.assert_done()
+
+
+def test_zaber_closed_loop_on_encoder():
+    rt = replay("zaber_closed_loop.jsonl")
+    enc_rt = replay("heidenhain_closed_loop.jsonl")
+    enc = HeidenhainND("encoder", enc_rt, decimals=4, sleep=Sleeps())
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), clock=Clock(), encoder=enc, tolerance_deg=0.0005, **STAGE)
+    r = st_.move_to(10.0)
+    assert r["status"] == "ok" and r["corrections"] == 1 and abs(r["error_deg"]) <= 0.0005
+    rt.assert_done()
+    enc_rt.assert_done()
+
+
+@given(data=st.integers(-10**9, 10**9), busy=st.booleans(), flag=st.sampled_from(["--", "WR", "NI"]))
+@settings(max_examples=60, deadline=None)
+def test_zaber_parser_round_trip(data, busy, flag):
+    rt = ReplayTransport([{"request": "/1 1 get pos\n",
+                           "response": format_zaber_reply(data, busy=busy, flag=flag).decode()}])
+    st_ = ZaberRotaryStage("s", rt, sleep=Sleeps(), retries=0, **STAGE)
+    assert st_.position()["angle_deg"] == pytest.approx(data / 1000.0)
+
+
+@given(junk=st.binary(max_size=40))
+@settings(max_examples=80, deadline=None)
+def test_zaber_garbage_never_parses_silently(junk):
+    rt = ReplayTransport([{"request": "/1 1 get pos\n", "response": junk.decode("latin-1")}])
+    try:
+        ZaberRotaryStage("s", rt, sleep=Sleeps(), retries=0, **STAGE).position()
+    except InstrumentError:
+        return
+    assert ZaberRotaryStage.DEFAULT_COMMANDS["get_pos"].compiled().fullmatch(junk)

@@ -1,0 +1,141 @@
+"""Microscope cameras (hw.interfaces.Camera): an OpenCV ``VideoCapture`` and a folder replay.
+
+Protocol document: docs/protocols/camera.md. Frames are returned greyscale, 2-D, uint8 or uint16
+(``hw.interfaces.check_image``). Colour frames (BGR, BGRA) are converted with OpenCV's luminance
+weights; ``dtype`` forces the output depth (uint8 -> uint16 scales by 257, uint16 -> uint8 keeps the
+high byte).
+
+- ``OpenCVCamera(name, capture, ...)``: ``capture`` is an open ``cv2.VideoCapture`` (or anything with
+  ``read() -> (ok, frame)``); opening it is the caller's business (``OpenCVCamera.open(source)`` does
+  it explicitly). A failed grab is retried ``retries`` times, then ``InstrumentError``.
+- ``FolderCamera(name, folder, ...)``: replays ``index.csv`` (columns ``file`` and optionally
+  ``t_s``) if present, else the folder's ``*.png`` sorted by name; at the end it raises
+  ``InstrumentError`` unless ``loop=True``.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from benchtwin.hw.drivers.base import InstrumentError
+from benchtwin.hw.interfaces import check_image
+
+__all__ = ["OpenCVCamera", "FolderCamera", "to_grey"]
+
+
+def to_grey(frame: np.ndarray, dtype: str | None = None) -> np.ndarray:
+    """Greyscale 2-D uint8/uint16 from a grey, BGR or BGRA frame; ``dtype`` forces the depth."""
+    arr = np.asarray(frame)
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[:, :, 0]
+    elif arr.ndim == 3 and arr.shape[2] in (3, 4):
+        code = cv2.COLOR_BGR2GRAY if arr.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        arr = cv2.cvtColor(arr, code)
+    if arr.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"frame dtype {arr.dtype} is neither uint8 nor uint16")
+    if dtype is not None:
+        want = np.dtype(dtype)
+        if want == np.uint16 and arr.dtype == np.uint8:
+            arr = arr.astype(np.uint16) * 257
+        elif want == np.uint8 and arr.dtype == np.uint16:
+            arr = (arr >> 8).astype(np.uint8)
+        elif want not in (np.uint8, np.uint16):
+            raise ValueError(f"dtype must be uint8 or uint16, got {dtype}")
+    return check_image(np.ascontiguousarray(arr))
+
+
+class OpenCVCamera:
+    """A ``cv2.VideoCapture`` camera. Arguments: ``name``, ``capture``, ``dtype`` (None: as captured),
+    ``pixel_size_um`` (metadata), ``retries`` (2), ``clock`` (``time.monotonic``)."""
+
+    KIND = "camera"
+
+    def __init__(self, name: str, capture: Any, *, dtype: str | None = None, pixel_size_um: float | None = None,
+                 retries: int = 2, clock: Callable[[], float] | None = None, model: str = "OpenCV VideoCapture") -> None:
+        self.name = str(name)
+        self.capture_device = capture
+        self.dtype = dtype
+        self.pixel_size_um = pixel_size_um
+        self.retries = int(retries)
+        self.clock = clock if clock is not None else time.monotonic
+        self.model = model
+
+    @classmethod
+    def open(cls, name: str, source: int | str, **kw: Any) -> "OpenCVCamera":
+        """Open ``cv2.VideoCapture(source)`` explicitly (a device index, file or stream URL)."""
+        cap = cv2.VideoCapture(source)
+        if not cap.isOpened():
+            raise InstrumentError(name, "open", f"cv2.VideoCapture({source!r}) did not open", b"")
+        return cls(name, cap, **kw)
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.KIND, "model": self.model, "units": {"image": "counts", "t_s": "s"},
+                "dtype": self.dtype, "pixel_size_um": self.pixel_size_um}
+
+    def capture(self) -> dict[str, Any]:
+        for _ in range(self.retries + 1):
+            ok, frame = self.capture_device.read()
+            if ok and frame is not None:
+                return {"image": to_grey(frame, self.dtype), "t_s": float(self.clock()), "status": "ok"}
+        raise InstrumentError(self.name, "capture", f"no frame after {self.retries + 1} attempt(s)", b"")
+
+    def close(self) -> None:
+        release = getattr(self.capture_device, "release", None)
+        if release is not None:
+            release()
+
+
+class FolderCamera:
+    """Replays a folder of images. Arguments: ``name``, ``folder``, ``dtype`` (None), ``loop`` (False),
+    ``clock`` (used for ``t_s`` when the index has no ``t_s`` column), ``pixel_size_um``."""
+
+    KIND = "camera"
+
+    def __init__(self, name: str, folder: str | Path, *, dtype: str | None = None, loop: bool = False,
+                 clock: Callable[[], float] | None = None, pixel_size_um: float | None = None) -> None:
+        self.name = str(name)
+        self.folder = Path(folder)
+        self.dtype = dtype
+        self.loop = bool(loop)
+        self.clock = clock if clock is not None else time.monotonic
+        self.pixel_size_um = pixel_size_um
+        index = self.folder / "index.csv"
+        self.frames: list[tuple[Path, float | None]] = []
+        if index.exists():
+            with index.open(newline="") as fh:
+                reader = csv.DictReader(fh)
+                if not reader.fieldnames or "file" not in reader.fieldnames:
+                    raise ValueError(f"{index}: needs a 'file' column, has {reader.fieldnames}")
+                for row in reader:
+                    t = row.get("t_s")
+                    self.frames.append((self.folder / row["file"], float(t) if t not in (None, "") else None))
+        else:
+            self.frames = [(p, None) for p in sorted(self.folder.glob("*.png"))]
+        if not self.frames:
+            raise ValueError(f"{self.folder}: no index.csv and no *.png images")
+        self.pos = 0
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.KIND, "model": "folder replay", "units": {"image": "counts", "t_s": "s"},
+                "folder": str(self.folder), "frames": len(self.frames), "dtype": self.dtype,
+                "pixel_size_um": self.pixel_size_um}
+
+    def capture(self) -> dict[str, Any]:
+        if self.pos >= len(self.frames):
+            if not self.loop:
+                raise InstrumentError(self.name, "capture", f"all {len(self.frames)} frames of {self.folder} used", b"")
+            self.pos = 0
+        path, t_s = self.frames[self.pos]
+        self.pos += 1
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise InstrumentError(self.name, "capture", f"cannot read image {path}", b"")
+        return {"image": to_grey(img, self.dtype), "t_s": float(t_s if t_s is not None else self.clock()),
+                "status": "ok", "file": path.name}

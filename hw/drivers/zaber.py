@@ -1,0 +1,216 @@
+"""Rotary stage over the Zaber ASCII protocol (hw.interfaces.RotaryStage).
+
+Protocol document: docs/protocols/zaber.md (sources and uncertainty of every byte below).
+
+Requests are ``/<device> <axis> <command>\\n``; replies are ``@<dd> <a> <OK|RJ> <IDLE|BUSY> <flag>
+<data>\\r\\n`` (``flag`` is ``--`` or the highest-priority warning: ``F*`` faults, ``W*`` warnings,
+``N*`` notices). Used here: ``move abs <microsteps>``, ``move rel <microsteps>``, ``get pos``,
+``get maxspeed``, the empty command (status poll) and, only with ``write_settings=True`` and an
+explicit ``settings`` dict, ``set <setting> <value>``.
+
+Safety, all before any byte is sent: a target outside the soft limits is refused; the stage's
+``maxspeed`` is read once and compared with the bench file's speed limit, and moves are refused if
+it is faster (this driver never raises it). ``move_to`` never sleeps directly: the waits between
+status polls go through the injectable ``sleep``; durations are measured with the injectable
+``clock``. With an ``encoder`` (an AngleEncoder), ``move_to`` then corrects in closed loop until head 1
+reads within ``tolerance_deg`` of the target ("the bench stops at commanded encoder readings").
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from typing import Any
+
+from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
+
+__all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply"]
+
+_REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d) (?P<reply>OK|RJ) (?P<state>IDLE|BUSY) (?P<flag>--|[FWN][A-Z])"
+          rb" (?P<data>[ -~]*?)\r?\n")
+
+
+def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dict[str, Any]:
+    dev, axis = int(m.group("dev")), int(m.group("axis"))
+    want_dev, want_axis = getattr(inst, "device", dev), getattr(inst, "axis", axis)
+    if (dev, axis) != (want_dev, want_axis) and axis != 0:
+        raise ValueError(f"reply from device {dev} axis {axis}, expected {want_dev} {want_axis}")
+    out = {"reply": m.group("reply").decode(), "busy": m.group("state") == b"BUSY",
+           "flag": m.group("flag").decode(), "data": m.group("data").decode("ascii").strip()}
+    if out["reply"] == "RJ":
+        raise InstrumentError(inst.name, cmd.name, f"stage rejected the command ({out['data']})", m.group(0))
+    if out["flag"].startswith("F"):
+        raise InstrumentError(inst.name, cmd.name, f"stage reports fault {out['flag']}", m.group(0))
+    return out
+
+
+parse_zaber_reply = parse_reply
+
+
+def format_zaber_reply(data: str | int = 0, *, device: int = 1, axis: int = 1, reply: str = "OK",
+                       busy: bool = False, flag: str = "--") -> bytes:
+    """A reply line as the controller sends it (tests and emulators)."""
+    return f"@{device:02d} {axis} {reply} {'BUSY' if busy else 'IDLE'} {flag} {data}\r\n".encode("ascii")
+
+
+def _cmd(name: str, template: bytes) -> Command:
+    return Command(name, template, _REPLY, "reply", b"\n")
+
+
+class ZaberRotaryStage(SerialInstrument):
+    """Zaber rotary stage. Constructor arguments beyond the common ones (all from the bench file):
+
+    ``microsteps_per_deg`` (required), ``soft_limits_deg`` = (low, high) (required),
+    ``max_speed_deg_s`` (required: the speed limit), ``device`` (1), ``axis`` (1), ``encoder``
+    (an AngleEncoder for closed-loop correction, or None), ``tolerance_deg`` (0.001),
+    ``max_corrections`` (5), ``poll_interval_s`` (0.05), ``move_timeout_s`` (120),
+    ``speed_data_per_microstep_s`` (1.6384: Zaber's native speed unit), ``write_settings`` (False)
+    and ``settings`` ({}): settings are written (``set <k> <v>``) only when both are given, at the
+    first move, and a ``maxspeed`` above the speed limit is refused.
+    """
+
+    KIND = "stage"
+    MODEL = "Zaber rotary stage (ASCII protocol)"
+    UNITS = {"angle_deg": "deg", "stage_deg": "deg", "target_deg": "deg", "error_deg": "deg", "duration_s": "s"}
+    SERIAL_SETTINGS = {"baudrate": 115200, "bytesize": 8, "parity": "N", "stopbits": 1, "timeout": 0.5}
+    PROTOCOL_DOC = "docs/protocols/zaber.md"
+    DEFAULT_COMMANDS = {
+        "move_abs": _cmd("move_abs", b"/{device} {axis} move abs {microsteps}\n"),
+        "move_rel": _cmd("move_rel", b"/{device} {axis} move rel {microsteps}\n"),
+        "get_pos": _cmd("get_pos", b"/{device} {axis} get pos\n"),
+        "get_maxspeed": _cmd("get_maxspeed", b"/{device} {axis} get maxspeed\n"),
+        "poll": _cmd("poll", b"/{device} {axis}\n"),
+        "set": _cmd("set", b"/{device} {axis} set {setting} {value}\n"),
+    }
+    PARSERS = {"reply": parse_reply, "raw": parse_raw}
+
+    def __init__(self, name: str, transport, *, microsteps_per_deg: float, soft_limits_deg: tuple[float, float],
+                 max_speed_deg_s: float, device: int = 1, axis: int = 1, encoder: Any = None,
+                 tolerance_deg: float = 0.001, max_corrections: int = 5, poll_interval_s: float = 0.05,
+                 move_timeout_s: float = 120.0, speed_data_per_microstep_s: float = 1.6384,
+                 write_settings: bool = False, settings: Mapping[str, Any] | None = None, **kw: Any) -> None:
+        super().__init__(name, transport, **kw)
+        lo, hi = (float(v) for v in soft_limits_deg)
+        if not lo < hi:
+            raise ValueError(f"{name}: soft_limits_deg must be (low, high) with low < high, got {soft_limits_deg}")
+        if not microsteps_per_deg or microsteps_per_deg <= 0:
+            raise ValueError(f"{name}: microsteps_per_deg must be > 0, got {microsteps_per_deg}")
+        if not max_speed_deg_s or max_speed_deg_s <= 0:
+            raise ValueError(f"{name}: max_speed_deg_s must be > 0, got {max_speed_deg_s}")
+        if settings and not write_settings:
+            raise ValueError(f"{name}: settings given but write_settings is False; nothing is written to the "
+                             f"stage unless write_settings=True")
+        if write_settings and not settings:
+            raise ValueError(f"{name}: write_settings=True needs an explicit settings dict")
+        self.soft_limits_deg = (lo, hi)
+        self.microsteps_per_deg = float(microsteps_per_deg)
+        self.max_speed_deg_s = float(max_speed_deg_s)
+        self.device, self.axis = int(device), int(axis)
+        self.encoder = encoder
+        self.tolerance_deg = float(tolerance_deg)
+        self.max_corrections = int(max_corrections)
+        self.poll_interval_s = float(poll_interval_s)
+        self.move_timeout_s = float(move_timeout_s)
+        self.speed_data_per_microstep_s = float(speed_data_per_microstep_s)
+        self.write_settings = bool(write_settings)
+        self.settings = dict(settings or {})
+        self._checked = False
+        if "maxspeed" in self.settings:
+            self._check_speed(float(self.settings["maxspeed"]), "settings['maxspeed']")
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "soft_limits_deg": list(self.soft_limits_deg),
+                "max_speed_deg_s": self.max_speed_deg_s, "microsteps_per_deg": self.microsteps_per_deg,
+                "device": self.device, "axis": self.axis, "tolerance_deg": self.tolerance_deg,
+                "closed_loop": self.encoder is not None, "write_settings": self.write_settings}
+
+    # --- helpers -----------------------------------------------------------------------------------
+    def _q(self, command: str, **fields: Any) -> dict[str, Any]:
+        return self.query(command, device=self.device, axis=self.axis, **fields)
+
+    def _speed_deg_s(self, data: float) -> float:
+        return data / self.speed_data_per_microstep_s / self.microsteps_per_deg
+
+    def _check_speed(self, data: float, what: str) -> None:
+        speed = self._speed_deg_s(data)
+        if speed > self.max_speed_deg_s * (1 + 1e-9):
+            raise InstrumentError(self.name, "maxspeed", f"{what} = {data:g} means {speed:.6g} deg/s, above the "
+                                  f"bench's speed limit {self.max_speed_deg_s:g} deg/s; refusing to move "
+                                  f"(lower maxspeed on the stage)", b"")
+
+    def _check_limits(self, target_deg: float) -> None:
+        lo, hi = self.soft_limits_deg
+        if not (math.isfinite(target_deg) and lo <= target_deg <= hi):
+            raise InstrumentError(self.name, "move_abs", f"target {target_deg} deg is outside the soft limits "
+                                  f"[{lo}, {hi}] deg; nothing was sent", b"")
+
+    def _prepare(self) -> None:
+        if self._checked:
+            return
+        if self.write_settings:
+            for key, value in self.settings.items():
+                self._q("set", setting=key, value=value)
+        r = self._q("get_maxspeed")
+        self._check_speed(parse_float(r["data"].split()[0], "maxspeed"), "stage maxspeed")
+        self._checked = True
+
+    def _wait_idle(self, t0: float, first: dict[str, Any]) -> None:
+        r = first
+        while r["busy"]:
+            if self.clock() - t0 > self.move_timeout_s:
+                raise InstrumentError(self.name, "poll", f"still BUSY after {self.move_timeout_s} s", b"")
+            self.sleep(self.poll_interval_s)
+            r = self._q("poll")
+
+    def _microsteps(self, deg: float) -> int:
+        return int(round(deg * self.microsteps_per_deg))
+
+    def _stage_deg(self) -> float:
+        return parse_float(self._q("get_pos")["data"].split()[0], "pos") / self.microsteps_per_deg
+
+    # --- RotaryStage ------------------------------------------------------------------------------
+    def position(self) -> dict[str, Any]:
+        """``{"angle_deg", "t_s", "status", "stage_deg"}``: head 1 of the encoder when one is given,
+        else the stage's own position."""
+        stage = self._stage_deg()
+        if self.encoder is not None:
+            enc = self.encoder.read()
+            return self.reading(angle_deg=float(enc["angle_deg"][0]), stage_deg=stage, status=enc["status"])
+        return self.reading(angle_deg=stage, stage_deg=stage)
+
+    def move_to(self, target_deg: float) -> dict[str, Any]:
+        target_deg = float(target_deg)
+        self._check_limits(target_deg)
+        self._prepare()
+        t0 = self.clock()
+        r = self._q("move_abs", microsteps=self._microsteps(target_deg))
+        self._wait_idle(t0, r)
+        status = "ok"
+        corrections = 0
+        error_deg = None
+        if self.encoder is not None:
+            status = "not_settled"
+            for corrections in range(self.max_corrections + 1):
+                enc = self.encoder.read()
+                if enc.get("status", "ok") != "ok":
+                    status = f"encoder_{enc['status']}"
+                    break
+                error_deg = (target_deg - float(enc["angle_deg"][0]) + 180.0) % 360.0 - 180.0
+                if abs(error_deg) <= self.tolerance_deg:
+                    status = "ok"
+                    break
+                if corrections == self.max_corrections:
+                    break
+                step = self._microsteps(error_deg)
+                if step == 0:
+                    break
+                stage_now = self._stage_deg()
+                self._check_limits(stage_now + step / self.microsteps_per_deg)
+                r = self._q("move_rel", microsteps=step)
+                self._wait_idle(t0, r)
+        out = self.reading(target_deg=target_deg, status=status, corrections=corrections)
+        out["duration_s"] = float(out["t_s"] - t0)
+        if error_deg is not None:
+            out["error_deg"] = error_deg
+        return out
