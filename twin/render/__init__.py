@@ -100,7 +100,9 @@ class Renderer:
     def irradiance(self, disk: BodyPose, grating: GratingSpec, camera: CcdCamera) -> tuple[np.ndarray, SceneGeometry, str]:
         """Noise-free irradiance in [0, 1]: glass where no chrome, chrome transmission on lines."""
         cov, scene, used = self.coverage(disk, grating, camera)
-        irr = np.float32(grating.glass_transmission) + np.float32(grating.chrome_transmission - grating.glass_transmission) * cov.astype(np.float32, copy=False)
+        irr = cov.astype(np.float32, copy=False)  # coverage() returns a fresh array: reuse it in place
+        irr *= np.float32(grating.chrome_transmission - grating.glass_transmission)
+        irr += np.float32(grating.glass_transmission)
         return irr, scene, used
 
     # ------------------------------------------------------------------ frames

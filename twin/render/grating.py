@@ -15,8 +15,9 @@ What is modelled, and why:
   15 px wide end is 8e-4 px already; 4 chords make it 5e-5 px); the inner end (outside the view
   for the Jia geometry) is one chord. Each line is thus a *convex* polygon: both backends draw
   exactly these polygons, so they can be compared to the rasteriser's accuracy;
-- glass: a plate covering the field of view (transmitted light; the disk rim, 2 mm beyond the scale
-  edge in ``twin/build.py``, is outside the ±0.68 mm view, so no rim is drawn);
+- glass: everything that is not chrome (zero coverage; transmitted light, so glass is the bright
+  level). The disk's outer rim, 2 mm beyond the scale edge in ``twin/build.py``, is outside the
+  ±0.68 mm view, so no rim is drawn: the "edge" Jia fits is the scale edge, the line ends;
 - only lines whose angular range meets the field of view plus a margin are built (about 60 of the
   7069 lines), so a frame costs the same whatever the disk size;
 - the camera is telecentric (orthographic along the lab z axis): a microscope objective at this

@@ -8,24 +8,32 @@ Choices, and why:
 - orthographic camera (``pyrender.OrthographicCamera``): the microscope is telecentric-like; one
   GL world unit = one output pixel, the scene in camera-local pixel coordinates (see ``grating``)
   so float32 vertices keep 1e-4 px;
-- coverage only: lines are black on a white clear colour, read back as one 8-bit channel; the
-  irradiance (glass / chrome transmission) is formed in float64 afterwards. A coverage image needs
-  no lighting, no depth readback and no RGB conversion;
+- coverage only: lines are black on a white clear colour, rendered into a single-channel GL_R8
+  multisample buffer without depth (the lines never overlap) and read back as one 8-bit channel;
+  the irradiance (glass / chrome transmission) is formed afterwards. pyrender's own framebuffer
+  (RGBA8 + DEPTH24, RGB + float depth readback) costs 3.5× more per pass at 2048×1536; both
+  replacements are bound to this renderer instance only (``types.MethodType``), pyrender itself is
+  not patched;
 - sub-pixel accuracy: llvmpipe's 4× MSAA samples a pixel at x, y ∈ {1/8, 3/8, 5/8, 7/8} (rotated
-  grid): an edge's coverage moves in quarter-pixel steps, so its position is off by up to 1/8 px.
-  Two remedies, combinable:
+  grid): an edge's coverage moves in quarter-pixel steps, so its position is off by up to 1/8 px
+  (measured: 0.13 px at the line ends). Three remedies, combinable:
   * ``supersample`` k: render at k·W × k·H and area-average k×k blocks (exact box filter);
     4k sample positions per axis at k² cost;
   * ``jitter`` n: accumulate n passes with the camera shifted along the diagonal by
     (m/(4n) − (n−1)/(8n))/k px, m = 0…n−1 (the classical accumulation-buffer antialiasing): the
     union of the 4 MSAA positions and the n shifts is the stratified set (2q+1)/(8n) in x and in y,
-    i.e. again an exact box filter with 4n positions per axis, at n× (not n²×) cost.
-  The worst edge error is 1/(8·k·n) px (plus 8-bit rounding, ≤ 0.002 px per pass); the default
-  k = 1, n = 8 gives ≤ 0.016 px, measured ≤ 0.01 px against the analytic renderer;
-- one persistent ``OffscreenRenderer`` per sweep (creating a context costs more than a frame), the
-  scene kept and only the line mesh node swapped per frame; the framebuffer readback is replaced,
-  on this renderer instance only, by a single-channel read (pyrender always reads float depth and
-  RGB: 2/3 of a bare frame's time at 2048×1536).
+    i.e. again a box filter with 4n positions per axis, at n× (not k²×) cost;
+  * ``end_band``: the line ENDS are what Jia's circle fit measures (sec. 4.2.2: "middle point of
+    the right edge of each part"); they lie in a band of ~30 columns (the edge arc's sagitta over
+    the view plus eccentric motion). That band is rendered again by an anisotropic orthographic
+    camera, W/band_width× magnified in x only, and its columns area-averaged: 4·W/band_width
+    (≈ 256) positions per pixel across the end, ≤ 0.005 px, for ``band_jitter`` passes (y-only
+    jitter there; an x shift would smear the band's box filter).
+  Default k = 1, n = 2, band on (4 passes): line ends ≤ 0.005 px from the exact coverage, line
+  sides ≤ 1/16 px (they only set each line's centre row, whose error enters d_ref scaled by the
+  edge slope y/R ≤ 0.02). Plus 8-bit rounding ≤ 0.002 px per pass;
+- one persistent ``OffscreenRenderer`` per sweep (creating a context and compiling shaders costs
+  ~2.5 s, 20 frames' worth), the scene kept and only the line mesh node swapped per frame.
 """
 
 from __future__ import annotations
@@ -201,7 +209,9 @@ class GlCoverageRenderer:
         if k > 1:
             acc = acc.reshape(H, k, W, k).sum(axis=(1, 3), dtype=np.uint32)
         # float32: 8-bit passes averaged need no more, and it halves the memory traffic per frame
-        cov = 1.0 - acc[::-1].astype(np.float32) * np.float32(1.0 / (255.0 * len(shifts) * k * k))
+        cov = acc[::-1].astype(np.float32)
+        cov *= np.float32(-1.0 / (255.0 * len(shifts) * k * k))  # in place: 3 Mpx temporaries cost ms
+        cov += np.float32(1.0)
         band = self._band_columns(end_x_px)
         if band is not None:
             c0, wb = band
@@ -230,9 +240,3 @@ class GlCoverageRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-    def __del__(self):  # last resort; explicit close() is the contract
-        try:
-            self.close()
-        except Exception:
-            pass
