@@ -393,3 +393,85 @@ def test_zaber_garbage_never_parses_silently(junk):
     except InstrumentError:
         return
     assert ZaberRotaryStage.DEFAULT_COMMANDS["get_pos"].compiled().fullmatch(junk)
+
+
+# --- a real pseudo-terminal through pyserial ------------------------------------------------------
+import os  # noqa: E402
+import select  # noqa: E402
+import sys  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+
+from benchtwin.hw.transport import open_transport  # noqa: E402
+
+
+class PtyInstrument:
+    """A tiny instrument on the master side of a pty: answers each request in ``replies``."""
+
+    def __init__(self, replies: dict[bytes, bytes]) -> None:
+        import tty
+
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.master)
+        tty.setraw(self.slave)
+        self.path = os.ttyname(self.slave)
+        self.replies = replies
+        self.seen: list[bytes] = []
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        buf = b""
+        deadline = time.monotonic() + 10.0  # bounded: never outlives a test
+        while not self.stop.is_set() and time.monotonic() < deadline:
+            r, _, _ = select.select([self.master], [], [], 0.05)
+            if not r:
+                continue
+            try:
+                buf += os.read(self.master, 256)
+            except OSError:
+                return
+            for req, resp in self.replies.items():
+                while req in buf:
+                    before, _, buf = buf.partition(req)
+                    self.seen.append(req)
+                    os.write(self.master, resp)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(2.0)
+        os.close(self.master)
+        os.close(self.slave)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_tesa_driver_over_a_real_pty():
+    inst = PtyInstrument({b"?\r": b"-0012.34\r\n"})
+    try:
+        port = open_transport(inst.path, **TesaTT.serial_settings(timeout=2.0))
+        try:
+            probe = TesaTT("probe_top", port, sleep=Sleeps())
+            assert probe.read()["value_um"] == -12.34
+            assert probe.read()["value_um"] == -12.34
+        finally:
+            port.close()
+    finally:
+        inst.close()
+    assert inst.seen == [b"?\r", b"?\r"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_elcomat_over_pty_times_out_then_fails_clearly():
+    inst = PtyInstrument({})  # a silent instrument
+    try:
+        port = open_transport(inst.path, **Elcomat.serial_settings(timeout=0.05))
+        try:
+            sleeps = Sleeps()
+            with pytest.raises(InstrumentError, match="timeout"):
+                Elcomat("ac", port, sleep=sleeps, retries=1).read()
+            assert sleeps == [0.05]
+        finally:
+            port.close()
+    finally:
+        inst.close()
