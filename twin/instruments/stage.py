@@ -1,0 +1,229 @@
+"""The simulated drive and the shared bench state of the twin's instruments.
+
+- ``SimBenchState``: what every simulated instrument looks at: the ``Bench`` (physics), the
+  simulated clock, the current ``BenchPose``, and the run context (rep, approach direction,
+  polygon mounting: start face j and shift S). It also hands out the instruments' random streams,
+  keyed by (scenario seed, stream, instrument, runner step index), so a run interrupted and
+  resumed from its journal draws exactly the same noise as an uninterrupted one.
+- ``SimRotaryStage``: ``hw.interfaces.RotaryStage`` on the simulated clock. ``move_to(target_deg)``
+  finds the drive command at which head 1 of the encoder READS the target (the bench stops at
+  commanded encoder readings, as a real servo closes its loop on the interpolated encoder signal),
+  by fixed-point iteration on the exact (noise-free, unquantised) reading, to ``tol_arcsec``
+  (1e-6″ by default: 2.5e-6 of the 0.39″ resolution); advances the clock by the move time
+  (trapezoidal profile, ``speed``/``accel``) and poses the bench there.
+
+Polygon mounting (re-clamping) is a property of the state, not of the physics: the physics poses
+the polygon in its nominal mounting (face 1's normal on body +x, ``Bench.pose_at``); the state
+turns the polygon's body frame about its own axis by the mounting angle
+    μ = ψ_AC + (j − 1)·2π/N − S + U'_j
+(ψ_AC the autocollimator's azimuth, j the start face in Hsieh's numbering, S the shift, U'_j a
+random clamping error, seeded per (rep, shift, start face), ``polygon_setup_rms`` = 1″ by
+default), so that face j faces the autocollimator when the encoder reads S (Hsieh 2022 sec. 3).
+Hsieh's face h is the physics face k = ((1 − h) mod N) + 1: the physics numbers faces
+counter-clockwise in the body, and a counter-clockwise rotation brings the next face in Hsieh's
+sequence (clockwise in the body) in front of the autocollimator.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from benchtwin.hw.acquisition.procedures import move_time_s
+from benchtwin.hw.acquisition.runner import SimClock
+from benchtwin.twin.pose import BenchPose, BodyPose
+
+ARCSEC = math.pi / 648000.0
+TWO_PI = 2.0 * math.pi
+
+# Random streams of the instruments (ids far from the physics' 1…7; each quantity its own stream).
+SIM_STREAMS = {
+    "probe_noise": 101,
+    "probe_linearity": 102,
+    "encoder_noise": 103,
+    "encoder_graduation": 104,
+    "encoder_interpolation": 105,
+    "ac_noise": 106,
+    "ac_accuracy": 107,
+    "polygon_setup": 108,
+    "ccd": 109,
+}
+
+
+def sim_rng(seed: int, stream: str, *keys: int) -> np.random.Generator:
+    """An independent generator for (seed, stream, keys…)."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), SIM_STREAMS[stream], *map(int, keys)]))
+
+
+def sim_quantise(x: float, step: float) -> float:
+    """Round to a multiple of ``step`` (same unit); a step whose inverse is an integer (0.01 µm,
+    0.005″) divides, so the value is the correctly rounded decimal (clean CSVs)."""
+    if step <= 0:
+        return float(x)
+    inv = 1.0 / step
+    k = round(x / step)
+    if abs(inv - round(inv)) < 1e-9 * inv:
+        return k / round(inv)
+    return k * step
+
+
+def sim_rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def sim_hsieh_to_physics_face(h: int, n_faces: int) -> int:
+    """Physics face index k (1…N, counter-clockwise in the body) of Hsieh's face h (1…N)."""
+    return ((1 - int(h)) % n_faces) + 1
+
+
+def sim_direction(d: Any) -> int:
+    if d in ("forward", 1, +1):
+        return 1
+    if d in ("backward", -1):
+        return -1
+    raise ValueError(f"direction must be 'forward'/'backward' or ±1, got {d!r}")
+
+
+class SimBenchState:
+    """The shared state of the simulated bench (one per simulation; not thread-safe)."""
+
+    def __init__(self, bench: Any = None, clock: SimClock | None = None, seed: int = 0,
+                 pose: BenchPose | None = None, n_faces: int | None = None,
+                 ac_azimuth_rad: float = 0.0, polygon_setup_rms_rad: float = 1.0 * ARCSEC):
+        self.bench = bench
+        self.clock = clock if clock is not None else SimClock()
+        self.seed = int(seed if bench is None else getattr(bench, "seed", seed))
+        self.pose = pose
+        self.n_faces = int(n_faces if n_faces is not None else (bench.n_faces if bench is not None else 0))
+        self.ac_azimuth_rad = float(ac_azimuth_rad)
+        self.polygon_setup_rms_rad = float(polygon_setup_rms_rad)
+        self.rep = 0
+        self.direction = 1
+        self.polygon_start_face = 1
+        self.polygon_shift_rad = 0.0
+        self.polygon_setup_error_rad = 0.0
+        self.step_index: int | None = None
+        self._draws: dict[str, int] = {}
+        self.mountings: dict[tuple, dict] = {}   # truth: every polygon mounting used
+        self.set_polygon_mounting(1, 0.0)
+
+    # ------------------------------------------------------------------ context
+    def apply_context(self, ctx: dict) -> None:
+        """Run context from the procedure's Marks: rep, direction, polygon start face and shift."""
+        if "rep" in ctx:
+            self.rep = int(ctx["rep"])
+        if "direction" in ctx:
+            self.direction = sim_direction(ctx["direction"])
+        if "polygon_start_face" in ctx:
+            self.set_polygon_mounting(int(ctx["polygon_start_face"]), math.radians(float(ctx.get("shift_deg", 0.0))))
+
+    def on_step(self, i: int, step: Any, context: dict, replay: bool) -> None:
+        """Runner hook: key the noise streams by step index; apply the context of Marks."""
+        self.step_index = int(i)
+        self._draws = {}
+        if type(step).__name__ == "Mark":
+            self.apply_context(context)
+
+    def rng(self, stream: str, instrument_key: int = 0) -> np.random.Generator:
+        """Noise stream for one draw of an instrument at the current step (keyed, reproducible)."""
+        k = f"{stream}:{instrument_key}"
+        n = self._draws.get(k, 0)
+        self._draws[k] = n + 1
+        step = -1 if self.step_index is None else self.step_index
+        return sim_rng(self.seed, stream, instrument_key, step + 1, n)
+
+    # ------------------------------------------------------------------ polygon mounting
+    def set_polygon_mounting(self, start_face: int, shift_rad: float) -> None:
+        N = self.n_faces
+        if N and not 1 <= start_face <= N:
+            raise ValueError(f"polygon start face must be in 1…{N}, got {start_face}")
+        u = 0.0
+        if self.polygon_setup_rms_rad > 0:  # seeded per (rep, shift in µdeg, start face)
+            shift_key = int(round(math.degrees(shift_rad) * 1e6)) % (2**63)
+            u = float(sim_rng(self.seed, "polygon_setup", self.rep, shift_key, start_face)
+                      .normal(0.0, self.polygon_setup_rms_rad))
+        self.polygon_start_face = int(start_face)
+        self.polygon_shift_rad = float(shift_rad)
+        self.polygon_setup_error_rad = u
+        self.mountings[(self.rep, float(math.degrees(shift_rad)), int(start_face))] = {
+            "rep": self.rep, "shift_deg": math.degrees(shift_rad), "start_face": int(start_face),
+            "mounting_rad": self.polygon_mounting_rad, "setup_error_rad": u}
+
+    @property
+    def polygon_mounting_rad(self) -> float:
+        N = self.n_faces or 1
+        return (self.ac_azimuth_rad + (self.polygon_start_face - 1) * TWO_PI / N - self.polygon_shift_rad
+                + self.polygon_setup_error_rad)
+
+    def polygon_pose(self, pose: BenchPose | None = None) -> BodyPose:
+        """The polygon as clamped now: the physics' polygon frame turned by the mounting angle
+        about its own axis."""
+        p = self.pose if pose is None else pose
+        return BodyPose(pos=p.polygon.pos, R=p.polygon.R @ sim_rz(self.polygon_mounting_rad))
+
+    # ------------------------------------------------------------------ posing
+    def pose_at_command(self, command_rad: float) -> BenchPose:
+        self.pose = self.bench.pose_at(float(command_rad), rep=self.rep, t_s=self.clock.now(),
+                                       direction=self.direction)
+        return self.pose
+
+
+class SimRotaryStage:
+    """``RotaryStage`` of the twin: stops where head 1 of ``encoder`` reads the target."""
+
+    kind = "stage"
+
+    def __init__(self, name: str, state: SimBenchState, encoder: Any, speed_deg_s: float = 20.0,
+                 accel_deg_s2: float = 40.0, settle_s: float = 0.0, tol_arcsec: float = 1e-6,
+                 max_iter: int = 20, soft_limits_deg: tuple[float, float] | None = None):
+        self.name = name
+        self.state = state
+        self.encoder = encoder
+        self.speed_deg_s = float(speed_deg_s)
+        self.accel_deg_s2 = float(accel_deg_s2)
+        self.settle_s = float(settle_s)
+        self.tol_rad = float(tol_arcsec) * ARCSEC
+        self.max_iter = int(max_iter)
+        self.soft_limits_deg = soft_limits_deg
+        self.command_rad = 0.0
+        self.target_deg: float | None = None
+        self.position_deg = 0.0
+        self.last_iterations = 0
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": "stage", "model": "sim rotary stage (twin)",
+                "units": {"target_deg": "deg", "angle_deg": "deg", "duration_s": "s", "t_s": "s"},
+                "speed_deg_s": self.speed_deg_s, "accel_deg_s2": self.accel_deg_s2,
+                "tolerance_arcsec": self.tol_rad / ARCSEC, "soft_limits_deg": self.soft_limits_deg}
+
+    def move_to(self, target_deg: float) -> dict[str, Any]:
+        target_deg = float(target_deg)
+        st = self.state
+        if self.soft_limits_deg is not None and not self.soft_limits_deg[0] <= target_deg <= self.soft_limits_deg[1]:
+            return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "soft_limit"}
+        duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
+        st.clock.advance(duration)
+        target = math.radians(target_deg)
+        # Warm start: the previous stop's offset between command and reading.
+        offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
+        cmd = target + offset
+        for it in range(1, self.max_iter + 1):
+            pose = st.pose_at_command(cmd)
+            err = self.encoder.sim_exact_readings(pose)[0] - target
+            if abs(err) <= self.tol_rad:
+                break
+            cmd -= err
+        else:
+            raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
+        self.last_iterations = it
+        self.command_rad = cmd
+        self.target_deg = target_deg
+        self.position_deg = target_deg
+        return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": duration, "status": "ok",
+                "iterations": it}
+
+    def position(self) -> dict[str, Any]:
+        return {"angle_deg": self.position_deg, "t_s": self.state.clock.now(), "status": "ok"}
