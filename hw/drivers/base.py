@@ -82,7 +82,8 @@ class Command:
     parse function). ``parse``: name of a parse function in the driver's ``PARSERS``. ``terminator``:
     the bytes that end one reply line; ``lines``: how many such lines make the reply (``0``: the
     command has no reply). ``options``: free per-command settings a parse function may read (e.g.
-    which status codes count as "ok").
+    which status codes count as "ok"); the base reads ``nak``: reply bytes meaning "command refused",
+    which fail at once instead of being retried.
     """
 
     name: str
@@ -288,6 +289,10 @@ class SerialInstrument:
                                           attempt + 1) from exc2
                 continue
             self.last_raw = raw
+            nak = cmd.options.get("nak")
+            if nak and raw.startswith(to_bytes(nak)):
+                raise InstrumentError(self.name, command, "instrument answered NAK (command not recognised "
+                                      "or invalid); check the command table", raw, attempt + 1)
             if not raw:
                 reason = f"timeout: no reply within {self.transport.timeout} s"
                 continue

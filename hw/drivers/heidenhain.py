@@ -45,7 +45,7 @@ class HeidenhainND(SerialInstrument):
     UNITS = {"angle_deg": "deg", "heads_deg": "deg"}
     SERIAL_SETTINGS = {"baudrate": 9600, "bytesize": 7, "parity": "E", "stopbits": 2, "timeout": 0.5}
     PROTOCOL_DOC = "docs/protocols/heidenhain-nd.md"
-    DEFAULT_COMMANDS = {"read": Command("read", b"\x1bA0200\r", _REPLY, "axes", b"\r\n")}
+    DEFAULT_COMMANDS = {"read": Command("read", b"\x1bA0200\r", _REPLY, "axes", b"\r\n", options={"nak": "\x15"})}
     PARSERS = {"axes": parse_axes, "raw": parse_raw}
 
     def __init__(self, name: str, transport, *, heads_deg: list[float] | None = None, decimals: int = 4,

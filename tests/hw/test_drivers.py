@@ -475,3 +475,12 @@ def test_elcomat_over_pty_times_out_then_fails_clearly():
             port.close()
     finally:
         inst.close()
+
+
+def test_heidenhain_nak_fails_at_once():
+    rt = ReplayTransport([{"request": "\x1bA0200\r", "response": "\x15"}])
+    sleeps = Sleeps()
+    with pytest.raises(InstrumentError, match="NAK") as exc:
+        HeidenhainND("encoder", rt, sleep=sleeps).read()
+    assert exc.value.raw == b"\x15" and sleeps == []
+    rt.assert_done()
