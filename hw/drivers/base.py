@@ -125,9 +125,12 @@ class CommandTable(dict):
                 raise ValueError(f"command override {name!r}: unknown keys {sorted(unknown)}; "
                                  f"known: {sorted(_COMMAND_KEYS)}")
             kw: dict[str, Any] = {}
-            for key in ("template", "response", "terminator"):
+            for key in ("template", "terminator"):
                 if key in section:
                     kw[key] = to_bytes(section[key])
+            if "response" in section:  # a regex: its own escapes (\d, \r, \x1b) are left to `re`
+                resp = section["response"]
+                kw["response"] = resp if isinstance(resp, bytes) else str(resp).encode("latin-1")
             if "parse" in section:
                 kw["parse"] = str(section["parse"])
             if "lines" in section:

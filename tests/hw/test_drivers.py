@@ -54,6 +54,8 @@ def test_command_table_overrides_from_bench_section():
     with pytest.raises(ValueError, match="bad response regex"):
         CommandTable.build(defaults, {"read": {"response": "("}})
     assert to_bytes("\\x1bA") == b"\x1bA" and to_bytes(b"x") == b"x"
+    t2 = CommandTable.build(defaults, {"read": {"response": r"\d+\b\r"}})
+    assert t2["read"].compiled().fullmatch(b"12\r")  # regex escapes are not decoded as string escapes
 
 
 def test_unknown_parse_function_refused():
