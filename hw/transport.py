@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -39,7 +39,7 @@ import serial
 
 __all__ = [
     "Transport", "open_transport", "RecordingTransport", "ReplayTransport", "ReplayMismatch",
-    "TransportClosed", "bytes_to_text", "text_to_bytes", "load_transcript",
+    "TransportClosed", "bytes_to_text", "text_to_bytes", "load_transcript", "reopener",
 ]
 
 
@@ -127,6 +127,19 @@ def open_transport(spec: str | Mapping[str, Any], *, baudrate: int = 9600, bytes
                                  parity=_PARITY[par], stopbits=settings["stopbits"],
                                  timeout=settings["timeout"], xonxoff=bool(settings["xonxoff"]),
                                  rtscts=bool(settings["rtscts"]))
+
+
+def reopener(spec: str | Mapping[str, Any], *, recorder: "RecordingTransport | None" = None,
+             **settings: Any) -> Callable[[], Any]:
+    """A ``reconnect`` callable for the drivers: each call opens ``spec`` afresh with ``settings``
+    (the same arguments as ``open_transport``). With ``recorder``, the new port is swapped into that
+    ``RecordingTransport`` (and the reopen is recorded), and the recorder is returned."""
+
+    def _reopen() -> Any:
+        port = open_transport(spec, **settings)
+        return recorder.reopen(port) if recorder is not None else port
+
+    return _reopen
 
 
 def load_transcript(source: str | Path | list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -286,6 +286,10 @@ class SerialInstrument:
                     raise InstrumentError(self.name, command, reason + "; no reconnect configured", raw,
                                           attempt + 1) from exc
                 try:
+                    self.transport.close()
+                except Exception:  # noqa: BLE001 - the old port is gone either way
+                    pass
+                try:
                     self.transport = self.reconnect()
                 except (serial.SerialException, OSError) as exc2:
                     raise InstrumentError(self.name, command, f"{reason}; re-open failed: {exc2}", raw,

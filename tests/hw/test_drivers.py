@@ -486,3 +486,44 @@ def test_heidenhain_nak_fails_at_once():
         HeidenhainND("encoder", rt, sleep=sleeps).read()
     assert exc.value.raw == b"\x15" and sleeps == []
     rt.assert_done()
+
+
+def test_zaber_busy_forever_times_out_on_the_injected_clock():
+    rt = ReplayTransport([{"request": "/1 1 get maxspeed\n", "response": "@01 1 OK IDLE -- 1638\r\n"},
+                          {"request": "/1 1 move abs 1000\n", "response": "@01 1 OK BUSY -- 0\r\n"}]
+                         + [{"request": "/1 1\n", "response": "@01 1 OK BUSY -- 0\r\n"}] * 4)
+    clock = Clock(0.0)
+    st_ = ZaberRotaryStage("stage", rt, sleep=clock.sleep, clock=clock, poll_interval_s=1.0, move_timeout_s=3.5,
+                           **STAGE)
+    with pytest.raises(InstrumentError, match="still BUSY"):
+        st_.move_to(1.0)
+    rt.assert_done()
+
+
+@pytest.mark.parametrize("make", [
+    lambda rt: Elcomat("a", rt), lambda rt: TriAngle("t", rt), lambda rt: TesaTT("p", rt),
+    lambda rt: MillimarC1202("m", rt), lambda rt: HeidenhainND("e", rt),
+    lambda rt: ZaberRotaryStage("s", rt, **STAGE)])
+def test_describe_never_talks_to_the_instrument(make):
+    rt = ReplayTransport([])
+    d = make(rt).describe()
+    assert {"name", "kind", "model", "units"} <= set(d) and rt.written == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_recorded_pty_session_replays_as_a_regression_test(tmp_path):
+    from benchtwin.hw.transport import RecordingTransport, reopener
+
+    inst = PtyInstrument({b"M1?\r": b"1 +001.25 mm\r"})
+    path = tmp_path / "session.jsonl"
+    try:
+        settings_ = MillimarC1202.serial_settings(timeout=2.0)
+        rec = RecordingTransport(open_transport(inst.path, **settings_), path)
+        probe = MillimarC1202("probe_top", rec, sleep=Sleeps(), reconnect=reopener(inst.path, recorder=rec, **settings_))
+        assert probe.read()["value_um"] == 1250.0
+        rec.close()
+    finally:
+        inst.close()
+    rt = ReplayTransport(path)
+    assert MillimarC1202("probe_top", rt, sleep=Sleeps()).read()["value_um"] == 1250.0
+    rt.assert_done()
