@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from benchtwin.hw.drivers.base import Command, CommandTable, InstrumentError, SerialInstrument, to_bytes
+from benchtwin.hw.drivers.base import Command, CommandTable, InstrumentError, to_bytes
 from benchtwin.hw.drivers.elcomat import Elcomat, format_elcomat
 from benchtwin.hw.transport import ReplayMismatch, ReplayTransport
 
