@@ -1,0 +1,334 @@
+"""Scenario -> twin bench -> procedures on the simulated clock -> dataset (format v1) + truth/.
+
+    simulate(sc, out_dir, progress=True, backend="auto", resume=False) -> Path
+
+What runs (``[procedure]`` of the scenario), through ``hw.acquisition.runner`` exactly as on the
+real bench (the same procedures and runner; only the instruments and the clock are simulated):
+
+1. radial motion (Jia sec. 4.1): ``radial_reps`` revolutions × ``radial_positions`` stops, encoder +
+   probes (+ X probes if ``instruments.probe.x_probes``) -> ``radial_motion.csv``;
+2. CCD sweep (Jia sec. 4.2): one image every ``ccd_step`` -> ``ccd/img_KKK.png`` + ``ccd/index.csv``;
+3. polygon shift-angle (Hsieh sec. 2.2): all N start faces at the first shift, start face 1 at
+   the others, ``polygon_reps`` × ``directions`` -> ``polygon.csv``;
+4. self-calibration sweep (Hsieh sec. 2.3) if ``selfcal`` and several heads -> ``heads.csv``.
+
+Every table's ``theta_deg`` is head 1's (quantised) reading at the stop; ``t_s`` is the simulated
+time. The run's journal is kept as ``journal.jsonl`` (``resume=True`` continues an interrupted
+simulation). truth/ holds: ``scenario.json`` (SI values and the file's text), ``bench.json``
+(``Bench.truth()`` + the instruments' generated parameters), ``encoder_error.csv`` (α(θ) of every
+head on a 0.1° grid of readings, rep 0, forward), ``radial_motion.csv`` (per stop: true angle,
+axis and disk centre motion in the disk plane δX/δY, sphere centres, α), ``polygon.csv`` (per
+reading: true angle, α, exact face angle, Σβ in Hsieh's numbering, U), ``polygon_beta.csv``,
+``polygon_setup.csv`` (U_j per mounting and direction), ``ccd.csv`` (per image disk centre and
+edge radius in px), ``seeds.json``. Per-stop truth is recomputed after the run from the rows'
+tags (a second, independent posing), so it is the same for a resumed run.
+
+Same scenario and seed -> byte-identical dataset (no wall time, no host names are written).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchtwin.analysis.dataset import DatasetWriter
+from benchtwin.hw.acquisition import procedures as P
+from benchtwin.hw.acquisition.runner import Runner, SimClock
+
+from .instruments.autocollimator import SimAutocollimator
+from .instruments.encoder_head import SimEncoder
+from .instruments.probe import SimProbe
+from .instruments.stage import (ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face,
+                                sim_quantise)
+from .physics import Bench
+
+JOURNAL = "journal.jsonl"
+ALPHA_GRID_STEP_DEG = 0.1
+
+
+def sim_procedure(sc: Any) -> list:
+    """The scenario's procedures as one list of steps (a dry run of the simulation)."""
+    b, pr = sc["bench"], sc["procedure"]
+    dwell = float(pr["dwell"])
+    probes = ["probe_top", "probe_bottom"]
+    if sc["instruments"]["probe"]["x_probes"]:
+        probes += ["probe_top_x", "probe_bottom_x"]
+    steps: list = []
+    steps += P.radial_motion_run(int(pr["radial_reps"]), int(pr["radial_positions"]), dwell, probes)
+    steps += P.ccd_sweep(math.degrees(float(pr["ccd_step"])), dwell)
+    steps += P.polygon_shift_angle(int(b["polygon_faces"]), [math.degrees(s) for s in pr["polygon_shifts"]],
+                                   int(pr["polygon_reps"]), list(pr["directions"]), dwell)
+    if pr["selfcal"] and len(b["heads"]) > 1:
+        steps += P.selfcal_sweep([math.degrees(h) for h in b["heads"]], math.degrees(float(pr["selfcal_step"])),
+                                 list(pr["directions"]), dwell)
+    return steps
+
+
+def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera: bool = True):
+    """Bench, state and instruments of a scenario: (bench, state, instruments dict)."""
+    bench = Bench(sc) if bench is None else bench
+    state = SimBenchState(bench, SimClock())
+    enc = SimEncoder.sim_from_scenario(sc, state)
+    inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc)}
+    key = 0
+    axes = ("y", "x") if sc["instruments"]["probe"]["x_probes"] else ("y",)
+    for ax in axes:
+        for s in ("top", "bottom"):
+            p = SimProbe.sim_from_scenario(sc, state, bench, s, ax, key=key)
+            inst[p.name] = p
+            key += 1
+    inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state)
+    if camera:
+        from .instruments.camera import SimCamera
+
+        inst["ccd"] = SimCamera.sim_from_scenario(sc, state, backend=backend)
+    return bench, state, inst
+
+
+def _manifest(sc: Any, enc: SimEncoder, cam: Any) -> dict:
+    b = sc["bench"]
+    m = {
+        "format": "bench-dataset", "version": 1, "source": "twin",
+        "scenario": sc.name, "seed": int(sc.seed), "created_by": "benchtwin.twin.simulate",
+        "bench": {
+            "optical_radius_mm": float(b["optical_radius"]) * 1e3,
+            "L1_mm": float(b["L1"]) * 1e3,
+            "L2_mm": float(b["L2"]) * 1e3,
+            "grating_period_um": float(b["grating_period"]) * 1e6,
+            "encoder_lines": int(enc.n_lines),
+            "polygon_faces": int(b["polygon_faces"]),
+            "heads_deg": [math.degrees(float(h)) for h in b["heads"]],
+            "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
+        },
+    }
+    if cam is not None:
+        c = cam.camera
+        m["ccd"] = {"position_deg": math.degrees(c.azimuth_rad), "outward": "+x", "tangential": c.tangential,
+                    "reference_px": [float(v) for v in c.reference_px], "pixel_um": c.pixel_pitch_m * 1e6}
+    return m
+
+
+def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
+             resume: bool = False) -> Path:
+    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it."""
+    from tqdm import tqdm
+
+    out = Path(out_dir)
+    steps = sim_procedure(sc)
+    has_ccd = any(isinstance(s, P.Capture) for s in steps)
+    bench, state, inst = sim_build(sc, backend, camera=has_ccd)
+    enc: SimEncoder = inst["encoder"]
+    cam = inst.get("ccd")
+    writer = DatasetWriter(out, _manifest(sc, enc, cam))
+    bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
+
+    def on_step(i, step, context, replay):
+        state.on_step(i, step, context, replay)
+        bar.update(1)
+
+    def on_row(row, result):
+        if row["type"] == "capture":
+            writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+
+    try:
+        rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
+                      fsync=False).run(steps, resume=resume)
+    finally:
+        bar.close()
+        if cam is not None:
+            cam.close()
+
+    _write_tables(sc, writer, rows, enc)
+    _write_truth(sc, writer, rows, bench, inst)
+    writer.close()
+    return out
+
+
+# --------------------------------------------------------------------------- tables
+
+def _h1(row) -> float:
+    return float(row["readings"]["encoder"]["angle_deg"][0])
+
+
+def _write_tables(sc: Any, w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
+    radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
+    if radial:
+        cols = {"rep": [r["tag"]["rep"] for r in radial], "theta_deg": [_h1(r) for r in radial],
+                "probe_top_um": [r["readings"]["probe_top"]["value_um"] for r in radial],
+                "probe_bottom_um": [r["readings"]["probe_bottom"]["value_um"] for r in radial]}
+        if "probe_top_x" in radial[0]["readings"]:
+            cols["probe_top_x_um"] = [r["readings"]["probe_top_x"]["value_um"] for r in radial]
+            cols["probe_bottom_x_um"] = [r["readings"]["probe_bottom_x"]["value_um"] for r in radial]
+        cols["t_s"] = [r["t_s"] for r in radial]
+        w.write_table("radial_motion", cols)
+    # CCD: the encoder reading precedes each capture at the same stop
+    caps = [r for r in rows if r["type"] == "capture"]
+    if caps:
+        theta = {r["tag"]["k"]: _h1(r) for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "ccd"}
+        w.write_table("ccd/index", {"k": [r["tag"]["k"] for r in caps], "theta_deg": [theta[r["tag"]["k"]] for r in caps],
+                                    "file": [f"img_{int(r['tag']['k']):03d}.png" for r in caps],
+                                    "t_s": [r["t_s"] for r in caps]})
+    poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
+    if poly:
+        w.write_table("polygon", {
+            "shift_deg": [r["tag"]["shift_deg"] for r in poly], "start_face": [r["tag"]["start_face"] for r in poly],
+            "step": [r["tag"]["step"] for r in poly], "theta_deg": [_h1(r) for r in poly],
+            "ac_arcsec": [r["readings"]["autocollimator"]["x_arcsec"] for r in poly],
+            "t_s": [r["t_s"] for r in poly], "rep": [r["tag"]["rep"] for r in poly],
+            "direction": [r["tag"]["direction"] for r in poly],
+            "ac_y_arcsec": [r["readings"]["autocollimator"]["y_arcsec"] for r in poly]})
+    sc_rows = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "selfcal"]
+    if sc_rows:
+        res_arcsec = enc.resolution_rad / ARCSEC
+        cols: dict[str, list] = {"theta_deg": [], "head": [], "delta_arcsec": [], "rep": [], "direction": [], "t_s": []}
+        for r in sc_rows:
+            a = r["readings"]["encoder"]["angle_deg"]
+            for j, aj in enumerate(a):
+                cols["theta_deg"].append(float(a[0]))
+                cols["head"].append(j + 1)
+                # both readings are multiples of the resolution: write the exact multiple
+                cols["delta_arcsec"].append(sim_quantise((a[0] - aj) * 3600.0, res_arcsec))
+                cols["rep"].append(r["tag"]["rep"])
+                cols["direction"].append(r["tag"]["direction"])
+                cols["t_s"].append(r["t_s"])
+        w.write_table("heads", cols)
+
+
+# --------------------------------------------------------------------------- truth
+
+def _instrument_truth(inst: dict) -> dict:
+    enc: SimEncoder = inst["encoder"]
+    ac: SimAutocollimator = inst["autocollimator"]
+    out = {
+        "encoder": {"lines": enc.n_lines, "heads_rad": enc.heads_rad.tolist(), "optical_radius_m": enc.radius_m,
+                    "index_line_body_angle_rad": math.pi / 2,
+                    "graduation_error_rms_rad": enc.graduation_error_rms_rad,
+                    "graduation_harmonics": {k: np.asarray(v).tolist() for k, v in enc.graduation_harmonics.items()},
+                    "interpolation": {k: np.asarray(v).tolist() for k, v in enc.interpolation.items()},
+                    "resolution_rad": enc.resolution_rad, "noise_rad": enc.noise_rad},
+        "autocollimator": {"azimuth_rad": ac.azimuth_rad, "accuracy_curve": {k: v.tolist() for k, v in ac._acc.items()},
+                           "accuracy_rad": ac.accuracy_rad, "range_rad": ac.range_rad,
+                           "drift_rate_rad_s": ac.drift_rate_rad_s, "noise_rad": ac.noise_rad,
+                           "resolution_rad": ac.resolution_rad},
+        "probes": {n: {"sphere": p.sphere, "axis": p.axis, "side": p.side, "sphere_radius_m": p.R,
+                       "nominal_z_m": p.nominal_z_m, "linearity_coeffs": p._lin_c.tolist(),
+                       "linearity_phases": p._lin_p.tolist(), "linearity_scale": p._lin_scale}
+                   for n, p in inst.items() if isinstance(p, SimProbe)},
+        "stage": inst["stage"].describe(),
+    }
+    return out
+
+
+def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict) -> None:
+    N = bench.n_faces
+    w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
+                                         "file": getattr(sc, "raw", None),
+                                         "path": str(sc.path) if getattr(sc, "path", None) else None})
+    # An independent state + stage for the truth poses (the run's clock is not touched).
+    st = SimBenchState(bench, SimClock())
+    enc = SimEncoder.sim_from_scenario(sc, st)
+    stage = SimRotaryStage("truth_stage", st, enc)
+    ac = SimAutocollimator.sim_from_scenario(sc, st)
+
+    def stop(tag) -> tuple:
+        st.apply_context(tag)
+        stage.move_to(float(tag["target_deg"]))
+        p = st.pose
+        x = enc.sim_exact_readings(p)
+        return p, x
+
+    # α on a fine grid of readings, every head (rep 0, forward).
+    st.apply_context({"rep": 0, "direction": "forward"})
+    grid = np.round(np.arange(0.0, 360.0, ALPHA_GRID_STEP_DEG), 10)
+    cols: dict[str, list] = {"theta_deg": [], "true_deg": []}
+    nh = enc.heads_rad.size
+    for j in range(nh):
+        cols[f"alpha_h{j + 1}_arcsec"] = []
+    for th in grid:
+        p, x = stop({"target_deg": th})
+        cols["theta_deg"].append(float(th))
+        cols["true_deg"].append(math.degrees(p.shaft_angle_rad))
+        for j in range(nh):
+            cols[f"alpha_h{j + 1}_arcsec"].append((x[j] - p.shaft_angle_rad) / ARCSEC)
+    cols["alpha_arcsec"] = cols["alpha_h1_arcsec"]
+    w.write_truth_table("encoder_error", cols)
+
+    radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
+    if radial:
+        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
+                                              "axis_dy_um", "disk_centre_x_um", "disk_centre_y_um",
+                                              "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
+                                              "sphere_bottom_y_um")}
+        for r in radial:
+            p, x = stop(r["tag"])
+            ax = p.extra["axis_disk_plane_m"]
+            vals = (r["tag"]["rep"], r["tag"]["k"], _h1(r), math.degrees(p.shaft_angle_rad),
+                    (x[0] - p.shaft_angle_rad) / ARCSEC, ax[0] * 1e6, ax[1] * 1e6, p.disk.pos[0] * 1e6,
+                    p.disk.pos[1] * 1e6, p.sphere_top.pos[0] * 1e6, p.sphere_top.pos[1] * 1e6,
+                    p.sphere_bottom.pos[0] * 1e6, p.sphere_bottom.pos[1] * 1e6)
+            for k, v in zip(t, vals):
+                t[k].append(v)
+        w.write_truth_table("radial_motion", t)
+
+    beta_p = np.asarray(bench.polygon_pitch_deviation_rad) / ARCSEC
+    kmap = [sim_hsieh_to_physics_face(h, N) for h in range(1, N + 1)]
+    beta_h = np.array([beta_p[k - 1] for k in kmap])
+    w.write_truth_table("polygon_beta", {"face": list(range(1, N + 1)), "physics_face": kmap,
+                                         "beta_arcsec": beta_h.tolist()})
+    poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
+    setup: dict[tuple, list] = {}
+    if poly:
+        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "true_deg",
+                             "alpha_arcsec", "ac_exact_arcsec", "ac_exact_y_arcsec", "physics_face", "beta_sum_arcsec",
+                             "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
+        for r in poly:
+            tag = r["tag"]
+            p, x = stop(tag)
+            ex, ey, face = ac.sim_exact_angles(p)
+            j, i = int(tag["start_face"]), int(tag["step"])
+            bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
+            alpha = (x[0] - p.shaft_angle_rad) / ARCSEC
+            U = ex / ARCSEC - alpha - bsum
+            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _h1(r), math.degrees(p.shaft_angle_rad),
+                    alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, st.polygon_setup_error_rad / ARCSEC,
+                    p.extra.get("twist_disk_to_polygon_rad", 0.0) / ARCSEC)
+            for k, v in zip(t, vals):
+                t[k].append(v)
+            setup.setdefault((tag["rep"], tag["shift_deg"], j, tag["direction"]), []).append(
+                (U, st.polygon_setup_error_rad / ARCSEC))
+        w.write_truth_table("polygon", t)
+        keys = list(setup)
+        w.write_truth_table("polygon_setup", {
+            "rep": [k[0] for k in keys], "shift_deg": [k[1] for k in keys], "start_face": [k[2] for k in keys],
+            "direction": [k[3] for k in keys],
+            "U_arcsec": [float(np.mean([u for u, _ in setup[k]])) for k in keys],
+            "U_spread_arcsec": [float(np.ptp([u for u, _ in setup[k]])) for k in keys],
+            "setup_error_arcsec": [setup[k][0][1] for k in keys]})
+
+    caps = [r for r in rows if r["type"] == "capture"]
+    if caps:
+        w.write_truth_table("ccd", {
+            "k": [r["tag"]["k"] for r in caps],
+            "centre_x_px": [r["reading"]["truth"]["centre_px"][0] for r in caps],
+            "centre_y_px": [r["reading"]["truth"]["centre_px"][1] for r in caps],
+            "edge_radius_px": [r["reading"]["truth"]["edge_radius_px"] for r in caps],
+            "pixel_um": [r["reading"]["truth"]["pixel_um"] for r in caps],
+            "backend": [r["reading"]["truth"]["backend"] for r in caps]})
+
+    bt = bench.truth()
+    bt["polygon_pitch_deviation_hsieh_arcsec"] = beta_h.tolist()
+    bt["polygon_face_numbering"] = ("polygon.csv uses Hsieh's numbering: face h is physics face "
+                                    "((1 - h) mod N) + 1 (physics faces run counter-clockwise in the body)")
+    bt["instruments"] = _instrument_truth(inst)
+    bt["polygon_mountings"] = [{"rep": k[0], "shift_deg": k[1], "start_face": k[2], "direction": k[3],
+                                "U_arcsec": float(np.mean([u for u, _ in v])), "setup_error_arcsec": v[0][1]}
+                               for k, v in setup.items()]
+    w.write_truth_json("bench.json", bt)
+    w.write_truth_json("seeds.json", {"scenario_seed": int(sc.seed), "instrument_streams": SIM_STREAMS,
+                                      "note": "every random quantity is drawn from SeedSequence([seed, stream, keys…])"})
+
+
+__all__ = ["simulate", "sim_procedure", "sim_build"]
