@@ -76,7 +76,7 @@ class OpenCVCamera:
         return cls(name, cap, **kw)
 
     def describe(self) -> dict[str, Any]:
-        return {"name": self.name, "kind": self.KIND, "model": self.model, "units": {"image": "counts", "t_s": "s"},
+        return {"name": self.name, "kind": self.KIND, "model": self.model, "units": {"image": "DN", "t_s": "s"},
                 "dtype": self.dtype, "pixel_size_um": self.pixel_size_um}
 
     def capture(self) -> dict[str, Any]:
@@ -123,7 +123,7 @@ class FolderCamera:
         self.pos = 0
 
     def describe(self) -> dict[str, Any]:
-        return {"name": self.name, "kind": self.KIND, "model": "folder replay", "units": {"image": "counts", "t_s": "s"},
+        return {"name": self.name, "kind": self.KIND, "model": "folder replay", "units": {"image": "DN", "t_s": "s"},
                 "folder": str(self.folder), "frames": len(self.frames), "dtype": self.dtype,
                 "pixel_size_um": self.pixel_size_um}
 
