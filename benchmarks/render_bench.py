@@ -117,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     t_bare = timeit(lambda: r.render(s, flags=pr.RenderFlags.FLAT), args.repeat)
     r.delete()
     rows.append(("bare pyrender frame (1 pass 4× MSAA, stock RGB+depth readback)", t_bare, "¼-px steps"))
+    print(f"{rows[-1][0]:55s} {t_bare:7.3f} s", flush=True)
 
     def gl_case(label: str, k: int, n: int, band: bool, nb: int = 2) -> None:
         with GlCoverageRenderer(W, H, supersample=k, jitter=n, end_band=band, band_jitter=nb) as g:
@@ -154,25 +155,43 @@ def main(argv: list[str] | None = None) -> int:
         with Renderer(backend=backend) as rend:
             rend.render(disk_pose(0.0, e_m, th0), grating, camera, sensor, np.random.default_rng(0))  # context, shaders
             t0 = time.perf_counter()
+            per_frame = []
             for th in thetas:
+                t1 = time.perf_counter()
                 images.append(rend.render(disk_pose(math.radians(th), e_m, th0), grating, camera, sensor, rng).image)
+                per_frame.append(time.perf_counter() - t1)
             dt = time.perf_counter() - t0
-        sweeps[backend] = (dt, images)
-        print(f"sweep {args.frames} frames, {backend:9s}: {dt:6.1f} s ({dt / args.frames:.3f} s/frame)", flush=True)
+        sweeps[backend] = (dt, images, statistics.median(per_frame))
+        print(f"sweep {args.frames} frames, {backend:9s}: {dt:6.1f} s ({dt / args.frames:.3f} s/frame, "
+              f"median {statistics.median(per_frame):.3f})", flush=True)
 
-    # bare-rasteriser time of the default configuration: its 4 GL passes with nothing else
-    with GlCoverageRenderer(W, H) as g:
-        g.coverage(scene.polygons, scene.end_x_px(camera.reference_px))
+    # full frame vs the bare rasteriser at the same supersampling (the default's GL passes and
+    # nothing else), measured INTERLEAVED so that other jobs on the machine slow both alike
+    t_full_l, t_bare_l = [], []
+    with Renderer(backend="pyrender") as rend:
+        rend.render(pose, grating, camera, sensor, np.random.default_rng(0))
+        g = rend._gl
         passes = g.n + g.band_jitter
-        t_pass = timeit(lambda: g._r.render(g._scene, flags=pr.RenderFlags.FLAT), args.repeat)
-    t_raster = passes * t_pass
+        rng = np.random.default_rng(2)
+        for i in range(4 * args.repeat):
+            p_i = disk_pose(math.radians(6.0 * i), e_m, th0)
+            t0 = time.perf_counter()
+            rend.render(p_i, grating, camera, sensor, rng)
+            t_full_l.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            for _ in range(passes):
+                g._r.render(g._scene, flags=pr.RenderFlags.FLAT)
+            t_bare_l.append(time.perf_counter() - t0)
+    t_raster = statistics.median(t_bare_l)
+    t_pass = t_raster / passes
+    per_inter = statistics.median(t_full_l)
 
     analysis = ""
     if not args.no_analysis:
         try:
             from benchtwin.analysis.eccentricity import eccentricity_from_images
 
-            for backend, (_, images) in sweeps.items():
+            for backend, (_, images, _m) in sweeps.items():
                 t0 = time.perf_counter()
                 res = eccentricity_from_images(images, thetas, um_per_px=camera.pixel_pitch_m * 1e6,
                                                reference_px=camera.reference_px)
@@ -188,13 +207,14 @@ def main(argv: list[str] | None = None) -> int:
             print(analysis.strip())
 
     dt_gl = sweeps["pyrender"][0]
-    per = dt_gl / args.frames
+    per = sweeps["pyrender"][2]  # median s/frame (robust to other jobs on the machine)
     verdict_30 = "met" if dt_gl * 60 / args.frames < 30 else "NOT met"
-    verdict_2x = "met" if per < 2 * t_raster else "NOT met"
-    summary = (f"- full sweep, pyrender default: {dt_gl:.1f} s for {args.frames} frames ({per:.3f} s/frame); "
+    verdict_2x = "met" if per_inter < 2 * t_raster else "NOT met"
+    summary = (f"- full sweep, pyrender default: {dt_gl:.1f} s for {args.frames} frames (median {per:.3f} s/frame); "
                f"target < 30 s for 60: **{verdict_30}**.\n"
                f"- bare rasteriser at the needed supersampling (the default's {passes} GL passes, "
-               f"{t_pass:.3f} s each): {t_raster:.3f} s/frame; full frame / bare = {per / t_raster:.2f}; "
+               f"{t_pass:.3f} s each): {t_raster:.3f} s/frame vs full frame {per_inter:.3f} s (interleaved medians): "
+               f"full / bare = {per_inter / t_raster:.2f} (vs one stock pyrender frame: {per_inter / t_bare:.2f}); "
                f"target ≤ 2×: **{verdict_2x}**.\n"
                f"- analytic sweep: {sweeps['analytic'][0]:.1f} s ({sweeps['analytic'][0] / args.frames:.3f} s/frame).\n")
     print(summary)
@@ -217,13 +237,16 @@ GL: Mesa llvmpipe via {os.environ.get('PYOPENGL_PLATFORM')} (no GPU). Other jobs
 
 {summary}{analysis}
 What bounds it: llvmpipe fills every 4× MSAA sample of the 3 Mpx framebuffer on the CPU (clear,
-raster of the ~half-covered frame, resolve): {t_pass * 1000:.0f} ms a pass whatever the geometry
-(60 lines are nothing). Sub-pixel accuracy multiplies passes: k× supersampling costs k² passes'
-worth of pixels for 4k sample positions per axis, jitter n costs n passes for 4n; the end band
-(one anisotropic pass, {W}/band-width× in x over the ~30 columns holding the line ends) buys
-1/1000 px at the line ends for one pass. The rest of a frame (sensor model, mesh, accumulation) is
-the gap between "full frame" and "bare". The exact numpy renderer is faster than any GL setting
-here, because it only does work at the ~2 % of pixels an edge crosses.
+raster of the ~half-covered frame, resolve, read): {t_pass * 1000:.0f} ms a pass whatever the
+geometry ({len(scene.polygons)} lines are nothing). Sub-pixel accuracy multiplies passes: k× supersampling costs k²
+passes' worth of pixels for 4k sample positions per axis, jitter n costs n passes for 4n; the end
+band (an anisotropic pass, {W}/band-width× in x over the ~30 columns holding the line ends) brings
+the line ends, which Jia's circle fit measures, to ≤ 0.005 px for its 2 passes, where uniform
+supersampling would need k ≈ 25. The rest of a frame (sensor model ≈ {t_sensor * 1000:.0f} ms: one
+3 Mpx Gaussian draw and a dozen memory-bound array passes; mesh, accumulation) is the gap between
+"full frame" and "bare". The exact numpy renderer is faster than any GL setting of comparable
+accuracy, because it only does real work at the ~2 % of pixels an edge crosses; GL stays the
+default backend (per design) and the analytic one is its cross-check and fallback.
 """
         old = DOC.read_text() if DOC.exists() else "# Benchmarks\n"
         pat = re.compile(rf"^{re.escape(SECTION)}\n.*?(?=^## |\Z)", re.S | re.M)

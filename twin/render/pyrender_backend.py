@@ -27,8 +27,8 @@ Choices, and why:
     the right edge of each part"); they lie in a band of ~30 columns (the edge arc's sagitta over
     the view plus eccentric motion). That band is rendered again by an anisotropic orthographic
     camera, W/band_width× magnified in x only, and its columns area-averaged: 4·W/band_width
-    (≈ 256) positions per pixel across the end, ≤ 0.005 px, for ``band_jitter`` passes (y-only
-    jitter there; an x shift would smear the band's box filter).
+    (≈ 256) positions per pixel across the end, ≤ 0.005 px, for ``band_jitter`` passes (jittered
+    diagonally too, x on the scale of a band sub-column).
   Default k = 1, n = 2, band on (4 passes): line ends ≤ 0.005 px from the exact coverage, line
   sides ≤ 1/16 px (they only set each line's centre row, whose error enters d_ref scaled by the
   edge slope y/R ≤ 0.02). Plus 8-bit rounding ≤ 0.002 px per pass;
@@ -134,7 +134,12 @@ class GlCoverageRenderer:
         self._r = pr.OffscreenRenderer(self.width_px * self.k, self.height_px * self.k)
         rr = self._r._renderer
         rr._read_main_framebuffer = types.MethodType(_lean_read, rr)
-        if lean_framebuffer:
+        # OSMesa has no framebuffer objects in pyrender: one sample at the pixel centre, the
+        # default buffer read as RGB + depth. Keep the accuracy by 4× the passes (4× slower).
+        self.samples_per_axis = 4 if self._r._platform.supports_framebuffers() else 1
+        if self.samples_per_axis == 1:
+            self.n, self.band_jitter = 4 * self.n, 4 * self.band_jitter
+        if lean_framebuffer and self.samples_per_axis == 4:
             rr._delete_main_framebuffer()  # (none yet) then replace how it is (re)built
             rr._configure_main_framebuffer = types.MethodType(_lean_framebuffer, rr)
             rr._delete_main_framebuffer = types.MethodType(_lean_delete_framebuffer, rr)
@@ -151,11 +156,13 @@ class GlCoverageRenderer:
         return pose
 
     def shifts(self, n: int | None = None) -> np.ndarray:
-        """Stratified sub-pixel camera shifts (output px) for n passes: with the 4 MSAA positions
-        (2j+1)/8 of a rendered pixel they give the positions (2q+1)/(8n) of a box filter."""
+        """Stratified sub-pixel camera shifts (output px) for n passes: with the S sample positions
+        (2j+1)/(2S) per axis of a rendered pixel (S = 4 with MSAA, 1 without) they give the
+        positions (2q+1)/(2Sn) of a box filter."""
         n = self.n if n is None else n
+        S = self.samples_per_axis
         m = np.arange(n)
-        return (m / (4.0 * n) - (n - 1) / (8.0 * n)) / self.k
+        return (m / (S * n) - (n - 1) / (2.0 * S * n)) / self.k
 
     def _band_columns(self, end_x_px: np.ndarray | None) -> tuple[int, int] | None:
         """(first column, width) of the end band, or None. The width divides W so that the band
@@ -182,7 +189,10 @@ class GlCoverageRenderer:
         acc = np.zeros((self.height_px * self.k, self.width_px * self.k), np.uint16)
         for sx, sy in zip(shifts_x, shifts_y):
             self._scene.set_pose(self._cam_node, self._cam_pose(float(sx), float(sy), x_centre))
-            acc += self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
+            out = self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
+            if isinstance(out, tuple):  # OSMesa path: (RGB top row first, depth)
+                out = out[0][::-1, :, 0]
+            acc += out
         return acc
 
     def coverage(self, polygons: list[np.ndarray], end_x_px: np.ndarray | None = None) -> np.ndarray:
@@ -217,11 +227,11 @@ class GlCoverageRenderer:
             c0, wb = band
             m = W // wb  # output columns are m·k rendered columns wide in the band pass
             x_centre = (c0 - 0.5 + wb / 2.0) - (W - 1) / 2.0  # band centre in GL world units
-            # x is resolved by the magnification; y is stratified by y-only shifts (an x shift
-            # would smear the band's box filter by whole band sub-columns)
+            # diagonal jitter again, but in x on the scale of a band sub-column (1/m px): an x
+            # shift of output-pixel size would smear the band's box filter
             nb = self.band_jitter
             sy = self.shifts(nb)
-            accb = self._accumulate(wb / 2.0, x_centre, np.zeros(nb), sy)
+            accb = self._accumulate(wb / 2.0, x_centre, sy / m, sy)
             accb = accb.reshape(H, k, wb, m * k).sum(axis=(1, 3), dtype=np.uint32)
             cov[:, c0:c0 + wb] = 1.0 - accb[::-1].astype(np.float64) / (255.0 * nb * m * k * k)  # (float32 store)
         self._cam.xmag = W / 2.0
