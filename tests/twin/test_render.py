@@ -121,6 +121,20 @@ def test_truth_centre_follows_pose_and_conventions():
     assert sc2.edge_radius_px == pytest.approx(GRATING.edge_radius_m / (a * 1.001), rel=1e-12)
 
 
+@pytest.mark.parametrize("psi_deg", [0.0, 90.0, 180.0, 250.0])
+def test_camera_axes_any_azimuth(psi_deg):
+    """Image +x radially outward at the camera, image +y along ẑ × u ("+x" tangential)."""
+    cam = CcdCamera(azimuth_rad=math.radians(psi_deg), **SMALL)
+    a = cam.true_pixel_m
+    sc = build_scene(pose(0.0), GRATING, cam)
+    assert sc.centre_px == pytest.approx((256.0 - GRATING.edge_radius_m / a, 192.0), abs=1e-6)
+    u = np.array([math.cos(math.radians(90 + psi_deg)), math.sin(math.radians(90 + psi_deg)), 0.0])
+    tang = np.cross([0.0, 0.0, 1.0], u)
+    moved = build_scene(pose(0.0, tuple(1.0 * u + 2.0 * tang)), GRATING, cam)  # µm
+    assert moved.centre_px[0] - sc.centre_px[0] == pytest.approx(1e-6 / a, rel=1e-9)
+    assert moved.centre_px[1] - sc.centre_px[1] == pytest.approx(2e-6 / a, rel=1e-9)
+
+
 def test_analytic_edges_lie_on_truth_circle():
     cam = CcdCamera(azimuth_rad=math.pi, **SMALL)
     p = pose(1.234, (6.0, -4.0, 0.0))
