@@ -117,6 +117,16 @@ def read_journal(path: str | Path) -> list[dict[str, Any]]:
     return recs
 
 
+def _drop_torn_tail(path: Path) -> None:
+    """Cut a half-written last line (a crash during a write) before appending to the journal."""
+    if not path.is_file():
+        return
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        with open(path, "r+b") as f:
+            f.truncate(data.rfind(b"\n") + 1)
+
+
 class Runner:
     def __init__(self, instruments: Mapping[str, Any], clock: Any, journal: str | Path | None = None,
                  stage: str = "stage", on_step: Callable[..., None] | None = None,
@@ -154,6 +164,7 @@ class Runner:
         done: list[dict] = []
         if self.journal is not None and resume:
             done = [r for r in read_journal(self.journal) if "i" in r]
+            _drop_torn_tail(self.journal)
         elif self.journal is not None and self.journal.exists():
             self.journal.unlink()
         fh = None
