@@ -230,6 +230,10 @@ def main(argv: list[str] | None = None) -> int:
 2048×1536 px, {len(scene.polygons)} lines in view, jia2019 scenario. Median of {args.repeat} runs.
 Machine: {cpu} cores ({platform.machine()}), Python {platform.python_version()}, pyrender {_p.__version__},
 GL: Mesa llvmpipe via {os.environ.get('PYOPENGL_PLATFORM')} (no GPU). Other jobs may share the CPU.
+"GL" rows: the coverage renderer (`twin/render/pyrender_backend.py`: single-channel R8 4× MSAA
+buffer, no depth, one-channel readback), coverage only; "× bare frame" is against one stock
+pyrender frame of the same mesh. Accuracy: largest per-row difference of the line-end position
+from the exact analytic coverage, over the {len(scene.polygons)} lines, rows ±4 around each end.
 
 | case | ms/frame | × bare frame | accuracy vs exact coverage |
 | --- | --- | --- | --- |
