@@ -58,11 +58,11 @@ def sim_procedure(sc: Any) -> list:
         probes += ["probe_top_x", "probe_bottom_x"]
     steps: list = []
     steps += P.radial_motion_run(int(pr["radial_reps"]), int(pr["radial_positions"]), dwell, probes)
-    steps += P.ccd_sweep(math.degrees(float(pr["ccd_step"])), dwell)
-    steps += P.polygon_shift_angle(int(b["polygon_faces"]), [math.degrees(s) for s in pr["polygon_shifts"]],
+    steps += P.ccd_sweep(_deg(pr["ccd_step"]), dwell)
+    steps += P.polygon_shift_angle(int(b["polygon_faces"]), [_deg(s) for s in pr["polygon_shifts"]],
                                    int(pr["polygon_reps"]), list(pr["directions"]), dwell)
     if pr["selfcal"] and len(b["heads"]) > 1:
-        steps += P.selfcal_sweep([math.degrees(h) for h in b["heads"]], math.degrees(float(pr["selfcal_step"])),
+        steps += P.selfcal_sweep([_deg(h) for h in b["heads"]], _deg(pr["selfcal_step"]),
                                  list(pr["directions"]), dwell)
     return steps
 
@@ -88,6 +88,12 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
     return bench, state, inst
 
 
+def _deg(rad: float) -> float:
+    """Degrees from a parsed angle, rounded to 12 significant digits ("120 deg" -> 120.0, not
+    119.99999999999999: the scenario's text value, not the float round trip)."""
+    return float(f"{math.degrees(float(rad)):.12g}")
+
+
 def _manifest(sc: Any, enc: SimEncoder, cam: Any) -> dict:
     b = sc["bench"]
     m = {
@@ -100,13 +106,13 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any) -> dict:
             "grating_period_um": float(b["grating_period"]) * 1e6,
             "encoder_lines": int(enc.n_lines),
             "polygon_faces": int(b["polygon_faces"]),
-            "heads_deg": [math.degrees(float(h)) for h in b["heads"]],
+            "heads_deg": [_deg(h) for h in b["heads"]],
             "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
         },
     }
     if cam is not None:
         c = cam.camera
-        m["ccd"] = {"position_deg": math.degrees(c.azimuth_rad), "outward": "+x", "tangential": c.tangential,
+        m["ccd"] = {"position_deg": _deg(c.azimuth_rad), "outward": "+x", "tangential": c.tangential,
                     "reference_px": [float(v) for v in c.reference_px], "pixel_um": c.pixel_pitch_m * 1e6}
     return m
 

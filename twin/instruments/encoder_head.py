@@ -117,11 +117,10 @@ class SimEncoder:
         """E(g): body angle of the line of nominal value g minus g (rad)."""
         g = np.asarray(g, dtype=float)
         h = self.graduation_harmonics
-        out = np.zeros_like(g)
         if self.graduation_error_rms_rad == 0:
-            return out
-        for k, a, p in zip(h["order"], h["amplitude_rad"], h["phase_rad"]):
-            out = out + a * np.cos(k * g - p)
+            return np.zeros_like(g)
+        gf = g.reshape(-1)
+        out = (h["amplitude_rad"] @ np.cos(np.outer(h["order"], gf) - h["phase_rad"][:, None])).reshape(g.shape)
         if self._line_err is not None:
             x = np.mod(g, TWO_PI) / self.pitch_rad
             i0 = np.floor(x).astype(int) % self.n_lines
@@ -134,9 +133,13 @@ class SimEncoder:
         gamma = np.asarray(gamma, dtype=float)
         if self.graduation_error_rms_rad == 0:
             return gamma
-        g = gamma.copy()
-        for _ in range(6):  # contraction factor |E'| ≲ 1e-4: 6 steps reach float64
-            g = gamma - self.sim_graduation_error(g)
+        g = gamma - self.sim_graduation_error(gamma)
+        for _ in range(8):  # contraction factor |E'| ≲ 1e-4: converges in 2–3 steps
+            g_new = gamma - self.sim_graduation_error(g)
+            done = np.max(np.abs(g_new - g)) <= 1e-17
+            g = g_new
+            if done:
+                break
         return g
 
     def sim_interpolation_error(self, g) -> np.ndarray:
