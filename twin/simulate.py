@@ -12,8 +12,10 @@ real bench (the same procedures and runner; only the instruments and the clock a
    the others, ``polygon_reps`` × ``directions`` -> ``polygon.csv``;
 4. self-calibration sweep (Hsieh sec. 2.3) if ``selfcal`` and several heads -> ``heads.csv``.
 
-Every table's ``theta_deg`` is head 1's (quantised) reading at the stop; ``t_s`` is the simulated
-time. The run's journal is kept as ``journal.jsonl`` (``resume=True`` continues an interrupted
+Every table's ``theta_deg`` is the stop's encoder position: the commanded reading at which the
+servo holds head 1's interpolated signal (the bench stops at commanded encoder readings); the
+displayed, noisy and quantised reading of head 1 is the extra column ``theta_read_deg``.
+``t_s`` is the simulated time. The run's journal is kept as ``journal.jsonl`` (``resume=True`` continues an interrupted
 simulation). truth/ holds: ``scenario.json`` (SI values and the file's text), ``bench.json``
 (``Bench.truth()`` + the instruments' generated parameters), ``encoder_error.csv`` (α(θ) of every
 head on a 0.1° grid of readings, rep 0, forward), ``radial_motion.csv`` (per stop: true angle,
@@ -156,44 +158,56 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
 # --------------------------------------------------------------------------- tables
 
 def _h1(row) -> float:
+    """Head 1's displayed (noisy, quantised) reading at the stop."""
     return float(row["readings"]["encoder"]["angle_deg"][0])
+
+
+def _theta(row) -> float:
+    """The stop's encoder position: the commanded reading at which the servo holds head 1's
+    interpolated signal (to 1e-6″); what the displayed reading scatters around."""
+    return float(row["tag"]["target_deg"])
 
 
 def _write_tables(sc: Any, w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
     if radial:
-        cols = {"rep": [r["tag"]["rep"] for r in radial], "theta_deg": [_h1(r) for r in radial],
+        cols = {"rep": [r["tag"]["rep"] for r in radial], "theta_deg": [_theta(r) for r in radial],
                 "probe_top_um": [r["readings"]["probe_top"]["value_um"] for r in radial],
                 "probe_bottom_um": [r["readings"]["probe_bottom"]["value_um"] for r in radial]}
         if "probe_top_x" in radial[0]["readings"]:
             cols["probe_top_x_um"] = [r["readings"]["probe_top_x"]["value_um"] for r in radial]
             cols["probe_bottom_x_um"] = [r["readings"]["probe_bottom_x"]["value_um"] for r in radial]
+        cols["theta_read_deg"] = [_h1(r) for r in radial]
         cols["t_s"] = [r["t_s"] for r in radial]
         w.write_table("radial_motion", cols)
     # CCD: the encoder reading precedes each capture at the same stop
     caps = [r for r in rows if r["type"] == "capture"]
     if caps:
-        theta = {r["tag"]["k"]: _h1(r) for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "ccd"}
-        w.write_table("ccd/index", {"k": [r["tag"]["k"] for r in caps], "theta_deg": [theta[r["tag"]["k"]] for r in caps],
+        read = {r["tag"]["k"]: _h1(r) for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "ccd"}
+        w.write_table("ccd/index", {"k": [r["tag"]["k"] for r in caps], "theta_deg": [_theta(r) for r in caps],
                                     "file": [f"img_{int(r['tag']['k']):03d}.png" for r in caps],
+                                    "theta_read_deg": [read[r["tag"]["k"]] for r in caps],
                                     "t_s": [r["t_s"] for r in caps]})
     poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
     if poly:
         w.write_table("polygon", {
             "shift_deg": [r["tag"]["shift_deg"] for r in poly], "start_face": [r["tag"]["start_face"] for r in poly],
-            "step": [r["tag"]["step"] for r in poly], "theta_deg": [_h1(r) for r in poly],
+            "step": [r["tag"]["step"] for r in poly], "theta_deg": [_theta(r) for r in poly],
             "ac_arcsec": [r["readings"]["autocollimator"]["x_arcsec"] for r in poly],
             "t_s": [r["t_s"] for r in poly], "rep": [r["tag"]["rep"] for r in poly],
             "direction": [r["tag"]["direction"] for r in poly],
-            "ac_y_arcsec": [r["readings"]["autocollimator"]["y_arcsec"] for r in poly]})
+            "ac_y_arcsec": [r["readings"]["autocollimator"]["y_arcsec"] for r in poly],
+            "theta_read_deg": [_h1(r) for r in poly]})
     sc_rows = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "selfcal"]
     if sc_rows:
         res_arcsec = enc.resolution_rad / ARCSEC
-        cols: dict[str, list] = {"theta_deg": [], "head": [], "delta_arcsec": [], "rep": [], "direction": [], "t_s": []}
+        cols: dict[str, list] = {"theta_deg": [], "head": [], "delta_arcsec": [], "rep": [], "direction": [],
+                                 "theta_read_deg": [], "t_s": []}
         for r in sc_rows:
             a = r["readings"]["encoder"]["angle_deg"]
             for j, aj in enumerate(a):
-                cols["theta_deg"].append(float(a[0]))
+                cols["theta_deg"].append(_theta(r))
+                cols["theta_read_deg"].append(float(a[0]))
                 cols["head"].append(j + 1)
                 # both readings are multiples of the resolution: write the exact multiple
                 cols["delta_arcsec"].append(sim_quantise((a[0] - aj) * 3600.0, res_arcsec))
@@ -271,7 +285,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
         for r in radial:
             p, x = stop(r["tag"])
             ax = p.extra["axis_disk_plane_m"]
-            vals = (r["tag"]["rep"], r["tag"]["k"], _h1(r), math.degrees(p.shaft_angle_rad),
+            vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(p.shaft_angle_rad),
                     (x[0] - p.shaft_angle_rad) / ARCSEC, ax[0] * 1e6, ax[1] * 1e6, p.disk.pos[0] * 1e6,
                     p.disk.pos[1] * 1e6, p.sphere_top.pos[0] * 1e6, p.sphere_top.pos[1] * 1e6,
                     p.sphere_bottom.pos[0] * 1e6, p.sphere_bottom.pos[1] * 1e6)
@@ -298,7 +312,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
             bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
             alpha = (x[0] - p.shaft_angle_rad) / ARCSEC
             U = ex / ARCSEC - alpha - bsum
-            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _h1(r), math.degrees(p.shaft_angle_rad),
+            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _theta(r), math.degrees(p.shaft_angle_rad),
                     alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, st.polygon_setup_error_rad / ARCSEC,
                     p.extra.get("twist_disk_to_polygon_rad", 0.0) / ARCSEC)
             for k, v in zip(t, vals):

@@ -375,3 +375,23 @@ def test_camera_capture_shape_and_truth():
     expect = cam.lab_to_px(st.pose.disk.pos, grating.edge_radius_m)
     assert (cx, cy) == pytest.approx(tuple(expect), abs=1e-6)
     assert r["truth"]["edge_radius_px"] == pytest.approx(22.5e-3 / 0.667e-6, rel=1e-12)
+
+
+def test_head_j_sees_what_head_1_saw_psi_earlier():
+    """Heads counter-clockwise from head 1, rotation counter-clockwise: a line passes head 1 first
+    and reaches head j after the disk turned by ψ_j, so head j's error at θ is head 1's error at
+    θ − ψ_j (graduation error fixed to the disk; centred disk). Hsieh eq. 8 in graduation indices,
+    δ = a_i − a_{i+(j−1)NG/NH}, counts graduation indices against the reading here: the line under
+    head 1 at reading θ has body angle 90° − θ (the reading grows while the index under the head
+    falls), so a_{i+Δ} is the error at the reading θ − Δ."""
+    psi = np.radians([0.0, 51.428571, 120.0, 257.142857])
+    enc = ideal_encoder(SimBenchState(seed=9), heads=psi, graduation_error_rms_rad=0.6 * ARCSEC, seed=9)
+    for th in np.radians([3.0, 100.0, 271.5]):
+        a_j = enc.sim_exact_readings(make_pose(th)) - th
+        for j, p in enumerate(psi):
+            a1_earlier = enc.sim_exact_readings(make_pose(th - p))[0] - (th - p)
+            assert a_j[j] == pytest.approx(a1_earlier, abs=1e-14)  # float64 of angles ~6 rad
+    # and not θ + ψ_j (the harmonics make the two differ by arcsec)
+    a_j = enc.sim_exact_readings(make_pose(0.5)) - 0.5
+    a1_later = enc.sim_exact_readings(make_pose(0.5 + psi[2]))[0] - (0.5 + psi[2])
+    assert abs(a_j[2] - a1_later) > 0.01 * ARCSEC
