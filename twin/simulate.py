@@ -18,7 +18,8 @@ displayed, noisy and quantised reading of head 1 is the extra column ``theta_rea
 ``t_s`` is the simulated time. The run's journal is kept as ``journal.jsonl`` (``resume=True`` continues an interrupted
 simulation). truth/ holds: ``scenario.json`` (SI values and the file's text), ``bench.json``
 (``Bench.truth()`` + the instruments' generated parameters), ``encoder_error.csv`` (α(θ) of every
-head on a 0.1° grid of readings, rep 0, forward), ``radial_motion.csv`` (per stop: true angle,
+head and the disk-plane motion δX, δY of the axis on a 0.1° grid of readings, rep 0, forward; α
+without the encoder's noise and quantisation), ``radial_motion.csv`` (per stop: true angle,
 axis and disk centre motion in the disk plane δX/δY, sphere centres, α), ``polygon.csv`` (per
 reading: true angle, α, exact face angle, Σβ in Hsieh's numbering, U), ``polygon_beta.csv``,
 ``polygon_setup.csv`` (U_j per mounting and direction), ``ccd.csv`` (per image disk centre and
@@ -263,7 +264,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     # α on a fine grid of readings, every head (rep 0, forward).
     st.apply_context({"rep": 0, "direction": "forward"})
     grid = np.round(np.arange(0.0, 360.0, ALPHA_GRID_STEP_DEG), 10)
-    cols: dict[str, list] = {"theta_deg": [], "true_deg": []}
+    cols: dict[str, list] = {"theta_deg": [], "true_deg": [], "axis_dx_um": [], "axis_dy_um": []}
     nh = enc.heads_rad.size
     for j in range(nh):
         cols[f"alpha_h{j + 1}_arcsec"] = []
@@ -271,6 +272,8 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
         p, x = stop({"target_deg": th})
         cols["theta_deg"].append(float(th))
         cols["true_deg"].append(math.degrees(p.shaft_angle_rad))
+        cols["axis_dx_um"].append(float(p.extra["axis_disk_plane_m"][0]) * 1e6)
+        cols["axis_dy_um"].append(float(p.extra["axis_disk_plane_m"][1]) * 1e6)
         for j in range(nh):
             cols[f"alpha_h{j + 1}_arcsec"].append((x[j] - p.shaft_angle_rad) / ARCSEC)
     cols["alpha_arcsec"] = cols["alpha_h1_arcsec"]
