@@ -204,3 +204,23 @@ def test_jia2019_full_run_is_fast(tmp_path):
     # Jia fig. 15: eccentricity 7.1 µm at r = 22 mm -> α peak ≈ 66.6″
     a = np.array(read_csv(out / "truth" / "encoder_error.csv")["alpha_arcsec"], dtype=float)
     assert 60 < np.max(np.abs(a)) < 73
+
+
+def test_physics_bench_eccentricity_alone_gives_the_exact_law():
+    """Through the MuJoCo bench (all other effects off): the scenario's e and θ0 (conventions.md)
+    give, at the stops, sin α = (e/r)·sin(θ − θ0) exactly (θ the reading)."""
+    from benchtwin.twin.instruments.encoder_head import SimEncoder
+    from benchtwin.twin.instruments.stage import ARCSEC, SimBenchState, SimRotaryStage
+    from benchtwin.twin.physics import Bench
+
+    sc = load_scenario(ROOT / "scenarios" / "jia2019.toml").with_overrides({
+        "bearings.waviness_top": [], "bearings.waviness_bottom": [], "bearings.unbalance": "0 g*mm",
+        "bearings.async_rms": "0 um", "bearings.friction_torque": "0 N*m", "bench.gravity_direction": "none"})
+    st = SimBenchState(Bench(sc))
+    enc = SimEncoder.sim_from_scenario(sc, st)
+    stage = SimRotaryStage("stage", st, enc)
+    e, th0, r = sc["errors"]["eccentricity"], sc["errors"]["theta0"], sc["bench"]["optical_radius"]
+    for th in np.radians(np.arange(0.0, 360.0, 15.0)):
+        stage.move_to(math.degrees(th))
+        alpha = enc.sim_exact_readings()[0] - st.pose.shaft_angle_rad
+        assert math.sin(alpha) == pytest.approx(e / r * math.sin(th - th0), abs=1e-4 * ARCSEC)
