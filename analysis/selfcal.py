@@ -6,18 +6,21 @@ Technol. 25 (2014) 065002; general arrangements: Geckeler et al., Meas. Sci. Tec
 
 Data (docs/conventions.md, "Multi-head"): ``delta_arcsec[:, j−1]`` at θ is eq. 8's
 
-    δ_{i,(1,j)} = a(θ) − a(θ + ψ_j)
+    δ_{i,(1,j)} = a(θ) − a(θ − ψ_j)
 
 head 1's reading error minus head j's, with ψ_j = ``heads_deg[j−1]`` the azimuth of head j from head 1
-(so ``heads_deg[0] == 0`` and δ of head 1 is 0). a(θ) is head 1's reading error, the encoder error
+(so ``heads_deg[0] == 0`` and δ of head 1 is 0). Head j reads at θ the graduation that passed
+head 1 when it read θ − ψ_j: heads sit counter-clockwise from head 1 and the disk turns
+counter-clockwise (docs/conventions.md), so eq. 8's index i + (j−1)·NG/NH is θ − ψ_j in reading
+coordinates. a(θ) is head 1's reading error, the encoder error
 α(θ) of the shift-angle method (same sign: reading − true).
 
 - eq. 9 (:func:`equal_spacing_selfcal_arcsec`): NH equally spaced heads, μ(θ) = (1/NH)·Σ_j δ_j(θ)
-  = a(θ) − (1/NH)·Σ_j a(θ + ψ_j). The subtracted average contains exactly the harmonics of a whose
+  = a(θ) − (1/NH)·Σ_j a(θ − ψ_j). The subtracted average contains exactly the harmonics of a whose
   order is a multiple of NH (and the mean), so μ is a without them.
 - Fourier domain (:func:`transfer_function`, :func:`selfcal_fourier`): with a(θ) = Σ_k A_k e^{ikθ}, head j
-  sees D_jk = G_jk·A_k, G_jk = 1 − e^{ikψ_j}; the average over a set s of heads sees
-  M_sk = H_sk·A_k with H_sk = 1 − (1/NH_s)·Σ_{j∈s} e^{ikψ_j}. A set cannot see harmonics with H_sk = 0
+  sees D_jk = G_jk·A_k, G_jk = 1 − e^{−ikψ_j}; the average over a set s of heads sees
+  M_sk = H_sk·A_k with H_sk = 1 − (1/NH_s)·Σ_{j∈s} e^{−ikψ_j}. A set cannot see harmonics with H_sk = 0
   (for an equally spaced set: k ≡ 0 mod NH). Per set, Â_k = M_sk / H_sk where |H_sk| > tol. Across sets
   (or heads), the weighted least-squares estimate per harmonic
   Â_k = Σ_s w_s·conj(H_sk)·M_sk / Σ_s w_s·|H_sk|², w_s = 1/var(noise of M_s), recovers every harmonic
@@ -36,7 +39,7 @@ What remains unobservable (set to zero and listed in the result):
 
 Uncertainty: the estimator is linear and shift-invariant per head, â = Σ_j h_j ⊛ δ_j, so
 u²(â(θ)) = Σ_j (h_j² ⊛ u_j²)(θ) for independent δ readings (white or per-θ ``u_delta_arcsec``).
-Without ``u_delta_arcsec`` a pooled u(δ) is estimated from the residuals δ_j − (â(θ) − â(θ + ψ_j)) of the
+Without ``u_delta_arcsec`` a pooled u(δ) is estimated from the residuals δ_j − (â(θ) − â(θ − ψ_j)) of the
 heads used, with ν = n·(heads used) − (parameters) degrees of freedom (NaN if ν ≤ 0). Shared heads
 between sets are accounted for in the propagation (the weights ignore the correlation).
 
@@ -92,11 +95,11 @@ def equal_spacing_selfcal_arcsec(delta_arcsec: np.ndarray, u_delta_arcsec: np.nd
 
 def transfer_function(heads_deg: Sequence[float], harmonics: np.ndarray | Sequence[int],
                       weights: Sequence[float] | None = None) -> np.ndarray:
-    """H_k = 1 − Σ_j w_j·e^{ikψ_j} (w = 1/NH by default): what the head average μ sees of harmonic k of a."""
+    """H_k = 1 − Σ_j w_j·e^{−ikψ_j} (w = 1/NH by default): what the head average μ sees of harmonic k of a."""
     psi = np.deg2rad(np.asarray(heads_deg, dtype=float))
     k = np.asarray(harmonics, dtype=float)
     w = np.full(psi.size, 1.0 / psi.size) if weights is None else np.asarray(weights, dtype=float)
-    return 1.0 - np.exp(1j * np.multiply.outer(k, psi)) @ w
+    return 1.0 - np.exp(-1j * np.multiply.outer(k, psi)) @ w
 
 
 def invisible_harmonics(heads_deg: Sequence[float], k_max: int, tol: float = 1e-9) -> np.ndarray:
@@ -107,15 +110,15 @@ def invisible_harmonics(heads_deg: Sequence[float], k_max: int, tol: float = 1e-
     """
     k = np.arange(1, int(k_max) + 1)
     psi = np.deg2rad(np.asarray(heads_deg, dtype=float))
-    G = 1.0 - np.exp(1j * np.multiply.outer(k, psi))
+    G = 1.0 - np.exp(-1j * np.multiply.outer(k, psi))
     return k[np.all(np.abs(G) < tol, axis=1)]
 
 
 def head_deltas_arcsec(a_fn: Callable[[np.ndarray], np.ndarray], theta_deg: np.ndarray,
                        heads_deg: Sequence[float]) -> np.ndarray:
-    """eq. 8 from a known reading error a(θ): δ[:, j−1] = a(θ) − a(θ + ψ_j) (for tests and demos)."""
+    """eq. 8 from a known reading error a(θ): δ[:, j−1] = a(θ) − a(θ − ψ_j) (for tests and demos)."""
     th = np.asarray(theta_deg, dtype=float)
-    return np.column_stack([a_fn(th) - a_fn(np.mod(th + p, 360.0)) for p in heads_deg])
+    return np.column_stack([a_fn(th) - a_fn(np.mod(th - p, 360.0)) for p in heads_deg])
 
 
 @dataclass(frozen=True)
@@ -206,7 +209,7 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     # signed harmonic index of each FFT bin
     kk = np.fft.fftfreq(n, d=1.0 / n).round().astype(int)
     psi = np.deg2rad(psi_deg)
-    G = 1.0 - np.exp(1j * np.outer(kk, psi))  # (n, nheads)
+    G = 1.0 - np.exp(-1j * np.outer(kk, psi))  # (n, nheads): head j sees a(θ − ψ_j)
     P = np.zeros((len(names), nheads))  # set-averaging matrix over heads
     for s, name in enumerate(names):
         hs = sorted(set(int(h) for h in sets[name]))

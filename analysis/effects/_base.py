@@ -137,10 +137,10 @@ def alias_harmonic(k_true: int, n_faces: int) -> int:
 
 def disk_fixed_heads(fn, theta_deg, heads_deg) -> np.ndarray:
     """Multi-head channel (Hsieh eq. 8) of an error g fixed to the disk: head j at azimuth ψ_j reads
-    the disk at θ + ψ_j, so δ_(1,j)(θ) = g(θ) − g(θ + ψ_j). Returns (n, n_heads), head 1 = 0."""
+    the disk where head 1 was at θ − ψ_j (docs/conventions.md), so δ_(1,j)(θ) = g(θ) − g(θ − ψ_j). Returns (n, n_heads), head 1 = 0."""
     th = np.deg2rad(np.asarray(theta_deg, dtype=float))
     g1 = np.asarray(fn(th), dtype=float) + 0.0 * th
-    return np.column_stack([g1 - (np.asarray(fn(th + np.deg2rad(p)), dtype=float) + 0.0 * th) for p in heads_deg])
+    return np.column_stack([g1 - (np.asarray(fn(th - np.deg2rad(p)), dtype=float) + 0.0 * th) for p in heads_deg])
 
 
 def forward(module, ev, params: dict, ctx=None, heads_deg=None) -> dict:

@@ -37,7 +37,7 @@ CHANNELS = {
     "selfcal": "the same harmonics, identical amplitude and phase (multiples of the head count are blind)",
     "radial": "none",
     "ccd": "none (the CCD sees the scale's edge, not the division)",
-    "heads": "δ_(1,j)(θ) = g(θ) − g(θ + ψ_j): the raw head differences carry it with the head spacing",
+    "heads": "δ_(1,j)(θ) = g(θ) − g(θ − ψ_j): the raw head differences carry it with the head spacing",
 }
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = ("Self-calibration curve (sees it identically; reference-chain effects are absent "
@@ -71,7 +71,7 @@ def design(ev, ctx=None):
 
 
 def heads(ev, params, heads_deg, ctx=None):
-    """δ_(1,j)(θ) = g(θ) − g(θ + ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
+    """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
     return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
 

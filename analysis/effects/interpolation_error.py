@@ -111,7 +111,7 @@ def design(ev, ctx=None):
 
 
 def heads(ev, params, heads_deg, ctx=None):
-    """δ_(1,j)(θ) = g(θ) − g(θ + ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
+    """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
     return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
 
