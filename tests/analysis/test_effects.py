@@ -177,7 +177,8 @@ def test_forward_channels():
     np.testing.assert_allclose(f["alpha"], gfun(th))
     np.testing.assert_allclose(f["selfcal"], gfun(np.deg2rad(ev.selfcal.theta_deg)))
     np.testing.assert_allclose(f["heads"][:, 0], 0.0, atol=1e-12)
-    np.testing.assert_allclose(f["heads"][:, 1], gfun(th) - gfun(th - np.deg2rad(120))  # head j sees a(θ − ψ_j), docs/conventions.md)
+    # head j sees a(θ − ψ_j), docs/conventions.md
+    np.testing.assert_allclose(f["heads"][:, 1], gfun(th) - gfun(th - np.deg2rad(120)))
     # reference-chain effects: nothing in the self-calibration or the heads
     d = forward(ALL["ac_drift"], ev, {"drift_arcsec_per_s": 1e-3}, None, heads)
     assert np.all(d["selfcal"] == 0) and np.all(d["heads"] == 0) and np.ptp(d["alpha"]) > 0
