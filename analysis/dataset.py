@@ -76,6 +76,7 @@ BENCH_KEYS: dict[str, tuple[type, bool]] = {
     "grating_period_um": (float, True),
     "polygon_faces": (int, True),
     "encoder_lines": (int, False),
+    "scale_edge_radius_mm": (float, False),
     "heads_deg": (list, False),
     "encoder_resolution_arcsec": (float, False),
     "polygon_certificate_arcsec": (list, False),

@@ -97,7 +97,8 @@ def _deg(rad: float) -> float:
     return float(f"{math.degrees(float(rad)):.12g}")
 
 
-def _manifest(sc: Any, enc: SimEncoder, cam: Any) -> dict:
+def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) -> dict:
+    """The dataset's declarations: from the NOMINAL scenario only ([hidden] never shows here)."""
     b = sc["bench"]
     m = {
         "format": "bench-dataset", "version": 1, "source": "twin",
@@ -107,12 +108,20 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any) -> dict:
             "L1_mm": float(b["L1"]) * 1e3,
             "L2_mm": float(b["L2"]) * 1e3,
             "grating_period_um": float(b["grating_period"]) * 1e6,
+            "scale_edge_radius_mm": float(b["scale_edge_radius"]) * 1e3,
             "encoder_lines": int(enc.n_lines),
             "polygon_faces": int(b["polygon_faces"]),
             "heads_deg": [_deg(h) for h in b["heads"]],
             "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
         },
     }
+    if bench is not None and bench.hidden.writes_certificate:
+        # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
+        # polygon differs from it by the hidden pattern (twin/hidden.py, polygon_pitch_ignored)
+        N = bench.n_faces
+        cert = np.asarray(bench.polygon_pitch_declared_rad) / ARCSEC
+        m["bench"]["polygon_certificate_arcsec"] = [float(cert[sim_hsieh_to_physics_face(h, N) - 1])
+                                                    for h in range(1, N + 1)]
     if cam is not None:
         c = cam.camera
         m["ccd"] = {"position_deg": _deg(c.azimuth_rad), "outward": "+x", "tangential": c.tangential,
@@ -131,7 +140,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam))
+    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench))
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
     def on_step(i, step, context, replay):
@@ -254,7 +263,10 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     stage = SimRotaryStage("truth_stage", st, enc)
     ac = SimAutocollimator.sim_from_scenario(sc, st)
 
-    def stop(tag) -> tuple:
+    def stop(tag, t_s: float = 0.0) -> tuple:
+        # the clock at the reading's time (time-dependent hidden physics); the move adds its own
+        # duration (seconds, against hours of thermal time constant)
+        st.clock.set(float(t_s))
         st.apply_context(tag)
         stage.move_to(float(tag["target_deg"]))
         p = st.pose
@@ -286,7 +298,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                               "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
                                               "sphere_bottom_y_um")}
         for r in radial:
-            p, x = stop(r["tag"])
+            p, x = stop(r["tag"], r["t_s"])
             ax = p.extra["axis_disk_plane_m"]
             vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(p.shaft_angle_rad),
                     (x[0] - p.shaft_angle_rad) / ARCSEC, ax[0] * 1e6, ax[1] * 1e6, p.disk.pos[0] * 1e6,
@@ -309,7 +321,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                              "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
         for r in poly:
             tag = r["tag"]
-            p, x = stop(tag)
+            p, x = stop(tag, r["t_s"])
             ex, ey, face = ac.sim_exact_angles(p)
             j, i = int(tag["start_face"]), int(tag["step"])
             bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
@@ -350,6 +362,8 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                 "U_arcsec": float(np.mean([u for u, _ in v])), "setup_error_arcsec": v[0][1]}
                                for k, v in setup.items()]
     w.write_truth_json("bench.json", bt)
+    if bench.hidden:
+        w.write_truth_json("hidden.json", bench.hidden.truth(N))
     w.write_truth_json("seeds.json", {"scenario_seed": int(sc.seed), "instrument_streams": SIM_STREAMS,
                                       "note": "every random quantity is drawn from SeedSequence([seed, stream, keys…])"})
 

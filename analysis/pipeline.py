@@ -1,0 +1,376 @@
+"""The analysis pipeline: dataset → results.json + report.html.
+
+One pipeline for every source (twin, emulated instruments, real bench, external data): it reads
+only the dataset format (``analysis.dataset``) and never the twin's ground truth.
+
+Steps, each from its paper:
+
+1. Radial error motion from the two test spheres (Jia 2019 sec. 4.1, eqs. 6–9).
+2. Installation eccentricity from the CCD images (Jia sec. 4.2, eqs. 10–13).
+3. Polygon cross-calibration / shift-angle method and multi-head self-calibration (Hsieh 2022).
+4. The error model Δθ = [e·sin(θ−θ0) + ∫δY dθ]/r (Jia eq. 5) compared with the measured encoder
+   error (Jia sec. 4.3): residual, P-V, RMS and share of the error.
+5. Closing the loop (optional): is the residual significant, what is its signature, which effect
+   of the library explains it; the effect joins the model and the residual is re-computed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items() if not callable(v)}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        return _jsonable(x.item())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _progress(enabled: bool, total: int, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, disable=not enabled, unit="step", leave=False)
+
+
+# ----------------------------------------------------------------------------- steps
+
+
+def step_radial_motion(ds: Dataset, order: int) -> dict[str, Any]:
+    from benchtwin.analysis.radial_motion import radial_motion
+
+    t = ds.table("radial_motion")
+    b = ds.bench
+    return radial_motion(
+        t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
+        probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"), order=order,
+    )
+
+
+def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]:
+    from benchtwin.analysis import eccentricity as ecc
+
+    ccd = ds.manifest.get("ccd")
+    if ccd is None:
+        raise DatasetError(f"{ds.path}/manifest.json: key 'ccd' is required when ccd/index.csv is present")
+    period_um = ds.bench["grating_period_um"]
+    ref = tuple(ccd["reference_px"])
+    # Two passes: the pixel scale first (from the grating period, Jia eq. 13), then d_ref with the
+    # edge radius fixed where the manifest knows it (Jia: "r_fitting is already known") — a short arc
+    # of a 22 mm circle does not determine its radius well.
+    # Images are read twice rather than held: memory stays flat for long sweeps of large frames.
+    n_frames = len(ds.table("ccd/index")["k"])
+    scales = []
+    for k, theta, image, f in ds.ccd_frames():
+        try:
+            scales.append(ecc.pixel_scale_um(image, period_um)["pixel_um"])
+        except ecc.ImageAnalysisError as exc:
+            raise DatasetError(f"{ds.path / 'ccd' / f}: {exc}") from None
+    scale = float(np.median(scales))
+    edge_mm = ds.bench.get("scale_edge_radius_mm")
+    radius_px = edge_mm * 1000.0 / scale if edge_mm else None
+    thetas, drefs_px, files = [], [], []
+    bar = _progress(progress, n_frames, "CCD images")
+    for k, theta, image, f in ds.ccd_frames():
+        try:
+            drefs_px.append(ecc.d_ref_px(image, ref, radius_px=radius_px, name=f)["d_ref_px"])
+        except ecc.ImageAnalysisError as exc:
+            raise DatasetError(f"{ds.path / 'ccd' / f}: {exc}") from None
+        thetas.append(theta)
+        files.append(f)
+        bar.update()
+    bar.close()
+    dref_um = np.asarray(drefs_px) * scale
+    res = ecc.eccentricity_from_dref(np.asarray(thetas), dref_um, camera_azimuth_deg=ccd["position_deg"], order=order)
+    res["pixel_um"] = scale
+    res["radius_fixed_px"] = radius_px
+    res["theta_deg"] = thetas
+    res["d_ref_um"] = dref_um
+    res["files"] = files
+    return res
+
+
+def step_polygon(ds: Dataset) -> dict[str, Any]:
+    from benchtwin.analysis.hsieh_pipeline import analyze_polygon
+    from benchtwin.analysis.shift_angle import PolygonDataError
+
+    b = ds.bench
+    heads = ds.table("heads") if ds.has("heads") else None
+    cert = b.get("polygon_certificate_arcsec")
+    try:
+        return analyze_polygon(
+            ds.table("polygon"), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
+            np.asarray(cert, dtype=float) if cert is not None else None,
+            encoder_resolution_arcsec=b.get("encoder_resolution_arcsec", 0.0),
+        )
+    except PolygonDataError as exc:
+        # The Hsieh analysis names rows by array index; the file counts the header as row 1.
+        raise DatasetError(f"{ds.path / 'polygon.csv'}: {exc} (array index i is file row i + 2)") from None
+
+
+def _setup_error_lookup(pol: dict[str, Any]):
+    table = {}
+    for s, values in pol["setup_error_arcsec"].items():
+        faces = pol["setup_error_start_faces"][s]
+        for f, u in zip(faces, values):
+            table[(float(s), int(f))] = float(u)
+
+    def lookup(shift: float, face: int) -> float:
+        key = (float(round(shift, 9)), int(face))
+        if key not in table:  # shifts are stored with their string key; match numerically
+            for (s, f), u in table.items():
+                if f == face and abs(s - shift) < 1e-6:
+                    return u
+            raise KeyError(f"no setup error for shift {shift} deg, start face {face}")
+        return table[key]
+
+    return lookup
+
+
+def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dict[str, Any]:
+    out = {"rms_arcsec": cmp["residual_rms_arcsec"], "pv_arcsec": cmp["residual_pv_arcsec"],
+           "max_abs_arcsec": cmp["residual_max_abs_arcsec"], "fraction_of_error": cmp["fraction_of_error"],
+           "pv_ratio": cmp["pv_ratio"], "measured_pv_arcsec": cmp["measured_pv_arcsec"],
+           "measured_rms_arcsec": cmp["measured_rms_arcsec"], "n_points": int(len(cmp["theta_deg"])),
+           "note": cmp["note"]}
+    if u_arcsec is not None:
+        out["u_rms_arcsec"] = u_arcsec
+    return out
+
+
+def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
+            progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
+    """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
+
+    Returns ``{"results": dict, "paths": {"results": ..., "report": ..., "model": ...?}}``.
+    Raises :class:`DatasetError` for invalid input (naming file, row, column).
+    """
+    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
+    from benchtwin.analysis.report.html import Report
+
+    ds = open_dataset(dataset)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    b = ds.bench
+    r_um = b["optical_radius_mm"] * 1000.0
+    results: dict[str, Any] = {
+        "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
+        "bench": dict(b), "notes": [],
+    }
+    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
+
+    rm = ecc = pol = None
+    if ds.has("radial_motion"):
+        rm = step_radial_motion(ds, order)
+        results["radial_motion"] = {
+            "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
+            "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
+            "tilt_x_urad": rm["tilt_x_urad"],
+        }
+    if ds.has("ccd/index"):
+        ecc = step_eccentricity(ds, order, progress)
+        results.update({
+            "eccentricity_um": ecc["e_um"], "eccentricity_u_um": ecc["e_u_um"],
+            "eccentricity_phase_deg": ecc["theta0_deg"], "eccentricity_phase_u_deg": ecc["theta0_u_deg"],
+            "ccd": {"pixel_um": ecc["pixel_um"], "n_images": len(ecc["files"]), "theta_deg": ecc["theta_deg"],
+                    "d_ref_um": ecc["d_ref_um"], "residual_rms_um": ecc.get("residual_rms_um")},
+        })
+    if ds.has("polygon"):
+        pol = step_polygon(ds)
+        for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
+                    "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
+                    "difference_arcsec", "repeatability"):
+            if key in pol:
+                results[key] = pol[key]
+        results["notes"] += list(pol.get("notes", []))
+
+    # Jia eq. 5: the error model from the measured eccentricity and radial motion.
+    model = None
+    if ecc is not None:
+        model = error_model_from_results(ecc, rm, r_um)
+        if model_file is not None:
+            from benchtwin.analysis.tracing import add_to_error_model
+
+            added = add_to_error_model(model, model_file)
+            results["model_file_terms"] = added
+        grid = np.arange(0.0, 360.0, 1.0)
+        results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),
+                                              "u": model.uncertainty(grid),
+                                              "terms": {k: v for k, v in model.predict_terms(grid).items()}}
+    else:
+        results["notes"].append("no CCD images: the Jia error model (eq. 5) needs the eccentricity; no prediction")
+
+    cmp = None
+    if model is not None and pol is not None:
+        enc = pol["encoder_error_arcsec"]
+        cmp = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model)
+        u_meas = float(np.sqrt(np.mean(np.square(np.asarray(enc["u"], dtype=float)))))
+        results["residual_before"] = _residual_summary(cmp, u_meas)
+        results["comparison"] = {k: cmp[k] for k in ("theta_deg", "measured_arcsec", "model_arcsec", "residual_arcsec")}
+
+    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
+    ev = tr = None
+    if close_loop and cmp is not None:
+        ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
+
+    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr)
+    tmp = out / "results.json.tmp"
+    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    tmp.replace(out / "results.json")
+    return {"results": results, "paths": paths}
+
+
+def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
+    """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
+    chosen effect joins the model and the comparison is redone (before/after)."""
+    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
+    from benchtwin.analysis.tracing import RadialMotion, add_to_error_model, evidence_from_polygon, save_model, trace
+
+    b = ds.bench
+    radial = None
+    if rm is not None:
+        t = ds.table("radial_motion")
+        radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
+                              top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"))
+    sc_cal = pol.get("selfcal_error_arcsec")
+    u_eps = float(pol["budget_summary"]["u_c"]) if pol.get("budget_summary") else 0.07
+    rep = pol.get("repeatability") or {}
+    u_read = rep.get("pooled_sd_eps_arcsec") or rep.get("closure_sd_arcsec") or u_eps
+    poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in ds.table("polygon").items()}
+    ev = evidence_from_polygon(
+        poly, pol["polygon_pitch_deviation_arcsec"], _setup_error_lookup(pol), model,
+        n_faces=b["polygon_faces"], u_arcsec=float(u_read), radial=radial,
+        selfcal_theta_deg=sc_cal["theta_deg"] if sc_cal else None,
+        selfcal_value_arcsec=sc_cal["value"] if sc_cal else None,
+        selfcal_u_arcsec=np.asarray(sc_cal["u"]) if sc_cal else None,
+        n_heads=len(b.get("heads_deg", [0])),
+        optical_radius_mm=b["optical_radius_mm"], L1_mm=b["L1_mm"], L2_mm=b["L2_mm"],
+        grating_period_um=b["grating_period_um"], encoder_lines=b.get("encoder_lines"),
+        radial_term="radial_motion" if rm is not None else None,
+    )
+    ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
+    tr = trace(ev)
+    results["close_loop"] = {k: tr[k] for k in ("status", "signature", "selection", "skipped", "thresholds",
+                                               "partial_effects", "unexplained_signature") if k in tr}
+    results["identified_effects"] = tr["identified_effects"]
+    results["ambiguous"] = tr["ambiguous"]
+    results["unexplained"] = tr["unexplained"]
+    results["residual_test"] = tr["residual_before"]
+    results["residual_after_trace"] = tr["residual_after"]
+    if tr["identified_effects"]:
+        mpath = out / "model.json"
+        save_model(mpath, tr["model_file"])
+        paths["model"] = str(mpath)
+        model2 = error_model_from_results(ecc, rm, b["optical_radius_mm"] * 1000.0)
+        added = add_to_error_model(model2, tr["model_file"])
+        enc = pol["encoder_error_arcsec"]
+        cmp2 = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model2)
+        results["residual_after"] = _residual_summary(cmp2)
+        results["residual_after"]["added_terms"] = added
+        results["comparison_after"] = {k: cmp2[k] for k in ("theta_deg", "model_arcsec", "residual_arcsec")}
+    else:
+        results["residual_after"] = dict(results["residual_before"])
+        results["residual_after"]["added_terms"] = []
+    return ev, tr
+
+
+def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from benchtwin.analysis.report.html import Report, value_with_u
+
+    rep = Report(f"Encoder calibration bench — {ds.manifest.get('scenario', ds.path.name)}")
+    rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}). Analysis: Jia et al. 2019 "
+                  "(radial motion, eccentricity from CCD images, error model eq. 5) and Hsieh et al. 2022 "
+                  "(shift-angle method, self-calibration, GUM budget). Standard uncertainties unless stated.")
+    rows = []
+    if ecc is not None:
+        rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc["e_um"], ecc["e_u_um"], "µm")])
+        rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc["theta0_deg"], ecc["theta0_u_deg"], "°")])
+        rows.append(["pixel scale (from the grating)", f"{ecc['pixel_um']:.5f} µm/px"])
+    if rm is not None:
+        s = rm["summary"]["disk"]
+        rows.append(["disk radial motion δY, synchronous P-V (eq. 9)", f"{s['synchronous_um']:.3f} µm"])
+        rows.append(["δY asynchronous (ISO 230-7)", f"{s['asynchronous_um']:.3f} µm"])
+        rows.append(["u(δY), range method (d_n)", f"{rm['u_dY_range_um']:.3f} µm"])
+    if pol is not None and pol.get("budget_summary"):
+        bs = pol["budget_summary"]
+        rows.append(["shift-angle α: u_c, ν_eff, k, U", f"{bs['u_c']:.3f}″, {bs['nu_eff']:.0f}, {bs['k']:.2f}, {bs['U']:.3f}″"])
+        if pol.get("en_max") is not None:
+            rows.append(["E_n max (shift-angle vs self-calibration)", f"{pol['en_max']:.2f}"])
+    if "residual_before" in results:
+        rb = results["residual_before"]
+        rows.append(["residual after the Jia model: RMS / P-V / share", f"{rb['rms_arcsec']:.3f}″ / {rb['pv_arcsec']:.3f}″ / {100 * rb['fraction_of_error']:.1f} %"])
+    if "residual_after" in results and results.get("identified_effects"):
+        ra = results["residual_after"]
+        rows.append(["residual after adding the traced effect(s): RMS / P-V / share",
+                     f"{ra['rms_arcsec']:.3f}″ / {ra['pv_arcsec']:.3f}″ / {100 * ra['fraction_of_error']:.1f} %"])
+    rep.heading("Summary")
+    rep.table(rows, ["quantity", "value"])
+    for n in results["notes"]:
+        rep.paragraph(str(n), note=True)
+
+    from benchtwin.analysis.report import figures_jia as fj
+
+    if rm is not None:
+        rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
+        rep.figure(fj.fig_radial_motion(rm), "Radial error motion of the test spheres and of the grating disk along the head direction")
+    if ecc is not None:
+        rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
+        rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
+    if model is not None:
+        rep.heading("Predicted angle error (Jia eq. 5, fig. 15)")
+        rep.figure(fj.fig_predicted_error(model), "Angle error predicted from eccentricity and radial motion")
+    if cmp is not None:
+        rep.heading("Comparison with the polygon (Jia sec. 4.3, fig. 16)")
+        rep.figure(fj.fig_comparison(cmp), "Measured encoder error (polygon + autocollimator) vs model, and the residual")
+    if pol is not None:
+        from benchtwin.analysis.report import figures_hsieh as fh
+
+        rep.heading("Polygon cross-calibration and shift-angle method (Hsieh 2022)")
+        rep.figure(fh.figure_pitch_deviation(pol), "Pitch deviations β of the polygon (Hsieh fig. 6)")
+        rep.figure(fh.figure_alpha_at_shifts(pol), "Encoder error at the shift angles (Hsieh fig. 7)")
+        if pol.get("selfcal_error_arcsec"):
+            rep.figure(fh.figure_selfcal_vs_shift_angle(pol), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
+            rep.figure(fh.figure_difference(pol), "Difference between the two methods (Hsieh fig. 12)")
+        if pol.get("budget"):
+            rep.heading("Uncertainty budget (GUM, Hsieh Table 3)", level=3)
+            rep.table([[r.get("name"), r.get("u"), r.get("sensitivity"), r.get("contribution"), r.get("dof")]
+                       for r in pol["budget"]], ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
+    if tr is not None:
+        from benchtwin.analysis.report import figures_loop as fl
+
+        rep.heading("Closing the loop: what the model lacks")
+        status = tr["status"]
+        names = ", ".join(e["name"] for e in tr["identified_effects"]) or "none"
+        rep.paragraph(f"Status: {status}. Identified: {names}.")
+        for e in tr["identified_effects"]:
+            rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
+                      [f"{e['name']}: parameter", "value"])
+        for a in tr["ambiguous"]:
+            rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
+        if tr["unexplained"]:
+            rep.paragraph("Unexplained: the residual is significant but no effect of the library explains it; see the signature.", note=True)
+        rb, ra = results.get("residual_before", {}), results.get("residual_after", {})
+        if rb and ra:
+            rep.table([["before", rb["rms_arcsec"], rb["pv_arcsec"], rb["fraction_of_error"]],
+                       ["after", ra["rms_arcsec"], ra["pv_arcsec"], ra["fraction_of_error"]]],
+                      ["residual", "RMS ″", "P-V ″", "share of the error"])
+        rep.figure(fl.plot_residual_before_after(ev, tr), "Residual before and after adding the traced effect")
+        rep.figure(fl.plot_harmonic_spectrum(tr), "Harmonic spectrum of the residual with uncertainties")
+        rep.figure(fl.plot_signature(ev, tr), "Signature of the residual: time, start face, direction")
+    rep.write(out / "report.html")
