@@ -4,6 +4,8 @@ file, key path and what was expected (issue 2: at least 15 distinct broken input
 from __future__ import annotations
 
 import math
+
+import numpy as np
 import tomllib
 from pathlib import Path
 
@@ -38,10 +40,9 @@ def test_hsieh2022():
     assert shifts == list(range(15))
 
 
-@pytest.mark.parametrize("path", sorted(SCEN.rglob("*.toml")), ids=lambda p: p.name)
+# Study files (scenarios/studies/) have their own format, checked by tests/twin/test_study.py.
+@pytest.mark.parametrize("path", sorted(p for p in SCEN.rglob("*.toml") if "studies" not in p.parts), ids=lambda p: p.name)
 def test_every_shipped_scenario_validates(path):
-    if "studies" in path.parts:
-        pytest.skip("study files have their own format (benchtwin study)")
     load_scenario(path)
 
 
@@ -128,3 +129,33 @@ def test_scenario_format_doc_matches_schema():
 
     doc = (SCEN.parent / "docs" / "scenario-format.md").read_text()
     assert schema_markdown() in doc
+
+
+def test_motion_table_section(tmp_path):
+    """[motion_table] replays a measured spindle: equal-length unit-carrying lists, validated."""
+    raw = _base()
+    raw["motion_table"] = {"theta": ["0 deg", "120 deg", "240 deg"], "dx": ["0.1 um", "0 um", "-0.1 um"]}
+    sc = validate(raw, "mt.toml")
+    assert sc["motion_table"]["dx"][0] == pytest.approx(1e-7)
+    assert "dy" not in sc["motion_table"]
+    raw["motion_table"]["dy"] = ["0 um"]
+    with pytest.raises(ScenarioError, match="motion_table.dy: expected 3 values"):
+        validate(raw, "mt.toml")
+    raw["motion_table"] = {"dx": ["0 um"]}
+    with pytest.raises(ScenarioError, match="missing key motion_table.theta"):
+        validate(raw, "mt.toml")
+
+
+def test_motion_table_drives_the_twin():
+    """The physics replays the table: the axis passes through the tabulated motion."""
+    from benchtwin.twin.physics import Bench
+
+    raw = _base()
+    raw["bearings"]["async_rms"] = "0 um"
+    raw["bench"]["gravity_direction"] = "none"
+    raw["bearings"]["unbalance"] = "0 g*mm"
+    raw["motion_table"] = {"theta": [f"{a} deg" for a in range(0, 360, 10)],
+                           "dx": [f"{0.2 * math.cos(math.radians(3 * a)):.6f} um" for a in range(0, 360, 10)]}
+    bench = Bench(validate(raw, "mt.toml"))
+    dx, dy = bench.disk_plane_motion(np.radians([0.0, 40.0]), rep=0)
+    assert dx[0] - dx[1] == pytest.approx(0.2e-6 * (1 - math.cos(math.radians(120))), abs=5e-9)

@@ -17,7 +17,7 @@ from typing import Any
 
 from benchtwin.units import UnitError, parse_quantity
 
-from .scenario_schema import HIDDEN_EFFECTS, REQUIRED_SECTIONS, SCHEMA, Field
+from .scenario_schema import HIDDEN_EFFECTS, OPTIONAL_SCHEMA, REQUIRED_SECTIONS, SCHEMA, Field
 
 DEFAULT_SCENARIO = "jia2019.toml"
 
@@ -111,7 +111,7 @@ def validate(raw: Mapping[str, Any], where: str = "<scenario>") -> Scenario:
     """Validate a parsed TOML mapping; raises ``ScenarioError`` on the first problem found."""
     if not isinstance(raw, Mapping):
         raise ScenarioError(f"{where}: expected a table at the top level")
-    known_top = {s.split(".")[0] for s in SCHEMA} | {"hidden"}
+    known_top = {s.split(".")[0] for s in SCHEMA} | {"hidden"} | set(OPTIONAL_SCHEMA)
     for key in raw:
         if key not in known_top:
             raise ScenarioError(
@@ -136,6 +136,9 @@ def validate(raw: Mapping[str, Any], where: str = "<scenario>") -> Scenario:
         if f"instruments.{inner}" not in SCHEMA:
             known = sorted(s.split(".", 1)[1] for s in SCHEMA if s.startswith("instruments."))
             raise ScenarioError(f"{where}: unknown section [instruments.{inner}]; expected one of {known}")
+    for section, fields in OPTIONAL_SCHEMA.items():
+        if section in raw:
+            data[section] = _validate_section(_get_section(raw, section, where), fields, section, where)
     data["hidden"] = _validate_hidden(raw.get("hidden", {}), where)
     _cross_checks(data, where)
     return Scenario(data, dict(raw), None)
@@ -281,6 +284,13 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         raise ScenarioError(f"{where}: bench.scale_edge_radius must be at least bench.optical_radius")
     if b["grating_line_length"] >= b["scale_edge_radius"]:
         raise ScenarioError(f"{where}: bench.grating_line_length must be shorter than bench.scale_edge_radius")
+    if "motion_table" in data:
+        mt = data["motion_table"]
+        n = len(mt["theta"])
+        for k, v in mt.items():
+            if v is not None and len(v) != n:
+                raise ScenarioError(f"{where}: motion_table.{k}: expected {n} values (as many as motion_table.theta), got {len(v)}")
+        data["motion_table"] = {k: v for k, v in mt.items() if v is not None}
     e = data["errors"]["eccentricity"]
     if e > 0.05 * b["optical_radius"]:
         raise ScenarioError(f"{where}: errors.eccentricity ({e:g} m) is over 5 % of bench.optical_radius")

@@ -60,6 +60,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "polygon_z": Field("length", lo=-2.0, hi=2.0),
         "ccd_position": Field("angle", 180 * DEG, lo=0.0, hi=360 * DEG),
         "gravity_direction": Field("str", "-z", choices=("-x", "+x", "-y", "+y", "-z", "+z", "none")),
+        "speed": Field("angular_speed", 0.0, lo=0.0, hi=1000.0,
+                       doc="shaft speed while reading; 0 = the bench stops at each reading"),
     },
     "bearings": {
         "radial_stiffness": Field("stiffness", lo=1e3, hi=1e12),
@@ -72,6 +74,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "async_rms": Field("length", 0.0, lo=0.0, hi=1 * MM),
         "drive_torsional_stiffness": Field("torsional_stiffness", 1e4, lo=1.0, hi=1e12),
         "shaft_torsional_stiffness": Field("torsional_stiffness", 1e5, lo=1.0, hi=1e12),
+        "cage_ratio": Field("dimensionless", 0.4, lo=0.3, hi=0.5, doc="cage speed / shaft speed"),
+        "async_cage_fraction": Field("dimensionless", 0.5, lo=0.0, hi=1.0,
+                                     doc="share of async_rms² from cage lobing; the rest is random"),
+        "unbalance_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
     },
     "errors": {
         "eccentricity": Field("length", lo=0.0, hi=5 * MM),
@@ -85,6 +91,11 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "polygon_pitch_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
         "polygon_eccentricity": Field("length", 0.0, lo=0.0, hi=5 * MM),
         "graduation_error_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC),
+        "disk_tilt_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "polygon_eccentricity_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG,
+                                            doc="absent: drawn from the seed"),
+        "polygon_tilt": Field("angle", 0.0, lo=0.0, hi=1 * DEG),
+        "polygon_tilt_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
     },
     "instruments.probe": {
         "repeatability": Field("length", 0.1 * UM, lo=0.0, hi=100 * UM),
@@ -135,13 +146,80 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
 }
 
+# Optional sections: validated only when present (absent: no such data at all).
+OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
+    # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
+    # a real spindle). Equal-length lists; missing motion columns count as 0.
+    "motion_table": {
+        "theta": Field("list[angle]"),
+        "dx": Field("list[length]", None),
+        "dy": Field("list[length]", None),
+        "tilt_x": Field("list[angle]", None),
+        "tilt_y": Field("list[angle]", None),
+    },
+}
+
 # Sections that must be present in every scenario file (others take their defaults).
 REQUIRED_SECTIONS = ("scenario", "bench", "bearings", "errors")
 
 # [hidden]: effects the twin simulates without declaring them to the analysis. Each entry maps an
 # effect name to the schema of its parameters; a name not registered here is an error, so a typo
 # can never silently give a "null" scenario. Effects register here as the twin learns them.
-HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {}
+HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
+    "graduation_error": {
+        "orders": Field("list[dimensionless]", [], lo=1, hi=1000, doc="disk harmonics k (integers)"),
+        "amplitudes": Field("list[angle]", [], doc="a_k: E(g) += a_k·cos(k·g − φ_k), g the line's nominal value"),
+        "phases": Field("list[angle]", [], doc="φ_k"),
+    },
+    "optical_radius": {
+        "relative": Field("dimensionless", 0.0, lo=-0.2, hi=0.2,
+                          doc="heads at r·(1 + relative); the manifest keeps r"),
+    },
+    "ccd_pixel_scale": {
+        "pixel_relative": Field("dimensionless", 0.0, lo=-0.1, hi=0.1,
+                                doc="true pixel = nominal·(1 + x); cancels in a grating-scaled d_ref"),
+        "grating_period_relative": Field("dimensionless", 0.0, lo=-0.1, hi=0.1,
+                                         doc="true period at the scale edge = datasheet·(1 + x), same line count"),
+    },
+    "tangential_motion": {
+        "x_lobes": Field("lobes", [], doc="non-rotating axis motion along lab X: a·cos(k·θ − φ) on both bearings"),
+    },
+    "tilt_abbe": {
+        "delta_L1": Field("length", 0.0, lo=-0.05, hi=0.05, doc="true L1 = L1 + ΔL1 (spheres higher), L2 kept"),
+    },
+    "ac_drift": {
+        "rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3, doc="extra autocollimator zero drift"),
+    },
+    "ac_scale": {
+        "gain": Field("dimensionless", 0.0, lo=-0.1, hi=0.1, doc="reading = v·(1 + gain) + q·v²/1″"),
+        "quadratic_per_arcsec": Field("dimensionless", 0.0, lo=-0.01, hi=0.01, doc="q, per arcsec"),
+    },
+    "sphere_form": {
+        "top": Field("lobes", [], doc="extra form lobes of the top sphere (body frame)"),
+        "bottom": Field("lobes", [], doc="extra form lobes of the bottom sphere"),
+    },
+    "torsion_hysteresis": {
+        "extra_friction_torque": Field("torque", 0.0, lo=0.0, hi=10.0,
+                                       doc="twist ±T/k_shaft between disk and polygon"),
+    },
+    "polygon_pitch_ignored": {
+        "rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                     doc="true polygon = certificate + seeded zero-sum pattern; certificate in the manifest"),
+    },
+    "interpolation_error": {
+        "c1": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC, doc="c1·sin(L·g + φ1), L lines"),
+        "c1_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "c2": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC, doc="c2·sin(2·L·g + φ2)"),
+        "c2_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+    },
+    "thermal_growth": {
+        "amplitude": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                           doc="outside the library: A·(1 − exp(−t/τ))·cos(k·g − φ) on the disk"),
+        "order": Field("int", 7, lo=1, hi=100),
+        "phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "time_constant": Field("time", 3600.0, lo=1.0, hi=1e7),
+    },
+}
 
 
 def schema_markdown() -> str:
@@ -150,7 +228,8 @@ def schema_markdown() -> str:
     from benchtwin.units import units_of
 
     lines = []
-    for section, fields in list(SCHEMA.items()) + [(f"hidden.{k}", v) for k, v in HIDDEN_EFFECTS.items()]:
+    optional = [(f"{k} (optional)", v) for k, v in OPTIONAL_SCHEMA.items()]
+    for section, fields in list(SCHEMA.items()) + optional + [(f"hidden.{k}", v) for k, v in HIDDEN_EFFECTS.items()]:
         lines += [f"### [{section}]", "", "| key | kind | default | range | note |", "| --- | --- | --- | --- | --- |"]
         for key, f in fields.items():
             if f.dim in ("int", "bool", "str", "lobes", "dimensionless") or f.dim.startswith("list["):
