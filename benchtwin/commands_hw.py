@@ -1,0 +1,85 @@
+"""Hardware-side subcommands: ``emulate`` (serve a scenario's instruments on pseudo-terminals) and
+``acquire`` (run a bench file's procedures on real or emulated instruments -> dataset).
+
+Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.commands_hw``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import threading
+from pathlib import Path
+from typing import Any
+
+from benchtwin.cli import InputError, command
+
+
+def _emulate_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", type=Path, nargs="?", default=None,
+                   help="scenario file (default: the embedded jia2019 scenario)")
+    p.add_argument("--faults", type=Path, default=None,
+                   help="fault plan (TOML/JSON, [[faults]] port/request/action/seconds; see docs/bench-file.md)")
+    p.add_argument("--dir", type=Path, default=None,
+                   help="where the port links and bench.toml go (default: a new temporary directory)")
+    p.add_argument("--autocollimator", choices=("elcomat", "triangle"), default="elcomat")
+    p.add_argument("--probes", choices=("millimar", "tesa"), default="millimar")
+    p.add_argument("--duration", type=float, default=None,
+                   help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
+
+
+@command("emulate", "serve a scenario's instruments on pseudo-terminals; writes a bench file for `acquire`",
+         _emulate_args)
+def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
+    import tempfile
+
+    from benchtwin.twin.emulators.pty import load_fault_plan
+    from benchtwin.twin.emulators.serve import EmulationSession
+    from benchtwin.twin.scenario import ScenarioError, load_scenario
+
+    try:
+        sc = load_scenario(ns.scenario)
+        faults = load_fault_plan(ns.faults) if ns.faults is not None else None
+    except (ScenarioError, ValueError) as exc:
+        raise InputError(str(exc)) from None
+    directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
+    session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes)
+    try:
+        bench = session.start(directory)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    stop = threading.Event()
+    old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
+    if not (ns.quiet or ns.json):
+        for name, link in session.ports().items():
+            print(f"{name:16s} {link} -> {session.server.pts()[name]}", flush=True)
+    print(f"bench file: {bench}", flush=True)
+    try:
+        stop.wait(ns.duration)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        session.stop()
+    return {"ok": True, "bench_file": str(bench), "ports": session.ports() or {},
+            "faults_fired": session.server.fired() if session.server else [],
+            "message": f"emulator stopped (bench file was {bench})"}
+
+
+def _acquire_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("bench", type=Path, help="bench file (TOML, docs/bench-file.md)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
+
+
+@command("acquire", "run a bench file's procedures on real or emulated instruments; writes a dataset", _acquire_args)
+def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.hw.acquisition.acquire import acquire
+    from benchtwin.hw.acquisition.bench import BenchFileError
+    from benchtwin.hw.acquisition.runner import RunnerError
+
+    try:
+        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json))
+    except (BenchFileError, RunnerError) as exc:
+        raise InputError(str(exc)) from None
+    return {"ok": True, "dataset": str(out), "message": f"dataset written: {out}"}

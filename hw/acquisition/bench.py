@@ -1,0 +1,425 @@
+"""Bench files (TOML, docs/bench-file.md): which instrument on which port, the stage's limits, the
+procedures to run and the dataset manifest's bench geometry.
+
+    cfg = load_bench("bench.toml")            # BenchFileError names file, key and what was expected
+    steps = build_procedure(cfg)              # procedure steps (hw.acquisition.procedures)
+    inst = open_instruments(cfg, sleep=..., clock=...)   # {name: driver}; ports opened here
+    manifest = dataset_manifest(cfg)
+
+Drivers are built from ``benchtwin.hw.drivers`` through ``open_transport(port,
+**Driver.serial_settings(**section.serial))``; instruments that name the same port share one
+transport (``SharedPort``: the channels of a Millimar amplifier). Every driver gets a ``reconnect``
+callable re-opening its port (unless ``reconnect = false``). This module never imports the twin.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from benchtwin.units import UnitError, parse_quantity
+
+from . import procedures as P
+
+__all__ = ["BenchFileError", "BenchConfig", "DRIVERS", "load_bench", "parse_bench", "build_procedure",
+           "open_instruments", "dataset_manifest", "close_instruments"]
+
+# driver name in the bench file -> (module, class)
+DRIVERS: dict[str, tuple[str, str]] = {
+    "elcomat": ("benchtwin.hw.drivers.elcomat", "Elcomat"),
+    "triangle": ("benchtwin.hw.drivers.triangle", "TriAngle"),
+    "tesa": ("benchtwin.hw.drivers.tesa", "TesaTT"),
+    "millimar": ("benchtwin.hw.drivers.millimar", "MillimarC1202"),
+    "heidenhain": ("benchtwin.hw.drivers.heidenhain", "HeidenhainND"),
+    "zaber": ("benchtwin.hw.drivers.zaber", "ZaberRotaryStage"),
+}
+SOURCES = ("hardware", "emulated")
+PROCEDURES = ("radial_motion", "polygon_shift_angle", "polygon_traditional", "selfcal")
+
+_TOP = {"bench", "geometry", "run", "instruments", "procedure"}
+_BENCH = {"name", "source", "description"}
+_GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
+             "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
+             "polygon_certificate": "angle"}
+_GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
+_RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
+        "stage": None, "fsync": None}
+_INSTRUMENT = {"driver", "port", "serial", "options", "commands", "retries", "backoff", "reconnect",
+               "soft_limits", "max_speed", "closed_loop_encoder", "heads"}
+_SERIAL = {"baudrate", "bytesize", "parity", "stopbits", "timeout", "xonxoff", "rtscts"}
+_PROC_KEYS = {
+    "radial_motion": {"reps": int, "positions": int, "dwell": "time", "probes": list, "encoder": str},
+    "polygon_shift_angle": {"faces": int, "shifts": "angles", "reps": int, "directions": list, "dwell": "time",
+                            "all_faces_each_shift": bool, "encoder": str, "autocollimator": str},
+    "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
+                            "dwell": "time", "encoder": str, "autocollimator": str},
+    "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
+}
+DEG = math.pi / 180.0
+ARCSEC = DEG / 3600.0
+
+
+class BenchFileError(ValueError):
+    """An invalid bench file; the message names the file, the key and what was expected."""
+
+
+@dataclass
+class BenchConfig:
+    path: Path | None
+    raw: dict[str, Any]
+    name: str
+    source: str
+    geometry: dict[str, Any]          # manifest["bench"] (units in the key names)
+    run: dict[str, Any]
+    instruments: dict[str, dict[str, Any]]
+    procedures: list[dict[str, Any]] = field(default_factory=list)
+    text: str | None = None
+
+
+# --------------------------------------------------------------------------- loading
+
+def load_bench(path: str | Path) -> BenchConfig:
+    p = Path(path)
+    if not p.is_file():
+        raise BenchFileError(f"{p}: no such bench file")
+    try:
+        text = p.read_text(encoding="utf-8")
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BenchFileError(f"{p}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise BenchFileError(f"{p}: not UTF-8 text: {exc}") from None
+    cfg = parse_bench(raw, str(p))
+    cfg.path, cfg.text = p, text
+    return cfg
+
+
+def _fail(where: str, key: str, expected: str, got: Any = None) -> BenchFileError:
+    tail = "" if got is None else f", got {got!r}"
+    return BenchFileError(f"{where}: key '{key}': expected {expected}{tail}")
+
+
+def _table(node: Any, where: str, key: str, known: set[str] | None = None, required: bool = True) -> dict:
+    if node is None:
+        if required:
+            raise BenchFileError(f"{where}: missing section [{key}]")
+        return {}
+    if not isinstance(node, Mapping):
+        raise _fail(where, key, "a table", node)
+    if known is not None:
+        unknown = sorted(set(node) - known)
+        if unknown:
+            raise BenchFileError(f"{where}: [{key}]: unknown key(s) {unknown}; known: {sorted(known)}")
+    return dict(node)
+
+
+def _q(value: Any, dim: str, where: str, key: str) -> float:
+    try:
+        return parse_quantity(value, dim)
+    except UnitError as exc:
+        raise _fail(where, key, f"a quantity with a unit of dimension {dim} ({exc})", value) from None
+
+
+def _int(value: Any, where: str, key: str, lo: int | None = None) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or (lo is not None and value < lo):
+        raise _fail(where, key, "an integer" + (f" >= {lo}" if lo is not None else ""), value)
+    return int(value)
+
+
+def _fmt(x: float) -> float:
+    return float(f"{x:.12g}")
+
+
+def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
+    """Validate a parsed bench file (see docs/bench-file.md)."""
+    unknown = sorted(set(raw) - _TOP)
+    if unknown:
+        raise BenchFileError(f"{where}: unknown top-level key(s) {unknown}; known: {sorted(_TOP)}")
+    bench = _table(raw.get("bench"), where, "bench", _BENCH)
+    name = bench.get("name", Path(where).stem)
+    if not isinstance(name, str) or not name:
+        raise _fail(where, "bench.name", "a non-empty string", name)
+    source = bench.get("source", "hardware")
+    if source not in SOURCES:
+        raise _fail(where, "bench.source", f"one of {SOURCES}", source)
+
+    g = _table(raw.get("geometry"), where, "geometry", set(_GEOMETRY))
+    for k in _GEOMETRY_REQUIRED:
+        if k not in g:
+            raise BenchFileError(f"{where}: [geometry]: missing key '{k}' (expected "
+                                 f"{'an integer' if _GEOMETRY[k] is None else 'a quantity of dimension ' + _GEOMETRY[k]})")
+    geo: dict[str, Any] = {
+        "optical_radius_mm": _fmt(_q(g["optical_radius"], "length", where, "geometry.optical_radius") * 1e3),
+        "L1_mm": _fmt(_q(g["L1"], "length", where, "geometry.L1") * 1e3),
+        "L2_mm": _fmt(_q(g["L2"], "length", where, "geometry.L2") * 1e3),
+        "grating_period_um": _fmt(_q(g["grating_period"], "length", where, "geometry.grating_period") * 1e6),
+        "polygon_faces": _int(g["polygon_faces"], where, "geometry.polygon_faces", 3),
+    }
+    if not 0 <= geo["L1_mm"] < geo["L2_mm"]:
+        raise _fail(where, "geometry.L1/L2", "0 <= L1 < L2", (g["L1"], g["L2"]))
+    if "heads" in g:
+        if not isinstance(g["heads"], list) or not g["heads"]:
+            raise _fail(where, "geometry.heads", "a list of angles from head 1 (first '0 deg')", g["heads"])
+        geo["heads_deg"] = [_fmt(_q(h, "angle", where, f"geometry.heads[{i}]") / DEG) for i, h in enumerate(g["heads"])]
+        if geo["heads_deg"][0] != 0.0:
+            raise _fail(where, "geometry.heads", "azimuths from head 1, so the first is '0 deg'", g["heads"])
+    if "encoder_lines" in g:
+        geo["encoder_lines"] = _int(g["encoder_lines"], where, "geometry.encoder_lines", 1)
+    if "encoder_resolution" in g:
+        geo["encoder_resolution_arcsec"] = _fmt(_q(g["encoder_resolution"], "angle", where,
+                                                   "geometry.encoder_resolution") / ARCSEC)
+    if "polygon_certificate" in g:
+        cert = g["polygon_certificate"]
+        if not isinstance(cert, list) or len(cert) != geo["polygon_faces"]:
+            raise _fail(where, "geometry.polygon_certificate", f"{geo['polygon_faces']} angles (one per face)", cert)
+        geo["polygon_certificate_arcsec"] = [_fmt(_q(c, "angle", where, f"geometry.polygon_certificate[{i}]") / ARCSEC)
+                                             for i, c in enumerate(cert)]
+
+    r = _table(raw.get("run"), where, "run", set(_RUN), required=False)
+    run = {"waits": "real", "driver_sleep_scale": 1.0, "theta": "target", "strict": True, "stage": "stage",
+           "fsync": True}
+    for k, v in r.items():
+        choices = _RUN[k]
+        if choices is not None and v not in choices:
+            raise _fail(where, f"run.{k}", f"one of {choices}", v)
+        if k == "driver_sleep_scale" and (not isinstance(v, (int, float)) or isinstance(v, bool) or v < 0):
+            raise _fail(where, "run.driver_sleep_scale", "a number >= 0", v)
+        if k in ("strict", "fsync") and not isinstance(v, bool):
+            raise _fail(where, f"run.{k}", "true or false", v)
+        run[k] = v
+
+    insts = _table(raw.get("instruments"), where, "instruments")
+    if not insts:
+        raise BenchFileError(f"{where}: [instruments]: expected at least one instrument table")
+    instruments = {n: _instrument(n, sec, where, geo) for n, sec in insts.items()}
+    if run["stage"] not in instruments:
+        raise _fail(where, "run.stage", f"the name of an instrument table (have {sorted(instruments)})", run["stage"])
+    if instruments[run["stage"]]["driver"] != "zaber":
+        raise _fail(where, f"instruments.{run['stage']}.driver", "a stage driver ('zaber')",
+                    instruments[run["stage"]]["driver"])
+    for n, sec in instruments.items():
+        enc = sec.get("closed_loop_encoder")
+        if enc is not None and enc not in instruments:
+            raise _fail(where, f"instruments.{n}.closed_loop_encoder", f"an instrument name (have {sorted(instruments)})", enc)
+
+    procs = raw.get("procedure")
+    if not isinstance(procs, list) or not procs:
+        raise BenchFileError(f"{where}: missing [[procedure]] tables (expected at least one, type one of {PROCEDURES})")
+    procedures = [_procedure(k, p, where, geo) for k, p in enumerate(procs)]
+    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures)
+    for k, p in enumerate(procedures):  # every instrument a procedure reads must exist
+        for inst in _proc_instruments(p):
+            if inst not in instruments:
+                raise _fail(where, f"procedure[{k}]", f"instrument {inst!r} to be defined in [instruments]",
+                            sorted(instruments))
+    return cfg
+
+
+def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict[str, Any]:
+    at = f"instruments.{name}"
+    s = _table(sec, where, at, _INSTRUMENT)
+    drv = s.get("driver")
+    if drv not in DRIVERS:
+        raise _fail(where, f"{at}.driver", f"one of {sorted(DRIVERS)}", drv)
+    port = s.get("port")
+    if not isinstance(port, str) or not port:
+        raise _fail(where, f"{at}.port", "a port name, pseudo-terminal path or pyserial URL (string)", port)
+    out: dict[str, Any] = {"driver": drv, "port": port}
+    out["serial"] = _table(s.get("serial", {}), where, f"{at}.serial", _SERIAL)
+    out["options"] = _table(s.get("options", {}), where, f"{at}.options")
+    out["commands"] = _table(s.get("commands", {}), where, f"{at}.commands")
+    out["retries"] = _int(s.get("retries", 2), where, f"{at}.retries", 0)
+    out["backoff_s"] = _q(s.get("backoff", "0.05 s"), "time", where, f"{at}.backoff")
+    out["reconnect"] = s.get("reconnect", True)
+    if not isinstance(out["reconnect"], bool):
+        raise _fail(where, f"{at}.reconnect", "true or false", out["reconnect"])
+    if drv == "zaber":
+        lim = s.get("soft_limits")
+        if not isinstance(lim, list) or len(lim) != 2:
+            raise _fail(where, f"{at}.soft_limits", "[low, high] angles, e.g. ['-5 deg', '365 deg']", lim)
+        lo, hi = (_q(v, "angle", where, f"{at}.soft_limits") / DEG for v in lim)
+        if not lo < hi:
+            raise _fail(where, f"{at}.soft_limits", "low < high", lim)
+        out["soft_limits_deg"] = (_fmt(lo), _fmt(hi))
+        if "max_speed" not in s:
+            raise BenchFileError(f"{where}: [{at}]: missing key 'max_speed' (expected an angular speed, e.g. '20 deg/s')")
+        out["max_speed_deg_s"] = _fmt(_q(s["max_speed"], "angular_speed", where, f"{at}.max_speed") / DEG)
+        if "microsteps_per_deg" not in out["options"]:
+            raise BenchFileError(f"{where}: [{at}.options]: missing key 'microsteps_per_deg' (a number, from the "
+                                 f"stage's datasheet)")
+        out["closed_loop_encoder"] = s.get("closed_loop_encoder")
+    else:
+        for k in ("soft_limits", "max_speed", "closed_loop_encoder"):
+            if k in s:
+                raise BenchFileError(f"{where}: [{at}]: key '{k}' is for the stage (driver 'zaber') only")
+    if drv == "heidenhain":
+        if "heads" in s:
+            out["options"]["heads_deg"] = [_fmt(_q(h, "angle", where, f"{at}.heads[{i}]") / DEG)
+                                           for i, h in enumerate(s["heads"])]
+        elif "heads_deg" not in out["options"] and "heads_deg" in geo:
+            out["options"]["heads_deg"] = list(geo["heads_deg"])
+    elif "heads" in s:
+        raise BenchFileError(f"{where}: [{at}]: key 'heads' is for the encoder (driver 'heidenhain') only")
+    return out
+
+
+def _procedure(k: int, p: Any, where: str, geo: Mapping[str, Any]) -> dict[str, Any]:
+    at = f"procedure[{k}]"
+    if not isinstance(p, Mapping):
+        raise _fail(where, at, "a table", p)
+    typ = p.get("type")
+    if typ not in _PROC_KEYS:
+        raise _fail(where, f"{at}.type", f"one of {PROCEDURES}", typ)
+    spec = _PROC_KEYS[typ]
+    unknown = sorted(set(p) - set(spec) - {"type"})
+    if unknown:
+        raise BenchFileError(f"{where}: [{at}] ({typ}): unknown key(s) {unknown}; known: {sorted(spec)}")
+    out: dict[str, Any] = {"type": typ}
+    for key, kind in spec.items():
+        if key not in p:
+            continue
+        v, kk = p[key], f"{at}.{key}"
+        if kind is int:
+            out[key] = _int(v, where, kk, 0 if key == "rep" else 1)
+        elif kind is bool:
+            if not isinstance(v, bool):
+                raise _fail(where, kk, "true or false", v)
+            out[key] = v
+        elif kind is str:
+            if not isinstance(v, str):
+                raise _fail(where, kk, "an instrument name (string)", v)
+            out[key] = v
+        elif kind is list:
+            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+                raise _fail(where, kk, "a list of strings", v)
+            if key == "directions" and not set(v) <= {"forward", "backward"}:
+                raise _fail(where, kk, "a list of 'forward'/'backward'", v)
+            out[key] = list(v)
+        elif kind == "angles":
+            if not isinstance(v, list) or not v:
+                raise _fail(where, kk, "a list of angles", v)
+            out[key] = [_fmt(_q(x, "angle", where, kk) / DEG) for x in v]
+        elif kind == "angle":
+            out[key] = _fmt(_q(v, "angle", where, kk) / DEG)
+        elif kind == "time":
+            out[key] = _q(v, "time", where, kk)
+    if "faces" not in out and typ.startswith("polygon"):
+        out["faces"] = int(geo["polygon_faces"])
+    if typ == "selfcal" and "heads" not in out:
+        out["heads"] = list(geo.get("heads_deg", [0.0]))
+    return out
+
+
+def _proc_instruments(p: Mapping[str, Any]) -> list[str]:
+    typ = p["type"]
+    if typ == "radial_motion":
+        return [p.get("encoder", "encoder"), *p.get("probes", ["probe_top", "probe_bottom"])]
+    if typ.startswith("polygon"):
+        return [p.get("encoder", "encoder"), p.get("autocollimator", "autocollimator")]
+    return [p.get("encoder", "encoder")]
+
+
+# --------------------------------------------------------------------------- procedures
+
+def build_procedure(cfg: BenchConfig) -> list:
+    """All ``[[procedure]]`` tables, in order, as one list of steps."""
+    steps: list = []
+    for p in cfg.procedures:
+        typ = p["type"]
+        dwell = p.get("dwell", 0.5)
+        enc = p.get("encoder", "encoder")
+        dirs = p.get("directions", ["forward"])
+        if typ == "radial_motion":
+            steps += P.radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
+                                         p.get("probes", ["probe_top", "probe_bottom"]), enc)
+        elif typ == "polygon_shift_angle":
+            steps += P.polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
+                                           p.get("all_faces_each_shift", False), enc,
+                                           p.get("autocollimator", "autocollimator"))
+        elif typ == "polygon_traditional":
+            steps += P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0), p.get("rep", 0),
+                                           dirs, dwell, enc, p.get("autocollimator", "autocollimator"))
+        elif typ == "selfcal":
+            steps += P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
+                                     dwell, enc)
+    return steps
+
+
+# --------------------------------------------------------------------------- instruments
+
+def _driver_class(name: str) -> type:
+    mod, cls = DRIVERS[name]
+    return getattr(importlib.import_module(mod), cls)
+
+
+def open_instruments(cfg: BenchConfig, *, sleep: Callable[[float], None] | None = None,
+                     clock: Callable[[], float] | None = None,
+                     open_port: Callable[..., Any] | None = None) -> tuple[dict[str, Any], list]:
+    """Open every port and build the drivers: ``({name: driver}, [open SharedPort])`` (the stage is
+    built last, so its closed-loop encoder exists). ``open_port(spec, **settings)`` defaults to
+    ``open_transport``; close with ``close_instruments(ports)``."""
+    from benchtwin.hw.drivers.base import SharedPort
+    from benchtwin.hw.transport import open_transport, reopener
+
+    opener = open_port or open_transport
+    shared: dict[str, Any] = {}
+    out: dict[str, Any] = {}
+    order = sorted(cfg.instruments, key=lambda n: cfg.instruments[n]["driver"] == "zaber")
+    where = str(cfg.path or "<bench>")
+    try:
+        for name in order:
+            sec = cfg.instruments[name]
+            cls = _driver_class(sec["driver"])
+            settings = cls.serial_settings(**sec["serial"])
+            if sec["port"] not in shared:
+                try:
+                    shared[sec["port"]] = (SharedPort(opener(sec["port"], **settings)), settings)
+                except Exception as exc:  # serial.SerialException, OSError, ValueError
+                    raise BenchFileError(f"{where}: key 'instruments.{name}.port': cannot open {sec['port']!r}: "
+                                         f"{exc}") from exc
+            port, port_settings = shared[sec["port"]]
+            kw: dict[str, Any] = dict(sec["options"])
+            kw.update(commands=sec["commands"] or None, retries=sec["retries"], backoff_s=sec["backoff_s"],
+                      sleep=sleep, clock=clock)
+            if sec["reconnect"] and open_port is None:
+                kw["reconnect"] = reopener(sec["port"], **port_settings)
+            if sec["driver"] == "zaber":
+                kw.update(soft_limits_deg=sec["soft_limits_deg"], max_speed_deg_s=sec["max_speed_deg_s"])
+                if sec.get("closed_loop_encoder"):
+                    kw["encoder"] = out[sec["closed_loop_encoder"]]
+            try:
+                out[name] = cls(name, port, **kw)
+            except TypeError as exc:
+                raise BenchFileError(f"{where}: [instruments.{name}.options]: {exc}") from None
+            except ValueError as exc:
+                raise BenchFileError(f"{where}: [instruments.{name}]: {exc}") from None
+    except BaseException:
+        close_instruments([p for p, _ in shared.values()])
+        raise
+    return out, [p for p, _ in shared.values()]
+
+
+def close_instruments(ports: list) -> None:
+    """Close the ports ``open_instruments`` opened (best effort)."""
+    for p in ports:
+        try:
+            p.transport.close()
+        except Exception:  # noqa: BLE001 - closing is best effort
+            pass
+
+
+# --------------------------------------------------------------------------- manifest
+
+def dataset_manifest(cfg: BenchConfig, instruments: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    m: dict[str, Any] = {"format": "bench-dataset", "version": 1, "source": cfg.source,
+                         "bench_name": cfg.name, "created_by": "benchtwin.hw.acquisition.acquire",
+                         "bench": dict(cfg.geometry)}
+    if instruments:
+        m["instruments"] = {n: {k: v for k, v in d.describe().items() if k in ("kind", "model", "units", "serial")}
+                            for n, d in instruments.items()}
+    return m

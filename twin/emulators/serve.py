@@ -1,0 +1,177 @@
+"""A scenario's bench as emulated serial instruments on pseudo-terminals, plus the bench file that
+talks to them.
+
+    session = EmulationSession(sc, faults=plan)     # builds the twin and one emulator per port
+    bench_path = session.start(directory)            # ports up; writes directory/bench.toml
+    ...                                              # benchtwin acquire bench.toml -o DATASET
+    session.stop()
+
+Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``stage`` (Zaber
+ASCII), ``autocollimator`` (ELCOMAT 3000 by default, or TriAngle), and the probes: one Millimar
+C1202 port with ``probe_top`` on feature 1 and ``probe_bottom`` on feature 2 (by default), or one
+TESA TT display per probe. X probes, when the scenario has them, go to features 3/… of a second
+amplifier, or to their own TESA displays. The CCD camera is not a serial instrument and is not
+emulated: the bench file's procedures are the scenario's radial-motion, polygon and
+self-calibration procedures (the CCD sweep is replayed by the emulated operator only to keep the
+twin's clock and noise keys those of ``simulate``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ._base import decimals_for
+from .backend import EmulatedBench
+from .elcomat import ElcomatEmulator
+from .heidenhain import HeidenhainEmulator
+from .millimar import MillimarEmulator
+from .pty import PtyServer
+from .tesa import TesaEmulator
+from .triangle import TriAngleEmulator
+from .zaber import ZaberEmulator
+
+__all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
+
+ARCSEC = math.pi / 648000.0
+MICROSTEPS_PER_DEG = 1000.0
+
+
+def _deg(rad: float) -> float:
+    return float(f"{math.degrees(float(rad)):.12g}")
+
+
+def build_emulators(sc: Any, backend: EmulatedBench, autocollimator: str = "elcomat",
+                    probes: str = "millimar") -> dict[str, Any]:
+    """``{port name: emulator}`` for a scenario (see the module docstring)."""
+    ins = sc["instruments"]
+    ac_dec = decimals_for(float(ins["autocollimator"]["resolution"]) / ARCSEC, 2, 4)
+    pr_dec = decimals_for(float(ins["probe"]["resolution"]) * 1e6, 2, 4)
+    emus: dict[str, Any] = {
+        "encoder": HeidenhainEmulator("encoder", backend, "encoder", decimals=6),
+        "stage": ZaberEmulator("stage", backend, MICROSTEPS_PER_DEG),
+    }
+    if autocollimator == "elcomat":
+        emus["autocollimator"] = ElcomatEmulator("autocollimator", backend, "autocollimator", ac_dec)
+    elif autocollimator == "triangle":
+        emus["autocollimator"] = TriAngleEmulator("autocollimator", backend, "autocollimator", ac_dec)
+    else:
+        raise ValueError(f"autocollimator protocol must be 'elcomat' or 'triangle', got {autocollimator!r}")
+    names = ["probe_top", "probe_bottom"] + (["probe_top_x", "probe_bottom_x"] if ins["probe"]["x_probes"] else [])
+    if probes == "millimar":
+        emus["probes"] = MillimarEmulator("probes", backend, {1: names[0], 2: names[1]}, pr_dec)
+        if len(names) > 2:
+            emus["probes_x"] = MillimarEmulator("probes_x", backend, {1: names[2], 2: names[3]}, pr_dec)
+    elif probes == "tesa":
+        for n in names:
+            emus[n] = TesaEmulator(n, backend, n, pr_dec)
+    else:
+        raise ValueError(f"probe protocol must be 'millimar' or 'tesa', got {probes!r}")
+    return emus
+
+
+def _q(x: float, unit: str) -> str:
+    return f'"{x:.12g} {unit}"'
+
+
+def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], timeout_s: float = 0.25) -> str:
+    """A ready-to-use bench file for the emulated instruments (docs/bench-file.md)."""
+    b, pr = sc["bench"], sc["procedure"]
+    from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
+
+    heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
+    lines = [
+        f"# Written by `benchtwin emulate` for scenario {sc.name!r} (seed {sc.seed}).",
+        "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs.",
+        "", "[bench]", f'name = "{sc.name}-emulated"', 'source = "emulated"',
+        f'description = "emulated instruments of scenario {sc.name} (benchtwin emulate)"',
+        "", "[geometry]",
+        f"optical_radius = {_q(float(b['optical_radius']) * 1e3, 'mm')}",
+        f"L1 = {_q(float(b['L1']) * 1e3, 'mm')}",
+        f"L2 = {_q(float(b['L2']) * 1e3, 'mm')}",
+        f"grating_period = {_q(float(b['grating_period']) * 1e6, 'um')}",
+        f"polygon_faces = {int(b['polygon_faces'])}",
+        f"heads = [{heads}]",
+        f"encoder_lines = {sim_lines_from_bench(b)}",
+        f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
+        "", "[run]", 'waits = "skip"                # emulated instruments: nothing to settle',
+        "driver_sleep_scale = 0.0      # no retry backoff / poll waits against an emulator",
+        'theta = "target"', "fsync = true", "",
+    ]
+    ser = f"serial = {{ timeout = {timeout_s:g} }}"
+
+    def inst(name: str, driver: str, port: str, options: str = "", extra: tuple[str, ...] = ()) -> None:
+        lines.extend([f"[instruments.{name}]", f'driver = "{driver}"', f'port = "{port}"', ser, "retries = 3",
+                      "reconnect = true", *extra])
+        if options:
+            lines.append(f"options = {{ {options} }}")
+        lines.append("")
+
+    enc = emulators["encoder"]
+    inst("encoder", "heidenhain", ports["encoder"], f"decimals = {enc.decimals}")
+    ac = emulators["autocollimator"]
+    inst("autocollimator", ac.DRIVER, ports["autocollimator"])
+    probe_names = ["probe_top", "probe_bottom"]
+    if "probes" in emulators:
+        for port in ("probes", "probes_x"):
+            if port in emulators:
+                for ch, n in emulators[port].channels.items():
+                    probe_names = probe_names if n in probe_names else probe_names + [n]
+                    inst(n, "millimar", ports[port], f"channel = {ch}")
+    else:
+        for n, e in emulators.items():
+            if isinstance(e, TesaEmulator):
+                probe_names = probe_names if n in probe_names else probe_names + [n]
+                inst(n, "tesa", ports[n])
+    st = emulators["stage"]
+    inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0",
+         ('soft_limits = ["-1 deg", "361 deg"]', f'max_speed = "{st.speed_deg_s * 1.25:g} deg/s"'))
+    dwell = f'"{float(pr["dwell"]):g} s"'
+    dirs = ", ".join(f'"{d}"' for d in pr["directions"])
+    probes_list = ", ".join(f'"{n}"' for n in probe_names)
+    lines += ["[[procedure]]", 'type = "radial_motion"', f"reps = {int(pr['radial_reps'])}",
+              f"positions = {int(pr['radial_positions'])}", f"dwell = {dwell}", f"probes = [{probes_list}]", ""]
+    shifts = ", ".join(_q(_deg(s), "deg") for s in pr["polygon_shifts"])
+    lines += ["[[procedure]]", 'type = "polygon_shift_angle"', f"shifts = [{shifts}]",
+              f"reps = {int(pr['polygon_reps'])}", f"directions = [{dirs}]", f"dwell = {dwell}", ""]
+    if pr["selfcal"] and len(b["heads"]) > 1:
+        lines += ["[[procedure]]", 'type = "selfcal"', f"step = {_q(_deg(pr['selfcal_step']), 'deg')}",
+                  f"directions = [{dirs}]", f"dwell = {dwell}", ""]
+    return "\n".join(lines)
+
+
+class EmulationSession:
+    """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
+
+    def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
+                 timeout_s: float = 0.25):
+        self.sc = sc
+        self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG)
+        self.emulators = build_emulators(sc, self.backend, autocollimator, probes)
+        self.faults = faults
+        self.timeout_s = float(timeout_s)
+        self.server: PtyServer | None = None
+        self.bench_path: Path | None = None
+
+    def start(self, directory: str | Path) -> Path:
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
+        ports = self.server.start()
+        self.bench_path = d / "bench.toml"
+        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s), encoding="utf-8")
+        return self.bench_path
+
+    def ports(self) -> dict[str, str]:
+        return self.server.paths() if self.server else {}
+
+    def stop(self) -> None:
+        if self.server is not None:
+            self.server.stop()
+
+    def __enter__(self) -> "EmulationSession":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
