@@ -909,6 +909,12 @@ def trace(evidence: Evidence, candidates=None) -> dict:
 
     def gate(c: _Cand, single_bics: dict | None = None):
         c.reasons = []
+        # Parameters must be identifiable with the data at hand: e.g. on 23 polygon stops the
+        # interpolation error of a 7069-line disk aliases onto harmonic 8, exactly the column of a
+        # graduation harmonic 8; such a pair fits anything with parameters of ~1e9.
+        if c.fit["k"] < c.X.shape[1]:
+            c.reasons.append(f"parameters not identifiable: design rank {c.fit['k']} < {c.X.shape[1]} columns "
+                             "(effects alias onto each other at these sampling angles)")
         if min(c.z.values()) < Z_GATE:
             c.reasons.append(f"z = {min(c.z.values()):.1f} < {Z_GATE}")
         if bic0 - c.bic < DBIC_GATE:
