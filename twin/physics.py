@@ -66,6 +66,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
+from .hidden import Hidden, TrueScenario
 from .pose import BenchPose, BodyPose
 
 ARCSEC = math.pi / 648000.0
@@ -186,7 +187,9 @@ class Bench:
             raise ValueError("bench.bearing_top_z and bench.bearing_bottom_z must be at least 1 mm apart: "
                              "two bearings at one place cannot hold the shaft's tilt")
         self.n_faces = int(b["polygon_faces"])
-        self.friction_torque_Nm = float(br["friction_torque"])
+        # [hidden] effects (twin/hidden.py): true values the dataset does not declare.
+        self.hidden = Hidden.from_scenario(sc)
+        self.friction_torque_Nm = float(br["friction_torque"]) + self.hidden.extra_friction_torque_Nm
         self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))
         self.async_cage_fraction = float(_opt(sc, "bearings", "async_cage_fraction", 0.5))
         self.async_rms_m = float(br["async_rms"])
@@ -208,7 +211,13 @@ class Bench:
             unbalance_z_m=0.5 * (b["bearing_top_z"] + b["bearing_bottom_z"]),
         )
         self.placement = place
-        self.model, self.geometry = build_model(sc, place)
+        sc_true = sc
+        if self.hidden.delta_L1_m:
+            L1 = float(b["L1"]) + self.hidden.delta_L1_m
+            if not 0.0 <= L1 < float(b["L2"]):
+                raise ValueError(f"hidden.tilt_abbe: true L1 = {L1:g} m must be in [0, L2)")
+            sc_true = TrueScenario(sc, {"L1": L1})   # the spheres where they truly are
+        self.model, self.geometry = build_model(sc_true, place)
         m = self.model
         # Statics: no constraint rows (no contacts, friction is applied as its sliding value).
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
@@ -261,12 +270,14 @@ class Bench:
             peak = np.max(np.abs((a[:, None] * np.cos(k[:, None] * grid - p[:, None])).sum(0)))
             a = a * (form / peak) if peak > 0 else a * 0
             self.sphere_form[s] = [{"order": int(kk), "amplitude": float(aa), "phase": float(pp)}
-                                   for kk, aa, pp in zip(k, a, p)]
+                                   for kk, aa, pp in zip(k, a, p)] + self.hidden.sphere_form_lobes(s)
         # Polygon pitch deviations β_k (k = 1…N): angle from face k's normal to face k+1's normal
         # minus 2π/N; Σβ = 0 closes the polygon (Hsieh 2022 eq. 1). Face 1 defines body +x.
         N = self.n_faces
         beta = _rng(seed, "polygon_pitch").normal(0.0, float(er["polygon_pitch_rms"]), N)
         beta -= beta.mean()
+        self.polygon_pitch_declared_rad = beta.copy()      # what a certificate of this polygon says
+        beta = beta + self.hidden.polygon_pitch_pattern_rad(N)
         self.polygon_pitch_deviation_rad = beta
         cum = np.concatenate([[0.0], np.cumsum(beta[:-1])])
         self.polygon_face_normal_angle_rad = TWO_PI * np.arange(N) / N + cum
@@ -362,6 +373,10 @@ class Bench:
                 out[2 * i] += np.dot(a, np.cos(arg))
                 out[2 * i + 1] += np.dot(a, np.sin(arg))
             out += np.sum(rp["a"] * np.cos(rp["f"] * th + rp["ph"]), axis=1)
+        if self.hidden:
+            dx = self.hidden.race_x_offset_m(th)        # hidden tangential motion: X only
+            out[0] += dx
+            out[2] += dx
         return out
 
     # --------------------------------------------------------------------------- statics -----

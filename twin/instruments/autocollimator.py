@@ -58,12 +58,18 @@ class SimAutocollimator:
         c1 = r.uniform(-0.6, 0.6, 2)
         c2 = (1.0 - np.abs(c1)) * r.uniform(0.5, 1.0, 2) * np.sign(r.uniform(-1, 1, 2))
         self._acc = {"scale": c1, "bow": c2, "phase": r.uniform(0, TWO_PI, 2)}
+        self.hidden = None   # [hidden] ac_scale / ac_drift (twin/hidden.py)
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "autocollimator") -> "SimAutocollimator":
+        from benchtwin.twin.hidden import Hidden
+
         a = sc["instruments"]["autocollimator"]
-        return cls(name, state, resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
-                   noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
+        obj = cls(name, state, resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
+                  noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
+        hidden = Hidden.from_scenario(sc)
+        obj.hidden = hidden if ("ac_scale" in hidden.effects or "ac_drift" in hidden.effects) else None
+        return obj
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "autocollimator", "model": "sim autocollimator (twin)",
@@ -107,6 +113,8 @@ class SimAutocollimator:
             return {"x_arcsec": float("nan"), "y_arcsec": float("nan"), "t_s": t, "status": "out_of_range"}
         vals = []
         for axis, v in enumerate((x, y)):
+            if self.hidden is not None:   # undeclared scale / non-linearity / drift of the instrument
+                v = self.hidden.ac_angle_rad(v, axis, t)
             v = v + self.sim_accuracy_error(v, axis) + self.drift_rate_rad_s * t
             vals.append(v)
         if self.noise_rad > 0:

@@ -39,12 +39,24 @@ class SimCamera:
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "ccd", backend: str = "auto",
                           tangential: str = "+x") -> "SimCamera":
+        import dataclasses
+
+        from benchtwin.twin.hidden import Hidden
         from benchtwin.twin.render import GratingSpec, SensorParams
 
         b = sc["bench"]
         sensor = SensorParams.from_section(sc["instruments"]["ccd"])
+        grating = GratingSpec.from_bench(b)
+        hidden = Hidden.from_scenario(sc)
+        if "ccd_pixel_scale" in hidden.effects:
+            # true pixel ≠ nominal (camera.pixel_pitch_m stays the nominal: the manifest's value);
+            # true grating period at the edge ≠ datasheet, same line count (larger ruling radius)
+            sensor = dataclasses.replace(sensor, pixel_scale_error=sensor.pixel_scale_error + hidden.pixel_scale_extra)
+            s = hidden.grating_scale_factor
+            grating = dataclasses.replace(grating, period_m=grating.period_m * s,
+                                          edge_radius_m=grating.edge_radius_m * s)
         camera = sensor.camera(float(b["ccd_position"]), tangential=tangential)
-        return cls(name, state, GratingSpec.from_bench(b), camera, sensor, backend=backend)
+        return cls(name, state, grating, camera, sensor, backend=backend)
 
     def describe(self) -> dict[str, Any]:
         c = self.camera

@@ -96,14 +96,23 @@ class SimEncoder:
         ri = sim_rng(seed, "encoder_interpolation")
         self.interpolation = {"amplitude_rad": np.array([1.0, 1.0 / 3.0]) * float(interpolation_error_rad),
                               "phase_rad": ri.uniform(0, TWO_PI, 2)}
+        # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
+        self.hidden = None
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "encoder") -> "SimEncoder":
+        from benchtwin.twin.hidden import Hidden
+
         b, enc = sc["bench"], sc["instruments"]["encoder"]
-        return cls(name, state, heads_rad=[float(h) for h in b["heads"]], radius_m=float(b["optical_radius"]),
-                   n_lines=sim_lines_from_bench(b), resolution_rad=float(b["encoder_resolution"]),
-                   noise_rad=float(enc["noise"]), interpolation_error_rad=float(enc["interpolation_error"]),
-                   graduation_error_rms_rad=float(sc["errors"]["graduation_error_rms"]), seed=state.seed)
+        hidden = Hidden.from_scenario(sc)
+        # hidden.optical_radius: the heads sit at the TRUE radius (the manifest keeps the nominal)
+        obj = cls(name, state, heads_rad=[float(h) for h in b["heads"]],
+                  radius_m=float(b["optical_radius"]) * hidden.optical_radius_factor,
+                  n_lines=sim_lines_from_bench(b), resolution_rad=float(b["encoder_resolution"]),
+                  noise_rad=float(enc["noise"]), interpolation_error_rad=float(enc["interpolation_error"]),
+                  graduation_error_rms_rad=float(sc["errors"]["graduation_error_rms"]), seed=state.seed)
+        obj.hidden = hidden if hidden else None
+        return obj
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "encoder", "model": "sim encoder (twin): exact head geometry",
@@ -113,9 +122,19 @@ class SimEncoder:
                 "noise_arcsec": self.noise_rad / ARCSEC}
 
     # ------------------------------------------------------------------ disk properties
-    def sim_graduation_error(self, g) -> np.ndarray:
-        """E(g): body angle of the line of nominal value g minus g (rad)."""
+    def _hidden_graduation(self) -> bool:
+        return self.hidden is not None and self.hidden.has_graduation
+
+    def sim_graduation_error(self, g, t_s: float = 0.0) -> np.ndarray:
+        """E(g): body angle of the line of nominal value g minus g (rad), at time t (the hidden
+        thermal deformation is the only time-dependent part)."""
         g = np.asarray(g, dtype=float)
+        out = self._declared_graduation_error(g)
+        if self._hidden_graduation():
+            out = out + self.hidden.graduation_error_rad(g, t_s)
+        return out
+
+    def _declared_graduation_error(self, g: np.ndarray) -> np.ndarray:
         h = self.graduation_harmonics
         if self.graduation_error_rms_rad == 0:
             return np.zeros_like(g)
@@ -128,14 +147,14 @@ class SimEncoder:
             out = out + (1 - f) * self._line_err[i0] + f * self._line_err[(i0 + 1) % self.n_lines]
         return out
 
-    def sim_graduation_value(self, gamma) -> np.ndarray:
+    def sim_graduation_value(self, gamma, t_s: float = 0.0) -> np.ndarray:
         """Value g of the graduation seen at body polar angle γ: solves g + E(g) = γ."""
         gamma = np.asarray(gamma, dtype=float)
-        if self.graduation_error_rms_rad == 0:
+        if self.graduation_error_rms_rad == 0 and not self._hidden_graduation():
             return gamma
-        g = gamma - self.sim_graduation_error(gamma)
+        g = gamma - self.sim_graduation_error(gamma, t_s)
         for _ in range(8):  # contraction factor |E'| ≲ 1e-4: converges in 2–3 steps
-            g_new = gamma - self.sim_graduation_error(g)
+            g_new = gamma - self.sim_graduation_error(g, t_s)
             done = np.max(np.abs(g_new - g)) <= 1e-17
             g = g_new
             if done:
@@ -149,6 +168,8 @@ class SimEncoder:
         for m, (a, p) in enumerate(zip(ip["amplitude_rad"], ip["phase_rad"]), start=1):
             if a:
                 out = out + a * np.sin(m * self.n_lines * g + p)
+        if self.hidden is not None:
+            out = out + self.hidden.interpolation_error_rad(self.n_lines * g)
         return out
 
     # ------------------------------------------------------------------ geometry
@@ -168,7 +189,7 @@ class SimEncoder:
         """Readings (rad) of every head from the exact geometry, graduation and interpolation
         errors included; no noise, no quantisation."""
         pose = self.state.pose if pose is None else pose
-        g = self.sim_graduation_value(self.sim_head_body_angles(pose))
+        g = self.sim_graduation_value(self.sim_head_body_angles(pose), pose.t_s)
         raw = 0.5 * math.pi + self.heads_rad - g + self.sim_interpolation_error(g)
         phi = pose.shaft_angle_rad
         return phi + _wrap_pi(raw - phi)

@@ -1,0 +1,284 @@
+"""Hidden effects (issue 7, twin/hidden.py): every scenarios/hidden/*.toml validates; each effect
+changes the twin's readings in the channel where it physically lives and nowhere else (against
+the same scenario with [hidden] removed); the manifest never shows it (truth/ does); the
+simulation stays deterministic by seed."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchtwin.twin.hidden import Hidden
+from benchtwin.twin.scenario import load_scenario, validate
+from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS
+from benchtwin.twin.simulate import sim_build, simulate
+
+ROOT = Path(__file__).resolve().parents[2]
+HIDDEN_DIR = ROOT / "scenarios" / "hidden"
+SCENARIOS = sorted(HIDDEN_DIR.glob("*.toml"))
+ARCSEC = math.pi / 648000.0
+# An effect that moves the stop's true angle by ~1″ moves the 3 µm-centred spheres by ~1e-5 µm:
+# "unchanged" probes means below this, 100× under the probe's 0.01 µm resolution.
+PROBE_TOL_UM = 1e-4
+STOPS_DEG = [0.0, 31.3, 62.6, 93.9, 125.2, 156.5, 187.8, 219.1, 250.4, 281.7, 313.0, 344.3]
+
+
+def load(name: str):
+    return load_scenario(HIDDEN_DIR / f"{name}.toml")
+
+
+def without_hidden(sc):
+    raw = dict(sc.raw)
+    raw.pop("hidden", None)
+    return validate(raw, f"{sc.name} without [hidden]")
+
+
+def channels(sc, direction: str = "forward", times_s=None, faces: bool = True) -> dict[str, np.ndarray]:
+    """The twin's channels at STOPS_DEG, from its instruments (no runner): α (truth, arcsec), the
+    probes' exact displacements (µm) and the autocollimator's readings (arcsec, start face 1)."""
+    bench, st, inst = sim_build(sc, camera=False)
+    st.apply_context({"rep": 0, "direction": direction, "polygon_start_face": 1, "shift_deg": 0.0})
+    out: dict[str, list] = {"alpha": [], "ac": []}
+    probes = [n for n in inst if n.startswith("probe")]
+    for n in probes:
+        out[n] = []
+    for i, th in enumerate(STOPS_DEG):
+        t = 0.0 if times_s is None else float(times_s[i])
+        st.clock.set(t)
+        inst["stage"].move_to(th)
+        st.clock.set(t)   # the move's duration is not part of these comparisons
+        p = st.pose
+        out["alpha"].append((inst["encoder"].sim_exact_readings(p)[0] - p.shaft_angle_rad) / ARCSEC)
+        for n in probes:
+            out[n].append(inst[n].sim_displacement_m(p) * 1e6)
+        if faces:
+            out["ac"].append(inst["autocollimator"].read()["x_arcsec"])
+    return {k: np.asarray(v, dtype=float) for k, v in out.items()}
+
+
+def diff(name: str, **kw) -> tuple[dict, dict, dict]:
+    sc = load(name)
+    a, b = channels(sc, **kw), channels(without_hidden(sc), **kw)
+    return {k: a[k] - b[k] for k in a}, a, b
+
+
+def peak(x) -> float:
+    return float(np.max(np.abs(x)))
+
+
+# --------------------------------------------------------------------------- validation
+
+def test_every_hidden_scenario_validates_and_is_complete():
+    assert len(SCENARIOS) >= 15
+    names = {p.stem for p in SCENARIOS}
+    covered = set()
+    for p in SCENARIOS:
+        sc = load_scenario(p)
+        assert sc.name == f"hidden_{p.stem}"
+        covered |= set(sc["hidden"])
+        if p.stem.startswith("null"):
+            assert sc["hidden"] == {}
+        else:
+            assert sc["hidden"], p
+        Hidden.from_scenario(sc)                  # parameters consistent (e.g. harmonic lists)
+        for section in ("scenario", "bench", "bearings", "errors", "instruments", "procedure"):
+            assert section in sc.raw, (p, section)
+    assert covered == set(HIDDEN_EFFECTS)        # every registered effect has a scenario
+    assert {"null_a", "null_b", "thermal_growth"} <= names
+
+
+def test_unknown_hidden_effect_and_inconsistent_harmonics_fail():
+    raw = dict(load("null_a").raw)
+    from benchtwin.twin.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError, match="unknown effect"):
+        validate({**raw, "hidden": {"graduation_eror": {}}})
+    sc = validate({**raw, "hidden": {"graduation_error": {"orders": [3, 4], "amplitudes": ["1 arcsec"],
+                                                           "phases": ["0 deg"]}}})
+    with pytest.raises(ValueError, match="one entry each"):
+        Hidden.from_scenario(sc)
+
+
+def test_no_hidden_means_the_twin_is_unchanged():
+    sc = load("null_a")
+    assert not Hidden.from_scenario(sc)
+    a, b = channels(sc), channels(without_hidden(sc))
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+
+
+# --------------------------------------------------------------------------- channels
+
+def test_graduation_error_changes_alpha_and_polygon_not_probes():
+    d, a, _ = diff("graduation_error")
+    assert peak(d["alpha"]) > 0.5                      # 0.8″ + 0.5″ harmonics
+    assert peak(d["alpha"]) < 1.4
+    for n in ("probe_top", "probe_bottom"):
+        assert peak(d[n]) < PROBE_TOL_UM
+    np.testing.assert_allclose(d["ac"], d["alpha"], atol=0.02)   # the polygon sees α (+ quantisation)
+    # the harmonics are fixed to the disk: 4 and 6 cycles per revolution
+    sc = load("graduation_error")
+    h = Hidden.from_scenario(sc)
+    g = np.radians(90.0 - np.asarray(STOPS_DEG))       # line under head 1 (centred-disk approximation)
+    np.testing.assert_allclose(d["alpha"], h.graduation_error_rad(g) / ARCSEC, atol=0.01)
+
+
+def test_optical_radius_scales_the_geometric_error():
+    d, _, b = diff("optical_radius")
+    # e/r with r 3 % larger: α → α/(1.03) for the eccentricity-dominated error
+    np.testing.assert_allclose(d["alpha"], b["alpha"] * (1 / 1.03 - 1), atol=0.03)
+    assert peak(d["alpha"]) > 1.5
+    for n in ("probe_top", "probe_bottom"):
+        assert peak(d[n]) < PROBE_TOL_UM
+
+
+def test_ccd_pixel_scale_changes_only_the_images():
+    from benchtwin.twin.instruments.camera import SimCamera
+
+    for name, px, period in (("ccd_pixel_scale", 1.0, 1.03), ("ccd_pixel_scale_pixel_only", 1.03, 1.0)):
+        sc = load(name).with_overrides({"instruments.ccd.width": "256 px", "instruments.ccd.height": "192 px"})
+        ref = without_hidden(sc)
+        truths = []
+        for s in (sc, ref):
+            bench, st, inst = sim_build(s, camera=False)
+            inst["stage"].move_to(30.0)
+            with SimCamera.sim_from_scenario(s, st, backend="analytic") as cam:
+                assert cam.camera.pixel_pitch_m == pytest.approx(0.667e-6)   # nominal: the manifest's
+                truths.append((cam.capture()["truth"], cam.grating))
+        (t1, g1), (t0, g0) = truths
+        assert t1["pixel_um"] / t0["pixel_um"] == pytest.approx(px, rel=1e-12)
+        assert g1.period_m / g0.period_m == pytest.approx(period, rel=1e-12)
+        assert g1.n_lines == g0.n_lines
+        d, _, _ = diff(name)
+        assert peak(d["alpha"]) < 1e-9 and peak(d["ac"]) < 1e-9
+
+
+def test_tangential_motion_moves_the_axis_along_x_only():
+    d, _, _ = diff("tangential_motion")
+    assert peak(d["alpha"]) > 0.8                      # −δX/r: 0.12 µm / 22 mm ≈ 1.1″
+    assert peak(d["probe_top_x"]) > 0.1 and peak(d["probe_bottom_x"]) > 0.1
+    assert peak(d["probe_top"]) < 1e-3 and peak(d["probe_bottom"]) < 1e-3
+    # a rigid translation along X: head on +Y reads −δX/r (small-angle, to a few %)
+    np.testing.assert_allclose(d["alpha"], -d["probe_top_x"] * 1e-6 / 22e-3 / ARCSEC, atol=0.05)
+
+
+def test_tilt_abbe_moves_the_spheres_not_the_disk():
+    d, _, _ = diff("tilt_abbe")
+    assert peak(d["alpha"]) < 0.01
+    assert peak(d["probe_top"]) > 0.02                 # the top sphere sits 10 mm further from the disk
+    assert peak(d["ac"]) < 0.011
+
+
+def test_ac_drift_grows_with_time_in_the_autocollimator_only():
+    times = np.linspace(0.0, 3600.0, len(STOPS_DEG))
+    d, _, _ = diff("ac_drift", times_s=times)
+    np.testing.assert_allclose(d["ac"], 7.2 * times / 3600.0, atol=0.011)
+    assert peak(d["alpha"]) < 1e-9
+
+
+def test_ac_scale_is_gain_and_quadratic_on_the_reading():
+    d, _, b = diff("ac_scale")
+    v = b["ac"]
+    np.testing.assert_allclose(d["ac"], 0.01 * v + 1e-4 * v**2, atol=0.02)
+    assert peak(d["ac"]) > 0.3 and peak(d["alpha"]) < 1e-9
+
+
+def test_sphere_form_is_a_probe_artefact():
+    d, _, _ = diff("sphere_form")
+    assert peak(d["probe_top"]) > 0.15                  # 0.15 + 0.10 µm lobes
+    assert peak(d["probe_bottom"]) < 1e-9
+    assert peak(d["alpha"]) < 1e-9 and peak(d["ac"]) < 1e-9
+
+
+def test_torsion_hysteresis_twists_the_polygon_with_the_direction():
+    fwd, _, _ = diff("torsion_hysteresis", direction="forward")
+    bwd, _, _ = diff("torsion_hysteresis", direction="backward")
+    h = 0.03 / 5000.0 / ARCSEC                           # T / k_shaft = 1.24″
+    assert peak(fwd["alpha"]) < 1e-6 and peak(bwd["alpha"]) < 1e-6
+    assert abs(np.mean(fwd["ac"]) - np.mean(bwd["ac"])) == pytest.approx(2 * h, rel=0.05)
+
+
+def test_polygon_pitch_pattern_moves_the_faces_not_alpha():
+    d, _, _ = diff("polygon_pitch_ignored")
+    assert peak(d["alpha"]) < 1e-9
+    assert peak(d["ac"]) > 0.1
+    bench_h, _, _ = sim_build(load("polygon_pitch_ignored"), camera=False)
+    bench_0, _, _ = sim_build(without_hidden(load("polygon_pitch_ignored")), camera=False)
+    np.testing.assert_allclose(bench_h.polygon_pitch_declared_rad, bench_0.polygon_pitch_deviation_rad, atol=0)
+    dp = (bench_h.polygon_pitch_deviation_rad - bench_0.polygon_pitch_deviation_rad) / ARCSEC
+    assert abs(dp.sum()) < 1e-9 and np.sqrt(np.mean(dp**2)) == pytest.approx(0.5, rel=1e-9)
+
+
+def test_interpolation_error_is_periodic_in_the_grating_pitch():
+    d, _, _ = diff("interpolation_error")
+    assert 0.1 < peak(d["alpha"]) <= 0.66
+    assert peak(d["probe_top"]) < PROBE_TOL_UM
+    sc = load("interpolation_error")
+    _, _, inst = sim_build(sc, camera=False)
+    enc = inst["encoder"]
+    pitch = enc.pitch_rad
+    g = np.linspace(0.3, 0.3 + 3 * pitch, 50)
+    e = enc.sim_interpolation_error(g)
+    np.testing.assert_allclose(enc.sim_interpolation_error(g + pitch), e, atol=1e-15)
+
+
+def test_thermal_growth_grows_with_time_on_the_disk():
+    d0, _, _ = diff("thermal_growth", times_s=np.zeros(len(STOPS_DEG)), faces=False)
+    d1, _, _ = diff("thermal_growth", times_s=np.full(len(STOPS_DEG), 1200.0), faces=False)
+    d2, _, _ = diff("thermal_growth", times_s=np.full(len(STOPS_DEG), 20000.0), faces=False)
+    assert peak(d0["alpha"]) < 0.01        # the move to a stop takes ~2 s: A·(1 − exp(−2 s/τ))
+    assert peak(d1["alpha"]) / peak(d2["alpha"]) == pytest.approx(1 - math.exp(-1), rel=0.02)
+    assert peak(d2["alpha"]) == pytest.approx(1.5, abs=0.2)
+    assert peak(d2["probe_top"]) < PROBE_TOL_UM
+
+
+# --------------------------------------------------------------------------- datasets
+
+SMALL = {"procedure.radial_reps": 1, "procedure.radial_positions": 24, "procedure.ccd_step": "180 deg",
+         "bench.polygon_faces": 8, "instruments.ccd.width": "128 px", "instruments.ccd.height": "96 px"}
+
+
+def files(d: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def grad_runs(tmp_path_factory):
+    base = tmp_path_factory.mktemp("hidden")
+    sc = load("graduation_error").with_overrides(SMALL)
+    out = {}
+    for key, s in (("hidden", sc), ("again", sc), ("plain", without_hidden(sc))):
+        out[key] = files(simulate(s, base / key, progress=False, backend="analytic"))
+    return out
+
+
+def test_manifest_never_shows_the_hidden_effect(grad_runs):
+    h, p = grad_runs["hidden"], grad_runs["plain"]
+    assert h["manifest.json"] == p["manifest.json"]
+    assert h["polygon.csv"] != p["polygon.csv"]
+    assert h["radial_motion.csv"] == p["radial_motion.csv"]      # probes: not the disk's business
+    assert "truth/hidden.json" in h and "truth/hidden.json" not in p
+    assert h["truth/encoder_error.csv"] != p["truth/encoder_error.csv"]
+    eff = json.loads(h["truth/hidden.json"])["effects"]
+    assert eff["graduation_error"]["orders"] == [4.0, 6.0]
+
+
+def test_hidden_simulation_is_deterministic_by_seed(grad_runs):
+    assert grad_runs["hidden"] == grad_runs["again"]
+
+
+def test_certificate_in_the_manifest_does_not_depend_on_the_hidden_pattern(tmp_path):
+    sc = load("polygon_pitch_ignored").with_overrides(SMALL)
+    zero = sc.with_overrides({"hidden.polygon_pitch_ignored.rms": "0 arcsec"})
+    a = simulate(sc, tmp_path / "a", progress=False, backend="analytic")
+    b = simulate(zero, tmp_path / "b", progress=False, backend="analytic")
+    ma, mb = (json.loads((d / "manifest.json").read_text()) for d in (a, b))
+    assert ma == mb
+    cert = ma["bench"]["polygon_certificate_arcsec"]
+    beta_true_b = [float(r.split(",")[2]) for r in (b / "truth" / "polygon_beta.csv").read_text().splitlines()[1:]]
+    np.testing.assert_allclose(cert, beta_true_b, atol=1e-9)        # a correct certificate of the declared polygon
+    assert (a / "polygon.csv").read_bytes() != (b / "polygon.csv").read_bytes()
