@@ -88,7 +88,7 @@ def test_every_hidden_scenario_validates_and_is_complete():
         for section in ("scenario", "bench", "bearings", "errors", "instruments", "procedure"):
             assert section in sc.raw, (p, section)
     assert covered == set(HIDDEN_EFFECTS)        # every registered effect has a scenario
-    assert {"null_a", "null_b", "thermal_growth"} <= names
+    assert {"null_a", "null_b", "null_paper", "thermal_growth"} <= names
 
 
 def test_unknown_hidden_effect_and_inconsistent_harmonics_fail():
