@@ -27,6 +27,12 @@ Choices where the paper is silent (each is a parameter):
   parts whose area is below ``min_area_frac`` (0.3) × the median line area are dust; parts touching
   the top, bottom or right image border are dropped (their end, or their width, is cut);
   a part touching the left border (the inner end of the line, outside the view) is kept;
+- contaminated line ends are outliers, not failures: a part's end rows (those reaching its
+  outermost columns) are split into runs of consecutive rows, one per line end, so two lines
+  bridged by a dust speck further inside still give two clean ends; an end whose height is outside
+  0.5…1.5 × the median (a speck on the end, two ends merged at the end) is rejected, and so is a
+  line end further than max(5 robust σ, 0.05 px) from the fitted circle (one at a time). The
+  image fails only if fewer than ``MIN_LINES`` (5) ends remain;
 - sub-pixel edge: the binary edge is only the start. Along each fully covered row of a line the
   50 % point between the line's level and the glass level is located by the area (zeroth-moment)
   method, ``x_e = x_a − ½ + Σ f_i`` with ``f_i = (G − I_i)/(G − C)`` the chrome fraction over a
@@ -40,17 +46,28 @@ Choices where the paper is silent (each is a parameter):
   (or a given ``u_px``). With a known radius only the centre is fitted. ``d_ref``'s uncertainty
   uses the full covariance (l and r are strongly correlated on a short arc; d_ref is not);
 - pixel scale: the paper's count (pixels over three periods, integer, along a column near the edge)
-  and a better one: a linear fit of the positions of the line ends along the edge circle against
-  their index (lines are radial, their spacing grows with radius; measured on the edge circle itself
-  it is the period at the edge radius). If the catalogue period refers to another radius
-  (``period_radius_um``), it is scaled to the edge radius.
+  and a better one: a robust linear fit of the positions of the line ends along the edge circle
+  against their index (lines are radial, their spacing grows with radius; measured on the edge
+  circle itself it is the period at the edge radius). Indices come from the majority of regular
+  spacings; line ends off the integer grid (a point between two lines, a speck shifting a centre
+  along the edge) or off the fitted line are rejected (``rejected_spacing_px``), missing lines are
+  allowed; fewer than a majority of the ends (or < ``MIN_LINES``) on a regular pitch is an
+  ImageAnalysisError, never a silent scale;
+- grating period convention: ``period_um`` is the period AT THE SCALE EDGE RADIUS (the radius of
+  the line ends the camera sees; Jia sec. 4.2.2 "grating period is 20 µm"). The twin draws
+  ``N = round(2π·R_edge/period)`` lines, i.e. the same convention: its true period at the edge is
+  2π·R_edge/N, within 1/(2N) relative of the nominal (jia2019: N = 7069, 19.99883 µm, −5.9e-5:
+  pixel scale 0.667030 instead of 0.667 µm/px, 4e-4 µm on e = 7.1 µm, negligible). A period given
+  at another radius (e.g. the optical radius of the reading head) must be referred to the edge
+  with ``period_radius_um``/``edge_radius_um`` (×R_edge/R): using it unscaled would scale every
+  length by R_head/R_edge (−2.2 % for jia2019's 22 mm vs 22.5 mm).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -133,14 +150,22 @@ def check_frame(grey: np.ndarray, full_scale: float, name: str | int | None = No
     if black > max_saturated:
         raise ImageAnalysisError(f"{_where(name)}: black frame ({black:.0%} of the pixels at 0); "
                                  "expected an exposed image of the grating")
-    p1, p99 = np.percentile(grey, [1, 99])
+    p1, p99 = np.percentile(_sample(grey), [1, 99])
     if p99 - p1 < min_contrast * full_scale:
         raise ImageAnalysisError(f"{_where(name)}: blank frame, no grating visible (grey levels {p1:.1f}…{p99:.1f}, spread < "
                                  f"{min_contrast:.0%} of full scale {full_scale:g}); expected grating lines")
 
 
+def _sample(grey: np.ndarray) -> np.ndarray:
+    """Every second row and column of a frame above 1 Mpx (histograms and percentiles: the same
+    statistics at a quarter of the cost); smaller frames whole."""
+    return grey[::2, ::2] if grey.size > 1_000_000 else grey
+
+
 def otsu_threshold(grey: np.ndarray, bins: int = 256) -> float:
-    """Otsu's threshold (maximum between-class variance) on a ``bins``-bin histogram."""
+    """Otsu's threshold (maximum between-class variance) on a ``bins``-bin histogram (of every
+    second row and column above 1 Mpx)."""
+    grey = _sample(grey)
     lo, hi = float(grey.min()), float(grey.max())
     if hi <= lo:
         return lo
@@ -231,14 +256,18 @@ class LineEdges:
     line_level: np.ndarray
     removed_dust: int
     removed_border: int
+    rejected_ends_px: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
 
 
 def edge_details(image: np.ndarray, name: str | int | None = None, half_window_px: int = 6,
-                 edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES) -> LineEdges:
+                 edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES,
+                 reject_outliers: bool = True) -> LineEdges:
     """Sub-pixel middle points of the outer edge of each graduation line, with details.
 
-    See the module docstring for the method. Raises ImageAnalysisError for blank, saturated or black
-    frames, frames without a grating, and frames with fewer than ``min_lines`` usable line ends.
+    See the module docstring for the method. With ``reject_outliers`` line ends whose height (rows
+    reaching the end) is outside 0.5…1.5 × the median are rejected as contaminated
+    (``rejected_ends_px``). Raises ImageAnalysisError for blank, saturated or black frames, frames
+    without a grating, and frames with fewer than ``min_lines`` usable line ends.
     """
     if edge_method not in ("area", "crossing"):
         raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
@@ -249,6 +278,10 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
     hw = int(half_window_px)
     lev = 6  # pixels used for each level, beyond the edge window
     pts, cols, nrows, scat, glv, lnv = [], [], [], [], [], []
+    # line ends: the rows where a part reaches its outermost columns. A part may hold several line
+    # ends (neighbouring lines bridged by dust or a scratch further inside the lines): the end rows
+    # are split into runs of consecutive rows, one run per line end
+    ends = []
     for lab in seg.lines:
         x0, y0, w, h = (int(seg.stats[lab, i]) for i in range(4))
         # end region of the part: its last 2·hw + lev + 4 columns (lines are tilted by up to a few
@@ -262,8 +295,20 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
         xb = xa_ + (sub.shape[1] - 1 - np.argmax(sub[rows, ::-1], axis=1))  # last line pixel per row
         end_rows = xb >= xr_ - 3
         rows, xb = rows[end_rows], xb[end_rows]
-        ys = y0 + rows
+        brk = np.flatnonzero(np.diff(rows) > 1) + 1
+        for r_, x_ in zip(np.split(rows, brk), np.split(xb, brk)):
+            ends.append((y0 + r_, x_))
+    # an end much shorter or taller than the typical line width is contaminated (a speck on the end,
+    # two ends merged by dust at the end): an outlier, rejected (with ``reject_outliers``)
+    heights = np.array([int(e[0][-1] - e[0][0] + 1) for e in ends])
+    big = heights[heights >= 3]
+    med_h = float(np.median(big)) if big.size else 0.0
+    rejected = []
+    for ys, xb in ends:
         y_lo, y_hi = int(ys.min()), int(ys.max())
+        if reject_outliers and not (0.5 * med_h <= y_hi - y_lo + 1 <= 1.5 * med_h):
+            rejected.append((float(xb.max()), 0.5 * (y_lo + y_hi)))
+            continue
         ok = (xb - hw - lev >= 0) & (xb + hw + lev < W)
         if np.count_nonzero(ok) < 3:
             continue
@@ -342,13 +387,14 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
     if len(pts) < min_lines:
         raise ImageAnalysisError(
             f"{_where(name)}: too few edge points: {len(pts)} usable line ends (need ≥ {min_lines}); "
-            f"{seg.lines.size} parts kept as lines, {seg.removed_dust} small parts (dust) and "
+            f"{seg.lines.size} parts kept as lines, {len(rejected)} contaminated line ends rejected, {seg.removed_dust} small parts (dust) and "
             f"{seg.removed_border} border-cut parts removed, threshold {seg.threshold:.1f}, "
             f"{seg.polarity} lines; expected radial graduation lines ending inside the field of view")
     order = np.argsort([p[1] for p in pts])
     a = lambda v: np.asarray(v)[order]  # noqa: E731
     return LineEdges(np.asarray(pts, dtype=float)[order], a(cols), a(nrows), a(scat), seg.polarity,
-                     seg.threshold, a(glv), a(lnv), seg.removed_dust, seg.removed_border)
+                     seg.threshold, a(glv), a(lnv), seg.removed_dust, seg.removed_border,
+                     np.asarray(rejected, dtype=float).reshape(-1, 2))
 
 
 def edge_points(image: np.ndarray, name: str | int | None = None, **kw) -> np.ndarray:
@@ -468,12 +514,12 @@ def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, rad
     points_px, residual_rms_px, n_lines, polarity, reference_px, edges (LineEdges),
     rejected_points_px.
     """
-    ed = edge_details(image, name, min_lines=min_lines, **edge_kw)
+    ed = edge_details(image, name, min_lines=min_lines, reject_outliers=reject_outliers, **edge_kw)
     H, W = np.asarray(image).shape[:2]
     ref = (W / 2.0, H / 2.0) if reference_px is None else (float(reference_px[0]), float(reference_px[1]))
     P = ed.points_px.copy()
     cols = ed.centre_col_px.copy()
-    rejected = np.empty((0, 2))
+    rejected = ed.rejected_ends_px.copy()  # contaminated ends rejected before the fit
     try:
         cx, cy, r, cov = fit_circle(P, radius_px, u_px)
         # y of the line centre was measured at column centre_col_px; follow the radial line to x_mid
@@ -518,12 +564,21 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
       centres are measured a few px inside the end and moved along their radial line to the edge,
       see :func:`d_ref_px`). Cumulative chord length (= arc length to 1e-8) fitted linearly against
       the line index (missing lines allowed) gives the pitch in px, independent of the fitted
-      centre and radius (which are poorly determined on a short arc).
+      centre and radius (which are poorly determined on a short arc). Robust: the indices come from
+      the majority of regular spacings, line ends off the integer grid by > 0.2 pitch or off the
+      line by > max(5 robust σ, 0.05 px) are rejected (``rejected_spacing_px``), one end per index;
+      ImageAnalysisError ("line spacing is irregular") if fewer than a majority of the ends, or
+      fewer than ``min_lines``, remain.
       ``u_um_per_px``: its standard uncertainty from that linear fit. ``pixel_um`` is an alias of
       ``um_per_px`` (the manifest's ``ccd.pixel_um`` name).
 
-    ``period_um`` is the period at the edge radius, unless ``period_radius_um`` says at which radius
-    it is specified; then ``edge_radius_um`` (the scale edge radius) is needed to refer it to the edge.
+    ``period_um`` is the period at the edge radius (the twin's and Jia's convention: the twin draws
+    ``N = round(2π·R_edge/period)`` lines; see the module docstring), unless ``period_radius_um``
+    says at which radius it is specified; then ``edge_radius_um`` (the scale edge radius) is needed
+    to refer it to the edge.
+
+    Extra keys: ``n_lines`` (line ends used), ``line_index`` (their integer indices),
+    ``rejected_spacing_px``, ``spacing_residual_rms_px``.
     """
     if not period_um > 0:
         raise ValueError(f"period_um must be > 0, got {period_um}")
@@ -532,21 +587,63 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
         if edge_radius_um is None:
             raise ValueError("period_radius_um given: edge_radius_um is needed to refer the period to the edge")
         p_edge = period_um * edge_radius_um / period_radius_um
+    reject = bool(edge_kw.get("reject_outliers", True))
     res = d_ref_px(image, None, name=name, **edge_kw)
     ed: LineEdges = res["edges"]
     r = res["radius_px"]
     P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
+    n_pts = P.shape[0]
+    need = max(int(edge_kw.get("min_lines", MIN_LINES)), (n_pts + 2) // 2)  # a majority, ≥ min_lines
     chords = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
+    # position of each line end along the edge: cumulative chord (= arc to (p/R)²/24 ≈ 1e-8). A
+    # contaminated point displaced along the edge changes its two chords by ±δ and nobody else's
+    # position; a point between two lines (two ends merged) sits at a half-integer index
+    s = np.concatenate([[0.0], np.cumsum(chords)])
+    # pitch start: the median chord, refined over the chords that are a whole number of pitches
     step = float(np.median(chords))
-    gaps = np.round(chords / step)
-    if np.any(gaps < 1) or np.any(np.abs(chords / gaps - step) > 0.25 * step):
-        raise ImageAnalysisError(f"{_where(name)}: line spacing is irregular (chords {np.round(chords, 1)} px)")
-    idx = np.concatenate([[0.0], np.cumsum(gaps)])
-    arc = np.concatenate([[0.0], np.cumsum(chords)])  # chord = arc to (p/R)²/24 ≈ 1e-8
-    A = np.column_stack([idx, np.ones_like(idx)])
-    sol, *_ = np.linalg.lstsq(A, arc, rcond=None)
-    resid = arc - A @ sol
-    dof = idx.size - 2
+    k = np.round(chords / step)
+    ok = (k >= 1) & (np.abs(chords / np.maximum(k, 1) - step) < 0.1 * step)
+    if np.count_nonzero(ok) >= 2:
+        step = float(np.median(chords[ok] / k[ok]))
+    # index of each line end: nearest integer to s/step after removing the common phase; then a
+    # robust straight-line fit s = pitch·n + s0 (outliers: > 0.2 pitch off the integer grid, or
+    # > max(5 robust σ, 0.05 px) off the line; one line end per index)
+    ph = np.angle(np.mean(np.exp(2j * np.pi * s / step))) / (2 * np.pi)
+    pitch, s0 = step, ph * step
+    inl = np.ones(n_pts, bool)
+    for it in range(10):
+        u = (s - s0) / pitch
+        idx = np.round(u)
+        res_px = (u - idx) * pitch
+        new_inl = np.abs(res_px) < 0.2 * pitch
+        if it > 0 and np.count_nonzero(new_inl) >= 3:  # after the first fit: residuals about the line
+            sig = 1.4826 * float(np.median(np.abs(res_px[new_inl] - np.median(res_px[new_inl]))))
+            new_inl &= np.abs(res_px) <= max(5.0 * sig, 0.05)
+        # two line ends on one index: keep the closer one
+        for n_dup in np.unique(idx[new_inl]):
+            same = np.flatnonzero(new_inl & (idx == n_dup))
+            if same.size > 1:
+                new_inl[same[np.argsort(np.abs(res_px[same]))[1:]]] = False
+        n_in = int(np.count_nonzero(new_inl))
+        if n_in < max(need, 3) or np.ptp(idx[new_inl]) < 2 or (not reject and n_in < n_pts):
+            raise ImageAnalysisError(
+                f"{_where(name)}: line spacing is irregular: only {n_in} of {n_pts} line ends lie on a regular "
+                f"pitch (need ≥ {n_pts if not reject else max(need, 3)}"
+                f"{', a majority' if reject else ', outlier rejection off'}); chords {np.round(chords, 1)} px")
+        A = np.column_stack([idx[new_inl], np.ones(int(np.count_nonzero(new_inl)))])
+        sol, *_ = np.linalg.lstsq(A, s[new_inl], rcond=None)
+        done = np.array_equal(new_inl, inl) and abs(sol[0] - pitch) < 1e-9 * pitch
+        inl, pitch, s0 = new_inl, float(sol[0]), float(sol[1])
+        if done:
+            break
+    resid = s[inl] - A @ sol
+    rms = float(np.sqrt(np.mean(resid**2)))
+    if rms > 0.01 * pitch:  # a grating's ends scatter by ~0.02 px about the pitch line, not by px
+        raise ImageAnalysisError(
+            f"{_where(name)}: line spacing is irregular: the {int(np.count_nonzero(inl))} line ends used scatter "
+            f"by {rms:.2f} px (RMS) about a regular pitch of {pitch:.2f} px (allowed ≤ 1 % of the pitch); "
+            f"chords {np.round(chords, 1)} px")
+    dof = int(np.count_nonzero(inl)) - 2
     if dof > 0:
         s2 = float(resid @ resid) / dof
         u_slope = math.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0])
@@ -571,7 +668,8 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     return {
         "um_per_px": um_per_px, "pixel_um": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
         "edge_radius_px": r, "period_at_edge_um": p_edge, "m_p_px": m_p, "um_per_px_count": um_count,
-        "count_column_px": col, "n_lines": int(idx.size),
+        "count_column_px": col, "n_lines": int(np.count_nonzero(inl)), "line_index": idx[inl].astype(int),
+        "rejected_spacing_px": P[~inl], "spacing_residual_rms_px": rms,
     }
 
 

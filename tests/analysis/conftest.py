@@ -80,14 +80,15 @@ def lab_to_image_centre(t_deg: float, e_um: float, theta0_deg: float, R_ref_um: 
     """Disk centre in image px for a camera at ψ, following docs/conventions.md.
 
     Disk centre in the lab: e at polar angle 90° − θ0 + t. Camera radial unit u at polar 90° + ψ,
-    reference point R_ref·u; image +x = u, image +y = tangential_sign · (u rotated by −90°), which for
-    ψ = 180° is lab +X (``ccd.tangential = "+x"``).
+    reference point R_ref·u; image +x = u, image +y = tangential_sign · (ẑ × u) = tangential_sign ·
+    (u rotated by +90°), which for ψ = 180° (u = −Y) is lab +X (``ccd.tangential = "+x"``), as in
+    docs/conventions.md and the twin's camera (``CcdCamera.axes_lab``).
     """
     a = math.radians(90.0 - theta0_deg + t_deg)
     c = np.array([e_um * math.cos(a), e_um * math.sin(a)])
     psi = math.radians(90.0 + camera_azimuth_deg)
     u = np.array([math.cos(psi), math.sin(psi)])
-    v = tangential_sign * np.array([u[1], -u[0]])
+    v = tangential_sign * np.array([-u[1], u[0]])  # ẑ × u
     rel = c - R_ref_um * u
     return (reference_px[0] + float(rel @ u) / um_per_px, reference_px[1] + float(rel @ v) / um_per_px)
 

@@ -264,3 +264,114 @@ def test_range_method_for_repeated_sweeps():
     assert r["theta0_range_deg"] == pytest.approx(2.0)
     with pytest.raises(ValueError):
         eccentricity_range_method([1.0], [2.0])
+
+
+# --------------------------------------------------------------------------- robustness (contaminated line ends)
+
+
+def _noisy(grating_renderer, W=400, H=300, dref=1.5, dy=-20.0):
+    ref, centre, exact = _geom(W, H, dref, dy)
+    img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX, blur_px=1.2, noise=1.0, seed=3, to_uint8=True)
+    return img, ref, exact
+
+
+def _bridge(img, x0, x1, y0, y1, level=35):
+    out = img.copy()
+    out[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = level
+    return out
+
+
+def test_dust_bridging_two_lines_inside_keeps_both_ends(grating_renderer):
+    # twin img_010 of jia2019: a speck bridges two neighbouring lines ~35 px inside their ends; the
+    # part then holds two line ends, each still clean
+    img, ref, exact = _noisy(grating_renderer)
+    clean = d_ref_px(img, ref)
+    sc_clean = pixel_scale_um(img, PERIOD_UM)
+    (xa, ya), (xb, yb) = clean["points_px"][4], clean["points_px"][5]
+    dusty = _bridge(img, xa - 40, xa - 33, ya, yb)
+    res = d_ref_px(dusty, ref)
+    assert res["n_lines"] == clean["n_lines"] and len(res["rejected_points_px"]) == 0
+    assert res["d_ref_px"] == pytest.approx(clean["d_ref_px"], abs=0.01)
+    sc = pixel_scale_um(dusty, PERIOD_UM)
+    assert sc["n_lines"] == sc_clean["n_lines"] and len(sc["rejected_spacing_px"]) == 0
+    assert sc["um_per_px"] == pytest.approx(sc_clean["um_per_px"], rel=2e-4)
+
+
+def test_dust_merging_two_line_ends_is_rejected_not_fatal(grating_renderer):
+    # a speck across the gap AT the line ends: the two ends are one blob, rejected as an outlier;
+    # the image is still measured, the scale from the regular majority (a missing index is allowed)
+    img, ref, exact = _noisy(grating_renderer)
+    clean = d_ref_px(img, ref)
+    sc_clean = pixel_scale_um(img, PERIOD_UM)
+    (xa, ya), (xb, yb) = clean["points_px"][4], clean["points_px"][5]
+    dusty = _bridge(img, xa - 8, xa - 3, ya, yb)
+    res = d_ref_px(dusty, ref)
+    assert res["n_lines"] == clean["n_lines"] - 2 and len(res["rejected_points_px"]) == 1
+    assert abs(res["d_ref_px"] - exact) < 0.05
+    sc = pixel_scale_um(dusty, PERIOD_UM)
+    assert sc["n_lines"] == sc_clean["n_lines"] - 2
+    assert sc["um_per_px"] == pytest.approx(UM_PER_PX, rel=5e-4)
+    # without outlier rejection the merged end is one point between two lines: the old hard failure
+    with pytest.raises(ImageAnalysisError, match="line spacing is irregular"):
+        pixel_scale_um(dusty, PERIOD_UM, reject_outliers=False, name="dusty.png")
+
+
+def test_scale_rejects_a_line_centre_shifted_along_the_edge(grating_renderer):
+    # a speck in the gap just beside one line end pulls that line's centre row along the edge
+    # (invisible to the circle fit, which is radial): the spacing fit rejects that end
+    img, ref, exact = _noisy(grating_renderer)
+    sc_clean = pixel_scale_um(img, PERIOD_UM)
+    clean = d_ref_px(img, ref)
+    x, y = clean["points_px"][4]
+    dusty = _bridge(img, x - 11, x - 6, y + 7, y + 11)
+    sc = pixel_scale_um(dusty, PERIOD_UM)
+    assert len(sc["rejected_spacing_px"]) == 1
+    assert abs(sc["rejected_spacing_px"][0][1] - y) < 3.0
+    assert sc["um_per_px"] == pytest.approx(sc_clean["um_per_px"], rel=2e-4)
+
+
+def _irregular_grating(W, H, centre, radius_px, ys_px, half_px=6.0, ss=4, glass=200.0, chrome=30.0):
+    """Radial lines ending on the edge circle at the given image rows (any spacing), ss² supersampled."""
+    cx, cy = centre
+    yy, xx = (np.mgrid[0:H * ss, 0:W * ss] + 0.5) / ss - 0.5
+    r = np.hypot(xx - cx, yy - cy)
+    ang = np.arctan2(yy - cy, xx - cx)
+    cover = np.zeros_like(r, dtype=bool)
+    for y in ys_px:
+        a = math.atan2(y - cy, math.sqrt(radius_px**2 - (y - cy) ** 2))
+        cover |= np.abs(ang - a) * radius_px < half_px
+    cover &= (r <= radius_px) & (r >= radius_px - 300)
+    c = cover.reshape(H, ss, W, ss).mean(axis=(1, 3))
+    return glass + (chrome - glass) * c
+
+
+def test_irregular_spacing_is_never_a_scale():
+    # lines ending on a circle but at random spacings: d_ref is measurable (it needs no pitch),
+    # the pixel scale is not, and must raise rather than return garbage
+    W, H = 400, 300
+    ref, centre, exact = _geom(W, H, 2.0, 0.0)
+    rng = np.random.default_rng(11)
+    ys = 12.0 + np.cumsum(rng.uniform(20.0, 48.0, 12))
+    ys = ys[ys < H - 12]
+    img = _irregular_grating(W, H, centre, R_PX, ys)
+    res = d_ref_px(img, ref)
+    assert res["n_lines"] == ys.size and abs(res["d_ref_px"] - exact) < 0.05
+    with pytest.raises(ImageAnalysisError, match=r"irr\.png.*line spacing is irregular"):
+        pixel_scale_um(img, PERIOD_UM, name="irr.png")
+    # the same renderer with regular spacing gives the scale (the check has teeth)
+    ys_reg = 12.0 + 30.0 * np.arange(9)
+    sc = pixel_scale_um(_irregular_grating(W, H, centre, R_PX, ys_reg), PERIOD_UM)
+    assert sc["n_lines"] == 9 and sc["pitch_px"] == pytest.approx(30.0, abs=0.05)
+
+
+def test_lab_centre_helper_follows_conventions(lab_centre):
+    # docs/conventions.md: at ψ = 180° image +y is lab +X for tangential "+x" (−X for "-x"); a disk
+    # centre on lab +X (polar 0° = 90° − θ0 + t with θ0 = 90°, t = 0) is below the reference row
+    ref = (200.0, 150.0)
+    x, y = lab_centre(0.0, 6.67, 90.0, R_UM, UM_PER_PX, ref)
+    assert x == pytest.approx(ref[0] - R_PX) and y == pytest.approx(ref[1] + 10.0)
+    x, y = lab_centre(0.0, 6.67, 90.0, R_UM, UM_PER_PX, ref, tangential_sign=-1.0)
+    assert y == pytest.approx(ref[1] - 10.0)
+    # camera at 90° (on −X): u = −X, image +y = ẑ × u = −Y; a centre on lab +Y (θ0 = 0) is above
+    x, y = lab_centre(0.0, 6.67, 0.0, R_UM, UM_PER_PX, ref, camera_azimuth_deg=90.0)
+    assert x == pytest.approx(ref[0] - R_PX) and y == pytest.approx(ref[1] - 10.0)
