@@ -134,8 +134,11 @@ def test_analysis_of_emulated_and_simulated_datasets_agree(simulated, emulated):
     _close(res["sim"][0], res["emu"][0], "polygon")
     _close(res["sim"][1], res["emu"][1], "radial")
     # and the analysis sees the bench: Jia's eccentricity (7.1 µm on r = 22 mm -> ~66.6″ peak)
-    alpha = np.asarray(res["emu"][0]["alpha_arcsec"] if "alpha_arcsec" in res["emu"][0] else [70.0])
+    alpha = np.asarray(res["emu"][0]["encoder_error_arcsec"]["value"], dtype=float)
+    np.testing.assert_allclose(alpha, np.asarray(res["sim"][0]["encoder_error_arcsec"]["value"], dtype=float),
+                               rtol=0, atol=1e-12)
     assert 40 < np.nanmax(np.abs(alpha)) < 100
+    np.testing.assert_allclose(res["emu"][1]["dY_um"], res["sim"][1]["dY_um"], rtol=0, atol=1e-12)
 
 
 def _journal_steps(path: Path) -> int:
@@ -245,3 +248,25 @@ def test_cli_acquire_reports_bench_errors(tmp_path, capsys):
     p.write_text('[bench]\nsource = "twin"\n')
     assert cli.main(["acquire", str(p), "-o", str(tmp_path / "ds")]) == 2
     assert "key 'bench.source'" in capsys.readouterr().err
+
+
+def test_cli_emulate_serves_and_writes_a_bench_file(tmp_path, capsys):
+    from benchtwin import cli
+    import benchtwin.commands_hw  # noqa: F401
+
+    faults = tmp_path / "faults.toml"
+    faults.write_text('[[faults]]\nport = "encoder"\nrequest = 1\naction = "drop"\n')
+    assert cli.main(["emulate", "--faults", str(faults), "--dir", str(tmp_path / "emu"), "--duration", "0.3",
+                     "--probes", "tesa", "--json"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[0] == f"bench file: {tmp_path / 'emu' / 'bench.toml'}"
+    res = json.loads(out[-1])
+    cfg = load_bench(res["bench_file"])
+    assert cfg.source == "emulated"
+    assert {n: s["driver"] for n, s in cfg.instruments.items()} == {
+        "encoder": "heidenhain", "autocollimator": "elcomat", "probe_top": "tesa", "probe_bottom": "tesa",
+        "stage": "zaber"}
+    assert cfg.instruments["encoder"]["port"] == str(tmp_path / "emu" / "ports" / "encoder")
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[faults]]\nport = "encoder"\nrequest = 1\naction = "melt"\n')
+    assert cli.main(["emulate", "--faults", str(bad), "--duration", "0"]) == 2
