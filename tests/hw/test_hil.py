@@ -169,6 +169,9 @@ def test_kill_and_resume_gives_the_uninterrupted_dataset(scenario, emulated, tmp
         finally:
             proc.send_signal(signal.SIGKILL)
             proc.wait()
+        # let the idle ports reset their line speed (twin/emulators/pty.py `_idle`: Linux ptys refuse
+        # re-opening 7E2 on a port already at that speed) before the restart opens them again
+        time.sleep(0.5)
         n_done = _journal_steps(out / "journal.jsonl")
         assert 400 <= n_done < len(build_procedure(load_bench(bench)))
         assert not (out / "polygon.csv").exists()
