@@ -197,6 +197,55 @@ def table_to_csv(columns: Mapping[str, Sequence[Any]]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
+class TableAppender:
+    """One table written row by row (flat memory for long acquisitions), finished atomically.
+
+    Rows go to ``.<name>.csv.part`` next to the final file, flushed after every ``append``;
+    ``close()`` fsyncs and renames it to ``<name>.csv`` (the bytes ``table_to_csv`` gives for the
+    same rows), ``abort()`` removes it. Reopening truncates the part file (a resumed run rewrites
+    the table from its journal)."""
+
+    def __init__(self, path: Path, columns: Sequence[str]):
+        self.path = Path(path)
+        self.columns = list(columns)
+        if len(set(self.columns)) != len(self.columns):
+            raise DatasetError(f"{self.path.name}: duplicated column names {self.columns}")
+        self.part = self.path.with_name(f".{self.path.name}.part")
+        self.part.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.part, "w", encoding="utf-8", newline="")
+        self._w = csv.writer(self._fh, lineterminator="\n")
+        self._w.writerow(self.columns)
+        self._fh.flush()
+        self.rows = 0
+
+    def append(self, row: Mapping[str, Any] | Sequence[Any]) -> None:
+        """One row: a mapping with every column, or a sequence in column order."""
+        if isinstance(row, Mapping):
+            missing = [c for c in self.columns if c not in row]
+            if missing:
+                raise DatasetError(f"{self.path.name}: row {self.rows + 2}: missing columns {missing}")
+            row = [row[c] for c in self.columns]
+        elif len(row) != len(self.columns):
+            raise DatasetError(f"{self.path.name}: row {self.rows + 2}: expected {len(self.columns)} values, "
+                               f"got {len(row)}")
+        self._w.writerow([_cell(v) for v in row])
+        self._fh.flush()
+        self.rows += 1
+
+    def close(self) -> Path:
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        self._fh.close()
+        os.replace(self.part, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        if not self._fh.closed:
+            self._fh.close()
+        if self.part.exists():
+            self.part.unlink()
+
+
 class DatasetWriter:
     """Write a dataset directory. The manifest is validated first and written last."""
 
@@ -213,6 +262,14 @@ class DatasetWriter:
         p = self.path / f"{name}.csv"
         _atomic_write(p, table_to_csv(columns))
         return p
+
+    def open_table(self, name: str, columns: Sequence[str]) -> TableAppender:
+        """A table written row by row (``TableAppender``); same checks and bytes as ``write_table``."""
+        if name in TABLES:
+            missing = [c for c in TABLES[name].required if c not in columns]
+            if missing:
+                raise DatasetError(f"{name}.csv: missing required columns {missing}")
+        return TableAppender(self.path / f"{name}.csv", columns)
 
     def write_image(self, relpath: str, image: np.ndarray) -> Path:
         import cv2

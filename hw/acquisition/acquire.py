@@ -26,12 +26,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from benchtwin.analysis.dataset import DatasetWriter
+from benchtwin.analysis.dataset import DatasetWriter, TableAppender
 
-from .bench import BenchConfig, build_procedure, close_instruments, dataset_manifest, load_bench, open_instruments
-from .runner import Runner, WallClock
+from .bench import BenchConfig, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
+from .runner import Runner, RunnerError, WallClock
 
-__all__ = ["acquire", "AcquireClock", "write_tables", "JOURNAL"]
+__all__ = ["acquire", "AcquireClock", "TableSink", "write_tables", "JOURNAL"]
 
 JOURNAL = "journal.jsonl"
 
@@ -57,23 +57,36 @@ def _scaled_sleep(scale: float) -> Callable[[float], None]:
 
 def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, progress: bool = True,
             *, on_row: Callable[[dict, dict], None] | None = None) -> Path:
-    """Run the bench file's procedures and write the dataset directory ``out_dir``; returns it."""
+    """Run the bench file's procedures and write the dataset directory ``out_dir``; returns it.
+
+    Flat memory: the procedure is generated lazily and every row goes straight from the runner to
+    its table (``TableSink``: CSV rows appended and flushed under ``.<table>.csv.part``, renamed to
+    ``<table>.csv`` when the run has ended), so nothing grows with the number of readings. A run that
+    fails keeps its journal (every reading taken, fsynced) and removes the part files;
+    ``resume=True`` rewrites the tables from the journal and continues. The manifest is written last: a dataset without it is
+    unfinished."""
     from tqdm import tqdm
 
     cfg = load_bench(bench_path)
     out = Path(out_dir)
-    steps = build_procedure(cfg)
+    n_steps = sum(1 for _ in iter_procedure(cfg))
     clock = AcquireClock(time.sleep if cfg.run["waits"] == "real" else None)
     inst, ports = open_instruments(cfg, sleep=_scaled_sleep(float(cfg.run["driver_sleep_scale"])), clock=clock.now)
-    bar = tqdm(total=len(steps), desc=f"acquire {cfg.name}", unit="step", disable=not progress, leave=False)
+    bar = tqdm(total=n_steps, desc=f"acquire {cfg.name}", unit="step", disable=not progress, leave=False)
     try:
         writer = DatasetWriter(out, dataset_manifest(cfg, inst))
-        rows = Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
-                      fsync=cfg.run["fsync"], on_step=lambda *a: bar.update(1), on_row=on_row).run(steps, resume=resume)
+        sink = TableSink(writer, cfg)
+        try:
+            Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
+                   fsync=cfg.run["fsync"], on_step=lambda *a: bar.update(1),
+                   on_row=on_row).stream(iter_procedure(cfg), sink, resume=resume)
+        except BaseException:
+            sink.abort()
+            raise
     finally:
         bar.close()
         close_instruments(ports)
-    write_tables(writer, rows, cfg)
+    sink.close()
     if cfg.text is not None:
         (out / "bench.toml").write_text(cfg.text, encoding="utf-8")
     writer.close()
@@ -96,57 +109,91 @@ def _reading(row: dict, name: str) -> dict:
     return row["readings"][name]
 
 
-def write_tables(w: DatasetWriter, rows: list[dict[str, Any]], cfg: BenchConfig) -> None:
-    """The dataset tables from the runner's rows (same columns as the twin's ``simulate``)."""
-    by_proc: dict[str, list[dict]] = {}
-    for r in rows:
-        if r["type"] == "read":
-            by_proc.setdefault(r["tag"].get("procedure", ""), []).append(r)
-    enc_of = {p["type"]: p.get("encoder", "encoder") for p in cfg.procedures}
+class TableSink:
+    """The runner's sink for ``acquire``: each row becomes its table row(s) at once (same columns as
+    the twin's ``simulate``): ``radial_motion.csv``, ``polygon.csv``, ``heads.csv`` (one row per
+    head and reading) and, for a CCD sweep, ``ccd/index.csv`` + ``ccd/img_KKK.png`` (the image is
+    written when the frame is taken, before the row is journaled; a replayed capture row checks
+    that its image is there). Tables are opened at their first row (``DatasetWriter.open_table``);
+    ``close()`` finishes them atomically, ``abort()`` removes the part files (a run that failed:
+    every row taken is in the journal, which a resume replays through a new sink)."""
 
-    def h1(r: dict, enc: str) -> float:
-        return float(_reading(r, enc)["angle_deg"][0])
+    def __init__(self, writer: DatasetWriter, cfg: BenchConfig):
+        self.w, self.cfg = writer, cfg
+        self.tables: dict[str, TableAppender] = {}
+        self.enc_of = {p["type"]: p.get("encoder", "encoder") for p in cfg.procedures}
+        self.enc_of["polygon"] = next((p.get("encoder", "encoder") for p in cfg.procedures
+                                       if p["type"].startswith("polygon")), "encoder")
+        self.ac = next((p.get("autocollimator", "autocollimator") for p in cfg.procedures
+                        if p["type"].startswith("polygon")), "autocollimator")
+        self.probes = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
+                            if p["type"] == "radial_motion"), [])
+        self.res = float(cfg.geometry.get("encoder_resolution_arcsec", 0.0))
+        self._ccd_read: tuple[Any, float] | None = None
+        self.rows = 0
 
-    def theta(r: dict, enc: str) -> float:
-        return h1(r, enc) if cfg.run["theta"] == "encoder" else float(r["tag"]["target_deg"])
+    def _table(self, name: str, columns: list[str]) -> TableAppender:
+        t = self.tables.get(name)
+        if t is None:
+            t = self.tables[name] = self.w.open_table(name, columns)
+        return t
 
-    radial = by_proc.get("radial_motion", [])
-    if radial:
-        enc = enc_of.get("radial_motion", "encoder")
-        probes = next(p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
-                      if p["type"] == "radial_motion")
-        cols: dict[str, list] = {"rep": [r["tag"]["rep"] for r in radial], "theta_deg": [theta(r, enc) for r in radial]}
-        for p in probes:
-            cols[f"{p}_um"] = [_reading(r, p)["value_um"] for r in radial]
-        cols["theta_read_deg"] = [h1(r, enc) for r in radial]
-        cols["t_s"] = [r["t_s"] for r in radial]
-        w.write_table("radial_motion", cols)
-    poly = by_proc.get("polygon", [])
-    if poly:
-        pp = next(p for p in cfg.procedures if p["type"].startswith("polygon"))
-        enc, ac = pp.get("encoder", "encoder"), pp.get("autocollimator", "autocollimator")
-        w.write_table("polygon", {
-            "shift_deg": [r["tag"]["shift_deg"] for r in poly], "start_face": [r["tag"]["start_face"] for r in poly],
-            "step": [r["tag"]["step"] for r in poly], "theta_deg": [theta(r, enc) for r in poly],
-            "ac_arcsec": [_reading(r, ac)["x_arcsec"] for r in poly],
-            "t_s": [r["t_s"] for r in poly], "rep": [r["tag"]["rep"] for r in poly],
-            "direction": [r["tag"]["direction"] for r in poly],
-            "ac_y_arcsec": [_reading(r, ac)["y_arcsec"] for r in poly],
-            "theta_read_deg": [h1(r, enc) for r in poly]})
-    sc_rows = by_proc.get("selfcal", [])
-    if sc_rows:
-        enc = enc_of.get("selfcal", "encoder")
-        res = float(cfg.geometry.get("encoder_resolution_arcsec", 0.0))
-        hc: dict[str, list] = {"theta_deg": [], "head": [], "delta_arcsec": [], "rep": [], "direction": [],
-                               "theta_read_deg": [], "t_s": []}
-        for r in sc_rows:
+    def _theta(self, r: dict, h1: float) -> float:
+        return h1 if self.cfg.run["theta"] == "encoder" else float(r["tag"]["target_deg"])
+
+    def __call__(self, r: dict, live: Any = None) -> None:
+        self.rows += 1
+        proc = r["tag"].get("procedure", "")
+        if r["type"] == "capture":
+            self._capture(r, live)
+            return
+        enc = self.enc_of.get(proc, "encoder")
+        h1 = float(_reading(r, enc)["angle_deg"][0])
+        if proc == "radial_motion":
+            cols = ["rep", "theta_deg", *[f"{p}_um" for p in self.probes], "theta_read_deg", "t_s"]
+            self._table("radial_motion", cols).append(
+                [r["tag"]["rep"], self._theta(r, h1), *[_reading(r, p)["value_um"] for p in self.probes], h1, r["t_s"]])
+        elif proc == "polygon":
+            tag, ac = r["tag"], _reading(r, self.ac)
+            self._table("polygon", ["shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s", "rep",
+                                    "direction", "ac_y_arcsec", "theta_read_deg"]).append(
+                [tag["shift_deg"], tag["start_face"], tag["step"], self._theta(r, h1), ac["x_arcsec"], r["t_s"],
+                 tag["rep"], tag["direction"], ac["y_arcsec"], h1])
+        elif proc == "selfcal":
             a = _reading(r, enc)["angle_deg"]
+            t = self._table("heads", ["theta_deg", "head", "delta_arcsec", "rep", "direction", "theta_read_deg", "t_s"])
             for j, aj in enumerate(a):
-                hc["theta_deg"].append(theta(r, enc))
-                hc["theta_read_deg"].append(float(a[0]))
-                hc["head"].append(j + 1)
-                hc["delta_arcsec"].append(_quantise((a[0] - aj) * 3600.0, res))
-                hc["rep"].append(r["tag"]["rep"])
-                hc["direction"].append(r["tag"]["direction"])
-                hc["t_s"].append(r["t_s"])
-        w.write_table("heads", hc)
+                t.append([self._theta(r, h1), j + 1, _quantise((a[0] - aj) * 3600.0, self.res), r["tag"]["rep"],
+                          r["tag"]["direction"], h1, r["t_s"]])
+        elif proc == "ccd":
+            self._ccd_read = (r["tag"]["k"], h1)
+
+    def _capture(self, r: dict, live: Any) -> None:
+        k = int(r["tag"]["k"])
+        f = f"img_{k:03d}.png"
+        if live is not None:
+            self.w.write_image(f"ccd/{f}", live["image"])
+        elif not (self.w.path / "ccd" / f).is_file():
+            raise RunnerError(f"resume: the journal has capture k={k} but {self.w.path / 'ccd' / f} is missing")
+        if self._ccd_read is None or self._ccd_read[0] != r["tag"]["k"]:
+            raise RunnerError(f"capture k={k}: no encoder reading at the same stop before it (ccd_sweep reads the "
+                              f"encoder, then captures)")
+        h1 = self._ccd_read[1]
+        self._table("ccd/index", ["k", "theta_deg", "file", "theta_read_deg", "t_s"]).append(
+            [k, self._theta(r, h1), f, h1, r["t_s"]])
+
+    def close(self) -> None:
+        for t in self.tables.values():
+            t.close()
+
+    def abort(self) -> None:
+        for t in self.tables.values():
+            t.abort()
+
+
+def write_tables(w: DatasetWriter, rows: list[dict[str, Any]], cfg: BenchConfig) -> None:
+    """The dataset tables from a list of the runner's rows (``TableSink`` over the list)."""
+    sink = TableSink(w, cfg)
+    for r in rows:
+        sink(r)
+    sink.close()

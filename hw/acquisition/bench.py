@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ from benchtwin.units import UnitError, parse_quantity
 
 from . import procedures as P
 
-__all__ = ["BenchFileError", "BenchConfig", "DRIVERS", "load_bench", "parse_bench", "build_procedure",
+__all__ = ["BenchFileError", "BenchConfig", "DRIVERS", "load_bench", "parse_bench", "build_procedure", "iter_procedure",
            "open_instruments", "dataset_manifest", "close_instruments"]
 
 # driver name in the bench file -> (module, class)
@@ -327,27 +327,32 @@ def _proc_instruments(p: Mapping[str, Any]) -> list[str]:
 # --------------------------------------------------------------------------- procedures
 
 def build_procedure(cfg: BenchConfig) -> list:
-    """All ``[[procedure]]`` tables, in order, as one list of steps."""
-    steps: list = []
+    """All ``[[procedure]]`` tables, in order, as one list of steps (a dry run; ``acquire`` uses
+    ``iter_procedure``, which yields the same steps lazily)."""
+    return list(iter_procedure(cfg))
+
+
+def iter_procedure(cfg: BenchConfig) -> Iterator:
+    """The steps of every ``[[procedure]]`` table, in order, generated lazily (flat memory)."""
     for p in cfg.procedures:
         typ = p["type"]
         dwell = p.get("dwell", 0.5)
         enc = p.get("encoder", "encoder")
         dirs = p.get("directions", ["forward"])
         if typ == "radial_motion":
-            steps += P.radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
-                                         p.get("probes", ["probe_top", "probe_bottom"]), enc)
+            yield from P.radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
+                                           p.get("probes", ["probe_top", "probe_bottom"]), enc)
         elif typ == "polygon_shift_angle":
-            steps += P.polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
-                                           p.get("all_faces_each_shift", False), enc,
-                                           p.get("autocollimator", "autocollimator"))
+            yield from P.polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
+                                             p.get("all_faces_each_shift", False), enc,
+                                             p.get("autocollimator", "autocollimator"))
         elif typ == "polygon_traditional":
-            steps += P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0), p.get("rep", 0),
-                                           dirs, dwell, enc, p.get("autocollimator", "autocollimator"))
+            yield from P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
+                                             p.get("rep", 0), dirs, dwell, enc,
+                                             p.get("autocollimator", "autocollimator"))
         elif typ == "selfcal":
-            steps += P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
-                                     dwell, enc)
-    return steps
+            yield from P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
+                                       dwell, enc)
 
 
 # --------------------------------------------------------------------------- instruments

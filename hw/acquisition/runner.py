@@ -1,6 +1,7 @@
 """Execute a procedure (a generator of steps) against a dict of instruments and a clock.
 
     rows = Runner(instruments, SimClock(), journal="run.jsonl").run(procedure)
+    n = Runner(instruments, clock, journal="run.jsonl").stream(procedure, sink)   # flat memory
 
 - Instruments follow ``hw.interfaces`` (the stage is ``instruments[stage]``, default "stage").
 - The clock: ``SimClock`` for the twin (the stage advances it by the move time, Wait advances it),
@@ -16,6 +17,13 @@
   resumed run returns the same rows as an uninterrupted one (the twin's noise is keyed by step).
 - ``on_step(i, step, context, replay)`` is called before every step (the twin uses it to key its
   noise streams and apply re-clamping); ``on_row(row, live_result)`` after every live row.
+- Memory: ``stream(procedure, sink)`` keeps no row: every row, replayed from the journal or live,
+  goes to ``sink(row, live_result)`` (``live_result`` is None for a replayed row) in procedure order
+  and is then dropped; the procedure is consumed lazily and a resumed journal is read line by line
+  in step with it, so a run of any length uses O(1) memory in the number of readings
+  (benchmarks/hil_bench.py). ``run`` is ``stream`` with a sink that collects the rows into a list.
+  Order per live row: ``on_row``, then ``sink``, then the journal line (so whatever the sink writes
+  for a row exists before the row is journaled).
 
 This module never imports the twin (``hw`` is usable without it).
 """
@@ -25,7 +33,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +41,7 @@ import numpy as np
 
 from .procedures import Capture, Mark, Move, Read, Step, Wait, describe_step
 
-__all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "dry_run", "read_journal"]
+__all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "dry_run", "read_journal", "iter_journal"]
 
 JOURNAL_VERSION = 1
 
@@ -98,33 +106,61 @@ def _plain(x: Any) -> Any:
     return x
 
 
-def read_journal(path: str | Path) -> list[dict[str, Any]]:
-    """Journal records (a torn last line from a crash is ignored)."""
+def iter_journal(path: str | Path) -> Iterator[dict[str, Any]]:
+    """Journal records, read line by line. A last line without its newline is a torn write from a
+    crash and is ignored (even if it parses: the step is re-executed); a bad line anywhere else is
+    an error naming the file and line."""
     p = Path(path)
     if not p.is_file():
-        return []
-    recs = []
-    lines = p.read_text(encoding="utf-8").splitlines()
-    for n, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            recs.append(json.loads(line))
-        except json.JSONDecodeError:
-            if n == len(lines) - 1:
-                break  # torn write of the step in progress
-            raise RunnerError(f"{p}: line {n + 1} is not JSON")
-    return recs
+        return
+    with open(p, "r", encoding="utf-8") as fh:
+        n = 0
+        line = fh.readline()
+        while line:
+            n += 1
+            nxt = fh.readline()
+            if not nxt and not line.endswith("\n"):
+                return  # torn write of the step in progress (cut by _drop_torn_tail before appending)
+            if line.strip():
+                try:
+                    rec = json.loads(line)
+                except json.JSONDecodeError:
+                    if not nxt:
+                        return  # torn write of the step in progress
+                    raise RunnerError(f"{p}: line {n} is not JSON") from None
+                yield rec
+            line = nxt
+
+
+def read_journal(path: str | Path) -> list[dict[str, Any]]:
+    """Journal records as a list (``iter_journal`` streams them)."""
+    return list(iter_journal(path))
 
 
 def _drop_torn_tail(path: Path) -> None:
-    """Cut a half-written last line (a crash during a write) before appending to the journal."""
+    """Cut a half-written last line (a crash during a write) before appending to the journal; reads
+    only the file's tail."""
     if not path.is_file():
         return
-    data = path.read_bytes()
-    if data and not data.endswith(b"\n"):
-        with open(path, "r+b") as f:
-            f.truncate(data.rfind(b"\n") + 1)
+    with open(path, "r+b") as f:
+        size = f.seek(0, os.SEEK_END)
+        if size == 0:
+            return
+        f.seek(size - 1)
+        if f.read(1) == b"\n":
+            return
+        pos, block = size, 1 << 16
+        cut = 0
+        while pos > 0:
+            start = max(0, pos - block)
+            f.seek(start)
+            chunk = f.read(pos - start)
+            k = chunk.rfind(b"\n")
+            if k >= 0:
+                cut = start + k + 1
+                break
+            pos = start
+        f.truncate(cut)
 
 
 class Runner:
@@ -161,29 +197,46 @@ class Runner:
 
     # ------------------------------------------------------------------ run
     def run(self, procedure: Iterable[Step], resume: bool = False) -> list[dict[str, Any]]:
-        done: list[dict] = []
+        """Execute the procedure; returns every row (replayed and live), in order."""
+        rows: list[dict] = []
+        self.stream(procedure, lambda row, _res: rows.append(row), resume=resume)
+        return rows
+
+    def stream(self, procedure: Iterable[Step], sink: Callable[[dict, Any], None] | None = None,
+               resume: bool = False) -> int:
+        """Execute the procedure, handing every row to ``sink(row, live_result)`` and keeping none;
+        returns the number of rows. ``live_result`` is the instrument's result (with a capture's
+        image) for a live row, None for a row replayed from the journal."""
+        journal_iter: Iterator[dict] | None = None
         if self.journal is not None and resume:
-            done = [r for r in read_journal(self.journal) if "i" in r]
-            _drop_torn_tail(self.journal)
+            journal_iter = (r for r in iter_journal(self.journal) if "i" in r)
         elif self.journal is not None and self.journal.exists():
             self.journal.unlink()
         fh = None
-        if self.journal is not None:
-            self.journal.parent.mkdir(parents=True, exist_ok=True)
-            fh = open(self.journal, "a", encoding="utf-8")
-            if not done:
-                self._append(fh, {"journal": "benchtwin-run", "version": JOURNAL_VERSION})
-        rows: list[dict] = []
+        n_rows = 0
+        n_done = 0
+        last_t: float | None = None
         context: dict[str, Any] = {}
         last_move: float | None = None
-        pending_restore = False
+
+        def open_journal(cut_torn_tail: bool):
+            self.journal.parent.mkdir(parents=True, exist_ok=True)
+            if cut_torn_tail:
+                _drop_torn_tail(self.journal)
+            f = open(self.journal, "a", encoding="utf-8")
+            if f.tell() == 0:
+                self._append(f, {"journal": "benchtwin-run", "version": JOURNAL_VERSION})
+            return f
+
         try:
+            if self.journal is not None and journal_iter is None:
+                fh = open_journal(False)
             for i, step in enumerate(procedure):
                 desc = describe_step(step)
                 if isinstance(step, Mark):
                     context.update(step.context)
-                if i < len(done):
-                    rec = done[i]
+                rec = next(journal_iter, None) if journal_iter is not None else None
+                if rec is not None:
                     if rec["i"] != i or rec["step"] != _plain(desc):
                         raise RunnerError(f"resume: step {i} of the procedure ({desc}) differs from the "
                                           f"journal ({rec.get('step')}); not the same procedure")
@@ -192,17 +245,24 @@ class Runner:
                     if isinstance(step, Move):
                         last_move = step.target_deg
                     if "row" in rec:
-                        rows.append(rec["row"])
-                    pending_restore = True
+                        n_rows += 1
+                        if sink is not None:
+                            sink(rec["row"], None)
+                    n_done += 1
+                    last_t = rec["t_s"]
                     continue
-                if pending_restore:
-                    pending_restore = False
-                    if last_move is not None:  # stand where the bench stood (move times count from there)
-                        self._inst(self.stage).move_to(last_move)
-                    self.clock.set(done[-1]["t_s"])
+                if journal_iter is not None:  # the first live step after the journaled ones
+                    journal_iter = None
+                    if n_done:
+                        if last_move is not None:  # stand where the bench stood (move times count from there)
+                            self._inst(self.stage).move_to(last_move)
+                        self.clock.set(last_t)
+                    fh = open_journal(True)
                 if self.on_step is not None:
                     self.on_step(i, step, dict(context), False)
-                rec: dict[str, Any] = {"i": i, "step": _plain(desc)}
+                rec = {"i": i, "step": _plain(desc)}
+                live: Any = None
+                row: dict[str, Any] | None = None
                 if isinstance(step, Move):
                     res = self._inst(self.stage).move_to(step.target_deg)
                     self._check(self.stage, res, i)
@@ -218,10 +278,7 @@ class Runner:
                         readings[name] = r
                     row = {"i": i, "type": "read", "tag": _plain({**context, **step.tag}),
                            "t_s": float(self.clock.now()), "readings": _plain(readings)}
-                    rec["row"] = row
-                    rows.append(row)
-                    if self.on_row is not None:
-                        self.on_row(row, readings)
+                    live = readings
                 elif isinstance(step, Capture):
                     res = self._inst(step.camera).capture()
                     self._check(step.camera, res, i)
@@ -232,13 +289,17 @@ class Runner:
                         meta["image_dtype"] = str(np.asarray(img).dtype)
                     row = {"i": i, "type": "capture", "camera": step.camera, "tag": _plain({**context, **step.tag}),
                            "t_s": float(self.clock.now()), "reading": _plain(meta)}
+                    live = res
+                if row is not None:
                     rec["row"] = row
-                    rows.append(row)
+                    n_rows += 1
                     if self.on_row is not None:
-                        self.on_row(row, res)
+                        self.on_row(row, live)
+                    if sink is not None:
+                        sink(row, live)
                 rec["t_s"] = float(self.clock.now())
                 self._append(fh, rec)
         finally:
             if fh is not None:
                 fh.close()
-        return rows
+        return n_rows

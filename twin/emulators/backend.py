@@ -33,12 +33,15 @@ resumptions; a fresh acquisition from step 0 needs a fresh emulator (a restarted
 from __future__ import annotations
 
 import math
+from array import array
+from collections import Counter, deque
 from typing import Any
 
 from benchtwin.hw.acquisition import procedures as P
 
 __all__ = ["EmulatedBench"]
 
+EVENTS_KEPT = 1000
 SERVED_SKIP_PROCEDURES = ("ccd",)  # no serial instrument serves the camera: those steps are only replayed
 
 
@@ -66,10 +69,14 @@ class EmulatedBench:
         self.served = [isinstance(s, P.Move) and self.ctx_at[i].get("procedure") not in SERVED_SKIP_PROCEDURES
                        for i, s in enumerate(self.script)]
         self.cursor = -1
-        self.t_after: dict[int, float] = {}
+        # simulated time after each executed step (NaN: not executed); preallocated, so serving a
+        # long acquisition does not grow the emulator's memory
+        self.t_after = array("d", [math.nan]) * len(self.script)
         self.free_moves = 0
         self.requests = 0
-        self.events: list[tuple[str, int, float]] = []  # (kind, step index, target) for tests and logs
+        # the latest EVENTS_KEPT (kind, step index, target) for tests and logs, and a count per kind
+        self.events: deque[tuple[str, int, float]] = deque(maxlen=EVENTS_KEPT)
+        self.event_counts: Counter[str] = Counter()
 
     # ------------------------------------------------------------------ script execution
     def _same(self, a: float, b: float) -> bool:
@@ -95,7 +102,7 @@ class EmulatedBench:
         st._draws = {}
         st.apply_context(self.ctx_at[m])
         self.stage.move_to(self.script[m].target_deg)
-        if m in self.t_after:
+        if not math.isnan(self.t_after[m]):
             st.clock.set(self.t_after[m])
         self.cursor = m
 
@@ -105,6 +112,10 @@ class EmulatedBench:
                 return i
         return None
 
+    def _event(self, kind: str, i: int, target_deg: float) -> None:
+        self.events.append((kind, i, target_deg))
+        self.event_counts[kind] += 1
+
     # ------------------------------------------------------------------ wire-level actions
     def move(self, target_deg: float) -> float:
         """A stage move arrived over the wire; returns the angle the stage now stands at (deg)."""
@@ -112,24 +123,24 @@ class EmulatedBench:
         j = self._next_served_move(self.cursor + 1)
         if j is not None and self._same(self.script[j].target_deg, target_deg):
             self._advance_to(j)
-            self.events.append(("next", j, target_deg))
+            self._event("next", j, target_deg)
             return self.script[j].target_deg
         for m in range(min(self.cursor, len(self.script) - 1), -1, -1):
             if self.served[m] and self._same(self.script[m].target_deg, target_deg):
                 self._jump(m)
-                self.events.append(("back", m, target_deg))
+                self._event("back", m, target_deg)
                 return self.script[m].target_deg
         for m in range(self.cursor + 1, len(self.script)):
             if self.served[m] and self._same(self.script[m].target_deg, target_deg):
                 self._advance_to(m)
-                self.events.append(("ahead", m, target_deg))
+                self._event("ahead", m, target_deg)
                 return self.script[m].target_deg
         # free move: no script step; keep the context, key the noise beyond the script
         self.free_moves += 1
         self.state.step_index = len(self.script) + self.free_moves
         self.state._draws = {}
         self.stage.move_to(target_deg)
-        self.events.append(("free", -1, target_deg))
+        self._event("free", -1, target_deg)
         return target_deg
 
     def read(self, name: str) -> dict[str, Any]:
