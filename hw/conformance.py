@@ -15,6 +15,14 @@ equal-length non-empty lists of floats with ``heads_deg[0] == 0``; autocollimato
 ``y_arcsec`` floats; stage ``position()`` ``angle_deg`` float and ``move_to`` ``target_deg`` float
 and ``duration_s`` float >= 0; camera ``image`` 2-D uint8/uint16. Values may be NaN only when
 ``status`` is not "ok".
+
+Stage soft limits (the ``RotaryStage`` contract, the same for the twin's stage and the drivers):
+``describe()["soft_limits_deg"]`` is ``[low, high]`` (low < high) or None; with
+``check_soft_limits`` (default) ``move_to`` is called with a target above ``high`` and with NaN,
+and each must raise ``SoftLimitError`` (not return a status, not raise anything else), leaving
+``position()["angle_deg"]`` unchanged. A conforming stage sends nothing for these calls (a
+replayed driver proves it: its transcript has no such exchange); against a live stage whose
+driver has not been proven on a transcript, pass ``check_soft_limits=False``.
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.hw.interfaces import INSTRUMENT_KINDS
+from benchtwin.hw.interfaces import INSTRUMENT_KINDS, SoftLimitError
 
 __all__ = ["check_conformance", "SUFFIX_UNITS"]
 
@@ -93,7 +101,41 @@ def _check_reading(label: str, r: Any, required: dict[str, str], units: dict[str
             problems.append(f"{label}: describe()['units'][{key!r}] = {units[key]!r}, but the key says {unit!r}")
 
 
-def check_conformance(instrument: Any, kind: str, *, move_to_deg: float | None = None) -> list[str]:
+def _check_soft_limits(instrument: Any, d: dict, first_position: Any, problems: list[str]) -> None:
+    if "soft_limits_deg" not in d:
+        problems.append("describe() lacks 'soft_limits_deg' ([low, high] in deg, or None)")
+        return
+    lim = d["soft_limits_deg"]
+    if lim is not None:
+        if (not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(_is_float(v) for v in lim)
+                or not all(math.isfinite(float(v)) for v in lim) or not float(lim[0]) < float(lim[1])):
+            problems.append(f"describe()['soft_limits_deg'] must be [low, high] with low < high or None, got {lim!r}")
+            return
+    before = first_position.get("angle_deg") if isinstance(first_position, dict) else None
+    targets = ([float(lim[1]) + max(1.0, 0.01 * (float(lim[1]) - float(lim[0])))] if lim is not None else [])
+    for target in targets + [math.nan]:
+        label = f"move_to({target}) outside the soft limits {lim}"
+        try:
+            r = instrument.move_to(target)
+        except SoftLimitError:
+            pass
+        except Exception as exc:  # noqa: BLE001 - reported, not raised
+            problems.append(f"{label} raised {type(exc).__name__} ({exc}), expected SoftLimitError")
+            continue
+        else:
+            problems.append(f"{label} returned {r!r} instead of raising SoftLimitError")
+            continue
+        try:
+            after = instrument.position().get("angle_deg")
+        except Exception as exc:  # noqa: BLE001
+            problems.append(f"position() after a refused move raised {type(exc).__name__}: {exc}")
+            continue
+        if before is not None and after != before:
+            problems.append(f"{label}: the stage moved from {before} to {after} deg")
+
+
+def check_conformance(instrument: Any, kind: str, *, move_to_deg: float | None = None,
+                      check_soft_limits: bool = True) -> list[str]:
     """Problems found (empty list: the instrument conforms to ``kind``'s protocol and shapes)."""
     problems: list[str] = []
     if kind not in INSTRUMENT_KINDS:
@@ -142,6 +184,8 @@ def check_conformance(instrument: Any, kind: str, *, move_to_deg: float | None =
             problems.append(f"{label} raised {type(exc).__name__}: {exc}")
             continue
         _check_reading(label, r, required, units, problems)
+        if label == "position()" and check_soft_limits:
+            _check_soft_limits(instrument, d, r, problems)
         if kind == "encoder" and isinstance(r, dict):
             h, a = r.get("heads_deg"), r.get("angle_deg")
             if isinstance(h, (list, tuple)) and isinstance(a, (list, tuple)):

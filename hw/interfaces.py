@@ -54,13 +54,40 @@ class Autocollimator(Instrument, Protocol):
 @runtime_checkable
 class RotaryStage(Instrument, Protocol):
     """The drive. ``move_to(target_deg)`` commands a position in encoder degrees (the bench stops at
-    commanded encoder readings) and returns ``{"target_deg", "t_s", "status"}`` when settled, without
-    sleeping: it reports the time the move took via ``duration_s``. ``position()`` ->
-    ``{"angle_deg", "t_s", "status"}``. Soft limits and speed limits are honoured by the stage."""
+    commanded encoder readings) and returns ``{"target_deg", "t_s", "status", "duration_s"}`` when
+    settled, without sleeping (``duration_s``: the time the move took). ``position()`` ->
+    ``{"angle_deg", "t_s", "status"}``.
+
+    Soft limits, one contract for the twin's stage and the drivers alike (checked by
+    ``hw.conformance.check_conformance`` on both):
+
+    - ``describe()["soft_limits_deg"]`` is ``[low, high]`` in degrees (low < high), or None for a
+      stage without limits (only the twin's stage may have none: a driver's limits come from the
+      bench file and are required);
+    - ``move_to`` of a target outside ``[low, high]`` (or not finite) raises ``SoftLimitError``
+      before anything happens: nothing is sent to the controller, nothing moves, the clock does not
+      advance and ``position()`` is unchanged. It never returns a status for this: a refused move
+      is an error a caller cannot overlook (a non-strict runner would otherwise read at the wrong
+      stop). A closed-loop correction that would leave the limits is refused the same way.
+
+    Speed limits: a driver refuses to move a stage whose speed exceeds the bench file's
+    ``max_speed`` (and never raises the stage's speed itself)."""
 
     def move_to(self, target_deg: float) -> dict[str, Any]: ...
 
     def position(self) -> dict[str, Any]: ...
+
+
+class SoftLimitError(ValueError):
+    """A stage move refused by the soft limits (``RotaryStage``): nothing was sent, nothing moved."""
+
+    def __init__(self, stage: str, target_deg: float, limits_deg: tuple[float, float] | None):
+        self.stage = stage
+        self.target_deg = float(target_deg)
+        self.limits_deg = None if limits_deg is None else (float(limits_deg[0]), float(limits_deg[1]))
+        lim = "" if limits_deg is None else f" [{self.limits_deg[0]:g}, {self.limits_deg[1]:g}] deg"
+        super().__init__(f"{stage}: move to {target_deg} deg refused: outside the soft limits{lim}; "
+                         f"nothing was sent, nothing moved")
 
 
 @runtime_checkable

@@ -8,7 +8,8 @@ Requests are ``/<device> <axis> <command>\\n``; replies are ``@<dd> <a> <OK|RJ> 
 ``get maxspeed``, the empty command (status poll) and, only with ``write_settings=True`` and an
 explicit ``settings`` dict, ``set <setting> <value>``.
 
-Safety, all before any byte is sent: a target outside the soft limits is refused; the stage's
+Safety, all before any byte is sent: a target outside the soft limits raises ``SoftLimitError``
+(the contract of ``hw.interfaces.RotaryStage``, shared with the twin's stage); the stage's
 ``maxspeed`` is read once and compared with the bench file's speed limit, and moves are refused if
 it is faster (this driver never raises it). ``move_to`` never sleeps directly: the waits between
 status polls go through the injectable ``sleep``; durations are measured with the injectable
@@ -24,6 +25,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
+from benchtwin.hw.interfaces import SoftLimitError
 
 __all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply"]
 
@@ -142,8 +144,7 @@ class ZaberRotaryStage(SerialInstrument):
     def _check_limits(self, target_deg: float) -> None:
         lo, hi = self.soft_limits_deg
         if not (math.isfinite(target_deg) and lo <= target_deg <= hi):
-            raise InstrumentError(self.name, "move_abs", f"target {target_deg} deg is outside the soft limits "
-                                  f"[{lo}, {hi}] deg; nothing was sent", b"")
+            raise SoftLimitError(self.name, target_deg, (lo, hi))
 
     def _prepare(self) -> None:
         if self._checked:

@@ -17,6 +17,7 @@ from benchtwin.hw.drivers.millimar import MillimarC1202
 from benchtwin.hw.drivers.tesa import TesaTT
 from benchtwin.hw.drivers.triangle import TriAngle
 from benchtwin.hw.drivers.zaber import ZaberRotaryStage
+from benchtwin.hw.interfaces import SoftLimitError
 from benchtwin.hw.transport import ReplayTransport
 
 
@@ -60,17 +61,52 @@ def test_driver_conforms(case):
 
 
 def test_zaber_conforms_with_and_without_move():
-    rt = ReplayTransport([
-        {"request": "/1 1 get pos\n", "response": "@01 1 OK IDLE -- 1500\r\n"},
-        {"request": "/1 1 get pos\n", "response": "@01 1 OK IDLE -- 1500\r\n"},
-        {"request": "/1 1 get maxspeed\n", "response": "@01 1 OK IDLE -- 1638\r\n"},
-        {"request": "/1 1 move abs 2000\n", "response": "@01 1 OK IDLE -- 0\r\n"},
-    ])
+    pos = {"request": "/1 1 get pos\n", "response": "@01 1 OK IDLE -- 1500\r\n"}
+    # each conformance call: position(), then two refused moves (above the limit, NaN) that send
+    # nothing, each followed by a position() showing the stage did not move
+    rt = ReplayTransport([pos, pos, pos,
+                          pos, pos, pos,
+                          {"request": "/1 1 get maxspeed\n", "response": "@01 1 OK IDLE -- 1638\r\n"},
+                          {"request": "/1 1 move abs 2000\n", "response": "@01 1 OK IDLE -- 0\r\n"}])
     stage = ZaberRotaryStage("stage", rt, microsteps_per_deg=1000, soft_limits_deg=(0, 360), max_speed_deg_s=5,
                              sleep=_nosleep)
     assert check_conformance(stage, "stage") == []
     assert check_conformance(stage, "stage", move_to_deg=2.0) == []
     rt.assert_done()
+
+
+class StatusOnLimitStage:
+    """A stage that reports a soft limit as a status (the behaviour the contract forbids)."""
+
+    name = "bad_stage"
+
+    def __init__(self, limits=(0.0, 360.0), moves_anyway=False):
+        self.limits, self.moves_anyway, self.pos = limits, moves_anyway, 0.0
+
+    def describe(self):
+        return {"name": self.name, "kind": "stage", "model": "fake", "units": {"angle_deg": "deg", "target_deg": "deg"},
+                "soft_limits_deg": list(self.limits) if self.limits else self.limits}
+
+    def move_to(self, target_deg):
+        if self.moves_anyway:
+            self.pos = target_deg
+            raise SoftLimitError(self.name, target_deg, self.limits)
+        return {"target_deg": target_deg, "t_s": 0.0, "duration_s": 0.0, "status": "soft_limit"}
+
+    def position(self):
+        return {"angle_deg": self.pos, "t_s": 0.0, "status": "ok"}
+
+
+def test_soft_limit_contract_violations_are_reported():
+    probs = check_conformance(StatusOnLimitStage(), "stage")
+    assert any("returned" in p and "instead of raising SoftLimitError" in p for p in probs), probs
+    probs = check_conformance(StatusOnLimitStage(moves_anyway=True), "stage")
+    assert any("the stage moved from 0.0 to 363.6 deg" in p for p in probs), probs
+    probs = check_conformance(StatusOnLimitStage(limits=(5.0, 1.0)), "stage")
+    assert any("low < high" in p for p in probs), probs
+    bad = StatusOnLimitStage()
+    bad.describe = lambda: {"name": "bad_stage", "kind": "stage", "model": "fake", "units": {}}
+    assert any("lacks 'soft_limits_deg'" in p for p in check_conformance(bad, "stage"))
 
 
 def test_no_signal_reading_still_conforms():

@@ -305,6 +305,7 @@ def test_heidenhain_garbage_never_parses_silently(junk):
 
 # --- Zaber ----------------------------------------------------------------------------------------
 from benchtwin.hw.drivers.zaber import ZaberRotaryStage, format_zaber_reply  # noqa: E402
+from benchtwin.hw.interfaces import SoftLimitError  # noqa: E402
 
 STAGE = dict(microsteps_per_deg=1000.0, soft_limits_deg=(-10.0, 370.0), max_speed_deg_s=20.0)
 
@@ -331,7 +332,7 @@ def test_zaber_soft_limit_refused_before_anything_is_sent():
     rt = ReplayTransport([])
     st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), **STAGE)
     for bad in (400.0, -10.5, float("nan")):
-        with pytest.raises(InstrumentError, match="soft limits"):
+        with pytest.raises(SoftLimitError, match=r"stage: move to .* refused: outside the soft limits \[-10, 370\] deg"):
             st_.move_to(bad)
     assert rt.written == []
     rt.assert_done()

@@ -10,7 +10,9 @@
   commanded encoder readings, as a real servo closes its loop on the interpolated encoder signal),
   by fixed-point iteration on the exact (noise-free, unquantised) reading, to ``tol_arcsec``
   (1e-6″ by default: 2.5e-6 of the 0.39″ resolution); advances the clock by the move time
-  (trapezoidal profile, ``speed``/``accel``) and poses the bench there.
+  (trapezoidal profile, ``speed``/``accel``) and poses the bench there. Soft limits
+  (``soft_limits_deg``, none by default) follow ``hw.interfaces.RotaryStage``'s contract: a target
+  outside them raises ``SoftLimitError`` before anything moves or the clock advances.
 
 Polygon mounting (re-clamping) is a property of the state, not of the physics: the physics poses
 the polygon in its nominal mounting (face 1's normal on body +x, ``Bench.pose_at``); the state
@@ -33,6 +35,7 @@ import numpy as np
 
 from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
+from benchtwin.hw.interfaces import SoftLimitError
 from benchtwin.twin.pose import BenchPose, BodyPose
 
 ARCSEC = math.pi / 648000.0
@@ -187,7 +190,10 @@ class SimRotaryStage:
         self.settle_s = float(settle_s)
         self.tol_rad = float(tol_arcsec) * ARCSEC
         self.max_iter = int(max_iter)
-        self.soft_limits_deg = soft_limits_deg
+        if soft_limits_deg is not None and not float(soft_limits_deg[0]) < float(soft_limits_deg[1]):
+            raise ValueError(f"{name}: soft_limits_deg must be (low, high) with low < high, got {soft_limits_deg}")
+        self.soft_limits_deg = None if soft_limits_deg is None else (float(soft_limits_deg[0]),
+                                                                      float(soft_limits_deg[1]))
         self.command_rad = 0.0
         self.target_deg: float | None = None
         self.position_deg = 0.0
@@ -197,13 +203,16 @@ class SimRotaryStage:
         return {"name": self.name, "kind": "stage", "model": "sim rotary stage (twin)",
                 "units": {"target_deg": "deg", "angle_deg": "deg", "duration_s": "s", "t_s": "s"},
                 "speed_deg_s": self.speed_deg_s, "accel_deg_s2": self.accel_deg_s2,
-                "tolerance_arcsec": self.tol_rad / ARCSEC, "soft_limits_deg": self.soft_limits_deg}
+                "tolerance_arcsec": self.tol_rad / ARCSEC,
+                "soft_limits_deg": None if self.soft_limits_deg is None else [float(v) for v in self.soft_limits_deg]}
 
     def move_to(self, target_deg: float) -> dict[str, Any]:
         target_deg = float(target_deg)
         st = self.state
-        if self.soft_limits_deg is not None and not self.soft_limits_deg[0] <= target_deg <= self.soft_limits_deg[1]:
-            return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "soft_limit"}
+        lim = self.soft_limits_deg
+        if not math.isfinite(target_deg) or (lim is not None and not lim[0] <= target_deg <= lim[1]):
+            # hw.interfaces.RotaryStage contract: refused before anything moves or the clock runs
+            raise SoftLimitError(self.name, target_deg, lim)
         duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
         st.clock.advance(duration)
         target = math.radians(target_deg)
