@@ -130,6 +130,7 @@ if _have("benchtwin.twin.study"):
 
         out = ns.out or Path("out") / ns.study.stem
         res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers, progress=not (ns.quiet or ns.json))
-        return {"ok": True, **{k: str(v) for k, v in res.items() if isinstance(v, (str, Path))},
-                "message": res.get("message", f"study written to {out}")}
+        # run_study's dict is JSON-ready (it is also written as study.json): counts, wall time,
+        # fidelity per output and the target verdict go to --json as they are
+        return {**res, "ok": True, "message": res.get("message", f"study written to {out}")}
 

@@ -64,7 +64,7 @@ FIDELITIES = ("auto", "physics", "full")
 SAMPLINGS = ("grid", "random", "lhs")
 CRITERIA = ("mean", "individual")
 _STUDY_KEYS = {"name", "description", "base", "seed", "repetitions", "outputs", "fidelity", "angles",
-               "parameters", "target", "fixed"}
+               "parameters", "target", "fixed", "order"}
 _PARAM_KEYS = {"key", "name", "values", "labels", "low", "high", "n", "sampling", "set"}
 _TARGET_KEYS = {"output", "below", "parameter", "coverage", "criterion"}
 _SEED_MAX = 2**63 - 1
@@ -131,16 +131,26 @@ class Study:
     fixed: dict[str, Any]
     parameters: list[Parameter]
     target: Target | None
+    order: int = 10  # Fourier order of the analysis (full fidelity)
 
     @property
     def run_fidelity(self) -> str:
-        """What every point runs: "physics" or "full"."""
-        needs_full = any(study_points.output_fidelity(o) == "full" for o in self.outputs)
+        """What every point runs: "physics", or "full" (simulate → analyze, the close-the-loop step
+        only if an output needs it: see ``close_loop``)."""
+        needs_full = any(study_points.output_fidelity(o) != "physics" for o in self.outputs)
         return "full" if (self.fidelity == "full" or needs_full) else "physics"
 
+    @property
+    def close_loop(self) -> bool:
+        return any(study_points.output_fidelity(o) == "full+close_loop" for o in self.outputs)
+
     def output_fidelity(self) -> dict[str, str]:
-        """Per output, the fidelity that computed it (reported with the results)."""
-        return {o: study_points.output_fidelity(o) for o in self.outputs}
+        """Per output, the fidelity that computed it (reported with the results). In a full study a
+        physics output is computed on the realisation each repetition simulated (its rep seed)."""
+        full = self.run_fidelity == "full"
+        return {o: ("physics (rep-seed realisation of the full run)"
+                    if full and study_points.output_fidelity(o) == "physics" else study_points.output_fidelity(o))
+                for o in self.outputs}
 
 
 def _column(name: str, unit: str) -> str:
@@ -254,11 +264,19 @@ def load_study(path: str | Path) -> Study:
             fo = study_points.output_fidelity(o)
         except KeyError:
             raise fail(f"study.outputs: unknown output {o!r}; physics outputs: "
-                       f"{', '.join(study_points.PHYSICS_OUTPUTS)}; pipeline outputs are written "
-                       f"'{study_points.FULL_PREFIX}<key.in.results.json>'") from None
+                       f"{', '.join(study_points.PHYSICS_OUTPUTS)}; full outputs: "
+                       f"{', '.join(study_points._run.FULL_OUTPUTS)}, identified.<effect> (effect one of "
+                       f"{', '.join(study_points._run.effect_names())}), and numbers of the pipeline's "
+                       f"results.json written '{study_points.FULL_PREFIX}<key.in.results.json>'") from None
         if fidelity == "physics" and fo != "physics":
             raise fail(f"study.outputs: {o!r} needs fidelity 'full' (the simulate → analyze pipeline) "
                        "but study.fidelity is 'physics'")
+    order = st.get("order", 10)
+    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= 60:
+        raise fail(f"study.order: expected an integer 1…60 (Fourier order of the analysis), got {order!r}")
+    if "order" in st and fidelity != "full" and all(study_points.output_fidelity(o) == "physics" for o in outputs):
+        raise fail("study.order: the analysis' Fourier order applies to full-fidelity studies only; every "
+                   "output here is a physics output (no analysis runs)")
     base, base_ref = _resolve_base(st["base"], p, fail)
     fixed_raw = st.get("fixed", {})
     if not isinstance(fixed_raw, Mapping):
@@ -282,7 +300,7 @@ def load_study(path: str | Path) -> Study:
             raise fail(f"study.fixed: {k!r} is also a study parameter")
     target = _parse_target(st.get("target"), outputs, params, fail)
     study = Study(p, name, st.get("description", ""), base, base_ref, seed, reps, list(outputs), fidelity,
-                  angles, fixed, params, target)
+                  angles, fixed, params, target, order)
     return study
 
 
@@ -627,18 +645,25 @@ def rep_seed(study_seed: int, rep: int) -> int:
 
 
 def code_version() -> str:
-    """benchtwin.__version__ plus a hash of the twin/ and analysis/ sources (cache invalidation).
+    """benchtwin.__version__ plus a hash of every source a point can run (cache invalidation): the
+    ``.py`` files of twin/, analysis/, hw/ (the acquisition runner and procedures the simulation
+    uses), benchtwin/ (units), and every file of models/ (the MuJoCo model).
 
     Computed afresh by every ``run_study`` (a few ms): pool workers import the code as it is on
     disk now, so a version remembered from an earlier run could be stale."""
     import benchtwin.analysis
+    import benchtwin.hw
+    import benchtwin.models
     import benchtwin.twin
 
     h = hashlib.sha256()
-    for pkg in (benchtwin.twin, benchtwin.analysis):
+    for pkg, pattern in ((benchtwin.twin, "*.py"), (benchtwin.analysis, "*.py"), (benchtwin.hw, "*.py"),
+                         (benchtwin, "*.py"), (benchtwin.models, "*")):
         root = Path(list(pkg.__path__)[0])
-        for f in sorted(root.rglob("*.py")):
-            h.update(str(f.relative_to(root.parent)).encode())
+        for f in sorted(root.rglob(pattern)):
+            if not f.is_file() or "__pycache__" in f.parts:
+                continue
+            h.update(f"{pkg.__name__}/{f.relative_to(root).as_posix()}".encode())
             h.update(f.read_bytes())
     return f"{benchtwin.__version__}+{h.hexdigest()[:16]}"
 
@@ -710,12 +735,8 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
         fns: list[Callable] = [point_fn]
         fid_map = {o: f"custom:{_fn_id(point_fn)}" for o in study.outputs}
     else:
-        if fidelity == "full":
-            study_points.full_entry_point()  # fail now, naming what is missing, not in a worker
-        fns = [study_points.physics_point] if any(
-            study_points.output_fidelity(o) == "physics" for o in study.outputs) else []
-        if fidelity == "full":
-            fns.append(study_points.full_point)
+        # full: one pipeline run per repetition gives every output (physics ones on its realisation)
+        fns = [study_points.full_point] if fidelity == "full" else [study_points.physics_point]
         fid_map = study.output_fidelity()
     version = code_version()
     fn_ids = [_fn_id(f) for f in fns]
@@ -725,21 +746,29 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
     keys: dict[tuple[int, int], str] = {}
     done: dict[tuple[int, int], dict] = {}
     tasks: list[dict] = []
+    pipeline = {"order": study.order, "close_loop": study.close_loop} if fidelity == "full" else None
     for pt in points:
         missing = []
         for k in range(study.repetitions):
-            key = _hash({"scenario": pt.scenario_key, "rep": k, "rep_seed": seeds[k], "angles": study.angles,
-                         "point_fns": fn_ids, "code": version})
+            spec = {"scenario": pt.scenario_key, "rep": k, "rep_seed": seeds[k], "angles": study.angles,
+                    "point_fns": fn_ids, "code": version}
+            if pipeline is not None:
+                spec["pipeline"] = pipeline
+            key = _hash(spec)
             keys[(pt.index, k)] = key
             entry = cache.get(key)
             if entry is not None and all(o in entry["outputs"] for o in study.outputs):
                 done[(pt.index, k)] = entry
             else:
                 missing.append(k)
-        if missing:
+        # physics: one task per point (its repetitions share one Bench); full: one task per
+        # repetition (each is a separate simulation of tens of seconds: both workers share a point,
+        # and the progress bar moves per run)
+        for reps in ([missing] if fidelity != "full" else [[k] for k in missing]) if missing else []:
             tasks.append({"point": pt.index, "scenario": pt.scenario, "scenario_key": pt.scenario_key,
-                          "reps": missing, "rep_seeds": [seeds[k] for k in missing], "angles": study.angles,
-                          "outputs": study.outputs, "point_fns": fns})
+                          "reps": reps, "rep_seeds": [seeds[k] for k in reps], "angles": study.angles,
+                          "outputs": study.outputs, "point_fns": fns, "order": study.order,
+                          "close_loop": study.close_loop})
     n_total = len(points) * study.repetitions
     n_cached = len(done)
     t0 = time.perf_counter()
@@ -846,6 +875,10 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     import pyarrow.parquet as pq
 
     params = study.parameters
+    # what every row ran: physics, full (simulate → analyze) or full+close_loop; per output in fid_map
+    run_label = ("full+close_loop" if study.close_loop else "full") if fidelity == "full" else fidelity
+    if any(v.startswith("custom:") for v in fid_map.values()):
+        run_label = next(iter(fid_map.values()))
     cols: dict[str, list] = {"point": [], "rep": [], "rep_seed": []}
     for p in params:
         cols[p.column] = []
@@ -853,6 +886,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
             cols[_column(k, p.unit)] = []
     for o in study.outputs:
         cols[o] = []
+    cols["fidelity"] = []
     cols["elapsed_s"] = []
     cols["cache_key"] = []
     for pt in points:
@@ -867,6 +901,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
                     cols[_column(key, p.unit)].append(float(_split_num(pt.overrides[key])))
             for o in study.outputs:
                 cols[o].append(float(e["outputs"][o]))
+            cols["fidelity"].append(run_label)
             cols["elapsed_s"].append(float(e.get("elapsed_s", float("nan"))))
             cols["cache_key"].append(keys[(pt.index, k)][:16])
     meta = {"study": study.name, "base": study.base_ref, "seed": str(study.seed),
@@ -876,7 +911,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     pacsv.write_csv(table, out / "table.csv")
 
     # per-point summary
-    scols: dict[str, list] = {"point": [], "n": []}
+    scols: dict[str, list] = {"point": [], "n": [], "fidelity": []}
     for p in params:
         scols[p.column] = []
     for o in study.outputs:
@@ -886,6 +921,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     for pt in points:
         scols["point"].append(pt.index)
         scols["n"].append(study.repetitions)
+        scols["fidelity"].append(run_label)
         for p in params:
             scols[p.column].append(pt.values[p.name])
         row = {"point": pt.index, "values": pt.values}
@@ -1068,9 +1104,19 @@ def _markdown(study: Study, rows: list[dict], verdict: dict | None, fid_map: dic
     if study.fixed:
         lines += ["Fixed for every point: " + ", ".join(f"`{k} = {v}`" for k, v in study.fixed.items()) + ".", ""]
     lines += ["Fidelity per output: " + ", ".join(f"`{o}`: {f}" for o, f in fid_map.items()) + ".", ""]
+    used = set(fid_map.values())
+    legend = {"physics": "physics = the twin's MuJoCo statics and the exact reading of the posed disk (no images, "
+                         "no instruments, no analysis)",
+              "full": "full = simulate the whole dataset (rendered CCD images, every instrument) and analyse it "
+                      f"with the one pipeline (Fourier order {study.order}), one simulated bench per repetition",
+              "full+close_loop": "full+close_loop = the same plus the close-the-loop step"}
+    notes = [text for key, text in legend.items() if key in used or
+             (key == "full" and any(v.startswith("physics (") or v == "full+close_loop" for v in used))]
+    if notes:
+        lines += ["; ".join(notes) + ".", ""]
     if verdict:
         lines += [f"**Target**: {verdict['sentence']}", ""]
-    head = [p.column for p in study.parameters] + [f"{o} (mean ± u, s)" for o in study.outputs]
+    head = [p.column for p in study.parameters] + [f"{o} [{fid_map[o]}] (mean ± u, s)" for o in study.outputs]
     lines += ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for r in rows:
         cells = [_fmt(r["values"][p.name]) for p in study.parameters]

@@ -6,10 +6,15 @@ dynamics never pays for them:
 
 - ``physics``: build the twin's ``Bench`` (MuJoCo, quasi-static poses) and read the posed disk
   with exact trigonometry. Outputs: ``PHYSICS_OUTPUTS``. Milliseconds to a second per point.
-- ``full``: the whole simulate → analyze pipeline (rendered CCD images, instruments, analysis).
-  Outputs are keys of the pipeline's ``results.json``, written ``results.<dotted.path>``. This
-  needs the lead's entry point ``FULL_ENTRY_POINT``; until it exists, a full point raises
-  ``NotImplementedError`` naming it (never a stand-in result).
+- ``full``: the whole simulate → analyze pipeline (``twin/run.py``: rendered CCD images, every
+  instrument, the analysis of the dataset it wrote). Outputs: ``run.FULL_OUTPUTS`` by name (measured,
+  predicted, residual, uncertainty, eccentricity, true α from the twin's truth),
+  ``identified.<effect>`` and any number in the pipeline's ``results.json`` written
+  ``results.<dotted.path>``. The close-the-loop step runs only when an output needs it
+  (``full+close_loop``). Seconds to tens of seconds per repetition. Repetition k simulates the
+  scenario with ``scenario.seed = rep_seed[k]`` (a new realisation of everything seeded: the same
+  across points, common random numbers); physics outputs of a full study are computed on that same
+  realisation (run 0), so every row describes one simulated bench.
 
 Point functions are module-level (picklable by reference) and build every MuJoCo object inside
 the worker process: MuJoCo models and data cannot be pickled. A small per-process cache keeps the
@@ -17,8 +22,9 @@ last benches so that the repetitions of one point share one model.
 
 A point function has the signature ``fn(task: dict) -> list[dict]``: ``task`` holds
 ``scenario`` (a validated ``Scenario``), ``reps`` (repetition indices), ``rep_seeds``
-(``numpy.random.SeedSequence([study seed, rep])`` states) and ``angles`` (shaft positions per
-turn); it returns one dict of outputs per repetition, in order.
+(``numpy.random.SeedSequence([study seed, rep])`` states), ``angles`` (shaft positions per turn),
+``outputs`` (the study's output names) and, for ``full``, ``order`` and ``close_loop``; it returns
+one dict of outputs per repetition, in order.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ from typing import Any
 import numpy as np
 
 from benchtwin.units import ARCSEC, UM
+
+from . import run as _run
 
 # name -> what it is (units in the name; docs/studies.md lists them too).
 PHYSICS_OUTPUTS: dict[str, str] = {
@@ -47,34 +55,30 @@ PHYSICS_OUTPUTS: dict[str, str] = {
 }
 
 FULL_PREFIX = "results."
-# The lead's simulate -> analyze entry point (module, function). Contract:
+# The simulate -> analyze entry point (module, function), twin/run.py:
 #   simulate_and_analyze(scenario: Scenario, out_dir: pathlib.Path, rep_seed: int,
-#                        progress: bool = False) -> dict   # the contents of results.json
+#                        progress: bool = False, *, order=10, close_loop=True) -> dict  # results.json
 FULL_ENTRY_POINT = ("benchtwin.twin.run", "simulate_and_analyze")
+FIDELITY_ORDER = ("physics", "full", "full+close_loop")  # cheapest first
 
 _BENCHES: OrderedDict[str, Any] = OrderedDict()
 _BENCH_CACHE_SIZE = 4
 
 
 def output_fidelity(output: str) -> str:
-    """The cheapest fidelity that can compute ``output``; ``KeyError`` for an unknown name."""
+    """The cheapest fidelity that can compute ``output`` (one of ``FIDELITY_ORDER``); ``KeyError``
+    for an unknown name."""
     if output in PHYSICS_OUTPUTS:
         return "physics"
-    if output.startswith(FULL_PREFIX) and len(output) > len(FULL_PREFIX):
-        return "full"
+    if _run.is_full_output(output) or (output.startswith(FULL_PREFIX) and len(output) > len(FULL_PREFIX)):
+        return "full+close_loop" if _run.needs_close_loop(output) else "full"
     raise KeyError(output)
 
 
 def full_entry_point():
-    """The lead's simulate→analyze function, or ``NotImplementedError`` naming what is missing."""
+    """The simulate → analyze function (``FULL_ENTRY_POINT``)."""
     mod, fn = FULL_ENTRY_POINT
-    try:
-        return getattr(importlib.import_module(mod), fn)
-    except (ImportError, AttributeError):
-        raise NotImplementedError(
-            f"fidelity 'full' needs {mod}.{fn}(scenario, out_dir, rep_seed, progress=False) -> "
-            "results dict (the simulate → analyze pipeline), which has not landed yet; use outputs "
-            f"from the physics set ({', '.join(PHYSICS_OUTPUTS)}) or wait for it") from None
+    return getattr(importlib.import_module(mod), fn)
 
 
 # ----------------------------------------------------------------------------------- physics
@@ -164,23 +168,44 @@ def _worst_direction_pv(dx: np.ndarray, dy: np.ndarray, n_dir: int = 180) -> flo
 
 
 def full_point(task: dict) -> list[dict[str, float]]:
-    """The whole simulate → analyze pipeline per repetition; outputs are ``results.<path>`` keys."""
+    """The whole simulate → analyze pipeline, one run per repetition (``scenario.seed`` = its
+    rep seed), in a temporary directory; outputs by name (``run.FULL_OUTPUTS``,
+    ``identified.<effect>``), ``results.<path>`` keys, and physics outputs of the same realisation.
+
+    ``task`` also holds ``order`` (the analysis' Fourier order) and ``close_loop`` (run the
+    close-the-loop step: only when an output needs it)."""
     import tempfile
     from pathlib import Path
 
     fn = full_entry_point()
-    wanted = [o for o in task["outputs"] if o.startswith(FULL_PREFIX)]
+    outputs = list(task["outputs"])
+    generic = [o for o in outputs if o.startswith(FULL_PREFIX)]
+    named = [o for o in outputs if _run.is_full_output(o)]
+    phys = [o for o in outputs if o in PHYSICS_OUTPUTS]
     out = []
     for rep, seed in zip(task["reps"], task["rep_seeds"]):
         with tempfile.TemporaryDirectory(prefix="benchtwin-study-") as tmp:
-            results = fn(task["scenario"], Path(tmp), rep_seed=int(seed), progress=False)
-        row = {}
-        for o in wanted:
+            results = fn(task["scenario"], Path(tmp), rep_seed=int(seed), progress=False,
+                         order=int(task.get("order", 10)), close_loop=bool(task.get("close_loop", True)))
+            row = _run.study_outputs(results, Path(tmp), named)
+        for o in generic:
             node: Any = results
             for part in o[len(FULL_PREFIX):].split("."):
-                if not isinstance(node, dict) or part not in node:
-                    raise KeyError(f"output {o!r}: the pipeline's results have no key {part!r}")
-                node = node[part]
+                if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+                    node = node[int(part)]
+                elif isinstance(node, dict) and part in node:
+                    node = node[part]
+                else:
+                    raise _run.RunOutputError(f"output {o!r}: the pipeline's results have no key {part!r}")
+            if isinstance(node, bool) or not isinstance(node, (int, float)):
+                raise _run.RunOutputError(f"output {o!r}: results.json holds {type(node).__name__} there, "
+                                          "expected a number")
             row[o] = float(node)
+        if phys:
+            sc = task["scenario"]
+            sc_k = sc.with_overrides({"scenario.seed": int(seed)}) if int(sc.seed) != int(seed) else sc
+            ptask = {**task, "scenario": sc_k, "scenario_key": f"{task['scenario_key']}/seed{int(seed)}",
+                     "reps": [0], "rep_seeds": [int(seed)]}
+            row.update({o: v for o, v in physics_point(ptask)[0].items() if o in phys})
         out.append(row)
     return out

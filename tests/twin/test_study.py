@@ -234,18 +234,139 @@ def test_physics_fidelity_refuses_pipeline_outputs(tmp_path):
         load_study(p)
 
 
-def test_full_fidelity_says_what_is_missing(tmp_path):
-    from benchtwin.twin import study_points
+def test_fidelity_is_chosen_per_output(tmp_path):
+    """The cheapest fidelity per output: physics outputs never start a simulation; named full outputs
+    and results.<path> keys run simulate → analyze; only outputs that need it run the close loop."""
+    from benchtwin.twin import study_points as sp
 
-    try:
-        study_points.full_entry_point()
-        pytest.skip("the simulate → analyze entry point exists now")
-    except NotImplementedError:
-        pass
-    p = _write(tmp_path, BASIC.replace('"disk_motion_x_pv_um"]', '"results.error_model.residual_pv_arcsec"]'))
-    assert load_study(p).run_fidelity == "full"
-    with pytest.raises(NotImplementedError, match="benchtwin.twin.run.simulate_and_analyze"):
-        run_study(p, tmp_path / "out", workers=0, progress=False)
+    assert sp.output_fidelity("angle_error_pv_arcsec") == "physics"
+    assert sp.output_fidelity("measured_angle_error_pv_arcsec") == "full"
+    assert sp.output_fidelity("results.residual_before.pv_ratio") == "full"
+    assert sp.output_fidelity("residual_after_rms_arcsec") == "full+close_loop"
+    assert sp.output_fidelity("identified.tilt_abbe") == "full+close_loop"
+    assert sp.output_fidelity("results.close_loop.status") == "full+close_loop"
+    with pytest.raises(KeyError):
+        sp.output_fidelity("identified.no_such_effect")
+    assert load_study(_write(tmp_path, BASIC)).run_fidelity == "physics"
+    full = load_study(_write(tmp_path, BASIC.replace('"disk_motion_x_pv_um"]', '"measured_angle_error_pv_arcsec"]')))
+    assert (full.run_fidelity, full.close_loop) == ("full", False)
+    assert full.output_fidelity() == {"angle_error_pv_arcsec": "physics (rep-seed realisation of the full run)",
+                                      "measured_angle_error_pv_arcsec": "full"}
+    cl = load_study(_write(tmp_path, BASIC.replace('"disk_motion_x_pv_um"]', '"identified.tilt_abbe"]')))
+    assert (cl.run_fidelity, cl.close_loop) == ("full", True)
+    with pytest.raises(StudyError, match="unknown output 'identified.nope'.*tilt_abbe"):
+        load_study(_write(tmp_path, BASIC.replace('"disk_motion_x_pv_um"]', '"identified.nope"]')))
+    with pytest.raises(StudyError, match="study.order: the analysis' Fourier order applies to full"):
+        load_study(_write(tmp_path, BASIC.replace("seed = 7", "seed = 7\norder = 4")))
+    with pytest.raises(StudyError, match="study.order: expected an integer"):
+        load_study(_write(tmp_path, BASIC.replace("seed = 7", "seed = 7\norder = 0")))
+
+
+# A full-fidelity study small enough for the default suite: 8 polygon faces, 36 × 2 radial stops,
+# 12 CCD frames of 512 × 384 px, analysis order 3 (one point-run ≈ 15–30 s, most of it the
+# simulation's 0.1°-grid truth and the report's figures).
+TINY_FULL = """
+[study]
+name = "tiny_full"
+base = "jia2019"
+seed = 3
+repetitions = 1
+order = 3
+outputs = ["measured_angle_error_pv_arcsec", "measured_angle_error_rms_arcsec", "measured_angle_error_u_arcsec",
+           "predicted_angle_error_pv_arcsec", "predicted_angle_error_u_arcsec", "residual_rms_arcsec",
+           "eccentricity_um", "eccentricity_u_um", "true_angle_error_pv_arcsec", "measurement_error_rms_arcsec",
+           "angle_error_pv_arcsec", "results.residual_before.measured_pv_arcsec"]
+[study.fixed]
+"procedure.radial_positions" = 36
+"procedure.radial_reps" = 2
+"procedure.ccd_step" = "30 deg"
+"instruments.ccd.width" = "512 px"
+"instruments.ccd.height" = "384 px"
+"bench.polygon_faces" = 8
+[[study.parameters]]
+key = "errors.eccentricity"
+values = ["5 um"]
+"""
+
+
+def test_full_fidelity_simulates_and_analyses_against_the_truth(tmp_path, fixed_code_version, monkeypatch):
+    """The full path end to end: the twin's dataset, the one analysis pipeline (which never sees
+    truth/), and outputs checked against the twin's truth and the physics path of the same bench."""
+    import pyarrow.parquet as pq
+
+    from benchtwin.analysis import pipeline
+
+    seen = []
+    real_analyze = pipeline.analyze
+
+    def guarded(dataset, *a, **kw):  # truth/ is moved out before the analysis runs
+        seen.append(Path(dataset))
+        assert not (Path(dataset) / "truth").exists()
+        assert (Path(dataset).parent / "truth" / "encoder_error.csv").is_file()
+        return real_analyze(dataset, *a, **kw)
+
+    monkeypatch.setattr(pipeline, "analyze", guarded)
+    p = _write(tmp_path, TINY_FULL)
+    r = run_study(p, tmp_path / "out", workers=0, progress=False)
+    assert len(seen) == 1 and (r["computed"], r["cached"], r["fidelity"]) == (1, 0, "full")
+    row = pq.read_table(r["table_parquet"]).to_pylist()[0]
+    assert row["fidelity"] == "full"
+    # eccentricity from the CCD images: the scenario's 5 µm within its stated uncertainty (k = 3)
+    assert row["eccentricity_um"] == pytest.approx(5.0, abs=3 * row["eccentricity_u_um"] + 0.02)
+    assert 0 < row["eccentricity_u_um"] < 0.2
+    # the measured α (polygon) agrees with the twin's true α within its stated uncertainty
+    assert 0 < row["measured_angle_error_u_arcsec"] < 0.5
+    assert row["measurement_error_rms_arcsec"] < 2 * row["measured_angle_error_u_arcsec"]
+    # ≈ 2e/r: the once-per-turn eccentricity term dominates (P-V over 8 faces is a bit lower)
+    two_e_over_r = 2 * 5e-6 / 22e-3 / ARCSEC
+    assert 0.85 * two_e_over_r < row["true_angle_error_pv_arcsec"] < 1.1 * two_e_over_r
+    assert row["measured_angle_error_pv_arcsec"] == pytest.approx(row["results.residual_before.measured_pv_arcsec"])
+    assert row["measured_angle_error_pv_arcsec"] <= row["true_angle_error_pv_arcsec"] + 0.5
+    # the Jia model predicts it; the residual is a small part of the error
+    assert row["predicted_angle_error_pv_arcsec"] == pytest.approx(row["true_angle_error_pv_arcsec"], rel=0.05)
+    assert row["residual_rms_arcsec"] < 0.1 * row["measured_angle_error_rms_arcsec"]
+    assert row["predicted_angle_error_u_arcsec"] > 0
+    # the physics path's exact reading of the same realisation gives the same true P-V
+    assert row["angle_error_pv_arcsec"] == pytest.approx(row["true_angle_error_pv_arcsec"], abs=0.3)
+    md = Path(r["summary_md"]).read_text()
+    assert "[full]" in md and "full = simulate the whole dataset" in md and "Fourier order 3" in md
+    # a re-run is all cache: no simulation, no analysis
+    r2 = run_study(p, tmp_path / "out", workers=0, progress=False)
+    assert (r2["computed"], r2["cached"], len(seen)) == (0, 1, 1)
+
+
+@pytest.mark.slow
+def test_full_fidelity_repetitions_and_close_loop_on_the_pool(tmp_path, fixed_code_version):
+    """Realistic size (jia2019's procedure, 23 faces, 60 CCD frames, order 10): 2 points × 2 reps on
+    2 workers, one task per repetition; reps are independent realisations shared across points
+    (common random numbers); the close loop runs because an output needs it."""
+    import pyarrow.parquet as pq
+
+    p = _write(tmp_path, """
+        [study]
+        name = "full_cl"
+        base = "jia2019"
+        seed = 11
+        repetitions = 2
+        outputs = ["measured_angle_error_pv_arcsec", "residual_rms_arcsec", "residual_after_rms_arcsec",
+                   "n_identified_effects", "identified.tilt_abbe", "true_angle_error_pv_arcsec",
+                   "measurement_error_rms_arcsec", "measured_angle_error_u_arcsec"]
+        [[study.parameters]]
+        key = "errors.eccentricity"
+        values = ["0 um", "7.1 um"]
+    """)
+    r = run_study(p, tmp_path / "out", workers=2, progress=False)
+    assert r["computed"] == 4 and r["output_fidelity"]["identified.tilt_abbe"] == "full+close_loop"
+    t = pq.read_table(r["table_parquet"]).to_pylist()
+    assert {row["fidelity"] for row in t} == {"full+close_loop"}
+    for row in t:
+        assert row["measurement_error_rms_arcsec"] < 3 * row["measured_angle_error_u_arcsec"]
+        assert row["residual_after_rms_arcsec"] <= row["residual_rms_arcsec"] + 1e-9
+        assert row["identified.tilt_abbe"] in (0.0, 1.0) and row["n_identified_effects"] >= 0
+    by = {(row["point"], row["rep"]): row for row in t}
+    assert by[(0, 0)]["measured_angle_error_pv_arcsec"] != by[(0, 1)]["measured_angle_error_pv_arcsec"]
+    assert by[(0, 0)]["rep_seed"] == by[(1, 0)]["rep_seed"]
+    assert by[(1, 0)]["true_angle_error_pv_arcsec"] > 100 > by[(0, 0)]["true_angle_error_pv_arcsec"]
 
 
 # ------------------------------------------------------------------------- cache, resume
@@ -313,6 +434,61 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
     assert r["rows"] == 16
 
 
+def test_killed_cli_study_resumes_with_only_the_missing_points(tmp_path):
+    """The real thing: ``benchtwin study`` with the physics point function on a local pool is
+    killed (SIGKILL to its process group: the runner and its worker) midway; re-running the same
+    command computes only the (point, repetition)s that were not cached."""
+    import json
+
+    p = _write(tmp_path, """
+        [study]
+        name = "killed"
+        base = "jia2019"
+        seed = 1
+        repetitions = 2
+        angles = 720
+        outputs = ["angle_error_pv_arcsec", "disk_motion_x_pv_um"]
+        [[study.parameters]]
+        key = "bench.L1"
+        low = "2 mm"
+        high = "9 mm"
+        n = 10
+    """)
+    out = tmp_path / "out"
+    # the command line's own entry point (benchtwin.cli:main), with the code version pinned: other
+    # work editing the sources between the two runs must not invalidate the cache under the test
+    launcher = ("import sys, benchtwin.twin.study as st; st.code_version = lambda: 'test-fixed'; "
+                "from benchtwin.cli import main; sys.exit(main(sys.argv[1:]))")
+
+    def cli(*args: str) -> list[str]:
+        return [sys.executable, "-c", launcher, "study", str(p), "-o", str(out), "--workers", "1", *args]
+
+    proc = subprocess.Popen(cli("--quiet"), start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            n = len(list((out / "cache").rglob("*.json"))) if (out / "cache").exists() else 0
+            if n >= 4:  # 2 points × 2 reps
+                break
+            assert proc.poll() is None, f"the study ended before it could be killed: {proc.stderr.read()!r}"
+            time.sleep(0.02)
+        else:
+            pytest.fail("no progress from `benchtwin study`")
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    cached = len(list((out / "cache").rglob("*.json")))
+    assert 4 <= cached < 20 and cached % 2 == 0  # a point's reps are stored together
+    assert not (out / "table.csv").exists()
+    done = subprocess.run(cli("--json"), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    res = json.loads(done.stdout)
+    assert (res["cached"], res["computed"], res["rows"]) == (cached, 20 - cached, 20)
+    assert res["output_fidelity"] == {"angle_error_pv_arcsec": "physics", "disk_motion_x_pv_um": "physics"}
+    assert (out / "table.csv").is_file()
+
+
 # ------------------------------------------------------------------- executors and table
 
 
@@ -342,7 +518,7 @@ def test_tidy_csv_parquet_round_trip_and_summary(tmp_path):
     t_pq = pq.read_table(r["table_parquet"])
     t_csv = pacsv.read_csv(r["table_csv"])
     assert t_pq.column_names == ["point", "rep", "rep_seed", "bench.L1_mm", "angle_error_pv_arcsec",
-                                 "disk_motion_x_pv_um", "elapsed_s", "cache_key"]
+                                 "disk_motion_x_pv_um", "fidelity", "elapsed_s", "cache_key"]
     assert t_pq.num_rows == 8
     for name in t_pq.column_names:
         a, b = t_pq[name].to_pylist(), t_csv[name].to_pylist()
