@@ -85,6 +85,9 @@ __all__ = [
     "d_ref_px",
     "pixel_scale_um",
     "eccentricity_from_dref",
+    "eccentricity_from_sweep",
+    "median_u",
+    "with_async_motion",
     "eccentricity_monte_carlo",
     "eccentricity_range_method",
     "eccentricity_from_images",
@@ -706,6 +709,71 @@ def eccentricity_from_dref(theta_deg: np.ndarray, dref_um: np.ndarray, camera_az
         "phase_fit_deg": phase_fit, "camera_azimuth_deg": float(camera_azimuth_deg),
         "phase_defined": ap["phase_defined"],
     }
+
+
+def median_u(values: np.ndarray) -> float:
+    """Standard uncertainty of the median of n independent values: √(π/2)·σ/√n (asymptotic, normal),
+    σ estimated robustly (1.4826·MAD) so that a rejected-looking outlier frame does not inflate it."""
+    v = np.asarray(values, dtype=float).ravel()
+    if v.size < 2:
+        return float("nan")
+    sd = 1.4826 * float(np.median(np.abs(v - np.median(v))))
+    if sd == 0.0:
+        sd = float(np.std(v, ddof=1))
+    return math.sqrt(math.pi / 2.0) * sd / math.sqrt(v.size)
+
+
+def eccentricity_from_sweep(theta_deg: np.ndarray, dref_px: np.ndarray, scales_um_per_px: np.ndarray,
+                            camera_azimuth_deg: float = 180.0, order: int = 10) -> dict:
+    """e and θ0 from d_ref in pixels and the per-frame pixel scales (Jia eqs. 10-13), GUM.
+
+    The scale is the median of the per-frame scales (eq. 13, one per frame); ``d_ref = d_ref_px ·
+    scale``; e and θ0 from :func:`eccentricity_from_dref`. e is proportional to the scale, θ0 does not
+    depend on it, so ``u(e)² = u_fit(e)² + (e·u(s)/s)²`` with u(s) the standard uncertainty of the
+    median (:func:`median_u`); cov(e, θ0) is unchanged (the scale does not move θ0). Extra keys:
+    e_u_fit_um, theta0_u_fit_deg (the fit-only values), pixel_um, u_pixel_um, n_scales.
+    """
+    s_all = np.asarray(scales_um_per_px, dtype=float).ravel()
+    if s_all.size == 0 or not np.all(np.isfinite(s_all)) or np.any(s_all <= 0):
+        raise ValueError("scales_um_per_px: need ≥ 1 finite, positive pixel scale")
+    s = float(np.median(s_all))
+    us = median_u(s_all) if s_all.size >= 2 else 0.0
+    out = eccentricity_from_dref(theta_deg, np.asarray(dref_px, dtype=float) * s, camera_azimuth_deg, order)
+    e = out["e_um"]
+    out["e_u_fit_um"], out["theta0_u_fit_deg"] = out["e_u_um"], out["theta0_u_deg"]
+    out["e_u_um"] = math.hypot(out["e_u_um"], e * us / s)
+    out["pixel_um"], out["u_pixel_um"], out["n_scales"] = s, us, int(s_all.size)
+    return out
+
+
+def with_async_motion(ecc: dict, u_h1_um: float, dof: float | None = None) -> dict:
+    """Add the asynchronous motion's share in the 1st harmonic to u(e) and u(θ0) (GUM, type A).
+
+    One CCD sweep sees the disk centre during ONE revolution: the once-per-revolution part of the
+    non-repeating spindle motion during that revolution adds to the fitted first harmonic (eq. 11)
+    and cannot be told from e by the sweep itself; its fit residual shows only the other
+    frequencies. ``u_h1_um`` is the standard deviation of one revolution's 1st-harmonic coefficient
+    (per component; :func:`benchtwin.analysis.radial_motion.radial_motion` gives it as
+    ``u_h1_async_um`` from the repetitions of the two-sphere measurement, along the same lab axis Y
+    as the camera at 180°). A whirl of that size moves e by ``u`` along (c1, d1) and θ0 by ``u/e``
+    across it: ``u(e)² = u_fit(e)² + u²``, ``u(θ0)² = u_fit(θ0)² + (u/e)²``. Returns a copy with
+    e_u_um, theta0_u_deg updated and e_u_fit_um, theta0_u_fit_deg (the fit alone), u_async_h1_um,
+    u_async_h1_dof added. NaN or None ``u_h1_um`` (one repetition): returned unchanged but for the
+    keys, with a note."""
+    out = dict(ecc)
+    out.setdefault("e_u_fit_um", ecc["e_u_um"])
+    out.setdefault("theta0_u_fit_deg", ecc["theta0_u_deg"])
+    if u_h1_um is None or not math.isfinite(u_h1_um):
+        out["u_async_h1_um"], out["u_async_h1_dof"] = float("nan"), 0
+        out["async_note"] = "no repeated revolutions: the asynchronous motion's share in e and θ0 is not estimated"
+        return out
+    if u_h1_um < 0:
+        raise ValueError(f"u_h1_um must be >= 0, got {u_h1_um}")
+    e = ecc["e_um"]
+    out["e_u_um"] = math.hypot(ecc["e_u_um"], u_h1_um)
+    out["theta0_u_deg"] = math.hypot(ecc["theta0_u_deg"], math.degrees(u_h1_um / e)) if e > 0 else float("nan")
+    out["u_async_h1_um"], out["u_async_h1_dof"] = float(u_h1_um), dof
+    return out
 
 
 def eccentricity_monte_carlo(theta_deg: np.ndarray, dref_um: np.ndarray, u_dref_um: float | np.ndarray | None = None,

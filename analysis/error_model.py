@@ -43,6 +43,8 @@ __all__ = [
     "eccentricity_term",
     "radial_motion_term",
     "radial_motion_term_fourier",
+    "radial_motion_u_gum",
+    "integral_design_matrix",
     "periodic_integral",
     "jia_error_model",
     "error_model_from_results",
@@ -238,6 +240,41 @@ def radial_motion_term_fourier(params_um: np.ndarray, r_um: float) -> Term:
     return Term(fn, None, inverse_r=True)
 
 
+def integral_design_matrix(theta_deg: np.ndarray, order: int) -> np.ndarray:
+    """Rows b(θ) with ``b(θ)·p = ∫_0^θ δY dθ'`` [µm·rad] for δY = the Fourier series p = [a0, a1, b1, ...]
+    (:mod:`benchtwin.analysis.fourier` order): θ, (1 − cos iθ)/i, sin(iθ)/i."""
+    t = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
+    B = np.empty((t.size, 2 * order + 1))
+    B[:, 0] = t
+    for i in range(1, order + 1):
+        B[:, 2 * i - 1] = (1.0 - np.cos(i * t)) / i
+        B[:, 2 * i] = np.sin(i * t) / i
+    return B
+
+
+def radial_motion_u_gum(rm: dict, r_um: float) -> TermFn:
+    """GUM standard uncertainty of (1/r)·∫_0^θ δY dθ' [arcsec] for the δY of
+    :func:`benchtwin.analysis.radial_motion.radial_motion` taken as the spindle's synchronous motion.
+
+    The covariance of δY's Fourier coefficients (``dY_cov_sync``: from the repetitions' scatter,
+    harmonic by harmonic — probe noise and the asynchronous motion in the mean of n revolutions;
+    the fit covariance ``dY_cov`` for one revolution) is propagated exactly through the integral,
+    ``u² = b(θ)ᵀ C b(θ)`` (:func:`integral_design_matrix`): δY's errors are smooth functions of θ,
+    neither independent nor fully correlated from one grid angle to the next.
+    """
+    order = int(rm["order"])
+    C = np.asarray(rm["dY_cov_sync"] if "dY_cov_sync" in rm else rm["dY_cov"], dtype=float)
+    r = float(r_um)
+
+    def u_fn(theta_rad: np.ndarray) -> np.ndarray:
+        th = np.rad2deg(np.asarray(theta_rad, dtype=float))
+        B = integral_design_matrix(th, order)
+        var = np.nan_to_num(np.einsum("ij,jk,ik->i", B, C, B), nan=0.0)
+        return (np.sqrt(np.clip(var, 0.0, None)) / r / ARCSEC).reshape(th.shape)
+
+    return u_fn
+
+
 def jia_error_model(e_um: float, theta0_deg: float, r_um: float, theta_grid_deg: np.ndarray | None = None,
                     dY_um: np.ndarray | None = None, u_e_um: float = 0.0, u_theta0_deg: float = 0.0,
                     u_dY_um: float | np.ndarray = 0.0, u_r_um: float = 0.0, cov_e_theta0: float = 0.0,
@@ -258,9 +295,11 @@ def error_model_from_results(ecc: dict, rm: dict | None, r_um: float, u_r_um: fl
     ``eccentricity_from_images``) and :func:`benchtwin.analysis.radial_motion.radial_motion`.
 
     ``dY_uncertainty``: "range" (Jia sec. 5: one number, max range over the repetitions / d_n — the
-    σ of one repetition, as the paper uses it), "range_mean" (range / d_n per θ, divided by √n: the
-    uncertainty of the synchronous mean actually used), "gum" (the fit covariance propagation of
-    radial_motion), or "none".
+    σ of one repetition, as the paper uses it — taken as independent from one grid angle to the
+    next), "range_mean" (range / d_n per θ, divided by √n: the uncertainty of the synchronous mean
+    actually used, same independence), "gum" (:func:`radial_motion_u_gum`: the covariance of the
+    synchronous δY from the repetitions' scatter propagated through the integral with its
+    correlation over θ), or "none".
     """
     grid = dY = None
     u_dY: float | np.ndarray = 0.0
@@ -271,12 +310,16 @@ def error_model_from_results(ecc: dict, rm: dict | None, r_um: float, u_r_um: fl
         elif dY_uncertainty == "range_mean":
             u_dY = np.nan_to_num(np.asarray(rm["u_dY_range_theta_um"])) / math.sqrt(rm["n_reps"])
         elif dY_uncertainty == "gum":
-            u_dY = np.nan_to_num(np.asarray(rm["u_dY_gum_theta_um"]))
+            pass  # the covariance propagation replaces the per-point u below
         elif dY_uncertainty != "none":
             raise ValueError(f"dY_uncertainty must be 'range', 'range_mean', 'gum' or 'none', got {dY_uncertainty!r}")
-    return jia_error_model(ecc["e_um"], ecc["theta0_deg"], r_um, grid, dY, u_e_um=ecc.get("e_u_um", 0.0),
-                           u_theta0_deg=ecc.get("theta0_u_deg", 0.0), u_dY_um=u_dY, u_r_um=u_r_um,
-                           cov_e_theta0=ecc.get("cov_e_theta0", 0.0), dY_correlated=dY_correlated)
+    m = jia_error_model(ecc["e_um"], ecc["theta0_deg"], r_um, grid, dY, u_e_um=ecc.get("e_u_um", 0.0),
+                        u_theta0_deg=ecc.get("theta0_u_deg", 0.0), u_dY_um=u_dY, u_r_um=u_r_um,
+                        cov_e_theta0=ecc.get("cov_e_theta0", 0.0), dY_correlated=dY_correlated)
+    if rm is not None and dY_uncertainty == "gum":
+        m.terms["radial_motion"].u_fn = radial_motion_u_gum(rm, r_um)
+        m.terms["radial_motion"].info["u"] = "gum: covariance of the synchronous δY, through the integral"
+    return m
 
 
 def _rms(x: np.ndarray) -> float:

@@ -135,6 +135,15 @@ def radial_motion(
     - ``u_dY_gum_theta_um``: GUM standard uncertainty of the synchronous δY at each θ from the fit
       covariances (probe noise) and u(L1), u(L2) — it does not contain the asynchronous motion, which
       is a real motion and is reported by the range method; ``u_dY_gum_um``: its maximum
+    - ``u_dY_theta_um``: standard uncertainty of ``dY_um`` as the spindle's SYNCHRONOUS motion (the
+      mean of n revolutions carries 1/n of the asynchronous variance): from ``dY_cov_sync``, the
+      covariance of the mean from the repetitions' scatter harmonic by harmonic (:func:`_rep_scatter`,
+      type A, ν = 2(n − 1) per harmonic; the fit covariance for one revolution), + u(L) terms;
+      ``u_dY_um``: its maximum; ``s2_harmonics_um2``: the per-revolution variance of each harmonic
+    - ``h1_reps_um`` (n_reps × 2: the (a1, b1) of the disk-plane combination per repetition),
+      ``u_h1_async_um``, ``u_h1_async_dof``: their rep-to-rep scatter, the asynchronous motion's
+      share in the 1st harmonic of one revolution (see :func:`_rep_scatter`; the eccentricity from
+      one CCD sweep carries it, :func:`benchtwin.analysis.eccentricity.with_async_motion`)
     - ``fits``: {"top": [FourierFit per rep], "bottom": [...]} (and x)
     - with X probes: ``delta_top_x_um``, ``delta_bottom_x_um``, ``dX_um``, ``dX_reps_um``,
       ``dX_async_um``, ``tilt_y_urad``, ``dX_fn``, ``u_dX_range_theta_um``
@@ -235,6 +244,16 @@ def radial_motion(
         var = var + np.nan  # no residual dof and no u given: unknown
     out["u_dY_gum_theta_um"] = np.sqrt(var)
     out["u_dY_gum_um"] = float(np.max(out["u_dY_gum_theta_um"]))
+    # δY as the spindle's synchronous motion (see _rep_scatter): the covariance of the mean of n
+    # revolutions from the repetitions' scatter, harmonic by harmonic; one revolution: the fit's.
+    sc = _rep_scatter(fits["top"], fits["bottom"], w_top, w_bot)
+    out.update({k: v for k, v in sc.items() if k != "cov_mean"})
+    cov_sync = sc["cov_mean"] if reps.size >= 2 else dY_cov
+    out["dY_cov_sync"] = cov_sync * np.outer(keep_mask(order), keep_mask(order))
+    var_sync = np.nan_to_num(np.einsum("ij,jk,ik->i", G, out["dY_cov_sync"], G), nan=np.nan if reps.size < 2 and
+                             np.all(np.isnan(var_fit)) else 0.0)
+    out["u_dY_theta_um"] = np.sqrt(var_sync + (dd_dL1 * u_L1_mm) ** 2 + (dd_dL2 * u_L2_mm) ** 2)
+    out["u_dY_um"] = float(np.max(out["u_dY_theta_um"]))
 
     if reps.size >= 2:
         dn = d_n if d_n is not None else D_N.get(int(reps.size))
@@ -269,6 +288,48 @@ def radial_motion(
     out["summary"] = summary
     out["fits"] = fits
     return out
+
+
+def keep_mask(order: int) -> np.ndarray:
+    """1 for the parameters of harmonics 2…order (eq. 7), 0 for a0, a1, b1."""
+    m = np.zeros(2 * order + 1)
+    m[3:] = 1.0
+    return m
+
+
+def _rep_scatter(fa: list[FourierFit], fb: list[FourierFit], w_top: float, w_bot: float) -> dict:
+    """Rep-to-rep scatter of the disk-plane motion's Fourier coefficients (eq. 9 weights on the
+    probes' eq. 6 coefficients), harmonic by harmonic (GUM type A).
+
+    Each revolution's coefficients are the synchronous ones plus the non-repeating (asynchronous)
+    motion's share in that revolution plus the fit's noise. Pooled over the sin and cos coefficient
+    of each harmonic i (an isotropic, stationary process: over a full revolution its harmonic
+    coefficients are uncorrelated): s_i² = Σ_reps Σ_{a,b} (x − x̄)² / (2(n − 1)), ν = 2(n − 1).
+    The covariance of the MEAN of the n revolutions is diag(s_i²)/n: it contains the fit noise and
+    the asynchronous motion together (adding the fit covariance to it would count the noise twice).
+
+    The 1st harmonic is the sphere centring (removed by eq. 7) in every revolution alike, so its
+    scatter s_1 is the asynchronous motion's share in the 1st harmonic of ONE revolution — what adds
+    to the eccentricity fitted from one CCD sweep (eq. 11), which cannot tell it from e
+    (:func:`benchtwin.analysis.eccentricity.with_async_motion`).
+
+    Keys: ``s2_harmonics_um2`` (s_i², i = 1…order), ``h1_reps_um`` (n × 2), ``u_h1_async_um`` (s_1),
+    ``u_h1_async_dof`` (2(n − 1)), ``cov_mean`` ((2·order+1)², all harmonics). NaN for one revolution.
+    """
+    P = np.array([w_top * f.params + w_bot * g.params for f, g in zip(fa, fb)])
+    n, p = P.shape
+    order = (p - 1) // 2
+    h1 = P[:, 1:3].copy()
+    if n < 2:
+        nan = np.full(order, np.nan)
+        return {"s2_harmonics_um2": nan, "h1_reps_um": h1, "u_h1_async_um": float("nan"), "u_h1_async_dof": 0,
+                "cov_mean": np.full((p, p), np.nan)}
+    dev = P - P.mean(axis=0)
+    ss = np.sum(dev**2, axis=0)
+    s2 = np.array([(ss[2 * i - 1] + ss[2 * i]) / (2 * (n - 1)) for i in range(1, order + 1)])
+    diag = np.concatenate([[np.sum(dev[:, 0] ** 2) / (n - 1)], np.repeat(s2, 2)]) / n
+    return {"s2_harmonics_um2": s2, "h1_reps_um": h1, "u_h1_async_um": float(math.sqrt(s2[0])),
+            "u_h1_async_dof": 2 * (n - 1), "cov_mean": np.diag(diag)}
 
 
 def _series_fn(params: np.ndarray, order: int) -> Callable[[np.ndarray], np.ndarray]:

@@ -212,3 +212,20 @@ def test_error_model_from_results_dicts():
     assert np.any(u["range"] > u["none"])
     with pytest.raises(ValueError):
         error_model_from_results(ecc, rm, R_UM, dY_uncertainty="bogus")
+
+
+def test_integral_design_matrix_and_gum_u_of_the_integral():
+    """b(θ)·p = ∫_0^θ δY for a Fourier δY (same as radial_motion_term_fourier), and the GUM u of the
+    integral is √(bᵀCb): for one harmonic i with variance s² per coefficient, u = s·√(2 − 2cos iθ)/i."""
+    from benchtwin.analysis.error_model import integral_design_matrix, radial_motion_u_gum
+
+    rng = np.random.default_rng(5)
+    p = np.concatenate([[0.0], rng.normal(0, 0.1, 20)])
+    q = np.linspace(-20, 380, 41)
+    np.testing.assert_allclose(integral_design_matrix(q, 10) @ p * 1.0 / R_UM / ARCSEC,
+                               radial_motion_term_fourier(p, R_UM)(np.radians(q)), atol=1e-12)
+    C = np.zeros((21, 21))
+    C[5, 5] = C[6, 6] = 0.02**2  # harmonic 3
+    u = radial_motion_u_gum({"order": 10, "dY_cov_sync": C}, R_UM)(np.radians(q))
+    t = np.radians(q)
+    np.testing.assert_allclose(u, 0.02 * np.sqrt(2 - 2 * np.cos(3 * t)) / 3 / R_UM / ARCSEC, atol=1e-15)
