@@ -179,12 +179,21 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
             "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
             "tilt_x_urad": rm["tilt_x_urad"],
+            # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
+            "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
         }
     if ds.has("ccd/index"):
         ecc = step_eccentricity(ds, order, progress)
+        if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
+            from benchtwin.analysis.eccentricity import with_async_motion
+
+            ecc = with_async_motion(ecc, rm["u_h1_async_um"], rm["u_h1_async_dof"])
         results.update({
             "eccentricity_um": ecc["e_um"], "eccentricity_u_um": ecc["e_u_um"],
             "eccentricity_phase_deg": ecc["theta0_deg"], "eccentricity_phase_u_deg": ecc["theta0_u_deg"],
+            "eccentricity_u_fit_um": ecc.get("e_u_fit_um", ecc["e_u_um"]),
+            "eccentricity_phase_u_fit_deg": ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"]),
+            "eccentricity_u_async_um": ecc.get("u_async_h1_um"),
             "ccd": {"pixel_um": ecc["pixel_um"], "n_images": len(ecc["files"]), "theta_deg": ecc["theta_deg"],
                     "d_ref_um": ecc["d_ref_um"], "residual_rms_um": ecc.get("residual_rms_um")},
         })
