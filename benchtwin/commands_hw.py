@@ -24,6 +24,9 @@ def _emulate_args(p: argparse.ArgumentParser) -> None:
                    help="where the port links and bench.toml go (default: a new temporary directory)")
     p.add_argument("--autocollimator", choices=("elcomat", "triangle"), default="elcomat")
     p.add_argument("--probes", choices=("millimar", "tesa"), default="millimar")
+    p.add_argument("--camera", choices=("auto", "pyrender", "analytic", "none"), default="auto",
+                   help="render backend of the hot-folder CCD camera (frames in DIR/frames; the bench file then "
+                        "runs the CCD sweep too, as simulate does); 'none': no camera, no CCD sweep")
     p.add_argument("--duration", type=float, default=None,
                    help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
 
@@ -43,7 +46,8 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     except (ScenarioError, ValueError) as exc:
         raise InputError(str(exc)) from None
     directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
-    session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes)
+    session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes,
+                               camera=None if ns.camera == "none" else ns.camera)
     try:
         bench = session.start(directory)
     except ValueError as exc:
@@ -53,6 +57,8 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     if not (ns.quiet or ns.json):
         for name, link in session.ports().items():
             print(f"{name:16s} {link} -> {session.server.pts()[name]}", flush=True)
+        if session.camera is not None:
+            print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)
     try:
         stop.wait(ns.duration)

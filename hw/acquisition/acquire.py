@@ -121,9 +121,11 @@ class TableSink:
     def __init__(self, writer: DatasetWriter, cfg: BenchConfig):
         self.w, self.cfg = writer, cfg
         self.tables: dict[str, TableAppender] = {}
-        self.enc_of = {p["type"]: p.get("encoder", "encoder") for p in cfg.procedures}
-        self.enc_of["polygon"] = next((p.get("encoder", "encoder") for p in cfg.procedures
-                                       if p["type"].startswith("polygon")), "encoder")
+        tag_of = {"radial_motion": "radial_motion", "ccd_sweep": "ccd", "polygon_shift_angle": "polygon",
+                  "polygon_traditional": "polygon", "selfcal": "selfcal"}  # procedure type -> rows' tag
+        self.enc_of: dict[str, str] = {}
+        for p in cfg.procedures:
+            self.enc_of.setdefault(tag_of[p["type"]], p.get("encoder", "encoder"))
         self.ac = next((p.get("autocollimator", "autocollimator") for p in cfg.procedures
                         if p["type"].startswith("polygon")), "autocollimator")
         self.probes = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures

@@ -37,15 +37,21 @@ DRIVERS: dict[str, tuple[str, str]] = {
     "millimar": ("benchtwin.hw.drivers.millimar", "MillimarC1202"),
     "heidenhain": ("benchtwin.hw.drivers.heidenhain", "HeidenhainND"),
     "zaber": ("benchtwin.hw.drivers.zaber", "ZaberRotaryStage"),
+    # cameras: not serial; ``port`` is the folder (folder, watch_folder) or the VideoCapture source (opencv)
+    "folder": ("benchtwin.hw.drivers.camera", "FolderCamera"),
+    "watch_folder": ("benchtwin.hw.drivers.camera", "WatchFolderCamera"),
+    "opencv": ("benchtwin.hw.drivers.camera", "OpenCVCamera"),
 }
+CAMERA_DRIVERS = ("folder", "watch_folder", "opencv")
 SOURCES = ("hardware", "emulated")
-PROCEDURES = ("radial_motion", "polygon_shift_angle", "polygon_traditional", "selfcal")
+PROCEDURES = ("radial_motion", "ccd_sweep", "polygon_shift_angle", "polygon_traditional", "selfcal")
 
-_TOP = {"bench", "geometry", "run", "instruments", "procedure"}
+_TOP = {"bench", "geometry", "run", "instruments", "procedure", "ccd"}
+_CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_size": "length"}
 _BENCH = {"name", "source", "description"}
 _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
              "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
-             "polygon_certificate": "angle"}
+             "polygon_certificate": "angle", "scale_edge_radius": "length"}
 _GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
 _RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
         "stage": None, "fsync": None}
@@ -59,6 +65,7 @@ _PROC_KEYS = {
     "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
                             "dwell": "time", "encoder": str, "autocollimator": str},
     "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
+    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
 }
 DEG = math.pi / 180.0
 ARCSEC = DEG / 3600.0
@@ -79,6 +86,7 @@ class BenchConfig:
     instruments: dict[str, dict[str, Any]]
     procedures: list[dict[str, Any]] = field(default_factory=list)
     text: str | None = None
+    ccd: dict[str, Any] | None = None  # manifest["ccd"] (the [ccd] section), for a CCD sweep
 
 
 # --------------------------------------------------------------------------- loading
@@ -180,6 +188,10 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
         geo["polygon_certificate_arcsec"] = [_fmt(_q(c, "angle", where, f"geometry.polygon_certificate[{i}]") / ARCSEC)
                                              for i, c in enumerate(cert)]
 
+    if "scale_edge_radius" in g:
+        geo["scale_edge_radius_mm"] = _fmt(_q(g["scale_edge_radius"], "length", where, "geometry.scale_edge_radius") * 1e3)
+    ccd = _ccd_section(raw.get("ccd"), where)
+
     r = _table(raw.get("run"), where, "run", set(_RUN), required=False)
     run = {"waits": "real", "driver_sleep_scale": 1.0, "theta": "target", "strict": True, "stage": "stage",
            "fsync": True}
@@ -211,13 +223,37 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     if not isinstance(procs, list) or not procs:
         raise BenchFileError(f"{where}: missing [[procedure]] tables (expected at least one, type one of {PROCEDURES})")
     procedures = [_procedure(k, p, where, geo) for k, p in enumerate(procs)]
-    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures)
+    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd)
+    if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
+        raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
+                             f"reference_px: the camera's geometry for the dataset manifest)")
     for k, p in enumerate(procedures):  # every instrument a procedure reads must exist
         for inst in _proc_instruments(p):
             if inst not in instruments:
                 raise _fail(where, f"procedure[{k}]", f"instrument {inst!r} to be defined in [instruments]",
                             sorted(instruments))
     return cfg
+
+
+def _ccd_section(node: Any, where: str) -> dict[str, Any] | None:
+    if node is None:
+        return None
+    c = _table(node, where, "ccd", set(_CCD))
+    for k in ("position", "tangential", "reference_px"):
+        if k not in c:
+            raise BenchFileError(f"{where}: [ccd]: missing key '{k}'")
+    out: dict[str, Any] = {"position_deg": _fmt(_q(c["position"], "angle", where, "ccd.position") / DEG), "outward": "+x"}
+    if c["tangential"] not in ("+x", "-x"):
+        raise _fail(where, "ccd.tangential", "'+x' or '-x' (the lab axis along image +y)", c["tangential"])
+    out["tangential"] = c["tangential"]
+    ref = c["reference_px"]
+    if (not isinstance(ref, list) or len(ref) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in ref)):
+        raise _fail(where, "ccd.reference_px", "[x, y] in pixels (numbers)", ref)
+    out["reference_px"] = [float(v) for v in ref]
+    if "pixel_size" in c:
+        out["pixel_um"] = _fmt(_q(c["pixel_size"], "length", where, "ccd.pixel_size") * 1e6)
+    return out
 
 
 def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict[str, Any]:
@@ -228,8 +264,19 @@ def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict
         raise _fail(where, f"{at}.driver", f"one of {sorted(DRIVERS)}", drv)
     port = s.get("port")
     if not isinstance(port, str) or not port:
-        raise _fail(where, f"{at}.port", "a port name, pseudo-terminal path or pyserial URL (string)", port)
+        raise _fail(where, f"{at}.port", "a port name, pseudo-terminal path or pyserial URL (string)"
+                    + ("; for a camera its folder or VideoCapture source" if drv in CAMERA_DRIVERS else ""), port)
     out: dict[str, Any] = {"driver": drv, "port": port}
+    if drv in CAMERA_DRIVERS:
+        for k in ("serial", "commands", "backoff", "reconnect", "retries"):
+            if k in s:
+                raise BenchFileError(f"{where}: [{at}]: key '{k}' is for serial instruments, not camera driver {drv!r}")
+        out.update(serial={}, commands={}, retries=0, backoff_s=0.0, reconnect=False,
+                   options=_table(s.get("options", {}), where, f"{at}.options"))
+        for k in ("soft_limits", "max_speed", "closed_loop_encoder", "heads"):
+            if k in s:
+                raise BenchFileError(f"{where}: [{at}]: key '{k}' is not for a camera")
+        return out
     out["serial"] = _table(s.get("serial", {}), where, f"{at}.serial", _SERIAL)
     out["options"] = _table(s.get("options", {}), where, f"{at}.options")
     out["commands"] = _table(s.get("commands", {}), where, f"{at}.commands")
@@ -321,6 +368,8 @@ def _proc_instruments(p: Mapping[str, Any]) -> list[str]:
         return [p.get("encoder", "encoder"), *p.get("probes", ["probe_top", "probe_bottom"])]
     if typ.startswith("polygon"):
         return [p.get("encoder", "encoder"), p.get("autocollimator", "autocollimator")]
+    if typ == "ccd_sweep":
+        return [p.get("encoder", "encoder"), p.get("camera", "ccd")]
     return [p.get("encoder", "encoder")]
 
 
@@ -350,6 +399,8 @@ def iter_procedure(cfg: BenchConfig) -> Iterator:
             yield from P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
                                              p.get("rep", 0), dirs, dwell, enc,
                                              p.get("autocollimator", "autocollimator"))
+        elif typ == "ccd_sweep":
+            yield from P.ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc)
         elif typ == "selfcal":
             yield from P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
                                        dwell, enc)
@@ -380,6 +431,9 @@ def open_instruments(cfg: BenchConfig, *, sleep: Callable[[float], None] | None 
         for name in order:
             sec = cfg.instruments[name]
             cls = _driver_class(sec["driver"])
+            if sec["driver"] in CAMERA_DRIVERS:
+                out[name] = _open_camera(cls, name, sec, where, clock)
+                continue
             settings = cls.serial_settings(**sec["serial"])
             if sec["port"] not in shared:
                 try:
@@ -409,6 +463,21 @@ def open_instruments(cfg: BenchConfig, *, sleep: Callable[[float], None] | None 
     return out, [p for p, _ in shared.values()]
 
 
+def _open_camera(cls: type, name: str, sec: Mapping[str, Any], where: str, clock: Any) -> Any:
+    """A camera driver (not serial): a watched folder polls with real sleeps (waiting for a file,
+    not a device backoff, so ``driver_sleep_scale`` does not apply)."""
+    kw: dict[str, Any] = dict(sec["options"])
+    try:
+        if sec["driver"] == "opencv":
+            src: Any = int(sec["port"]) if sec["port"].isdigit() else sec["port"]
+            return cls.open(name, src, clock=clock, **kw)
+        return cls(name, sec["port"], clock=clock, **kw)
+    except TypeError as exc:
+        raise BenchFileError(f"{where}: [instruments.{name}.options]: {exc}") from None
+    except ValueError as exc:
+        raise BenchFileError(f"{where}: key 'instruments.{name}.port': {exc}") from None
+
+
 def close_instruments(ports: list) -> None:
     """Close the ports ``open_instruments`` opened (best effort)."""
     for p in ports:
@@ -424,6 +493,8 @@ def dataset_manifest(cfg: BenchConfig, instruments: Mapping[str, Any] | None = N
     m: dict[str, Any] = {"format": "bench-dataset", "version": 1, "source": cfg.source,
                          "bench_name": cfg.name, "created_by": "benchtwin.hw.acquisition.acquire",
                          "bench": dict(cfg.geometry)}
+    if cfg.ccd is not None:
+        m["ccd"] = dict(cfg.ccd)
     if instruments:
         m["instruments"] = {n: {k: v for k, v in d.describe().items() if k in ("kind", "model", "units", "serial")}
                             for n, d in instruments.items()}

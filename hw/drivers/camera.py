@@ -11,6 +11,11 @@ high byte).
 - ``FolderCamera(name, folder, ...)``: replays ``index.csv`` (columns ``file`` and optionally
   ``t_s``) if present, else the folder's ``*.png`` sorted by name; at the end it raises
   ``InstrumentError`` unless ``loop=True``.
+- ``WatchFolderCamera(name, folder, ...)``: a "hot folder" camera: the camera's own software (or
+  the twin's emulator) saves every frame it takes as a new file whose name sorts after the previous
+  ones (a frame counter); ``capture()`` returns the newest frame that appeared after the previous
+  capture (or, for the first, after the folder was opened), waiting up to ``timeout_s`` for one.
+  Files present at opening are never returned, so a resumed acquisition does not take an old frame.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import numpy as np
 from benchtwin.hw.drivers.base import InstrumentError
 from benchtwin.hw.interfaces import check_image
 
-__all__ = ["OpenCVCamera", "FolderCamera", "to_grey"]
+__all__ = ["OpenCVCamera", "FolderCamera", "WatchFolderCamera", "to_grey"]
 
 
 def to_grey(frame: np.ndarray, dtype: str | None = None) -> np.ndarray:
@@ -139,3 +144,57 @@ class FolderCamera:
             raise InstrumentError(self.name, "capture", f"cannot read image {path}", b"")
         return {"image": to_grey(img, self.dtype), "t_s": float(t_s if t_s is not None else self.clock()),
                 "status": "ok", "file": path.name}
+
+
+class WatchFolderCamera:
+    """A hot-folder camera (see the module docstring). Arguments: ``name``, ``folder``, ``pattern``
+    (``"*.png"``; names starting with "." are temporary files and ignored), ``timeout_s`` (5),
+    ``poll_s`` (0.01), ``dtype`` (None), ``sleep`` and ``clock`` (injectable, for tests),
+    ``pixel_size_um`` (metadata). Only the newest file's name is remembered (flat memory)."""
+
+    KIND = "camera"
+
+    def __init__(self, name: str, folder: str | Path, *, pattern: str = "*.png", timeout_s: float = 5.0,
+                 poll_s: float = 0.01, dtype: str | None = None, sleep: Callable[[float], None] | None = None,
+                 clock: Callable[[], float] | None = None, pixel_size_um: float | None = None) -> None:
+        self.name = str(name)
+        self.folder = Path(folder)
+        if not self.folder.is_dir():
+            raise ValueError(f"{self.folder}: not a folder (the camera's save folder must exist)")
+        self.pattern = pattern
+        self.timeout_s = float(timeout_s)
+        self.poll_s = float(poll_s)
+        self.dtype = dtype
+        self.sleep = sleep if sleep is not None else time.sleep
+        self.clock = clock if clock is not None else time.monotonic
+        self.pixel_size_um = pixel_size_um
+        self.last = self._newest()
+
+    def _newest(self) -> str | None:
+        newest = None
+        for p in self.folder.glob(self.pattern):
+            if not p.name.startswith(".") and (newest is None or p.name > newest):
+                newest = p.name
+        return newest
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.KIND, "model": "watched folder", "units": {"image": "DN", "t_s": "s"},
+                "folder": str(self.folder), "pattern": self.pattern, "dtype": self.dtype,
+                "pixel_size_um": self.pixel_size_um}
+
+    def capture(self) -> dict[str, Any]:
+        t0 = self.clock()
+        while True:
+            newest = self._newest()
+            if newest is not None and (self.last is None or newest > self.last):
+                break
+            if self.clock() - t0 > self.timeout_s:
+                raise InstrumentError(self.name, "capture", f"no new frame in {self.folder} within {self.timeout_s} s "
+                                      f"(last taken: {self.last})", b"")
+            self.sleep(self.poll_s)
+        path = self.folder / newest
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise InstrumentError(self.name, "capture", f"cannot read image {path}", b"")
+        self.last = newest
+        return {"image": to_grey(img, self.dtype), "t_s": float(self.clock()), "status": "ok", "file": newest}

@@ -188,3 +188,34 @@ def test_encoder_shape_problems():
     problems = check_conformance(Enc(), "encoder")
     assert any("heads_deg has 2 entries" in p for p in problems)
     assert any("heads_deg[0] must be 0" in p for p in problems)
+
+
+def test_watch_folder_camera_takes_only_new_frames(tmp_path):
+    from benchtwin.hw.drivers.camera import WatchFolderCamera
+
+    def save(name, value):
+        cv2.imwrite(str(tmp_path / name), np.full((4, 6), value, np.uint8))
+
+    save("frame_000001.png", 10)                 # present at opening: never returned
+    t = [0.0]
+    sleeps = []
+
+    def sleep(s):
+        sleeps.append(s)
+        t[0] += s
+
+    cam = WatchFolderCamera("ccd", tmp_path, timeout_s=0.05, poll_s=0.01, sleep=sleep, clock=lambda: t[0])
+    assert check_conformance(cam, "camera") != []  # nothing new yet: capture() times out...
+    assert len(sleeps) >= 5
+    with pytest.raises(InstrumentError, match=r"ccd: command 'capture' failed: no new frame in .* within 0.05 s"):
+        cam.capture()
+    save("frame_000002.png", 20)
+    save("frame_000003.png", 30)                 # a re-rendered frame: the newest is taken
+    (tmp_path / ".frame_000004.png.tmp").write_bytes(b"half")   # temporary files are ignored
+    sleeps.clear()
+    r = cam.capture()
+    assert r["file"] == "frame_000003.png" and int(r["image"][0, 0]) == 30 and sleeps == []
+    save("frame_000004.png", 40)
+    assert check_conformance(cam, "camera") == []
+    with pytest.raises(ValueError, match="not a folder"):
+        WatchFolderCamera("ccd", tmp_path / "missing")

@@ -20,7 +20,10 @@ that arrives over the wire is matched to the script:
 4. else a free move (no script step: the current context is kept).
 
 A reading request moves the cursor to the next ``Read`` of that instrument before the next
-``Move`` (applying the Waits in between). The twin's noise streams are keyed by (seed, stream,
+``Move`` (applying the Waits in between). With a camera (``camera_backend``), the CCD sweep's
+moves are served too, and an encoder reading at a stop whose next step is a ``Capture`` renders
+that frame (keyed by the Capture's step index, as ``simulate`` does) and hands it to ``on_frame``
+(the hot-folder camera emulator, ``camera.py``) before the reading is returned. The twin's noise streams are keyed by (seed, stream,
 instrument, step index, draw); the draw counter is reset before every reading, so a retried
 request at the same stop returns the same value (the display holds its value at a stop) and a
 resumed or faulted acquisition reads exactly what the direct simulation of the same scenario and
@@ -52,12 +55,16 @@ class EmulatedBench:
     steps. ``microsteps_per_deg`` says how close a wire target must be to a script target to be
     the same stop (half a microstep)."""
 
-    def __init__(self, sc: Any, microsteps_per_deg: float = 1000.0, script: list | None = None):
+    def __init__(self, sc: Any, microsteps_per_deg: float = 1000.0, script: list | None = None,
+                 camera_backend: str | None = None):
         from benchtwin.twin.simulate import sim_build, sim_procedure
 
         self.sc = sc
-        self.bench, self.state, self.instruments = sim_build(sc, camera=False)
+        self.bench, self.state, self.instruments = sim_build(sc, backend=camera_backend or "auto",
+                                                             camera=camera_backend is not None)
         self.stage = self.instruments["stage"]
+        self.camera = self.instruments.get("ccd")
+        self.on_frame: Any = None   # on_frame(image, capture step index): the camera emulator saves it
         self.script = list(sim_procedure(sc) if script is None else script)
         self.microsteps_per_deg = float(microsteps_per_deg)
         self.ctx_at: list[dict] = []
@@ -66,7 +73,8 @@ class EmulatedBench:
             if isinstance(step, P.Mark):
                 ctx = {**ctx, **step.context}
             self.ctx_at.append(ctx)
-        self.served = [isinstance(s, P.Move) and self.ctx_at[i].get("procedure") not in SERVED_SKIP_PROCEDURES
+        skip = SERVED_SKIP_PROCEDURES if self.camera is None else ()
+        self.served = [isinstance(s, P.Move) and self.ctx_at[i].get("procedure") not in skip
                        for i, s in enumerate(self.script)]
         self.cursor = -1
         # simulated time after each executed step (NaN: not executed); preallocated, so serving a
@@ -158,7 +166,29 @@ class EmulatedBench:
         self.state._draws = {}
         if self.state.pose is None:  # nothing moved yet: pose the bench where the stage stands
             self.stage.move_to(self.stage.position_deg)
-        return self.instruments[name].read()
+        reading = self.instruments[name].read()
+        c = self.cursor
+        if (self.camera is not None and self.on_frame is not None and 0 <= c < len(self.script) - 1
+                and isinstance(self.script[c], P.Read) and name in self.script[c].names
+                and isinstance(self.script[c + 1], P.Capture)):
+            self._render(c + 1)
+        return reading
+
+    def _render(self, i: int) -> None:
+        """The frame of Capture step ``i``, keyed as ``simulate`` keys it; the cursor stays."""
+        st = self.state
+        saved = st.step_index
+        st.on_step(i, self.script[i], dict(self.ctx_at[i]), False)
+        image = self.camera.capture()["image"]   # the renderer's truth is not passed on
+        st.step_index, st._draws = saved, {}
+        self.on_frame(image, i)
+
+    def close(self) -> None:
+        """Release the camera's renderer (idempotent)."""
+        cam, self.on_frame = self.camera, None
+        if cam is not None and not getattr(self, "_closed", False):
+            self._closed = True
+            cam.close()
 
     @property
     def position_deg(self) -> float:

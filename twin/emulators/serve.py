@@ -10,10 +10,15 @@ Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``s
 ASCII), ``autocollimator`` (ELCOMAT 3000 by default, or TriAngle), and the probes: one Millimar
 C1202 port with ``probe_top`` on feature 1 and ``probe_bottom`` on feature 2 (by default), or one
 TESA TT display per probe. X probes, when the scenario has them, go to features 3/… of a second
-amplifier, or to their own TESA displays. The CCD camera is not a serial instrument and is not
-emulated: the bench file's procedures are the scenario's radial-motion, polygon and
-self-calibration procedures (the CCD sweep is replayed by the emulated operator only to keep the
-twin's clock and noise keys those of ``simulate``).
+amplifier, or to their own TESA displays.
+
+The CCD camera is not a serial instrument: with ``camera`` (a render backend: "auto",
+"pyrender", "analytic") it is a hot-folder camera (``camera.FolderCameraEmulator``: the twin
+renders each frame at its stop into ``DIRECTORY/frames``; the bench file reads it with the
+``watch_folder`` driver) and the bench file runs all four procedures in ``simulate``'s order
+(radial motion, CCD sweep, polygon shift-angle, self-calibration), with the ``[ccd]`` geometry
+for the manifest. Without (``camera=None``) the bench file has no CCD sweep and the emulated
+operator only replays it, to keep the twin's clock and noise keys those of ``simulate``.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from typing import Any
 
 from ._base import decimals_for
 from .backend import EmulatedBench
+from .camera import FolderCameraEmulator
 from .elcomat import ElcomatEmulator
 from .heidenhain import HeidenhainEmulator
 from .millimar import MillimarEmulator
@@ -75,8 +81,10 @@ def _q(x: float, unit: str) -> str:
     return f'"{x:.12g} {unit}"'
 
 
-def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], timeout_s: float = 0.25) -> str:
-    """A ready-to-use bench file for the emulated instruments (docs/bench-file.md)."""
+def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], timeout_s: float = 0.25,
+                    camera: Any = None, frames_dir: str | Path | None = None) -> str:
+    """A ready-to-use bench file for the emulated instruments (docs/bench-file.md). ``camera``:
+    the twin's ``SimCamera`` (its nominal geometry goes to ``[ccd]``), served from ``frames_dir``."""
     b, pr = sc["bench"], sc["procedure"]
     from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
 
@@ -95,6 +103,15 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
         f"heads = [{heads}]",
         f"encoder_lines = {sim_lines_from_bench(b)}",
         f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
+        f"scale_edge_radius = {_q(float(b['scale_edge_radius']) * 1e3, 'mm')}",
+    ]
+    if camera is not None:
+        c = camera.camera
+        ref = ", ".join(f"{float(v):.12g}" for v in c.reference_px)
+        lines += ["", "[ccd]                          # the camera's nominal geometry (dataset manifest 'ccd')",
+                  f"position = {_q(_deg(c.azimuth_rad), 'deg')}", f'tangential = "{c.tangential}"',
+                  f"reference_px = [{ref}]", f"pixel_size = {_q(c.pixel_pitch_m * 1e6, 'um')}"]
+    lines += [
         "", "[run]", 'waits = "skip"                # emulated instruments: nothing to settle',
         "driver_sleep_scale = 0.0      # no retry backoff / poll waits against an emulator",
         'theta = "target"', "fsync = true", "",
@@ -127,11 +144,17 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     st = emulators["stage"]
     inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0",
          ('soft_limits = ["-1 deg", "361 deg"]', f'max_speed = "{st.speed_deg_s * 1.25:g} deg/s"'))
+    if camera is not None:
+        lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
+                  "options = { timeout_s = 30.0 }", ""]
     dwell = f'"{float(pr["dwell"]):g} s"'
     dirs = ", ".join(f'"{d}"' for d in pr["directions"])
     probes_list = ", ".join(f'"{n}"' for n in probe_names)
     lines += ["[[procedure]]", 'type = "radial_motion"', f"reps = {int(pr['radial_reps'])}",
               f"positions = {int(pr['radial_positions'])}", f"dwell = {dwell}", f"probes = [{probes_list}]", ""]
+    if camera is not None:
+        lines += ["[[procedure]]", 'type = "ccd_sweep"', f"step = {_q(_deg(pr['ccd_step']), 'deg')}",
+                  f"dwell = {dwell}", 'camera = "ccd"', ""]
     shifts = ", ".join(_q(_deg(s), "deg") for s in pr["polygon_shifts"])
     lines += ["[[procedure]]", 'type = "polygon_shift_angle"', f"shifts = [{shifts}]",
               f"reps = {int(pr['polygon_reps'])}", f"directions = [{dirs}]", f"dwell = {dwell}", ""]
@@ -145,9 +168,12 @@ class EmulationSession:
     """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
 
     def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
-                 timeout_s: float = 0.25):
+                 timeout_s: float = 0.25, camera: str | None = None):
         self.sc = sc
-        self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG)
+        self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG, camera_backend=camera)
+        self.camera = FolderCameraEmulator("ccd") if camera is not None else None
+        if self.camera is not None:
+            self.backend.on_frame = self.camera.save
         self.emulators = build_emulators(sc, self.backend, autocollimator, probes)
         self.faults = faults
         self.timeout_s = float(timeout_s)
@@ -159,8 +185,10 @@ class EmulationSession:
         d.mkdir(parents=True, exist_ok=True)
         self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
         ports = self.server.start()
+        frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"
-        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s), encoding="utf-8")
+        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
+                                                   self.backend.camera, frames), encoding="utf-8")
         return self.bench_path
 
     def ports(self) -> dict[str, str]:
@@ -169,6 +197,7 @@ class EmulationSession:
     def stop(self) -> None:
         if self.server is not None:
             self.server.stop()
+        self.backend.close()
 
     def __enter__(self) -> "EmulationSession":
         return self
