@@ -225,14 +225,16 @@ class _without_polygon:
         return False
 
 
-def run_seed(seed: int, work: Path, order: int = 10, scale_every: int = SCALE_EVERY) -> dict[str, Any]:
-    """Simulate jia2019 with ``seed``, run the image analysis without truth, read the truth: the raw
-    record (JSON-able; :func:`score` turns it into estimates, uncertainties and truth)."""
+def run_seed(seed: int, work: Path, order: int = 10, scale_every: int = SCALE_EVERY,
+             overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Simulate jia2019 with ``seed`` (and scenario ``overrides``), run the image analysis without
+    truth, read the truth: the raw record (JSON-able; :func:`score` turns it into estimates,
+    uncertainties and truth)."""
     from benchtwin.twin.scenario import load_scenario
     from benchtwin.twin.simulate import simulate
 
     t0 = time.perf_counter()
-    sc = load_scenario().with_overrides({"scenario.seed": int(seed)})
+    sc = load_scenario().with_overrides({**(overrides or {}), "scenario.seed": int(seed)})
     ds = work / f"ds_{seed}"
     truth = work / f"truth_{seed}"
     for p in (ds, truth):
@@ -393,9 +395,43 @@ def summarise(recs: list[dict[str, Any]]) -> dict[str, Any]:
             }}
 
 
+PREAMBLE = """\
+`benchmarks/coverage_jia.py --seeds 50` — do the Jia 2019 pipeline's standard uncertainties cover the
+twin's truth? jia2019 (realistic noise: probe repeatability 0.1 µm, linearity, sphere form 14 nm,
+asynchronous spindle motion 0.06 µm RMS, CCD read noise, dust, scratches) simulated for each seed
+(analytic renderer; the polygon steps skipped — the radial and CCD data are byte-identical to the
+full run's, `tests/test_coverage_jia.py`), truth/ moved out, the pipeline's Jia steps run
+(the pixel scale from every 6th frame: its spread is ~5e-6 relative, irrelevant to e), estimate −
+truth divided by the reported u.
+
+Truths: **synchronous** — the same bench and seed with the non-repeating motion switched off
+(`bearings.async_rms = 0`): e, θ0 of eq. 10-12 on the disk centre at the CCD stops (= the declared
+7.1 µm, 192.08° to < 1 nm: the axis's own once-per-revolution motion is negligible here), δY the
+harmonics 2…10 of the axis's synchronous motion, Δθ eq. 5 on those. **This sweep / these
+revolutions** — the same quantities as they were during the run (truth/ccd.csv, truth/radial_motion.csv),
+asynchronous motion included. The measurands of the paper (the eccentricity of the disk, the
+synchronous radial motion of the spindle) are the synchronous ones.
+
+Finding (fixed in `analysis/`): the eccentricity's u from the d_ref fit residual (2-3 nm) was right
+for *this sweep* but 20× too small for e: one CCD sweep sees the disk during one revolution, and the
+once-per-revolution part of the asynchronous motion during it (~0.05 µm) adds to the first harmonic,
+inseparable from e; the fit residual shows only the other frequencies. It is now estimated from
+the two-sphere data — the scatter of the disk-plane combination's 1st-harmonic coefficients over
+the revolutions (eq. 7 removes them as sphere centring, but their rep-to-rep scatter is
+asynchronous motion; `radial_motion(...)["u_h1_async_um"]`, ν = 4 for 3 revolutions) — and added
+in quadrature to u(e) and, divided by e, to u(θ0) (`eccentricity.with_async_motion`, called by the
+pipeline). Likewise δY as the spindle's synchronous motion carries 1/n of the asynchronous variance:
+`u_dY_theta_um` takes the covariance of the mean from the revolutions' scatter, harmonic by
+harmonic (ν = 4 each), and the GUM u of Δθ propagates that covariance through ∫δY exactly
+(`error_model_from_results(..., dY_uncertainty="gum")`). A u with ν = 4 is itself uncertain: a
+normal error divided by it follows a t-distribution with 4 dof (68 % → 63 %, 95 % → 88 % within 1 and
+2 u; the GUM's k for 95 % is 2.78).
+"""
+
+
 def markdown(summ: dict[str, Any], seeds: list[int]) -> str:
     c, s = summ["coverage"], summ["scalars"]
-    lines = [
+    lines = [PREAMBLE, 
         "| quantity (truth) | n | within 1·u | within 2·u | mean z | sd z | |z| 68 % / 95 % |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
@@ -432,13 +468,14 @@ def figure(recs: list[dict[str, Any]], path: Path) -> None:
 
     z = normalised_errors(recs)
     keys = [k for k in z if "incl. async" in k or "per harmonic" in k or k.startswith("Δθ (eq. 5 on the synchronous truth; u = GUM")]
-    fig, axs = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 2.8), sharey=False)
+    fig, axs = plt.subplots(1, len(keys), figsize=(3.3 * len(keys), 3.2), sharey=False)
     xs = np.linspace(-4, 4, 200)
     for ax, k in zip(axs, keys):
-        v = np.clip(z[k], -4.5, 4.5)
+        v = np.clip(np.ravel(z[k]), -4.5, 4.5)
         ax.hist(v, bins=np.linspace(-4.5, 4.5, 19), density=True, color="0.7", edgecolor="0.3")
         ax.plot(xs, np.exp(-xs**2 / 2) / math.sqrt(2 * math.pi), "k-", lw=1)
-        ax.set_title(k.replace(" (", "\n("), fontsize=8)
+        name, rest = k.split(" (", 1)
+        ax.set_title(name + "\n" + rest.rstrip(")").replace("; ", "\n"), fontsize=7)
         ax.set_xlabel("(estimate − truth) / u")
     axs[0].set_ylabel("density")
     fig.suptitle(f"jia2019, {len(recs)} seeds: normalised errors vs N(0, 1)", fontsize=10)
