@@ -10,21 +10,42 @@ Hsieh, Watanabe, Hsu, "Calibration of Rotary Encoders Using a Shift-Angle Method
 - ``setup_error_arcsec`` {str(S): [U_j for the start faces measured]}, ``setup_error_start_faces``
   {str(S): [j…]}, ``setup_error_u_arcsec`` {str(S): [...]};
 - ``encoder_error_arcsec`` {theta_deg, value, u, u_propagated, U}: all shifts combined, sorted by θ;
-  u = √(u_propagated² + Σ type-B²) where u_propagated is the linear propagation of u(ε) (repetitions,
-  or the closure residual) and u(β), and the type-B terms are items (2)-(6), (8) of the budget; U = k·u
-  with the budget's k;
+  u = √(u_propagated² + Σ type-B²) where u_propagated is the linear propagation of the repeatability
+  of ε (s/√n per cell) and u(β), and the type-B terms are items (2)-(6), (8) of the budget and the
+  direction difference (9); U = k·u with the budget's k;
 - ``alpha_by_shift_arcsec`` {str(S): {theta_deg, value, u}}; ``curve_fit`` rows (sec. 3.1 check);
 - ``selfcal_error_arcsec`` {theta_deg, value, u, U} (only with heads data), ``selfcal`` details,
-  ``difference_arcsec`` {theta_deg, value, en} (shift-angle − self-calibration at the shift-angle θ),
-  ``en_max`` (None without heads);
-- ``budget`` (rows of :meth:`UncertaintyBudget.table`), ``budget_summary`` {u_c, nu_eff, k, U};
-- ``repeatability`` {max_sd_eps_arcsec, n_rep_min, u_eps_source, ...}, ``notes``.
+  ``difference_arcsec`` {theta_deg, value, en, shift_angle_compared, selfcal_at_theta, max_abs, …}
+  (shift-angle − self-calibration on the harmonics both see), ``en_max`` (None without heads);
+- ``budget`` (rows of :meth:`UncertaintyBudget.table`), ``budget_summary`` {u_c, nu_eff, k, U,
+  monte_carlo (GUM-S1 check)}; ``direction_difference`` (forward − backward α, see
+  :func:`.shift_angle.direction_difference`);
+- ``repeatability`` {s_reading_arcsec, dof, alpha_sd_over_reps_max_arcsec (the paper's sec. 3.3 (1)), …},
+  ``notes``.
 
-Decisions where the paper is silent: the comparison with self-calibration evaluates the self-cal
-curve at the shift-angle θ by its Fourier series with the harmonics that are multiples of N removed
-(the shift-angle method cannot see them, see :mod:`.shift_angle`); the self-cal reference is head 1.
-The budget's repeatability rows follow the paper (worst case over the readings: max sd/√n); with one
-reading per cell, u(ε) is the pooled residual s of the S = 0 closure with ν = (N−1)(N−2).
+Repeatability of ε (sec. 3.3 (1)). Forward and backward sweeps are not repetitions of one value when
+the bench has hysteresis, and re-clamped runs differ by their setup errors; so neither is used as a
+"repetition". The readings of each cell are averaged (directions and runs, as the paper averages its
+six results) and the standard deviation s of ONE reading comes from the residuals of eq. 3 fitted to
+every single reading — α per shift and direction, common β, one offset per run-row
+(:func:`.shift_angle.reading_repeatability`). Its degrees of freedom are the readings minus the
+parameters: with the twin's procedure (all N start faces at S = 0, face 1 at the other shifts, both
+directions) 1035 for one run, ≈ 9800 for six. u(ε) of a cell is s/√n, propagated exactly through the
+estimators. The budget row (1) is the worst θ of that propagation (a single start face at S ≠ 0);
+row (7) is u(β) with the sensitivity of this estimator (from its Jacobian; Estler's eq. 11 holds for
+α averaged over all start faces). The θ-dependent part of the direction difference that the
+repeatability does not explain is its own row (9); a constant one only changes U_j.
+
+Self-calibration: eq. 9 per set of equally spaced heads (found from ``heads_deg`` unless given). A set
+average cancels the axis' radial error motion (Σ of the heads' tangents is 0), a single head's δ does
+not: on the twin's hsieh2022 bench (0.025 µm order-3 bearing waviness) head-level least squares put
+0.15″ of that motion into α. Sets whose heads sit on the θ grid are preferred per harmonic (exact for
+samples); the off-grid set (7 heads at 51.43° on a 1° grid) only supplies what the others cannot see,
+with an interpolation-error term (:func:`.selfcal.selfcal_fourier`). The self-cal reference is head 1.
+
+Comparison (eq. 13, standard E_n with √(U₁² + U₂²)): on the harmonics both methods see — without the
+multiples of N (lost by the shift-angle method into U_j, eq. 2), those the heads cannot see (84, 168
+for SelfA) and the Nyquist term — when the shift-angle θ form a full equally spaced grid.
 """
 
 from __future__ import annotations
@@ -85,6 +106,44 @@ def fourier_resample_arcsec(theta_grid_deg: np.ndarray, values_arcsec: np.ndarra
     return out
 
 
+def _full_grid(theta_deg: np.ndarray) -> bool:
+    """True if θ is an equally spaced full-circle grid (sorted, any start)."""
+    th = np.sort(np.mod(np.asarray(theta_deg, dtype=float), 360.0))
+    n = th.size
+    if n < 4:
+        return False
+    return bool(np.max(np.abs((th - th[0]) - np.arange(n) * 360.0 / n)) < 1e-6)
+
+
+def _drop_harmonics(theta_deg: np.ndarray, values: np.ndarray, drop: Sequence[int]) -> np.ndarray:
+    """Values on an equally spaced full-circle grid without the listed harmonics (and without the
+    Nyquist term, which a real grid cannot split into sine and cosine)."""
+    th = np.asarray(theta_deg, dtype=float)
+    order = np.argsort(np.mod(th, 360.0), kind="stable")
+    v = np.asarray(values, dtype=float)[order]
+    n = v.size
+    C = np.fft.rfft(v)
+    k = np.arange(C.size)
+    kill = np.isin(k, np.asarray(list(drop), dtype=int))
+    if n % 2 == 0:
+        kill[-1] = True
+    C[kill] = 0.0
+    out = np.empty(n)
+    out[order] = np.fft.irfft(C, n)
+    return out
+
+
+def _heads_repeatability(ht: Mapping[str, np.ndarray]) -> tuple[np.ndarray | None, float, float]:
+    """Pooled repeatability of δ over θ and heads 2…: (u per cell = s/√n, s, ν = Σ(n − 1))."""
+    nr, sdv = ht["n_rep"][:, 1:], ht["sd_arcsec"][:, 1:]
+    ok = nr >= 2
+    dof = float(np.sum(nr[ok] - 1))
+    if dof <= 0:
+        return None, float("nan"), 0.0
+    sp = math.sqrt(float(np.sum((nr[ok] - 1) * sdv[ok] ** 2)) / dof)
+    return sp / np.sqrt(np.maximum(ht["n_rep"], 1).astype(float)), sp, dof
+
+
 def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapping[str, np.ndarray] | None = None,
                     heads_deg: Sequence[float] | None = None, certificate_beta_arcsec: np.ndarray | None = None, *,
                     u_certificate_arcsec: np.ndarray | float | None = None, beta_source: str = "auto",
@@ -93,16 +152,22 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
                     ac_resolution_arcsec: float = 0.001, ac_traceability_U_arcsec: float = 0.01,
                     ac_traceability_k: float = 2.0, ac_error_half_width_arcsec: float = 0.05,
                     encoder_resolution_arcsec: float = 0.0, setup_misalignment_arcsec: float = 0.05,
-                    type_b_relative: float = 0.10, p: float = 0.95) -> dict[str, Any]:
+                    type_b_relative: float = 0.10, p: float = 0.95, mc_samples: int = 100_000,
+                    mc_seed: int = 20220516) -> dict[str, Any]:
     """Analyse a polygon table (and optionally a heads table) with the Hsieh 2022 methods.
 
     ``columns``: ``shift_deg, start_face, step, ac_arcsec`` (+ ``theta_deg``, ``t_s``, ``rep``,
     ``direction``; ``t_s`` is not used). ``heads``: ``theta_deg, head, delta_arcsec`` (+ ``rep``,
     ``direction``) with ``heads_deg`` the azimuths of the heads from head 1. ``certificate_beta_arcsec``:
     pitch deviations of a calibrated polygon (used per ``beta_source``; see
-    :func:`.shift_angle.shift_angle_analysis`). Budget parameters in arcsec (defaults from Hsieh sec. 3.3:
-    ELCOMAT 3000 resolution 0.001″, traceability U = 0.01″ (k = 2), maximum error 0.05″, setup
-    misalignment 0.05″; the encoder resolution comes from the bench, 0 if unknown).
+    :func:`.shift_angle.shift_angle_analysis`). ``u_eps_arcsec``: the standard deviation of ONE reading,
+    if known from elsewhere (ν = ∞); by default it is estimated from the data
+    (:func:`.shift_angle.reading_repeatability`). ``selfcal_sets``: head sets for eq. 9; by default the
+    maximal equally spaced sets among the heads (:func:`.selfcal.equally_spaced_sets`). Budget
+    parameters in arcsec (defaults from Hsieh sec. 3.3: ELCOMAT 3000 resolution 0.001″, traceability
+    U = 0.01″ (k = 2), maximum error 0.05″, setup misalignment 0.05″; the encoder resolution comes from
+    the bench, 0 if unknown). ``mc_samples`` draws for the GUM-S1 check of the budget (0: none),
+    seeded by ``mc_seed``.
 
     Raises :class:`.shift_angle.PolygonDataError` for unusable polygon readings.
     """
@@ -114,7 +179,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
                                 direction=columns.get("direction"))
     N = table.n_faces
     notes: list[str] = []
-    # ---- u(ε): repetitions, else given, else the closure residual at S = 0
+    # ---- u(ε): the repeatability of one reading
     n_rep_min = int(min(int(table.n_rep[s][table.n_rep[s] > 0].min()) for s in table.shifts_deg))
     sd_all = np.concatenate([table.sd_arcsec[s][np.isfinite(table.sd_arcsec[s])] for s in table.shifts_deg])
     closure_s, closure_nu = (float("nan"), 0)
@@ -122,19 +187,23 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     if complete:
         ref = 0.0 if 0.0 in complete else complete[0]
         closure_s, closure_nu = sa.closure_residual_sd_arcsec(table.eps_arcsec[ref])
-    if n_rep_min >= 2:
-        u_fill, u_src, dof_rep = u_eps_arcsec, "pooled repeatability s_p/sqrt(n)", n_rep_min - 1
-    elif u_eps_arcsec is not None:
-        u_fill, u_src, dof_rep = float(u_eps_arcsec), "given u_eps_arcsec", math.inf
-    elif math.isfinite(closure_s):
-        u_fill, u_src, dof_rep = closure_s, "pooled residual of the S=0 closure", closure_nu
-        notes.append(f"no repetitions: u(ε) = {closure_s:.3g} arcsec from the S=0 closure residual (ν = {closure_nu})")
+    rep = sa.reading_repeatability(table)
+    if rep.dropped:
+        notes.append(f"repeatability: {len(rep.dropped)} run-rows with a missing reading left out "
+                     f"(shift, rep, direction, start face): {rep.dropped[:5]}")
+    if u_eps_arcsec is not None:
+        s_read, dof_rep, u_src = float(u_eps_arcsec), math.inf, "given u_eps_arcsec (one reading)"
+    elif rep.dof > 0 and math.isfinite(rep.s_arcsec):
+        s_read, dof_rep = rep.s_arcsec, float(rep.dof)
+        u_src = ("residuals of eq. 3 fitted to every reading: α per shift and direction, common β, one offset "
+                 "per run-row (clamping, constant hysteresis)")
     else:
-        u_fill, u_src, dof_rep = None, "none (u not available)", math.inf
-        notes.append("no repetitions, no u_eps_arcsec and no full S=0 table: statistical u unavailable")
+        s_read, dof_rep, u_src = None, math.inf, "none (no residual degrees of freedom)"
+        notes.append("no residual degrees of freedom for the repeatability of ε (one run, no full table) and no "
+                     "u_eps_arcsec: statistical u unavailable")
     res = sa.shift_angle_analysis(table, certificate_beta_arcsec=certificate_beta_arcsec,
-                                  u_certificate_arcsec=u_certificate_arcsec, u_eps_arcsec=u_fill,
-                                  beta_source=beta_source)
+                                  u_certificate_arcsec=u_certificate_arcsec, beta_source=beta_source,
+                                  s_reading_arcsec=s_read)
     notes += res.notes
     th, alpha, u_prop = sa.combined_curve(res)
     # ---- sec. 3.1 curve-fit check
@@ -144,25 +213,38 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     except ValueError as exc:  # e.g. a harmonic aliasing onto the offset
         fit_rows, setup_residual = [], 0.0
         notes.append(f"curve-fit check skipped: {exc}")
-    # ---- budget (sec. 3.3)
-    if n_rep_min >= 2:
-        u_rep_alpha = float(np.max(sd_all)) / math.sqrt(n_rep_min) if sd_all.size else 0.0
-    else:
-        u_rep_alpha = float(u_fill) if u_fill is not None else 0.0
+    # ---- direction difference and the paper's scatter of α over the repetitions
+    dd = sa.direction_difference(table, res.beta_arcsec, s_read) if s_read is not None else None
+    by_rep = sa.alpha_scatter_by_rep(table, res.beta_arcsec)
+    # ---- budget (sec. 3.3): worst case over θ of the statistical parts
+    u_e = np.concatenate([s.u_alpha_eps_arcsec for s in res.shifts])
+    u_b = np.concatenate([s.u_alpha_beta_arcsec for s in res.shifts])
+    u_rep_alpha = float(np.nanmax(u_e)) if np.any(np.isfinite(u_e)) else 0.0
     u_rep_beta = float(np.nanmax(res.u_beta_arcsec)) if np.any(np.isfinite(res.u_beta_arcsec)) else 0.0
+    c_beta = None
+    if u_rep_beta > 0 and np.any(np.isfinite(u_b)) and np.nanmax(u_b) > 0:
+        c_beta = float(np.nanmax(u_b)) / u_rep_beta
     dof_beta = dof_rep if res.beta_source == "closure" else math.inf
     budget = un.shift_angle_budget(u_repeat_alpha=u_rep_alpha, dof_repeat_alpha=dof_rep, n_faces=N,
                                    u_repeat_beta=u_rep_beta, dof_repeat_beta=dof_beta,
                                    ac_resolution=ac_resolution_arcsec, ac_traceability_U=ac_traceability_U_arcsec,
                                    ac_traceability_k=ac_traceability_k, ac_error_half_width=ac_error_half_width_arcsec,
                                    encoder_resolution=encoder_resolution_arcsec, setup_residual=setup_residual,
-                                   setup_misalignment=setup_misalignment_arcsec, type_b_relative=type_b_relative)
+                                   setup_misalignment=setup_misalignment_arcsec, type_b_relative=type_b_relative,
+                                   sensitivity_beta=c_beta,
+                                   direction_difference=dd["rms_systematic"] if dd is not None else None)
     budget.p = p
     stat_names = {"Repeatability of angle error measurement", "Repeatability of the pitch angle deviation measurement"}
     u_typeb = math.sqrt(sum(c.contribution**2 for c in budget.contributions if c.name not in stat_names))
     u_prop0 = np.where(np.isfinite(u_prop), u_prop, 0.0)
     u_tot = np.sqrt(u_prop0**2 + u_typeb**2)
     k = budget.k
+    mc_out = None
+    if mc_samples and budget.u_c > 0:
+        mc = budget.monte_carlo(int(mc_samples), rng=np.random.default_rng(mc_seed))
+        v = un.validate_gum_with_mc(0.0, budget.U, mc, budget.u_c, ndig=1)
+        mc_out = {"n": mc.n, "std": mc.std, "shortest": list(mc.shortest), "symmetric": list(mc.symmetric),
+                  "gum_interval": [-budget.U, budget.U], "delta": v["delta"], "validated_1_digit": v["ok"]}
     out: dict[str, Any] = {
         "method": "Hsieh 2022 shift-angle",
         "n_faces": N,
@@ -178,14 +260,22 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
                                                          "u": s.u_alpha_arcsec} for s in res.shifts},
         "encoder_error_arcsec": {"theta_deg": th, "value": alpha, "u": u_tot, "u_propagated": u_prop, "U": k * u_tot},
         "curve_fit": fit_rows,
-        "repeatability": {"max_sd_eps_arcsec": float(np.max(sd_all)) if sd_all.size else None,
-                          "pooled_sd_eps_arcsec": table.pooled_sd()[0], "pooled_dof": table.pooled_sd()[1],
-                          "n_rep_min": n_rep_min, "u_eps_source": u_src,
+        "repeatability": {"s_reading_arcsec": s_read, "dof": dof_rep if math.isfinite(dof_rep) else None,
+                          "pooled_sd_eps_arcsec": s_read,  # the same s (pipeline.py's tracing reads this key)
+                          "u_eps_source": u_src, "n_readings": rep.n_readings, "n_run_rows": rep.n_rows,
+                          "max_sd_eps_arcsec": float(np.max(sd_all)) if sd_all.size else None,
+                          "n_rep_min": n_rep_min,
                           "closure_residual_sd_arcsec": closure_s, "closure_dof": closure_nu,
+                          "alpha_sd_over_reps_max_arcsec": by_rep["max_sd"] if by_rep else None,
+                          "n_reps": by_rep["n_reps"] if by_rep else 1,
                           "theta_offset_max_deg": table.theta_offset_max_deg},
+        "direction_difference": None if dd is None else
+        {k_: dd[k_] for k_ in ("directions", "theta_deg", "value", "u", "chi2", "dof", "p_value", "rms",
+                               "rms_systematic", "max_abs", "offset_arcsec")},
         "budget": budget.table(),
         "budget_summary": {"u_c": budget.u_c, "nu_eff": budget.nu_eff, "k": k, "U": budget.U, "p": p,
-                           "u_type_b": u_typeb},
+                           "u_type_b": u_typeb, "sensitivity_beta": budget.contributions[6].sensitivity,
+                           "monte_carlo": mc_out},
         "selfcal_error_arcsec": None,
         "difference_arcsec": None,
         "en_max": None,
@@ -199,28 +289,51 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         nh = len(heads_deg)
         ht = sc.tabulate_heads(heads["theta_deg"], heads["head"], heads["delta_arcsec"], nh, rep=heads.get("rep"),
                                direction=heads.get("direction"))
-        u_d = None
-        if np.all(ht["n_rep"][:, 1:] >= 2):  # pooled repeatability of δ over θ and heads 2…, / √n per cell
-            nr, sdv = ht["n_rep"][:, 1:], ht["sd_arcsec"][:, 1:]
-            sp = math.sqrt(float(np.sum((nr - 1) * sdv**2)) / float(np.sum(nr - 1)))
-            u_d = sp / np.sqrt(ht["n_rep"].astype(float))
-        scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=selfcal_sets, u_delta_arcsec=u_d)
+        sets = dict(selfcal_sets) if selfcal_sets else sc.equally_spaced_sets(heads_deg)
+        if not sets:
+            sets = None
+            notes.append("self-calibration: no equally spaced head sets; every head on its own (its δ also carries "
+                         "the axis' radial error motion, which set averages would cancel)")
+        u_d, s_d, dof_d = _heads_repeatability(ht)
+        scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_d)
         u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
         u_self = np.sqrt(scr.u_arcsec**2 + u_res**2)
-        dof_self = float(np.min(ht["n_rep"][:, 1:]) - 1) if u_d is not None else scr.dof
-        k_self = un.coverage_factor(dof_self if dof_self > 0 else math.inf, p)
+        dof_self = dof_d if u_d is not None else scr.dof
+        k_self = un.coverage_factor(dof_self if dof_self >= 1 else math.inf, p)
         notes += scr.notes
-        mu_at = fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th, drop_multiples_of=N)
+        # compare on the harmonics both methods see: not the multiples of N (shift-angle, eq. 2),
+        # not those the heads cannot see (self-calibration), not the Nyquist term
+        blind_sa = [m for m in range(N, 100_000, N)]
+        drop = sorted(set(blind_sa) | {int(x) for x in scr.unobservable_harmonics})
+        if _full_grid(th):
+            n_sa = th.size
+            alpha_cmp = _drop_harmonics(th, alpha, [m for m in drop if m <= n_sa // 2])
+            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th), 
+                                    [m for m in drop if m <= n_sa // 2])
+            cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
+                        f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")
+        else:
+            alpha_cmp = alpha
+            mu_at = fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th, drop_multiples_of=N)
+            cmp_note = (f"shift-angle θ not a full equally spaced grid: self-calibration evaluated at its θ without "
+                        f"the multiples of N = {N}; harmonics the heads cannot see are not removed from the "
+                        f"shift-angle side")
+            notes.append(cmp_note)
         u_self_at = np.interp(th, scr.theta_deg, u_self, period=360.0)
-        diff = alpha - mu_at
-        en = un.en_number(alpha, k * u_tot, mu_at, k_self * u_self_at)
+        diff = alpha_cmp - mu_at
+        en = un.en_number(alpha_cmp, k * u_tot, mu_at, k_self * u_self_at)
         out["selfcal_error_arcsec"] = {"theta_deg": scr.theta_deg, "value": scr.value_arcsec, "u": u_self,
                                        "U": k_self * u_self}
-        out["selfcal"] = {"k": k_self, "dof": dof_self, "sigma_delta_arcsec": scr.sigma_delta_arcsec,
+        out["selfcal"] = {"k": k_self, "dof": dof_self, "s_delta_arcsec": s_d,
+                          "sigma_delta_residual_arcsec": scr.sigma_delta_arcsec, "residual_dof": scr.dof,
+                          "head_residual_rms_arcsec": scr.residual_rms_arcsec,
+                          "set_residual_rms_arcsec": scr.set_residual_rms_arcsec, "set_on_grid": scr.set_on_grid,
                           "unobservable_harmonics": scr.unobservable_harmonics,
-                          "sets": list(selfcal_sets) if selfcal_sets else None,
-                          "per_set_arcsec": scr.per_set_arcsec}
-        out["difference_arcsec"] = {"theta_deg": th, "value": diff, "selfcal_at_theta": mu_at, "en": en}
+                          "sets": sets, "per_set_arcsec": scr.per_set_arcsec}
+        out["difference_arcsec"] = {"theta_deg": th, "value": diff, "shift_angle_compared": alpha_cmp,
+                                    "selfcal_at_theta": mu_at, "en": en, "note": cmp_note,
+                                    "removed_from_shift_angle_rms": float(np.sqrt(np.mean((alpha - alpha_cmp) ** 2))),
+                                    "max_abs": float(np.max(np.abs(diff)))}
         out["en_max"] = float(np.max(en))
     out["notes"] = notes
     return _json(out)

@@ -64,6 +64,7 @@ __all__ = [
     "SelfCalResult",
     "selfcal_fourier",
     "tabulate_heads",
+    "equally_spaced_sets",
 ]
 
 #: SelfA head azimuths from head 1 (deg): the union of sets of 3, 4 and 7 equally spaced heads sharing
@@ -128,7 +129,12 @@ class SelfCalResult:
     ``theta_deg``, ``value_arcsec`` (â(θ), zero mean), ``u_arcsec`` per θ; ``per_set_arcsec`` each set's
     own estimate (harmonics it cannot see are zero); ``harmonics`` 0…n//2 and the transfer functions
     ``H`` per set over them; ``unobservable_harmonics`` (of the combination, 1…n//2−1),
-    ``invisible_by_set``; ``sigma_delta_arcsec`` the pooled residual u(δ) and its ``dof``.
+    ``invisible_by_set``; ``sigma_delta_arcsec`` the pooled residual u(δ) (from the residuals of the set
+    averages, scaled to one δ) and its ``dof``; ``residual_rms_arcsec`` the rms residual of the single
+    heads' δ (larger than σ when a head sees an error that is not a property of the disk, e.g. the
+    axis' radial error motion); ``set_residual_rms_arcsec`` per set; ``set_on_grid`` per set;
+    ``u_model_arcsec`` the interpolation (aliasing) error of the harmonics only off-grid sets supply
+    (``prefer_on_grid``), included in ``u``.
     """
 
     theta_deg: np.ndarray
@@ -143,6 +149,9 @@ class SelfCalResult:
     dof: float
     residual_rms_arcsec: float
     notes: list[str] = field(default_factory=list)
+    set_residual_rms_arcsec: dict[str, float] = field(default_factory=dict)
+    set_on_grid: dict[str, bool] = field(default_factory=dict)
+    u_model_arcsec: float = 0.0
 
 
 def _check_grid(theta_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -163,9 +172,44 @@ def _check_grid(theta_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ths, order
 
 
+def equally_spaced_sets(heads_deg: Sequence[float], tol_deg: float = 1e-4) -> dict[str, list[int]]:
+    """The maximal sets of NH ≥ 2 equally spaced heads (360°/NH apart) among ``heads_deg``, 1-based.
+
+    A set contained in a larger one is dropped (its blind harmonics, the multiples of its NH, include
+    the larger set's). For the SelfA heads: {"NH3": [1, 5, 9], "NH4": [1, 3, 7, 11], "NH7": [1, 2, 4, …]}.
+    Sets not containing head 1 are found too (named ``NH{n}@{head}``).
+    """
+    psi = np.mod(np.asarray(heads_deg, dtype=float).ravel(), 360.0)
+    n = psi.size
+
+    def find(a: float) -> int | None:
+        d = np.abs(np.mod(psi - a + 180.0, 360.0) - 180.0)
+        i = int(np.argmin(d))
+        return i if d[i] <= tol_deg else None
+
+    found: list[frozenset[int]] = []
+    for nh in range(n, 1, -1):
+        for base in range(n):
+            idx = [find(psi[base] + m * 360.0 / nh) for m in range(nh)]
+            if any(i is None for i in idx) or len(set(idx)) != nh:
+                continue
+            st = frozenset(int(i) for i in idx)
+            if not any(st <= f for f in found):
+                found.append(st)
+    out: dict[str, list[int]] = {}
+    for st in sorted(found, key=lambda f: (len(f), min(f))):
+        h = sorted(i + 1 for i in st)
+        name = f"NH{len(h)}" if 1 in h else f"NH{len(h)}@{h[0]}"
+        while name in out:
+            name += "'"
+        out[name] = h
+    return out
+
+
 def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arcsec: np.ndarray, *,
                     sets: Mapping[str, Sequence[int]] | None = None,
-                    u_delta_arcsec: np.ndarray | float | None = None, tol: float = 1e-6) -> SelfCalResult:
+                    u_delta_arcsec: np.ndarray | float | None = None, tol: float = 1e-6,
+                    prefer_on_grid: bool = True) -> SelfCalResult:
     """Self-calibration for any head arrangement in the Fourier domain; combine sets by weighted LS.
 
     ``theta_deg`` (n,) an equally spaced full-circle grid (any order, any start); ``heads_deg`` the
@@ -174,6 +218,17 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     head j ≥ 2 on its own (head-level least squares, the most information). ``u_delta_arcsec``: standard
     uncertainty of each δ reading (scalar or (n, n_heads)); default: pooled from the residuals.
     ``tol``: a harmonic counts as seen by a set when |H_sk| > tol (combined: Σ_s w_s|H_sk|² > tol²·Σ_s w_s).
+
+    ``prefer_on_grid``: a set whose heads all sit on the θ grid (ψ_j a multiple of the step) obeys
+    eq. 8 exactly for the SAMPLES of a, whatever a contains above the grid's Nyquist harmonic: its
+    shift is a whole number of samples. A set with a head between grid points relies on trigonometric
+    interpolation, exact only for band-limited a; a graduation error with harmonics above n/2 folds
+    into it (the twin's hsieh2022 encoder: 0.13″ rms above harmonic 180 on a 1° grid, which put up to
+    0.1″ into the combined estimate). So, per harmonic, only on-grid sets are used where one of them
+    sees it; off-grid sets fill in the rest (for SelfA on a 1° grid: the 7-head set supplies the
+    multiples of 12). ``False``: all sets by weighted least squares at every harmonic.
+
+    Zero noise (``u_delta_arcsec`` all 0, exact data): equal weights per head.
     """
     psi_deg = np.asarray(heads_deg, dtype=float).ravel()
     nheads = psi_deg.size
@@ -206,6 +261,8 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
         var_head = u2.mean(axis=0)
     var_head = var_head.copy()
     var_head[0] = 0.0
+    if not np.any(var_head[1:] > 0):  # exact data: weigh every head alike
+        var_head[1:] = 1.0
     # signed harmonic index of each FFT bin
     kk = np.fft.fftfreq(n, d=1.0 / n).round().astype(int)
     psi = np.deg2rad(psi_deg)
@@ -218,12 +275,23 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     var_set = (P**2) @ var_head
     w = np.where(var_set > 0, 1.0 / np.where(var_set > 0, var_set, 1.0), 0.0)
     w = w / w.max() if w.max() > 0 else w
-    den = (np.abs(Hs) ** 2) @ w  # (n,)
+    step = 360.0 / n
+    frac = np.abs(psi_deg / step - np.round(psi_deg / step))
+    head_on_grid = frac < 1e-6
+    set_on_grid = np.array([bool(np.all(head_on_grid[P[s] > 0])) for s in range(len(names))])
     nyq = (n % 2 == 0) & (np.abs(kk) == n // 2)
+    W = np.broadcast_to(w, (n, len(names))).copy()  # weights per harmonic and set
+    mixed = bool(prefer_on_grid and set_on_grid.any() and not set_on_grid.all())
+    grid_sees = np.zeros(n, dtype=bool)
+    if mixed:
+        den_grid = (np.abs(Hs[:, set_on_grid]) ** 2) @ w[set_on_grid]
+        grid_sees = den_grid > tol**2 * max(w[set_on_grid].sum(), 1e-300)
+        W[np.ix_(grid_sees, ~set_on_grid)] = 0.0
+    den = np.sum(np.abs(Hs) ** 2 * W, axis=1)  # (n,)
     seen = (den > tol**2 * max(w.sum(), 1e-300)) & (kk != 0) & ~nyq
     # Q_jk: Â_k = Σ_j Q_jk D_jk
     Q = np.zeros((n, nheads), dtype=complex)
-    Q[seen] = ((np.conj(Hs[seen]) * w) @ P) / den[seen, None]
+    Q[seen] = ((np.conj(Hs[seen]) * W[seen]) @ P) / den[seen, None]
     D = np.fft.fft(d, axis=0)
     A = np.sum(Q * D, axis=1)
     value = np.real(np.fft.ifft(A))
@@ -239,11 +307,40 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     used = np.flatnonzero(P.sum(axis=0) > 0)
     used = used[used > 0]
     pred = np.real(np.fft.ifft(A[:, None] * G[:, used], axis=0))
-    res = d[:, used] - pred
-    n_par = int(np.count_nonzero(seen))  # real parameters: 2 per harmonic pair = count of signed bins
-    dof = float(n * used.size - n_par)
-    rss = float(np.sum(res**2))
+    res = d[:, used] - pred  # per head: also shows errors that are not a property of the disk
+    # σ(δ) from the residuals of what the estimate is fitted to, the set averages (eq. 9): a set average
+    # of equally spaced heads cancels the axis' radial error motion, which a single head's δ does not
+    # (docs: module docstring); for the default one-head sets this is the per-head residual.
+    # res_set (time domain, all harmonics) is reported per set as a diagnostic.
+    # In the Fourier domain, per harmonic k: residuals r_k = R_k·M_k, R_k = I − H_k q_kᵀ (q_k the set
+    # weights of Â_k); with unit noise per δ the set averages have covariance Σ = P Pᵀ (head 1: δ ≡ 0),
+    # so E[Σ_s |r_ks|²/c_s] ∝ tr(R_k Σ R_kᴴ C⁻¹): summed over k, the effective residual dof (n·sets −
+    # parameters for plain weighted least squares; exact also where off-grid sets are set aside).
+    # k = 0 (the heads' constant offsets) and the Nyquist bin are not noise-only and are left out.
+    res_set = d @ P.T - np.real(np.fft.ifft(A[:, None] * Hs, axis=0))
+    c_set = np.sum(P[:, 1:] ** 2, axis=1)
+    live = c_set > 0
+    Msk = (D @ P.T)[:, live]
+    Hl, Wl, cl = Hs[:, live], W[:, live], c_set[live]
+    qk = np.zeros_like(Hl)
+    qk[seen] = np.conj(Hl[seen]) * Wl[seen] / den[seen, None]
+    Rres = Msk - Hl * np.sum(qk * Msk, axis=1, keepdims=True)
+    # Only where a set sees the harmonic (|H_sk| > tol): where it does not, eq. 9 makes no claim about
+    # its average — which there still carries what is not a property of the disk (head 1's share of
+    # the axis motion, grid aliasing) without affecting the estimate.
+    # With on-grid and off-grid sets mixed, σ comes from the on-grid sets (exact for samples); the
+    # off-grid sets' excess scatter is their interpolation (aliasing) error, see u_model below.
+    keep = (kk != 0) & ~nyq
+    on_l = set_on_grid[live]
+    vis = (np.abs(Hl) > tol) & keep[:, None]
+    vis_sig = vis & (on_l[None, :] if mixed else True)
+    rss = float(np.sum(np.abs(Rres) ** 2 * vis_sig / cl) / n)
+    Sig = P[live][:, 1:] @ P[live][:, 1:].T
+    Rk = np.eye(int(live.sum()))[None] - Hl[:, :, None] * qk[:, None, :]
+    e_ka = np.einsum("kab,bc,kac->ka", Rk, Sig, np.conj(Rk)).real / cl[None, :]
+    dof = float(np.sum(e_ka * vis_sig))
     sigma = float(np.sqrt(rss / dof)) if dof > 0 else float("nan")
+    set_rms = {name: float(np.sqrt(np.mean(res_set[:, s_] ** 2))) for s_, name in enumerate(names)}
     # propagation: impulse response per head
     h = np.real(np.fft.ifft(Q, axis=0))  # (n, nheads)
     if u2 is None:
@@ -252,6 +349,24 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     u2[:, 0] = 0.0
     # var(â(θ_m)) = Σ_j Σ_t h_j[m − t]² u2_j[t]  (circular convolution)
     var = np.real(np.fft.ifft(np.fft.fft(h**2, axis=0) * np.fft.fft(u2, axis=0), axis=0)).sum(axis=1)
+    # Interpolation error of off-grid sets (mixed case): where on-grid sets carry a harmonic, an off-grid
+    # set's residual M_sk − H_sk·Â_k is its own error X_sk plus noise; the mean excess over the noise
+    # estimates E|X_s|² per harmonic, which enters Â wherever only off-grid sets see the harmonic.
+    # Treated as independent between harmonics (aliased content of different orders): a variance
+    # (1/n²)·Σ_k Σ_s |q_sk|²·E|X_s|², the same at every θ.
+    u_model = 0.0
+    if mixed:
+        var_abs = u2.mean(axis=0)
+        Sig_u = (P[live] * var_abs) @ P[live].T
+        noise_ka = n * np.einsum("kab,bc,kac->ka", Rk, Sig_u, np.conj(Rk)).real
+        X = np.zeros(int(live.sum()))
+        for a in np.flatnonzero(~on_l):
+            sel = grid_sees & keep & (np.abs(Hl[:, a]) > tol)
+            if sel.any():
+                X[a] = max(0.0, float(np.mean(np.abs(Rres[sel, a]) ** 2 - noise_ka[sel, a])))
+        only_off = seen & ~grid_sees
+        u_model = float(np.sqrt(np.sum(np.abs(qk[only_off]) ** 2 * X[None, :]) / n**2))
+        var = var + u_model**2
     u = np.sqrt(np.maximum(var, 0.0))
     kpos = np.arange(0, n // 2 + 1)
     H_out = {name: Hs[kpos, s] for s, name in enumerate(names)}
@@ -263,7 +378,8 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     if inv_k.size:
         notes.append(f"harmonics not observable by the heads used (set to 0): {inv_k.tolist()}")
     return SelfCalResult(ths, value, u, per_set, kpos, H_out, inv_k, by_set, sigma, dof,
-                         float(np.sqrt(np.mean(res**2))) if res.size else float("nan"), notes)
+                         float(np.sqrt(np.mean(res**2))) if res.size else float("nan"), notes, set_rms,
+                         {name: bool(set_on_grid[s_]) for s_, name in enumerate(names)}, u_model)
 
 
 def tabulate_heads(theta_deg: np.ndarray, head: np.ndarray, delta_arcsec: np.ndarray, n_heads: int, *,

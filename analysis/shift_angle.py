@@ -76,6 +76,10 @@ __all__ = [
     "cross_calibrate_closure",
     "cross_calibrate_with_certificate",
     "closure_residual_sd_arcsec",
+    "Repeatability",
+    "reading_repeatability",
+    "direction_difference",
+    "alpha_scatter_by_rep",
     "ShiftResult",
     "ShiftAngleResult",
     "shift_angle_analysis",
@@ -135,6 +139,9 @@ class PolygonTable:
     sd_arcsec: dict[float, np.ndarray]
     n_rep: dict[float, np.ndarray]
     theta_offset_max_deg: float = float("nan")
+    #: the single runs: ``runs[S][(rep, direction)]`` is that run's Table 1 (NaN where not read);
+    #: ``rep`` is 0 and ``direction`` "" where the columns are absent.
+    runs: dict[float, dict[tuple, np.ndarray]] = field(default_factory=dict)
 
     @property
     def u_arcsec(self) -> dict[float, np.ndarray]:
@@ -244,10 +251,19 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
         off_max = float(off.max())
     # aggregate
     uniq = np.unique(shifts)
-    eps, sd, nrep = {}, {}, {}
+    eps, sd, nrep, runs = {}, {}, {}, {}
+    rep_col = cols["rep"] if "rep" in cols else np.zeros(n)
+    dir_col = cols["direction"].astype(str) if "direction" in cols else np.full(n, "", dtype=object)
     for s in uniq:
         m = shifts == s
         f, i, a = face[m] - 1, stp[m] - 1, cols["ac_arcsec"][m]
+        rk, dk = rep_col[m], dir_col[m]
+        runs_s: dict[tuple, np.ndarray] = {}
+        for key in sorted(set(zip(rk.tolist(), dk.tolist()))):
+            mm = (rk == key[0]) & (dk == key[1])
+            t = np.full((N, N), np.nan)
+            t[f[mm], i[mm]] = a[mm]
+            runs_s[key] = t
         cnt = np.zeros((N, N), dtype=int)
         sm = np.zeros((N, N))
         np.add.at(cnt, (f, i), 1)
@@ -268,8 +284,8 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
                         f"wrong face count (n_faces={N})?")
             raise PolygonDataError(f"shift_deg={s:g}: columns start_face/step: missing readings {_cells(missing)} "
                                    f"(each start face needs steps 1…{N}){hint}")
-        eps[float(s)], sd[float(s)], nrep[float(s)] = mean, sdev, cnt
-    return PolygonTable(N, uniq.astype(float), eps, sd, nrep, off_max)
+        eps[float(s)], sd[float(s)], nrep[float(s)], runs[float(s)] = mean, sdev, cnt, runs_s
+    return PolygonTable(N, uniq.astype(float), eps, sd, nrep, off_max, runs)
 
 
 # --------------------------------------------------------------------------- eq. 3, Table 2, eq. 5-7
@@ -529,6 +545,10 @@ class ShiftResult:
     U_arcsec: np.ndarray
     u_U_arcsec: np.ndarray
     alpha_by_face_arcsec: np.ndarray
+    #: the parts of u_alpha from this shift's readings and from β (at the closure's reference shift,
+    #: where the same readings give β, everything is in the first and the second is 0)
+    u_alpha_eps_arcsec: np.ndarray | None = None
+    u_alpha_beta_arcsec: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -548,8 +568,8 @@ class ShiftAngleResult:
 def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
                          u_certificate_arcsec: np.ndarray | float | None = None,
                          u_eps_arcsec: float | None = None, beta_source: str = "auto",
-                         pool_repeatability: bool = True, reference_shift_deg: float | None = None
-                         ) -> ShiftAngleResult:
+                         pool_repeatability: bool = True, reference_shift_deg: float | None = None,
+                         s_reading_arcsec: float | None = None) -> ShiftAngleResult:
     """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
 
     β: from the full N×N table at the reference shift (eqs. 5-6; ``beta_source="closure"``) or from a
@@ -563,6 +583,8 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     default: a sample sd from 2-3 repetitions is too uncertain to weigh a single cell — a cell whose
     few readings agree by chance would get a tiny u) or the cell's own sd (``False``); where that is
     not available (no repetitions), ``u_eps_arcsec``; if neither, uncertainties are NaN.
+    ``s_reading_arcsec`` (the standard deviation of ONE reading, e.g. from :func:`reading_repeatability`)
+    overrides both: u(ε) of a cell is s/√n with n the readings averaged in it.
     """
     N = table.n_faces
     notes: list[str] = []
@@ -581,6 +603,9 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         raise PolygonDataError("beta_source='certificate' but no certificate_beta_arcsec given")
 
     def u_cells(s: float) -> np.ndarray | None:
+        if s_reading_arcsec is not None:
+            n = table.n_rep[s]
+            return np.where(n > 0, float(s_reading_arcsec) / np.sqrt(np.maximum(n, 1)), 0.0)
         u = (table.u_pooled_arcsec() if pool_repeatability else table.u_arcsec)[s].copy()
         if u_eps_arcsec is not None:
             u = np.where(np.isfinite(u), u, float(u_eps_arcsec))
@@ -621,26 +646,237 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
             u2 = u_rows.ravel() ** 2  # faces == 1…N here (full table)
             Ja, Ju = Je + Jb @ L, Ke + Kb @ L
             cov_a, cov_u = (Ja * u2) @ Ja.T, (Ju * u2) @ Ju.T
+            u_e, u_b = np.sqrt(np.diag(cov_a)), np.zeros(N)
         else:
             cov_a = np.zeros((N, N))
             cov_u = np.zeros((faces.size, faces.size))
+            u_e = u_b = np.full(N, np.nan)
             ok = False
             if u_rows is not None:
                 u2 = u_rows.ravel() ** 2
-                cov_a += (Je * u2) @ Je.T
+                ce = (Je * u2) @ Je.T
+                cov_a += ce
                 cov_u += (Ke * u2) @ Ke.T
+                u_e = np.sqrt(np.diag(ce))
                 ok = True
             if cb is not None:
-                cov_a += Jb @ cb @ Jb.T
+                cbb = Jb @ cb @ Jb.T
+                cov_a += cbb
                 cov_u += Kb @ cb @ Kb.T
+                u_b = np.sqrt(np.maximum(np.diag(cbb), 0.0))
                 ok = True
             if not ok:
                 cov_a[:] = np.nan
                 cov_u[:] = np.nan
         results.append(ShiftResult(s, res["theta_deg"], res["alpha"], np.sqrt(np.diag(cov_a)), faces, res["U"],
-                                   np.sqrt(np.diag(cov_u)), res["alpha_by_face"]))
+                                   np.sqrt(np.diag(cov_u)), res["alpha_by_face"], u_e, u_b))
     return ShiftAngleResult(N, beta, u_beta, cov_beta, src, results, table,
                             beta_closure if src == "certificate" else None, notes, s0)
+
+
+# --------------------------------------------------------------------------- repeatability, directions
+
+
+@dataclass(frozen=True)
+class Repeatability:
+    """Repeatability of ONE autocollimator reading from the residuals of the Table-1 model.
+
+    ``s_arcsec`` with ``dof`` degrees of freedom, from ``n_readings`` readings in ``n_rows`` run-rows
+    (one start face swept once in one direction); ``dropped`` lists run-rows not used because a reading
+    is missing in that run: ``(shift_deg, rep, direction, start_face)``.
+    """
+
+    s_arcsec: float
+    dof: int
+    n_readings: int
+    n_rows: int
+    rss_arcsec2: float
+    dropped: list[tuple] = field(default_factory=list)
+
+
+def reading_repeatability(table: PolygonTable) -> Repeatability:
+    """s of one reading from the residuals of eq. 3 fitted to every single reading (every run).
+
+    Model, for the reading of step i, start face j, run r (a repetition in one direction d), shift S::
+
+        ε = α_{S,d}(i) + Φ((j + i − 1) mod N) + V_{S,r,j} + e
+
+    Φ is the cumulative pitch deviation (B_ij = Φ(j+i−1) − Φ(j−1), the −Φ(j−1) goes into V); one α
+    per shift AND direction, so that a hysteresis that depends on θ is not counted as scatter (it is
+    the direction-difference term, :func:`direction_difference`); one offset V per run-row, so that
+    the setup error of each clamping and a constant hysteresis are not counted either. What remains
+    is the scatter of a reading about the model: the repeatability of ε. Forward and backward
+    readings are NOT taken as repetitions of one value (with hysteresis they are not).
+
+    Degrees of freedom: readings − Σ_blocks (run-rows + N − 1) − rank(Φ part), a block being one
+    (shift, direction). With all N start faces at S = 0, one run per direction, and one start face at
+    the other shifts, ν = 2·N² − 2·(N + N − 1) − (N − 1): for N = 24, 1035 — the (N − 1)(N − 2) of the
+    N×N closure per direction, plus the information linking the two directions through the common Φ.
+    Single-face shifts add no dof with one run (α absorbs the row), (runs − 1)(N − 1) with more.
+
+    Computed by Frisch–Waugh: within each block, readings and the Φ design are centred per run-row
+    and then per step (the projection off V and α for complete rows); Φ is then a small least
+    squares problem. Run-rows with a missing reading are dropped (listed).
+    """
+    N = table.n_faces
+    zs: list[np.ndarray] = []
+    Ps: list[np.ndarray] = []
+    n_obs = n_rows = n_par = 0
+    dropped: list[tuple] = []
+    for S in table.shifts_deg:
+        S = float(S)
+        runs = table.runs.get(S, {})
+        for d in sorted({k[1] for k in runs}):
+            rows_y, rows_j = [], []
+            for key, t in runs.items():
+                if key[1] != d:
+                    continue
+                for j0 in range(N):
+                    y = t[j0]
+                    if np.all(np.isnan(y)):
+                        continue
+                    if np.any(np.isnan(y)):
+                        dropped.append((S, key[0], d, j0 + 1))
+                        continue
+                    rows_y.append(y)
+                    rows_j.append(j0)
+            if not rows_y:
+                continue
+            Y = np.asarray(rows_y)
+            Yc = Y - Y.mean(axis=1, keepdims=True)
+            Z = Yc - Yc.mean(axis=0, keepdims=True)
+            i0 = np.arange(N)
+            M = np.zeros((len(rows_j), N, N))
+            for r, j0 in enumerate(rows_j):
+                M[r, i0, (j0 + i0 + 1) % N] = 1.0
+            Mc = M - M.mean(axis=1, keepdims=True)
+            Mc = Mc - Mc.mean(axis=0, keepdims=True)
+            zs.append(Z.ravel())
+            Ps.append(Mc.reshape(-1, N))
+            n_obs += Y.size
+            n_rows += Y.shape[0]
+            n_par += Y.shape[0] + N - 1
+    if not zs:
+        return Repeatability(float("nan"), 0, 0, 0, float("nan"), dropped)
+    z = np.concatenate(zs)
+    P = np.concatenate(Ps)
+    phi, *_ = np.linalg.lstsq(P, z, rcond=None)
+    rank = int(np.linalg.matrix_rank(P)) if P.size else 0
+    res = z - P @ phi
+    dof = int(n_obs - n_par - rank)
+    rss = float(res @ res)
+    s = math.sqrt(rss / dof) if dof > 0 else float("nan")
+    return Repeatability(s, dof, n_obs, n_rows, rss, dropped)
+
+
+def _direction_tables(table: PolygonTable, S: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per direction at shift S: (mean over its runs of Table 1, number of readings per cell)."""
+    out = {}
+    runs = table.runs.get(S, {})
+    for d in sorted({k[1] for k in runs}):
+        ts = np.stack([t for k, t in runs.items() if k[1] == d])
+        cnt = np.sum(np.isfinite(ts), axis=0)
+        with np.errstate(invalid="ignore"):
+            mean = np.where(cnt > 0, np.nansum(ts, axis=0) / np.maximum(cnt, 1), np.nan)
+        out[d] = (mean, cnt)
+    return out
+
+
+def direction_difference(table: PolygonTable, beta_arcsec: np.ndarray, s_reading_arcsec: float
+                         ) -> dict[str, object] | None:
+    """α(θ) of one direction minus the other's (forward − backward), with the β of the whole data.
+
+    At every shift, α is computed per direction from that direction's readings (eqs. 3, 7; faces whose
+    row is complete in that direction). ``u`` is the standard uncertainty of the difference from the
+    reading repeatability alone (s/√n per cell; β is common and cancels), i.e. what the difference
+    would scatter by without hysteresis. Returns ``theta_deg, value, u`` (sorted by θ; several shifts
+    at one θ are kept separately), ``chi2`` = Σ(value/u)², its ``dof`` (points) and ``p_value`` (the
+    test "no θ-dependent hysteresis"), ``rms``, ``rms_systematic`` = √max(0, mean(value²) − mean(u²))
+    (the part of the difference that the repeatability does not explain), and ``offset_arcsec``: the
+    mean difference of the setup errors U (forward − backward), a constant hysteresis, which eq. 7
+    puts into U and which therefore does not bias α. None with fewer than two directions.
+    """
+    N = table.n_faces
+    b = np.asarray(beta_arcsec, dtype=float)
+    dirs = sorted({k[1] for S in table.shifts_deg for k in table.runs.get(float(S), {})})
+    if len(dirs) < 2:
+        return None
+    d1, d2 = ("forward", "backward") if {"forward", "backward"} <= set(dirs) else (dirs[0], dirs[1])
+    th, val, uu, offs = [], [], [], []
+    for S in table.shifts_deg:
+        S = float(S)
+        per = _direction_tables(table, S)
+        if d1 not in per or d2 not in per:
+            continue
+        got = {}
+        for d in (d1, d2):
+            mean, cnt = per[d]
+            faces = np.flatnonzero(np.all(np.isfinite(mean), axis=1)) + 1
+            if faces.size == 0:
+                break
+            r = encoder_error_arcsec(mean[faces - 1], faces, b, S,
+                                     u_eps_arcsec=s_reading_arcsec / np.sqrt(cnt[faces - 1]))
+            got[d] = (faces, r)
+        if len(got) < 2:
+            continue
+        (f1, r1), (f2, r2) = got[d1], got[d2]
+        th.append(r1["theta_deg"])
+        val.append(r1["alpha"] - r2["alpha"])
+        uu.append(np.sqrt(r1["u_alpha"] ** 2 + r2["u_alpha"] ** 2))
+        common = np.intersect1d(f1, f2)
+        offs += [float(r1["U"][np.searchsorted(f1, j)] - r2["U"][np.searchsorted(f2, j)]) for j in common]
+    if not th:
+        return None
+    th_a, v, u = np.concatenate(th), np.concatenate(val), np.concatenate(uu)
+    order = np.argsort(th_a, kind="stable")
+    th_a, v, u = th_a[order], v[order], u[order]
+    ok = u > 0
+    chi2 = float(np.sum((v[ok] / u[ok]) ** 2))
+    dof = int(np.count_nonzero(ok))
+    from scipy import stats
+
+    p = float(stats.chi2.sf(chi2, dof)) if dof else float("nan")
+    rms = float(np.sqrt(np.mean(v**2)))
+    rms_sys = float(np.sqrt(max(0.0, float(np.mean(v**2) - np.mean(u**2)))))
+    return {"directions": [d1, d2], "theta_deg": th_a, "value": v, "u": u, "chi2": chi2, "dof": dof, "p_value": p,
+            "rms": rms, "rms_systematic": rms_sys, "max_abs": float(np.max(np.abs(v))),
+            "offset_arcsec": float(np.mean(offs)) if offs else float("nan"), "n_offset_rows": len(offs)}
+
+
+def alpha_scatter_by_rep(table: PolygonTable, beta_arcsec: np.ndarray) -> dict[str, object] | None:
+    """Hsieh sec. 3.3 (1): the standard deviation over the repetitions of the whole method of α(θ),
+    each repetition's α from its own readings (directions averaged) and the common β. Returns
+    ``theta_deg``, ``sd`` (per θ, shifts kept separately), ``n_reps``, ``max_sd``; None with < 2 reps."""
+    b = np.asarray(beta_arcsec, dtype=float)
+    reps = sorted({k[0] for S in table.shifts_deg for k in table.runs.get(float(S), {})})
+    if len(reps) < 2:
+        return None
+    th_all, sd_all = [], []
+    for S in table.shifts_deg:
+        S = float(S)
+        runs = table.runs.get(S, {})
+        alphas = []
+        faces_ref = None
+        for rp in reps:
+            ts = [t for k, t in runs.items() if k[0] == rp]
+            if not ts:
+                continue
+            st_ = np.stack(ts)
+            cnt = np.sum(np.isfinite(st_), axis=0)
+            mean = np.where(cnt > 0, np.nansum(st_, axis=0) / np.maximum(cnt, 1), np.nan)
+            faces = np.flatnonzero(np.all(np.isfinite(mean), axis=1)) + 1
+            if faces.size == 0:
+                continue
+            faces_ref = faces if faces_ref is None else faces_ref
+            alphas.append(encoder_error_arcsec(mean[faces - 1], faces, b, S)["alpha"])
+        if len(alphas) >= 2:
+            th_all.append(nominal_theta_deg(table.n_faces, S))
+            sd_all.append(np.std(np.stack(alphas), axis=0, ddof=1))
+    if not th_all:
+        return None
+    th, sd = np.concatenate(th_all), np.concatenate(sd_all)
+    order = np.argsort(th, kind="stable")
+    return {"theta_deg": th[order], "sd": sd[order], "n_reps": len(reps), "max_sd": float(np.max(sd))}
 
 
 def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals: int = 9

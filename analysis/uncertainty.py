@@ -367,8 +367,9 @@ def shift_angle_budget(*, u_repeat_alpha: float, dof_repeat_alpha: float, n_face
                        ac_resolution: float = 0.0, ac_traceability_U: float = 0.0, ac_traceability_k: float = 2.0,
                        ac_error_half_width: float = 0.0, encoder_resolution: float = 0.0,
                        setup_residual: float = 0.0, setup_misalignment: float = 0.0,
-                       type_b_relative: float = 0.10, title: str = "Combined uncertainty for shift-angle method"
-                       ) -> UncertaintyBudget:
+                       type_b_relative: float = 0.10, title: str = "Combined uncertainty for shift-angle method",
+                       sensitivity_beta: float | None = None, direction_difference: float | None = None,
+                       dof_direction: float | None = None) -> UncertaintyBudget:
     """The budget of α for the shift-angle method, Hsieh 2022 sec. 3.3 items (1)-(8), eq. 10, Table 3.
 
     Group "measured value uncertainty, ε" (sensitivity 1): (1) repeatability ``u_repeat_alpha``
@@ -378,6 +379,13 @@ def shift_angle_budget(*, u_repeat_alpha: float, dof_repeat_alpha: float, n_face
     (6) residual setup-error calculation d (eq. 7 vs curve fit) → d/(2√3). Then (7) repeatability of β
     with sensitivity 1/n − 8/(9n²) (eq. 11) and (8) the polygon setup error (misalignment m → m/(2√3)).
     Type-B dofs from ``type_b_relative`` (10 % → 50, GUM G.4.2). Inputs in arcsec.
+
+    ``sensitivity_beta`` replaces eq. 11 where the estimator's own sensitivity is known (the data
+    pipeline takes it from the Jacobian of α with respect to β). ``direction_difference``: the part of
+    α(forward) − α(backward) that the repeatability does not explain (hysteresis that depends on θ);
+    the direction-averaged α lies midway, so a reading in one direction is off by up to half of it:
+    (9) rectangular of half-width Δ/2, u = Δ/(2√3), ν from ``dof_direction`` (default as type B).
+    Omitted (not even a zero row) when None.
     """
     nu_b = dof_from_relative_uncertainty(type_b_relative)
     rt3 = math.sqrt(3.0)
@@ -390,9 +398,13 @@ def shift_angle_budget(*, u_repeat_alpha: float, dof_repeat_alpha: float, n_face
     b.add("Resolution of the rotary encoder", encoder_resolution / (2 * rt3), 1.0, nu_b, group=g,
           distribution="rectangular")
     b.add("Residual setup error calculation", setup_residual / (2 * rt3), 1.0, nu_b, group=g, distribution="rectangular")
-    b.add("Repeatability of the pitch angle deviation measurement", u_repeat_beta, estler_sensitivity(n_faces),
+    c_beta = estler_sensitivity(n_faces) if sensitivity_beta is None else float(sensitivity_beta)
+    b.add("Repeatability of the pitch angle deviation measurement", u_repeat_beta, c_beta,
           dof_repeat_beta, distribution="t")
     b.add("setup error uncertainty", setup_misalignment / (2 * rt3), 1.0, nu_b, distribution="rectangular")
+    if direction_difference is not None:
+        b.add("Direction difference (forward − backward)", abs(float(direction_difference)) / (2 * rt3), 1.0,
+              nu_b if dof_direction is None else dof_direction, distribution="rectangular")
     return b
 
 

@@ -189,3 +189,82 @@ def test_tabulate_heads_averages_reps_and_names_bad_rows():
         v = vals.copy()
         v[2] = np.nan
         sc.tabulate_heads(th, head, v, 3)
+
+
+# --------------------------------------------------------------------------- what the twin showed (issue 6)
+
+
+def _radial_motion_heads(g, theta, heads_deg, dx, dy):
+    """Head j's reading error a_j(θ) = g(θ − ψ_j) + m_j(θ): g a property of the disk, m_j(θ) =
+    −(d_x(θ)·cos ψ_j + d_y(θ)·sin ψ_j) the axis' lab-fixed radial error motion seen at head j (already
+    divided by the radius, arcsec). Returns (α = a_1, δ = a_1 − a_j per head)."""
+    psi = np.deg2rad(np.asarray(heads_deg))
+    a = np.column_stack([g(np.mod(theta - p, 360.0)) - (dx(theta) * np.cos(q) + dy(theta) * np.sin(q))
+                         for p, q in zip(heads_deg, psi)])
+    return a[:, 0], a[:, :1] - a
+
+
+def test_equally_spaced_sets_found_among_heads():
+    assert sc.equally_spaced_sets(sc.SELFA_HEADS_DEG) == sc.SELFA_SETS
+    assert sc.equally_spaced_sets([0.0, 90.0, 180.0, 270.0]) == {"NH4": [1, 2, 3, 4]}
+    assert sc.equally_spaced_sets([0.0, 180.0, 100.0]) == {"NH2": [1, 2]}
+    assert sc.equally_spaced_sets([0.0, 100.0, 220.0]) == {}
+    # a set that does not contain head 1
+    assert sc.equally_spaced_sets([0.0, 30.0, 210.0]) == {"NH2@2": [2, 3]}
+
+
+def test_set_averages_cancel_the_axis_radial_error_motion_single_heads_do_not():
+    """The twin's hsieh2022 axis has an order-3 radial error motion (bearing waviness): head j sees
+    −(d·t_j)/r, which is not head 1's error shifted by ψ_j. Averaging equally spaced heads cancels it
+    (Σ_j t_j = 0), so eq. 9 per set recovers α = g + m_1; the head-level least squares does not."""
+    th = np.arange(360.0)
+    g = series({2: (1.0, 0.3), 3: (0.4, 1.1), 5: (0.1, 0.2), 7: (0.2, 0.4)})
+    dx = lambda x: 0.09 * np.cos(3 * np.deg2rad(x) + 0.4)  # noqa: E731 (0.025 µm / 60 mm ≈ 0.09″)
+    dy = lambda x: 0.09 * np.sin(3 * np.deg2rad(x) + 0.4)  # noqa: E731
+    alpha, d = _radial_motion_heads(g, th, sc.SELFA_HEADS_DEG, dx, dy)
+    assert np.ptp(alpha - g(th)) > 0.15  # the motion is part of head 1's error α
+    sets = sc.selfcal_fourier(th, sc.SELFA_HEADS_DEG, d, sets=sc.SELFA_SETS)
+    np.testing.assert_allclose(sets.value_arcsec, alpha - alpha.mean(), atol=1e-9)
+    heads = sc.selfcal_fourier(th, sc.SELFA_HEADS_DEG, d)  # every head on its own
+    assert np.max(np.abs(heads.value_arcsec - (alpha - alpha.mean()))) > 0.03
+    assert heads.residual_rms_arcsec > 0.05  # the single heads' δ do not fit a disk-only model
+
+
+def test_off_grid_set_folds_harmonics_above_nyquist_grid_sets_do_not():
+    """On a 1° grid, heads at multiples of 1° (sets of 3 and 4) obey eq. 8 exactly for the samples of a,
+    whatever a holds above harmonic 180; the set of 7 (51.43°) needs interpolation and folds such
+    content. Preferring on-grid sets leaves only the multiples of 12 to the 7-set, whose error is then
+    covered by u_model."""
+    th = np.arange(360.0)
+    rng = np.random.default_rng(2022)
+    harm = {int(k): (0.025, float(rng.uniform(0, 6.28))) for k in rng.choice(np.arange(181, 900), 150, replace=False)}
+    harm.update({2: (1.0, 0.3), 3: (0.4, 1.1), 12: (0.05, 0.2), 36: (0.03, 1.0)})
+    a = series(harm)
+    d = sc.head_deltas_arcsec(a, th, sc.SELFA_HEADS_DEG)
+    truth = a(th)
+    # the samples' own spectrum, without what the sets cannot see (84, 168) and the Nyquist term
+    C = np.fft.rfft(truth)
+    C[[0, 84, 168, 180]] = 0.0
+    ref = np.fft.irfft(C, 360)
+    grid = sc.selfcal_fourier(th, sc.SELFA_HEADS_DEG, d, sets=sc.SELFA_SETS, u_delta_arcsec=0.0)
+    mixed = sc.selfcal_fourier(th, sc.SELFA_HEADS_DEG, d, sets=sc.SELFA_SETS, u_delta_arcsec=0.0,
+                               prefer_on_grid=False)
+    err_grid, err_mixed = grid.value_arcsec - ref, mixed.value_arcsec - ref
+    assert grid.set_on_grid == {"NH3": True, "NH4": True, "NH7": False}
+    assert np.sqrt(np.mean(err_grid**2)) < 0.5 * np.sqrt(np.mean(err_mixed**2))
+    # what is left is in the multiples of 12 (only the 7-set sees them)
+    E = np.abs(np.fft.rfft(err_grid))
+    k = np.arange(E.size)
+    assert np.all(E[k % 12 != 0] < 1e-9)
+    assert grid.u_model_arcsec > 0.0
+    assert np.sqrt(np.mean(err_grid**2)) < 2.0 * grid.u_model_arcsec
+    assert np.max(np.abs(err_grid)) < 4.0 * grid.u_model_arcsec
+    assert mixed.u_model_arcsec == 0.0
+
+
+def test_exact_data_zero_u_delta_still_weighs_the_heads():
+    """u_delta = 0 (exact data: repetitions that agree) used to zero every weight and return α = 0."""
+    d = sc.head_deltas_arcsec(A_TRUE, TH, sc.SELFA_HEADS_DEG)
+    r = sc.selfcal_fourier(TH, sc.SELFA_HEADS_DEG, d, sets=sc.SELFA_SETS, u_delta_arcsec=0.0)
+    np.testing.assert_allclose(r.value_arcsec, without(HARM, lambda k: k % 84 == 0)(TH), atol=1e-9)
+    assert np.max(r.u_arcsec) < 1e-9

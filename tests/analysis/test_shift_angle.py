@@ -502,3 +502,89 @@ def test_pipeline_forward_backward_directions_and_theta_jitter():
     assert r["repeatability"]["max_sd_eps_arcsec"] > h  # the two directions differ by 2h
     with pytest.raises(sa.PolygonDataError, match="direction"):
         analyze_polygon({k: np.concatenate([v, v[:1]]) for k, v in cols.items()}, N)
+
+
+# --------------------------------------------------------------------------- repeatability and directions (issue 6)
+
+
+def _runs(N, shifts, reps, sigma, h_fn, seed, alpha=ALPHA):
+    """Readings of ``reps`` clampings (a new setup error per rep, shift and start face), each swept
+    forward and backward; ``h_fn(theta_deg)`` is added forward and subtracted backward (hysteresis)."""
+    rng = np.random.default_rng(seed)
+    beta = make_beta(N, seed + 1)
+    parts = []
+    for r in range(reps):
+        base = sa.synthesize_readings(alpha, beta, setup_fn(seed + 10 + r), shifts)
+        n = base["ac_arcsec"].size
+        for d, sgn in (("forward", 1.0), ("backward", -1.0)):
+            c = {k: v.copy() for k, v in base.items()}
+            c["ac_arcsec"] = c["ac_arcsec"] + sgn * h_fn(c["theta_deg"]) + rng.normal(0.0, sigma, n)
+            c["rep"] = np.full(n, r)
+            c["direction"] = np.array([d] * n, dtype=object)
+            parts.append(c)
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    tab = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
+                              theta_deg=cols["theta_deg"], rep=cols["rep"], direction=cols["direction"])
+    return cols, tab, beta
+
+
+def test_reading_repeatability_from_the_model_residuals_not_from_direction_pairs():
+    """Forward/backward pairs and re-clampings are not repetitions of one value: a constant hysteresis
+    ±h and the setup error of each clamping go into the row offsets, the scatter of one reading is
+    what is left, with ν = readings − Σ(run-rows + N − 1) − (N − 1)."""
+    N, R, sigma, h = 12, 3, 0.02, 0.3
+    cols, tab, _ = _runs(N, [0.0, 5.0, 10.0], R, sigma, lambda th: np.full(th.shape, h), 100)
+    rep = sa.reading_repeatability(tab)
+    per_dir_s0 = R * N * N - (R * N + N - 1)
+    per_dir_other = R * N - (R + N - 1)
+    assert rep.dof == 2 * per_dir_s0 + 4 * per_dir_other - (N - 1) == 847
+    assert rep.n_readings == cols["ac_arcsec"].size and not rep.dropped
+    assert rep.s_arcsec == pytest.approx(sigma, rel=0.1)
+    # the within-cell scatter of the old estimate is dominated by 2h and the clampings' setup errors
+    assert tab.pooled_sd()[0] > 5 * sigma
+    # one run, both directions, one start face at the other shifts (the twin's hsieh2022 with 1 rep)
+    _, tab1, _ = _runs(24, [0.0] + list(np.arange(1.0, 15.0)), 1, sigma, lambda th: np.zeros(th.shape), 101)
+    assert sa.reading_repeatability(tab1).dof == 1035
+    # a missing reading drops that run-row (and says so)
+    keep = ~((cols["shift_deg"] == 0.0) & (cols["start_face"] == 3) & (cols["step"] == 4) & (cols["rep"] == 1)
+             & (cols["direction"] == "forward"))
+    t2 = sa.tabulate_polygon(cols["shift_deg"][keep], cols["start_face"][keep], cols["step"][keep],
+                             cols["ac_arcsec"][keep], N, rep=cols["rep"][keep], direction=cols["direction"][keep])
+    r2 = sa.reading_repeatability(t2)
+    assert r2.dropped == [(0.0, 1, "forward", 3)] and r2.dof == rep.dof - (N - 1)
+
+
+def test_direction_difference_separates_theta_dependent_hysteresis_from_noise():
+    N, sigma = 12, 0.02
+    # constant hysteresis: no θ-dependent difference, the offset shows in U
+    _, tab, beta = _runs(N, [0.0, 5.0, 10.0], 2, sigma, lambda th: np.full(th.shape, 0.3), 200)
+    s = sa.reading_repeatability(tab).s_arcsec
+    res = sa.shift_angle_analysis(tab, s_reading_arcsec=s)
+    dd = sa.direction_difference(tab, res.beta_arcsec, s)
+    assert dd["directions"] == ["forward", "backward"]
+    assert dd["offset_arcsec"] == pytest.approx(0.6, abs=0.01)
+    assert dd["p_value"] > 0.001 and dd["rms_systematic"] < 0.01
+    np.testing.assert_allclose(res.shifts[0].alpha_arcsec, ALPHA(res.shifts[0].theta_deg), atol=4 * sigma)
+    # θ-dependent hysteresis ±0.05·sin(3θ): detected, and its size estimated
+    _, tab, beta = _runs(N, [0.0, 5.0, 10.0], 2, sigma, lambda th: 0.05 * np.sin(3 * np.deg2rad(th)), 201)
+    s = sa.reading_repeatability(tab).s_arcsec
+    assert s == pytest.approx(sigma, rel=0.15)  # α per direction: the hysteresis is not scatter
+    res = sa.shift_angle_analysis(tab, s_reading_arcsec=s)
+    dd = sa.direction_difference(tab, res.beta_arcsec, s)
+    assert dd["p_value"] < 1e-6
+    assert dd["rms_systematic"] == pytest.approx(0.1 / np.sqrt(2), rel=0.15)  # Δ = 2·0.05·sin(3θ)
+    # one direction only: nothing to compare
+    one = sa.tabulate_polygon(*(c for c in (np.zeros(9), np.repeat(np.arange(1, 4), 3), np.tile(np.arange(1, 4), 3),
+                                            np.arange(9.0))), 3)
+    assert sa.direction_difference(one, np.zeros(3), 0.01) is None
+
+
+def test_alpha_scatter_over_reps_is_the_papers_repeatability():
+    """Hsieh sec. 3.3 (1): sd over the repetitions of the whole method, per θ (here 3 reps)."""
+    N, sigma = 12, 0.05
+    _, tab, beta = _runs(N, [0.0, 10.0, 20.0], 3, sigma, lambda th: np.zeros(th.shape), 300)
+    sc_ = sa.alpha_scatter_by_rep(tab, beta)
+    assert sc_["n_reps"] == 3 and sc_["theta_deg"].size == 3 * N
+    # one start face at S ≠ 0, both directions averaged: sd of α ≈ σ/√2·√(1 − 1/N)
+    other = sc_["sd"][~np.isin(np.round(sc_["theta_deg"] % 30.0, 6), [0.0])]
+    assert np.sqrt(np.mean(other**2)) == pytest.approx(sigma / np.sqrt(2) * np.sqrt(1 - 1 / N), rel=0.25)
