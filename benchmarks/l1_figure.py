@@ -63,7 +63,7 @@ def main() -> None:
     ax2.text(0.5, ax2.get_ylim()[1] * 0.95, "top bearing", fontsize=8, va="top")
     ax2.text((zb0 - zt0) * 1e3 + 0.5, ax2.get_ylim()[1] * 0.95, "bottom bearing", fontsize=8, va="top")
     ax2.axvline(-zt0 * 1e3, color="C3", ls="--", lw=0.8, label="jia2019 design (12 mm)")
-    ax2.set_xlabel("disk position relative to the top bearing (mm; + above, − between the bearings)")
+    ax2.set_xlabel("disk position above the top bearing (mm; < 0: between the bearings)")
     ax2.set_ylabel("peak-to-valley over one revolution (µm)")
     ax2.set_title("Moving the disk along the rotor (L1 changes)")
     ax2.legend(fontsize=8)

@@ -6,7 +6,12 @@ measures it on the shipped study (scenarios/studies/bearing_distance.toml, physi
 a fresh cache for every timed run (a cached re-run is timed separately). "Bare" is the physics
 point function called in a loop in this process: no validation, no pool, no cache, no table.
 
-    .venv/bin/python benchmarks/study_bench.py [--reps N] [--no-write]
+    .venv/bin/python benchmarks/study_bench.py [--reps N] [--full-reps N] [--no-write]
+
+A second, smaller table does the same for the ``full`` fidelity (simulate → analyze per
+point-run; ``FULL_STUDY`` below: the jia2019 bench with a reduced procedure so that one point-run
+takes seconds, not minutes); its bare loop calls ``twin.run.simulate_and_analyze`` +
+``study_outputs`` directly. ``--full-reps 0`` skips it.
 
 Prints a markdown table and writes it under "## Design studies" in docs/benchmarks.md (only that
 section is replaced; the rest of the file is left as it is).
@@ -29,6 +34,28 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "scenarios" / "studies" / "bearing_distance.toml"
 DOC = ROOT / "docs" / "benchmarks.md"
 SECTION = "## Design studies"
+
+
+FULL_STUDY = """
+[study]
+name = "full_bench"
+base = "jia2019"
+seed = 3
+repetitions = {reps}
+order = 3
+outputs = ["measured_angle_error_pv_arcsec", "predicted_angle_error_pv_arcsec", "residual_rms_arcsec",
+           "measured_angle_error_u_arcsec", "true_angle_error_pv_arcsec", "measurement_error_rms_arcsec"]
+[study.fixed]
+"procedure.radial_positions" = 36
+"procedure.radial_reps" = 2
+"procedure.ccd_step" = "30 deg"
+"instruments.ccd.width" = "512 px"
+"instruments.ccd.height" = "384 px"
+"bench.polygon_faces" = 8
+[[study.parameters]]
+key = "errors.eccentricity"
+values = ["2 um", "7.1 um"]
+"""
 
 
 def _study_copy(tmp: Path, reps: int) -> Path:
@@ -58,6 +85,59 @@ def bare(study_path: Path) -> tuple[float, int]:
     return time.perf_counter() - t0, n
 
 
+def bare_full(study_path: Path) -> tuple[float, int]:
+    """Sequential simulate → analyze over the full study's point-runs, no runner around it."""
+    from benchtwin.twin import run
+    from benchtwin.twin import study as st
+
+    study = st.load_study(study_path)
+    points = st.expand_points(study)
+    seeds = [st.rep_seed(study.seed, k) for k in range(study.repetitions)]
+    t0 = time.perf_counter()
+    n = 0
+    for pt in points:
+        for seed in seeds:
+            with tempfile.TemporaryDirectory(prefix="study-bench-bare-") as d:
+                res = run.simulate_and_analyze(pt.scenario, Path(d), rep_seed=seed, order=study.order,
+                                               close_loop=study.close_loop)
+                run.study_outputs(res, Path(d), study.outputs)
+            n += 1
+    return time.perf_counter() - t0, n
+
+
+def full_section(tmp: Path, reps: int) -> list[str]:
+    """Bare simulate → analyze loop vs the runner in-process, on 1 and on 2 local workers (one
+    timing each: a point-run is seconds, so start-up noise is small next to it)."""
+    sp = tmp / "full_bench.toml"
+    sp.write_text(FULL_STUDY.format(reps=reps), encoding="utf-8")
+    load0 = f"{os.getloadavg()[0]:.2f}"
+    t_bare, n = bare_full(sp)
+    rows = [("bare simulate → analyze, in-process loop", t_bare, n, 1, t_bare)]
+    for j, (label, nw, kw) in enumerate((("runner, in-process (workers=0)", 1, {"workers": 0}),
+                                         ("runner, local pool, 1 worker", 1, {"workers": 1}),
+                                         ("runner, local pool, 2 workers", 2, {"workers": 2}))):
+        t, r = timed(sp, tmp / f"full_{j}", **kw)
+        rows.append((label, t, r["rows"], nw, r["point_s"]))
+    lines = [
+        "",
+        "### Full fidelity",
+        "",
+        textwrap.fill(
+            f"The same measurement for the `full` fidelity (`FULL_STUDY` in the script: jia2019 with 8 "
+            f"polygon faces, 2 × 36 radial stops, 12 CCD frames of 512 × 384 px, analysis order 3; 2 points × "
+            f"{reps} repetitions = {n} point-runs, each a complete simulate → analyze, one task per "
+            "repetition). Bare = `twin.run.simulate_and_analyze` + `study_outputs` in a loop. One timing "
+            f"per row (fresh cache). Load average before/after: {load0} / {os.getloadavg()[0]:.2f}.", 100),
+        "",
+        "| run | wall time (s) | point-runs/s | s per point-run | overhead vs bare | runner share |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for label, t, k, nw, pt in rows:
+        lines.append(f"| {label} | {t:.1f} | {k / t:.3f} | {t / k:.1f} | {t / t_bare:.2f} | "
+                     f"{1 - pt / (nw * t):.0%} |")
+    return lines
+
+
 def timed(study_path: Path, out: Path, **kw) -> tuple[float, dict]:
     """Wall time of one run_study; ``r["point_s"]`` = Σ of the point functions' own times (workers)."""
     import pyarrow.parquet as pq
@@ -77,6 +157,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3,
                     help="time every run this many times (fresh cache each time) and keep the fastest: "
                          "the machine may be shared (default 2)")
+    ap.add_argument("--full-reps", type=int, default=2,
+                    help="repetitions per point of the full-fidelity table (2 points; default 2; 0 = skip)")
     ap.add_argument("--no-write", action="store_true", help="print only; leave docs/benchmarks.md alone")
     ns = ap.parse_args()
 
@@ -117,6 +199,7 @@ def main() -> None:
         t, r = timed(sp, out, workers=2)
         assert r["computed"] == 0
         rows.append(("re-run, all points cached", t, r["rows"], 2, float("nan")))
+        full_lines = full_section(tmp, ns.full_reps) if ns.full_reps > 0 else []
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -155,8 +238,9 @@ def main() -> None:
            ": both cores were available, so the 2-worker rows show the scaling.")
         + f" A re-run with every point cached costs {by['re-run, all points cached'][0]:.2f} s"
           " (validation, cache reads, tables, figures).", 100)]
-    lines.append("")
     lines[2] = textwrap.fill(lines[2], 100)
+    lines += full_lines
+    lines.append("")
     text = "\n".join(lines)
     print(text)
     if not ns.no_write:

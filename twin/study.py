@@ -944,6 +944,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     md = _markdown(study, summary_rows, verdict, fid_map, fidelity, computed, cached, wall_s, where, version)
     (out / "summary.md").write_text(md, encoding="utf-8")
     (out / "summary.html").write_text(_html(md), encoding="utf-8")
+    report = _report(study, _html(md), figures, out / "report.html")
     result = {
         "ok": True, "study": study.name, "out_dir": str(out), "points": len(points),
         "repetitions": study.repetitions, "rows": len(points) * study.repetitions,
@@ -952,7 +953,8 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
         "table_csv": str(out / "table.csv"), "table_parquet": str(out / "table.parquet"),
         "summary_csv": str(out / "summary.csv"), "summary_parquet": str(out / "summary.parquet"),
         "summary_md": str(out / "summary.md"),
-        "summary_html": str(out / "summary.html"), "figures": [str(f) for f in figures],
+        "summary_html": str(out / "summary.html"), "report_html": str(report),
+        "figures": [str(f) for f in figures],
         "target": verdict,
         "message": (verdict or {}).get("sentence") or
         f"study {study.name}: {len(points)} points × {study.repetitions} reps ({computed} computed, "
@@ -1124,6 +1126,25 @@ def _markdown(study: Study, rows: list[dict], verdict: dict | None, fid_map: dic
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
     return "\n".join(lines)
+
+
+def _report(study: Study, summary_html: str, figures: list[Path], path: Path) -> Path:
+    """The study's self-contained report: the written summary, then every figure embedded (PNG data
+    URIs, the analysis report's format), so it can be mailed or archived alone."""
+    import base64
+    import html as _h
+
+    from benchtwin.analysis.report.html import Report
+
+    rep = Report(f"Design study {study.name}")
+    rep.blocks.append(summary_html)
+    rep.heading("Figures")
+    for f in figures:
+        data = base64.b64encode(Path(f).read_bytes()).decode()
+        cap = f"{Path(f).stem.replace('_vs_', ' vs ')}: mean over the repetitions with its bands (see the summary)"
+        rep.blocks.append(f'<figure><img alt="{_h.escape(cap)}" src="data:image/png;base64,{data}">'
+                          f"<figcaption>{_h.escape(cap)}</figcaption></figure>")
+    return rep.write(path)
 
 
 def _html(md: str) -> str:

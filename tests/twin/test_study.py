@@ -194,6 +194,8 @@ def test_shipped_studies_validate():
         assert at12.scenario["bench"][k] == pytest.approx(base[k], abs=1e-12)
     hm = load_study(studies / "heads_mounting.toml")
     assert len(expand_points(hm)) == 16 * 2 and hm.run_fidelity == "physics"
+    cf = load_study(studies / "ccd_frames.toml")  # the shipped full-fidelity example
+    assert (len(expand_points(cf)), cf.run_fidelity, cf.close_loop, cf.order) == (3, "full", False, 5)
 
 
 # ---------------------------------------------------------------------------- validation
@@ -538,6 +540,10 @@ def test_tidy_csv_parquet_round_trip_and_summary(tmp_path):
     assert "bench.L1 = 2, 5, 10 mm" in md and "custom:" in md
     assert Path(r["summary_html"]).read_text().startswith("<section")
     assert all(Path(f).is_file() for f in r["figures"])
+    report = Path(r["report_html"]).read_text()  # self-contained: summary + embedded figures
+    assert report.startswith("<!DOCTYPE html>") and "Design study basic" in report
+    assert report.count("data:image/png;base64,") == len(r["figures"]) == 2
+    assert "stays below 1.2 arcsec" in report and "<table>" in report
 
 
 # ---------------------------------------------------------------------- the real physics
