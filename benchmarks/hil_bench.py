@@ -1,6 +1,11 @@
 """Hardware-in-the-loop benchmark: an emulated acquisition of N readings (radial-motion stops of
 the jia2019 bench, encoder + two probes per reading, Zaber stage moves) through the real drivers
-on pseudo-terminals. Prints throughput and memory per block of readings: both should stay flat.
+on pseudo-terminals (emulators and acquisition in this one process: both are traced). Prints
+throughput and memory per block of readings, and the flatness figures: traced-memory growth per
+reading from the first block to the last, and the ratio of the last block's rate to the second's
+(the first includes start-up), and the process CPU time per reading (emulator threads included:
+what the rate would be on an idle machine). Both should stay flat: the runner streams rows to
+the tables.
 
     .venv/bin/python benchmarks/hil_bench.py [--readings 10000] [--block 1000]
 """
@@ -39,7 +44,8 @@ def main() -> None:
         n[0] += 1
         if n[0] % a.block == 0:
             cur, _peak = tracemalloc.get_traced_memory()
-            marks.append((n[0], time.perf_counter(), cur, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss))
+            ru = resource.getrusage(resource.RUSAGE_SELF)
+            marks.append((n[0], time.perf_counter(), cur, ru.ru_maxrss, ru.ru_utime + ru.ru_stime))
 
     with EmulationSession(sc) as s:
         bench = s.start(d / "emu")
@@ -48,10 +54,20 @@ def main() -> None:
         bench.write_text(bench_text.split("[[procedure]]\ntype = \"polygon_shift_angle\"")[0])
         acquire(bench, d / "ds", progress=False, on_row=on_row)
     prev_n, prev_t = 0, t0
-    print(f"{'readings':>9} {'rows/s':>8} {'traced MiB':>11} {'maxrss MiB':>11}")
-    for k, t, cur, rss in marks:
-        print(f"{k:9d} {(k - prev_n) / (t - prev_t):8.1f} {cur / 2**20:11.2f} {rss / 1024:11.1f}")
-        prev_n, prev_t = k, t
+    rates = []
+    prev_cpu = marks[0][4] if marks else 0.0
+    print(f"{'readings':>9} {'rows/s':>8} {'CPU ms/row':>10} {'traced MiB':>11} {'maxrss MiB':>11}")
+    for k, t, cur, rss, cpu in marks:
+        rates.append((k - prev_n) / (t - prev_t))
+        cpu_ms = "" if k == marks[0][0] else f"{1e3 * (cpu - prev_cpu) / (k - prev_n):.2f}"
+        print(f"{k:9d} {rates[-1]:8.1f} {cpu_ms:>10} {cur / 2**20:11.2f} {rss / 1024:11.1f}")
+        prev_n, prev_t, prev_cpu = k, t, cpu
+    (k0, _, c0, r0, _), (k1, _, c1, r1, _) = marks[0], marks[-1]
+    print(f"traced growth {(c1 - c0) / (k1 - k0):.1f} B/reading ({(c1 - c0) / 2**20:+.2f} MiB over {k1 - k0} "
+          f"readings); max RSS {r0 / 1024:.1f} -> {r1 / 1024:.1f} MiB")
+    if len(rates) > 2:
+        print(f"rate last/second block {rates[-1] / rates[1]:.2f}; min/max over blocks 2.. "
+              f"{min(rates[1:]):.1f}/{max(rates[1:]):.1f} rows/s")
     print(f"total {n[0]} readings in {time.perf_counter() - t0:.1f} s; dataset {d / 'ds'}")
 
 
