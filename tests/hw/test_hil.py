@@ -19,8 +19,8 @@ the readings are the simulation's exactly, except head 1's displayed reading (``
 the ND display's 6 decimals, ±0.5e-6°) and ``t_s`` (wall clock against simulated time, not
 compared); CCD frames are byte-identical. The analysed results (radial δY, CCD e and θ0, polygon
 encoder error α, pitch deviations β, self-calibration error) must agree to 1e-9 in their units
-(µm, °, ″), i.e. far inside their standard uncertainties (≥ 1e-3 of those units here); the
-test also checks that each of those uncertainties is larger than 1e3 × the agreement bound.
+(µm, °, ″), far inside their standard uncertainties: the test checks that each of those
+uncertainties is larger than 1e3 × the agreement bound.
 """
 
 from __future__ import annotations
