@@ -239,6 +239,22 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     u_prop0 = np.where(np.isfinite(u_prop), u_prop, 0.0)
     u_tot = np.sqrt(u_prop0**2 + u_typeb**2)
     k = budget.k
+    # the paper's own way (sec. 3.3 (1), (7)): the largest sd over the repetitions of the whole method,
+    # /√n, with n − 1 dof — a worst case over θ (biased high: the maximum of many sample sds), shown
+    # beside the pooled budget; with it E_n is also given as the paper computes U (one U for all θ).
+    budget_paper = None
+    if by_rep is not None:
+        nr = by_rep["n_reps"]
+        nb = by_rep["n_reps_beta"]
+        budget_paper = un.shift_angle_budget(
+            u_repeat_alpha=by_rep["max_sd"] / math.sqrt(nr), dof_repeat_alpha=nr - 1, n_faces=N,
+            u_repeat_beta=by_rep["max_sd_beta"] / math.sqrt(nb) if nb >= 2 else 0.0,
+            dof_repeat_beta=max(nb - 1, 1), ac_resolution=ac_resolution_arcsec,
+            ac_traceability_U=ac_traceability_U_arcsec, ac_traceability_k=ac_traceability_k,
+            ac_error_half_width=ac_error_half_width_arcsec, encoder_resolution=encoder_resolution_arcsec,
+            setup_residual=setup_residual, setup_misalignment=setup_misalignment_arcsec,
+            type_b_relative=type_b_relative, title="Combined uncertainty, the paper's repeatability (max sd)")
+        budget_paper.p = p
     mc_out = None
     if mc_samples and budget.u_c > 0:
         mc = budget.monte_carlo(int(mc_samples), rng=np.random.default_rng(mc_seed))
@@ -276,9 +292,13 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         "budget_summary": {"u_c": budget.u_c, "nu_eff": budget.nu_eff, "k": k, "U": budget.U, "p": p,
                            "u_type_b": u_typeb, "sensitivity_beta": budget.contributions[6].sensitivity,
                            "monte_carlo": mc_out},
+        "budget_paper_repeatability": None if budget_paper is None else
+        {"rows": budget_paper.table(), "u_c": budget_paper.u_c, "nu_eff": budget_paper.nu_eff, "k": budget_paper.k,
+         "U": budget_paper.U},
         "selfcal_error_arcsec": None,
         "difference_arcsec": None,
         "en_max": None,
+        "en_max_paper_budget": None,
     }
     if res.beta_closure_arcsec is not None:
         out["certificate_minus_closure_arcsec"] = res.beta_arcsec - res.beta_closure_arcsec
@@ -335,5 +355,9 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
                                     "removed_from_shift_angle_rms": float(np.sqrt(np.mean((alpha - alpha_cmp) ** 2))),
                                     "max_abs": float(np.max(np.abs(diff)))}
         out["en_max"] = float(np.max(en))
+        out["difference_arcsec"]["fraction_en_above_1"] = float(np.mean(en > 1.0))
+        if budget_paper is not None:
+            en_p = un.en_number(alpha_cmp, budget_paper.U, mu_at, k_self * u_self_at)
+            out["en_max_paper_budget"] = float(np.max(en_p))
     out["notes"] = notes
     return _json(out)

@@ -846,7 +846,9 @@ def direction_difference(table: PolygonTable, beta_arcsec: np.ndarray, s_reading
 def alpha_scatter_by_rep(table: PolygonTable, beta_arcsec: np.ndarray) -> dict[str, object] | None:
     """Hsieh sec. 3.3 (1): the standard deviation over the repetitions of the whole method of α(θ),
     each repetition's α from its own readings (directions averaged) and the common β. Returns
-    ``theta_deg``, ``sd`` (per θ, shifts kept separately), ``n_reps``, ``max_sd``; None with < 2 reps."""
+    ``theta_deg``, ``sd`` (per θ, shifts kept separately), ``n_reps``, ``max_sd``, and (7) the sd over
+    the repetitions of β from each one's full table (``beta_sd``, ``max_sd_beta``, ``n_reps_beta``; NaN
+    without two full tables); None with < 2 reps."""
     b = np.asarray(beta_arcsec, dtype=float)
     reps = sorted({k[0] for S in table.shifts_deg for k in table.runs.get(float(S), {})})
     if len(reps) < 2:
@@ -876,7 +878,23 @@ def alpha_scatter_by_rep(table: PolygonTable, beta_arcsec: np.ndarray) -> dict[s
         return None
     th, sd = np.concatenate(th_all), np.concatenate(sd_all)
     order = np.argsort(th, kind="stable")
-    return {"theta_deg": th[order], "sd": sd[order], "n_reps": len(reps), "max_sd": float(np.max(sd))}
+    # sec. 3.3 (7): β of each repetition from its own full table, where it has one
+    betas = []
+    for S in table.shifts_deg:
+        runs = table.runs.get(float(S), {})
+        for rp in reps:
+            ts = [t for k, t in runs.items() if k[0] == rp]
+            if ts:
+                m = np.mean(np.stack(ts), axis=0)
+                if np.all(np.isfinite(m)):
+                    betas.append(pitch_deviation_arcsec(m)[0])
+        if len(betas) >= 2:
+            break
+        betas = []
+    sd_b = np.std(np.stack(betas), axis=0, ddof=1) if len(betas) >= 2 else None
+    return {"theta_deg": th[order], "sd": sd[order], "n_reps": len(reps), "max_sd": float(np.max(sd)),
+            "beta_sd": sd_b, "max_sd_beta": float(np.max(sd_b)) if sd_b is not None else float("nan"),
+            "n_reps_beta": len(betas)}
 
 
 def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals: int = 9

@@ -253,3 +253,38 @@ def test_twin_noise_off_beta_and_alpha_within_0p01_of_truth(twin_noise_off):
     assert np.max(np.abs(t["sc_err"])) < np.min(U_sc)
     # the two methods agree far inside ±0.1″ and E_n < 1
     assert r["difference_arcsec"]["max_abs"] < 0.05 and r["en_max"] < 0.5
+
+
+@pytest.mark.slow
+def test_twin_paper_noise_agreement_and_budget(tmp_path_factory):
+    """The hsieh2022 scenario as it stands (six runs, the paper's repeatability): issue 6's comparison.
+
+    What holds at every seed tried (see docs/benchmarks.md): β and α agree with the truth within their
+    u; the pooled budget has ν_eff of hundreds and k ≈ 1.97; with the paper's own repeatability (the
+    largest sd over the six runs) the budget reproduces Table 3 (ν_eff ≈ 10, k ≈ 2.2, U ≈ 0.15″) and
+    E_n < 1 everywhere, as the paper found (0.69). With the pooled u, the shift-angle α at a single
+    start face has σ ≈ 0.03″ and its largest excursion over ~330 points is ≈ 3σ ≈ 0.1″: the largest
+    per-point E_n is ≈ 1 (0.99…1.22 over four seeds) while at most a few points in a thousand exceed 1,
+    which is what a per-point 95 % criterion predicts — the largest difference is noise, not a bias."""
+    ds = _simulate(tmp_path_factory, "h22_paper")
+    r = _analyze_twin(ds)
+    t = _against_truth(ds, r)
+    u_b = np.array(r["polygon_pitch_deviation_u_arcsec"])
+    assert t["beta_rms"] < 2.0 * np.sqrt(np.mean(u_b**2))
+    u_sa = np.array(r["encoder_error_arcsec"]["u_propagated"])
+    # the truth is run 0's α; the mean of six runs differs from it by the axis' async motion too
+    assert np.sqrt(np.mean(t["sa_err"] ** 2)) < 1.3 * np.sqrt(np.mean(u_sa**2))
+    U_sc = np.array(r["selfcal_error_arcsec"]["U"])
+    assert np.mean(np.abs(t["sc_err"]) < np.interp(np.array(r["difference_arcsec"]["theta_deg"]),
+                                                    r["selfcal_error_arcsec"]["theta_deg"], U_sc)) > 0.95
+    assert np.sqrt(np.mean(t["sc_err"] ** 2)) < 0.02
+    bs = r["budget_summary"]
+    assert bs["nu_eff"] > 100 and 1.96 < bs["k"] < 2.0 and bs["monte_carlo"]["validated_1_digit"]
+    assert 0.12 < r["repeatability"]["alpha_sd_over_reps_max_arcsec"] < 0.16  # the paper: 0.13″
+    bp = r["budget_paper_repeatability"]
+    assert 7 < bp["nu_eff"] < 20 and 2.08 < bp["k"] < 2.4 and 0.12 < bp["U"] < 0.18
+    assert r["en_max_paper_budget"] < 1.0
+    d = r["difference_arcsec"]
+    assert d["fraction_en_above_1"] < 0.02
+    assert np.sqrt(np.mean(np.square(d["value"]))) < 0.05 and d["max_abs"] < 0.15
+    assert r["direction_difference"]["p_value"] > 1e-3  # the hsieh2022 bench has no friction
