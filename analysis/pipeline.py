@@ -60,6 +60,26 @@ def step_radial_motion(ds: Dataset, order: int) -> dict[str, Any]:
     )
 
 
+#: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
+#: end, a blank frame) is dropped, recorded (``ccd_rejected_frames``) and the sweep fitted on the
+#: remaining angles — eq. 10 is a least-squares fit and does not need equal spacing. The analysis
+#: aborts only when the remaining frames cannot carry the fit:
+#: - fewer than 2·order + 1 + ``CCD_MIN_DOF`` frames: eq. 10 has 2·order + 1 coefficients and the
+#:   type-A covariance of e and θ0 (from the fit residuals) needs a few residual degrees of freedom;
+#: - more than ``CCD_MAX_REJECTED_FRACTION`` of the frames rejected: then the failure is systematic
+#:   (focus, illumination, orientation, wrong period), not a contaminated frame, and dropping frames
+#:   would hide it.
+CCD_MIN_DOF = 3
+CCD_MAX_REJECTED_FRACTION = 0.25
+
+
+def ccd_frame_limits(n_frames: int, order: int) -> dict[str, int]:
+    """The smallest number of usable CCD frames the eccentricity fit accepts (see above)."""
+    by_fit = 2 * order + 1 + CCD_MIN_DOF
+    by_fraction = int(math.ceil((1.0 - CCD_MAX_REJECTED_FRACTION) * n_frames - 1e-9))
+    return {"min_frames": max(by_fit, by_fraction), "by_fit": by_fit, "by_fraction": by_fraction}
+
+
 def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]:
     from benchtwin.analysis import eccentricity as ecc
 
@@ -72,27 +92,52 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]
     # edge radius fixed where the manifest knows it (Jia: "r_fitting is already known") — a short arc
     # of a 22 mm circle does not determine its radius well.
     # Images are read twice rather than held: memory stays flat for long sweeps of large frames.
+    # A frame the image analysis rejects is dropped from that pass and recorded (module constants).
     n_frames = len(ds.table("ccd/index")["k"])
+    limits = ccd_frame_limits(n_frames, order)
+    rejected: dict[str, dict[str, Any]] = {}
+
+    def reject(f: str, theta: float, stage: str, exc: Exception) -> None:
+        msg = str(exc)
+        prefix = f"image {f!r}: "
+        rejected.setdefault(f, {"file": f, "theta_deg": float(theta), "stage": stage,
+                                "reason": msg[len(prefix):] if msg.startswith(prefix) else msg})
+
+    def check(n_used: int, what: str) -> None:
+        if n_used < limits["min_frames"]:
+            lst = "; ".join(f"{r['file']} ({r['stage']}): {r['reason']}" for r in list(rejected.values())[:5])
+            more = f" (and {len(rejected) - 5} more)" if len(rejected) > 5 else ""
+            raise DatasetError(
+                f"{ds.path / 'ccd'}: only {n_used} of {n_frames} CCD frames usable for the {what}; need ≥ "
+                f"{limits['min_frames']} (the order-{order} series of Jia eq. 10 has {2 * order + 1} coefficients "
+                f"+ {CCD_MIN_DOF} residual dof for u(e), and at most {CCD_MAX_REJECTED_FRACTION:.0%} of the frames "
+                f"may be rejected before the failure counts as systematic). Rejected: {lst}{more}")
+
     scales = []
     for k, theta, image, f in ds.ccd_frames():
         try:
-            scales.append(ecc.pixel_scale_um(image, period_um)["pixel_um"])
+            scales.append(ecc.pixel_scale_um(image, period_um, name=f)["pixel_um"])
         except ecc.ImageAnalysisError as exc:
-            raise DatasetError(f"{ds.path / 'ccd' / f}: {exc}") from None
+            reject(f, theta, "pixel scale (eq. 13)", exc)
+    check(len(scales), "pixel scale (Jia eq. 13)")
     scale = float(np.median(scales))
     edge_mm = ds.bench.get("scale_edge_radius_mm")
     radius_px = edge_mm * 1000.0 / scale if edge_mm else None
     thetas, drefs_px, files = [], [], []
     bar = _progress(progress, n_frames, "CCD images")
     for k, theta, image, f in ds.ccd_frames():
+        bar.update()
+        if f in rejected:
+            continue  # its line ends were not found in the first pass: not trusted for d_ref either
         try:
             drefs_px.append(ecc.d_ref_px(image, ref, radius_px=radius_px, name=f)["d_ref_px"])
         except ecc.ImageAnalysisError as exc:
-            raise DatasetError(f"{ds.path / 'ccd' / f}: {exc}") from None
+            reject(f, theta, "d_ref (eqs. 10-12)", exc)
+            continue
         thetas.append(theta)
         files.append(f)
-        bar.update()
     bar.close()
+    check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
     dref_um = np.asarray(drefs_px) * scale
     res = ecc.eccentricity_from_dref(np.asarray(thetas), dref_um, camera_azimuth_deg=ccd["position_deg"], order=order)
     res["pixel_um"] = scale
@@ -100,6 +145,9 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]
     res["theta_deg"] = thetas
     res["d_ref_um"] = dref_um
     res["files"] = files
+    res["n_frames"] = n_frames
+    res["rejected_frames"] = list(rejected.values())
+    res["frame_limits"] = limits
     return res
 
 
@@ -194,9 +242,16 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             "eccentricity_u_fit_um": ecc.get("e_u_fit_um", ecc["e_u_um"]),
             "eccentricity_phase_u_fit_deg": ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"]),
             "eccentricity_u_async_um": ecc.get("u_async_h1_um"),
-            "ccd": {"pixel_um": ecc["pixel_um"], "n_images": len(ecc["files"]), "theta_deg": ecc["theta_deg"],
-                    "d_ref_um": ecc["d_ref_um"], "residual_rms_um": ecc.get("residual_rms_um")},
+            "ccd": {"pixel_um": ecc["pixel_um"], "n_images": len(ecc["files"]), "n_frames": ecc["n_frames"],
+                    "theta_deg": ecc["theta_deg"], "d_ref_um": ecc["d_ref_um"],
+                    "residual_rms_um": ecc.get("residual_rms_um"), "min_frames": ecc["frame_limits"]["min_frames"]},
+            "ccd_rejected_frames": ecc["rejected_frames"],
         })
+        if ecc["rejected_frames"]:
+            results["notes"].append(
+                f"CCD: {len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected and dropped "
+                f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
+                f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
         pol = step_polygon(ds)
         for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
@@ -341,6 +396,13 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
     if ecc is not None:
         rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
         rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
+        if ecc.get("rejected_frames"):
+            rep.paragraph(f"{len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected by the image analysis "
+                          f"and dropped; e and θ0 are fitted on the {len(ecc['files'])} remaining angles (the "
+                          f"least-squares fit of eq. 10 does not need equal spacing; ≥ {ecc['frame_limits']['min_frames']} "
+                          "frames are required).", note=True)
+            rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in ecc["rejected_frames"]],
+                      ["rejected frame", "θ", "step", "reason"])
     if model is not None:
         rep.heading("Predicted angle error (Jia eq. 5, fig. 15)")
         rep.figure(fj.fig_predicted_error(model), "Angle error predicted from eccentricity and radial motion")

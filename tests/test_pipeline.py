@@ -2,7 +2,8 @@
 
 Checks the contract of results.json (issue 5/6/7 keys), that the analysis runs with truth/ deleted
 and on a dataset declared as coming from another source, the disk-plane δY against truth with
-noise-free probes (issue 5: within 5 nm RMS), and clear errors for broken input."""
+noise-free probes (issue 5: within 5 nm RMS), clear errors for broken input, and a CCD frame the
+image analysis cannot use dropped and recorded (the fit needs ≥ 2·order + 4 frames and ≤ 25 % rejected)."""
 
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from benchtwin.twin.simulate import simulate
 # instruments and analysis are the same as for the full scenario.
 REDUCED = {
     "procedure.radial_positions": 72,
-    "procedure.ccd_step": "15 deg",
+    "procedure.ccd_step": "12 deg",  # 30 frames: room to drop a bad one (≥ 24 needed at order 10)
 }
 NOISE_FREE_PROBES = {
     "instruments.probe.repeatability": "0 um",
@@ -119,3 +120,42 @@ def test_broken_dataset_names_the_file(jia_small, tmp_path):
     p.write_text("\n".join(lines[:-1]) + "\n")  # one reading missing from the N×N table
     with pytest.raises(DatasetError, match="polygon.csv"):
         analyze(ds, tmp_path / "out", progress=False)
+
+
+def _blank_frames(ds: Path, n: int) -> list[str]:
+    """Replace the first n CCD frames by a uniform grey image (no line ends: the image analysis fails)."""
+    import cv2
+
+    files = [line.split(",")[2] for line in (ds / "ccd" / "index.csv").read_text().splitlines()[1:]]
+    for f in files[:n]:
+        img = cv2.imread(str(ds / "ccd" / f), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(ds / "ccd" / f), np.full_like(img, int(np.median(img))))
+    return files[:n]
+
+
+def test_bad_ccd_frame_is_dropped_and_recorded(jia_small, analysed, tmp_path):
+    ds = tmp_path / "scratched"
+    shutil.copytree(jia_small, ds, ignore=shutil.ignore_patterns("truth", "journal.jsonl"))
+    (bad,) = _blank_frames(ds, 1)
+    r = analyze(ds, tmp_path / "out", progress=False, close_loop=False)
+    res = json.loads(Path(r["paths"]["results"]).read_text())
+    rej = res["ccd_rejected_frames"]
+    assert [x["file"] for x in rej] == [bad] and rej[0]["reason"] and rej[0]["stage"]
+    assert res["ccd"]["n_images"] == res["ccd"]["n_frames"] - 1 == 29
+    # the remaining 29 angles (unequally spaced) give the same eccentricity within its uncertainty
+    full = analysed["results"]
+    assert res["eccentricity_um"] == pytest.approx(full["eccentricity_um"], abs=3 * full["eccentricity_u_um"] + 0.01)
+    assert res["eccentricity_phase_deg"] == pytest.approx(full["eccentricity_phase_deg"], abs=0.2)
+    assert any(bad in n for n in res["notes"])
+    html = Path(r["paths"]["report"]).read_text()
+    assert "rejected frame" in html and bad in html
+    assert analysed["results"]["ccd_rejected_frames"] == []
+
+
+def test_too_many_bad_ccd_frames_abort_naming_the_threshold(jia_small, tmp_path):
+    ds = tmp_path / "fogged"
+    shutil.copytree(jia_small, ds, ignore=shutil.ignore_patterns("truth", "journal.jsonl"))
+    bad = _blank_frames(ds, 7)  # 23 of 30 left: fewer than 2·10 + 1 + 3 = 24
+    with pytest.raises(DatasetError, match=r"only 23 of 30 CCD frames usable .* need ≥ 24") as ei:
+        analyze(ds, tmp_path / "out", progress=False, close_loop=False)
+    assert bad[0] in str(ei.value)
