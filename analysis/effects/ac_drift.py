@@ -33,15 +33,57 @@ SEPARATES_FROM = {
 }
 
 
+#: a drift is observable only through the part of the reading time, inside each run (closure group),
+#: that is not a function of θ: when every run reads the stops in the same θ order at the same pace
+#: (forward sweeps from the same start angle), t − t̄_run is a sawtooth in θ that any encoder error
+#: of that shape fits equally. Below this fraction of its variance left after removing every
+#: function of θ the drift is declared unobservable.
+MIN_FREE_FRACTION = 0.2
+
+
+def free_fraction(ev) -> float:
+    """Share of the run-centred reading time's variance not explained by a function of θ (stop
+    position) — what can tell a drift from an encoder error."""
+    t = np.asarray(ev.t_s, dtype=float)
+    g = np.asarray(ev.closure_group)
+    tc = t - (np.bincount(g, weights=t) / np.bincount(g))[g]
+    tot = float(np.sum(tc ** 2))
+    if tot <= 0:
+        return 0.0
+    cells = np.unique(np.asarray(ev.theta_bin), return_inverse=True)[1]
+    X = np.zeros((t.size, int(cells.max()) + 1))
+    X[np.arange(t.size), cells] = 1.0
+    Xc = X - np.vstack([np.bincount(g, weights=X[:, j]) / np.bincount(g) for j in range(X.shape[1])]).T[g]
+    beta, *_ = np.linalg.lstsq(Xc, tc, rcond=None)
+    return float(np.sum((tc - Xc @ beta) ** 2) / tot)
+
+
 def available(ev, ctx=None):
     t = np.asarray(ev.t_s, dtype=float)
     ok = t.size > 2 and np.all(np.isfinite(t)) and np.ptp(t) > 0
-    return ok, "" if ok else "no reading times"
+    if not ok:
+        return False, "no reading times"
+    if hasattr(ev, "closure_group") and hasattr(ev, "theta_bin"):
+        f = free_fraction(ev)
+        if f < MIN_FREE_FRACTION:
+            return False, (f"the reading order follows θ in every run (only {f:.0%} of the reading time's variance is "
+                           "not a function of θ): a drift is a θ sawtooth, indistinguishable from an encoder error; "
+                           "sweep backward as well, or start the runs at other angles")
+    return True, ""
 
 
 def design(ev, ctx=None):
     return np.asarray(ev.t_s, dtype=float)[:, None], ["drift_arcsec_per_s"]
 
+
+#: plausible drift: 0.02″/s (72″/h) is far beyond a thermally settled autocollimator (≲ 1″/h).
+MAX_RATE = 0.02
+
+
+def plausible(ev, params, u, ctx=None):
+    d = float(params.get("drift_arcsec_per_s", 0.0))
+    ok = abs(d) <= MAX_RATE
+    return ok, "" if ok else f"drift {d:.3g}″/s is beyond ±{MAX_RATE:g}″/s"
 
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)

@@ -58,6 +58,23 @@ def design(ev, ctx=None):
     return np.column_stack([a / 100.0, e * e]), ["gain_pct", "quad_per_arcsec"]
 
 
+#: plausible ranges: an autocollimator's scale is calibrated to well below 1 % (TriAngle: 0.25″ over
+#: ±1000″, 0.025 %); 5 % is a gross error. The non-linearity may not exceed ``MAX_QUAD_ARCSEC`` over
+#: the readings' own range (20 × the 0.25″ accuracy class).
+MAX_GAIN_PCT = 5.0
+MAX_QUAD_ARCSEC = 5.0
+
+
+def plausible(ev, params, u, ctx=None):
+    g = float(params.get("gain_pct", 0.0))
+    if abs(g) > MAX_GAIN_PCT:
+        return False, f"scale error {g:.3g} % is beyond ±{MAX_GAIN_PCT:g} %"
+    q = float(params.get("quad_per_arcsec", 0.0))
+    e2 = float(np.max(_eps(ev) ** 2)) if len(ev.theta_deg) else 0.0
+    if abs(q) * e2 > MAX_QUAD_ARCSEC:
+        return False, f"non-linearity {abs(q) * e2:.3g}″ over the readings' range is beyond {MAX_QUAD_ARCSEC:g}″"
+    return True, ""
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

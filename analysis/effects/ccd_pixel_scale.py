@@ -50,6 +50,17 @@ def design(ev, ctx=None):
     return (_ecc(ev) / 100.0)[:, None], ["scale_error_pct"]
 
 
+#: plausible range of the scale error: Jia's count (90 px over 3 periods) is good to ±1 px
+#: (±1.1 %); a wrong datasheet period or magnification of more than 10 % would show in the image
+#: as a visibly wrong line count.
+MAX_PCT = 10.0
+
+
+def plausible(ev, params, u, ctx=None):
+    s = float(params.get("scale_error_pct", 0.0))
+    ok = abs(s) <= MAX_PCT
+    return ok, "" if ok else f"scale error {s:.3g} % is beyond ±{MAX_PCT:g} %"
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

@@ -61,6 +61,14 @@ def _orders(ev, ctx):
     return ks
 
 
+def ambiguous_with(ev):
+    """Without X probes a motion of the axis along X (tangential at the head) is unmeasured: at any
+    harmonic it reads as −δX/r, a function of θ exactly like a division error (one head, no
+    self-calibration ratio to tell them apart). X probes on both spheres separate the two."""
+    radial = getattr(ev, "radial", None)
+    return [] if radial is not None and radial.has_x else ["tangential_motion"]
+
+
 def available(ev, ctx=None):
     ks = _orders(ev, ctx)
     return (bool(ks), "" if ks else "no significant harmonic of order 2…10 in the residual")
@@ -74,6 +82,18 @@ def heads(ev, params, heads_deg, ctx=None):
     """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
     return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
+
+#: plausible division error per harmonic: 20″ — encoders of this class (Mercury 3000: a few arcsec
+#: total accuracy) have sub-arcsecond low-order division errors.
+MAX_ARCSEC = 20.0
+
+
+def plausible(ev, params, u, ctx=None):
+    for k in ORDERS:
+        a = float(abs(complex(params.get(f"a{k}_arcsec", 0.0), params.get(f"b{k}_arcsec", 0.0))))
+        if a > MAX_ARCSEC:
+            return False, f"harmonic {k}: {a:.3g}″ is beyond {MAX_ARCSEC:g}″"
+    return True, ""
 
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)

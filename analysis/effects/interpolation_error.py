@@ -115,6 +115,18 @@ def heads(ev, params, heads_deg, ctx=None):
     return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
 
 
+#: plausible sub-division error: 10″ — one grating period of a 7069-line disk is 183″; an error of
+#: 1/18 of a period is a failed interpolator, not a calibration finding.
+MAX_ARCSEC = 10.0
+
+
+def plausible(ev, params, u, ctx=None):
+    for m in ORDERS:
+        a = float(abs(complex(params.get(f"c{m}_sin_arcsec", 0.0), params.get(f"c{m}_cos_arcsec", 0.0))))
+        if a > MAX_ARCSEC:
+            return False, f"order {m}: {a:.3g}″ is beyond {MAX_ARCSEC:g}″"
+    return True, ""
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

@@ -54,6 +54,18 @@ def design(ev, ctx=None):
     return (-_model(ev) / float(ev.optical_radius_mm))[:, None], ["delta_r_mm"]
 
 
+#: plausible range of Δr/r: a reading head mounted, or a disk ruled, more than 5 % (1.1 mm at
+#: r = 22 mm) off the datasheet radius is a gross assembly error that would be seen at once; a fit
+#: beyond it compensates something else (e.g. two cancelling gains).
+MAX_RELATIVE = 0.05
+
+
+def plausible(ev, params, u, ctx=None):
+    d = float(params.get("delta_r_mm", 0.0))
+    lim = MAX_RELATIVE * float(ev.optical_radius_mm)
+    ok = abs(d) <= lim
+    return ok, "" if ok else f"Δr = {d:.3g} mm is beyond ±{lim:.3g} mm ({MAX_RELATIVE:.0%} of r)"
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

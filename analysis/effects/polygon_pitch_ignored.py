@@ -63,6 +63,15 @@ def design(ev, ctx=None):
     return X, [f"pitch_cum_f{c}_arcsec" for c in range(1, N)]
 
 
+#: plausible leftover cumulative pitch: 10″ per face — a polygon certificate is good to ~0.1–0.5″.
+MAX_ARCSEC = 10.0
+
+
+def plausible(ev, params, u, ctx=None):
+    m = max((abs(float(v)) for v in params.values()), default=0.0)
+    ok = m <= MAX_ARCSEC
+    return ok, "" if ok else f"cumulative pitch {m:.3g}″ is beyond {MAX_ARCSEC:g}″"
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

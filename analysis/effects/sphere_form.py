@@ -74,15 +74,51 @@ def available(ev, ctx=None):
     return ok, "" if ok else "no residual harmonic that a sphere reading shows"
 
 
+#: variants: the form harmonic by harmonic (2 parameters each, any amplitude and phase up to the
+#: reading), or ``form_fraction``: the share f of the sphere's whole reading (orders 2…10) that is
+#: form (1 parameter; f = 1: the lobes are entirely form). The second predicts the residual's phase and
+#: amplitude ratios from the probe reading — a coincidence a division error would not reproduce.
+
+
 def design(ev, ctx=None):
     th = np.deg2rad(np.asarray(ev.theta_deg, dtype=float))
     r = radius_um(ev)
     cols, names = [], []
-    for s, k, w, _ in _plan(ev, ctx):
+    plan = _plan(ev, ctx)
+    for s, k, w, _ in plan:
         # ∫ sin kθ = −cos kθ / k ; ∫ cos kθ = sin kθ / k ; residual = −w ∫ f / r
-        cols += [w * np.cos(k * th) / (k * r) * ARCSEC_PER_RAD, -w * np.sin(k * th) / (k * r) * ARCSEC_PER_RAD]
+        cs, cc = w * np.cos(k * th) / (k * r) * ARCSEC_PER_RAD, -w * np.sin(k * th) / (k * r) * ARCSEC_PER_RAD
+        cols += [cs, cc]
         names += [f"{s}_h{k}_sin_um", f"{s}_h{k}_cos_um"]
+    if plan:
+        cols.append(_fraction_column(ev, _fraction_plan(ev, ctx)))
+        names.append("form_fraction")
     return (np.column_stack(cols) if cols else np.zeros((th.size, 0))), names
+
+
+def _fraction_plan(ev, ctx):
+    """[(sphere, k, w)] of the fraction variant: every order of eq. 7's series (2…10) of each sphere the
+    plan uses — a form is the whole reading's lobes, not only the ones the residual happens to flag."""
+    spheres = sorted({s for s, *_ in _plan(ev, ctx)})
+    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
+    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
+    return [(s, k, w[s]) for s in spheres for k in sorted(ev.radial.coefs(f"{s}_um"))]
+
+
+def _fraction_column(ev, fplan):
+    th = np.deg2rad(np.asarray(ev.theta_deg, dtype=float))
+    r = radius_um(ev)
+    out = np.zeros(th.size)
+    for s, k, w in fplan:
+        a, b = ev.radial.coefs(f"{s}_um")[k]   # the reading's own harmonic k (sin, cos), µm
+        out += (w * a * np.cos(k * th) - w * b * np.sin(k * th)) / (k * r) * ARCSEC_PER_RAD
+    return out
+
+
+def variants(names):
+    """Parameter subsets tried (tracing): per-harmonic form, or one fraction of the reading."""
+    per = [n for n in names if n != "form_fraction"]
+    return [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]
 
 
 def predict(ev, params, ctx=None):
@@ -90,7 +126,12 @@ def predict(ev, params, ctx=None):
 
 
 def plausible(ev, params, u, ctx=None):
-    """(ok, reason): the fitted form may not exceed the sphere reading's amplitude by more than 3u."""
+    """(ok, reason): the fitted form may not exceed the sphere reading's amplitude by more than 3u;
+    the fraction of the reading that is form lies in 0…1 (within 3u)."""
+    if "form_fraction" in params:
+        f, uf = float(params["form_fraction"]), float(u.get("form_fraction", 0.0))
+        if not -3 * uf <= f <= 1 + 3 * uf:
+            return False, f"form fraction {f:.3g} ± {uf:.2g} outside 0…1 of the reading"
     for s, k, w, a in _plan(ev, ctx):
         fs, fc = params.get(f"{s}_h{k}_sin_um", 0.0), params.get(f"{s}_h{k}_cos_um", 0.0)
         amp = float(np.hypot(fs, fc))
@@ -101,18 +142,27 @@ def plausible(ev, params, u, ctx=None):
 
 
 def aux(ev, ctx=None):
-    return {"r_um": radius_um(ev), "plan": [[s, k, w] for s, k, w, _ in _plan(ev, ctx)]}
+    plan = _plan(ev, ctx)
+    fplan = _fraction_plan(ev, ctx) if plan else []
+    return {"r_um": radius_um(ev), "plan": [[s, k, w] for s, k, w, _ in plan],
+            "fraction_plan": [[s, k, w] for s, k, w in fplan],
+            "reading": [list(ev.radial.coefs(f"{s}_um")[k]) for s, k, w in fplan]}
 
 
 def term(params, aux, base_terms=None):
     r = float(aux["r_um"])
     plan = aux["plan"]
+    fr = float(params.get("form_fraction", 0.0))
+    reading = aux.get("reading") or []
+
+    fplan = aux.get("fraction_plan") or []
 
     def fn(th):
         th = np.asarray(th, dtype=float)
         out = np.zeros_like(th)
-        for s, k, w in plan:
-            fs, fc = params.get(f"{s}_h{k}_sin_um", 0.0), params.get(f"{s}_h{k}_cos_um", 0.0)
+        lobes = [(s, k, w, params.get(f"{s}_h{k}_sin_um", 0.0), params.get(f"{s}_h{k}_cos_um", 0.0)) for s, k, w in plan]
+        lobes += [(s, k, w, fr * ra, fr * rb) for (s, k, w), (ra, rb) in zip(fplan, reading)]
+        for s, k, w, fs, fc in lobes:
             out += (w * fs * np.cos(k * th) - w * fc * np.sin(k * th)) / (k * r) * ARCSEC_PER_RAD
         return out
     return fn

@@ -3,41 +3,53 @@
 Jia et al. 2019, sec. 3.4, drops δX from eq. 4 (arcsin((δX + e sin φ)/r) ≈ 0): the optical radius
 does not change to first order, but the disk centre moving along X moves the lines under a head
 on +Y, a reading error −δX/r (docs/conventions.md: with the head on +Y the reading error is −c_x/r
-to first order). Residual: −g·δX_disk/r, δX_disk from the X probes by eq. 9; g = 1 when the model
-ignores δX completely.
+to first order). Eq. 5 describes the motion by ∫δY dθ/r instead; for a k-lobed whirl
+(δX = ±quadrature of δY) that term holds only 1/k of the −δX/r the head reads. Parameters:
 
-Without X probes δX is unknown. A rigid orbit's k-lobe component has two free numbers per harmonic
-in X for the two measured in Y, so the data can only support a "motion-shaped" surrogate: the
-measured δY lobes and their quadrature (a forward/backward whirl of the same lobes):
-−(p·δY + q·H[δY])/r. That basis is generic — a division error with those harmonics fits it too —
-so when it is chosen the result always carries an ambiguity set (context key ``generic``).
+- with X probes (δX_disk from them by eq. 9): ``gain`` g on −δX/r, and optionally ``radial_gain`` h
+  on −∫δY dθ/r (the share of eq. 5's motion term that is not there): residual = −(g·δX + h·∫δY)/r.
+  g = 1, h = 0 when eq. 5 is right for δY and only δX is missing; g = h = 1 when the head reads
+  the tangential component only (exact geometry, which the twin has): then the residual of a
+  k-lobed whirl is −(1 − 1/k)·δX/r.
+- without X probes δX is unknown. Two hypotheses remain: (a) the axis whirls along the lobes the Y
+  probes see, δX = ±H[δY] (H: quadrature): the basis −(p·H[δY] + h·∫δY)/r (p = ±1, h = 1 for a
+  whirl in the exact geometry), and a diagonal (in-phase, −q·δY/r) motion; (b) a motion along X
+  the Y probes do not see at all: any harmonic, indistinguishable from a division error. So
+  without X probes the result always carries an ambiguity set with graduation_error, and
+  graduation_error's carries tangential_motion (``ambiguous_with``): "add X probes".
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._base import ARCSEC_PER_RAD, fourier_eval, linear_predict, quadrature, radius_um, coefs_to_json, coefs_from_json
+from ._base import (ARCSEC_PER_RAD, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral, linear_predict,
+                    quadrature, radius_um)
 
 NAME = "tangential_motion"
 MEANING = (
     "The shaft's radial error motion along X (perpendicular to the head direction) moves the "
-    "grating lines tangentially under the head: a reading error −δX/r that Jia's eq. 5 (which keeps "
-    "only δY, through the optical radius) does not contain. Fitted with the X-probe data when "
-    "present (one gain), otherwise with a generic motion-shaped basis (δY and its quadrature), "
-    "which is then reported as ambiguous."
+    "grating lines tangentially under the head: a reading error −δX/r that Jia's eq. 5 does not "
+    "contain (it describes the motion by ∫δY dθ/r, which for a k-lobed whirl is only 1/k of it). "
+    "Fitted with the X-probe data when present (a gain on −δX/r, optionally one on −∫δY/r), "
+    "otherwise with a whirl-shaped basis built from the Y probes (δY, its quadrature, ∫δY); "
+    "without X probes it is always reported together with graduation_error (an X motion the Y "
+    "probes do not see is any function of θ)."
 )
 PARAMS = {"gain": "1 (X probes present; 1 = δX fully missing from the model)",
+          "radial_gain": "1 (share of eq. 5's ∫δY term that the head does not read)",
           "inphase_gain": "1 (no X probes)", "quadrature_gain": "1 (no X probes)"}
 CHANNELS = {
-    "alpha": "−g·δX_disk(θ)/r (or −(p·δY + q·H[δY])/r without X probes)",
+    "alpha": "−(g·δX_disk + h·∫δY dθ)/r (without X probes −(q·δY + p·H[δY] + h·∫δY dθ)/r)",
     "selfcal": "the same for head 1 (an encoder reading error)",
     "radial": "δX_disk from the X probes by eq. 9 (the regressor itself)",
     "ccd": "none",
     "heads": "head at azimuth ψ sees −δ·(tangent at ψ)/r: raw head differences resolve δX and δY",
 }
 #: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
-SUBSETS = [["gain"], ["inphase_gain"], ["quadrature_gain"], ["inphase_gain", "quadrature_gain"]]
+#: A variant is tried only when all its parameters are in the design (X probes or not).
+SUBSETS = [["gain"], ["gain", "radial_gain"], ["quadrature_gain"], ["inphase_gain", "quadrature_gain"],
+           ["quadrature_gain", "radial_gain"], ["radial_gain"]]
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = "X probes on both spheres; raw multi-head differences δ_(1,j) (heads at 90° see δX as a radial motion)."
 SEPARATES_FROM = {
@@ -66,23 +78,50 @@ def ambiguous_with(ev):
     return ["graduation_error"] if is_generic(ev) else []
 
 
+#: δX is used in the harmonics the X probes resolve (amplitude ≥ Z_RESOLVED type-A u): the other
+#: orders of eq. 7's series are the probes' noise (0.1 µm repeatability → ~0.007 µm per
+#: coefficient, 0.2″ RMS over orders 2…10 at r = 22 mm) and would only add it to the regressor.
+Z_RESOLVED = 3.0
+
+
+def x_orders(ev) -> list[int]:
+    return ev.radial.significant_orders("dX_um", Z_RESOLVED)
+
+
+def _k(ev):
+    return ARCSEC_PER_RAD / radius_um(ev)
+
+
 def design(ev, ctx=None):
-    r = radius_um(ev)
+    k = _k(ev)
+    radial = -ev.radial.integral_at(ev.theta_deg, "dY_um") * k
     if _has_x(ev):
-        dx = ev.radial.at(ev.theta_deg, "dX_um")
-        return (-dx / r * ARCSEC_PER_RAD)[:, None], ["gain"]
+        dx = ev.radial.at(ev.theta_deg, "dX_um", x_orders(ev))
+        return np.column_stack([-dx * k, radial]), ["gain", "radial_gain"]
     c = ev.radial.coefs("dY_um")
-    X = np.column_stack([-fourier_eval(ev.theta_deg, c), -fourier_eval(ev.theta_deg, quadrature(c))]) / r * ARCSEC_PER_RAD
-    return X, ["inphase_gain", "quadrature_gain"]
+    X = np.column_stack([-fourier_eval(ev.theta_deg, c) * k, -fourier_eval(ev.theta_deg, quadrature(c)) * k, radial])
+    return X, ["inphase_gain", "quadrature_gain", "radial_gain"]
 
 
 def regressor_perturbations(ev, params, ctx=None):
-    """The probe data's uncertainty propagated through the fitted gain(s) (errors in variables)."""
-    k = -ARCSEC_PER_RAD / radius_um(ev)
+    """The probe data's uncertainty propagated through the fitted gain(s) (errors in variables):
+    type A per Fourier coefficient and, for δX, the unmeasured sphere form (type B, as for δY)."""
+    k = -_k(ev)
+    cols = []
     if _has_x(ev):
-        return k * float(params.get("gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dX_um", "value")
-    return k * (float(params.get("inphase_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "value")
-                + float(params.get("quadrature_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "quadrature"))
+        g = float(params.get("gain", 0.0))
+        ks = x_orders(ev)
+        cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
+        form = getattr(ev, "sphere_form_um", None)
+        if form and g and ks:
+            cols.append(k * g * ev.radial.form_perturbations(ev.theta_deg, "dX_um", form / np.sqrt(6.0), "value", ks))
+    else:
+        cols.append(k * (float(params.get("inphase_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "value")
+                         + float(params.get("quadrature_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "quadrature")))
+    h = float(params.get("radial_gain", 0.0))
+    if h:
+        cols.append(k * h * ev.radial.perturbations(ev.theta_deg, "dY_um", "integral"))
+    return np.hstack(cols)
 
 
 def heads(ev, params, heads_deg, ctx=None):
@@ -93,8 +132,24 @@ def heads(ev, params, heads_deg, ctx=None):
     if not _has_x(ev):
         return None
     g = float(params.get("gain", 0.0))
-    dx = ev.radial.at(ev.theta_deg, "dX_um") / radius_um(ev) * ARCSEC_PER_RAD
+    dx = ev.radial.at(ev.theta_deg, "dX_um", x_orders(ev)) / radius_um(ev) * ARCSEC_PER_RAD
     return np.column_stack([-g * (1 - np.cos(np.deg2rad(p))) * dx for p in heads_deg])
+
+
+#: plausible gains: 1 is the physical value (the motion term entirely missing / not read); beyond
+#: −0.5…1.5 a regressor is fitting something else than the motion it stands for.
+GAIN_RANGE = (-0.5, 1.5)
+
+
+def plausible(ev, params, u, ctx=None):
+    lo, hi = GAIN_RANGE
+    for n in ("gain", "radial_gain"):
+        if n in params and not lo <= float(params[n]) <= hi:
+            return False, f"{n} = {float(params[n]):.3g} outside {lo}…{hi}"
+    for n in ("inphase_gain", "quadrature_gain"):
+        if n in params and abs(float(params[n])) > max(abs(lo), abs(hi)):
+            return False, f"{n} = {float(params[n]):.3g} beyond ±{max(abs(lo), abs(hi))}"
+    return True, ""
 
 
 def predict(ev, params, ctx=None):
@@ -102,16 +157,22 @@ def predict(ev, params, ctx=None):
 
 
 def aux(ev, ctx=None):
-    key = "dX_um" if _has_x(ev) else "dY_um"
-    return {"r_um": radius_um(ev), "coefs": coefs_to_json(ev.radial.coefs(key)), "x_probes": _has_x(ev)}
+    cx = ev.radial.coefs("dX_um" if _has_x(ev) else "dY_um")
+    if _has_x(ev):
+        cx = {k: v for k, v in cx.items() if k in x_orders(ev)}
+    return {"r_um": radius_um(ev), "coefs": coefs_to_json(cx),
+            "coefs_dY": coefs_to_json(ev.radial.coefs("dY_um")), "x_probes": _has_x(ev)}
 
 
 def term(params, aux, base_terms=None):
     c = coefs_from_json(aux["coefs"])
+    cy = coefs_from_json(aux.get("coefs_dY", aux["coefs"]))
     k = ARCSEC_PER_RAD / float(aux["r_um"])
+    h = float(params.get("radial_gain", 0.0))
     if aux["x_probes"]:
-        g = float(params["gain"])
-        return lambda th: -g * k * fourier_eval(np.rad2deg(th), c)
-    p, q = float(params["inphase_gain"]), float(params["quadrature_gain"])
+        g = float(params.get("gain", 0.0))
+        return lambda th: -k * (g * fourier_eval(np.rad2deg(th), c) + h * fourier_integral(np.rad2deg(th), cy))
+    p, q = float(params.get("inphase_gain", 0.0)), float(params.get("quadrature_gain", 0.0))
     cq = quadrature(c)
-    return lambda th: -k * (p * fourier_eval(np.rad2deg(th), c) + q * fourier_eval(np.rad2deg(th), cq))
+    return lambda th: -k * (p * fourier_eval(np.rad2deg(th), c) + q * fourier_eval(np.rad2deg(th), cq)
+                            + h * fourier_integral(np.rad2deg(th), cy))

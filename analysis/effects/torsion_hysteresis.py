@@ -42,6 +42,16 @@ def design(ev, ctx=None):
     return np.asarray(ev.direction, dtype=float)[:, None], ["half_hysteresis_arcsec"]
 
 
+#: plausible half-hysteresis: 20″ (1e-4 rad) of wind-up between disk and polygon would need a
+#: broken or very soft coupling.
+MAX_ARCSEC = 20.0
+
+
+def plausible(ev, params, u, ctx=None):
+    h = float(params.get("half_hysteresis_arcsec", 0.0))
+    ok = abs(h) <= MAX_ARCSEC
+    return ok, "" if ok else f"half hysteresis {h:.3g}″ is beyond ±{MAX_ARCSEC:g}″"
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
 

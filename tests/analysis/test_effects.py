@@ -30,7 +30,9 @@ CASES = {
     "tangential_motion": (dict(x_probes=True, inject={"tangential_motion": {"gain": 1.0}}), {"gain": 1.0}, True),
     "tilt_abbe": (dict(bottom_lobes=(2,), bottom_lobe_um=1.0, top_lobes=(3, 4, 5), noise_arcsec=0.05,
                        inject={"tilt_abbe": {"dL1_mm": 5.0}}), {"dL1_mm": 5.0}, False),
-    "ac_drift": (dict(inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}}), {"drift_arcsec_per_s": 1e-3}, True),
+    # forward and backward sweeps: reading order ≠ θ order (forward only, a drift is a θ sawtooth)
+    "ac_drift": (dict(directions=(1, -1), start_faces=range(1, 24, 2), inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}}),
+                 {"drift_arcsec_per_s": 1e-3}, True),
     "ac_scale": (dict(inject={"ac_scale": {"gain_pct": 0.3}}), {"gain_pct": 0.3}, False),
     "sphere_form": (dict(top_lobes=(2, 4, 5), bottom_lobes=(2, 4, 5),
                          inject={"sphere_form": {"k": 3, "amplitude_um": 0.08, "phase_rad": 0.7}}),
