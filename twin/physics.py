@@ -233,6 +233,7 @@ class Bench:
         self._centrifugal_N = float(br["unbalance"]) * self.speed_rad_s**2
         self._housing_m = np.zeros(4)      # constant race offsets (housing position), per tendon
         self._rep_cache: dict[int, dict] = {}
+        self._terms_cache: dict[tuple, Any] = {}
         self._q_last = np.zeros(6)
         self._cmd_last = 0.0
         self.last_iterations = 0
@@ -351,28 +352,63 @@ class Bench:
             self._rep_cache[rep] = p
         return p
 
+    def _race_terms(self, rep: int, include_async: bool) -> tuple:
+        """The harmonic terms of ``race_offsets_m`` for one rep, cached: every lobe and random
+        component is a·cos(f·θ + φ) or a·sin(f·θ + φ) on one of the four offsets, so the offsets are
+        C·cos(F·θ + Φ) + S·sin(F·θ + Φ) with (4, n) coefficient matrices C, S (one cos, one sin
+        and two small products per pose instead of Python loops)."""
+        key = (int(rep), bool(include_async and self.async_rms_m > 0))
+        t = self._terms_cache.get(key)
+        if t is not None:
+            return t
+        F: list[np.ndarray] = []
+        Ph: list[np.ndarray] = []
+        C: list[np.ndarray] = []
+        S: list[np.ndarray] = []
+
+        def add(f, ph, row, a, use_sin):
+            f, ph, a = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (f, ph, a))
+            c, s = np.zeros((4, f.size)), np.zeros((4, f.size))
+            (s if use_sin else c)[row] = a
+            F.append(f), Ph.append(ph), C.append(c), S.append(s)
+
+        if self.motion_table is None:
+            for i, s_ in enumerate(("top", "bottom")):
+                k, a, p = self._wav[s_]
+                if k.size:   # a lobe whirls: a·(cos(kθ − ψ), sin(kθ − ψ))
+                    add(k, -p, 2 * i, a, False)
+                    add(k, -p, 2 * i + 1, a, True)
+        if key[1]:
+            rp = self._rep_params(rep)
+            for i, s_ in enumerate(("top", "bottom")):
+                k, a, p = self.cage_lobes[s_]   # arg = k·(c·θ + φ_rep) − p
+                add(k * self.cage_ratio, k * rp["cage_phase"][i] - p, 2 * i, a, False)
+                add(k * self.cage_ratio, k * rp["cage_phase"][i] - p, 2 * i + 1, a, True)
+            for row in range(4):
+                add(rp["f"][row], rp["ph"][row], row, rp["a"][row], False)
+        if F:
+            Cm, Sm = np.concatenate(C, axis=1), np.concatenate(S, axis=1)
+            t = (np.concatenate(F), np.concatenate(Ph), Cm, Sm if np.any(Sm) else None)
+        else:
+            t = None
+        self._terms_cache[key] = t
+        return t
+
     def race_offsets_m(self, theta_rad: float, rep: int = 0, include_async: bool = True) -> np.ndarray:
         """Rolling-path offsets (top_x, top_y, bottom_x, bottom_y) at shaft angle θ, without the
         constant housing position: the rest positions of the four bearing springs."""
         th = float(theta_rad)
-        out = np.zeros(4)
         if self.motion_table is not None:
-            out += self._table_spline(math.fmod(th, TWO_PI) % TWO_PI)
+            out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
         else:
-            for i, s in enumerate(("top", "bottom")):
-                k, a, p = self._wav[s]
-                if k.size:
-                    arg = k * th - p
-                    out[2 * i] += np.dot(a, np.cos(arg))
-                    out[2 * i + 1] += np.dot(a, np.sin(arg))
-        if include_async and self.async_rms_m > 0:
-            rp = self._rep_params(rep)
-            for i, s in enumerate(("top", "bottom")):
-                k, a, p = self.cage_lobes[s]
-                arg = k * (self.cage_ratio * th + rp["cage_phase"][i]) - p
-                out[2 * i] += np.dot(a, np.cos(arg))
-                out[2 * i + 1] += np.dot(a, np.sin(arg))
-            out += np.sum(rp["a"] * np.cos(rp["f"] * th + rp["ph"]), axis=1)
+            out = np.zeros(4)
+        t = self._race_terms(rep, include_async)
+        if t is not None:
+            f, ph, Cm, Sm = t
+            arg = f * th + ph
+            out += Cm @ np.cos(arg)
+            if Sm is not None:
+                out += Sm @ np.sin(arg)
         if self.hidden:
             dx = self.hidden.race_x_offset_m(th)        # hidden tangential motion: X only
             out[0] += dx

@@ -39,6 +39,8 @@ from benchtwin.twin.pose import BenchPose
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
 
 GRADUATION_ORDERS = tuple(range(2, 11))
+# Fixed point g + E(g) = γ: stop when the step is ≤ 8 ulp of π (1.8e-15 rad = 3.7e-10″).
+GRADUATION_FIXED_POINT_TOL_RAD = 8 * math.ulp(math.pi)
 
 
 def _wrap_pi(x):
@@ -153,9 +155,13 @@ class SimEncoder:
         if self.graduation_error_rms_rad == 0 and not self._hidden_graduation():
             return gamma
         g = gamma - self.sim_graduation_error(gamma, t_s)
-        for _ in range(8):  # contraction factor |E'| ≲ 1e-4: converges in 2–3 steps
+        # Contraction factor |E'| ≲ 1e-4: the step shrinks ~1e4-fold per iteration, so a step of
+        # a few ulp of γ (|γ| ≤ π) leaves g within float rounding of the fixed point (≪ 1e-9″;
+        # a tolerance below one ulp would never be met and always ran all iterations).
+        tol = GRADUATION_FIXED_POINT_TOL_RAD
+        for _ in range(8):
             g_new = gamma - self.sim_graduation_error(g, t_s)
-            done = np.max(np.abs(g_new - g)) <= 1e-17
+            done = np.max(np.abs(g_new - g)) <= tol
             g = g_new
             if done:
                 break
