@@ -23,8 +23,10 @@ without the encoder's noise and quantisation), ``radial_motion.csv`` (per stop: 
 axis and disk centre motion in the disk plane δX/δY, sphere centres, α), ``polygon.csv`` (per
 reading: true angle, α, exact face angle, Σβ in Hsieh's numbering, U), ``polygon_beta.csv``,
 ``polygon_setup.csv`` (U_j per mounting and direction), ``ccd.csv`` (per image disk centre and
-edge radius in px), ``seeds.json``. Per-stop truth is recomputed after the run from the rows'
-tags (a second, independent posing), so it is the same for a resumed run.
+edge radius in px), ``seeds.json``. Per-reading truth is taken during the run from the very pose
+the instruments read (``_reading_truth``, O(1) per reading: the stop's pose at its own time, head
+1's exact reading from the servo's last evaluation); a resumed run re-does the journaled moves and
+waits (not the readings) so its state and truth are bit for bit those of an uninterrupted run.
 
 Same scenario and seed -> byte-identical dataset (no wall time, no host names are written).
 """
@@ -143,8 +145,25 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     writer = DatasetWriter(out, _manifest(sc, enc, cam, bench))
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
+    stage: SimRotaryStage = inst["stage"]
+    ac: SimAutocollimator = inst["autocollimator"]
+    truth_rows: dict[int, tuple] = {}
+
     def on_step(i, step, context, replay):
         state.on_step(i, step, context, replay)
+        if replay:
+            # Resume: re-do the journaled step's effect on the bench (moves and waits; readings and
+            # images come from the journal), so the state — poses, clock, servo — is bit for bit
+            # that of an uninterrupted run; the runner's re-issued last move then holds.
+            if isinstance(step, P.Move):
+                stage.move_to(step.target_deg)
+            elif isinstance(step, P.Wait):
+                state.clock.advance(step.seconds)
+            stage.sim_hold = True
+        else:
+            stage.sim_hold = False
+        if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
+            truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
         bar.update(1)
 
     def on_row(row, result):
@@ -160,7 +179,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
             cam.close()
 
     _write_tables(sc, writer, rows, enc)
-    _write_truth(sc, writer, rows, bench, inst)
+    _write_truth(sc, writer, rows, bench, inst, truth_rows)
     writer.close()
     return out
 
@@ -252,16 +271,37 @@ def _instrument_truth(inst: dict) -> dict:
     return out
 
 
-def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict) -> None:
+TRUTH_PROCEDURES = ("radial_motion", "polygon")
+
+
+def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
+                   ac: SimAutocollimator | None) -> tuple:
+    """The truth of the reading about to be taken: from the pose the instruments read (the stop's
+    pose, at its own time), O(1). (shaft angle, head 1's exact reading, axis δX/δY in the disk
+    plane, disk centre x/y, top and bottom sphere centres x/y, twist[, AC exact x, y, face seen,
+    polygon setup error]) — rad and m."""
+    p = st.pose
+    x0 = float(stage.last_exact[0] if stage.last_pose is p else enc.sim_exact_readings(p)[0])
+    ax = p.extra["axis_disk_plane_m"]
+    out = (float(p.shaft_angle_rad), x0, float(ax[0]), float(ax[1]), float(p.disk.pos[0]), float(p.disk.pos[1]),
+           float(p.sphere_top.pos[0]), float(p.sphere_top.pos[1]), float(p.sphere_bottom.pos[0]),
+           float(p.sphere_bottom.pos[1]), float(p.extra.get("twist_disk_to_polygon_rad", 0.0)))
+    if ac is not None:
+        ex, ey, face = ac.sim_exact_angles(p)
+        out += (float(ex), float(ey), int(face), float(st.polygon_setup_error_rad))
+    return out
+
+
+def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
+                 truth_rows: dict[int, tuple]) -> None:
     N = bench.n_faces
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
                                          "path": str(sc.path) if getattr(sc, "path", None) else None})
-    # An independent state + stage for the truth poses (the run's clock is not touched).
+    # An independent state + stage for the α grid (the run's clock is not touched).
     st = SimBenchState(bench, SimClock())
     enc = SimEncoder.sim_from_scenario(sc, st)
     stage = SimRotaryStage("truth_stage", st, enc)
-    ac = SimAutocollimator.sim_from_scenario(sc, st)
 
     def stop(tag, t_s: float = 0.0) -> tuple:
         # the clock at the reading's time (time-dependent hidden physics); the move adds its own
@@ -269,9 +309,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
         st.clock.set(float(t_s))
         st.apply_context(tag)
         stage.move_to(float(tag["target_deg"]))
-        p = st.pose
-        x = enc.sim_exact_readings(p)
-        return p, x
+        return st.pose, stage.last_exact
 
     # α on a fine grid of readings, every head (rep 0, forward).
     st.apply_context({"rep": 0, "direction": "forward"})
@@ -298,12 +336,9 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                               "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
                                               "sphere_bottom_y_um")}
         for r in radial:
-            p, x = stop(r["tag"], r["t_s"])
-            ax = p.extra["axis_disk_plane_m"]
-            vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(p.shaft_angle_rad),
-                    (x[0] - p.shaft_angle_rad) / ARCSEC, ax[0] * 1e6, ax[1] * 1e6, p.disk.pos[0] * 1e6,
-                    p.disk.pos[1] * 1e6, p.sphere_top.pos[0] * 1e6, p.sphere_top.pos[1] * 1e6,
-                    p.sphere_bottom.pos[0] * 1e6, p.sphere_bottom.pos[1] * 1e6)
+            phi, x0, *pos_m = truth_rows[r["i"]][:10]
+            vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(phi), (x0 - phi) / ARCSEC,
+                    *(v * 1e6 for v in pos_m))
             for k, v in zip(t, vals):
                 t[k].append(v)
         w.write_truth_table("radial_motion", t)
@@ -321,19 +356,17 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                              "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
         for r in poly:
             tag = r["tag"]
-            p, x = stop(tag, r["t_s"])
-            ex, ey, face = ac.sim_exact_angles(p)
+            phi, x0, *_, twist, ex, ey, face, setup_err = truth_rows[r["i"]]
             j, i = int(tag["start_face"]), int(tag["step"])
             bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
-            alpha = (x[0] - p.shaft_angle_rad) / ARCSEC
+            alpha = (x0 - phi) / ARCSEC
             U = ex / ARCSEC - alpha - bsum
-            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _theta(r), math.degrees(p.shaft_angle_rad),
-                    alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, st.polygon_setup_error_rad / ARCSEC,
-                    p.extra.get("twist_disk_to_polygon_rad", 0.0) / ARCSEC)
+            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _theta(r), math.degrees(phi),
+                    alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, setup_err / ARCSEC, twist / ARCSEC)
             for k, v in zip(t, vals):
                 t[k].append(v)
             setup.setdefault((tag["rep"], tag["shift_deg"], j, tag["direction"]), []).append(
-                (U, st.polygon_setup_error_rad / ARCSEC))
+                (U, setup_err / ARCSEC))
         w.write_truth_table("polygon", t)
         keys = list(setup)
         w.write_truth_table("polygon_setup", {

@@ -198,6 +198,13 @@ class SimRotaryStage:
         self.target_deg: float | None = None
         self.position_deg = 0.0
         self.last_iterations = 0
+        # The last stop's pose and its exact readings (every head; the servo's last evaluation),
+        # for the simulation's truth of the readings taken there (twin/simulate.py).
+        self.last_pose: BenchPose | None = None
+        self.last_exact: np.ndarray | None = None
+        # Resume (twin/simulate.py): the simulation has replayed the journaled moves itself, so the
+        # runner's re-issued move to where the bench stands holds (nothing moves, no time passes).
+        self.sim_hold = False
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "stage", "model": "sim rotary stage (twin)",
@@ -213,6 +220,11 @@ class SimRotaryStage:
         if not math.isfinite(target_deg) or (lim is not None and not lim[0] <= target_deg <= lim[1]):
             # hw.interfaces.RotaryStage contract: refused before anything moves or the clock runs
             raise SoftLimitError(self.name, target_deg, lim)
+        if self.sim_hold:
+            self.sim_hold = False
+            if self.target_deg == target_deg and self.last_pose is not None and st.pose is self.last_pose:
+                return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
+                        "iterations": 0}
         duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
         st.clock.advance(duration)
         target = math.radians(target_deg)
@@ -221,13 +233,15 @@ class SimRotaryStage:
         cmd = target + offset
         for it in range(1, self.max_iter + 1):
             pose = st.pose_at_command(cmd)
-            err = self.encoder.sim_exact_readings(pose)[0] - target
+            x = self.encoder.sim_exact_readings(pose)
+            err = x[0] - target
             if abs(err) <= self.tol_rad:
                 break
             cmd -= err
         else:
             raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
         self.last_iterations = it
+        self.last_pose, self.last_exact = pose, x
         self.command_rad = cmd
         self.target_deg = target_deg
         self.position_deg = target_deg
