@@ -308,7 +308,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
     if rm is not None:
         t = ds.table("radial_motion")
         radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-                              top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"))
+                              top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"), rep=t["rep"])
     sc_cal = pol.get("selfcal_error_arcsec")
     u_eps = float(pol["budget_summary"]["u_c"]) if pol.get("budget_summary") else 0.07
     rep = pol.get("repeatability") or {}
@@ -324,6 +324,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         optical_radius_mm=b["optical_radius_mm"], L1_mm=b["L1_mm"], L2_mm=b["L2_mm"],
         grating_period_um=b["grating_period_um"], encoder_lines=b.get("encoder_lines"),
         radial_term="radial_motion" if rm is not None else None,
+        u_floor_arcsec=max(float(u_read), u_eps),
     )
     ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
     tr = trace(ev)
@@ -429,6 +430,20 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
         status = tr["status"]
         names = ", ".join(e["name"] for e in tr["identified_effects"]) or "none"
         rep.paragraph(f"Status: {status}. Identified: {names}.")
+        rb_t, ra_t = tr["residual_before"], tr["residual_after"]
+        if tr["identified_effects"]:
+            pars = "; ".join(f"{e['name']}: " + ", ".join(f"{k} = {value_with_u(v, e['u'].get(k, float('nan')), '')}"
+                                                         for k, v in e["params"].items()) for e in tr["identified_effects"])
+            rep.paragraph(
+                f"The model lacked {names} ({pars}). Adding it brings the residual per polygon reading from "
+                f"{rb_t['rms_arcsec']:.3f}″ RMS ({rb_t['pv_arcsec']:.2f}″ P-V, {100 * rb_t['fraction_of_error']:.1f} % "
+                f"of the error) to {ra_t['rms_arcsec']:.3f}″ RMS ({ra_t['pv_arcsec']:.2f}″ P-V, "
+                f"{100 * ra_t['fraction_of_error']:.1f} %); noise floor {rb_t.get('noise_floor_arcsec', float('nan')):.3f}″ "
+                f"(u of one reading), χ² after {ra_t['chi2']:.0f} for {ra_t['dof']} dof (p = {ra_t['p_value']:.2g}).")
+        elif tr.get("partial_effects"):
+            rep.paragraph("Best candidate (not accepted, the residual after it is still significant): "
+                          + ", ".join(e["name"] for e in tr["partial_effects"])
+                          + f"; left: {', '.join(ra_t.get('signature_left') or [])}.", note=True)
         for e in tr["identified_effects"]:
             rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
                       [f"{e['name']}: parameter", "value"])

@@ -35,43 +35,80 @@ ROOT = Path(__file__).resolve().parents[1]
 HIDDEN_DIR = ROOT / "scenarios" / "hidden"
 SEEDS = (11, 22, 33, 44, 55, 66, 77, 88, 99, 110)
 
-# What each scenario should come out as (docs/effects.md, twin/hidden.py). "expect": the library
-# effect that should be named; "accept": outcomes that count as correct.
+# What each scenario should come out as (docs/effects.md, docs/hidden-suite.md, twin/hidden.py):
+# name → (the library effect that should be reported, what counts as correct, accepted outcomes).
+# "named": the effect identified alone; "ambiguous": inside an ambiguity set that the data cannot
+# split (the set is the correct answer, with its separating measurement); "ok (nothing)" for nulls
+# and absorbed effects; "ok (unexplained)" for the effect outside the library.
 EXPECTED = {
-    "null_a": ("none", "no effect named"),
-    "null_b": ("none", "no effect named"),
-    "null_paper": ("none", "no effect named; the paper's waviness leaves (1 − 1/k) of each k-lobed whirl, "
-                           "a tangential_motion-like residual, and its non-repeating motion has no model term"),
-    "graduation_error": ("graduation_error", "named"),
-    "optical_radius": ("optical_radius", "named or ambiguous with ccd_pixel_scale / ac_scale"),
-    "ccd_pixel_scale": ("ccd_pixel_scale", "named or ambiguous with optical_radius / ac_scale"),
-    "ccd_pixel_scale_pixel_only": ("none", "absorbed: the image scale is measured from the grating (Jia eq. 13)"),
-    "tangential_motion": ("tangential_motion", "named (X probes)"),
-    "tangential_motion_no_x": ("tangential_motion", "ambiguous with graduation_error (no X probes)"),
-    "tilt_abbe": ("tilt_abbe", "named (the worn bearing's whirl also leaves a tangential residual)"),
-    "ac_drift": ("ac_drift", "named (backward sweeps)"),
-    "ac_scale": ("ac_scale", "named (self-calibration)"),
-    "sphere_form": ("sphere_form", "ambiguous with graduation_error"),
-    "torsion_hysteresis": ("torsion_hysteresis", "named (both directions in one mounting)"),
-    "polygon_pitch_ignored": ("none", "absorbed: β from the closure of all start faces"),
-    "interpolation_error": ("interpolation_error", "named (shifts 0/5/10°)"),
-    "thermal_growth": ("unexplained", "unexplained (outside the library)"),
+    "null_a": ("none", "no effect named", {"ok (nothing)"}),
+    "null_b": ("none", "no effect named (X probes, 3 heads, shifts)", {"ok (nothing)"}),
+    "null_paper": ("tangential_motion",
+                   "named (X probes, as the default jia2019 bench): the paper's waviness whirls leave (1 − 1/k) of "
+                   "each lobe, which −δX/r describes and ∫δY does not (notes)", {"named"}),
+    "graduation_error": ("graduation_error", "named (X probes rule out a tangential motion)", {"named"}),
+    "optical_radius": ("optical_radius", "named or ambiguous with ccd_pixel_scale / ac_scale", {"named", "ambiguous"}),
+    "ccd_pixel_scale": ("ccd_pixel_scale", "named or ambiguous with optical_radius / ac_scale", {"named", "ambiguous"}),
+    "ccd_pixel_scale_pixel_only": ("none", "absorbed: the image scale is measured from the grating (Jia eq. 13)",
+                                   {"ok (nothing)"}),
+    "tangential_motion": ("tangential_motion", "named (X probes)", {"named"}),
+    "tangential_motion_no_x": ("tangential_motion", "ambiguous with graduation_error (no X probes)", {"ambiguous"}),
+    "tilt_abbe": ("tilt_abbe", "named or ambiguous with tangential_motion (one worn bearing: an L1 error only "
+                               "rescales the whirl at the disk; a height gauge separates them)", {"named", "ambiguous"}),
+    "ac_drift": ("ac_drift", "named (backward sweeps)", {"named"}),
+    "ac_scale": ("ac_scale", "named (self-calibration)", {"named"}),
+    "sphere_form": ("sphere_form", "named or ambiguous with graduation_error / tangential_motion (only a Donaldson "
+                                   "reversal or X probes tell form from motion)", {"named", "ambiguous"}),
+    "torsion_hysteresis": ("torsion_hysteresis", "named (both directions in one mounting)", {"named"}),
+    "polygon_pitch_ignored": ("none", "absorbed: β from the closure of all start faces", {"ok (nothing)"}),
+    "interpolation_error": ("interpolation_error", "named (shifts 0/5/10°)", {"named"}),
+    "thermal_growth": ("unexplained", "unexplained (outside the library: the pattern grows with time)",
+                       {"ok (unexplained)"}),
 }
 
+#: residual after within this factor of the noise floor (issue 7)
+FLOOR_FACTOR = 1.5
 
-NOTES = """## Why the suite's bench has no bearing waviness (and what `null_paper` shows)
 
-The twin poses the shaft exactly: a k-lobed race waviness is a whirl a·(cos(kθ − ψ), sin(kθ − ψ))
-of the axis, so the disk moves along X (tangentially at the head on +Y) as much as along Y. The
-head reads −δX/r exactly, while Jia eq. 5's radial term ∫δY dθ / r = −a·cos(kθ − ψ)/(k·r) holds
-only 1/k of it: the paper's 2/3/5-lobed waviness alone leaves (1 − 1/k) of each lobe, ≈ 0.9″ at
-k = 2 and 0.75″ at k = 3 — a residual that the library's `tangential_motion` describes (and, without
-X probes, `graduation_error` equally). Non-repeating motion (`async_rms`) has no model term at all.
-So the effect scenarios declare no waviness and no non-repeating motion (and no bearing friction:
-its twist is itself a direction hysteresis), so that the hidden effect is the only thing the model
-lacks; `null_paper` keeps the paper's bearing motion to show what the Jia model leaves on it. Only
-`tilt_abbe` keeps a (worn) bottom-bearing waviness, since ΔL1 needs a tilt motion to act on; its
-whirl also leaves a tangential residual there.
+NOTES = """## Notes: what the expected outcomes are, and why
+
+**The bench of the suite.** The twin poses the shaft exactly: a k-lobed race waviness is a whirl
+a·(cos(kθ − ψ), sin(kθ − ψ)) of the axis, so the disk moves along X (tangentially at the head on +Y)
+as much as along Y. The head reads −δX/r, while Jia eq. 5's radial term ∫δY dθ / r = −a·cos(kθ − ψ)/(k·r)
+holds only 1/k of it: the paper's 2/3/5-lobed waviness alone leaves (1 − 1/k) of each lobe, ≈ 0.9″ at
+k = 2. Non-repeating motion (`async_rms`) has no model term. So the effect scenarios declare no
+waviness, no non-repeating motion and no bearing friction (its twist is itself a direction
+hysteresis), so that the hidden effect is the only thing the model lacks. Only `tilt_abbe` keeps a
+(worn) bottom-bearing waviness, since ΔL1 needs a tilt motion to act on.
+
+**The noise floor.** Every scenario shares the declared bench of `null_a` and, for one seed, its
+random draws: the spheres' 0.014 µm form (Jia sec. 4.1) read as motion by eq. 7, the
+autocollimator's accuracy curve within its class, the reading noise. What the Jia model leaves on
+`null_a` (0.04–0.08″ RMS per reading) is therefore the floor of that seed; the analysis itself
+judges sizes against Hsieh's u_c of one α (≈ 0.12″, type A and B) and calls nothing below half of it
+a finding (docs/effects.md, `SIZE_GATE`).
+
+**`null_paper` (the paper's bench; decided outcome: tangential_motion named).** It keeps the paper's
+bearing waviness and non-repeating motion (0.06 µm), and — like the default `jia2019` bench now —
+X probes. The whirls leave (1 − 1/k) of each lobe: the model does lack the tangential motion, so
+"no effect" would be wrong; with the X probes it is named with its gain (≈ 0.5: the share of δX the
+∫δY term misses, k = 2 dominating). Without X probes the same residual is the set
+{tangential_motion, graduation_error} (as `tangential_motion_no_x` shows). The non-repeating motion is
+not an effect: its X part at the polygon's stops (~0.5″ per stop) is in the model's uncertainty,
+sized from the probes' rep-to-rep scatter, and it is the floor this bench cannot go below with one
+polygon rep.
+
+**Other expected outcomes.** `graduation_error` has X probes (they rule out a tangential motion);
+`tangential_motion_no_x` is the same hidden motion without them: the set {graduation_error,
+tangential_motion}. `sphere_form` has no X probes: a form and a motion without tangential component
+give the same residual, and a division error fits it harmonic by harmonic, so the set containing
+sphere_form is correct (a Donaldson reversal separates them). `tilt_abbe`'s tilt motion comes from one
+worn bearing, so every point of the shaft moves with the same lobes: a wrong L1 only rescales the
+extrapolated motion at the disk, which a whirl that is not quite circular does too — named, or the
+set {tilt_abbe, tangential_motion, …} (a height gauge separates them). `ac_drift` is 20″/h (7.2″/h
+changed α by 0.03″ RMS, below half the noise floor). `thermal_growth` (outside the library) must be
+unexplained: its 7th harmonic grows from run to run and the stationarity test refuses every
+stationary effect of the library.
 """
 
 
@@ -152,8 +189,17 @@ def run_one(path: str, seed: int, work: str) -> dict:
     rec["rms_before"] = rb.get("rms_arcsec")
     rec["rms_after"] = ra.get("rms_arcsec")
     rec["params"] = {e.get("name"): e.get("params") for e in res.get("identified_effects") or [] if isinstance(e, dict)}
-    expect = EXPECTED.get(name, ("?", ""))[0]
+    rec["u"] = {e.get("name"): e.get("u") for e in res.get("identified_effects") or [] if isinstance(e, dict)}
+    expect = EXPECTED.get(name, ("?", "", set()))[0]
     rec["outcome"] = classify(expect, rec["named"], rec["ambiguous"], rec["unexplained"])
+    # the tracing's residual per polygon reading (the basis of the noise floor below)
+    rt, rat = res.get("residual_test") or {}, res.get("residual_after_trace") or {}
+    rec["trace_rms_before"] = rt.get("rms_arcsec")
+    rec["trace_rms_after"] = rat.get("rms_arcsec")
+    rec["trace_p_after"] = rat.get("p_value")
+    rec["noise_floor_u_c"] = rt.get("noise_floor_arcsec")
+    rec["async_arcsec"] = (rt.get("async_motion") or {}).get("per_stop_arcsec") or 0.0
+    rec["ccd_rejected"] = [r.get("file") for r in res.get("ccd_rejected_frames") or []]
     return rec
 
 
@@ -181,10 +227,17 @@ def _hidden_summary(path: Path) -> str:
     return "<br>".join(parts)
 
 
+def is_correct(name: str, outcome: str) -> bool:
+    return outcome in EXPECTED.get(name, ("?", "", set()))[2]
+
+
 def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float) -> None:
-    by = {}
+    by: dict[str, dict[int, dict]] = {}
     for r in records:
         by.setdefault(r["scenario"], {})[r["seed"]] = r
+    # the noise floor of a seed: what the Jia model leaves on the same declared bench with nothing
+    # hidden (null_a, same seed → same declared draws: sphere form, autocollimator accuracy, noise)
+    floor = {s: (by.get("null_a", {}).get(s) or {}).get("trace_rms_before") for s in seeds}
     lines = [
         "# Hidden-effect suite (issue 7)",
         "",
@@ -198,56 +251,81 @@ def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float
         "  **unexplained**: the analysis reports an unexplained residual; **ok (nothing)**: a null or an",
         "  effect the measurement absorbs gives no identification; **FALSE**: something was named on a",
         "  null / absorbed scenario; **other**: a different effect was named; **nothing**: no finding.",
-        "- RMS before / after: residual of the Jia model vs the polygon's α, before and after adding the",
-        "  traced effect(s) (arcsec, median over seeds).",
+        "  Which outcomes count as correct is the `expected` column (`EXPECTED` in the script, reasons in",
+        "  the notes below).",
+        "- RMS before / after: the tracing's residual per polygon reading (α − Jia model, closure-centred),",
+        "  before and after the traced effect(s), arcsec, median over seeds.",
+        f"- floor: the noise floor of each seed = the RMS the Jia model leaves on `null_a` with the same seed",
+        "  (same declared bench and draws, nothing hidden), combined with the non-repeating motion the probes",
+        "  measured where the bench has one (`null_paper`: its X part at the stops, r·σ_async).",
+        "  **after/floor** is the worst seed's ratio;",
+        f"  issue 7 asks ≤ {FLOOR_FACTOR} where an effect is identified (named or ambiguous).",
         "",
         f"Seeds: {', '.join(map(str, seeds))}."
         + (f" Wall time {elapsed_s / 60:.1f} min (2 workers)." if math.isfinite(elapsed_s) else ""),
         "",
         "| scenario | hidden (truth) | expected | " + " | ".join(f"seed {s}" for s in seeds)
-        + " | correct | RMS before ″ | RMS after ″ |",
-        "| --- | --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- |",
+        + " | correct | RMS before ″ | RMS after ″ | after/floor (worst) |",
+        "| --- | --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- | --- |",
     ]
     total_ok = total = 0
+    floor_fail = []
+    med = (lambda v: v[len(v) // 2] if v else None)
     for name in sorted(by):
         rs = by[name]
-        exp, why = EXPECTED.get(name, ("?", ""))
+        why = EXPECTED.get(name, ("?", "", set()))[1]
         cells, ok = [], 0
+        ratios = []
         for s in seeds:
             r = rs.get(s)
             if r is None:
                 cells.append("not run")
                 continue
             if "error" in r:
-                e = r["error"]
-                cells.append("error: " + ("CCD image rejected" if "too few edge points" in e else e[:60]).replace("|", "/"))
+                cells.append("error: " + r["error"][:60].replace("|", "/"))
                 continue
             o = r["outcome"]
-            cells.append(o)
-            good = o in ("named", "ok (nothing)", "ok (unexplained)") or (o == "ambiguous" and "ambiguous" in why)
-            if o == "ambiguous" and "named or ambiguous" in why:
-                good = True
+            good = is_correct(name, o)
+            cells.append(o if good else f"**{o}**")
             ok += good
+            ra, fl = r.get("trace_rms_after"), floor.get(s)
+            if fl and r.get("async_arcsec"):  # the bench's own non-repeating motion (null_paper)
+                fl = math.hypot(fl, r["async_arcsec"])
+            if o in ("named", "ambiguous") and ra is not None and fl:
+                ratios.append(ra / fl)
+                if ra / fl > FLOOR_FACTOR:
+                    floor_fail.append(f"`{name}` seed {s}: {ra:.3f}″ after vs floor {fl:.3f}″ ({ra / fl:.2f}×)")
         n = sum(1 for s in seeds if s in rs and "error" not in rs[s])
         total_ok += ok
         total += n
-        rb = sorted(r["rms_before"] for r in rs.values() if r.get("rms_before") is not None)
-        ra = sorted(r["rms_after"] for r in rs.values() if r.get("rms_after") is not None)
-        med = (lambda v: v[len(v) // 2] if v else None)
+        rb = sorted(r["trace_rms_before"] for r in rs.values() if r.get("trace_rms_before") is not None)
+        ra = sorted(r["trace_rms_after"] for r in rs.values() if r.get("trace_rms_after") is not None)
         lines.append(f"| `{name}` | {_hidden_summary(HIDDEN_DIR / (name + '.toml'))} | {why} | "
-                     + " | ".join(cells) + f" | {ok}/{n} | {_fmt(med(rb))} | {_fmt(med(ra))} |")
-    lines += ["", f"**Correct outcomes: {total_ok}/{total}.**", ""]
+                     + " | ".join(cells) + f" | {ok}/{n} | {_fmt(med(rb))} | {_fmt(med(ra))} | "
+                     + (f"{max(ratios):.2f}" if ratios else "–") + " |")
+    lines += ["", f"**Correct outcomes: {total_ok}/{total}.** Floors (null_a, per seed): "
+              + ", ".join(f"{s}: {_fmt(floor[s])}″" for s in seeds) + ".", ""]
+    if floor_fail:
+        lines += [f"Residual after above {FLOOR_FACTOR}× the floor:", ""] + [f"- {x}" for x in floor_fail] + [""]
+    else:
+        lines += [f"Every identified case ends within {FLOOR_FACTOR}× the floor.", ""]
     errs = [r for r in records if "error" in r]
     if errs:
         lines += ["## Errors", ""]
         for r in errs:
             lines.append(f"- `{r['scenario']}` seed {r['seed']}: {r['error']}")
         lines.append("")
-    lines += [NOTES, "## Named effects and their parameters (first seed)", ""]
+    rej = [(r["scenario"], r["seed"], r["ccd_rejected"]) for r in records if r.get("ccd_rejected")]
+    if rej:
+        lines += ["CCD frames rejected and dropped by the analysis (the others fitted, `ccd_rejected_frames`): "
+                  + "; ".join(f"`{n}` seed {s}: {', '.join(f)}" for n, s, f in sorted(rej)) + ".", ""]
+    lines += [NOTES, "## Identified effects and their parameters (first seed; value ± u)", ""]
     for name in sorted(by):
         r = by[name].get(seeds[0]) or {}
         if r.get("params"):
-            lines.append(f"- `{name}`: " + "; ".join(f"{k}: {json.dumps(v)}" for k, v in r["params"].items()))
+            lines.append(f"- `{name}`: " + "; ".join(
+                f"{k}: " + ", ".join(f"{p} = {v:.4g} ± {r.get('u', {}).get(k, {}).get(p, float('nan')):.2g}"
+                                     for p, v in (ps or {}).items()) for k, ps in r["params"].items()))
     lines.append("")
     doc.write_text("\n".join(lines), encoding="utf-8")
 

@@ -114,7 +114,7 @@ def regressor_perturbations(ev, params, ctx=None):
         cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
         form = getattr(ev, "sphere_form_um", None)
         if form and g and ks:
-            cols.append(k * g * ev.radial.form_perturbations(ev.theta_deg, "dX_um", form / np.sqrt(6.0), "value", ks))
+            cols.append(k * g * ev.radial.form_perturbations(ev.theta_deg, "dX_um", form / np.sqrt(3.0), "value", ks))
     else:
         cols.append(k * (float(params.get("inphase_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "value")
                          + float(params.get("quadrature_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "quadrature")))

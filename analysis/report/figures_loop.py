@@ -24,6 +24,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..effects import ALL
+from ..effects._base import fourier_eval
 from ..tracing import Z_GATE, Evidence, _center
 
 __all__ = ["effect_contribution", "plot_residual_before_after", "plot_harmonic_spectrum", "plot_signature",
@@ -56,6 +57,9 @@ def effect_contribution(ev: Evidence, result: dict) -> np.ndarray:
     total = np.zeros(ev.n)
     for e in effects:
         total += ALL[e["name"]].predict(ev, e["params"], ctx)
+        adj = e.get("regressor_adjustment_coefs")
+        if adj:  # the measured regressor as adjusted by the joint fit (errors in variables)
+            total += fourier_eval(ev.theta_deg, {int(k): (float(v[0]), float(v[1])) for k, v in adj.items()})
     return _center(total, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
 
 

@@ -167,7 +167,9 @@ def test_result_is_json_ready_and_complete():
 
 
 def test_candidates_subset():
-    ev, _ = make_evidence(np.random.default_rng(22), inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}})
+    # forward and backward sweeps: the drift is not a θ pattern, so no encoder error can stand in for it
+    ev, _ = make_evidence(np.random.default_rng(22), directions=(1, -1), start_faces=range(1, 24, 2),
+                          inject={"ac_drift": {"drift_arcsec_per_s": 1e-3}})
     res = trace(ev, candidates=["graduation_error", "optical_radius"])
     assert res["status"] == "unexplained"  # the true effect is not among the candidates: no forced fit
     assert not res["identified_effects"]
@@ -313,3 +315,114 @@ def test_jia_eccentricity_uncertainty_hides_a_gain_on_the_eccentricity():
         assert set(ev.model_sensitivity) == {"u_e", "u_theta0"}
         res = trace(ev)
         assert res["status"] == "no_significant_residual", res["status"]
+
+
+# ---------------------------------------------------------------------------------------------
+# gates (issue 7 follow-up): plausibility, degenerate pairs, practical size, stationarity,
+# tangential motion without X probes, asynchronous motion
+# ---------------------------------------------------------------------------------------------
+
+def _cands(res, names):
+    return [c for c in res["candidates"] if sorted(c["names"]) == sorted(names)]
+
+
+def test_degenerate_cancelling_pair_is_rejected():
+    """Half of the ∫δY term missing from the data and a 0.3 % eccentricity gain: +gain on the whole
+    model and −gain on the eccentricity term cancel to leave −0.5·∫δY, with gains of ~50 %
+    (Δr = 11 mm): implausible and a degenerate pair — never an identification."""
+    ev, _ = make_evidence(np.random.default_rng(81), noise_arcsec=0.03)
+    ev.alpha_arcsec = (ev.alpha_arcsec - 0.5 * ev.model_terms["radial_motion_integral"]
+                       + 0.003 * ev.model_terms["eccentricity"])
+    res = trace(ev, candidates=["optical_radius", "ccd_pixel_scale"])
+    (pair,) = _cands(res, ["optical_radius", "ccd_pixel_scale"])
+    why = " ".join(pair["rejected_because"])
+    assert "degenerate pair" in why and "implausible" in why
+    assert abs(pair["params"]["optical_radius"]["delta_r_mm"]) > 5  # the fit itself is absurd
+    assert {e["name"] for e in res["identified_effects"]} != {"optical_radius", "ccd_pixel_scale"}
+    assert res["status"] == "unexplained"  # the single gain leaves the ∫δY part: not forced
+
+
+def test_physically_implausible_size_is_rejected():
+    """A head radius 11 % off the datasheet (2.5 mm at 22 mm) is beyond what any gain of the library
+    can plausibly be (radius 5 %, pixel scale 10 %, autocollimator 5 %): unexplained, not forced."""
+    ev, _ = make_evidence(np.random.default_rng(82), inject={"optical_radius": {"delta_r_mm": 2.5}})
+    res = trace(ev)
+    assert res["status"] == "unexplained" and not res["identified_effects"]
+    (c,) = _cands(res, ["optical_radius"])
+    assert any("implausible" in r and "5%" in r for r in c["rejected_because"])
+
+
+def test_small_effect_below_the_noise_floor_is_not_a_finding():
+    """A 0.1 % gain on the eccentricity term (0.047″ RMS) is resolved statistically by 529 readings
+    of 0.02″ noise, but it is below a quarter of a 0.25″ noise floor (u_c of one α): not a finding."""
+    kw = dict(noise_arcsec=0.02, inject={"ccd_pixel_scale": {"scale_error_pct": 0.1}})
+    ev, _ = make_evidence(np.random.default_rng(83), **kw)
+    res = trace(ev)
+    names = {e["name"] for e in res["identified_effects"]} | {n for a in res["ambiguous"] for n in a["names"]}
+    assert "ccd_pixel_scale" in names  # without a floor: statistically and practically significant
+    ev2, _ = make_evidence(np.random.default_rng(83), **kw)
+    ev2.u_floor_arcsec = 0.25
+    res2 = trace(ev2)
+    assert not res2["identified_effects"] and res2["residual_before"]["noise_floor_arcsec"] == 0.25
+    (c,) = _cands(res2, ["ccd_pixel_scale"])
+    assert any("noise floor" in r for r in c["rejected_because"])
+    assert c["f_test_p"] < 1e-3  # the F-test alone would have passed it
+
+
+def test_tangential_motion_without_x_probes_is_ambiguous_with_graduation():
+    """An X motion the Y probes do not see (independent X lobes) reads like a division error: the
+    answer is the set {graduation_error, tangential_motion} and the separating measurement names
+    the X probes; with the X probes the same data give tangential_motion alone."""
+    kw = dict(noise_arcsec=0.05, inject={"tangential_motion": {"gain": 1.0}})
+    ev, _ = make_evidence(np.random.default_rng(84), **kw)
+    res = trace(ev)
+    (amb,) = res["ambiguous"]
+    assert {"graduation_error", "tangential_motion"} <= set(amb["names"])
+    assert "X probes" in amb["separating_measurement"]
+    ev2, _ = make_evidence(np.random.default_rng(84), x_probes=True, **kw)
+    res2 = trace(ev2)
+    assert [e["name"] for e in res2["identified_effects"]] == ["tangential_motion"] and not res2["ambiguous"]
+    # and a division error with the X probes present is named alone (they exclude an X motion)
+    ev3, _ = make_evidence(np.random.default_rng(84), x_probes=True, inject={"graduation_error": {4: (0.4, 1.0)}})
+    res3 = trace(ev3)
+    assert [e["name"] for e in res3["identified_effects"]] == ["graduation_error"] and not res3["ambiguous"]
+
+
+def test_growing_pattern_is_not_stationary():
+    """A harmonic whose amplitude grows during the session is refused as a stationary effect: the
+    after-residual keeps 'the θ pattern changes with time'."""
+    ev, _ = make_evidence(np.random.default_rng(85), extra=_h7)
+    res = trace(ev)
+    assert res["status"] == "unexplained" and not res["identified_effects"]
+    tp = res["signature"]["time_pattern"]
+    assert tp["significant"] and 7 in tp["harmonics"]
+    assert any("changes with time" in x for x in res["unexplained_signature"]["left"])
+
+
+def test_async_motion_from_the_rep_to_rep_scatter():
+    """Non-repeating motion: smooth harmonics 1–3 drawn anew per rep (σ = 0.05 µm per coefficient,
+    0.087 µm RMS), probe noise 0.01 µm: its RMS is found, the noise subtracted; without it nothing is
+    claimed; in the fits it is one random offset per stop position."""
+    from benchtwin.analysis.tracing import RadialMotion, _Problem
+
+    rng = np.random.default_rng(86)
+    th = np.tile(np.arange(0.0, 360.0, 3.0), 5)
+    rep = np.repeat(np.arange(5), 120)
+    t = np.deg2rad(th)
+    base = 0.2 * np.sin(3 * t)
+    top, top0 = base + rng.normal(0, 0.01, th.size), base + rng.normal(0, 0.01, th.size)
+    for r in range(5):
+        m = rep == r
+        for k in (1, 2, 3):
+            top[m] += rng.normal(0, 0.05) * np.sin(k * t[m]) + rng.normal(0, 0.05) * np.cos(k * t[m])
+    bottom = 0.1 * np.sin(3 * t) + rng.normal(0, 0.01, th.size)
+    a = RadialMotion(th, top, bottom, 6.81, 122.96, rep=rep).async_rms("top_um")
+    assert a["significant"] and 0.05 < a["sigma_um"] < 0.13 and abs(a["noise_um"] - 0.01) < 0.0025
+    a0 = RadialMotion(th, top0, bottom, 6.81, 122.96, rep=rep).async_rms("top_um")
+    assert not a0["significant"] and a0["sigma_um"] == 0.0
+    assert RadialMotion(th, top, bottom, 6.81, 122.96).async_rms() == {}  # no reps: nothing claimed
+    ev, _ = make_evidence(np.random.default_rng(87))
+    ev.radial = RadialMotion(th, top, bottom, 6.81, 122.96, rep=rep)
+    ev.model_terms["radial_motion_integral"] = ev.radial.integral_at(ev.theta_deg, "dY_um") / 22000.0 * 206264.8
+    pb = _Problem(ev, use_selfcal=False)
+    assert pb.async_info["sigma_um"] > 0 and pb._async_cache.shape[1] == np.unique(ev.theta_bin).size  # one per stop
