@@ -100,6 +100,12 @@ class SimEncoder:
                               "phase_rad": ri.uniform(0, TWO_PI, 2)}
         # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
         self.hidden = None
+        self._harm_cols = None
+        self._line_err_ext = None
+        self._head_points = None
+        # (pose, exact readings) of the stage's last stop: read() there reuses them (the servo's
+        # last evaluation of the same pose); set by SimRotaryStage.move_to.
+        self.sim_last_exact: tuple | None = None
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "encoder") -> "SimEncoder":
@@ -141,13 +147,28 @@ class SimEncoder:
         if self.graduation_error_rms_rad == 0:
             return np.zeros_like(g)
         gf = g.reshape(-1)
-        out = (h["amplitude_rad"] @ np.cos(np.outer(h["order"], gf) - h["phase_rad"][:, None])).reshape(g.shape)
+        k_col, ph_col = self._harmonic_columns()
+        out = h["amplitude_rad"] @ np.cos(k_col * gf - ph_col)
         if self._line_err is not None:
-            x = np.mod(g, TWO_PI) / self.pitch_rad
-            i0 = np.floor(x).astype(int) % self.n_lines
-            f = x - np.floor(x)
-            out = out + (1 - f) * self._line_err[i0] + f * self._line_err[(i0 + 1) % self.n_lines]
-        return out
+            # linear interpolation between lines (the line after the last is line 0 again)
+            ext = self._line_err_ext
+            if ext is None or ext.size != self._line_err.size + 1:
+                ext = self._line_err_ext = np.append(self._line_err, self._line_err[0])
+            x = np.mod(gf, TWO_PI) / self.pitch_rad
+            fl = np.floor(x)
+            f = x - fl
+            i0 = fl.astype(np.intp) % self.n_lines
+            out = out + (1 - f) * ext[i0] + f * ext[i0 + 1]
+        return out.reshape(g.shape)
+
+    def _harmonic_columns(self) -> tuple[np.ndarray, np.ndarray]:
+        """(orders, phases) of the graduation harmonics as float column vectors (cached)."""
+        h = self.graduation_harmonics
+        c = self._harm_cols
+        if c is None or c[0] is not h["order"] or c[1] is not h["phase_rad"]:
+            c = self._harm_cols = (h["order"], h["phase_rad"], np.asarray(h["order"], dtype=float)[:, None],
+                                   np.asarray(h["phase_rad"], dtype=float)[:, None])
+        return c[2], c[3]
 
     def sim_graduation_value(self, gamma, t_s: float = 0.0) -> np.ndarray:
         """Value g of the graduation seen at body polar angle γ: solves g + E(g) = γ."""
@@ -181,8 +202,12 @@ class SimEncoder:
     # ------------------------------------------------------------------ geometry
     def sim_head_body_angles(self, pose: BenchPose) -> np.ndarray:
         """Body polar angle γ_j (about the disk's geometric centre) of each head's line of sight."""
-        az = 0.5 * math.pi + self.heads_rad
-        P = np.stack([self.radius_m * np.cos(az), self.radius_m * np.sin(az), np.zeros_like(az)], axis=1)
+        hp = self._head_points
+        if hp is None or hp[0] != self.radius_m or hp[1] is not self.heads_rad:
+            az = 0.5 * math.pi + self.heads_rad
+            P = np.stack([self.radius_m * np.cos(az), self.radius_m * np.sin(az), np.zeros_like(az)], axis=1)
+            hp = self._head_points = (self.radius_m, self.heads_rad, P)
+        P = hp[2]
         n = pose.disk.R[:, 2]
         c = pose.disk.pos
         t = ((c - P) @ n) / n[2]  # along lab z onto the disk plane
@@ -202,7 +227,8 @@ class SimEncoder:
 
     def read(self) -> dict[str, Any]:
         st = self.state
-        x = self.sim_exact_readings(st.pose)
+        c = self.sim_last_exact
+        x = c[1].copy() if c is not None and c[0] is st.pose else self.sim_exact_readings(st.pose)
         if self.noise_rad > 0:
             x = x + st.rng("encoder_noise", self.key).normal(0.0, self.noise_rad, x.size)
         if self.resolution_rad > 0:

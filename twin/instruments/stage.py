@@ -9,7 +9,9 @@
   finds the drive command at which head 1 of the encoder READS the target (the bench stops at
   commanded encoder readings, as a real servo closes its loop on the interpolated encoder signal),
   by fixed-point iteration on the exact (noise-free, unquantised) reading, to ``tol_arcsec``
-  (1e-6″ by default: 2.5e-6 of the 0.39″ resolution); advances the clock by the move time
+  (1e-6″ by default: 2.5e-6 of the 0.39″ resolution), starting from the command offset found
+  the last time the same target was approached in the same rep and direction (else the previous
+  stop's); advances the clock by the move time
   (trapezoidal profile, ``speed``/``accel``) and poses the bench there. Soft limits
   (``soft_limits_deg``, none by default) follow ``hw.interfaces.RotaryStage``'s contract: a target
   outside them raises ``SoftLimitError`` before anything moves or the clock advances.
@@ -205,6 +207,7 @@ class SimRotaryStage:
         # Resume (twin/simulate.py): the simulation has replayed the journaled moves itself, so the
         # runner's re-issued move to where the bench stands holds (nothing moves, no time passes).
         self.sim_hold = False
+        self._offsets: dict[tuple, float] = {}   # (target_deg, rep, direction) -> command − target
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "stage", "model": "sim rotary stage (twin)",
@@ -228,8 +231,13 @@ class SimRotaryStage:
         duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
         st.clock.advance(duration)
         target = math.radians(target_deg)
-        # Warm start: the previous stop's offset between command and reading.
-        offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
+        # Warm start: the offset between command and reading found the last time this target was
+        # approached in this rep and direction (the polygon runs come back to the same stops for
+        # every start face: the first pose usually holds), else the previous stop's offset.
+        key = (target_deg, st.rep, st.direction)
+        offset = self._offsets.get(key)
+        if offset is None:
+            offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
         cmd = target + offset
         for it in range(1, self.max_iter + 1):
             pose = st.pose_at_command(cmd)
@@ -241,7 +249,10 @@ class SimRotaryStage:
         else:
             raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
         self.last_iterations = it
+        self._offsets[key] = cmd - target
         self.last_pose, self.last_exact = pose, x
+        if hasattr(self.encoder, "sim_last_exact"):
+            self.encoder.sim_last_exact = (pose, x)
         self.command_rad = cmd
         self.target_deg = target_deg
         self.position_deg = target_deg
