@@ -1167,6 +1167,14 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         if red < SIZE_GATE * u_rms:
             c.reasons.append(f"reduces the residual by only {red:.3g}″ RMS (√(before² − after²)) < {SIZE_GATE} × "
                              f"the noise floor ({u_rms:.3g}″)")
+        if len(parts) == 2:
+            for j, member in enumerate(c.names):
+                alone = _rms(r0a - parts[1 - j][pb.alpha_rows])
+                both = _rms(r0a - sum(parts)[pb.alpha_rows])
+                red_m = math.sqrt(max(alone ** 2 - both ** 2, 0.0))
+                if red_m < SIZE_GATE * u_rms:
+                    c.reasons.append(f"{member}: reduces the residual left by the other member by only {red_m:.3g}″ RMS "
+                                     f"< {SIZE_GATE} × the noise floor")
         for member, pp in zip(c.names, parts):
             size = _rms(pp[pb.alpha_rows])
             if size < SIZE_GATE * u_rms:
