@@ -440,6 +440,13 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
                 f"of the error) to {ra_t['rms_arcsec']:.3f}″ RMS ({ra_t['pv_arcsec']:.2f}″ P-V, "
                 f"{100 * ra_t['fraction_of_error']:.1f} %); noise floor {rb_t.get('noise_floor_arcsec', float('nan')):.3f}″ "
                 f"(u of one reading), χ² after {ra_t['chi2']:.0f} for {ra_t['dof']} dof (p = {ra_t['p_value']:.2g}).")
+            am = rb_t.get("async_motion") or {}
+            if am.get("sigma_um"):
+                rep.paragraph(
+                    f"What remains includes the axis's non-repeating motion: the probes' revolutions scatter by "
+                    f"{am['sigma_um']:.3f} µm RMS (orders 1…{am.get('band_orders', 10)}), i.e. about "
+                    f"{am['per_stop_arcsec']:.2f}″ per polygon stop along X, unmeasured at the polygon's revolution; it "
+                    "is part of the model's uncertainty, not an effect (more polygon reps would average it).", note=True)
         elif tr.get("partial_effects"):
             rep.paragraph("Best candidate (not accepted, the residual after it is still significant): "
                           + ", ".join(e["name"] for e in tr["partial_effects"])
