@@ -336,7 +336,9 @@ def test_cli_emulate_serves_and_writes_a_bench_file(tmp_path, capsys):
     assert cfg.source == "emulated"
     assert {n: s["driver"] for n, s in cfg.instruments.items()} == {
         "encoder": "heidenhain", "autocollimator": "elcomat", "probe_top": "tesa", "probe_bottom": "tesa",
-        "stage": "zaber", "ccd": "watch_folder"}
+        "stage": "zaber", "ccd": "watch_folder",
+        # the default scenario (jia2019) adds X probes to Jia's bench (tangential motion, issue 7)
+        "probe_top_x": "tesa", "probe_bottom_x": "tesa"}
     assert [p["type"] for p in cfg.procedures] == ["radial_motion", "ccd_sweep", "polygon_shift_angle"]
     assert cfg.instruments["ccd"]["port"] == str(tmp_path / "emu" / "frames")
     assert cfg.ccd["position_deg"] == 180.0 and cfg.geometry["scale_edge_radius_mm"] == 22.5
