@@ -395,3 +395,20 @@ def test_head_j_sees_what_head_1_saw_psi_earlier():
     a_j = enc.sim_exact_readings(make_pose(0.5)) - 0.5
     a1_later = enc.sim_exact_readings(make_pose(0.5 + psi[2]))[0] - (0.5 + psi[2])
     assert abs(a_j[2] - a1_later) > 0.01 * ARCSEC
+
+
+def test_stage_warm_start_memory_is_bounded(monkeypatch):
+    """A long acquisition of ever-new stops keeps the sim stage's warm-start offsets bounded (LRU,
+    issue 8's flat memory), and a stop it still remembers is reached in one pose."""
+    from benchtwin.hw.acquisition.runner import SimClock
+    from benchtwin.twin.instruments import stage as stage_mod
+
+    monkeypatch.setattr(stage_mod, "SIM_OFFSET_CACHE_SIZE", 16)
+    fb = FakeBench(12, 7.1e-6, math.radians(192.08), np.zeros(12))
+    st = SimBenchState(fb, SimClock())
+    stage = SimRotaryStage("stage", st, ideal_encoder(st))
+    for k in range(200):                                  # 200 distinct targets
+        stage.move_to(0.37 * k)
+        assert len(stage._offsets) <= 16
+    stage.move_to(0.37 * 198)                             # still remembered: the first pose holds
+    assert stage.last_iterations == 1

@@ -31,6 +31,7 @@ sequence (clockwise in the body) in front of the autocollimator.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from typing import Any
 
 import numpy as np
@@ -42,6 +43,8 @@ from benchtwin.twin.pose import BenchPose, BodyPose
 
 ARCSEC = math.pi / 648000.0
 TWO_PI = 2.0 * math.pi
+#: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
+SIM_OFFSET_CACHE_SIZE = 8192
 
 # Random streams of the instruments (ids far from the physics' 1…7; each quantity its own stream).
 SIM_STREAMS = {
@@ -207,7 +210,10 @@ class SimRotaryStage:
         # Resume (twin/simulate.py): the simulation has replayed the journaled moves itself, so the
         # runner's re-issued move to where the bench stands holds (nothing moves, no time passes).
         self.sim_hold = False
-        self._offsets: dict[tuple, float] = {}   # (target_deg, rep, direction) -> command − target
+        # (target_deg, rep, direction) -> command − target, least recently used first. Bounded, so a
+        # long acquisition of ever-new stops keeps flat memory (issue 8); 8192 holds every stop of
+        # hsieh2022 (15 shifts × 24 faces × 2 directions × 6 runs = 4320).
+        self._offsets: OrderedDict[tuple, float] = OrderedDict()
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "stage", "model": "sim rotary stage (twin)",
@@ -236,7 +242,9 @@ class SimRotaryStage:
         # every start face: the first pose usually holds), else the previous stop's offset.
         key = (target_deg, st.rep, st.direction)
         offset = self._offsets.get(key)
-        if offset is None:
+        if offset is not None:
+            self._offsets.move_to_end(key)
+        else:
             offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
         cmd = target + offset
         for it in range(1, self.max_iter + 1):
@@ -250,6 +258,8 @@ class SimRotaryStage:
             raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
         self.last_iterations = it
         self._offsets[key] = cmd - target
+        if len(self._offsets) > SIM_OFFSET_CACHE_SIZE:
+            self._offsets.popitem(last=False)
         self.last_pose, self.last_exact = pose, x
         if hasattr(self.encoder, "sim_last_exact"):
             self.encoder.sim_last_exact = (pose, x)
