@@ -186,9 +186,8 @@ def _journal_steps(path: Path) -> int:
         return 0
 
 
+@pytest.mark.parametrize("run", ["jia2019"], indirect=True)  # one kill-and-resume run is enough
 def test_kill_and_resume_gives_the_uninterrupted_dataset(run, tmp_path):
-    if run["name"] != "jia2019":
-        pytest.skip("one kill-and-resume run is enough (jia2019)")
     from benchtwin.hw.acquisition.acquire import acquire
     from benchtwin.twin.emulators.serve import EmulationSession
 
