@@ -152,3 +152,16 @@ def format_quantity(si_value: float, unit: str) -> str:
     """Write an SI value back as a string in ``unit`` (inverse of ``parse_quantity``)."""
     factor, _ = _UNITS[unit]
     return f"{si_value / factor!r} {unit}".rstrip()
+
+
+def quantise(x: float, step: float) -> float:
+    """Round ``x`` to a multiple of ``step`` (same unit), as an instrument's display does; a step whose
+    inverse is an integer (0.01 µm, 0.005″) divides, so the value is the correctly rounded decimal
+    (clean CSVs). ``step`` ≤ 0 or 0: no quantisation. Shared by the twin's instruments and ``acquire``."""
+    if not step or step <= 0:
+        return float(x)
+    inv = 1.0 / step
+    k = round(x / step)
+    if abs(inv - round(inv)) < 1e-9 * inv:
+        return k / round(inv)
+    return k * step

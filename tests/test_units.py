@@ -54,3 +54,12 @@ def test_garbage_never_parses_silently(text):
     m = _QUANTITY.match(text)
     assert m is not None and _UNITS[m.group(2)][1] == "length"
     assert math.isfinite(v)
+
+
+def test_quantise_to_a_display_step():
+    from benchtwin.units import quantise
+
+    assert quantise(0.123456, 0.01) == 0.12              # a decimal step: the correctly rounded decimal
+    assert repr(quantise(1.005001, 0.005)) == "1.005"
+    assert quantise(1.0, 0.39) == 3 * 0.39               # any other step: the nearest multiple
+    assert quantise(0.123456, 0.0) == 0.123456           # no step: unchanged

@@ -43,11 +43,12 @@ from benchtwin.analysis.dataset import DatasetWriter
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.runner import Runner, SimClock
 
+from benchtwin.units import quantise
+
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
-from .instruments.stage import (ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face,
-                                sim_quantise)
+from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
 from .physics import Bench
 
 JOURNAL = "journal.jsonl"
@@ -239,7 +240,7 @@ def _write_tables(sc: Any, w: DatasetWriter, rows: list[dict], enc: SimEncoder) 
                 cols["theta_read_deg"].append(float(a[0]))
                 cols["head"].append(j + 1)
                 # both readings are multiples of the resolution: write the exact multiple
-                cols["delta_arcsec"].append(sim_quantise((a[0] - aj) * 3600.0, res_arcsec))
+                cols["delta_arcsec"].append(quantise((a[0] - aj) * 3600.0, res_arcsec))
                 cols["rep"].append(r["tag"]["rep"])
                 cols["direction"].append(r["tag"]["direction"])
                 cols["t_s"].append(r["t_s"])

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.analysis.dataset import DatasetWriter, TableAppender
+from benchtwin.units import quantise
 
 from .bench import BenchConfig, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
 from .runner import Runner, RunnerError, WallClock
@@ -95,16 +96,6 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
 
 # --------------------------------------------------------------------------- tables
 
-def _quantise(x: float, step: float) -> float:
-    if not step or step <= 0:
-        return float(x)
-    inv = 1.0 / step
-    k = round(x / step)
-    if abs(inv - round(inv)) < 1e-9 * inv:
-        return k / round(inv)
-    return k * step
-
-
 def _reading(row: dict, name: str) -> dict:
     return row["readings"][name]
 
@@ -165,7 +156,7 @@ class TableSink:
             a = _reading(r, enc)["angle_deg"]
             t = self._table("heads", ["theta_deg", "head", "delta_arcsec", "rep", "direction", "theta_read_deg", "t_s"])
             for j, aj in enumerate(a):
-                t.append([self._theta(r, h1), j + 1, _quantise((a[0] - aj) * 3600.0, self.res), r["tag"]["rep"],
+                t.append([self._theta(r, h1), j + 1, quantise((a[0] - aj) * 3600.0, self.res), r["tag"]["rep"],
                           r["tag"]["direction"], h1, r["t_s"]])
         elif proc == "ccd":
             self._ccd_read = (r["tag"]["k"], h1)

@@ -31,7 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from .stage import ARCSEC, TWO_PI, SimBenchState, sim_quantise, sim_rng
+from benchtwin.units import quantise
+
+from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
 
 
 class SimAutocollimator:
@@ -121,5 +123,5 @@ class SimAutocollimator:
             nz = st.rng("ac_noise", self.key).normal(0.0, self.noise_rad, 2)
             vals = [vals[0] + nz[0], vals[1] + nz[1]]
         res = self.resolution_rad / ARCSEC
-        return {"x_arcsec": sim_quantise(vals[0] / ARCSEC, res), "y_arcsec": sim_quantise(vals[1] / ARCSEC, res),
+        return {"x_arcsec": quantise(vals[0] / ARCSEC, res), "y_arcsec": quantise(vals[1] / ARCSEC, res),
                 "t_s": t, "status": "ok"}

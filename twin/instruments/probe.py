@@ -25,7 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from .stage import SimBenchState, sim_quantise, sim_rng
+from benchtwin.units import quantise
+
+from .stage import SimBenchState, sim_rng
 
 UM = 1e-6
 
@@ -131,4 +133,4 @@ class SimProbe:
         v = L + float(self.sim_linearity_error_m(L))
         if self.repeatability_m > 0:
             v += st.rng("probe_noise", self.key).normal(0.0, self.repeatability_m)
-        return {"value_um": sim_quantise(v / UM, self.resolution_m / UM), "t_s": t, "status": "ok"}
+        return {"value_um": quantise(v / UM, self.resolution_m / UM), "t_s": t, "status": "ok"}

@@ -65,18 +65,6 @@ def sim_rng(seed: int, stream: str, *keys: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(seed), SIM_STREAMS[stream], *map(int, keys)]))
 
 
-def sim_quantise(x: float, step: float) -> float:
-    """Round to a multiple of ``step`` (same unit); a step whose inverse is an integer (0.01 µm,
-    0.005″) divides, so the value is the correctly rounded decimal (clean CSVs)."""
-    if step <= 0:
-        return float(x)
-    inv = 1.0 / step
-    k = round(x / step)
-    if abs(inv - round(inv)) < 1e-9 * inv:
-        return k / round(inv)
-    return k * step
-
-
 def sim_rz(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
