@@ -41,9 +41,8 @@ import numpy as np
 
 from benchtwin.analysis.dataset import DatasetWriter
 from benchtwin.hw.acquisition import procedures as P
+from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
-
-from benchtwin.units import quantise
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.encoder_head import SimEncoder
@@ -179,7 +178,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         if cam is not None:
             cam.close()
 
-    _write_tables(sc, writer, rows, enc)
+    _write_tables(writer, rows, enc)
     _write_truth(sc, writer, rows, bench, inst, truth_rows)
     writer.close()
     return out
@@ -187,64 +186,29 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
 
 # --------------------------------------------------------------------------- tables
 
-def _h1(row) -> float:
-    """Head 1's displayed (noisy, quantised) reading at the stop."""
-    return float(row["readings"]["encoder"]["angle_deg"][0])
-
-
 def _theta(row) -> float:
     """The stop's encoder position: the commanded reading at which the servo holds head 1's
     interpolated signal (to 1e-6″); what the displayed reading scatters around."""
     return float(row["tag"]["target_deg"])
 
 
-def _write_tables(sc: Any, w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
-    radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
-    if radial:
-        cols = {"rep": [r["tag"]["rep"] for r in radial], "theta_deg": [_theta(r) for r in radial],
-                "probe_top_um": [r["readings"]["probe_top"]["value_um"] for r in radial],
-                "probe_bottom_um": [r["readings"]["probe_bottom"]["value_um"] for r in radial]}
-        if "probe_top_x" in radial[0]["readings"]:
-            cols["probe_top_x_um"] = [r["readings"]["probe_top_x"]["value_um"] for r in radial]
-            cols["probe_bottom_x_um"] = [r["readings"]["probe_bottom_x"]["value_um"] for r in radial]
-        cols["theta_read_deg"] = [_h1(r) for r in radial]
-        cols["t_s"] = [r["t_s"] for r in radial]
-        w.write_table("radial_motion", cols)
-    # CCD: the encoder reading precedes each capture at the same stop
-    caps = [r for r in rows if r["type"] == "capture"]
-    if caps:
-        read = {r["tag"]["k"]: _h1(r) for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "ccd"}
-        w.write_table("ccd/index", {"k": [r["tag"]["k"] for r in caps], "theta_deg": [_theta(r) for r in caps],
-                                    "file": [f"img_{int(r['tag']['k']):03d}.png" for r in caps],
-                                    "theta_read_deg": [read[r["tag"]["k"]] for r in caps],
-                                    "t_s": [r["t_s"] for r in caps]})
-    poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
-    if poly:
-        w.write_table("polygon", {
-            "shift_deg": [r["tag"]["shift_deg"] for r in poly], "start_face": [r["tag"]["start_face"] for r in poly],
-            "step": [r["tag"]["step"] for r in poly], "theta_deg": [_theta(r) for r in poly],
-            "ac_arcsec": [r["readings"]["autocollimator"]["x_arcsec"] for r in poly],
-            "t_s": [r["t_s"] for r in poly], "rep": [r["tag"]["rep"] for r in poly],
-            "direction": [r["tag"]["direction"] for r in poly],
-            "ac_y_arcsec": [r["readings"]["autocollimator"]["y_arcsec"] for r in poly],
-            "theta_read_deg": [_h1(r) for r in poly]})
-    sc_rows = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "selfcal"]
-    if sc_rows:
-        res_arcsec = enc.resolution_rad / ARCSEC
-        cols: dict[str, list] = {"theta_deg": [], "head": [], "delta_arcsec": [], "rep": [], "direction": [],
-                                 "theta_read_deg": [], "t_s": []}
-        for r in sc_rows:
-            a = r["readings"]["encoder"]["angle_deg"]
-            for j, aj in enumerate(a):
-                cols["theta_deg"].append(_theta(r))
-                cols["theta_read_deg"].append(float(a[0]))
-                cols["head"].append(j + 1)
-                # both readings are multiples of the resolution: write the exact multiple
-                cols["delta_arcsec"].append(quantise((a[0] - aj) * 3600.0, res_arcsec))
-                cols["rep"].append(r["tag"]["rep"])
-                cols["direction"].append(r["tag"]["direction"])
-                cols["t_s"].append(r["t_s"])
-        w.write_table("heads", cols)
+#: the radial-motion probes in the tables' column order (X probes only where the scenario has them)
+PROBES = ("probe_top", "probe_bottom", "probe_top_x", "probe_bottom_x")
+
+
+def _write_tables(w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
+    """The dataset tables from the run's rows through acquire's ``TableSink``: the twin and the bench
+    write their tables with one mapping (theta_deg = the stop's commanded encoder position)."""
+    radial = next((r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"), None)
+    probes = [p for p in PROBES if radial is not None and p in radial["readings"]]
+    sink = TableSink(w, probes=probes, resolution_arcsec=enc.resolution_rad / ARCSEC, theta="target")
+    try:
+        for r in rows:
+            sink(r)
+    except BaseException:
+        sink.abort()
+        raise
+    sink.close()
 
 
 # --------------------------------------------------------------------------- truth

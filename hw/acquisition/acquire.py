@@ -26,13 +26,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from benchtwin.analysis.dataset import DatasetWriter, TableAppender
-from benchtwin.units import quantise
+from benchtwin.analysis.dataset import DatasetWriter
 
 from .bench import BenchConfig, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
-from .runner import Runner, RunnerError, WallClock
+from .runner import Runner, WallClock
+from .tables import TableSink
 
-__all__ = ["acquire", "AcquireClock", "TableSink", "write_tables", "JOURNAL"]
+__all__ = ["acquire", "AcquireClock", "TableSink", "sink_for_bench", "write_tables", "JOURNAL"]
 
 JOURNAL = "journal.jsonl"
 
@@ -76,7 +76,7 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     bar = tqdm(total=n_steps, desc=f"acquire {cfg.name}", unit="step", disable=not progress, leave=False)
     try:
         writer = DatasetWriter(out, dataset_manifest(cfg, inst))
-        sink = TableSink(writer, cfg)
+        sink = sink_for_bench(writer, cfg)
         try:
             Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
                    fsync=cfg.run["fsync"], on_step=lambda *a: bar.update(1),
@@ -96,97 +96,24 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
 
 # --------------------------------------------------------------------------- tables
 
-def _reading(row: dict, name: str) -> dict:
-    return row["readings"][name]
-
-
-class TableSink:
-    """The runner's sink for ``acquire``: each row becomes its table row(s) at once (same columns as
-    the twin's ``simulate``): ``radial_motion.csv``, ``polygon.csv``, ``heads.csv`` (one row per
-    head and reading) and, for a CCD sweep, ``ccd/index.csv`` + ``ccd/img_KKK.png`` (the image is
-    written when the frame is taken, before the row is journaled; a replayed capture row checks
-    that its image is there). Tables are opened at their first row (``DatasetWriter.open_table``);
-    ``close()`` finishes them atomically, ``abort()`` removes the part files (a run that failed:
-    every row taken is in the journal, which a resume replays through a new sink)."""
-
-    def __init__(self, writer: DatasetWriter, cfg: BenchConfig):
-        self.w, self.cfg = writer, cfg
-        self.tables: dict[str, TableAppender] = {}
-        tag_of = {"radial_motion": "radial_motion", "ccd_sweep": "ccd", "polygon_shift_angle": "polygon",
-                  "polygon_traditional": "polygon", "selfcal": "selfcal"}  # procedure type -> rows' tag
-        self.enc_of: dict[str, str] = {}
-        for p in cfg.procedures:
-            self.enc_of.setdefault(tag_of[p["type"]], p.get("encoder", "encoder"))
-        self.ac = next((p.get("autocollimator", "autocollimator") for p in cfg.procedures
-                        if p["type"].startswith("polygon")), "autocollimator")
-        self.probes = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
-                            if p["type"] == "radial_motion"), [])
-        self.res = float(cfg.geometry.get("encoder_resolution_arcsec", 0.0))
-        self._ccd_read: tuple[Any, float] | None = None
-        self.rows = 0
-
-    def _table(self, name: str, columns: list[str]) -> TableAppender:
-        t = self.tables.get(name)
-        if t is None:
-            t = self.tables[name] = self.w.open_table(name, columns)
-        return t
-
-    def _theta(self, r: dict, h1: float) -> float:
-        return h1 if self.cfg.run["theta"] == "encoder" else float(r["tag"]["target_deg"])
-
-    def __call__(self, r: dict, live: Any = None) -> None:
-        self.rows += 1
-        proc = r["tag"].get("procedure", "")
-        if r["type"] == "capture":
-            self._capture(r, live)
-            return
-        enc = self.enc_of.get(proc, "encoder")
-        h1 = float(_reading(r, enc)["angle_deg"][0])
-        if proc == "radial_motion":
-            cols = ["rep", "theta_deg", *[f"{p}_um" for p in self.probes], "theta_read_deg", "t_s"]
-            self._table("radial_motion", cols).append(
-                [r["tag"]["rep"], self._theta(r, h1), *[_reading(r, p)["value_um"] for p in self.probes], h1, r["t_s"]])
-        elif proc == "polygon":
-            tag, ac = r["tag"], _reading(r, self.ac)
-            self._table("polygon", ["shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s", "rep",
-                                    "direction", "ac_y_arcsec", "theta_read_deg"]).append(
-                [tag["shift_deg"], tag["start_face"], tag["step"], self._theta(r, h1), ac["x_arcsec"], r["t_s"],
-                 tag["rep"], tag["direction"], ac["y_arcsec"], h1])
-        elif proc == "selfcal":
-            a = _reading(r, enc)["angle_deg"]
-            t = self._table("heads", ["theta_deg", "head", "delta_arcsec", "rep", "direction", "theta_read_deg", "t_s"])
-            for j, aj in enumerate(a):
-                t.append([self._theta(r, h1), j + 1, quantise((a[0] - aj) * 3600.0, self.res), r["tag"]["rep"],
-                          r["tag"]["direction"], h1, r["t_s"]])
-        elif proc == "ccd":
-            self._ccd_read = (r["tag"]["k"], h1)
-
-    def _capture(self, r: dict, live: Any) -> None:
-        k = int(r["tag"]["k"])
-        f = f"img_{k:03d}.png"
-        if live is not None:
-            self.w.write_image(f"ccd/{f}", live["image"])
-        elif not (self.w.path / "ccd" / f).is_file():
-            raise RunnerError(f"resume: the journal has capture k={k} but {self.w.path / 'ccd' / f} is missing")
-        if self._ccd_read is None or self._ccd_read[0] != r["tag"]["k"]:
-            raise RunnerError(f"capture k={k}: no encoder reading at the same stop before it (ccd_sweep reads the "
-                              f"encoder, then captures)")
-        h1 = self._ccd_read[1]
-        self._table("ccd/index", ["k", "theta_deg", "file", "theta_read_deg", "t_s"]).append(
-            [k, self._theta(r, h1), f, h1, r["t_s"]])
-
-    def close(self) -> None:
-        for t in self.tables.values():
-            t.close()
-
-    def abort(self) -> None:
-        for t in self.tables.values():
-            t.abort()
+def sink_for_bench(writer: DatasetWriter, cfg: BenchConfig) -> TableSink:
+    """The sink for a bench file's procedures and instrument names."""
+    tag_of = {"radial_motion": "radial_motion", "ccd_sweep": "ccd", "polygon_shift_angle": "polygon",
+              "polygon_traditional": "polygon", "selfcal": "selfcal"}  # procedure type -> rows' tag
+    enc_of: dict[str, str] = {}
+    for p in cfg.procedures:
+        enc_of.setdefault(tag_of[p["type"]], p.get("encoder", "encoder"))
+    ac = next((p.get("autocollimator", "autocollimator") for p in cfg.procedures
+               if p["type"].startswith("polygon")), "autocollimator")
+    probes = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
+                   if p["type"] == "radial_motion"), [])
+    return TableSink(writer, probes=probes, resolution_arcsec=float(cfg.geometry.get("encoder_resolution_arcsec", 0.0)),
+                     theta=cfg.run["theta"], encoder_of=enc_of, autocollimator=ac)
 
 
 def write_tables(w: DatasetWriter, rows: list[dict[str, Any]], cfg: BenchConfig) -> None:
     """The dataset tables from a list of the runner's rows (``TableSink`` over the list)."""
-    sink = TableSink(w, cfg)
+    sink = sink_for_bench(w, cfg)
     for r in rows:
         sink(r)
     sink.close()
