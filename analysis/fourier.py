@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from benchtwin.units import wrap_deg
+
 __all__ = [
     "FourierFit",
     "design_matrix",
@@ -223,7 +225,7 @@ def amplitude_phase(fit: FourierFit, harmonic: int = 1) -> dict:
     return {
         "amplitude": A,
         "u_amplitude": uA,
-        "phase_deg": math.degrees(phi) % 360.0,
+        "phase_deg": wrap_deg(math.degrees(phi)),
         "u_phase_deg": math.degrees(uphi),
         "cov_amp_phase": cov_ap,
         "a": a,

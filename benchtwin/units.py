@@ -154,6 +154,14 @@ def format_quantity(si_value: float, unit: str) -> str:
     return f"{si_value / factor!r} {unit}".rstrip()
 
 
+def wrap_deg(angle_deg: float) -> float:
+    """An angle in degrees wrapped into [0, 360). ``x % 360.0`` alone returns 360.0 for a tiny
+    negative x (e.g. −1e-15°: the exact result 360 − 1e-15 rounds to 360.0), which is outside the
+    interval and flips at rounding level between BLAS kernels; that case maps to 0.0."""
+    w = float(angle_deg) % 360.0
+    return 0.0 if w >= 360.0 else w
+
+
 def quantise(x: float, step: float) -> float:
     """Round ``x`` to a multiple of ``step`` (same unit), as an instrument's display does; a step whose
     inverse is an integer (0.01 µm, 0.005″) divides, so the value is the correctly rounded decimal
