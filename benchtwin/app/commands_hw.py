@@ -1,7 +1,7 @@
 """Hardware-side subcommands: ``emulate`` (serve a scenario's instruments on pseudo-terminals) and
 ``acquire`` (run a bench file's procedures on real or emulated instruments -> dataset).
 
-Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.commands_hw``).
+Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.app.commands_hw``).
 """
 
 from __future__ import annotations
