@@ -55,8 +55,9 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
     if not (ns.quiet or ns.json):
+        pts = session.server.pts() if session.server is not None else {}
         for name, link in session.ports().items():
-            print(f"{name:16s} {link} -> {session.server.pts()[name]}", flush=True)
+            print(f"{name:16s} {link} -> {pts[name]}", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)

@@ -15,14 +15,13 @@ callable re-opening its port (unless ``reconnect = false``). This module never i
 from __future__ import annotations
 
 import importlib
-import math
 import tomllib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchtwin.units import UnitError, parse_quantity
+from benchtwin.units import ARCSEC, DEG, UnitError, parse_quantity
 
 from . import procedures as P
 
@@ -67,8 +66,6 @@ _PROC_KEYS = {
     "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
     "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
 }
-DEG = math.pi / 180.0
-ARCSEC = DEG / 3600.0
 
 
 class BenchFileError(ValueError):

@@ -27,6 +27,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchtwin.units import ARCSEC
+
 from ._base import decimals_for
 from .backend import EmulatedBench
 from .camera import FolderCameraEmulator
@@ -40,7 +42,6 @@ from .zaber import ZaberEmulator
 
 __all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
 
-ARCSEC = math.pi / 648000.0
 MICROSTEPS_PER_DEG = 1000.0
 
 
