@@ -38,6 +38,19 @@ def _analyze(args):
     return ds, time.time() - t0, None
 
 
+def readme_naive():
+    """The README's ten-line naive eccentricity fit, taken from the README itself (so what is
+    measured here is what the README shows)."""
+    import re
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = re.search(r"```python\n(.*?def naive.*?)```", text, re.S).group(1)
+    code = block.split("\nprint(benchtwin.score")[0]
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)  # noqa: S102 - our own README
+    return ns["naive"]
+
+
 def run_seed(seed: int, size: str, jobs: int, work: Path) -> dict:
     from benchtwin.app.suite import open_suite, score_suite_files, write_suite
 
@@ -57,6 +70,9 @@ def run_seed(seed: int, size: str, jobs: int, work: Path) -> dict:
                 errors[Path(ds).name] = err
     out = score_suite_files(rd, sd)
     out["errors"] = errors
+    import benchtwin
+
+    out["naive"] = benchtwin.score(readme_naive(), suite=sd)
     out["simulate_s"], out["analyze_s"] = round(t_sim, 1), round(time.time() - t0, 1)
     return out
 
@@ -95,6 +111,16 @@ def write_doc(doc: Path, runs: dict[int, dict], size: str) -> None:
     ]
     for name, fn in rows:
         L.append(f"| {name} | " + " | ".join(fn(runs[s]["overall"]) for s in seeds) + " |")
+    L += ["", "## The README's naive eccentricity fit on the same suites", "",
+          "The README's ten-line example (first harmonic of one start face's autocollimator readings; "
+          "β and the axis motion ignored) scored with `benchtwin.score(naive, suite=...)`; it touches e, θ0 "
+          "and α only (no u: no coverage; no naming). Project's analysis → naive:", "",
+          "| criterion | " + " | ".join(f"seed {s}" for s in seeds) + " |",
+          "| --- | " + " | ".join("---" for _ in seeds) + " |"]
+    for name, key, fmt in (("e error RMS, µm", "e_error_um", ".4f"), ("θ0 error RMS, °", "theta0_error_deg", ".4f"),
+                           ("α RMS error, ″", "alpha_rms_error_arcsec", ".4f")):
+        L.append(f"| {name} | " + " | ".join(
+            f"{f(runs[s]['overall'][key], fmt)} → {f(runs[s]['naive']['overall'][key], fmt)}" for s in seeds) + " |")
     L += ["", "Times (2 workers, shared machine): " + "; ".join(
         f"seed {s}: simulate {runs[s]['simulate_s'] / 60:.1f} min, analyse {runs[s]['analyze_s'] / 60:.1f} min"
         for s in seeds) + ".", ""]

@@ -412,8 +412,42 @@ def read_truth(truth_dir: str | Path, dataset_dir: str | Path | None = None) -> 
     t["hidden"] = sorted(hidden.get("effects", {}) or {})
     t["expected"] = _read_json(td / "expected.json") if (td / "expected.json").exists() else \
         expected_from_hidden(hidden)
-    t["floor"] = _floor(td, Path(dataset_dir) if dataset_dir else td.parent, ee)
+    ds = Path(dataset_dir) if dataset_dir else td.parent
+    t["floor"] = _floor(td, ds, ee)
+    t["e_sweep_um"] = t["theta0_sweep_deg"] = None
+    sweep = _sweep_truth(td, ds)
+    if sweep is not None:
+        t["e_sweep_um"], t["theta0_sweep_deg"] = sweep
     return t
+
+
+def _sweep_truth(td: Path, ds: Path) -> tuple[float, float] | None:
+    """e, θ0 of Jia eqs. 10-12 on the TRUE d_ref of every frame of this CCD sweep (truth/ccd.csv:
+    the disk centre and edge radius in true pixels × the true pixel size): what an exact image
+    analysis would find on this sweep — the installed eccentricity plus the axis's once-per-
+    revolution motion during the sweep, which no CCD sweep can tell from e (Jia sec. 4.2)."""
+    if not ((td / "ccd.csv").exists() and (ds / "ccd" / "index.csv").exists() and (ds / "manifest.json").exists()):
+        return None
+    from benchtwin.analysis.eccentricity import eccentricity_from_dref
+
+    ccd = _get(_read_json(ds / "manifest.json"), "ccd")
+    tc, idx = _read_csv(td / "ccd.csv"), _read_csv(ds / "ccd" / "index.csv")
+    if not isinstance(ccd, Mapping) or "reference_px" not in ccd or tc.get("k") is None or idx.get("k") is None:
+        return None
+    by_k = {int(k): i for i, k in enumerate(tc["k"])}
+    sel = [(by_k[int(k)], float(th)) for k, th in zip(idx["k"], idx["theta_deg"]) if int(k) in by_k]
+    if len(sel) < 4:
+        return None
+    i, th = np.array([a for a, _ in sel]), np.array([b for _, b in sel])
+    ref = ccd["reference_px"]
+    d_um = (np.hypot(tc["centre_x_px"][i] - ref[0], tc["centre_y_px"][i] - ref[1]) - tc["edge_radius_px"][i]) \
+        * tc["pixel_um"][i]
+    order = min(10, (th.size - 4) // 2)  # the fit needs 2·order + 4 frames (as the pipeline)
+    try:
+        out = eccentricity_from_dref(th, d_um, float(ccd.get("position_deg", 180.0)), order)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    return float(out["e_um"]), float(out["theta0_deg"]) % 360.0
 
 
 def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None) -> dict[str, Any]:
@@ -621,6 +655,9 @@ def score_results(res: Mapping[str, Any], truth: Mapping[str, Any]) -> dict[str,
             pooled_err.append(np.array([s["e_error_um"]]))
             pooled_u.append(np.array([res["e_u_um"]]))
             cov["e"] = _coverage(np.array([s["e_error_um"]]), np.array([res["e_u_um"]]))
+    s["e_sweep_true_um"] = truth.get("e_sweep_um")
+    s["e_error_sweep_um"] = (float(res["e_um"] - truth["e_sweep_um"])
+                             if res.get("e_um") is not None and truth.get("e_sweep_um") is not None else None)
     s["theta0_deg"] = res.get("theta0_deg")
     s["theta0_true_deg"] = truth.get("theta0_deg")
     s["theta0_error_deg"] = s["theta0_z"] = None
@@ -631,6 +668,10 @@ def score_results(res: Mapping[str, Any], truth: Mapping[str, Any]) -> dict[str,
             pooled_err.append(np.array([s["theta0_error_deg"]]))
             pooled_u.append(np.array([res["theta0_u_deg"]]))
             cov["theta0"] = _coverage(np.array([s["theta0_error_deg"]]), np.array([res["theta0_u_deg"]]))
+    s["theta0_sweep_true_deg"] = truth.get("theta0_sweep_deg")
+    s["theta0_error_sweep_deg"] = (float((res["theta0_deg"] - truth["theta0_sweep_deg"] + 180.0) % 360.0 - 180.0)
+                                   if res.get("theta0_deg") is not None and truth.get("theta0_sweep_deg") is not None
+                                   else None)
     # β (Hsieh eq. 1), by face number
     n_faces = truth.get("n_faces")
     b = res.get("beta")
@@ -729,6 +770,8 @@ def format_table(s: Mapping[str, Any]) -> str:
                                                            else ""), covs("e")),
         ("θ0 error", f"{_f(s['theta0_error_deg'], '+.4f')}°" + (f"  (z = {s['theta0_z']:+.2f})"
                                                                if s.get("theta0_z") is not None else ""), covs("theta0")),
+        ("e, θ0 error vs this sweep", f"{_f(s.get('e_error_sweep_um'), '+.4f')} µm, "
+                                      f"{_f(s.get('theta0_error_sweep_deg'), '+.4f')}°", "exact image analysis"),
         ("β RMS error", f"{_f(s['beta_rms_error_arcsec'], '.4f')}″", covs("beta")),
         ("α RMS error (mean removed)", f"{_f(s['alpha_rms_error_arcsec'], '.4f')}″", covs("alpha")),
         ("self-calibration RMS error", f"{_f(s['selfcal_rms_error_arcsec'], '.4f')}″", covs("selfcal")),

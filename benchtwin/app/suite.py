@@ -291,8 +291,8 @@ def overall(scores: Mapping[str, Mapping[str, Any] | None]) -> dict[str, Any]:
     coverage, the count of correct namings, spurious names, the residual-after/floor ratio."""
     got = [s for s in scores.values() if not s.get("missing")]
     o: dict[str, Any] = {"datasets": len(scores), "with_results": len(got)}
-    for k in ("e_error_um", "theta0_error_deg", "e_z", "theta0_z", "beta_rms_error_arcsec", "alpha_rms_error_arcsec",
-              "selfcal_rms_error_arcsec"):
+    for k in ("e_error_um", "theta0_error_deg", "e_z", "theta0_z", "e_error_sweep_um", "theta0_error_sweep_deg",
+              "beta_rms_error_arcsec", "alpha_rms_error_arcsec", "selfcal_rms_error_arcsec"):
         o[k], o[f"{k}_n"] = _qmean(s.get(k) for s in got)
     n = w1 = w2 = 0
     for s in got:
@@ -382,6 +382,8 @@ def format_suite_table(out: Mapping[str, Any]) -> str:
               f"| e error (RMS) | {_c(o['e_error_um'], '.4f')} µm (z RMS {_c(o['e_z'], '.2f')}) | {o['e_error_um_n']} |",
               f"| θ0 error (RMS) | {_c(o['theta0_error_deg'], '.4f')}° (z RMS {_c(o['theta0_z'], '.2f')}) | "
               f"{o['theta0_error_deg_n']} |",
+              f"| e, θ0 error vs each sweep's exact image analysis (RMS) | {_c(o['e_error_sweep_um'], '.4f')} µm, "
+              f"{_c(o['theta0_error_sweep_deg'], '.4f')}° | {o['e_error_sweep_um_n']} |",
               f"| β RMS error (quadratic mean) | {_c(o['beta_rms_error_arcsec'], '.4f')}″ | "
               f"{o['beta_rms_error_arcsec_n']} |",
               f"| α RMS error (quadratic mean) | {_c(o['alpha_rms_error_arcsec'], '.4f')}″ | "

@@ -152,3 +152,24 @@ def test_python_entry_point(grad_dataset, tmp_path, monkeypatch):
     assert len(seen) == len(S.entries("small"))
     assert out["overall"]["with_results"] == len(seen) - 1 and "my fit diverged" in next(iter(out["errors"].values()))
     assert out["overall"]["e_error_um"] > 0.02 and "| criterion | overall |" in out["table"]
+
+
+def test_readme_example_runs_and_is_worse(grad_dataset, grad_results, tmp_path, monkeypatch):
+    """The README's ten-line example, executed as written (suite path substituted), on a suite of
+    copies of the graduation_error dataset: it runs, and scores worse than the project's analysis."""
+    import re
+
+    monkeypatch.setattr(S, "_simulate_one", _fake_simulate(grad_dataset))
+    S.write_suite(tmp_path / "s", seed=3, blind=True, size="small")
+    text = (S.Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = re.search(r"```python\n(.*?def naive.*?)```", text, re.S).group(1)
+    assert len(block.strip().splitlines()) <= 12  # a ten-line example (plus import and print)
+    assert 'suite="s"' in block
+    printed = []
+    ns = {"print": printed.append}
+    exec(compile(block.replace('suite="s"', f'suite="{tmp_path / "s"}"'), "README.md", "exec"), ns)
+    assert "| criterion | overall |" in printed[0]
+    own = score_files(grad_results, grad_dataset)
+    nv = benchtwin.score(ns["naive"], suite=tmp_path / "s")["overall"]
+    assert nv["e_error_um"] > 10 * abs(own["e_error_um"]) and nv["alpha_rms_error_arcsec"] > 10 * own[
+        "alpha_rms_error_arcsec"]
