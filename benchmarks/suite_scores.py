@@ -133,6 +133,27 @@ def write_doc(doc: Path, runs: dict[int, dict], size: str) -> None:
     doc.write_text("\n".join(L), encoding="utf-8")
 
 
+#: what tests/app/test_suite_reference.py compares (criteria of the small suite, per dataset label)
+STORED = ("e_error_um", "theta0_error_deg", "beta_rms_error_arcsec", "alpha_rms_error_arcsec",
+          "selfcal_rms_error_arcsec", "coverage_1u", "coverage_2u", "identification_correct", "spurious",
+          "residual_after_over_floor")
+
+
+def write_expectations(path: Path, run: dict, seed: int) -> None:
+    """The small suite's part of a full run (same datasets at the same seed), per scenario label,
+    and its overall figures: the stored expectations of the reference-score test."""
+    from benchtwin.app.suite import entries, overall
+
+    small = {e.name for e in entries("small")}
+    per = {run["labels"][n]["label"]: {k: run["scores"][n].get(k) for k in STORED}
+           for n in run["scores"] if run["labels"][n]["label"] in small}
+    sub = {n: s for n, s in run["scores"].items() if run["labels"][n]["label"] in small}
+    from benchtwin.app.score import public
+
+    path.write_text(json.dumps(public({"seed": seed, "size": "small", "datasets": per, "overall": overall(sub)}),
+                               indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="*", default=[11, 22, 33])
@@ -140,6 +161,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--work", default="/tmp/suite_scores")
     ap.add_argument("--doc", default=str(ROOT / "docs" / "suite-scores.md"))
+    ap.add_argument("--expectations", default=str(ROOT / "tests" / "app" / "data" / "suite_small_seed11.json"),
+                    help="where the small suite's figures of seed 11 are stored for the reference-score test")
     a = ap.parse_args(argv)
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
@@ -149,6 +172,9 @@ def main(argv=None) -> int:
         (work / f"scores_{a.size}_seed{s}.json").write_text(json.dumps(
             __import__("benchtwin.app.score", fromlist=["public"]).public(runs[s]), indent=1, default=str))
         write_doc(Path(a.doc), runs, a.size)
+        if s == 11 and a.size == "full" and a.expectations:
+            Path(a.expectations).parent.mkdir(parents=True, exist_ok=True)
+            write_expectations(Path(a.expectations), runs[s], s)
         print(f"wrote {a.doc} (seeds so far: {sorted(runs)})", flush=True)
     return 0
 

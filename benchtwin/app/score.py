@@ -32,6 +32,7 @@ import csv
 import io
 import json
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -85,12 +86,14 @@ def read_results(path: str | Path) -> dict[str, Any]:
 def _num(x: Any, where: str, allow_none: bool = True) -> float | None:
     if x is None and allow_none:
         return None
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x)):
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) or not math.isfinite(float(x)):
         raise InputError(f"{where}: expected a finite number, got {x!r}")
     return float(x)
 
 
 def _arr(x: Any, where: str, n: int | None = None) -> np.ndarray:
+    if isinstance(x, np.ndarray) and x.ndim == 1:
+        x = x.tolist()
     if not isinstance(x, (list, tuple)):
         raise InputError(f"{where}: expected a list of numbers, got {type(x).__name__}")
     out = np.array([_num(v, f"{where}[{i}]", allow_none=False) for i, v in enumerate(x)], dtype=float)
@@ -218,7 +221,8 @@ def _from_project(r: Mapping[str, Any], where: str) -> dict[str, Any]:
     beta = None
     if r.get("polygon_pitch_deviation_arcsec") is not None:
         vals = r["polygon_pitch_deviation_arcsec"]
-        beta = _curve({"face": list(range(1, len(vals) + 1)) if isinstance(vals, list) else vals, "value": vals,
+        beta = _curve({"face": list(range(1, len(vals) + 1)) if isinstance(vals, (list, tuple, np.ndarray)) else vals,
+                       "value": vals,
                        "u": r.get("polygon_pitch_deviation_u_arcsec")}, f"{where}.polygon_pitch_deviation_arcsec",
                       "face", [("value", "u")])
     sc = r.get("selfcal_error_arcsec")
