@@ -91,7 +91,7 @@ def test_acquisition_over_tcp_equals_the_simulation(tmp_path):
 def test_cli_emulate_tcp_writes_tcp_ports(tmp_path, capsys):
     from benchtwin import cli
     from benchtwin.hw.acquisition.bench import load_bench
-    import benchtwin.commands_hw  # noqa: F401
+    import benchtwin.app.commands_hw  # noqa: F401
 
     assert cli.main(["emulate", "--tcp", "--dir", str(tmp_path / "emu"), "--duration", "0.2", "--camera", "none",
                      "--json"]) == 0
