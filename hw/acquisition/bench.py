@@ -50,7 +50,8 @@ _CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_si
 _BENCH = {"name", "source", "description"}
 _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
              "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
-             "polygon_certificate": "angle", "scale_edge_radius": "length"}
+             "polygon_certificate": "angle", "scale_edge_radius": "length",
+             "autocollimator_resolution": "angle", "autocollimator_accuracy": "angle"}
 _GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
 _RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
         "stage": None, "fsync": None}
@@ -170,6 +171,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     if "encoder_resolution" in g:
         geo["encoder_resolution_arcsec"] = _fmt(_q(g["encoder_resolution"], "angle", where,
                                                    "geometry.encoder_resolution") / ARCSEC)
+    # the autocollimator's datasheet resolution and maximum error: GUM type B inputs of Hsieh's budget
+    # (sec. 3.3 (2), (4)), declared in the manifest like the encoder's resolution
+    for k in ("autocollimator_resolution", "autocollimator_accuracy"):
+        if k in g:
+            geo[f"{k}_arcsec"] = _fmt(_q(g[k], "angle", where, f"geometry.{k}") / ARCSEC)
     if "polygon_certificate" in g:
         cert = g["polygon_certificate"]
         if not isinstance(cert, list) or len(cert) != geo["polygon_faces"]:

@@ -402,14 +402,11 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
                          'values = ["1 mm", "2 mm", "3 mm", "4 mm", "5 mm", "6 mm", "7 mm", "8 mm"]')
     p = _write(tmp_path, body)
     out = tmp_path / "out"
-    # the point function's cache identity is its module's name: import it under the name pytest gave
-    # it (tests.app.test_study with tests/__init__.py and tests/app/__init__.py, else test_study)
-    mod = counting_point.__module__
-    mod_root = Path(__file__).resolve().parents[mod.count(".")]
     script = textwrap.dedent(f"""
-        import functools, sys
-        sys.path.insert(0, {str(mod_root)!r})
-        from {mod} import counting_point
+        import functools, importlib, sys
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parents[1])!r}]
+        # the same module name as in this process (the point function's name enters the cache key)
+        counting_point = importlib.import_module({counting_point.__module__!r}).counting_point
         import benchtwin.app.study.execution as st
         st.code_version = lambda: "test-fixed"
         st.run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
