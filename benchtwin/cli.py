@@ -10,13 +10,22 @@ Subcommands land with their capability (no stubs that pretend):
 Every subcommand takes ``--quiet`` (no progress, only the final line) and ``--json`` (one JSON
 object on stdout, for scripts). Exit codes: 0 ok, 2 invalid input (the message names file, key or
 row), 1 any other failure.
+
+One error path for every command (issue #13, docs/reliability.md): ``main`` turns the project's
+own error types (``DOMAIN_ERRORS``: bad datasets, scenarios, studies, bench files, model files,
+output folders, units, instrument and port failures) and ``OSError`` into exit 2 with their
+message, and anything else into exit 1 with one line (``BENCHTWIN_TRACEBACK=1`` shows the
+traceback); under ``--json`` either is one JSON object ``{"ok": false, "error": ..., "kind": ...}``
+on stdout. Usage errors (argparse) are exit 2 and JSON too.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -71,8 +80,65 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- main
 
 
+# (module, class) of the project's own error types: each message names the file, key or row and
+# what was expected, so they end as exit 2. Looked up in sys.modules only: a module that was never
+# imported cannot have raised, and `validate` stays fast.
+DOMAIN_ERRORS: tuple[tuple[str, str], ...] = (
+    ("benchtwin.fsio", "OutputError"),
+    ("benchtwin.units", "UnitError"),
+    ("benchtwin.analysis.dataset", "DatasetError"),
+    ("benchtwin.analysis.shift_angle", "PolygonDataError"),
+    ("benchtwin.analysis.eccentricity", "ImageAnalysisError"),
+    ("benchtwin.analysis.model_file", "ModelFileError"),
+    ("benchtwin.schema", "SchemaError"),
+    ("benchtwin.twin.scenario", "ScenarioError"),
+    ("benchtwin.twin.study", "StudyError"),
+    ("benchtwin.app.study", "StudyError"),
+    ("benchtwin.hw.acquisition.bench", "BenchFileError"),
+    ("benchtwin.hw.acquisition.runner", "RunnerError"),
+    ("benchtwin.hw.drivers.base", "InstrumentError"),
+    ("benchtwin.hw.drivers.base", "FormatError"),
+    ("benchtwin.hw.interfaces", "SoftLimitError"),
+    ("serial", "SerialException"),  # a port that vanished (device unplugged, emulator stopped)
+)
+
+
+def _domain_error_types() -> tuple[type, ...]:
+    types: list[type] = [InputError, OSError]
+    for mod, name in DOMAIN_ERRORS:
+        cls = getattr(sys.modules.get(mod), name, None)
+        if isinstance(cls, type) and issubclass(cls, BaseException):
+            types.append(cls)
+    return tuple(types)
+
+
+def _error_kind(exc: BaseException) -> str:
+    return "input" if isinstance(exc, InputError) else type(exc).__name__
+
+
+def _error_text(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.filename is not None and str(exc.filename) not in str(exc):
+        return f"{exc.filename}: {exc.strerror or exc}"
+    msg = str(exc)
+    if isinstance(exc, KeyError) and exc.args:  # KeyError's str() is the repr of its key
+        msg = str(exc.args[0])
+    return msg or type(exc).__name__
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with usage errors as one JSON object on stdout when ``--json`` was asked."""
+
+    json_mode = False
+
+    def error(self, message: str):  # noqa: D401 - argparse's hook
+        if _Parser.json_mode:
+            print(json.dumps({"ok": False, "error": f"{self.prog}: {message}", "kind": "usage"}))
+            self.exit(2)
+        super().error(message)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="benchtwin", description=__doc__.split("\n\n")[0])
+    parser = _Parser(prog="benchtwin", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"benchtwin {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (fn, add_args, help) in _COMMANDS.items():
@@ -86,21 +152,40 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     _load_commands()
-    ns = build_parser().parse_args(argv)
+    args = sys.argv[1:] if argv is None else list(argv)
+    _Parser.json_mode = "--json" in args
+    try:
+        ns = build_parser().parse_args(args)
+    finally:
+        _Parser.json_mode = False
     try:
         result = ns._handler(ns)
-    except InputError as exc:
-        _emit(ns, {"ok": False, "error": str(exc)}, stream=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        _emit(ns, {"ok": False, "error": "interrupted", "kind": "interrupted"}, error=True)
+        return 130
+    except Exception as exc:
+        domain = isinstance(exc, _domain_error_types())
+        # a deep recursion is input too: deeply nested JSON/TOML that a reader let through
+        domain = domain or isinstance(exc, RecursionError)
+        text = _error_text(exc)
+        if not domain:
+            if os.environ.get("BENCHTWIN_TRACEBACK"):
+                traceback.print_exc()
+            text = (f"internal error ({type(exc).__name__}: {text}); this is a bug in benchtwin, please report "
+                    "it with the command line (BENCHTWIN_TRACEBACK=1 shows the traceback)")
+        _emit(ns, {"ok": False, "error": text, "kind": _error_kind(exc) if domain else "internal"}, error=True)
+        return 2 if domain else 1
     _emit(ns, result)
     return 0
 
 
-def _emit(ns: argparse.Namespace, result: dict[str, Any], stream=None) -> None:
+def _emit(ns: argparse.Namespace, result: dict[str, Any], error: bool = False) -> None:
+    """The result (or error) as one JSON object on stdout under --json, else its message (errors
+    on stderr)."""
     if ns.json:
-        print(json.dumps(result, default=str))
+        print(json.dumps(result, default=str), flush=True)
     else:
-        print(result.get("message") or result.get("error"), file=stream or sys.stdout)
+        print(result.get("message") or result.get("error"), file=sys.stderr if error else sys.stdout, flush=True)
 
 
 def _load_commands() -> None:

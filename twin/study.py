@@ -44,7 +44,6 @@ import multiprocessing as mp
 import os
 import re
 import time
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -54,6 +53,8 @@ from typing import Any
 import numpy as np
 
 import benchtwin
+from benchtwin.fsio import atomic_write_text
+from benchtwin.schema import SchemaError, check_version, load_toml_file
 from benchtwin.units import DIMENSIONS, UnitError, parse_quantity, units_of
 
 from . import study_points
@@ -222,12 +223,14 @@ def load_study(path: str | Path) -> Study:
     def fail(msg: str) -> StudyError:
         return StudyError(f"{where}: {msg}")
 
-    if not p.is_file():
+    if not p.exists():
         raise fail("no such study file")
-    try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise fail(f"not valid TOML: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        raw = load_toml_file(p, what="study file")
+    except SchemaError as exc:
+        raise StudyError(str(exc)) from None
+    check_version(raw, where, fail=StudyError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     if set(raw) != {"study"}:
         extra = sorted(set(raw) - {"study"})
         raise fail(f"unknown section [{extra[0]}]; a study file holds only [study] and its sub-tables"
@@ -709,11 +712,7 @@ class _Cache:
             return None
 
     def put(self, key: str, entry: dict) -> None:
-        p = self.path(key)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(json.dumps(entry))
-        os.replace(tmp, p)
+        atomic_write_text(self.path(key), json.dumps(entry), fsync=False)
 
 
 def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None, workers: int | None = None,
@@ -729,6 +728,9 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
     study = load_study(study_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    # study.json is written last (the completion marker): an earlier run's must not outlive a new
+    # run that is killed (benchtwin.fsio; issue #13)
+    (out / "study.json").unlink(missing_ok=True)
     points = expand_points(study)
     fidelity = study.run_fidelity
     if point_fn is not None:
@@ -942,8 +944,8 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
     verdict = _target_verdict(study, summary_rows) if study.target else None
     figures = _figures(study, summary_rows, done, out, verdict)
     md = _markdown(study, summary_rows, verdict, fid_map, fidelity, computed, cached, wall_s, where, version)
-    (out / "summary.md").write_text(md, encoding="utf-8")
-    (out / "summary.html").write_text(_html(md), encoding="utf-8")
+    atomic_write_text(out / "summary.md", md)
+    atomic_write_text(out / "summary.html", _html(md))
     report = _report(study, _html(md), figures, out / "report.html")
     result = {
         "ok": True, "study": study.name, "out_dir": str(out), "points": len(points),
@@ -960,7 +962,7 @@ def _write_results(study: Study, points: list[Point], done: dict, keys: dict, se
         f"study {study.name}: {len(points)} points × {study.repetitions} reps ({computed} computed, "
         f"{cached} from cache) -> {out}",
     }
-    (out / "study.json").write_text(json.dumps(result, indent=2, default=str), encoding="utf-8")
+    atomic_write_text(out / "study.json", json.dumps(result, indent=2, default=str))  # last: the completion marker
     return result
 
 

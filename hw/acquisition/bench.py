@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import importlib
 import math
-import tomllib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from benchtwin.schema import SchemaError, check_version, loads_toml, read_input_text
 from benchtwin.units import UnitError, parse_quantity
 
 from . import procedures as P
@@ -93,15 +93,13 @@ class BenchConfig:
 
 def load_bench(path: str | Path) -> BenchConfig:
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise BenchFileError(f"{p}: no such bench file")
-    try:
-        text = p.read_text(encoding="utf-8")
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BenchFileError(f"{p}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise BenchFileError(f"{p}: not UTF-8 text: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        text = read_input_text(p, what="bench file")
+        raw = loads_toml(text, str(p))
+    except SchemaError as exc:
+        raise BenchFileError(str(exc)) from None
     cfg = parse_bench(raw, str(p))
     cfg.path, cfg.text = p, text
     return cfg
@@ -145,6 +143,10 @@ def _fmt(x: float) -> float:
 
 def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     """Validate a parsed bench file (see docs/bench-file.md)."""
+    if not isinstance(raw, Mapping):
+        raise BenchFileError(f"{where}: expected a table at the top level")
+    check_version(raw, where, fail=BenchFileError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     unknown = sorted(set(raw) - _TOP)
     if unknown:
         raise BenchFileError(f"{where}: unknown top-level key(s) {unknown}; known: {sorted(_TOP)}")
