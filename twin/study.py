@@ -216,7 +216,20 @@ def _flatten(node: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every point's resolved scenario is validated too."""
+    """Read and validate a study file; every point's resolved scenario is validated too.
+
+    The checks name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
+    try:
+        return _load_study(path)
+    except StudyError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise StudyError(f"{path}: a value of the wrong type or shape ({type(exc).__name__}: {str(exc)[:120]}); "
+                         "see docs/studies.md") from None
+
+
+def _load_study(path: str | Path) -> Study:
     p = Path(path)
     where = str(p)
 
@@ -236,6 +249,8 @@ def load_study(path: str | Path) -> Study:
         raise fail(f"unknown section [{extra[0]}]; a study file holds only [study] and its sub-tables"
                    if extra else "missing section [study]")
     st = raw["study"]
+    if not isinstance(st, Mapping):
+        raise fail("[study] must be a table")
     for k in st:
         if k not in _STUDY_KEYS:
             raise fail(f"unknown key study.{k}; expected one of {', '.join(sorted(_STUDY_KEYS))}")

@@ -142,7 +142,22 @@ def _fmt(x: float) -> float:
 
 
 def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
-    """Validate a parsed bench file (see docs/bench-file.md)."""
+    """Validate a parsed bench file (see docs/bench-file.md).
+
+    The checks below name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``BenchFileError`` naming the section, never as a
+    TypeError (issue #13)."""
+    section = ["the top level"]
+    try:
+        return _parse_bench(raw, where, section)
+    except BenchFileError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise BenchFileError(f"{where}: {section[0]}: a value of the wrong type or shape ({type(exc).__name__}: "
+                             f"{str(exc)[:120]}); see docs/bench-file.md") from None
+
+
+def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConfig:
     if not isinstance(raw, Mapping):
         raise BenchFileError(f"{where}: expected a table at the top level")
     check_version(raw, where, fail=BenchFileError)  # optional top-level version: missing = 1
@@ -210,7 +225,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     insts = _table(raw.get("instruments"), where, "instruments")
     if not insts:
         raise BenchFileError(f"{where}: [instruments]: expected at least one instrument table")
-    instruments = {n: _instrument(n, sec, where, geo) for n, sec in insts.items()}
+    instruments = {}
+    for n, sec in insts.items():
+        section[0] = f"[instruments.{n}]"
+        instruments[n] = _instrument(n, sec, where, geo)
+    section[0] = "the top level"
     if run["stage"] not in instruments:
         raise _fail(where, "run.stage", f"the name of an instrument table (have {sorted(instruments)})", run["stage"])
     if instruments[run["stage"]]["driver"] != "zaber":
@@ -224,7 +243,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     procs = raw.get("procedure")
     if not isinstance(procs, list) or not procs:
         raise BenchFileError(f"{where}: missing [[procedure]] tables (expected at least one, type one of {PROCEDURES})")
-    procedures = [_procedure(k, p, where, geo) for k, p in enumerate(procs)]
+    procedures = []
+    for k, p in enumerate(procs):
+        section[0] = f"procedure[{k}]"
+        procedures.append(_procedure(k, p, where, geo))
+    section[0] = "the top level"
     cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd)
     if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
         raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
