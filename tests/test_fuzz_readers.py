@@ -181,7 +181,7 @@ def test_scenario_raises_only_scenario_error(jia_raw, data):
 @FUZZ
 @given(data=st.data())
 def test_study_raises_only_study_error(tmp_path_factory, monkeypatch_module, data):
-    from benchtwin.twin import study as st_mod
+    from benchtwin.app.study import spec as st_mod
 
     base = tomllib.loads((ROOT / "scenarios" / "studies" / "bearing_distance.toml").read_text())
     raw = data.draw(mutated(base))

@@ -153,9 +153,7 @@ if _have("benchtwin.app.study"):
 
     @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
     def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:
-        from benchtwin.app.study import run_study
-
-        from benchtwin.twin.study import load_study
+        from benchtwin.app.study import load_study, run_study
 
         load_study(ns.study)  # a bad study file: exit 2 before any output folder is touched
         out = ns.out or Path("out") / ns.study.stem
