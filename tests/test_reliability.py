@@ -539,3 +539,21 @@ def test_check_output_dir_rules(tmp_path):
     assert not any(d.iterdir())
     with pytest.raises(OutputError, match="nothing to resume"):
         check_output_dir(d, resume=True, resume_marker="journal.jsonl")
+
+
+def test_h_two_heads_with_self_calibration(tmp_path, capsys):
+    """issue #13: 2 heads with self-calibration passed validate, then a TypeError in the report
+    (with 2 heads the self-calibration has no residual dof, so no uncertainty: E_n was NaN)."""
+    import re
+
+    text = JIA.read_text()
+    p = tmp_path / "s.toml"
+    p.write_text(re.sub(r'heads = \["0 deg"\]', 'heads = ["0 deg", "180 deg"]', text).replace("selfcal = false", "selfcal = true"))
+    _err(["validate", str(p)], capsys, "procedure.selfcal", "at least 3", "bench.heads has 2")
+    # a measured dataset with 2 heads (make_dataset's): analyzed, self-calibration skipped with a note
+    root = make_dataset(tmp_path / "ds")
+    for f in ("radial_motion.csv", "ccd"):
+        shutil.rmtree(root / f) if (root / f).is_dir() else (root / f).unlink()
+    obj = _cli(["analyze", str(root), "-o", str(tmp_path / "out")], capsys, code=0)
+    res = json.loads(Path(obj["results"]).read_text())
+    assert any("self-calibration skipped: 2 heads" in n for n in res["notes"])
