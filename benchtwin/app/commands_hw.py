@@ -7,6 +7,7 @@ Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.app.comm
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import threading
 from pathlib import Path
@@ -101,6 +102,9 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
                    help="start again in a non-empty folder: deletes its contents, journal included")
 
 
+_DEVICE_GONE = (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF, errno.EPIPE)
+
+
 def _error_line(exc: BaseException) -> str:
     port = getattr(exc, "port", None) or getattr(exc, "filename", None)
     text = str(exc) or type(exc).__name__
@@ -119,8 +123,11 @@ def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
     try:
         out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), force=ns.force)
     except (InstrumentError, serial.SerialException, OSError) as exc:
-        # an instrument that stopped answering (retries exhausted) or a port that vanished: the
-        # readings taken so far are in the journal; say so and how to continue
+        # an instrument that stopped answering (retries exhausted) or a port that vanished (EIO,
+        # ENXIO, ENODEV on a pty or USB adapter): the readings taken so far are in the journal; say
+        # so and how to continue. Other OSErrors (a folder not writable) take the generic exit 2.
+        if isinstance(exc, OSError) and not isinstance(exc, serial.SerialException) and exc.errno not in _DEVICE_GONE:
+            raise
         j = ns.out / JOURNAL
         kept = (f"the readings taken so far are kept in {j}; continue with `benchtwin acquire {ns.bench} "
                 f"-o {ns.out} --resume`" if j.is_file() else "no reading was taken")
