@@ -54,7 +54,7 @@ class InputError(Exception):
 
 
 def _validate_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("path", type=Path, help="a scenario file (.toml) or a dataset directory")
+    p.add_argument("path", type=Path, help="a scenario, study, bench or fault-plan file, or a dataset directory")
 
 
 @command("validate", "check a scenario file or a dataset directory", _validate_args)
@@ -68,6 +68,9 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
             checked = open_dataset(path).validate()
             return {"ok": True, "kind": "dataset", "path": str(path), "checked": checked,
                     "message": f"{path}: valid dataset ({'; '.join(checked)})"}
+        other = _validate_other_file(path)
+        if other is not None:
+            return other
         sc = load_scenario(path)
     except (ScenarioError, DatasetError) as exc:
         raise InputError(str(exc)) from None
@@ -75,6 +78,51 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
     return {"ok": True, "kind": "scenario", "path": str(path), "name": sc.name, "seed": sc.seed,
             "hidden_effects": len(hidden),
             "message": f"{path}: valid scenario {sc.name!r} (seed {sc.seed}, {len(hidden)} hidden effects)"}
+
+
+def _validate_other_file(path: Path) -> dict[str, Any] | None:
+    """A study file ([study]), a bench file ([instruments]) or a fault plan ([[faults]] / .json),
+    checked by the reader of the command that uses it (study, acquire, emulate --faults), so that
+    what validate accepts, that command reads; None for anything else (a scenario)."""
+    from benchtwin.schema import SchemaError, load_toml_file
+
+    if path.suffix == ".json" and path.is_file():
+        from benchtwin.twin.emulators.pty import load_fault_plan
+
+        try:
+            n = len(load_fault_plan(path))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
+                "message": f"{path}: valid fault plan ({n} faults)"}
+    try:
+        top = set(load_toml_file(path))
+    except SchemaError:
+        return None  # the scenario reader gives the error, named as before
+    if "scenario" in top:  # a scenario also has [bench] and [instruments.*]
+        return None
+    if "study" in top:
+        from benchtwin.app.study import load_study
+
+        st = load_study(path)
+        return {"ok": True, "kind": "study", "path": str(path), "name": st.name,
+                "message": f"{path}: valid study {st.name!r}"}
+    if "instruments" in top:
+        from benchtwin.hw.acquisition.bench import load_bench
+
+        cfg = load_bench(path)
+        return {"ok": True, "kind": "bench", "path": str(path), "name": cfg.name,
+                "instruments": sorted(cfg.instruments), "message": f"{path}: valid bench file {cfg.name!r}"}
+    if "faults" in top:
+        from benchtwin.twin.emulators.pty import load_fault_plan
+
+        try:
+            n = len(load_fault_plan(path))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
+                "message": f"{path}: valid fault plan ({n} faults)"}
+    return None
 
 
 # ----------------------------------------------------------------------------- main

@@ -557,3 +557,20 @@ def test_h_two_heads_with_self_calibration(tmp_path, capsys):
     obj = _cli(["analyze", str(root), "-o", str(tmp_path / "out")], capsys, code=0)
     res = json.loads(Path(obj["results"]).read_text())
     assert any("self-calibration skipped: 2 heads" in n for n in res["notes"])
+
+
+def test_validate_reads_study_bench_and_fault_plan_files_as_their_commands_do(tmp_path, capsys):
+    """What validate accepts, the next command reads: study files (study), bench files (acquire),
+    fault plans (emulate --faults) are checked by those commands' own readers."""
+    obj = _cli(["validate", str(ROOT / "scenarios" / "studies" / "bearing_distance.toml")], capsys, code=0)
+    assert obj["kind"] == "study"
+    obj = _cli(["validate", str(_bench_file(tmp_path))], capsys, code=0)
+    assert obj["kind"] == "bench" and "stage" in obj["instruments"]
+    f = tmp_path / "faults.toml"
+    f.write_text('[[faults]]\nport = "stage"\nrequest = 3\naction = "drop"\n')
+    assert _cli(["validate", str(f)], capsys, code=0)["kind"] == "fault_plan"
+    f.write_text('[[faults]]\nport = "stage"\nrequest = 3\naction = "delay"\nseconds = nan\n')
+    _err(["validate", str(f)], capsys, "faults.toml", "faults[0]", "seconds", "finite")
+    b = _bench_file(tmp_path)
+    b.write_text(b.read_text().replace('source = "emulated"', 'source = "twin"'))
+    _err(["validate", str(b)], capsys, "b.toml", "bench.source")
