@@ -29,6 +29,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchtwin.fsio import atomic_write_text
 from benchtwin.hw.acquisition.procedures import specs_toml
 from benchtwin.units import ARCSEC
 
@@ -193,8 +194,9 @@ class EmulationSession:
         ports = self.server.start()
         frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"
-        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
-                                                   self.backend.camera, frames), encoding="utf-8")
+        # atomic (benchtwin.fsio): a client polling for the bench file never reads half of it
+        atomic_write_text(self.bench_path, bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
+                                                           self.backend.camera, frames))
         return self.bench_path
 
     def ports(self) -> dict[str, str]:

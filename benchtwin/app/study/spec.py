@@ -35,7 +35,6 @@ import itertools
 import json
 import math
 import re
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -44,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.schema import SchemaError, check_version, load_toml_file
 from benchtwin.twin.scenario import Scenario, ScenarioError, load_scenario
 from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS, SCHEMA, Field
 from benchtwin.units import DIMENSIONS, UnitError, parse_quantity, units_of
@@ -211,24 +211,41 @@ def _flatten(node: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every point's resolved scenario is validated too."""
+    """Read and validate a study file; every point's resolved scenario is validated too.
+
+    The checks name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
+    try:
+        return _load_study(path)
+    except StudyError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise StudyError(f"{path}: a value of the wrong type or shape ({type(exc).__name__}: {str(exc)[:120]}); "
+                         "see docs/studies.md") from None
+
+
+def _load_study(path: str | Path) -> Study:
     p = Path(path)
     where = str(p)
 
     def fail(msg: str) -> StudyError:
         return StudyError(f"{where}: {msg}")
 
-    if not p.is_file():
+    if not p.exists():
         raise fail("no such study file")
-    try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise fail(f"not valid TOML: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        raw = load_toml_file(p, what="study file")
+    except SchemaError as exc:
+        raise StudyError(str(exc)) from None
+    check_version(raw, where, fail=StudyError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     if set(raw) != {"study"}:
         extra = sorted(set(raw) - {"study"})
         raise fail(f"unknown section [{extra[0]}]; a study file holds only [study] and its sub-tables"
                    if extra else "missing section [study]")
     st = raw["study"]
+    if not isinstance(st, Mapping):
+        raise fail("[study] must be a table")
     for k in st:
         if k not in _STUDY_KEYS:
             raise fail(f"unknown key study.{k}; expected one of {', '.join(sorted(_STUDY_KEYS))}")
