@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.jsonable import json_default
+
 from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir
 from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
@@ -399,13 +401,7 @@ class DatasetWriter:
             self.close()
 
 
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
-
+_json_default = json_default  # the one numpy -> JSON conversion (benchtwin/jsonable.py)
 
 # --------------------------------------------------------------------------- reader
 

@@ -16,6 +16,7 @@ Steps, each from its paper:
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -24,22 +25,12 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items() if not callable(v)}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        return _jsonable(x.item())
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
+# results.json: strict JSON (non-finite -> null), model-term functions left out (benchtwin/jsonable.py)
+_jsonable = functools.partial(to_json, nonfinite="null", drop_callables=True)
 
 def _progress(enabled: bool, total: int, desc: str):
     from tqdm import tqdm

@@ -35,6 +35,7 @@ ambiguity when ΔBIC < ``AMBIG_DBIC`` = 6 and the predictions' cos² > ``COLLINE
 
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import math
@@ -45,6 +46,8 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
+
+from benchtwin.jsonable import to_json
 
 from .effects import ALL
 from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
@@ -1497,20 +1500,8 @@ def _payload(ev: Evidence, effects: list[dict], ambiguous: list[dict], status: s
             "created_by": "benchtwin.analysis.tracing.trace"}
 
 
-def _jsonable(x):
-    """Plain JSON types; non-finite floats become None."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
+# plain JSON types, non-finite floats -> null (benchtwin/jsonable.py)
+_jsonable = functools.partial(to_json, nonfinite="null")
 
 def save_model(path, payload: dict) -> None:
     """Write the ``model_file`` payload as JSON, atomically (temporary file, fsync, rename)."""
