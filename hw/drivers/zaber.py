@@ -174,12 +174,25 @@ class ZaberRotaryStage(SerialInstrument):
         return body + end
 
     def _read_reply(self, cmd: Command) -> bytes:
-        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped."""
+        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped, and so,
+        with message ids, is a complete reply that carries an EARLIER attempt's id: it is that
+        attempt's late answer (it timed out on a loaded host), not this one's, and the answer to this
+        attempt follows it (zaber.md, "message ids")."""
         for _ in range(MAX_SKIPPED_LINES + 1):
             line = self.transport.read_until(cmd.terminator)
-            if not (line[:1] in (b"!", b"#") and line.endswith(cmd.terminator)):
-                return line
+            if line[:1] in (b"!", b"#") and line.endswith(cmd.terminator):
+                continue
+            if self._stale(line, cmd):
+                continue
+            return line
         return line
+
+    def _stale(self, line: bytes, cmd: Command) -> bool:
+        want = getattr(self, "_msg_id", None)
+        if not self.message_ids or want is None or not line.endswith(cmd.terminator):
+            return False
+        m = re.fullmatch(_REPLY, line)
+        return bool(m and m.group("id") not in (None, b"--") and int(m.group("id")) != want)
 
     # --- helpers -----------------------------------------------------------------------------------
     def _q(self, command: str, **fields: Any) -> dict[str, Any]:

@@ -341,6 +341,16 @@ def test_zaber_message_ids_checksums_and_alerts():
     assert format_zaber_reply(5, msg_id=3, checksum=True) == b"@01 1 03 OK IDLE -- 5:04\r\n"
 
 
+def test_zaber_late_reply_to_an_earlier_attempt_is_skipped_not_taken():
+    # On a loaded host attempt 05 timed out and was retried as 06; 05's answer then arrives first, in
+    # front of 06's. The driver skips the stale id and takes 06's answer (no retry, no wrong reading).
+    rt = ReplayTransport([{"request": "/1 1 00 get pos\n",
+                           "response": "@01 1 99 OK IDLE -- 17\r\n@01 1 00 OK IDLE -- 90000\r\n"}])
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), retries=0, message_ids=True, **STAGE)
+    assert st_._stage_deg() == pytest.approx(90.0)
+    rt.assert_done()
+
+
 def test_zaber_reply_without_checksum_when_checksums_are_on_is_retried():
     rt = ReplayTransport([{"request": "/1 1 get pos:AC\n", "response": "@01 1 OK IDLE -- 5\r\n"}])
     st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), retries=0, checksums=True, **STAGE)
