@@ -239,7 +239,8 @@ def _step(ds: Dataset, table: str, fn, *args):
         raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
 
 
-def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
+def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+            model_file: str | Path | dict[str, Any] | None = None,
             progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
 
