@@ -173,3 +173,15 @@ def test_readme_example_runs_and_is_worse(grad_dataset, grad_results, tmp_path, 
     nv = benchtwin.score(ns["naive"], suite=tmp_path / "s")["overall"]
     assert nv["e_error_um"] > 10 * abs(own["e_error_um"]) and nv["alpha_rms_error_arcsec"] > 10 * own[
         "alpha_rms_error_arcsec"]
+
+
+def test_python_entry_point_builds_and_reuses_a_cached_blind_suite(grad_dataset, tmp_path, monkeypatch):
+    """suite=None: a small blind suite built once in $BENCHTWIN_CACHE, then reused (not rebuilt)."""
+    calls = []
+    fake = _fake_simulate(grad_dataset)
+    monkeypatch.setattr(S, "_simulate_one", lambda a: calls.append(a[0].name) or fake(a))
+    monkeypatch.setenv("BENCHTWIN_CACHE", str(tmp_path / "cache"))
+    a = benchtwin.score(naive)
+    assert S.Path(a["suite_dir"]).parent == tmp_path / "cache" and len(calls) == len(S.entries("small"))
+    b = benchtwin.score(naive)
+    assert len(calls) == len(S.entries("small")) and b["overall"] == a["overall"]
