@@ -553,12 +553,12 @@ def truth_alpha_at(truth: Mapping[str, Any], theta_deg: np.ndarray) -> np.ndarra
 
 
 def _uniform_full_circle(theta_deg: np.ndarray) -> bool:
-    t = np.sort(np.mod(theta_deg, 360.0))
+    """Points equally spaced over the whole circle (the gaps, the wrap-around one included, equal)."""
+    t = np.sort(np.mod(np.asarray(theta_deg, dtype=float), 360.0))
     if t.size < 3:
         return False
-    step = 360.0 / t.size
-    return bool(np.allclose(np.diff(t), step, atol=1e-6) and abs(t[0] - round(t[0] / step) * step) < 1e-6) or \
-        bool(np.allclose(np.diff(np.concatenate([t, [t[0] + 360.0]])), step, atol=1e-6))
+    gaps = np.diff(np.concatenate([t, [t[0] + 360.0]]))
+    return bool(np.allclose(gaps, 360.0 / t.size, atol=1e-6))
 
 
 def _drop_harmonics(theta_deg: np.ndarray, y: np.ndarray, orders: Sequence[int]) -> np.ndarray:
