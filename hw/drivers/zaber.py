@@ -60,13 +60,12 @@ def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dic
     want_id = getattr(inst, "_msg_id", None)
     if want_id is not None and m.group("id") is not None and int(m.group("id")) != want_id:
         raise ValueError(f"reply has message id {m.group('id').decode()}, expected {want_id:02d}")
-    out = {"reply": m.group("reply").decode(), "busy": m.group("state") == b"BUSY",
-           "flag": m.group("flag").decode(), "data": m.group("data").decode("ascii").strip()}
-    if out["reply"] == "RJ":
-        raise InstrumentError(inst.name, cmd.name, f"stage rejected the command ({out['data']})", m.group(0))
-    if out["flag"].startswith("F"):
-        raise InstrumentError(inst.name, cmd.name, f"stage reports fault {out['flag']}", m.group(0))
-    return out
+    reply, flag, data = m.group("reply").decode(), m.group("flag").decode(), m.group("data").decode("ascii").strip()
+    if reply == "RJ":
+        raise InstrumentError(inst.name, cmd.name, f"stage rejected the command ({data})", m.group(0))
+    if flag.startswith("F"):
+        raise InstrumentError(inst.name, cmd.name, f"stage reports fault {flag}", m.group(0))
+    return {"reply": reply, "busy": m.group("state") == b"BUSY", "flag": flag, "data": data}
 
 
 parse_zaber_reply = parse_reply
