@@ -10,7 +10,8 @@ explicit ``settings`` dict, ``set <setting> <value>``.
 
 Options from the bench file (``options = { message_ids = true, checksums = true }``): with
 ``message_ids`` each attempt carries a message id (0…99, cycling) after the axis and a reply
-whose id differs (a late reply to an earlier attempt) is not taken; with ``checksums`` each
+whose id differs (a late reply to an earlier attempt) is skipped: the reply to this attempt may
+still follow within the timeout; with ``checksums`` each
 command ends with ``:XX`` (the 8-bit two's complement of the byte sum after ``/``) and a reply's
 checksum is verified (a corrupted reply is retried). Unsolicited alerts (``!``, with
 ``comm.alert`` on) and info lines (``#``) before the reply are skipped, not taken as garbled.
@@ -38,7 +39,8 @@ __all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply", "zaber
 
 _REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d+)(?: (?P<id>\d{1,2}|--))? (?P<reply>OK|RJ) (?P<state>IDLE|BUSY)"
           rb" (?P<flag>--|[FWN][A-Z]) (?P<data>[ -~]*?)(?::(?P<cs>[0-9A-Fa-f]{2}))?\r?\n")
-MAX_SKIPPED_LINES = 8   # alerts/info lines skipped before a reply
+MAX_SKIPPED_LINES = 8   # alerts/info lines (and stale replies) skipped before a reply
+_STALE = re.compile(rb"@\d{2} \d+ (\d{1,2}) ")   # a reply's message id
 
 
 def zaber_checksum(body: bytes) -> bytes:
@@ -173,11 +175,21 @@ class ZaberRotaryStage(SerialInstrument):
         return body + end
 
     def _read_reply(self, cmd: Command) -> bytes:
-        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped."""
+        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped, and so,
+        with message ids, is a complete reply carrying another id (a late reply to an earlier
+        attempt: the reply to this one may still follow within the timeout)."""
+        line = b""
         for _ in range(MAX_SKIPPED_LINES + 1):
             line = self.transport.read_until(cmd.terminator)
-            if not (line[:1] in (b"!", b"#") and line.endswith(cmd.terminator)):
+            if not line.endswith(cmd.terminator):
                 return line
+            if line[:1] in (b"!", b"#"):
+                continue
+            if self.message_ids and self._msg_id is not None and line[:1] == b"@":
+                m = _STALE.match(line)
+                if m is not None and m.group(1) != f"{self._msg_id:02d}".encode("ascii"):
+                    continue
+            return line
         return line
 
     # --- helpers -----------------------------------------------------------------------------------
