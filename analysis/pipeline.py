@@ -247,15 +247,15 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
     """
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-    from benchtwin.analysis.report.html import Report
 
     ds = open_dataset(dataset)
     for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
         ds.table(name)  # every table read and checked before any analysis step runs
-    if model_file is not None and not isinstance(model_file, dict):
+    model_payload: dict[str, Any] | None = None
+    if model_file is not None:
         from benchtwin.analysis.model_file import read_model_file
 
-        model_file = read_model_file(model_file)  # checked before any analysis runs (issue #13)
+        model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -264,7 +264,6 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
         "bench": dict(b), "notes": [],
     }
-    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
@@ -311,10 +310,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     model = None
     if ecc is not None:
         model = error_model_from_results(ecc, rm, r_um)
-        if model_file is not None:
+        if model_payload is not None:
             from benchtwin.analysis.tracing import add_to_error_model
 
-            added = add_to_error_model(model, model_file)
+            added = add_to_error_model(model, model_payload)
             results["model_file_terms"] = added
         grid = np.arange(0.0, 360.0, 1.0)
         results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),

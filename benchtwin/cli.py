@@ -28,7 +28,7 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from benchtwin import __version__
 
@@ -36,7 +36,8 @@ Handler = Callable[[argparse.Namespace], dict[str, Any]]
 _COMMANDS: dict[str, tuple[Handler, Callable[[argparse.ArgumentParser], None], str]] = {}
 
 
-def command(name: str, help: str, args: Callable[[argparse.ArgumentParser], None] = lambda p: None):
+def command(name: str, help: str,
+            args: Callable[[argparse.ArgumentParser], None] = lambda p: None) -> Callable[[Handler], Handler]:
     """Register a subcommand: the handler returns a JSON-ready dict whose 'message' is printed."""
 
     def deco(fn: Handler) -> Handler:
@@ -177,7 +178,7 @@ class _Parser(argparse.ArgumentParser):
 
     json_mode = False
 
-    def error(self, message: str):  # noqa: D401 - argparse's hook
+    def error(self, message: str) -> NoReturn:  # argparse's hook
         if _Parser.json_mode:
             print(json.dumps({"ok": False, "error": f"{self.prog}: {message}", "kind": "usage"}))
             self.exit(2)

@@ -45,7 +45,6 @@ in the bench file): faults are a property of the emulated instruments, and the b
 from __future__ import annotations
 
 import errno
-import json
 import os
 import select
 import tempfile

@@ -34,7 +34,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-import benchtwin
 from benchtwin.fsio import atomic_write_text
 
 from . import points as study_points
@@ -314,8 +313,8 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
     cols: dict[str, list[Any]] = {"point": [], "rep": [], "rep_seed": []}
     for p in params:
         cols[p.column] = []
-        for k in p.sets:
-            cols[_column(k, p.unit)] = []
+        for key in p.sets:
+            cols[_column(key, p.unit)] = []
     for o in study.outputs:
         cols[o] = []
     cols["fidelity"] = []
