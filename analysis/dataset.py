@@ -220,6 +220,8 @@ BENCH_RANGES: dict[str, tuple[float, float]] = {
     "encoder_lines": (0, 10_000_000),
     "scale_edge_radius_mm": (1.0, 1000.0),
     "encoder_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_accuracy_arcsec": (0.0, 3600.0),
 }
 
 
