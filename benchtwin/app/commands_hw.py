@@ -65,9 +65,9 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
         pts = session.server.pts() if session.server is not None and not ns.tcp else {}
         for name, link in session.ports().items():
             ser = session.emulators[name].SERIAL
-            line = f"{ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
+            line = "" if ns.tcp else f", {ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
             where = f" -> {pts[name]}" if name in pts else ""
-            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}, {line})", flush=True)
+            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}{line})", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)
