@@ -252,10 +252,11 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     ds = open_dataset(dataset)
     for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
         ds.table(name)  # every table read and checked before any analysis step runs
-    if model_file is not None and not isinstance(model_file, dict):
+    model_payload: dict[str, Any] | None = None
+    if model_file is not None:
         from benchtwin.analysis.model_file import read_model_file
 
-        model_file = read_model_file(model_file)  # checked before any analysis runs (issue #13)
+        model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -310,10 +311,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     model = None
     if ecc is not None:
         model = error_model_from_results(ecc, rm, r_um)
-        if model_file is not None:
+        if model_payload is not None:
             from benchtwin.analysis.tracing import add_to_error_model
 
-            added = add_to_error_model(model, model_file)
+            added = add_to_error_model(model, model_payload)
             results["model_file_terms"] = added
         grid = np.arange(0.0, 360.0, 1.0)
         results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),

@@ -178,7 +178,7 @@ class _Parser(argparse.ArgumentParser):
 
     json_mode = False
 
-    def error(self, message: str) -> NoReturn:  # noqa: D401 - argparse's hook
+    def error(self, message: str) -> NoReturn:  # argparse's hook
         if _Parser.json_mode:
             print(json.dumps({"ok": False, "error": f"{self.prog}: {message}", "kind": "usage"}))
             self.exit(2)
