@@ -60,6 +60,21 @@ def step_radial_motion(ds: Dataset, order: int) -> dict[str, Any]:
     )
 
 
+def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]:
+    """ISO 230-7 total / synchronous / asynchronous radial error motion (analysis.iso230_7)."""
+    from benchtwin.analysis.iso230_7 import radial_error_motion
+
+    t = ds.table("radial_motion")
+    probes = {k: t.get(k) for k in ("probe_top_um", "probe_bottom_um", "probe_top_x_um", "probe_bottom_x_um")}
+    return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm, order=order)
+
+
+def _iso_summary(iso: dict[str, Any]) -> dict[str, Any]:
+    from benchtwin.analysis.iso230_7 import summary
+
+    return summary(iso)
+
+
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
 #: end, a blank frame) is dropped, recorded (``ccd_rejected_frames``) and the sweep fitted on the
 #: remaining angles — eq. 10 is a least-squares fit and does not need equal spacing. The analysis
@@ -230,6 +245,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
             "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
         }
+        rm["iso230_7"] = step_iso230_7(ds, rm, order)  # ISO 230-7 values and polar plots (issue 20)
+        results["radial_error_motion"] = _iso_summary(rm["iso230_7"])
     if ds.has("ccd/index"):
         ecc = step_eccentricity(ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
@@ -394,6 +411,9 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
     if rm is not None:
         rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
         rep.figure(fj.fig_radial_motion(rm), "Radial error motion of the test spheres and of the grating disk along the head direction")
+        from benchtwin.analysis.report.figures_iso import add_iso230_7_section
+
+        add_iso230_7_section(rep, rm["iso230_7"], ds)
     if ecc is not None:
         rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
         rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
