@@ -38,15 +38,27 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto",
                    help="CCD renderer (auto: pyrender when OpenGL is available)")
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
 
 
 def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.app.live import live_for
     from benchtwin.twin.simulate import simulate
 
     sc = _scenario(ns.scenario)
-    out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend)
+    live = live_for(ns, f"simulate {sc.name}")
+    try:
+        out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend, live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        raise
+    if live is not None:
+        live.close("finished")
     return {"ok": True, "dataset": str(out), "scenario": sc.name, "seed": sc.seed,
-            "message": f"dataset written: {out}"}
+            **({"live": str(live.path)} if live else {}), "message": f"dataset written: {out}"}
 
 
 # ----------------------------------------------------------------------------- analyze

@@ -76,6 +76,9 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("bench", type=Path, help="bench file (TOML, docs/bench-file.md)")
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
 
 
 @command("acquire", "run a bench file's procedures on real or emulated instruments; writes a dataset", _acquire_args)
@@ -84,8 +87,18 @@ def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.hw.acquisition.bench import BenchFileError
     from benchtwin.hw.acquisition.runner import RunnerError
 
+    from benchtwin.app.live import live_for
+
+    live = live_for(ns, f"acquire {ns.bench.stem}")
     try:
-        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json))
-    except (BenchFileError, RunnerError) as exc:
-        raise InputError(str(exc)) from None
-    return {"ok": True, "dataset": str(out), "message": f"dataset written: {out}"}
+        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        if isinstance(exc, (BenchFileError, RunnerError)):
+            raise InputError(str(exc)) from None
+        raise
+    if live is not None:
+        live.close("finished")
+    return {"ok": True, "dataset": str(out), **({"live": str(live.path)} if live else {}),
+            "message": f"dataset written: {out}"}

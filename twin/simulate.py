@@ -132,8 +132,11 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
 
 
 def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False) -> Path:
-    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it."""
+             resume: bool = False, live: Any | None = None) -> Path:
+    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
+
+    ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
+    of ``simulate --live``); it only watches the run."""
     from tqdm import tqdm
 
     out = Path(out_dir)
@@ -165,11 +168,17 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
         bar.update(1)
+        if live is not None:
+            live.on_step(i, step, context, replay)
 
     def on_row(row, result):
         if row["type"] == "capture":
             writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+        if live is not None:
+            live.on_row(row, result)
 
+    if live is not None:
+        live.start(len(steps))
     try:
         rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
                       fsync=False).run(steps, resume=resume)
