@@ -215,8 +215,11 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dic
 
 
 def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
-            progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
+            progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
+
+    ``preface``: [(matplotlib figure, caption)] the report opens with (the app layer's rendered
+    view of the bench; the analysis itself never builds the twin).
 
     Returns ``{"results": dict, "paths": {"results": ..., "report": ..., "model": ...?}}``.
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
@@ -307,7 +310,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     if close_loop and cmp is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
-    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr)
+    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
     tmp = out / "results.json.tmp"
     tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
     tmp.replace(out / "results.json")
@@ -369,7 +372,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
     return ev, tr
 
 
-def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
+def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -379,6 +382,8 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
     rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}). Analysis: Jia et al. 2019 "
                   "(radial motion, eccentricity from CCD images, error model eq. 5) and Hsieh et al. 2022 "
                   "(shift-angle method, self-calibration, GUM budget). Standard uncertainties unless stated.")
+    for fig, caption in preface or []:
+        rep.figure(fig, caption)
     rows = []
     if ecc is not None:
         rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc["e_um"], ecc["e_u_um"], "µm")])
@@ -413,9 +418,12 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
         rep.figure(fj.fig_radial_motion(rm), "Radial error motion of the test spheres and of the grating disk along the head direction")
         from benchtwin.analysis.report.figures_iso import add_iso230_7_section
 
-        add_iso230_7_section(rep, rm["iso230_7"], ds)
+        add_iso230_7_section(rep, rm["iso230_7"], ds, filtered=rm["summary"])
     if ecc is not None:
         rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
+        from benchtwin.analysis.report.figures_ccd import add_ccd_pictures
+
+        add_ccd_pictures(rep, ds, ecc)  # the pictures of the image analysis (issue 20)
         rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
         if ecc.get("rejected_frames"):
             rep.paragraph(f"{len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected by the image analysis "

@@ -116,7 +116,9 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     out = ns.out or Path("out") / sc.name
     quiet = ns.quiet or ns.json
     ds = simulate(sc, out / "dataset", progress=not quiet, backend=ns.backend)
-    res = analyze(ds, out, progress=not quiet, close_loop=not ns.no_close_loop)
+    from benchtwin.app.bench_view import bench_preface
+
+    res = analyze(ds, out, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
     return {"ok": True, "dataset": str(ds), **res["paths"], "message": f"report: {res['paths']['report']}"}
 
 

@@ -160,6 +160,15 @@ def test_jia_certificate_validates_and_reads_back(jia_results, tmp_path):
     assert "\\degreecelsius" in text  # the environment from the lab file
     assert "ELCOMAT 3000" in text  # the equipment
 
+    # the report of the same run: ISO 230-7 values and polar plots, the CCD pictures
+    html = (jia_results.parent / "report.html").read_text(encoding="utf-8")
+    assert "Radial error motion values (ISO 230-7:2015)" in html and "ISO 230-7 polar plots along Y" in html
+    assert "raw CCD frame with the detected line ends" in html
+    rem = res["radial_error_motion"]
+    assert [loc["name"] for loc in rem["locations"]] == ["top", "bottom", "disk", "top_x", "bottom_x", "disk_x"]
+    tot = q["benchtwin_radialErrorMotion/benchtwin_disk/benchtwin_totalErrorMotion"]["real"]
+    assert float(tot["value"]) == pytest.approx(rem["locations"][2]["total_um"], abs=0.006)
+
 
 def test_hsieh_certificate_validates_and_states_selfcal(hsieh_results, tmp_path):
     out = tmp_path / "hsieh.xml"

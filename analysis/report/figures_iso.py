@@ -78,7 +78,7 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
     return fig
 
 
-def add_iso230_7_section(rep, iso: Mapping, ds=None) -> None:
+def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = None) -> None:
     """The report's ISO 230-7 subsection: the values with u, the polar plots, and the spectrum of a
     continuous rotation when the dataset has one (table ``continuous_rotation``: ``theta_deg``
     unwrapped, the probe columns; the bearing's kinematic orders from the manifest's
@@ -97,6 +97,12 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None) -> None:
         rows.append([loc["label"]] + [value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
                                       for k in ("total", "synchronous", "asynchronous")])
     rep.table(rows, ["location", "total", "synchronous", "asynchronous"])
+    if filtered and not iso["filtered"]:
+        f = [(loc["label"], filtered.get(loc["name"])) for loc in locs if filtered.get(loc["name"])]
+        rep.paragraph("The same values of the order-2…10 Fourier series of each revolution (Jia eq. 7: probe noise "
+                      "and motion above order 10 filtered out), for comparison: "
+                      + "; ".join(f"{lab}: {v['total_um']:.3f} / {v['synchronous_um']:.3f} / {v['asynchronous_um']:.3f} µm"
+                                  for lab, v in f) + " (total / synchronous / asynchronous).", note=True)
     y = [loc for loc in locs if not loc["name"].endswith("_x")]
     x = [loc for loc in locs if loc["name"].endswith("_x")]
     rep.figure(fig_polar(y), "ISO 230-7 polar plots along Y (the head direction): total (all revolutions), "
