@@ -2,10 +2,10 @@
 
 A Hsieh-type acquisition takes hours (Hsieh et al. 2022: 6.8 h of bench time); the page shows
 what a metrologist walking past the bench wants to see: the procedure step, progress and an ETA,
-the last reading of each instrument, and a running plot of what is known so far — the
-autocollimator's reading at each polygon face for every completed run (the raw input of the
-shift-angle α, Hsieh eq. 2), the probes' readings over the current revolution of the radial-motion
-run (Jia sec. 4.1), the self-calibration heads' spread.
+the last reading of each instrument, and a running plot of what is known so far — during the
+polygon runs the shift-angle α estimated from the start-face runs completed so far (Hsieh eq. 3,
+:meth:`LiveView.alpha_so_far`), before them the probes' readings over each revolution of the
+radial-motion run (Jia sec. 4.1) or the self-calibration heads' difference.
 
 The page is an observer: ``on_step`` / ``on_row`` follow the signatures of
 ``benchtwin.hw.acquisition.runner.Runner`` (the acquire and simulate commands pass them through),
@@ -89,6 +89,10 @@ class LiveView:
         self.last: OrderedDict[str, tuple[str, float]] = OrderedDict()  # instrument -> (text, bench t)
         self.curves: OrderedDict[tuple, deque] = OrderedDict()  # run key -> (x, y) points
         self.curve_label: dict[tuple, str] = {}
+        # polygon runs: (shift, direction) -> {start face: [(θ, ε)]} (completed runs) and the run in progress
+        self.poly_done: OrderedDict[tuple, dict] = OrderedDict()
+        self.poly_run: tuple | None = None
+        self.poly_pts: list[tuple[float, float]] = []
         self.status = "running"
         self.writes = 0
         self._last_write = -math.inf
@@ -121,6 +125,40 @@ class LiveView:
         self._plot_point(row)
         self.maybe_write()
 
+    def _polygon_point(self, tag: Mapping[str, Any], theta: float, eps: float) -> None:
+        run = (tag.get("shift_deg"), tag.get("direction"), tag.get("rep"), tag.get("start_face"))
+        if run != self.poly_run:
+            self._close_polygon_run()
+            self.poly_run = run
+        self.poly_pts.append((theta, eps))
+
+    def _close_polygon_run(self) -> None:
+        if self.poly_run is not None and len(self.poly_pts) >= 3:
+            shift, direction, rep, face = self.poly_run
+            self.poly_done.setdefault((shift, direction), {})[(rep, face)] = list(self.poly_pts)
+        self.poly_run, self.poly_pts = None, []
+
+    def alpha_so_far(self) -> dict[tuple, tuple[list[float], list[float], int]]:
+        """Per (shift, direction): the shift-angle α estimate from the completed start-face runs.
+
+        Hsieh eq. 3 (docs/conventions.md): ε_ij = α(θ_i) + Σ_{k=j}^{j+i−1} β_k + U_j. Each run's
+        mean over its steps removes the set-up constant U_j; the mean over the start faces j then
+        tends to α(θ_i) (up to a constant) because every face appears equally often once all N
+        start faces are done (Σβ = 0, eq. 1). With fewer runs the β terms do not cancel yet: the
+        curve converges as the runs complete."""
+        out = {}
+        for key, runs in self.poly_done.items():
+            acc: dict[float, list[float]] = {}
+            for pts in runs.values():
+                m = sum(e for _, e in pts) / len(pts)
+                for th, e in pts:
+                    acc.setdefault(round(th, 3), []).append(e - m)
+            th = sorted(acc)
+            a = [sum(acc[t]) / len(acc[t]) for t in th]
+            mu = sum(a) / len(a)
+            out[key] = (th, [x - mu for x in a], len(runs))
+        return out
+
     def _plot_point(self, row: Mapping[str, Any]) -> None:
         tag = row.get("tag") or {}
         proc = tag.get("procedure")
@@ -134,6 +172,8 @@ class LiveView:
         angles = enc.get("angle_deg") or [tag.get("target_deg", 0.0)]
         x = float(angles[0]) % 360.0
         v = rd[key]
+        if proc == "polygon" and isinstance(v, (int, float)) and math.isfinite(v):
+            self._polygon_point(tag, x, float(v))
         if proc == "selfcal":  # the spread of two heads is what self-calibration averages out
             if not isinstance(v, (list, tuple)) or len(v) < 2:
                 return
@@ -180,6 +220,7 @@ class LiveView:
 
     def close(self, status: str = "finished") -> None:
         self.status = status
+        self._close_polygon_run()
         self.write()
 
     def write(self) -> Path:
@@ -230,7 +271,21 @@ the page reloads every {self.refresh_s:g} s while the run goes on.</p>
         if not self.curves:
             return "<p id='plot'>no plotted readings yet</p>"
         last_proc = next(reversed(self.curves))[0]
+        alpha = self.alpha_so_far() if last_proc == "polygon" else {}
+        if alpha:
+            curves = [((key, n), list(zip(th, a))) for key, (th, a, n) in alpha.items()]
+            labels = {c[0]: f"S = {float(c[0][0][0] or 0):g}°, {c[0][0][1] or 'forward'}: {c[0][1]} start face(s)"
+                      for c in curves}
+            return self._svg_curves(curves, labels, "shift-angle α so far (″)",
+                                    "Encoder error α estimated so far (Hsieh eq. 3: each completed start-face run "
+                                    "minus its mean, averaged over the runs; converges as all N start faces complete)",
+                                    "alpha")
         curves = [(k, list(v)) for k, v in self.curves.items() if k[0] == last_proc and v]
+        return self._svg_curves(curves, self.curve_label, _PLOT[last_proc][2],
+                                f"{_PLOT[last_proc][2]} against the encoder angle for the last {len(curves)} "
+                                f"{last_proc} run(s)", "raw")
+
+    def _svg_curves(self, curves, labels, ylab: str, caption: str, kind: str) -> str:
         ys = [y for _, pts in curves for _, y in pts]
         y0, y1 = min(ys), max(ys)
         if y1 - y0 < 1e-12:
@@ -244,20 +299,18 @@ the page reloads every {self.refresh_s:g} s while the run goes on.</p>
             pts.sort()
             p = " ".join(f"{sx(x):.1f},{sy(y):.1f}" for x, y in pts)
             lines.append(f'<polyline fill="none" stroke="{colours[j % len(colours)]}" stroke-width="1.3" points="{p}">'
-                         f"<title>{html.escape(self.curve_label[k])}</title></polyline>")
-        ylab = _PLOT[last_proc][2]
+                         f"<title>{html.escape(labels[k])}</title></polyline>")
         ticks = "".join(f'<text x="{L - 5}" y="{sy(v) + 4:.1f}" text-anchor="end" font-size="11">{v:.3g}</text>'
                         for v in (y0, (y0 + y1) / 2, y1))
         xt = "".join(f'<text x="{sx(a):.1f}" y="{H - 12}" text-anchor="middle" font-size="11">{a}°</text>'
                      for a in range(0, 361, 45))
-        legend = "; ".join(html.escape(self.curve_label[k]) for k, _ in curves[-4:])
-        return (f'<svg id="plot" width="{W}" height="{H}" viewBox="0 0 {W} {H}" style="border:1px solid #ccc">'
+        legend = "; ".join(html.escape(labels[k]) for k, _ in curves[-4:])
+        return (f'<svg id="plot" data-kind="{kind}" width="{W}" height="{H}" viewBox="0 0 {W} {H}" style="border:1px solid #ccc">'
                 f'<rect x="{L}" y="10" width="{W - L - 10}" height="{H - B - 10}" fill="#fafafa"/>'
                 f"{ticks}{xt}{''.join(lines)}"
                 f'<text x="12" y="{H / 2}" font-size="11" transform="rotate(-90 12 {H / 2})" text-anchor="middle">'
                 f"{html.escape(ylab)}</text></svg>"
-                f"<p id='plot_caption'>{html.escape(ylab)} against the encoder angle for the last "
-                f"{len(curves)} {html.escape(last_proc)} run(s) (latest: {legend}).</p>")
+                f"<p id='plot_caption'>{html.escape(caption)} (latest: {legend}).</p>")
 
 
 def live_path(dataset_dir: str | Path) -> Path:

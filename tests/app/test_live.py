@@ -128,3 +128,41 @@ def test_live_page_in_headless_chromium_while_an_emulated_acquisition_runs(tmp_p
     n = re.search(r'id="progress">(\d+) / (\d+) steps', final)
     assert n and n.group(1) == n.group(2)
     assert (ds / "manifest.json").is_file()
+
+
+def test_live_interval_must_be_positive(tmp_path, capsys):
+    from benchtwin.cli import main
+
+    assert main(["simulate", "-o", str(tmp_path / "ds"), "--live", "--live-interval", "0", "--json"]) == 2
+    cap = capsys.readouterr()
+    assert "--live-interval" in (cap.err or cap.out)
+    assert not (tmp_path / "ds").exists()
+
+
+def test_alpha_so_far_converges_to_alpha_when_all_start_faces_are_done(tmp_path):
+    """ε_ij = α(θ_i) + Σ_{k=j}^{j+i−1} β_k + U_j (Hsieh eq. 3) with all N start faces: α comes back."""
+    import numpy as np
+
+    N = 6
+    th = np.arange(N) * 360.0 / N
+    alpha = 0.8 * np.sin(np.deg2rad(th)) + 0.3 * np.cos(np.deg2rad(2 * th))
+    alpha -= alpha.mean()
+    beta = np.array([0.5, -0.2, 0.1, -0.6, 0.3, -0.1])
+    lv = LiveView(tmp_path / "a.html", "t", 0, clock=FakeClock())
+    lv.start(N * N)
+    partial = None
+    for j in range(N):
+        for i in range(N):
+            eps = alpha[i] + sum(beta[(j + k) % N] for k in range(i)) + 0.7 * j  # U_j: a set-up offset per run
+            lv.on_row({"type": "read", "t_s": 1.0, "tag": {"procedure": "polygon", "shift_deg": 0.0, "start_face": j + 1,
+                                                          "rep": 0, "direction": "forward", "target_deg": th[i]},
+                       "readings": {"encoder": {"angle_deg": [th[i]]}, "autocollimator": {"x_arcsec": eps, "status": "ok"}}})
+        if j == 1:
+            partial = lv.alpha_so_far()
+    lv.close()
+    (t, a, n), = lv.alpha_so_far().values()
+    assert n == N and np.allclose(t, th)
+    np.testing.assert_allclose(a, alpha, atol=1e-12)
+    (_, a1, n1), = partial.values()
+    assert n1 == 1 and np.max(np.abs(np.array(a1) - alpha)) > 0.1  # one run: β not averaged out yet
+    assert 'data-kind="alpha"' in (tmp_path / "a.html").read_text()
