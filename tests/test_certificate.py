@@ -249,3 +249,27 @@ def test_load_results_names_the_file(tmp_path):
     p.write_text("[]", encoding="utf-8")
     with pytest.raises(ValueError, match=str(p)):
         load_results(p)
+
+
+def test_equipment_and_environment_from_an_acquisition_manifest(jia_results):
+    """An acquired dataset's manifest names its instruments (kind, model, serial) and may carry the
+    environment; the lab file adds the traceability of the same instrument (joined on its name)."""
+    from benchtwin.app.certificate import build_certificate, load_lab
+
+    res = json.loads(jia_results.read_text())
+    res["source"] = "hardware"
+    man = {"source": "hardware", "instruments": {
+        "autocollimator": {"kind": "autocollimator", "model": "ELCOMAT 3000", "serial": "AC-0001"},
+        "encoder": {"kind": "encoder", "model": "ND 287", "serial": "E-77"}},
+        "environment": {"temperature_degC": 20.3, "temperature_u_degC": 0.05}}
+    tree = build_certificate(res, load_lab(LAB, "2026-12-01"), man)
+    assert validation_errors(tree, _shared_dcc()) == []
+    ns = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si"}
+    eq = tree.findall(".//dcc:measuringEquipment", ns)
+    ac = next(e for e in eq if e.get("refType") == "benchtwin_autocollimator")
+    assert ac.find("dcc:certificate/dcc:referralID", ns).text == "DKD-K-00000 2026-05"  # from the lab file
+    assert ac.find("dcc:model", ns).text == "ELCOMAT 3000"
+    assert any(e.get("refType") == "benchtwin_encoder" for e in eq)  # only in the manifest
+    t = tree.find(".//dcc:influenceCondition[@refType='basic_temperature']//si:real", ns)
+    assert t.find("si:value", ns).text == "20.30" and t.find("si:expandedUnc/si:uncertainty", ns).text == "0.10"
+    assert tree.find(".//dcc:statement[@refType='benchtwin_dataSource']", ns) is not None

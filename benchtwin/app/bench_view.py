@@ -65,8 +65,7 @@ def instrument_points(sc: Any, bench) -> dict[str, tuple[np.ndarray, np.ndarray]
         out[f"{name} (X)"] = (c + np.array([-(rs + 0.025), 0.0, 0.0]), c + np.array([-rs, 0.0, 0.0]))
     out["autocollimator"] = (pol + np.array([0.09, 0.0, 0.0]), pol + np.array([0.02, 0.0, 0.0]))
     re = float(b.get("scale_edge_radius", r + 0.0005))
-    ccd_az = math.pi / 2 + float(sc["instruments"]["ccd"].get("position", math.pi)) if "ccd" in sc["instruments"] \
-        else 1.5 * math.pi
+    ccd_az = math.pi / 2 + float(b.get("ccd_position", math.pi))  # from head 1 (on +Y), CCW
     e = disk + np.array([re * math.cos(ccd_az), re * math.sin(ccd_az), 0.0])
     out["CCD microscope"] = (e + np.array([0.0, 0.0, 0.035]), e)
     return out
@@ -130,9 +129,14 @@ def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.
         return width / 2 + f * float(v @ right) / zc, height / 2 - f * float(v @ up) / zc
 
     labels: dict[str, tuple[float, float]] = {}
+    n_heads = sum(1 for n in marks if n.startswith("head "))
     for name, (p, _) in marks.items():
         if name.endswith("(X)"):
             continue  # drawn, not labelled: they sit beside the Y probes
+        if name.startswith("head ") and n_heads > 3:
+            if name != "head 1":
+                continue  # many heads: one label, at head 1
+            name = f"head 1 (of {n_heads} reading heads)"
         uv = project(p)
         if uv is not None:
             labels[name.replace(" (Y)", "s (Y, X)")] = uv
@@ -151,7 +155,7 @@ def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.
     return img, labels
 
 
-def fig_bench(sc: Any):
+def fig_bench(sc: Any, what: str | None = None):
     """The rendered bench with labels (a matplotlib figure for the report)."""
     import matplotlib.pyplot as plt
 
@@ -172,17 +176,17 @@ def fig_bench(sc: Any):
                         arrowprops={"arrowstyle": "-", "color": "#555" if body else "#0b3d91", "lw": 0.7},
                         bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.85})
     ax.set_axis_off()
-    ax.set_title(f"The bench model of scenario {sc.name} (MuJoCo offscreen render, θ = 0); instruments marked",
+    ax.set_title(f"The bench model of {what or 'scenario ' + sc.name} (MuJoCo offscreen render, θ = 0); instruments marked",
                  fontsize=10)
     fig.tight_layout()
     return fig
 
 
-def bench_preface(sc: Any) -> list:
+def bench_preface(sc: Any, what: str | None = None) -> list:
     """[(figure, caption)] for the report's opening: the rendered bench, or nothing when no OpenGL
     context can be had here (the report then simply starts with its summary)."""
     try:
-        fig = fig_bench(sc)
+        fig = fig_bench(sc, what)
     except Exception as exc:  # noqa: BLE001 - a missing EGL/OSMesa must not cost the analysis
         import warnings
 
@@ -191,3 +195,43 @@ def bench_preface(sc: Any) -> list:
     return [(fig, "The bench model (MuJoCo's offscreen renderer): shaft, bearings, grating disk, test spheres and "
                   "polygon posed by the twin at θ = 0, with the reading heads, probes, autocollimator and CCD "
                   "microscope marked where they read")]
+
+
+def scenario_from_manifest(manifest: dict) -> Any:
+    """A nominal twin scenario with a dataset's declared bench geometry (optical radius, scale edge,
+    L1, L2, heads, polygon faces, grating, CCD azimuth) — for the picture only: every other part
+    (bearing positions, masses, errors) keeps the embedded default, and nothing of it is analysed."""
+    from benchtwin.twin.scenario import load_scenario
+
+    b = manifest.get("bench") or {}
+    over: dict[str, Any] = {}
+    for key, skey, unit in (("optical_radius_mm", "bench.optical_radius", "mm"), ("scale_edge_radius_mm",
+                            "bench.scale_edge_radius", "mm"), ("L1_mm", "bench.L1", "mm"), ("L2_mm", "bench.L2", "mm"),
+                            ("grating_period_um", "bench.grating_period", "um")):
+        if isinstance(b.get(key), (int, float)):
+            over[skey] = f"{float(b[key])!r} {unit}"
+    for key in ("polygon_faces", "encoder_lines"):
+        if isinstance(b.get(key), int):
+            over[f"bench.{key}"] = int(b[key])
+    if b.get("heads_deg"):
+        over["bench.heads"] = [f"{float(h)!r} deg" for h in b["heads_deg"]]
+    ccd = manifest.get("ccd") or {}
+    if isinstance(ccd.get("position_deg"), (int, float)):
+        over["bench.ccd_position"] = f"{float(ccd['position_deg'])!r} deg"
+    return load_scenario().with_overrides(over)
+
+
+def bench_preface_for_dataset(dataset: Any) -> list:
+    """The opening picture for ``analyze`` / ``close-loop``: the bench model with the dataset's
+    declared geometry (``scenario_from_manifest``), or nothing when that cannot be built or drawn."""
+    import json
+    from pathlib import Path
+
+    try:
+        man = json.loads((Path(dataset) / "manifest.json").read_text(encoding="utf-8"))
+        sc = scenario_from_manifest(man)
+    except Exception:  # noqa: BLE001 - a missing or bad manifest: the analysis reports it (exit 2), no picture
+        return []
+    pre = bench_preface(sc, f"dataset {Path(dataset).name} (declared geometry)")
+    return [(fig, cap + " — a nominal model with the dataset's declared geometry (L1, L2, r, heads, faces); the "
+             "other parts are the twin's defaults") for fig, cap in pre]

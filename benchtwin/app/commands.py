@@ -75,9 +75,12 @@ def cmd_analyze(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.analysis.dataset import DatasetError
     from benchtwin.analysis.pipeline import analyze
 
+    from benchtwin.app.bench_view import bench_preface_for_dataset
+
     try:
         res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=False)
+                      progress=not (ns.quiet or ns.json), close_loop=False,
+                      preface=bench_preface_for_dataset(ns.dataset))
     except DatasetError as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res["paths"], "message": f"report: {res['paths']['report']}"}
@@ -87,9 +90,12 @@ def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.analysis.dataset import DatasetError
     from benchtwin.analysis.pipeline import analyze
 
+    from benchtwin.app.bench_view import bench_preface_for_dataset
+
     try:
         res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=True)
+                      progress=not (ns.quiet or ns.json), close_loop=True,
+                      preface=bench_preface_for_dataset(ns.dataset))
     except DatasetError as exc:
         raise InputError(str(exc)) from None
     names = [e["name"] for e in res["results"].get("identified_effects", [])]
