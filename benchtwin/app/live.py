@@ -133,9 +133,17 @@ class LiveView:
         self.poly_pts.append((theta, eps))
 
     def _close_polygon_run(self) -> None:
+        """Fold the finished run into running sums per angle: O(1) memory and work per run, so a
+        run of thousands of start-face runs costs the same per page write as a short one."""
         if self.poly_run is not None and len(self.poly_pts) >= 3:
             shift, direction, rep, face = self.poly_run
-            self.poly_done.setdefault((shift, direction), {})[(rep, face)] = list(self.poly_pts)
+            acc = self.poly_done.setdefault((shift, direction), {"runs": 0, "sum": {}})
+            m = sum(e for _, e in self.poly_pts) / len(self.poly_pts)
+            for th, e in self.poly_pts:
+                s_c = acc["sum"].setdefault(round(th, 3), [0.0, 0])
+                s_c[0] += e - m
+                s_c[1] += 1
+            acc["runs"] += 1
         self.poly_run, self.poly_pts = None, []
 
     def alpha_so_far(self) -> dict[tuple, tuple[list[float], list[float], int]]:
@@ -147,16 +155,11 @@ class LiveView:
         start faces are done (Σβ = 0, eq. 1). With fewer runs the β terms do not cancel yet: the
         curve converges as the runs complete."""
         out = {}
-        for key, runs in self.poly_done.items():
-            acc: dict[float, list[float]] = {}
-            for pts in runs.values():
-                m = sum(e for _, e in pts) / len(pts)
-                for th, e in pts:
-                    acc.setdefault(round(th, 3), []).append(e - m)
-            th = sorted(acc)
-            a = [sum(acc[t]) / len(acc[t]) for t in th]
+        for key, acc in self.poly_done.items():
+            th = sorted(acc["sum"])
+            a = [acc["sum"][t][0] / acc["sum"][t][1] for t in th]
             mu = sum(a) / len(a)
-            out[key] = (th, [x - mu for x in a], len(runs))
+            out[key] = (th, [x - mu for x in a], acc["runs"])
         return out
 
     def _plot_point(self, row: Mapping[str, Any]) -> None:
