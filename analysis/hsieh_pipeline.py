@@ -328,7 +328,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         if _full_grid(th):
             n_sa = th.size
             alpha_cmp = _drop_harmonics(th, alpha, [m for m in drop if m <= n_sa // 2])
-            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th), 
+            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th),
                                     [m for m in drop if m <= n_sa // 2])
             cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
                         f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")

@@ -130,7 +130,7 @@ def _revolutions(rep: np.ndarray, theta_deg: np.ndarray, cols: Mapping[str, np.n
     return grid, {c: np.array(v) for c, v in out.items()}
 
 
-def radial_error_motion(rep: np.ndarray, theta_deg: np.ndarray, probes: Mapping[str, np.ndarray],
+def radial_error_motion(rep: np.ndarray, theta_deg: np.ndarray, probes: Mapping[str, np.ndarray | None],
                         L1_mm: float, L2_mm: float, rm: Mapping | None = None, order: int = 10) -> dict:
     """ISO 230-7 values and plots at each sphere and the disk plane from ``radial_motion.csv``.
 

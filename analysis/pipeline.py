@@ -252,7 +252,6 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
     """
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-    from benchtwin.analysis.report.html import Report
 
     ds = open_dataset(dataset)
     out = Path(out_dir)
@@ -263,7 +262,6 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
         "bench": dict(b), "notes": [],
     }
-    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):

@@ -19,7 +19,7 @@ import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from benchtwin import __version__
 
@@ -27,7 +27,8 @@ Handler = Callable[[argparse.Namespace], dict[str, Any]]
 _COMMANDS: dict[str, tuple[Handler, Callable[[argparse.ArgumentParser], None], str]] = {}
 
 
-def command(name: str, help: str, args: Callable[[argparse.ArgumentParser], None] = lambda p: None):
+def command(name: str, help: str,
+            args: Callable[[argparse.ArgumentParser], None] = lambda p: None) -> Callable[[Handler], Handler]:
     """Register a subcommand: the handler returns a JSON-ready dict whose 'message' is printed."""
 
     def deco(fn: Handler) -> Handler:
@@ -96,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _emit(ns: argparse.Namespace, result: dict[str, Any], stream=None) -> None:
+def _emit(ns: argparse.Namespace, result: dict[str, Any], stream: TextIO | None = None) -> None:
     if ns.json:
         print(json.dumps(result, default=str))
     else:

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 # Conversion constants (exact by definition).
 DEG = math.pi / 180.0
 ARCMIN = DEG / 60.0
-ARCSEC = DEG / 3600.0  # = pi / 648000 rad
+ARCSEC = DEG / 3600.0  # = pi / 648000 rad (the same float)
+ARCSEC_PER_RAD = 648000.0 / math.pi  # = 1 / ARCSEC (the same float)
 UM = 1e-6
 MM = 1e-3
 NM = 1e-9

@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from benchtwin.units import ARCSEC, DEG, MM, UM
+
 _REQUIRED = object()
 
 
@@ -32,9 +34,6 @@ class Field:
         return self.default is _REQUIRED
 
 
-MM, UM = 1e-3, 1e-6
-DEG = 3.141592653589793 / 180
-ARCSEC = DEG / 3600
 
 SCHEMA: dict[str, dict[str, Field]] = {
     "scenario": {

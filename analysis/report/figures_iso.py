@@ -98,7 +98,7 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
                                       for k in ("total", "synchronous", "asynchronous")])
     rep.table(rows, ["location", "total", "synchronous", "asynchronous"])
     if filtered and not iso["filtered"]:
-        f = [(loc["label"], filtered.get(loc["name"])) for loc in locs if filtered.get(loc["name"])]
+        f = [(loc["label"], filtered[loc["name"]]) for loc in locs if filtered.get(loc["name"])]
         rep.paragraph("The same values of the order-2…10 Fourier series of each revolution (Jia eq. 7: probe noise "
                       "and motion above order 10 filtered out), for comparison: "
                       + "; ".join(f"{lab}: {v['total_um']:.3f} / {v['synchronous_um']:.3f} / {v['asynchronous_um']:.3f} µm"

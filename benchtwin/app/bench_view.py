@@ -22,7 +22,7 @@ import numpy as np
 WIDTH, HEIGHT = 1000, 760
 
 
-def _add_geom(scene, gtype, size, pos, rgba, mat=None) -> None:
+def _add_geom(scene: Any, gtype: Any, size: Any, pos: Any, rgba: Any, mat: Any = None) -> None:
     import mujoco
 
     if scene.ngeom >= scene.maxgeom:
@@ -34,7 +34,7 @@ def _add_geom(scene, gtype, size, pos, rgba, mat=None) -> None:
     scene.ngeom += 1
 
 
-def _add_rod(scene, a, b, radius, rgba) -> None:
+def _add_rod(scene: Any, a: Any, b: Any, radius: float, rgba: Any) -> None:
     import mujoco
 
     if scene.ngeom >= scene.maxgeom:
@@ -46,7 +46,7 @@ def _add_rod(scene, a, b, radius, rgba) -> None:
     scene.ngeom += 1
 
 
-def instrument_points(sc: Any, bench) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def instrument_points(sc: Any, bench: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """name -> (marker position, point it looks at), lab frame, m (docs/conventions.md)."""
     b = sc["bench"]
     d = bench.data
@@ -155,7 +155,7 @@ def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.
     return img, labels
 
 
-def fig_bench(sc: Any, what: str | None = None):
+def fig_bench(sc: Any, what: str | None = None) -> Any:
     """The rendered bench with labels (a matplotlib figure for the report)."""
     import matplotlib.pyplot as plt
 

@@ -77,7 +77,7 @@ class CertificateInputError(ValueError):
 class _LocalSchemas(etree.Resolver):
     """Resolve the D-SI import of dcc.xsd (by URL) to the packaged copy: validation stays offline."""
 
-    def resolve(self, url, pubid, context):  # noqa: D401 - lxml API
+    def resolve(self, url: str, pubid: str | None, context: Any) -> Any:  # noqa: D401 - lxml API
         if url in (SI_SCHEMA_URL, "SI_Format.xsd") or url.endswith("/SI_Format.xsd"):
             return self.resolve_filename(str(self.directory / "SI_Format.xsd"), context)
         return None
@@ -258,8 +258,8 @@ def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
     loc = _s(w, cert, "location", "laboratory")
     if loc not in _LOCATIONS:
         raise CertificateInputError(f"{w}: key 'location' must be one of {', '.join(_LOCATIONS)}, got {loc!r}")
-    end = _date(w, cert, "end_date", today)
-    begin = _date(w, cert, "begin_date", end)
+    end = _date(w, cert, "end_date", today) or today
+    begin = _date(w, cert, "begin_date", end) or end
     if begin > end:
         raise CertificateInputError(f"{w}: begin_date {begin} is after end_date {end}")
     lab = data["laboratory"]
@@ -798,7 +798,7 @@ def dataset_manifest(res: Mapping[str, Any]) -> dict[str, Any] | None:
 def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: str | Path | None = None,
                       today: str | None = None) -> dict[str, Any]:
     """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically)."""
-    today = today or _dt.datetime.now(_dt.timezone.utc).date().isoformat()
+    today = today or _dt.datetime.now(_dt.UTC).date().isoformat()
     res = load_results(results_path)
     lab = load_lab(lab_path, today)
     man = dataset_manifest(res)

@@ -9,9 +9,12 @@ from __future__ import annotations
 import argparse
 import importlib.util
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from benchtwin.cli import InputError, command
+
+if TYPE_CHECKING:
+    from benchtwin.twin.scenario import Scenario
 
 
 def _have(module: str) -> bool:
@@ -21,7 +24,7 @@ def _have(module: str) -> bool:
         return False
 
 
-def _scenario(path: Path | None):
+def _scenario(path: Path | None) -> Scenario:
     from benchtwin.twin.scenario import ScenarioError, load_scenario
 
     try:

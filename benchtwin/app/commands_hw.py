@@ -61,10 +61,11 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
     if not (ns.quiet or ns.json):
+        pts = session.server.pts() if session.server is not None and not ns.tcp else {}
         for name, link in session.ports().items():
             ser = session.emulators[name].SERIAL
             line = f"{ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
-            where = "" if ns.tcp else f" -> {session.server.pts()[name]}"
+            where = f" -> {pts[name]}" if name in pts else ""
             print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}, {line})", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)

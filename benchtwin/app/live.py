@@ -288,7 +288,8 @@ the page reloads every {self.refresh_s:g} s while the run goes on.</p>
                                 f"{_PLOT[last_proc][2]} against the encoder angle for the last {len(curves)} "
                                 f"{last_proc} run(s)", "raw")
 
-    def _svg_curves(self, curves, labels, ylab: str, caption: str, kind: str) -> str:
+    def _svg_curves(self, curves: list[tuple[Any, list[tuple[float, float]]]], labels: Mapping[Any, str], ylab: str,
+                    caption: str, kind: str) -> str:
         ys = [y for _, pts in curves for _, y in pts]
         y0, y1 = min(ys), max(ys)
         if y1 - y0 < 1e-12:
@@ -323,7 +324,7 @@ def live_path(dataset_dir: str | Path) -> Path:
     return d.parent / f"{d.name}.live.html"
 
 
-def add_live_argument(p) -> None:
+def add_live_argument(p: Any) -> None:
     p.add_argument("--live", action="store_true",
                    help="write a self-refreshing HTML page beside the dataset (DATASET.live.html): step, progress, "
                         "ETA, last readings, a running plot")
@@ -331,7 +332,7 @@ def add_live_argument(p) -> None:
                    help="rewrite the live page at most every S seconds of wall time (default 1)")
 
 
-def live_for(ns, title: str) -> LiveView | None:
+def live_for(ns: Any, title: str) -> LiveView | None:
     """The LiveView a command's ``--live`` asks for (None without it)."""
     if not getattr(ns, "live", False):
         return None

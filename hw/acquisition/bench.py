@@ -15,14 +15,13 @@ callable re-opening its port (unless ``reconnect = false``). This module never i
 from __future__ import annotations
 
 import importlib
-import math
 import tomllib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchtwin.units import UnitError, parse_quantity
+from benchtwin.units import ARCSEC, DEG, UnitError, parse_quantity
 
 from . import procedures as P
 
@@ -51,7 +50,8 @@ _CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_si
 _BENCH = {"name", "source", "description"}
 _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
              "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
-             "polygon_certificate": "angle", "scale_edge_radius": "length"}
+             "polygon_certificate": "angle", "scale_edge_radius": "length",
+             "autocollimator_resolution": "angle", "autocollimator_accuracy": "angle"}
 _GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
 _RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
         "stage": None, "fsync": None}
@@ -67,8 +67,6 @@ _PROC_KEYS = {
     "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
     "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
 }
-DEG = math.pi / 180.0
-ARCSEC = DEG / 3600.0
 
 
 class BenchFileError(ValueError):
@@ -181,6 +179,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     if "encoder_resolution" in g:
         geo["encoder_resolution_arcsec"] = _fmt(_q(g["encoder_resolution"], "angle", where,
                                                    "geometry.encoder_resolution") / ARCSEC)
+    # the autocollimator's datasheet resolution and maximum error: GUM type B inputs of Hsieh's budget
+    # (sec. 3.3 (2), (4)), declared in the manifest like the encoder's resolution
+    for k in ("autocollimator_resolution", "autocollimator_accuracy"):
+        if k in g:
+            geo[f"{k}_arcsec"] = _fmt(_q(g[k], "angle", where, f"geometry.{k}") / ARCSEC)
     if "polygon_certificate" in g:
         cert = g["polygon_certificate"]
         if not isinstance(cert, list) or len(cert) != geo["polygon_faces"]:

@@ -113,7 +113,7 @@ def iter_journal(path: str | Path) -> Iterator[dict[str, Any]]:
     p = Path(path)
     if not p.is_file():
         return
-    with open(p, "r", encoding="utf-8") as fh:
+    with open(p, encoding="utf-8") as fh:
         n = 0
         line = fh.readline()
         while line:

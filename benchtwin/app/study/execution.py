@@ -34,8 +34,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-import benchtwin
-
 from . import points as study_points
 from . import report
 from .spec import _SEED_MAX, Point, Study, StudyError, _column, _hash, expand_points, load_study
@@ -314,8 +312,8 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
     cols: dict[str, list[Any]] = {"point": [], "rep": [], "rep_seed": []}
     for p in params:
         cols[p.column] = []
-        for k in p.sets:
-            cols[_column(k, p.unit)] = []
+        for key in p.sets:
+            cols[_column(key, p.unit)] = []
     for o in study.outputs:
         cols[o] = []
     cols["fidelity"] = []

@@ -83,7 +83,7 @@ def _target_verdict(study: Study, rows: list[dict]) -> dict[str, Any]:
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault(tuple(repr(r["values"][o]) for o in others), []).append(r)
-    result_groups = []
+    result_groups: list[dict[str, Any]] = []
     for gkey, grs in groups.items():
         numeric = param.kind in ("quantity", "int", "number")
         if numeric:
