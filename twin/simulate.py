@@ -151,12 +151,14 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
 
 
 def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False, force: bool = False) -> Path:
+             resume: bool = False, force: bool = False, live: Any | None = None) -> Path:
     """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
 
     ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
     ``force`` clears it first (``benchtwin.fsio.check_output_dir``). A lock file keeps a second
-    run off the folder; the manifest is written last (a killed run leaves no dataset)."""
+    run off the folder; the manifest is written last (a killed run leaves no dataset).
+    ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
+    of ``simulate --live``); it only watches the run."""
     out = Path(out_dir)
     try:
         check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
@@ -164,12 +166,12 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         raise DatasetError(str(exc)) from None
     try:
         with DirLock(out, "simulate"):
-            return _simulate(sc, out, progress, backend, resume)
+            return _simulate(sc, out, progress, backend, resume, live)
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
 
 
-def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool) -> Path:
+def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None) -> Path:
     from tqdm import tqdm
 
     steps = sim_procedure(sc)
@@ -200,11 +202,17 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool) ->
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
         bar.update(1)
+        if live is not None:
+            live.on_step(i, step, context, replay)
 
     def on_row(row, result):
         if row["type"] == "capture":
             writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+        if live is not None:
+            live.on_row(row, result)
 
+    if live is not None:
+        live.start(len(steps))
     try:
         rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
                       fsync=False).run(steps, resume=resume)

@@ -61,10 +61,10 @@ class Entry:
     overrides: Mapping[str, Any] = field(default_factory=dict)
     small: bool = False
 
-    def expected(self) -> dict[str, Any] | None:
-        if self.accept is None:
-            return None
-        return {"expect": list(self.expect or ()), "accept": list(self.accept), "why": self.why,
+    def expected(self) -> dict[str, Any]:
+        """truth/expected.json: the decided naming outcome (accept None: naming not scored)."""
+        return {"expect": None if self.expect is None else list(self.expect),
+                "accept": None if self.accept is None else list(self.accept), "why": self.why,
                 "suite_version": SUITE_VERSION}
 
 
@@ -133,9 +133,7 @@ def _simulate_one(args: tuple[Entry, int, str]) -> tuple[str, float]:
         shutil.rmtree(out)  # a partial dataset from an interrupted suite: redo it
     sc = load_scenario(_scenario_path(e)).with_overrides({**e.overrides, "scenario.seed": seed})
     simulate(sc, Path(out), progress=False, backend="analytic")
-    exp = e.expected()
-    if exp is not None:
-        (Path(out) / "truth" / "expected.json").write_text(json.dumps(exp, indent=1) + "\n", encoding="utf-8")
+    (Path(out) / "truth" / "expected.json").write_text(json.dumps(e.expected(), indent=1) + "\n", encoding="utf-8")
     return e.name, time.time() - t0
 
 
