@@ -246,7 +246,7 @@ def _step(ds: Dataset, table: str, fn, *args):
 
 
 def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
-            model_file: str | Path | dict[str, Any] | None = None,
+            model_file: str | Path | None = None,
             progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
 
