@@ -239,6 +239,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     ds = open_dataset(dataset)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    if ds.kind == "error-curve":
+        return analyze_error_curve_dataset(ds, out, close_loop=close_loop)
     b = ds.bench
     r_um = b["optical_radius_mm"] * 1000.0
     results: dict[str, Any] = {
@@ -502,4 +504,110 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
         rep.figure(fl.plot_residual_before_after(ev, tr), "Residual before and after adding the traced effect")
         rep.figure(fl.plot_harmonic_spectrum(tr), "Harmonic spectrum of the residual with uncertainties")
         rep.figure(fl.plot_signature(ev, tr), "Signature of the residual: time, start face, direction")
+    rep.write(out / "report.html")
+
+
+# ----------------------------------------------------------------------------- error curves
+
+
+def _write_results(out: Path, results: dict[str, Any]) -> None:
+    tmp = out / "results.json.tmp"
+    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    tmp.replace(out / "results.json")
+
+
+def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = True) -> dict[str, Any]:
+    """An "error curve" dataset (an imported α(θ) table): coverage, closure, hysteresis, harmonics with
+    u, what a lone curve cannot separate (analysis.error_curve) → results.json + report.html.
+    ``close_loop`` adds the verdict keys (status, ambiguous, unexplained) that close-loop reports;
+    a lone curve identifies no effect and changes no curve."""
+    from benchtwin.analysis.error_curve import analyze_error_curve
+
+    t = ds.table("error_curve")
+    try:
+        ec = analyze_error_curve(t["theta_deg"], t["error_arcsec"], t.get("direction"), t.get("u_arcsec"))
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
+    mc = ec["mean_curve"]
+    results: dict[str, Any] = {
+        "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
+        "kind": "error-curve", "bench": dict(ds.bench), "notes": list(ec["notes"]),
+        "imported_from": ds.manifest.get("import"),
+        "coverage_deg": ec["coverage_deg"], "coverage": ec["coverage"], "closure": ec["closure"],
+        "hysteresis": ec["hysteresis"], "u_point": ec["u_point"], "harmonics": ec["harmonics"],
+        "error_curve": {k: v for k, v in ec.items() if k not in ("notes",)},
+        "encoder_error_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"], "u": mc["u_arcsec"]},
+        # nothing of the reference chain is identified on a lone curve: the corrected curve is the raw one
+        "encoder_error_corrected_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"],
+                                           "u": mc["u_arcsec"], "corrections_applied": []},
+    }
+    if close_loop:
+        results.update(identified_effects=[], ambiguous=ec["ambiguous"], unexplained=ec["unexplained"],
+                       close_loop={"status": ec["status"], "left": ec.get("left", [])})
+    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
+    _write_error_curve_report(out, ds, ec, close_loop)
+    _write_results(out, results)
+    return {"results": results, "paths": paths}
+
+
+def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from benchtwin.analysis.report.html import Report, value_with_u
+
+    rep = Report(f"Encoder error curve — {ds.path.name}")
+    imp = ds.manifest.get("import") or {}
+    rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}, an imported error curve"
+                  + (f" from {imp.get('table')}" if imp.get("table") else "") + "). A lone curve: no radial probes, "
+                  "no CCD, no polygon start faces; what it cannot separate is stated below.")
+    cov = ec["coverage"]
+    rows = [["coverage", f"{ec['coverage_deg']:.1f}° ({'full turn' if cov['full_turn'] else 'arc'}, "
+                         f"{cov['n_angles']} angles, step {cov['step_deg'] or float('nan'):.3g}°)"],
+            ["closure", ec["closure"]["state"]],
+            ["u of one point", f"{ec['u_point']['u_arcsec']:.3f}″ ({ec['u_point']['source']})"]]
+    h = ec.get("hysteresis")
+    if h and h.get("available"):
+        rows.append(["hysteresis: mean half difference", value_with_u(h["mean_arcsec"], h["u_mean_arcsec"], "″")])
+        rows.append(["hysteresis: RMS / max |half difference|", f"{h['rms_arcsec']:.3f}″ / {h['max_abs_arcsec']:.3f}″"])
+        rows.append(["angles where the directions differ in sign", str(h["opposite_sign_angles"])])
+    if "trend" in ec:
+        tr = ec["trend"]
+        rows.append(["slope over the arc", value_with_u(tr["slope_arcsec_per_deg"], tr["u_slope"], "″/°")])
+    rows.append(["residual: RMS / P-V", f"{ec['residual']['rms_arcsec']:.3f}″ / {ec['residual']['pv_arcsec']:.3f}″"])
+    if close_loop:
+        rows.append(["status", ec["status"]])
+    rep.heading("Summary")
+    rep.table(rows, ["quantity", "value"])
+    for n in ec["notes"]:
+        rep.paragraph(str(n), note=True)
+    if ec["harmonics"]:
+        rep.heading("Harmonics (Jia 2019 eqs. 6, 11, 12), direction mean", level=3)
+        rep.table([[x["k"], value_with_u(x["amplitude_arcsec"], x["u_arcsec"], "″"), f"{x['phase_deg']:.1f}°",
+                    f"{x['p_value']:.2g}", "yes" if x["significant"] else ""] for x in ec["harmonics"]],
+                  ["k", "amplitude", "phase", "p", "significant"])
+    for a in ec.get("ambiguous", []):
+        rep.paragraph(f"Cannot be separated on this curve: {', '.join(a['names'])}"
+                      + (f" (harmonics {a['harmonics']})" if a["harmonics"] else "")
+                      + f". Separating measurement: {a['separating_measurement']}", note=True)
+    if ec.get("unexplained"):
+        rep.paragraph("Unexplained: " + "; ".join(ec.get("left", [])), note=True)
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    t = ds.table("error_curve")
+    d = t.get("direction")
+    for name in ("forward", "backward"):
+        m = np.ones(len(t["theta_deg"]), bool) if d is None else (d == name)
+        if m.any():
+            o = np.argsort(t["theta_deg"][m])
+            ax.plot(t["theta_deg"][m][o], t["error_arcsec"][m][o], "o-", ms=3, label=name if d is not None else "error")
+    mc = ec["mean_curve"]
+    ax.errorbar(mc["theta_deg"], mc["value_arcsec"], yerr=mc["u_arcsec"], fmt="k.", ms=2, lw=0.6, label="mean ± u")
+    ax.set_xlabel("θ (°)")
+    ax.set_ylabel("error (″)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    rep.figure(fig, "The imported error curve")
+    plt.close(fig)
     rep.write(out / "report.html")
