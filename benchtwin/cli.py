@@ -107,7 +107,8 @@ def _load_commands() -> None:
     """Import the modules that register further subcommands (kept lazy: `validate` stays fast)."""
     import importlib
 
-    for mod in ("benchtwin.commands", "benchtwin.commands_hw", "benchtwin.app.commands_loop"):
+    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands",
+                "benchtwin.app.commands_loop"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:
