@@ -316,6 +316,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
 
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     ev = tr = None
+    if pol is not None:  # the raw curve until the loop identifies an artefact of the reference chain
+        results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], None, {})
     if close_loop and cmp is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
@@ -324,6 +326,76 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
     tmp.replace(out / "results.json")
     return {"results": results, "paths": paths}
+
+
+def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The encoder's error after removing the identified artefacts of the reference chain.
+
+    ``enc``: the measured curve {theta_deg, value, u} (Hsieh's combined α); ``corrections``: per
+    reading (at ``theta_read_deg``) the contribution and u of each identified reference-chain effect
+    (tracing ``reference_corrections``). At each θ of the curve the correction is the mean of the
+    readings' contributions at that stop (±``THETA_BIN_DEG``/2; the curve averages the same readings)
+    and its u the mean of theirs (fully correlated: one set of parameters); u of the corrected value =
+    √(u_curve² + Σ u_correction²). Unchanged (and ``corrections_applied`` empty) without corrections."""
+    from benchtwin.analysis.tracing import THETA_BIN_DEG
+
+    th = np.asarray(enc["theta_deg"], dtype=float)
+    val = np.asarray(enc["value"], dtype=float).copy()
+    u2 = np.asarray(enc["u"], dtype=float) ** 2
+    applied = []
+    if corrections and theta_read_deg is not None:
+        tr_ = np.mod(np.asarray(theta_read_deg, dtype=float), 360.0)
+        d = np.abs(((tr_[None, :] - np.mod(th, 360.0)[:, None]) + 180.0) % 360.0 - 180.0)
+        near = d <= THETA_BIN_DEG / 2.0
+        cnt = near.sum(axis=1)
+        for name, c in sorted(corrections.items()):
+            v = np.asarray(c["value_arcsec"], dtype=float)
+            uc = np.asarray(c["u_arcsec"], dtype=float)
+            corr = np.where(cnt > 0, (near @ v) / np.maximum(cnt, 1), 0.0)
+            ucorr = np.where(cnt > 0, (near @ uc) / np.maximum(cnt, 1), 0.0)
+            val = val - corr
+            u2 = u2 + ucorr ** 2
+            applied.append({"effect": name, "rms_arcsec": float(np.sqrt(np.mean(corr ** 2))),
+                            "u_rms_arcsec": float(np.sqrt(np.mean(ucorr ** 2))), "params": c.get("params"),
+                            "angles_without_readings": int(np.sum(cnt == 0))})
+    return {"theta_deg": th, "value": val, "u": np.sqrt(u2), "corrections_applied": applied,
+            "note": "the measured encoder error minus the identified artefacts of the reference chain "
+                    "(autocollimator scale, non-linearity and drift, polygon pitch, disk-to-polygon twist); "
+                    "the raw curve when none is identified"}
+
+
+def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n_faces: int) -> np.ndarray | None:
+    """The α per reading that a perturbation ``d`` of every autocollimator reading produces after the
+    shift-angle analysis (Hsieh eqs. 5-7: β from the closure of the reference shift's full table, or
+    the certificate, which does not move; U_j per start face; α = ε − Σβ − U, eq. 3). The analysis is
+    linear in ε, so this is the exact first-order column of an effect that adds ``d`` to the readings:
+    e.g. an autocollimator non-linearity q·ε² (ac_scale), whose face-fixed part the closure puts into
+    β and whose per-run mean goes into U. None if the analysis cannot be repeated on ``d``."""
+    from benchtwin.analysis import shift_angle as sa
+
+    N = int(n_faces)
+    try:
+        t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
+                                theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
+        src = pol.get("beta_source", "auto")
+        res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
+                                      beta_source=src)
+    except (sa.PolygonDataError, ValueError):
+        return None
+    U = {}
+    for sr in res.shifts:
+        for f, u in zip(sr.start_faces, sr.U_arcsec):
+            U[(round(float(sr.shift_deg), 6), int(f))] = float(u)
+    beta = np.asarray(res.beta_arcsec, dtype=float)
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
+    j = np.asarray(poly["start_face"]).astype(int)
+    i = np.asarray(poly["step"]).astype(int)
+    S = np.asarray(poly["shift_deg"], dtype=float)
+    try:
+        Uj = np.array([U[(round(float(s_), 6), int(f))] for s_, f in zip(S, j)])
+    except KeyError:
+        return None
+    return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
 def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
@@ -364,6 +436,8 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         radial_term="radial_motion" if rm is not None else None,
         u_floor_arcsec=max(float(u_read), u_eps),
     )
+    ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(poly["ac_arcsec"], dtype=float) ** 2,
+                                                b["polygon_faces"])
     ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
     tr = trace(ev)
     results["close_loop"] = {k: tr[k] for k in ("status", "signature", "selection", "skipped", "thresholds",
@@ -373,6 +447,8 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
     results["unexplained"] = tr["unexplained"]
     results["residual_test"] = tr["residual_before"]
     results["residual_after_trace"] = tr["residual_after"]
+    results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], ev.theta_deg,
+                                                                tr.get("reference_corrections") or {})
     if tr["identified_effects"]:
         mpath = out / "model.json"
         save_model(mpath, tr["model_file"])
@@ -492,6 +568,15 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
         for e in tr["identified_effects"]:
             rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
                       [f"{e['name']}: parameter", "value"])
+        cc = results.get("encoder_error_corrected_arcsec") or {}
+        if cc.get("corrections_applied"):
+            rep.paragraph("Corrected calibration curve (encoder_error_corrected_arcsec, the curve a certificate states): "
+                          "the measured encoder error minus " + "; ".join(
+                              f"{a['effect']} ({a['rms_arcsec']:.3f}″ RMS, u {a['u_rms_arcsec']:.3f}″)"
+                              for a in cc["corrections_applied"]) + ".")
+        else:
+            rep.paragraph("Corrected calibration curve: no artefact of the reference chain identified; the "
+                          "measured encoder error is stated unchanged.", note=True)
         for a in tr["ambiguous"]:
             rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
         if tr["unexplained"]:
