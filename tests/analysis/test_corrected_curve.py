@@ -55,3 +55,37 @@ def test_nothing_identified_leaves_the_raw_curve():
     assert c["corrections_applied"] == []
     np.testing.assert_array_equal(c["value"], raw["value"])
     np.testing.assert_array_equal(c["u"], raw["u"])
+
+
+def test_reading_response_is_the_shift_angle_analysis_of_the_perturbation():
+    """α is linear in the readings ε (Hsieh eqs. 5-7): adding q·ε² to every reading changes each α
+    by exactly q × reading_response(ε²), the column ac_scale fits for a quadratic non-linearity."""
+    from benchtwin.analysis.hsieh_pipeline import analyze_polygon
+    from benchtwin.analysis.pipeline import _setup_error_lookup, reading_response
+    from benchtwin.analysis.tracing import evidence_from_polygon
+
+    rng = np.random.default_rng(2)
+    N = 7
+    rows = [(0.0, j, i) for j in range(1, N + 1) for i in range(1, N + 1)] + [(20.0, 1, i) for i in range(1, N + 1)]
+    S, j, i = (np.array(c) for c in zip(*rows))
+    th = (i - 1) * 360.0 / N + S
+    beta = rng.normal(0, 2.0, N)
+    beta -= beta.mean()
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
+    eps = 3.0 * np.sin(np.deg2rad(2 * th)) + cum[j - 1 + i] - cum[j - 1] + rng.normal(0, 20.0, N + 1)[np.where(S > 0, N, j - 1)]
+    eps = eps + rng.normal(0, 0.05, eps.size)
+    q = 3e-4
+
+    def alpha(e):
+        cols = {"shift_deg": S, "start_face": j, "step": i, "theta_deg": th, "ac_arcsec": e, "t_s": np.arange(e.size)}
+        pol = analyze_polygon(cols, N, mc_samples=0, u_eps_arcsec=0.05)
+        ev = evidence_from_polygon(cols, pol["polygon_pitch_deviation_arcsec"], _setup_error_lookup(pol),
+                                   lambda t: {}, n_faces=N)
+        return ev.alpha_arcsec, cols, pol
+
+    a1, cols, pol = alpha(eps)
+    a2, _, _ = alpha(eps + q * eps ** 2)
+    resp = reading_response(cols, pol, eps ** 2, N)
+    np.testing.assert_allclose(a2 - a1, q * resp, atol=1e-9)
+    # ε² itself is not that column: the closure moves its face-fixed part into β, its run means into U
+    assert np.sqrt(np.mean((q * eps ** 2 - (a2 - a1)) ** 2)) > 10 * np.sqrt(np.mean((q * resp - (a2 - a1)) ** 2)) + 1e-3
