@@ -55,6 +55,12 @@ TABLES: dict[str, TableSpec] = {
         {"probe_top_x_um": float, "probe_bottom_x_um": float},
         ("rep", "theta_deg"),
     ),
+    # ISO 230-7 continuous-rotation run (twin/continuous.py): probes sampled in time while turning
+    "radial_continuous": TableSpec(
+        {"t_s": float, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float},
+        ("t_s",),
+    ),
     "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {}, ("k",)),
     "polygon": TableSpec(
         {"shift_deg": float, "start_face": int, "step": int, "theta_deg": float, "ac_arcsec": float, "t_s": float},
