@@ -86,6 +86,10 @@ BENCH_KEYS: dict[str, tuple[type, bool]] = {
     "heads_deg": (list, False),
     "encoder_resolution_arcsec": (float, False),
     "polygon_certificate_arcsec": (list, False),
+    # the autocollimator's declared resolution and maximum error (GUM type B inputs of Hsieh's
+    # budget, sec. 3.3 (2) and (4)); without them the analysis assumes Hsieh's ELCOMAT 3000 and says so
+    "autocollimator_resolution_arcsec": (float, False),
+    "autocollimator_accuracy_arcsec": (float, False),
 }
 CCD_KEYS: dict[str, tuple[type, bool]] = {
     "position_deg": (float, True),

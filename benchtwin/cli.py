@@ -107,7 +107,7 @@ def _load_commands() -> None:
     """Import the modules that register further subcommands (kept lazy: `validate` stays fast)."""
     import importlib
 
-    for mod in ("benchtwin.commands", "benchtwin.commands_hw"):
+    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

@@ -117,6 +117,10 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
             "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
         },
     }
+    ac = sc.get("instruments", {}).get("autocollimator") if hasattr(sc, "get") else None
+    if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
+        m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
+        m["bench"]["autocollimator_accuracy_arcsec"] = float(ac["accuracy"]) / ARCSEC
     if bench is not None and bench.hidden.writes_certificate:
         # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
         # polygon differs from it by the hidden pattern (twin/hidden.py, polygon_pitch_ignored)

@@ -16,6 +16,20 @@ adapters. A disconnect fault closes the pseudo-terminal (the client's next read 
 with EIO: ``serial.SerialException``), opens a new one and re-points the link, so a driver whose
 ``reconnect`` re-opens the same path finds the instrument again.
 
+The client's line settings: Linux pseudo-terminals carry no parity and force 8 data bits (the
+kernel clears ``CSIZE``/``PARENB`` in every ``tcsetattr`` on a pty), so a 7E2 client and an 8N1
+client send the same bytes. What a pty does keep is the speed, ``CSTOPB`` and ``PARODD``. The
+server therefore parks each idle port at a speed no client uses (``B50``, "pristine") and reads the
+slave side's settings with ``termios.tcgetattr`` on every turn of its loop: when they leave the
+pristine state, a client has opened and configured the port (pyserial always sets the speed on
+open). That is a *connection*: the emulator's ``connect(framing)`` drops the previous client's
+partial request and compares the client's baud rate and parity kind with the instrument's
+(_base.py); then the port is parked again, so the next open is seen too (and so that pyserial
+re-opening a 7E2 port does not fail: a pty refuses with EINVAL a ``tcsetattr`` whose only change is
+the character size or parity, and with the speed changed as well the kernel accepts it). Data bits
+and even-vs-no parity cannot be seen on a pty: a client at 8N1 talking to a 7E2 instrument is
+understood here, where the real instrument would see parity errors (docs/protocols/README.md).
+
 Fault plan: a list of ``{"port": name, "request": n, "action": ..., "seconds": s}`` (a dict
 ``{"faults": [...]}`` or a TOML/JSON file with a ``[[faults]]`` array; ``load_fault_plan``). ``n``
 counts the complete requests that port has received since start, from 1 (retries count too).
@@ -95,6 +109,38 @@ def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> lis
     return out
 
 
+PRISTINE = termios.B50   # the speed an idle port is parked at: no client uses 50 baud
+_SPEEDS = {getattr(termios, f"B{b}"): b for b in (50, 75, 110, 134, 150, 200, 300, 600, 1200, 1800, 2400, 4800,
+                                                   9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000,
+                                                   576000, 921600, 1000000, 1152000, 1500000, 2000000)
+           if hasattr(termios, f"B{b}")}
+
+
+def park(fd: int) -> None:
+    """Put a pty slave back to the pristine settings (speed B50, one stop bit, no PARODD)."""
+    try:
+        attrs = termios.tcgetattr(fd)
+        if attrs[4] != PRISTINE or attrs[5] != PRISTINE or attrs[2] & (termios.CSTOPB | termios.PARODD):
+            attrs[4] = attrs[5] = PRISTINE
+            attrs[2] &= ~(termios.CSTOPB | termios.PARODD)
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    except (termios.error, OSError):
+        pass
+
+
+def client_framing(fd: int) -> dict[str, Any] | None:
+    """The line settings a client put on the pty slave ``fd`` (None: still pristine, nobody opened
+    and configured it since it was parked). Only what a pty keeps: speed, stop bits, PARODD."""
+    try:
+        attrs = termios.tcgetattr(fd)
+    except (termios.error, OSError):
+        return None
+    if attrs[4] == PRISTINE and attrs[5] == PRISTINE and not attrs[2] & (termios.CSTOPB | termios.PARODD):
+        return None
+    return {"transport": "pty", "baudrate": _SPEEDS.get(attrs[4], 0),
+            "stopbits": 2 if attrs[2] & termios.CSTOPB else 1, "parity_odd": bool(attrs[2] & termios.PARODD)}
+
+
 class _Port:
     def __init__(self, name: str, emulator: Any, link: Path):
         self.name = name
@@ -113,6 +159,7 @@ class _Port:
         master, slave = os.openpty()
         tty.setraw(slave)
         os.set_blocking(master, False)
+        park(slave)
         self.master, self.slave, self.pts = master, slave, os.ttyname(slave)
         tmp = self.link.with_name(self.link.name + ".new")
         if tmp.is_symlink() or tmp.exists():
@@ -208,7 +255,7 @@ class PtyServer:
                 time.sleep(self.poll_s)
                 continue
             if not r:
-                self._idle(p)
+                self._watch(p)
                 continue
             try:
                 data = os.read(p.master, 4096)
@@ -221,6 +268,7 @@ class PtyServer:
                 raise
             if not data:
                 continue
+            self._watch(p)  # after the read: a client sets its line before it writes
             try:
                 with self.lock:
                     exchanges = p.emulator.feed(data)
@@ -247,19 +295,14 @@ class PtyServer:
                 if reply:
                     self._write(p, reply)
 
-    @staticmethod
-    def _idle(p: _Port) -> None:
-        """Put the line speed back to the pristine B38400 while nobody talks. Linux pseudo-terminals
-        force 8 data bits and no parity, and refuse (EINVAL) a ``tcsetattr`` that then changes only
-        the character size or parity: pyserial re-opening a 7E2 port whose speed is already set
-        would fail. With the speed changed too, the kernel accepts it."""
-        try:
-            attrs = termios.tcgetattr(p.slave)
-            if attrs[4] != termios.B38400 or attrs[5] != termios.B38400:
-                attrs[4] = attrs[5] = termios.B38400
-                termios.tcsetattr(p.slave, termios.TCSANOW, attrs)
-        except (termios.error, OSError):
-            pass
+    def _watch(self, p: _Port) -> None:
+        """A client (re)configured the port since the last look: a connection (module docstring)."""
+        framing = client_framing(p.slave)
+        if framing is None:
+            return
+        park(p.slave)
+        with self.lock:
+            p.emulator.connect(framing)
 
     def _write(self, p: _Port, data: bytes) -> None:
         view = memoryview(data)

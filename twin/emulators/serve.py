@@ -6,7 +6,9 @@ talks to them.
     ...                                              # benchtwin acquire bench.toml -o DATASET
     session.stop()
 
-Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``stage`` (Zaber
+Ports are pseudo-terminals (``PtyServer``), or with ``tcp=True`` loopback TCP sockets
+(``TcpServer``: the same protocols, as the instruments' Ethernet interfaces carry them; the bench
+file then names ``tcp://127.0.0.1:PORT`` ports). Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``stage`` (Zaber
 ASCII), ``autocollimator`` (ELCOMAT 3000 by default, or TriAngle), and the probes: one Millimar
 C1202 port with ``probe_top`` on feature 1 and ``probe_bottom`` on feature 2 (by default), or one
 TESA TT display per probe. X probes, when the scenario has them, go to features 3/… of a second
@@ -34,6 +36,7 @@ from .elcomat import ElcomatEmulator
 from .heidenhain import HeidenhainEmulator
 from .millimar import MillimarEmulator
 from .pty import PtyServer
+from .tcp import TcpServer
 from .tesa import TesaEmulator
 from .triangle import TriAngleEmulator
 from .zaber import ZaberEmulator
@@ -91,7 +94,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
     lines = [
         f"# Written by `benchtwin emulate` for scenario {sc.name!r} (seed {sc.seed}).",
-        "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs.",
+        ("# The ports are loopback TCP sockets served by the emulator; they exist while it runs."
+         if any(str(v).startswith("tcp://") for v in ports.values()) else
+         "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs."),
         "", "[bench]", f'name = "{sc.name}-emulated"', 'source = "emulated"',
         f'description = "emulated instruments of scenario {sc.name} (benchtwin emulate)"',
         "", "[geometry]",
@@ -142,7 +147,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
                 probe_names = probe_names if n in probe_names else probe_names + [n]
                 inst(n, "tesa", ports[n])
     st = emulators["stage"]
-    inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0",
+    # message ids and checksums on (zaber.md): a corrupted or stale reply is detected, not parsed
+    inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0, "
+         "message_ids = true, checksums = true",
          ('soft_limits = ["-1 deg", "361 deg"]', f'max_speed = "{st.speed_deg_s * 1.25:g} deg/s"'))
     if camera is not None:
         lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
@@ -168,7 +175,7 @@ class EmulationSession:
     """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
 
     def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
-                 timeout_s: float = 0.25, camera: str | None = None):
+                 timeout_s: float = 0.25, camera: str | None = None, tcp: bool = False, tcp_base_port: int = 0):
         self.sc = sc
         self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG, camera_backend=camera)
         self.camera = FolderCameraEmulator("ccd") if camera is not None else None
@@ -177,13 +184,17 @@ class EmulationSession:
         self.emulators = build_emulators(sc, self.backend, autocollimator, probes)
         self.faults = faults
         self.timeout_s = float(timeout_s)
-        self.server: PtyServer | None = None
+        self.tcp, self.tcp_base_port = bool(tcp), int(tcp_base_port)
+        self.server: Any = None
         self.bench_path: Path | None = None
 
     def start(self, directory: str | Path) -> Path:
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
+        if self.tcp:
+            self.server = TcpServer(self.emulators, self.faults, base_port=self.tcp_base_port)
+        else:
+            self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
         ports = self.server.start()
         frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"

@@ -1,7 +1,7 @@
 """Hardware-side subcommands: ``emulate`` (serve a scenario's instruments on pseudo-terminals) and
 ``acquire`` (run a bench file's procedures on real or emulated instruments -> dataset).
 
-Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.commands_hw``).
+Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.app.commands_hw``).
 """
 
 from __future__ import annotations
@@ -27,6 +27,11 @@ def _emulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", choices=("auto", "pyrender", "analytic", "none"), default="auto",
                    help="render backend of the hot-folder CCD camera (frames in DIR/frames; the bench file then "
                         "runs the CCD sweep too, as simulate does); 'none': no camera, no CCD sweep")
+    p.add_argument("--tcp", action="store_true",
+                   help="serve the instruments on loopback TCP sockets (their Ethernet interfaces) instead of "
+                        "pseudo-terminals; the bench file names tcp://127.0.0.1:PORT ports")
+    p.add_argument("--tcp-port", type=int, default=0,
+                   help="with --tcp: first port (the k-th instrument gets PORT+k); default 0: free ports")
     p.add_argument("--duration", type=float, default=None,
                    help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
 
@@ -47,7 +52,8 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
         raise InputError(str(exc)) from None
     directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
     session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes,
-                               camera=None if ns.camera == "none" else ns.camera)
+                               camera=None if ns.camera == "none" else ns.camera, tcp=ns.tcp,
+                               tcp_base_port=ns.tcp_port)
     try:
         bench = session.start(directory)
     except ValueError as exc:
@@ -56,12 +62,27 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
     if not (ns.quiet or ns.json):
         for name, link in session.ports().items():
-            print(f"{name:16s} {link} -> {session.server.pts()[name]}", flush=True)
+            ser = session.emulators[name].SERIAL
+            line = f"{ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
+            where = "" if ns.tcp else f" -> {session.server.pts()[name]}"
+            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}, {line})", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)
+    import time
+
+    t_end = None if ns.duration is None else time.monotonic() + ns.duration
+    shown: dict[str, int] = {}
     try:
-        stop.wait(ns.duration)
+        while not stop.wait(0.2 if t_end is None else max(0.0, min(0.2, t_end - time.monotonic()))):
+            if not (ns.quiet or ns.json):
+                # a client at the wrong baud rate gets silence, as from the real instrument: say why
+                for name, emu in session.emulators.items():
+                    for note in emu.framing_notes[shown.get(name, 0):]:
+                        print(f"warning: {note}", flush=True)
+                    shown[name] = len(emu.framing_notes)
+            if t_end is not None and time.monotonic() >= t_end:
+                break
     except KeyboardInterrupt:
         pass
     finally:

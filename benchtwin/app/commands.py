@@ -117,7 +117,7 @@ if _have("benchtwin.analysis.pipeline"):
                 _analyze_args)(cmd_close_loop)
 if _have("benchtwin.twin.simulate") and _have("benchtwin.analysis.pipeline"):
     command("run", "simulate -> analyze -> report (default: the embedded jia2019 scenario)", _run_args)(cmd_run)
-if _have("benchtwin.twin.study"):
+if _have("benchtwin.app.study"):
     def _study_args(p: argparse.ArgumentParser) -> None:
         p.add_argument("study", type=Path, help="study file (TOML)")
         p.add_argument("-o", "--out", type=Path, default=None, help="output directory (default: out/<study name>)")
@@ -126,7 +126,7 @@ if _have("benchtwin.twin.study"):
 
     @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
     def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:
-        from benchtwin.twin.study import run_study
+        from benchtwin.app.study import run_study
 
         out = ns.out or Path("out") / ns.study.stem
         res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers, progress=not (ns.quiet or ns.json))
