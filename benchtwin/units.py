@@ -76,7 +76,7 @@ _UNITS: dict[str, tuple[float, str]] = {
     "nm/K": (NM, "length_per_kelvin"),
     "arcsec/K": (ARCSEC, "angle_per_kelvin"),
     "ppm/K": (1e-6, "per_kelvin"),
-    "1/K": (1.0, "per_kelvin"),
+    "per_K": (1.0, "per_kelvin"),
     # optics / sensor
     "um/px": (UM, "pixel_pitch"),
     "px": (1.0, "pixels"),

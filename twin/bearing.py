@@ -227,6 +227,21 @@ class BallSet:
         Q = self.Kn * np.maximum(delta, 0.0) ** 1.5
         return -self.cos_a * np.array([Q @ c, Q @ s])
 
+    def force_and_stiffness(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> tuple[np.ndarray, np.ndarray]:
+        """The force of ``force_on_shaft_N`` and its stiffness −dF/du (2×2, N/m): the sum over the
+        loaded balls of (3/2)·K_n·delta_j^½·cos²a·e_j·e_jᵀ (the Newton step of the bench's statics)."""
+        psi = cage_rad + self._slots
+        c, s = np.cos(psi), np.sin(psi)
+        delta = self.delta0_m + self.cos_a * (u_m[0] * c + u_m[1] * s) + self.interference_m(theta_rad, cage_rad)
+        dp = np.maximum(delta, 0.0)
+        root = np.sqrt(dp)
+        Q = self.Kn * dp * root
+        k = 1.5 * self.Kn * root * self.cos_a**2
+        F = -self.cos_a * np.array([Q @ c, Q @ s])
+        kc, ks = k * c, k * s
+        K = np.array([[kc @ c, kc @ s], [kc @ s, ks @ s]])
+        return F, K
+
     def ball_loads_N(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> np.ndarray:
         psi = self.ball_azimuths(cage_rad)
         delta = (self.delta0_m + self.cos_a * (u_m[0] * np.cos(psi) + u_m[1] * np.sin(psi))

@@ -282,15 +282,13 @@ class Bench:
         # Journal displacement at the bearings = T·q (the fixed tendons are linear in q).
         self._T = self._tendon_matrix()
         self.reset_path()
+        if self.ball_sets is not None:
+            bs, self.ball_sets = self.ball_sets, None      # MuJoCo's part alone
+            self._K_mj = self._stiffness_matrix()
+            self.ball_sets = bs
         self._K = self._stiffness_matrix()
         self._Kinv = np.linalg.inv(self._K)
         self._center_axis_average_line()
-        if self.ball_sets is not None:
-            # Newton with the stiffness of the loaded, centred bench (the ball sets' stiffness
-            # depends on the load): 4–6 iterations per pose instead of a slow linear convergence.
-            self._K = self._stiffness_matrix(self._housing_m, self._q_last)
-            self._Kinv = np.linalg.inv(self._K)
-            self._center_axis_average_line()
         self.reset_path()
 
     # ------------------------------------------------------------------ generated parameters --
@@ -505,6 +503,16 @@ class Bench:
             r += self._T.T @ self._ball_forces(q)
         return r
 
+    def _residual_and_K(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and the Newton matrix of a ball bench: MuJoCo's part of K (constant: its forces
+        are linear in the small radial/tilt coordinates) plus Tᵀ·K_balls·T of the ball sets at this
+        configuration (analytic), so Newton converges quadratically."""
+        d = self.data
+        d.qpos[:] = q
+        mujoco.mj_forward(self.model, d)
+        F, Kb = self._ball_forces(q, with_stiffness=True)
+        return d.qfrc_smooth + self._T.T @ F, self._K_mj + self._T.T @ Kb @ self._T
+
     def _tendon_matrix(self) -> np.ndarray:
         """(4, 6) T with journal displacements (top x, top y, bottom x, bottom y) = T·q."""
         d = self.data
@@ -519,14 +527,17 @@ class Bench:
         return T
 
     # ---------------------------------------------------------------- ball sets and cage path --
-    def reset_path(self) -> None:
+    def reset_path(self, run: int = 0) -> None:
         """Start the cage path afresh: every cage at its seeded initial angle, shaft angle 0, no
-        stop yet (a new run on a bench whose history is forgotten)."""
+        stop yet (a new run on a bench whose history is forgotten). ``run`` keys the initial cage
+        angles and the slip draws, so independent runs (a study's repetitions) are independent
+        realisations whatever ran before on the same ``Bench``."""
+        self._path_run = int(run)
         self._path_t: float | None = 0.0
         self._path_n = 0
         self._path_theta_ref = 0.0
         if self.ball_sets is not None:
-            self._cage0 = _rng(self.seed, "cage_start").uniform(0, TWO_PI, 2)
+            self._cage0 = _rng(self.seed, "cage_start", self._path_run).uniform(0, TWO_PI, 2)
         else:
             self._cage0 = np.zeros(2)
         self._path_cage_ref = self._cage0.copy()
@@ -550,7 +561,7 @@ class Bench:
         self._path_n += 1
         self._path_t = float(t_s)
         if self.cage_slip > 0 and self.ball_sets is not None:
-            self._path_slip = _rng(self.seed, "cage_slip", self._path_n).normal(0.0, self.cage_slip, 2)
+            self._path_slip = _rng(self.seed, "cage_slip", self._path_run, self._path_n).normal(0.0, self.cage_slip, 2)
 
     def cage_angles_rad(self, theta_rad: float) -> np.ndarray:
         """Cage angles (top, bottom; lab frame) with the shaft at ``theta_rad`` on the current
@@ -562,8 +573,9 @@ class Bench:
         rho = np.array([self.ball_sets["top"].rho, self.ball_sets["bottom"].rho])
         return self._path_cage_ref + rho * (float(theta_rad) - self._path_theta_ref) * (1.0 + self._path_slip)
 
-    def _ball_forces(self, q: np.ndarray, housing_m: np.ndarray | None = None) -> np.ndarray:
-        """Ball-set forces on the journals (top x, top y, bottom x, bottom y), N."""
+    def _ball_forces(self, q: np.ndarray, housing_m: np.ndarray | None = None, with_stiffness: bool = False):
+        """Ball-set forces on the journals (top x, top y, bottom x, bottom y), N (and, with
+        ``with_stiffness``, their 4×4 block-diagonal stiffness −dF/du)."""
         housing = self._housing_m if housing_m is None else housing_m
         if self._solve_housing is not None:
             housing = self._solve_housing
@@ -574,6 +586,12 @@ class Bench:
             u[0] -= dx
             u[2] -= dx
         cage = self.cage_angles_rad(th)
+        if with_stiffness:
+            ft, kt = self.ball_sets["top"].force_and_stiffness(u[:2], th, cage[0])
+            fb, kb = self.ball_sets["bottom"].force_and_stiffness(u[2:], th, cage[1])
+            K = np.zeros((4, 4))
+            K[:2, :2], K[2:, 2:] = kt, kb
+            return np.concatenate([ft, fb]), K
         ft = self.ball_sets["top"].force_on_shaft_N(u[:2], th, cage[0])
         fb = self.ball_sets["bottom"].force_on_shaft_N(u[2:], th, cage[1])
         return np.concatenate([ft, fb])
@@ -629,8 +647,12 @@ class Bench:
         for it in range(1, SETTLE_MAX_ITER + 1):
             self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
             self._set_centrifugal(q[4])
-            r = self._residual(q)
-            dq = self._Kinv @ r
+            if self.ball_sets is not None:
+                r, Kq = self._residual_and_K(q)
+                dq = np.linalg.solve(Kq, r)
+            else:
+                r = self._residual(q)
+                dq = self._Kinv @ r
             q = q + dq
             if np.all(np.abs(dq) <= SETTLE_ATOL + 4 * np.finfo(float).eps * np.abs(q)):
                 break

@@ -285,6 +285,9 @@ outputs = ["measured_angle_error_pv_arcsec", "measured_angle_error_rms_arcsec", 
 "instruments.ccd.width" = "512 px"
 "instruments.ccd.height" = "384 px"
 "bench.polygon_faces" = 8
+# rolling-path bearings: the study's "true α" is the twin's α grid (one realisation of the motion);
+# with jia2019's ball sets each polygon visit sees another ball configuration (docs/physics.md)
+"bearings.type" = "path"
 [[study.parameters]]
 key = "errors.eccentricity"
 values = ["5 um"]

@@ -33,6 +33,14 @@ SMALL = {
     "instruments.autocollimator.accuracy": "0 arcsec",
     "instruments.autocollimator.noise": "0 arcsec",
     "errors.graduation_error_rms": "0.5 arcsec",
+    # rolling-path bearings with the waviness and rep-wise non-repeating motion jia2019.toml had
+    # before its ball sets: these tests check the instruments' equations against the truth α grid,
+    # which a ball bench's path-dependent asynchronous motion (tests/twin/test_bearing.py) would blur
+    "bearings.type": "path",
+    "bearings.waviness_top": [{"order": 2, "amplitude": "0.15 um", "phase": "30 deg"},
+                              {"order": 3, "amplitude": "0.10 um", "phase": "110 deg"}],
+    "bearings.waviness_bottom": [{"order": 2, "amplitude": "0.10 um", "phase": "250 deg"}],
+    "bearings.async_rms": "0.06 um",
 }
 
 
@@ -214,6 +222,9 @@ def test_physics_bench_eccentricity_alone_gives_the_exact_law():
     from benchtwin.twin.physics import Bench
 
     sc = load_scenario(ROOT / "scenarios" / "jia2019.toml").with_overrides({
+        "bearings.type": "path",   # ideal rolling paths: no ball set, no waviness
+        "errors.graduation_error_rms": "0 arcsec", "instruments.encoder.interpolation_error": "0 arcsec",
+        "thermal.axis_drift": "0 um/K",
         "bearings.waviness_top": [], "bearings.waviness_bottom": [], "bearings.unbalance": "0 g*mm",
         "bearings.async_rms": "0 um", "bearings.friction_torque": "0 N*m", "bench.gravity_direction": "none"})
     st = SimBenchState(Bench(sc))
