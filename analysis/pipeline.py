@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.fsio import atomic_write_text
 
 
 def _jsonable(x: Any) -> Any:
@@ -226,6 +227,18 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dic
     return out
 
 
+def _step(ds: Dataset, table: str, fn, *args):
+    """One analysis step; data it cannot analyse (a ValueError of the analysis: too few positions
+    for the Fourier order, a singular design, …) is the dataset's error, named by its table (issue
+    #13: what validate accepts either runs or gets a clear exit 2, never a traceback)."""
+    try:
+        return fn(*args)
+    except DatasetError:
+        raise
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
+
+
 def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
             progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
@@ -234,9 +247,14 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
     """
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-    from benchtwin.analysis.report.html import Report
 
     ds = open_dataset(dataset)
+    for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
+        ds.table(name)  # every table read and checked before any analysis step runs
+    if model_file is not None and not isinstance(model_file, dict):
+        from benchtwin.analysis.model_file import read_model_file
+
+        model_file = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -245,11 +263,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
         "bench": dict(b), "notes": [],
     }
-    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
-        rm = step_radial_motion(ds, order)
+        rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
         results["radial_motion"] = {
             "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
             "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
@@ -258,7 +275,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
         }
     if ds.has("ccd/index"):
-        ecc = step_eccentricity(ds, order, progress)
+        ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
             from benchtwin.analysis.eccentricity import with_async_motion
 
@@ -280,7 +297,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
                 f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
                 f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
-        pol = step_polygon(ds)
+        pol = _step(ds, "polygon.csv", step_polygon, ds)
         for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                     "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
                     "difference_arcsec", "repeatability", "autocollimator_declared"):
@@ -318,9 +335,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr)
-    tmp = out / "results.json.tmp"
-    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(out / "results.json")
+    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
+    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
 
 

@@ -390,7 +390,7 @@ def format_suite_table(out: Mapping[str, Any]) -> str:
               f"{o['alpha_rms_error_arcsec_n']} |",
               f"| self-calibration RMS error | {_c(o['selfcal_rms_error_arcsec'], '.4f')}″ | "
               f"{o['selfcal_rms_error_arcsec_n']} |",
-              f"| coverage ≤1u / ≤2u (pooled; normal 68.3 % / 95.4 %) | "
+              "| coverage ≤1u / ≤2u (pooled; normal 68.3 % / 95.4 %) | "
               + ("–" if o["coverage_1u"] is None else f"{o['coverage_1u']:.1%} / {o['coverage_2u']:.1%}")
               + f" | {o['coverage_n']} points |",
               f"| effect named correctly | {o['identification_correct']}/{o['identification_scored']} | "

@@ -29,6 +29,9 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchtwin.fsio import atomic_write_text
+from benchtwin.units import ARCSEC
+
 from ._base import decimals_for
 from .backend import EmulatedBench
 from .camera import FolderCameraEmulator
@@ -43,7 +46,6 @@ from .zaber import ZaberEmulator
 
 __all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
 
-ARCSEC = math.pi / 648000.0
 MICROSTEPS_PER_DEG = 1000.0
 
 
@@ -110,6 +112,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
         f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
         f"scale_edge_radius = {_q(float(b['scale_edge_radius']) * 1e3, 'mm')}",
     ]
+    ac = sc["instruments"]["autocollimator"]
+    lines += [f"autocollimator_resolution = {_q(float(ac['resolution']) / ARCSEC, 'arcsec')}",
+              f"autocollimator_accuracy = {_q(float(ac['accuracy']) / ARCSEC, 'arcsec')}"]
     if camera is not None:
         c = camera.camera
         ref = ", ".join(f"{float(v):.12g}" for v in c.reference_px)
@@ -198,8 +203,9 @@ class EmulationSession:
         ports = self.server.start()
         frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"
-        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
-                                                   self.backend.camera, frames), encoding="utf-8")
+        # atomic (benchtwin.fsio): a client polling for the bench file never reads half of it
+        atomic_write_text(self.bench_path, bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
+                                                           self.backend.camera, frames))
         return self.bench_path
 
     def ports(self) -> dict[str, str]:

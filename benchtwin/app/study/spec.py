@@ -35,8 +35,7 @@ import itertools
 import json
 import math
 import re
-import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -44,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.schema import SchemaError, check_version, load_toml_file
 from benchtwin.twin.scenario import Scenario, ScenarioError, load_scenario
 from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS, SCHEMA, Field
 from benchtwin.units import DIMENSIONS, UnitError, parse_quantity, units_of
@@ -58,10 +58,16 @@ _STUDY_KEYS = {"name", "description", "base", "seed", "repetitions", "outputs", 
 _PARAM_KEYS = {"key", "name", "values", "labels", "low", "high", "n", "sampling", "set"}
 _TARGET_KEYS = {"output", "below", "parameter", "coverage", "criterion"}
 _SEED_MAX = 2**63 - 1
+# A value level whose scenario overrides follow from its value once the parameter is parsed
+# (``Parameter.overrides_for``); compared by identity, never mutated.
+_UNRESOLVED: dict[str, Any] = {}
 
 
 class StudyError(ValueError):
     """A study file that cannot be run; the message names the file, the key and what was expected."""
+
+
+_Fail = Callable[[str], StudyError]  # message -> the error naming the study file
 
 
 # ------------------------------------------------------------------------------------ spec
@@ -205,24 +211,41 @@ def _flatten(node: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every point's resolved scenario is validated too."""
+    """Read and validate a study file; every point's resolved scenario is validated too.
+
+    The checks name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
+    try:
+        return _load_study(path)
+    except StudyError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise StudyError(f"{path}: a value of the wrong type or shape ({type(exc).__name__}: {str(exc)[:120]}); "
+                         "see docs/studies.md") from None
+
+
+def _load_study(path: str | Path) -> Study:
     p = Path(path)
     where = str(p)
 
     def fail(msg: str) -> StudyError:
         return StudyError(f"{where}: {msg}")
 
-    if not p.is_file():
+    if not p.exists():
         raise fail("no such study file")
-    try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise fail(f"not valid TOML: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        raw = load_toml_file(p, what="study file")
+    except SchemaError as exc:
+        raise StudyError(str(exc)) from None
+    check_version(raw, where, fail=StudyError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     if set(raw) != {"study"}:
         extra = sorted(set(raw) - {"study"})
         raise fail(f"unknown section [{extra[0]}]; a study file holds only [study] and its sub-tables"
                    if extra else "missing section [study]")
     st = raw["study"]
+    if not isinstance(st, Mapping):
+        raise fail("[study] must be a table")
     for k in st:
         if k not in _STUDY_KEYS:
             raise fail(f"unknown key study.{k}; expected one of {', '.join(sorted(_STUDY_KEYS))}")
@@ -294,7 +317,7 @@ def load_study(path: str | Path) -> Study:
     return study
 
 
-def _resolve_base(base: Any, study_path: Path, fail) -> tuple[Scenario, str]:
+def _resolve_base(base: Any, study_path: Path, fail: _Fail) -> tuple[Scenario, str]:
     if not isinstance(base, str) or not base:
         raise fail("study.base: expected a scenario path (relative to the study file) or a packaged "
                    "scenario name such as 'jia2019'")
@@ -315,7 +338,7 @@ def _resolve_base(base: Any, study_path: Path, fail) -> tuple[Scenario, str]:
         raise fail(f"study.base: the base scenario is invalid: {exc}") from None
 
 
-def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
+def _parse_parameter(i: int, pr: Any, fail: _Fail) -> Parameter:
     at = f"study.parameters[{i}]"
     if not isinstance(pr, Mapping):
         raise fail(f"{at}: expected a table")
@@ -374,16 +397,16 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
                 except UnitError as exc:
                     raise fail(f"{at}.values[{j}] ({name}): {exc}") from None
                 shown = _round(x_si / _factor(p.unit, dim)) if p.unit else x_si
-                p.levels.append((shown, None))
+                p.levels.append((shown, _UNRESOLVED))
         elif dim == "dimensionless" and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             p.kind = "number"
-            p.levels = [(float(v), None) for v in values]
+            p.levels = [(float(v), _UNRESOLVED) for v in values]
         elif dim == "int" and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
             p.kind = "int"
-            p.levels = [(int(v), None) for v in values]
+            p.levels = [(int(v), _UNRESOLVED) for v in values]
         elif dim in ("str", "bool") and labels is None:
             p.kind = dim
-            p.levels = [(v, None) for v in values]
+            p.levels = [(v, _UNRESOLVED) for v in values]
         else:
             if labels is None or not isinstance(labels, list) or len(labels) != len(values) or \
                     not all(isinstance(s, str) for s in labels):
@@ -435,9 +458,9 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
         if sampling == "grid":
             grid = np.linspace(lo_v, hi_v, n)
             if p.kind == "int":
-                p.levels = [(int(v), None) for v in np.unique(np.round(grid).astype(int))]
+                p.levels = [(int(v), _UNRESOLVED) for v in np.unique(np.round(grid).astype(int))]
             else:
-                p.levels = [(_round(float(v)), None) for v in grid]
+                p.levels = [(_round(float(v)), _UNRESOLVED) for v in grid]
     p.dim = dim
     if sets is not None:
         if not isinstance(sets, Mapping) or not sets:
@@ -462,11 +485,11 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
                 raise fail(f"{at}.set.{k}.offset ({name}): {exc}") from None
             p.sets[k] = (float(scale), off, p.unit)
     # resolve overrides of value levels
-    p.levels = [(v, ov if ov is not None else p.overrides_for(v)) for v, ov in p.levels]
+    p.levels = [(v, p.overrides_for(v) if ov is _UNRESOLVED else ov) for v, ov in p.levels]
     return p
 
 
-def _parse_table_parameter(i: int, pr: Mapping[str, Any], fail) -> Parameter:
+def _parse_table_parameter(i: int, pr: Mapping[str, Any], fail: _Fail) -> Parameter:
     """A labelled parameter whose values are tables of overrides (e.g. a bearing grade that sets
     both races' waviness and the asynchronous motion)."""
     at = f"study.parameters[{i}]"
@@ -521,7 +544,7 @@ def _output_dim(output: str) -> tuple[str, str]:
     return "", "dimensionless"
 
 
-def _parse_target(t: Any, outputs: list[str], params: list[Parameter], fail) -> Target | None:
+def _parse_target(t: Any, outputs: list[str], params: list[Parameter], fail: _Fail) -> Target | None:
     if t is None:
         return None
     if not isinstance(t, Mapping):
@@ -580,7 +603,7 @@ def expand_points(study: Study) -> list[Point]:
         ns = {p.n for p in sampled}
         if len(ns) > 1:
             raise StudyError(f"{study.path}: study.parameters: sampled parameters ({', '.join(p.name for p in sampled)}) "
-                             f"must share the same n (they are drawn jointly), got {sorted(ns)}")
+                             f"must share the same n (they are drawn jointly), got {sorted(n for n in ns if n is not None)}")
         n = ns.pop()
         assert n is not None
         seed_seq = np.random.SeedSequence([study.seed, 0x5A3])
