@@ -183,11 +183,10 @@ class BallSet:
         self.Z = int(g.balls)
         self.rho = g.cage_ratio
         self._slots = TWO_PI * np.arange(self.Z) / self.Z
-        if self.ball_dd_m is None:
-            self.ball_dd_m = np.zeros(self.Z)
-        self.ball_dd_m = np.asarray(self.ball_dd_m, dtype=float)
-        if self.ball_dd_m.shape != (self.Z,):
+        dd = np.zeros(self.Z) if self.ball_dd_m is None else np.asarray(self.ball_dd_m, dtype=float)
+        if dd.shape != (self.Z,):
             raise ValueError("ball_dd_m must have one value per ball")
+        self.ball_dd_m = self._dd = dd
 
         # Each race's lobes at the Z balls as one complex product: the balls sit at
         # x_j = x_0 + 2·pi·j/Z, so sum_k a_k cos(k x_j - p_k) = Re(sum_k W[j, k]·c_k·e^(i k x_0)) with
@@ -216,7 +215,7 @@ class BallSet:
             w += self._Wi @ (self._ci * np.exp(1j * self._ki * (cage_rad - theta_rad)))
         if self._ko.size:   # outer race: ball j at lab angle psi_j
             w += self._Wo @ (self._co * np.exp(1j * self._ko * cage_rad))
-        return self.cos_a * w.real + self.ball_dd_m
+        return self.cos_a * w.real + self._dd
 
     def force_on_shaft_N(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> np.ndarray:
         """Radial force (x, y) of the ball set on the journal displaced by u (inner race relative
@@ -266,7 +265,7 @@ class BallSet:
                                  for k, a, p in zip(*self.inner)],
             "outer_race_lobes": [{"order": int(k), "amplitude_m": float(a), "phase_rad": float(p)}
                                  for k, a, p in zip(*self.outer)],
-            "ball_diameter_deviation_m": self.ball_dd_m.tolist(),
+            "ball_diameter_deviation_m": self._dd.tolist(),
         }
 
 

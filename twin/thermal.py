@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -138,7 +139,7 @@ class Thermal:
         return 1.0 + self.disk_cte * (self.state(t_s).structure_degC - self.T0)
 
     def truth(self, t_end_s: float | None = None) -> dict:
-        out = {
+        out: dict[str, Any] = {
             "ambient_degC": self.T0, "ambient_amplitude_K": self.A, "ambient_period_s": self.P,
             "ambient_phase_rad": self.phi, "motor_rise_K": self.dTm, "motor_time_constant_s": self.tau_m,
             "structure_time_constant_s": self.tau_s, "structure_motor_share": self.share,

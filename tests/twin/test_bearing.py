@@ -10,7 +10,6 @@ fall on orders 2k, which never satisfy 2k = qZ ± 1 for even Z: we demand < 1e-6
 
 from __future__ import annotations
 
-import copy
 import math
 
 import mujoco

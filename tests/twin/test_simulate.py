@@ -153,21 +153,27 @@ def test_probe_readings_follow_the_true_sphere_motion(small_ds):
     assert np.max(np.abs(dY_axis - axis_dy)) < 0.005
 
 
-def test_same_seed_byte_identical_and_seed_matters(tmp_path):
-    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False})
+@pytest.mark.parametrize("bearings", ["path", "ball"])
+def test_same_seed_byte_identical_and_seed_matters(tmp_path, bearings):
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
+                           "bearings.type": bearings})
     a = simulate(sc, tmp_path / "a", progress=False, backend="analytic")
     b = simulate(sc, tmp_path / "b", progress=False, backend="analytic")
     fa, fb = files(a), files(b)
     assert fa.keys() == fb.keys() and all(fa[k] == fb[k] for k in fa)
     c = simulate(small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
-                                   "scenario.seed": 7}), tmp_path / "c", progress=False, backend="analytic")
+                                   "bearings.type": bearings, "scenario.seed": 7}),
+                 tmp_path / "c", progress=False, backend="analytic")
     assert files(c)["polygon.csv"] != fa["polygon.csv"]
 
 
-def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch):
+@pytest.mark.parametrize("bearings", ["path", "ball"])
+def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch, bearings):
+    """Ball bearings too: the cage path (and its slip draws) is re-done by the replayed moves."""
     from benchtwin.twin.instruments.probe import SimProbe
 
-    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"]})
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
+                           "bearings.type": bearings})
     ref = simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
 
     calls = {"n": 0}
