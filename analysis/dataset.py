@@ -93,6 +93,12 @@ TABLES: dict[str, TableSpec] = {
         ("rep", "theta_deg"),
         ranges={"rep": (0, 10000)},
     ),
+    # ISO 230-7 continuous-rotation run (twin/continuous.py): probes sampled in time while turning
+    "radial_continuous": TableSpec(
+        {"t_s": float, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float},
+        ("t_s",),
+    ),
     "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {"theta_read_deg": float, "t_s": float},
                            ("k",), ranges={"k": (0, 10**6)}),
     "polygon": TableSpec(
