@@ -199,6 +199,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Headless GL for the whole process, before anything imports mujoco (it binds its GL backend at
+    # import): Mesa's EGL for the twin's renderer and the report's bench view alike, unless the
+    # user chose a platform (twin/render/gl.py; the same default as the tests' conftest).
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
     _load_commands()
     args = sys.argv[1:] if argv is None else list(argv)
     _Parser.json_mode = "--json" in args
