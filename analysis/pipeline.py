@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.fsio import atomic_write_text
 
 
 def _jsonable(x: Any) -> Any:
@@ -241,7 +242,20 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dic
     return out
 
 
-def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
+def _step(ds: Dataset, table: str, fn, *args):
+    """One analysis step; data it cannot analyse (a ValueError of the analysis: too few positions
+    for the Fourier order, a singular design, …) is the dataset's error, named by its table (issue
+    #13: what validate accepts either runs or gets a clear exit 2, never a traceback)."""
+    try:
+        return fn(*args)
+    except DatasetError:
+        raise
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
+
+
+def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+            model_file: str | Path | dict[str, Any] | None = None,
             progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
 
@@ -254,6 +268,13 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
 
     ds = open_dataset(dataset)
+    for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
+        ds.table(name)  # every table read and checked before any analysis step runs
+    model_payload: dict[str, Any] | None = None
+    if model_file is not None:
+        from benchtwin.analysis.model_file import read_model_file
+
+        model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -265,7 +286,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
-        rm = step_radial_motion(ds, order)
+        rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
         results["radial_motion"] = {
             "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
             "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
@@ -276,7 +297,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         rm["iso230_7"] = step_iso230_7(ds, rm, order)  # ISO 230-7 values and polar plots (issue 20)
         results["radial_error_motion"] = _iso_summary(rm["iso230_7"])
     if ds.has("ccd/index"):
-        ecc = step_eccentricity(ds, order, progress)
+        ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
             from benchtwin.analysis.eccentricity import with_async_motion
 
@@ -298,7 +319,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
                 f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
                 f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
-        pol = step_polygon(ds)
+        pol = _step(ds, "polygon.csv", step_polygon, ds)
         for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                     "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
                     "difference_arcsec", "repeatability", "autocollimator_declared"):
@@ -310,10 +331,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     model = None
     if ecc is not None:
         model = error_model_from_results(ecc, rm, r_um)
-        if model_file is not None:
+        if model_payload is not None:
             from benchtwin.analysis.tracing import add_to_error_model
 
-            added = add_to_error_model(model, model_file)
+            added = add_to_error_model(model, model_payload)
             results["model_file_terms"] = added
         grid = np.arange(0.0, 360.0, 1.0)
         results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),
@@ -336,9 +357,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
-    tmp = out / "results.json.tmp"
-    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(out / "results.json")
+    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
+    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
 
 

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.fsio import atomic_write_text
+
 from .spec import Study, _output_dim
 
 
@@ -58,8 +60,8 @@ def write_report(study: Study, rows: list[dict[str, Any]], done: dict[tuple[int,
     verdict = _target_verdict(study, rows) if study.target else None
     figures = _figures(study, rows, done, out, verdict)
     md = _markdown(study, rows, verdict, info)
-    (out / "summary.md").write_text(md, encoding="utf-8")
-    (out / "summary.html").write_text(_html(md), encoding="utf-8")
+    atomic_write_text(out / "summary.md", md)
+    atomic_write_text(out / "summary.html", _html(md))
     report = _report(study, _html(md), figures, out / "report.html")
     return Written(verdict, figures, report)
 
