@@ -17,7 +17,7 @@ ISO 230-7:2015 (sec. 3 terms, 5.2 / 5.4 radial error motion, annex on polar plot
   max − min;
 - **asynchronous** error motion: each revolution's deviation from the synchronous plot; value = the
   maximum over θ of the radial width of the band (max − min over the revolutions at that angle),
-  which does not depend on the centre.
+  which does not depend on the centre; not defined (NaN, null in results.json) for one revolution.
 
 The disk plane (Jia eq. 9) is the combination w_top·δ_top + w_bot·δ_bot of the two spheres'
 readings at the same angle of the same revolution, so its plots follow from the same steps.
@@ -89,7 +89,8 @@ def error_motion(theta_deg: np.ndarray, revs_um: np.ndarray, sigma_um: float | N
     return {
         "total_um": float(np.ptp(total)),
         "synchronous_um": float(np.ptp(sync)),
-        "asynchronous_um": float(np.max(np.ptp(asyn, axis=0))) if n > 1 else 0.0,
+        # one revolution has no asynchronous motion to show: not defined (NaN), not zero
+        "asynchronous_um": float(np.max(np.ptp(asyn, axis=0))) if n > 1 else float("nan"),
         "total_u_um": math.sqrt(2.0) * s,
         "synchronous_u_um": math.sqrt(2.0 / n) * s,
         "asynchronous_u_um": math.sqrt(2.0) * s if n > 1 else float("nan"),

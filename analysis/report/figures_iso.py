@@ -94,8 +94,9 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
                   "(√2·σ for a range, √(2/n)·σ for the synchronous mean), standard uncertainties.")
     rows = []
     for loc in locs:
-        rows.append([loc["label"]] + [value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
-                                      for k in ("total", "synchronous", "asynchronous")])
+        rows.append([loc["label"]] + [
+            value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
+            if np.isfinite(loc[f"{k}_um"]) else "– (one revolution)" for k in ("total", "synchronous", "asynchronous")])
     rep.table(rows, ["location", "total", "synchronous", "asynchronous"])
     if filtered and not iso["filtered"]:
         f = [(loc["label"], filtered[loc["name"]]) for loc in locs if filtered.get(loc["name"])]

@@ -743,6 +743,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             lst = _el(d, "list", refType=f"benchtwin_{loc['name']}")
             _text(lst, "name", loc.get("label", loc["name"]), lang)
             for kind in ("total", "synchronous", "asynchronous"):
+                if kind == "asynchronous" and loc.get("asynchronous_um") is None:
+                    continue  # one revolution: no asynchronous error motion value
                 x = _number(w, loc, f"{kind}_um")
                 u = loc.get(f"{kind}_u_um")
                 q = _quantity(lst, f"{kind} error motion value", lang, f"benchtwin_{kind}ErrorMotion")

@@ -64,3 +64,8 @@ def test_spectrum_finds_orders():
     i7 = np.argmin(np.abs(s["order"] - 7))
     assert s["amplitude_um"][i7] == pytest.approx(0.2, rel=2e-3)  # leakage of the non-integer 2.4
     assert s["order"][np.argmax(s["amplitude_um"] * (np.abs(s["order"] - 7) > 0.5))] == pytest.approx(2.375, abs=0.13)
+
+
+def test_one_revolution_has_no_asynchronous_value():
+    em = error_motion(TH, _sync(TH)[None, :] + 0.4 * np.cos(np.deg2rad(TH)))
+    assert np.isnan(em["asynchronous_um"]) and em["synchronous_um"] == pytest.approx(np.ptp(_sync(TH)), abs=1e-12)
