@@ -273,3 +273,22 @@ def test_equipment_and_environment_from_an_acquisition_manifest(jia_results):
     t = tree.find(".//dcc:influenceCondition[@refType='basic_temperature']//si:real", ns)
     assert t.find("si:value", ns).text == "20.30" and t.find("si:expandedUnc/si:uncertainty", ns).text == "0.10"
     assert tree.find(".//dcc:statement[@refType='benchtwin_dataSource']", ns) is not None
+
+
+def test_certificate_states_the_corrected_curve_only_when_a_correction_was_applied():
+    """The loop's ``encoder_error_corrected_arcsec`` (issue 16) is the curve a certificate states when a
+    correction of the reference chain was applied; with none applied it equals the measured curve and
+    the certificate says "measured"."""
+    from benchtwin.app.certificate import encoder_curve
+
+    measured = {"theta_deg": [0.0, 180.0], "value": [1.0, -1.0], "u": [0.1, 0.1]}
+    corrected = {"theta_deg": [0.0, 180.0], "value": [0.4, -0.4], "u": [0.12, 0.12],
+                 "corrections_applied": [{"effect": "ac_scale", "rms_arcsec": 0.6}]}
+    res = {"encoder_error_arcsec": measured, "encoder_error_corrected_arcsec": corrected,
+           "budget_summary": {"k": 2.0, "p": 0.95}}
+    c = encoder_curve(res, "results.json")
+    assert c["key"] == "encoder_error_corrected_arcsec" and "ac_scale" in c["label"]
+    assert c["value"] == [0.4, -0.4] and c["U"] == pytest.approx([0.24, 0.24])
+    res["encoder_error_corrected_arcsec"] = {**measured, "corrections_applied": []}
+    c = encoder_curve(res, "results.json")
+    assert c["key"] == "encoder_error_arcsec" and c["label"].startswith("measured")

@@ -385,9 +385,13 @@ def encoder_curve(res: Mapping[str, Any], src: str) -> dict[str, Any]:
     k = float(bs.get("k", K_DEFAULT)) if isinstance(bs.get("k"), (int, float)) else K_DEFAULT
     p = float(bs.get("p", P_DEFAULT)) if isinstance(bs.get("p"), (int, float)) else P_DEFAULT
     key, label = "encoder_error_arcsec", "measured (shift-angle method, Hsieh 2022 eq. 3)"
-    corrected = res.get("corrected_error_arcsec")
-    if isinstance(corrected, Mapping) and corrected.get("value"):
-        key, label = "corrected_error_arcsec", "corrected by the effects the loop identified"
+    # results.json's encoder_error_corrected_arcsec (analysis/pipeline.py corrected_curve) equals the
+    # measured curve when nothing was identified; it is stated as corrected only when a correction
+    # of the reference chain was applied, and the applied corrections are named
+    corrected = res.get("encoder_error_corrected_arcsec")
+    if isinstance(corrected, Mapping) and corrected.get("value") and corrected.get("corrections_applied"):
+        names = ", ".join(str(c.get("effect")) for c in corrected["corrections_applied"])
+        key, label = "encoder_error_corrected_arcsec", f"corrected by the effects the loop identified ({names})"
     d = res[key]
     w = f"{src}: {key}"
     theta = _series(w, d, "theta_deg")
