@@ -152,6 +152,8 @@ BENCH_KEYS: dict[str, tuple[type, bool]] = {
     # budget, sec. 3.3 (2) and (4)); without them the analysis assumes Hsieh's ELCOMAT 3000 and says so
     "autocollimator_resolution_arcsec": (float, False),
     "autocollimator_accuracy_arcsec": (float, False),
+    # {name: order per revolution} of the bearings (cage, ball pass): marks in the continuous run's spectrum
+    "bearing_kinematic_orders": (dict, False),
 }
 CCD_KEYS: dict[str, tuple[type, bool]] = {
     "position_deg": (float, True),

@@ -136,6 +136,13 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
     if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
         m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
         m["bench"]["autocollimator_accuracy_arcsec"] = float(ac["accuracy"]) / ARCSEC
+    if (bench is not None and getattr(bench, "ball_sets", None)
+            and int(sc["procedure"].get("continuous_revolutions") or 0) > 0):
+        # the bearings' nominal kinematic orders (catalogue geometry: Z, Dw, Dpw, contact angle;
+        # Harris ch. 7), declared for the continuous run's spectrum (report: ISO 230-7 section)
+        m["bench"]["bearing_kinematic_orders"] = {
+            f"{k} ({s_})": float(v) for s_, set_ in sorted(bench.ball_sets.items())
+            for k, v in set_.kinematic_orders().items()}
     if bench is not None and bench.hidden.writes_certificate:
         # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
         # polygon differs from it by the hidden pattern (twin/hidden.py, polygon_pitch_ignored)

@@ -80,7 +80,7 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
 
 def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = None) -> None:
     """The report's ISO 230-7 subsection: the values with u, the polar plots, and the spectrum of a
-    continuous rotation when the dataset has one (table ``continuous_rotation``: ``theta_deg``
+    continuous rotation when the dataset has one (table ``radial_continuous``: ``theta_deg``
     unwrapped, the probe columns; the bearing's kinematic orders from the manifest's
     ``bench.bearing_kinematic_orders``, {name: order per revolution})."""
     from benchtwin.analysis.report.html import value_with_u
@@ -111,14 +111,15 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
     if x:
         rep.figure(fig_polar(x, "Radial error motion along X, ISO 230-7 (fixed sensitive direction, LSC)"),
                    "ISO 230-7 polar plots along X (the X probes)")
-    if ds is not None and ds.has("continuous_rotation"):
+    if ds is not None and ds.has("radial_continuous"):
         from benchtwin.analysis.iso230_7 import spectrum_orders
         from benchtwin.analysis.radial_motion import disk_weights
 
-        t = ds.table("continuous_rotation")
+        t = ds.table("radial_continuous")
         w_top, w_bot = disk_weights(ds.bench["L1_mm"], ds.bench["L2_mm"])
         d = w_top * np.asarray(t["probe_top_um"], dtype=float) + w_bot * np.asarray(t["probe_bottom_um"], dtype=float)
-        spec = spectrum_orders(t["theta_deg"], d)
+        # the display wraps at 360°: the spectrum needs the unwrapped shaft angle of each sample
+        spec = spectrum_orders(np.unwrap(np.asarray(t["theta_deg"], dtype=float), period=360.0), d)
         rep.heading("Spectrum of the continuous rotation", level=3)
         rep.figure(fig_spectrum(spec, ds.bench.get("bearing_kinematic_orders"), "disk plane, Y"),
                    "Amplitude per order of the disk-plane radial motion with the bearing's kinematic orders")

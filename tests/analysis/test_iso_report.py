@@ -41,7 +41,7 @@ def test_section_without_and_with_a_continuous_rotation():
 
     th = np.arange(0, 20 * 360, 3.0)
     d = 0.1 * np.sin(np.deg2rad(th * 4.6)) + 0.05 * np.sin(np.deg2rad(th * 0.41))
-    ds = FakeDataset({"continuous_rotation": {"theta_deg": th, "probe_top_um": d, "probe_bottom_um": d}},
+    ds = FakeDataset({"radial_continuous": {"theta_deg": th, "probe_top_um": d, "probe_bottom_um": d}},
                      {"L1_mm": 10.0, "L2_mm": 100.0, "bearing_kinematic_orders": {"cage": 0.41, "ball pass outer": 4.6}})
     rep2 = Report("t")
     add_iso230_7_section(rep2, _iso(), ds)
