@@ -240,7 +240,8 @@ def _load_commands() -> None:
     """Import the modules that register further subcommands (kept lazy: `validate` stays fast)."""
     import importlib
 
-    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands"):
+    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands",
+                "benchtwin.app.commands_cert"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:
