@@ -589,3 +589,11 @@ def test_a_uniform_blank_frames_are_left_to_the_image_analysis(tmp_path):
     for k in range(2):
         _png(root / "ccd" / f"img_{k:03d}.png", np.full((12, 16), 117, np.uint8))
     assert open_dataset(root).validate()
+
+
+def test_a_parsed_model_payload_is_checked_like_a_file():
+    from benchtwin.analysis.model_file import ModelFileError, read_model_file
+
+    with pytest.raises(ModelFileError, match=r"<model payload>: key 'format'"):
+        read_model_file({"format": "x"})
+    assert read_model_file({"format": "benchtwin-traced-effects", "version": 1, "effects": []})["effects"] == []
