@@ -49,15 +49,20 @@ class _StandInTerms(dict):
         return self[key]
 
 
-def read_model_file(path: str | Path) -> dict[str, Any]:
-    """The parsed, checked payload of a model file; raises ``ModelFileError``."""
+def read_model_file(path: str | Path | dict[str, Any]) -> dict[str, Any]:
+    """The parsed, checked payload of a model file (or of an already parsed payload, checked the
+    same way); raises ``ModelFileError``."""
     from benchtwin.analysis.effects import ALL
 
-    p = Path(path)
-    try:
-        d = loads_json(read_input_text(p, max_bytes=MAX_MODEL_BYTES, what="model file"), str(p))
-    except SchemaError as exc:
-        raise ModelFileError(str(exc)) from None
+    if isinstance(path, dict):
+        p: Any = "<model payload>"
+        d: Any = path
+    else:
+        p = Path(path)
+        try:
+            d = loads_json(read_input_text(p, max_bytes=MAX_MODEL_BYTES, what="model file"), str(p))
+        except SchemaError as exc:
+            raise ModelFileError(str(exc)) from None
     if not isinstance(d, dict):
         raise ModelFileError(f"{p}: expected a JSON object (a model file written by close-loop)")
     if d.get("format") != FORMAT:

@@ -440,6 +440,12 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
                               top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"), rep=t["rep"])
     sc_cal = pol.get("selfcal_error_arcsec")
+    if sc_cal and not np.all(np.isfinite(np.asarray(sc_cal["u"], dtype=float))):
+        # 2 heads: δ = α(θ) − α(θ+180°) fixes every odd harmonic with no redundancy, so no u; evidence
+        # without an uncertainty cannot be weighted (issue #13: the close loop's SVD did not converge)
+        results["notes"].append("close loop: the self-calibration has no uncertainty (no redundancy between the "
+                                "heads), so it is not used as evidence")
+        sc_cal = None
     rep = pol.get("repeatability") or {}
     if pol.get("budget_summary"):
         u_eps = float(pol["budget_summary"]["u_c"])

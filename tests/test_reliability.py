@@ -542,21 +542,27 @@ def test_check_output_dir_rules(tmp_path):
 
 
 def test_h_two_heads_with_self_calibration(tmp_path, capsys):
-    """issue #13: 2 heads with self-calibration passed validate, then a TypeError in the report
-    (with 2 heads the self-calibration has no residual dof, so no uncertainty: E_n was NaN)."""
+    """issue #13: 2 heads with self-calibration passed validate, then a TypeError in the report.
+    Two heads give δ = α(θ) − α(θ+180°): the odd harmonics exactly, with no redundancy, so no u of
+    the self-calibration and E_n undefined (tests/hw/test_hil.py runs such a bench). Valid; the
+    analysis reports it without E_n, and the close loop does not use it as evidence."""
     import re
 
     text = JIA.read_text()
     p = tmp_path / "s.toml"
     p.write_text(re.sub(r'heads = \["0 deg"\]', 'heads = ["0 deg", "180 deg"]', text).replace("selfcal = false", "selfcal = true"))
-    _err(["validate", str(p)], capsys, "procedure.selfcal", "at least 3", "bench.heads has 2")
-    # a measured dataset with 2 heads (make_dataset's): analyzed, self-calibration skipped with a note
+    assert _cli(["validate", str(p)], capsys, code=0)["kind"] == "scenario"
+    # a dataset with 2 heads (make_dataset's): analysed, the report written
     root = make_dataset(tmp_path / "ds")
     for f in ("radial_motion.csv", "ccd"):
         shutil.rmtree(root / f) if (root / f).is_dir() else (root / f).unlink()
+    th = np.arange(0.0, 360.0, 30.0)
+    rows = "".join(f"{float(t)!r},1,0.0\n{float(t)!r},2,{float(0.3 * np.sin(np.radians(t)) + 0.1 * np.cos(3 * np.radians(t)))!r}\n" for t in th)
+    (root / "heads.csv").write_text("theta_deg,head,delta_arcsec\n" + rows)
     obj = _cli(["analyze", str(root), "-o", str(tmp_path / "out")], capsys, code=0)
     res = json.loads(Path(obj["results"]).read_text())
-    assert any("self-calibration skipped: 2 heads" in n for n in res["notes"])
+    assert res["selfcal_error_arcsec"] is not None and res["en_max"] is None and res["difference_arcsec"]
+    assert Path(obj["report"]).stat().st_size > 1000  # the report, with its difference figure (E_n undefined)
 
 
 def test_validate_reads_study_bench_and_fault_plan_files_as_their_commands_do(tmp_path, capsys):
@@ -583,3 +589,11 @@ def test_a_uniform_blank_frames_are_left_to_the_image_analysis(tmp_path):
     for k in range(2):
         _png(root / "ccd" / f"img_{k:03d}.png", np.full((12, 16), 117, np.uint8))
     assert open_dataset(root).validate()
+
+
+def test_a_parsed_model_payload_is_checked_like_a_file():
+    from benchtwin.analysis.model_file import ModelFileError, read_model_file
+
+    with pytest.raises(ModelFileError, match=r"<model payload>: key 'format'"):
+        read_model_file({"format": "x"})
+    assert read_model_file({"format": "benchtwin-traced-effects", "version": 1, "effects": []})["effects"] == []

@@ -310,10 +310,6 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         if v and v[0] != 0.0:
             raise ScenarioError(f"{where}: bench.heads: item 0 is head 1, the reference, at 0 deg; got {v[0]:g} rad")
     pr = data["procedure"]
-    if pr["selfcal"] and len(b["heads"]) == 2:
-        raise ScenarioError(f"{where}: procedure.selfcal: needs 1 head (no sweep) or at least 3 (bench.heads has 2): "
-                            "with 2 heads the self-calibration has no residual degrees of freedom, so no "
-                            "uncertainty (Hsieh 2022 sec. 2.3)")
     shifts = pr["polygon_shifts"]
     if len(set(shifts)) != len(shifts):
         # simulate would write the same readings twice: a dataset its own validate rejects (issue #13)

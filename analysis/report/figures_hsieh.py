@@ -120,7 +120,9 @@ def figure_difference(results: Mapping[str, Any]) -> Figure:
         U2 = np.interp(th, _arr(s["theta_deg"]), _arr(s["U"]), period=360.0)
         band = np.sqrt(U1**2 + U2**2)
         ax.fill_between(th, -band, band, color="0.85", label="±√(U₁² + U₂²)")
-        ax.set_title(f"Difference (max E_n = {results.get('en_max', float('nan')):.2f})")
+        en_max = results.get("en_max")  # None when E_n is undefined (2 heads: no u of the self-calibration)
+        ax.set_title(f"Difference (max E_n = {en_max:.2f})" if en_max is not None else
+                     "Difference (E_n undefined: the self-calibration has no uncertainty)")
         ax.legend(fontsize="small")
     else:
         ax.text(0.5, 0.5, "no self-calibration data", ha="center", va="center", transform=ax.transAxes)
