@@ -597,3 +597,39 @@ def test_a_parsed_model_payload_is_checked_like_a_file():
     with pytest.raises(ModelFileError, match=r"<model payload>: key 'format'"):
         read_model_file({"format": "x"})
     assert read_model_file({"format": "benchtwin-traced-effects", "version": 1, "effects": []})["effects"] == []
+
+
+def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypatch):
+    """`benchtwin run` twice (the README's first command, repeated) replaces the earlier run's own
+    complete output; any other non-empty folder stays refused without --force (exit 2)."""
+    import benchtwin.analysis.pipeline as pipeline
+    import benchtwin.app.bench_view as bench_view
+    import benchtwin.twin.simulate as simulate
+    from benchtwin.cli import main
+
+    calls = []
+
+    def fake_simulate(sc, out, **kw):
+        Path(out).mkdir(parents=True)
+        (Path(out) / "manifest.json").write_text("{}")
+        calls.append("simulate")
+        return Path(out)
+
+    def fake_analyze(ds, out, **kw):
+        (Path(out) / "results.json").write_text(json.dumps({"n": len(calls)}))
+        (Path(out) / "report.html").write_text("<html></html>")
+        return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
+                                         "report": str(Path(out) / "report.html")}}
+
+    monkeypatch.setattr(simulate, "simulate", fake_simulate)
+    monkeypatch.setattr(pipeline, "analyze", fake_analyze)
+    monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
+    out = tmp_path / "out"
+    assert main(["run", "-o", str(out), "--quiet"]) == 0
+    assert main(["run", "-o", str(out), "--quiet"]) == 0          # its own output: replaced
+    assert json.loads((out / "results.json").read_text()) == {"n": 2}
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("a user's file")
+    assert main(["run", "-o", str(other), "--quiet"]) == 2        # someone else's folder: refused
+    assert (other / "notes.txt").read_text() == "a user's file"

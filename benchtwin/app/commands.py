@@ -7,6 +7,7 @@ offers a capability that does not exist yet.
 from __future__ import annotations
 
 import argparse
+import json
 import importlib.util
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -137,12 +138,28 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     quiet = ns.quiet or ns.json
     from benchtwin.app.bench_view import bench_preface
 
-    # the whole run (dataset + analysis) is built beside OUT and renamed onto it when complete
-    with AtomicDir(out, force=ns.force, what="run output folder") as tmp:
+    # The whole run (dataset + analysis) is built beside OUT and renamed onto it when complete. An
+    # earlier run's own complete output (its RUN_MARKER and results.json) is replaced without
+    # --force, so the README's command can be repeated; it is swapped only once the new run is
+    # complete, so a killed re-run keeps the earlier one. Any other non-empty folder needs --force.
+    with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder") as tmp:
         ds = simulate(sc, tmp / "dataset", progress=not quiet, backend=ns.backend)
         res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
+        from benchtwin.fsio import atomic_write_text
+
+        atomic_write_text(tmp / RUN_MARKER, json.dumps({"command": "benchtwin run", "scenario": sc.name,
+                                                        "seed": int(sc.seed)}) + "\n")
     paths = _remap({"dataset": str(ds), **res["paths"]}, tmp, out)
     return {"ok": True, **paths, "message": f"report: {paths['report']}"}
+
+
+#: written last into a complete `benchtwin run` output folder: what a later run may replace unasked
+RUN_MARKER = "benchtwin-run.json"
+
+
+def _is_run_output(out: Path) -> bool:
+    return (out.is_dir() and not out.is_symlink() and (out / RUN_MARKER).is_file()
+            and (out / "results.json").is_file())
 
 
 def _study_output(out: Path, force: bool) -> None:
