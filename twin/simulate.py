@@ -45,6 +45,7 @@ from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
+from .instruments.drive import DriveServo
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
@@ -77,7 +78,8 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
     bench = Bench(sc) if bench is None else bench
     state = SimBenchState(bench, SimClock())
     enc = SimEncoder.sim_from_scenario(sc, state)
-    inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc)}
+    servo = DriveServo.sim_from_bench(sc, bench)   # the drive servo on the encoder's count
+    inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc, servo=servo)}
     key = 0
     axes = ("y", "x") if sc["instruments"]["probe"]["x_probes"] else ("y",)
     for ax in axes:
@@ -148,6 +150,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     stage: SimRotaryStage = inst["stage"]
     ac: SimAutocollimator = inst["autocollimator"]
     truth_rows: dict[int, tuple] = {}
+    held: dict[int, float] = {}          # the count the servo holds at each reading (deg)
 
     def on_step(i, step, context, replay):
         state.on_step(i, step, context, replay)
@@ -164,6 +167,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
             stage.sim_hold = False
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
+            held[i] = float(stage.held_deg)
         bar.update(1)
 
     def on_row(row, result):
@@ -179,7 +183,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
             cam.close()
 
     _write_tables(writer, rows, enc)
-    _write_truth(sc, writer, rows, bench, inst, truth_rows)
+    _write_truth(sc, writer, rows, bench, inst, truth_rows, held)
     writer.close()
     return out
 
@@ -258,7 +262,8 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
 
 
 def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple]) -> None:
+                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None) -> None:
+    held = held or {}
     N = bench.n_faces
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
@@ -296,13 +301,14 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
 
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
     if radial:
-        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
+        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "target_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
                                               "axis_dy_um", "disk_centre_x_um", "disk_centre_y_um",
                                               "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
                                               "sphere_bottom_y_um")}
         for r in radial:
             phi, x0, *pos_m = truth_rows[r["i"]][:10]
-            vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(phi), (x0 - phi) / ARCSEC,
+            vals = (r["tag"]["rep"], r["tag"]["k"], held.get(r["i"], _theta(r)), _theta(r), math.degrees(phi),
+                    (x0 - phi) / ARCSEC,
                     *(v * 1e6 for v in pos_m))
             for k, v in zip(t, vals):
                 t[k].append(v)
@@ -316,7 +322,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
     setup: dict[tuple, list] = {}
     if poly:
-        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "true_deg",
+        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "target_deg", "true_deg",
                              "alpha_arcsec", "ac_exact_arcsec", "ac_exact_y_arcsec", "physics_face", "beta_sum_arcsec",
                              "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
         for r in poly:
@@ -325,8 +331,12 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
             j, i = int(tag["start_face"]), int(tag["step"])
             bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
             alpha = (x0 - phi) / ARCSEC
-            U = ex / ARCSEC - alpha - bsum
-            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _theta(r), math.degrees(phi),
+            # Hsieh eq. 3 at the commanded stop θ: ε = U + Σβ + (θ − θ_true) − twist. The servo rests
+            # anywhere in the held count and the friction it holds twists the shaft per stop, so U,
+            # the mounting's constant, is what remains after both (twin/instruments/drive.py).
+            U = ex / ARCSEC - (math.radians(_theta(r)) - phi) / ARCSEC - bsum + twist / ARCSEC
+            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], held.get(r["i"], _theta(r)), _theta(r),
+                    math.degrees(phi),
                     alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, setup_err / ARCSEC, twist / ARCSEC)
             for k, v in zip(t, vals):
                 t[k].append(v)
