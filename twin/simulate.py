@@ -77,7 +77,9 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
     """Bench, state and instruments of a scenario: (bench, state, instruments dict)."""
     bench = Bench(sc) if bench is None else bench
     state = SimBenchState(bench, SimClock())
-    enc = SimEncoder.sim_from_scenario(sc, state)
+    # One Hidden per bench (twin/hidden.py): the physics built it; every instrument gets that one.
+    hidden = bench.hidden
+    enc = SimEncoder.sim_from_scenario(sc, state, hidden=hidden)
     servo = DriveServo.sim_from_bench(sc, bench)   # the drive servo on the encoder's count
     inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc, servo=servo)}
     key = 0
@@ -87,11 +89,11 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
             p = SimProbe.sim_from_scenario(sc, state, bench, s, ax, key=key)
             inst[p.name] = p
             key += 1
-    inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state)
+    inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state, hidden=hidden)
     if camera:
         from .instruments.camera import SimCamera
 
-        inst["ccd"] = SimCamera.sim_from_scenario(sc, state, backend=backend)
+        inst["ccd"] = SimCamera.sim_from_scenario(sc, state, backend=backend, hidden=hidden)
     return bench, state, inst
 
 
@@ -150,6 +152,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     stage: SimRotaryStage = inst["stage"]
     ac: SimAutocollimator = inst["autocollimator"]
     truth_rows: dict[int, tuple] = {}
+    ccd_truth: dict[int, dict] = {}      # per frame, from the posed geometry (never journaled)
     held: dict[int, float] = {}          # the count the servo holds at each reading (deg)
 
     def on_step(i, step, context, replay):
@@ -168,6 +171,8 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
             held[i] = float(stage.held_deg)
+        if isinstance(step, P.Capture) and cam is not None:
+            ccd_truth[i] = cam.sim_frame_truth()
         bar.update(1)
 
     def on_row(row, result):
@@ -183,7 +188,7 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
             cam.close()
 
     _write_tables(writer, rows, enc)
-    _write_truth(sc, writer, rows, bench, inst, truth_rows, held)
+    _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
     writer.close()
     return out
 
@@ -237,6 +242,9 @@ def _instrument_truth(inst: dict) -> dict:
                    for n, p in inst.items() if isinstance(p, SimProbe)},
         "stage": inst["stage"].describe(),
     }
+    servo = getattr(inst["stage"], "servo", None)
+    if servo is not None:   # truth only: its friction is the TRUE one (hidden extra friction included)
+        out["drive_servo"] = servo.describe()
     return out
 
 
@@ -262,15 +270,17 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
 
 
 def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None) -> None:
+                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None,
+                 ccd_truth: dict[int, dict] | None = None) -> None:
     held = held or {}
+    ccd_truth = ccd_truth or {}
     N = bench.n_faces
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
                                          "path": str(sc.path) if getattr(sc, "path", None) else None})
     # An independent state + stage for the α grid (the run's clock is not touched).
     st = SimBenchState(bench, SimClock())
-    enc = SimEncoder.sim_from_scenario(sc, st)
+    enc = SimEncoder.sim_from_scenario(sc, st, hidden=bench.hidden)
     stage = SimRotaryStage("truth_stage", st, enc)
 
     def stop(tag, t_s: float = 0.0) -> tuple:
@@ -353,13 +363,14 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
 
     caps = [r for r in rows if r["type"] == "capture"]
     if caps:
+        ct = [ccd_truth[r["i"]] for r in caps]
         w.write_truth_table("ccd", {
             "k": [r["tag"]["k"] for r in caps],
-            "centre_x_px": [r["reading"]["truth"]["centre_px"][0] for r in caps],
-            "centre_y_px": [r["reading"]["truth"]["centre_px"][1] for r in caps],
-            "edge_radius_px": [r["reading"]["truth"]["edge_radius_px"] for r in caps],
-            "pixel_um": [r["reading"]["truth"]["pixel_um"] for r in caps],
-            "backend": [r["reading"]["truth"]["backend"] for r in caps]})
+            "centre_x_px": [c["centre_px"][0] for c in ct],
+            "centre_y_px": [c["centre_px"][1] for c in ct],
+            "edge_radius_px": [c["edge_radius_px"] for c in ct],
+            "pixel_um": [c["pixel_um"] for c in ct],
+            "backend": [r["reading"].get("backend", "") for r in caps]})
 
     bt = bench.truth()
     bt["polygon_pitch_deviation_hsieh_arcsec"] = beta_h.tolist()

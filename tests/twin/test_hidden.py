@@ -161,7 +161,8 @@ def test_ccd_pixel_scale_changes_only_the_images():
             inst["stage"].move_to(30.0)
             with SimCamera.sim_from_scenario(s, st, backend="analytic") as cam:
                 assert cam.camera.pixel_pitch_m == pytest.approx(0.667e-6)   # nominal: the manifest's
-                truths.append((cam.capture()["truth"], cam.grating))
+                cam.capture()
+                truths.append((cam.last_truth, cam.grating))
         (t1, g1), (t0, g0) = truths
         assert t1["pixel_um"] / t0["pixel_um"] == pytest.approx(px, rel=1e-12)
         assert g1.period_m / g0.period_m == pytest.approx(period, rel=1e-12)
@@ -223,7 +224,9 @@ def test_torsion_hysteresis_twists_the_polygon_with_the_direction():
     dT = np.mean(a_f["rest_torque"]) - np.mean(a_b["rest_torque"])     # N·m, forward − backward
     assert dT < 0                                                      # friction opposes the motion
     hyst = abs(np.mean(fwd["ac"]) - np.mean(bwd["ac"]))
-    assert hyst == pytest.approx(abs(dT) / 5000.0 / ARCSEC, rel=0.05, abs=0.02)
+    # (plus where the servo rests in the count: with friction ±0.09″ past the centre with the
+    # direction, without it about centred; the AC sees the polygon, which turns with the disk)
+    assert hyst == pytest.approx(abs(dT) / 5000.0 / ARCSEC, abs=0.2)
     assert 0.3 * 2 * h < hyst < 1.2 * 2 * h
 
 

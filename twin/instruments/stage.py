@@ -237,6 +237,12 @@ class SimRotaryStage:
             if self.target_deg == target_deg and self.last_pose is not None and st.pose is self.last_pose:
                 return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
                         "iterations": 0}
+        if (self.servo is not None and self.target_deg == target_deg and self.last_pose is not None
+                and st.pose is self.last_pose):
+            # Commanding the count the servo already holds moves nothing: the shaft stays stuck where
+            # it rests (a re-issued move, e.g. an emulated acquisition resumed at this stop).
+            return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
+                    "iterations": 0}
         duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
         target = math.radians(target_deg)
         torque = None
