@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.fsio import atomic_write_text
 
 
 def _jsonable(x: Any) -> Any:
@@ -151,6 +152,26 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]
     return res
 
 
+#: The autocollimator Hsieh et al. 2022 used (MÖLLER-WEDEL ELCOMAT 3000, sec. 3.3 (2) and (4)):
+#: resolution 0.001″, maximum error 0.05″. Assumed only when the manifest does not declare the
+#: instrument (bench.autocollimator_resolution_arcsec / _accuracy_arcsec), and said so in the notes.
+HSIEH_AC_RESOLUTION_ARCSEC = 0.001
+HSIEH_AC_ACCURACY_ARCSEC = 0.05
+
+
+def autocollimator_declared(bench: dict[str, Any]) -> tuple[float, float, str | None]:
+    """(resolution, accuracy, note): the manifest's declared autocollimator, else Hsieh's with a note."""
+    res = bench.get("autocollimator_resolution_arcsec")
+    acc = bench.get("autocollimator_accuracy_arcsec")
+    note = None
+    if res is None or acc is None:
+        note = ("autocollimator resolution/accuracy not declared in the manifest (bench.autocollimator_resolution_arcsec, "
+                f"bench.autocollimator_accuracy_arcsec): Hsieh's ELCOMAT 3000 values assumed "
+                f"({HSIEH_AC_RESOLUTION_ARCSEC}″ / {HSIEH_AC_ACCURACY_ARCSEC}″)")
+    return (float(HSIEH_AC_RESOLUTION_ARCSEC if res is None else res),
+            float(HSIEH_AC_ACCURACY_ARCSEC if acc is None else acc), note)
+
+
 def step_polygon(ds: Dataset) -> dict[str, Any]:
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
@@ -158,12 +179,19 @@ def step_polygon(ds: Dataset) -> dict[str, Any]:
     b = ds.bench
     heads = ds.table("heads") if ds.has("heads") else None
     cert = b.get("polygon_certificate_arcsec")
+    ac_res, ac_acc, note = autocollimator_declared(b)
     try:
-        return analyze_polygon(
+        out = analyze_polygon(
             ds.table("polygon"), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
             np.asarray(cert, dtype=float) if cert is not None else None,
             encoder_resolution_arcsec=b.get("encoder_resolution_arcsec", 0.0),
+            ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
         )
+        out["autocollimator_declared"] = {"resolution_arcsec": ac_res, "accuracy_arcsec": ac_acc,
+                                          "source": "manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)"}
+        if note:
+            out.setdefault("notes", []).append(note)
+        return out
     except PolygonDataError as exc:
         # The Hsieh analysis names rows by array index; the file counts the header as row 1.
         raise DatasetError(f"{ds.path / 'polygon.csv'}: {exc} (array index i is file row i + 2)") from None
@@ -199,6 +227,18 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dic
     return out
 
 
+def _step(ds: Dataset, table: str, fn, *args):
+    """One analysis step; data it cannot analyse (a ValueError of the analysis: too few positions
+    for the Fourier order, a singular design, …) is the dataset's error, named by its table (issue
+    #13: what validate accepts either runs or gets a clear exit 2, never a traceback)."""
+    try:
+        return fn(*args)
+    except DatasetError:
+        raise
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
+
+
 def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
             progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
@@ -207,9 +247,14 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
     """
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-    from benchtwin.analysis.report.html import Report
 
     ds = open_dataset(dataset)
+    for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
+        ds.table(name)  # every table read and checked before any analysis step runs
+    if model_file is not None and not isinstance(model_file, dict):
+        from benchtwin.analysis.model_file import read_model_file
+
+        model_file = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -218,11 +263,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
         "bench": dict(b), "notes": [],
     }
-    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
-        rm = step_radial_motion(ds, order)
+        rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
         results["radial_motion"] = {
             "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
             "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
@@ -231,7 +275,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
         }
     if ds.has("ccd/index"):
-        ecc = step_eccentricity(ds, order, progress)
+        ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
             from benchtwin.analysis.eccentricity import with_async_motion
 
@@ -253,10 +297,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
                 f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
                 f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
-        pol = step_polygon(ds)
+        pol = _step(ds, "polygon.csv", step_polygon, ds)
         for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                     "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
-                    "difference_arcsec", "repeatability"):
+                    "difference_arcsec", "repeatability", "autocollimator_declared"):
             if key in pol:
                 results[key] = pol[key]
         results["notes"] += list(pol.get("notes", []))
@@ -291,9 +335,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr)
-    tmp = out / "results.json.tmp"
-    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(out / "results.json")
+    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
+    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
 
 
@@ -310,8 +353,17 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
                               top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"), rep=t["rep"])
     sc_cal = pol.get("selfcal_error_arcsec")
-    u_eps = float(pol["budget_summary"]["u_c"]) if pol.get("budget_summary") else 0.07
     rep = pol.get("repeatability") or {}
+    if pol.get("budget_summary"):
+        u_eps = float(pol["budget_summary"]["u_c"])
+    else:
+        # no budget: the declared autocollimator's type B parts (resolution r/(2√3), max error a/√3,
+        # Hsieh sec. 3.3 (2), (4)) with the readings' repeatability where the data give one
+        ac = pol.get("autocollimator_declared") or {}
+        res_, acc_, _ = autocollimator_declared(ds.bench)
+        res_, acc_ = ac.get("resolution_arcsec", res_), ac.get("accuracy_arcsec", acc_)
+        s_rep = rep.get("pooled_sd_eps_arcsec") or 0.0
+        u_eps = math.sqrt((res_ / (2 * math.sqrt(3.0))) ** 2 + (acc_ / math.sqrt(3.0)) ** 2 + float(s_rep) ** 2)
     u_read = rep.get("pooled_sd_eps_arcsec") or rep.get("closure_sd_arcsec") or u_eps
     poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in ds.table("polygon").items()}
     ev = evidence_from_polygon(

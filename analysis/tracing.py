@@ -39,7 +39,6 @@ import itertools
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -54,7 +53,7 @@ from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier
 __all__ = [
     "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
     "save_model", "load_model", "model_terms_from_payload", "add_to_error_model", "evidence_from_polygon",
-    "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR",
+    "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR", "TIE_REL",
 ]
 
 P_SIG = 1e-3        # χ² tests (residual before/after, nested signature tests)
@@ -93,6 +92,17 @@ ASYNC_BAND = 10
 #: against the tilt-extrapolated motion, 3:1 — and are not rejected for it.
 DEGENERATE_RATIO = 0.1
 THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
+#: Ties. Two information criteria (BIC, AICc, held-out χ²) closer than TIE_REL × the scale of the
+#: problem's χ² (max(χ² of no effect, number of rows)) are equal: the comparison is decided by the
+#: stated preference of :func:`_prefer` instead of by rounding. Why 1e-6: the χ² of a least-squares
+#: fit on unit-norm columns carries a rounding error of ~κ·ε·χ² (ε = 2.2e-16; κ ≤ ~1e4 for these
+#: designs after column scaling, columns worse than 1e-8 in rank are dropped), so ~1e-12 relative,
+#: and another BLAS kernel (OpenBLAS Prescott / Haswell / SkylakeX) reorders sums at that level; 1e-6
+#: is six orders above it. On the other side 1e-6 × χ² is ~1e-3 BIC units for n ≈ 1000 readings,
+#: three orders below the smallest difference read as evidence (2 units: "not worth more than a bare
+#: mention", Kass & Raftery 1995). Exactly collinear candidates (a sphere form read as motion and a
+#: division error at the same harmonics: the same column space) are the tie this settles.
+TIE_REL = 1e-6
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1083,6 +1093,43 @@ def _sep_text(names) -> str:
     return "; ".join(texts)
 
 
+def _prior_rank(names, order) -> tuple:
+    """A candidate's place in the library's stated order (``effects.ALL``: the encoder's own division
+    error first, then the model's geometry, the motion, the reference chain, the rarer causes)."""
+    return tuple(sorted(order.index(n) if n in order else len(order) for n in names))
+
+
+def _prefer(c: "_Cand", order) -> tuple:
+    """The tie-break between candidates whose criterion is equal within the tie tolerance: fewer
+    effects first (a single effect before a pair), then the library order of its members, then fewer
+    parameters. Never a float comparison."""
+    return (len(c.names), _prior_rank(c.names, order), int(c.X.shape[1]))
+
+
+def _ordered(cands: list, value, tol: float, order) -> list:
+    """``cands`` sorted by ``value(c)`` with ties (values within ``tol`` of the first of a run of
+    close values) broken by :func:`_prefer`: the order does not depend on rounding."""
+    rest = sorted(cands, key=lambda c: (value(c), _prefer(c, order)))
+    out = []
+    while rest:
+        v0 = value(rest[0])
+        tied = [c for c in rest if value(c) <= v0 + tol]
+        tied.sort(key=lambda c: _prefer(c, order))
+        out += tied
+        rest = [c for c in rest if value(c) > v0 + tol]
+    return out
+
+
+def _better(c: "_Cand", b: "_Cand", tol: float, order, flag=lambda c: c.passed) -> bool:
+    """Does ``c`` beat the incumbent ``b``: passing before failing, then a BIC lower by more than
+    ``tol``, then (tied) the stated preference."""
+    if flag(c) != flag(b):
+        return flag(c)
+    if abs(c.bic - b.bic) > tol:
+        return c.bic < b.bic
+    return _prefer(c, order) < _prefer(b, order)
+
+
 @_one_blas_thread
 def trace(evidence: Evidence, candidates=None) -> dict:
     """Trace the residual of ``evidence`` to the candidate effects (default: all of ``effects.ALL``).
@@ -1126,6 +1173,8 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     variants = list(singles)
     bic0, aicc0 = pb.ic(pb.null)
     cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
+    order = list(ALL) + [n for n in cands_mod if n not in ALL]  # the stated preference (ALL), whatever the call order
+    tol = TIE_REL * max(float(pb.null["chi2"]), float(pb.n_rows))
 
     def gate(c: _Cand, member_bics: dict | None = None):
         c.reasons = []
@@ -1190,9 +1239,9 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                                  f"({n0:.3g}″ and {n1:.3g}″ RMS, together {n01:.3g}″)")
         if not c.reasons:
             c.cv = pb.cv(c.X, extra=c.extra)
-            if c.cv is not None and cv0 is not None and c.cv >= cv0:
+            if c.cv is not None and cv0 is not None and c.cv >= cv0 - tol:
                 c.reasons.append("cross-validation no better than no effect")
-        if not c.reasons and member_bics is not None and best_single is not None and c.bic > best_single - DBIC_GATE:
+        if not c.reasons and member_bics is not None and best_single is not None and c.bic > best_single - DBIC_GATE - tol:
             # as good as the best single effect with its own gates passed: an alternative explanation
             c.equivalent = True
             c.reasons.append("the pair does not beat the best single effect by ΔBIC ≥ 10 (an equivalent alternative)")
@@ -1205,7 +1254,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     best_var: dict[str, _Cand] = {}
     for c in variants:
         b = best_var.get(c.names[0])
-        if b is None or (c.passed, -c.bic) > (b.passed, -b.bic):
+        if b is None or _better(c, b, tol, order):
             best_var[c.names[0]] = c
     singles = list(best_var.values())
     best_single = min((c.bic for c in singles if c.passed), default=None)
@@ -1224,10 +1273,10 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     for c in pairs:
         key = tuple(sorted(c.names))
         b = best_pair.get(key)
-        if b is None or (c.passed or c.equivalent, -c.bic) > (b.passed or b.equivalent, -b.bic):
+        if b is None or _better(c, b, tol, order, flag=lambda x: x.passed or x.equivalent):
             best_pair[key] = c
     pairs = list(best_pair.values())
-    passed = sorted([c for c in singles + pairs if c.passed], key=lambda c: c.bic)
+    passed = _ordered([c for c in singles + pairs if c.passed], lambda c: c.bic, tol, order)
     equivalents = [c for c in pairs if c.equivalent]
 
     def cand_json(c: _Cand) -> dict:
@@ -1245,16 +1294,18 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                               "thresholds": {"P_SIG": P_SIG, "Z_GATE": Z_GATE, "DBIC_GATE": DBIC_GATE,
                                              "AMBIG_DBIC": AMBIG_DBIC, "COLLINEAR": COLLINEAR, "F_SIG": F_SIG,
                                              "SIZE_GATE": SIZE_GATE, "DEGENERATE_RATIO": DEGENERATE_RATIO,
-                                             "SPHERE_FORM_UM": SPHERE_FORM_UM},
-                              "candidates": [cand_json(c) for c in sorted(singles + pairs, key=lambda c: c.bic)][:30]}
+                                             "SPHERE_FORM_UM": SPHERE_FORM_UM, "TIE_REL": TIE_REL,
+                                             "tie_tolerance_chi2": tol},
+                              "candidates": [cand_json(c) for c in _ordered(singles + pairs, lambda c: c.bic, tol, order)][:30]}
     total_err = _rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2))
     chosen = passed[0] if passed else None
     # the three criteria side by side (the choice is BIC among candidates that pass all gates, CV
     # included; AICc, which penalises less, is reported so that a disagreement is visible)
     result["selection"] = {
         "by_bic": passed[0].key if passed else None,
-        "by_aicc": min(passed, key=lambda c: c.aicc).key if passed else None,
-        "by_cv": min((c for c in passed if c.cv is not None), key=lambda c: c.cv).key if any(c.cv is not None for c in passed) else None,
+        "by_aicc": _ordered(passed, lambda c: c.aicc, tol, order)[0].key if passed else None,
+        "by_cv": (_ordered([c for c in passed if c.cv is not None], lambda c: c.cv, tol, order)[0].key
+                  if any(c.cv is not None for c in passed) else None),
         "n_passed": len(passed), "cv_folds": None if pb.folds is None else int(len(np.unique(pb.folds[pb.folds >= 0]))),
     }
     result["selection"]["agree"] = len({v for k, v in result["selection"].items() if k.startswith("by_") and v}) <= 1
@@ -1308,11 +1359,16 @@ def trace(evidence: Evidence, candidates=None) -> dict:
             if _cos2(pb, pc, pred) > COLLINEAR:
                 amb_cands.append(set(c.names))
                 amb_fits[c.key] = cand_json(c)
+    # sets forced by design: those of the chosen candidate and of every alternative tied with it
+    # (an exact tie is a choice by stated preference only: the design's ambiguities of the other
+    # candidate hold as much)
     forced = set()
-    for member in chosen.names:
-        fn = getattr(cands_mod[member], "ambiguous_with", None)
-        forced |= set(fn(ev)) if fn else set()
-    forced -= set(chosen.names)
+    tied = [chosen] + [c for c in passed[1:] if c.bic - chosen.bic <= tol]
+    for c in tied:
+        for member in c.names:
+            fn = getattr(cands_mod[member], "ambiguous_with", None)
+            forced |= set(fn(ev)) if fn else set()
+    forced -= set().union(*amb_cands)
     for other in sorted(forced):
         amb_cands.append({other})
         for c in singles:
@@ -1458,19 +1514,9 @@ def _jsonable(x):
 
 def save_model(path, payload: dict) -> None:
     """Write the ``model_file`` payload as JSON, atomically (temporary file, fsync, rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(payload), f, indent=2, allow_nan=False)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from benchtwin.fsio import atomic_write_text
+
+    atomic_write_text(path, json.dumps(_jsonable(payload), indent=2, allow_nan=False))
 
 
 def _read(path_or_payload) -> dict:

@@ -10,7 +10,7 @@ point function called in a loop in this process: no validation, no pool, no cach
 
 A second, smaller table does the same for the ``full`` fidelity (simulate → analyze per
 point-run; ``FULL_STUDY`` below: the jia2019 bench with a reduced procedure so that one point-run
-takes seconds, not minutes); its bare loop calls ``twin.run.simulate_and_analyze`` +
+takes seconds, not minutes); its bare loop calls ``app.run.simulate_and_analyze`` +
 ``study_outputs`` directly. ``--full-reps 0`` skips it.
 
 Prints a markdown table and writes it under "## Design studies" in docs/benchmarks.md (only that
@@ -70,8 +70,8 @@ def _study_copy(tmp: Path, reps: int) -> Path:
 
 def bare(study_path: Path) -> tuple[float, int]:
     """Sequential physics point function over the study's points, no runner around it."""
-    from benchtwin.twin import study as st
-    from benchtwin.twin import study_points as sp
+    from benchtwin.app import study as st
+    from benchtwin.app.study import points as sp
 
     study = st.load_study(study_path)
     points = st.expand_points(study)
@@ -87,8 +87,8 @@ def bare(study_path: Path) -> tuple[float, int]:
 
 def bare_full(study_path: Path) -> tuple[float, int]:
     """Sequential simulate → analyze over the full study's point-runs, no runner around it."""
-    from benchtwin.twin import run
-    from benchtwin.twin import study as st
+    from benchtwin.app import run
+    from benchtwin.app import study as st
 
     study = st.load_study(study_path)
     points = st.expand_points(study)
@@ -126,7 +126,7 @@ def full_section(tmp: Path, reps: int) -> list[str]:
             f"The same measurement for the `full` fidelity (`FULL_STUDY` in the script: jia2019 with 8 "
             f"polygon faces, 2 × 36 radial stops, 12 CCD frames of 512 × 384 px, analysis order 3; 2 points × "
             f"{reps} repetitions = {n} point-runs, each a complete simulate → analyze, one task per "
-            "repetition). Bare = `twin.run.simulate_and_analyze` + `study_outputs` in a loop. One timing "
+            "repetition). Bare = `app.run.simulate_and_analyze` + `study_outputs` in a loop. One timing "
             f"per row (fresh cache). Load average before/after: {load0} / {os.getloadavg()[0]:.2f}.", 100),
         "",
         "| run | wall time (s) | point-runs/s | s per point-run | overhead vs bare | runner share |",
@@ -142,7 +142,7 @@ def timed(study_path: Path, out: Path, **kw) -> tuple[float, dict]:
     """Wall time of one run_study; ``r["point_s"]`` = Σ of the point functions' own times (workers)."""
     import pyarrow.parquet as pq
 
-    from benchtwin.twin.study import run_study
+    from benchtwin.app.study import run_study
 
     t0 = time.perf_counter()
     r = run_study(study_path, out, progress=False, **kw)
@@ -162,7 +162,7 @@ def main() -> None:
     ap.add_argument("--no-write", action="store_true", help="print only; leave docs/benchmarks.md alone")
     ns = ap.parse_args()
 
-    from benchtwin.twin import study as st
+    from benchtwin.app.study import execution as st
 
     version = st.code_version()
     st.code_version = lambda: version  # other work may edit twin/ meanwhile: keep one cache key set
@@ -203,7 +203,7 @@ def main() -> None:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
-    from benchtwin.twin.study import expand_points, load_study
+    from benchtwin.app.study import expand_points, load_study
 
     n_points = len(expand_points(load_study(STUDY)))
     lines = [

@@ -85,7 +85,7 @@ class SoftLimitError(ValueError):
         self.stage = stage
         self.target_deg = float(target_deg)
         self.limits_deg = None if limits_deg is None else (float(limits_deg[0]), float(limits_deg[1]))
-        lim = "" if limits_deg is None else f" [{self.limits_deg[0]:g}, {self.limits_deg[1]:g}] deg"
+        lim = "" if self.limits_deg is None else f" [{self.limits_deg[0]:g}, {self.limits_deg[1]:g}] deg"
         super().__init__(f"{stage}: move to {target_deg} deg refused: outside the soft limits{lim}; "
                          f"nothing was sent, nothing moved")
 

@@ -11,8 +11,16 @@ The contract is pyserial's subset that the drivers use (``Transport``): ``read(n
   raises if exchanges are left over. Drivers are tested this way (tests/hw/transcripts/).
 
 Drivers never open ports themselves: the caller opens one with ``open_transport(spec, ...)`` (a port
-name such as ``COM3``/``/dev/ttyUSB0``, a pseudo-terminal path such as ``/dev/pts/7``, or any pyserial
-URL such as ``loop://`` or ``socket://host:port``) and hands it to the driver.
+name such as ``COM3``/``/dev/ttyUSB0``, a pseudo-terminal path such as ``/dev/pts/7``, an instrument's
+Ethernet interface ``tcp://host:port``, or any pyserial URL such as ``loop://`` or
+``socket://host:port``) and hands it to the driver.
+
+``tcp://host:port`` opens a ``SocketTransport``: the same contract over a TCP connection (an
+instrument's LAN interface carrying its serial protocol, e.g. Zaber ASCII on port 55550, or
+``benchtwin emulate --tcp``). A socket has no line settings: baud rate, data bits, parity and stop
+bits are ignored; ``timeout`` applies to every read as on a serial port. A closed connection raises
+``TransportClosed`` (a ``serial.SerialException``), so the drivers' reconnect path handles it like
+an unplugged serial cable.
 
 Transcript format (one JSON object per line; byte strings are JSON strings holding one character per
 byte, i.e. bytes decoded as latin-1, so ``"\\r\\n"`` and ``"\\u001b"`` read naturally)::
@@ -30,7 +38,10 @@ Optional keys ``note`` (free text) are ignored. Protocol notes: docs/protocols/*
 from __future__ import annotations
 
 import json
+import select
+import socket
 import threading
+import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -39,7 +50,7 @@ import serial
 
 __all__ = [
     "Transport", "open_transport", "RecordingTransport", "ReplayTransport", "ReplayMismatch",
-    "TransportClosed", "bytes_to_text", "text_to_bytes", "load_transcript", "reopener",
+    "TransportClosed", "bytes_to_text", "text_to_bytes", "load_transcript", "reopener", "SocketTransport",
 ]
 
 
@@ -123,10 +134,139 @@ def open_transport(spec: str | Mapping[str, Any], *, baudrate: int = 9600, bytes
     par = str(settings["parity"]).upper()[:1]
     if par not in _PARITY:
         raise ValueError(f"parity must be one of N/E/O/M/S, got {settings['parity']!r}")
+    if port.startswith("tcp://"):
+        return SocketTransport.open(port, timeout=settings["timeout"])
     return serial.serial_for_url(port, baudrate=int(settings["baudrate"]), bytesize=int(settings["bytesize"]),
                                  parity=_PARITY[par], stopbits=settings["stopbits"],
                                  timeout=settings["timeout"], xonxoff=bool(settings["xonxoff"]),
                                  rtscts=bool(settings["rtscts"]))
+
+
+class SocketTransport:
+    """The ``Transport`` contract over a TCP connection (see the module docstring).
+
+    ``SocketTransport.open("tcp://127.0.0.1:55550", timeout=0.5)`` connects (``serial.SerialException``
+    naming the address when it cannot). Reads wait at most ``timeout`` seconds in all (``None``:
+    forever), as pyserial's do, and return what arrived."""
+
+    def __init__(self, sock: socket.socket, *, timeout: float | None = 1.0, name: str = "") -> None:
+        self.sock = sock
+        self.timeout = timeout
+        self.name = name
+        self.port = name
+        self._buf = b""
+        self.is_open = True
+
+    @classmethod
+    def open(cls, url: str, *, timeout: float | None = 1.0, connect_timeout_s: float = 5.0) -> "SocketTransport":
+        host, sep, port = url[len("tcp://"):].rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ValueError(f"TCP port spec must be tcp://HOST:PORT, got {url!r}")
+        try:
+            sock = socket.create_connection((host.strip("[]"), int(port)), timeout=connect_timeout_s)
+        except OSError as exc:
+            raise serial.SerialException(f"cannot connect to {host}:{port}: {exc}") from exc
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setblocking(False)
+        return cls(sock, timeout=timeout, name=url)
+
+    def _check(self) -> None:
+        if not self.is_open:
+            raise TransportClosed(f"{self.name}: connection is closed")
+
+    def _fill(self, deadline: float | None) -> bool:
+        """Wait for more bytes until ``deadline``; False on timeout. Raises when the peer closed."""
+        wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+        try:
+            r, _, _ = select.select([self.sock], [], [], wait)
+        except (OSError, ValueError) as exc:
+            raise TransportClosed(f"{self.name}: {exc}") from exc
+        if not r:
+            return False
+        try:
+            chunk = self.sock.recv(4096)
+        except BlockingIOError:
+            return True
+        except OSError as exc:
+            self.is_open = False
+            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+        if not chunk:
+            self.is_open = False
+            raise TransportClosed(f"{self.name}: the instrument closed the connection")
+        self._buf += chunk
+        return True
+
+    def _deadline(self) -> float | None:
+        return None if self.timeout is None else time.monotonic() + float(self.timeout)
+
+    def read(self, size: int = 1) -> bytes:
+        self._check()
+        deadline = self._deadline()
+        while len(self._buf) < size and self._fill(deadline):
+            pass
+        out, self._buf = self._buf[:size], self._buf[size:]
+        return out
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        self._check()
+        deadline = self._deadline()
+        while True:
+            idx = self._buf.find(expected)
+            if idx >= 0 or (size is not None and 0 <= size <= len(self._buf)):
+                break
+            if not self._fill(deadline):
+                break
+        end = len(self._buf) if idx < 0 else idx + len(expected)
+        if size is not None and size >= 0:
+            end = min(end, size)
+        out, self._buf = self._buf[:end], self._buf[end:]
+        return out
+
+    def readline(self, size: int | None = -1) -> bytes:
+        return self.read_until(b"\n", None if size is None or size < 0 else size)
+
+    def write(self, data: bytes) -> int:
+        self._check()
+        try:
+            self.sock.setblocking(True)
+            self.sock.sendall(bytes(data))
+        except OSError as exc:
+            self.is_open = False
+            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+        finally:
+            if self.is_open:
+                self.sock.setblocking(False)
+        return len(data)
+
+    def reset_input_buffer(self) -> None:
+        self._check()
+        self._buf = b""
+        while True:
+            try:
+                r, _, _ = select.select([self.sock], [], [], 0)
+                if not r:
+                    return
+                chunk = self.sock.recv(4096)
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                self.is_open = False
+                raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+            if not chunk:
+                self.is_open = False
+                raise TransportClosed(f"{self.name}: the instrument closed the connection")
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self._buf)
+
+    def close(self) -> None:
+        if self.is_open:
+            self.is_open = False
+            try:
+                self.sock.close()
+            except OSError:
+                pass
 
 
 def reopener(spec: str | Mapping[str, Any], *, recorder: "RecordingTransport | None" = None,

@@ -1,5 +1,6 @@
-"""Layering, enforced: analysis imports neither twin nor hw; hw never imports twin; emulators are
-not written from the drivers (contracts in pyproject.toml [tool.importlinter])."""
+"""Layering, enforced: app (and the CLI) over twin over hw over analysis over units; the twin takes
+of the analysis only the dataset format; analysis imports neither twin nor hw; hw never imports
+twin; emulators are not written from the drivers (contracts in pyproject.toml [tool.importlinter])."""
 
 from __future__ import annotations
 
@@ -23,14 +24,32 @@ def _package_tree(dest: Path) -> Path:
     return dest
 
 
-def test_import_contracts_hold(tmp_path):
-    tree = _package_tree(tmp_path)
+def _lint(tree: Path) -> subprocess.CompletedProcess:
     exe = Path(sys.executable).with_name("lint-imports")
     env = {**os.environ, "PYTHONPATH": str(tree)}
-    r = subprocess.run([str(exe), "--config", str(ROOT / "pyproject.toml"), "--no-cache"], cwd=tree,
-                       capture_output=True, text=True, env=env)
+    return subprocess.run([str(exe), "--config", str(ROOT / "pyproject.toml"), "--no-cache"], cwd=tree,
+                          capture_output=True, text=True, env=env)
+
+
+def test_import_contracts_hold(tmp_path):
+    r = _lint(_package_tree(tmp_path))
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "3 kept, 0 broken" in r.stdout, r.stdout
+    assert "5 kept, 0 broken" in r.stdout, r.stdout
+
+
+def test_import_contracts_catch_a_twin_running_the_analysis_and_hw_using_the_app(tmp_path):
+    """The contracts can fail: a twin module importing the pipeline and an hw module importing the
+    application layer are reported, while the twin's import of the dataset format stays allowed."""
+    tree = _package_tree(tmp_path)
+    (tree / "benchtwin" / "twin" / "_leak.py").write_text(
+        "from benchtwin.analysis import dataset, fourier  # noqa: F401\n")
+    (tree / "benchtwin" / "hw" / "_up.py").write_text("from benchtwin.app import run  # noqa: F401\n")
+    r = _lint(tree)
+    assert r.returncode != 0
+    assert "2 kept, 3 broken" in r.stdout, r.stdout  # layers, twin->analysis, hw->twin (via app)
+    assert "benchtwin.twin._leak -> benchtwin.analysis.fourier" in r.stdout, r.stdout
+    assert "benchtwin.hw._up -> benchtwin.app.run" in r.stdout, r.stdout
+    assert "benchtwin.twin._leak -> benchtwin.analysis.dataset" not in r.stdout, r.stdout
 
 
 def test_analysis_never_mentions_truth_paths():

@@ -159,3 +159,32 @@ def test_too_many_bad_ccd_frames_abort_naming_the_threshold(jia_small, tmp_path)
     with pytest.raises(DatasetError, match=r"only 23 of 30 CCD frames usable .* need ≥ 24") as ei:
         analyze(ds, tmp_path / "out", progress=False, close_loop=False)
     assert bad[0] in str(ei.value)
+
+
+def test_budget_inputs_come_from_the_manifest(jia_small, analysed):
+    """jia2019 declares a TriAngle (resolution 0.005″, accuracy 0.25″, Jia sec. 4.3): the GUM budget uses
+    them (r/(2√3), a/√3), not the ELCOMAT 3000's 0.001″ / 0.05″ (issue 16)."""
+    import math
+
+    m = json.loads((jia_small / "manifest.json").read_text())
+    assert m["bench"]["autocollimator_resolution_arcsec"] == pytest.approx(0.005)
+    assert m["bench"]["autocollimator_accuracy_arcsec"] == pytest.approx(0.25)
+    res = analysed["results"]
+    assert res["autocollimator_declared"]["source"] == "manifest"
+    rows = {r["name"]: r for r in res["budget"]}
+    assert rows["Resolution of the autocollimator"]["u"] == pytest.approx(0.005 / (2 * math.sqrt(3)))
+    assert rows["Angle error of autocollimator"]["u"] == pytest.approx(0.25 / math.sqrt(3))
+    assert not any("ELCOMAT 3000 values assumed" in n for n in res["notes"])
+
+
+def test_undeclared_autocollimator_is_assumed_and_said(jia_small, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(jia_small, ds, ignore=shutil.ignore_patterns("truth", "ccd"))
+    m = json.loads((ds / "manifest.json").read_text())
+    for k in ("autocollimator_resolution_arcsec", "autocollimator_accuracy_arcsec"):
+        m["bench"].pop(k)
+    m.pop("ccd", None)
+    (ds / "manifest.json").write_text(json.dumps(m))
+    res = analyze(ds, tmp_path / "out", progress=False, close_loop=False)["results"]
+    assert res["autocollimator_declared"]["source"].startswith("assumed")
+    assert any("ELCOMAT 3000 values assumed" in n for n in res["notes"])

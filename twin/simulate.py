@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.analysis.dataset import DatasetWriter
+from benchtwin.analysis.dataset import JOURNAL, DatasetError, DatasetWriter
+from benchtwin.fsio import DirLock, OutputError, check_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
@@ -51,7 +52,6 @@ from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
 from .physics import Bench
 
-JOURNAL = "journal.jsonl"
 ALPHA_GRID_STEP_DEG = 0.1
 
 
@@ -121,6 +121,10 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
             "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
         },
     }
+    ac = sc.get("instruments", {}).get("autocollimator") if hasattr(sc, "get") else None
+    if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
+        m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
+        m["bench"]["autocollimator_accuracy_arcsec"] = float(ac["accuracy"]) / ARCSEC
     if bench is not None and bench.hidden.writes_certificate:
         # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
         # polygon differs from it by the hidden pattern (twin/hidden.py, polygon_pitch_ignored)
@@ -136,17 +140,33 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
 
 
 def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False) -> Path:
-    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it."""
+             resume: bool = False, force: bool = False) -> Path:
+    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
+
+    ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
+    ``force`` clears it first (``benchtwin.fsio.check_output_dir``). A lock file keeps a second
+    run off the folder; the manifest is written last (a killed run leaves no dataset)."""
+    out = Path(out_dir)
+    try:
+        check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+    try:
+        with DirLock(out, "simulate"):
+            return _simulate(sc, out, progress, backend, resume)
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+
+
+def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool) -> Path:
     from tqdm import tqdm
 
-    out = Path(out_dir)
     steps = sim_procedure(sc)
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench))
+    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume)
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
     stage: SimRotaryStage = inst["stage"]

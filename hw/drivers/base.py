@@ -244,6 +244,11 @@ class SerialInstrument:
                 break
         return raw
 
+    def frame_request(self, cmd: Command, request: bytes) -> bytes:
+        """The bytes sent for one attempt of ``request`` (a protocol's message id or checksum goes
+        here; the default sends the request as it is)."""
+        return request
+
     def send(self, command: str, **fields: Any) -> None:
         """Send a command that has no reply (``lines = 0``); disconnects handled as in ``query``."""
         self.query(command, **fields)
@@ -274,7 +279,7 @@ class SerialInstrument:
                 self.sleep(self.backoff_s * self.backoff_factor ** (attempt - 1))
             try:
                 self.transport.reset_input_buffer()
-                self.transport.write(request)
+                self.transport.write(self.frame_request(cmd, request))
                 if cmd.lines == 0:
                     self.last_raw = b""
                     return {}

@@ -8,6 +8,13 @@ Requests are ``/<device> <axis> <command>\\n``; replies are ``@<dd> <a> <OK|RJ> 
 ``get maxspeed``, the empty command (status poll) and, only with ``write_settings=True`` and an
 explicit ``settings`` dict, ``set <setting> <value>``.
 
+Options from the bench file (``options = { message_ids = true, checksums = true }``): with
+``message_ids`` each attempt carries a message id (0…99, cycling) after the axis and a reply
+whose id differs (a late reply to an earlier attempt) is not taken; with ``checksums`` each
+command ends with ``:XX`` (the 8-bit two's complement of the byte sum after ``/``) and a reply's
+checksum is verified (a corrupted reply is retried). Unsolicited alerts (``!``, with
+``comm.alert`` on) and info lines (``#``) before the reply are skipped, not taken as garbled.
+
 Safety, all before any byte is sent: a target outside the soft limits raises ``SoftLimitError``
 (the contract of ``hw.interfaces.RotaryStage``, shared with the twin's stage); the stage's
 ``maxspeed`` is read once and compared with the bench file's speed limit, and moves are refused if
@@ -27,10 +34,16 @@ from typing import Any
 from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
 from benchtwin.hw.interfaces import SoftLimitError
 
-__all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply"]
+__all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
 
-_REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d) (?P<reply>OK|RJ) (?P<state>IDLE|BUSY) (?P<flag>--|[FWN][A-Z])"
-          rb" (?P<data>[ -~]*?)\r?\n")
+_REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d+)(?: (?P<id>\d{1,2}|--))? (?P<reply>OK|RJ) (?P<state>IDLE|BUSY)"
+          rb" (?P<flag>--|[FWN][A-Z]) (?P<data>[ -~]*?)(?::(?P<cs>[0-9A-Fa-f]{2}))?\r?\n")
+MAX_SKIPPED_LINES = 8   # alerts/info lines skipped before a reply
+
+
+def zaber_checksum(body: bytes) -> bytes:
+    """Two hex digits that make the byte sum of ``body`` plus the checksum 0 mod 256 (zaber.md)."""
+    return f"{(-sum(body)) & 0xFF:02X}".encode("ascii")
 
 
 def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dict[str, Any]:
@@ -38,6 +51,15 @@ def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dic
     want_dev, want_axis = getattr(inst, "device", dev), getattr(inst, "axis", axis)
     if (dev, axis) != (want_dev, want_axis) and axis != 0:
         raise ValueError(f"reply from device {dev} axis {axis}, expected {want_dev} {want_axis}")
+    if m.group("cs") is not None:
+        body = m.group(0)[1:m.start("cs") - m.start(0) - 1]
+        if zaber_checksum(body) != m.group("cs").upper():
+            raise ValueError(f"reply checksum {m.group('cs').decode()} does not match {zaber_checksum(body).decode()}")
+    elif getattr(inst, "checksums", False):
+        raise ValueError("reply without checksum (checksums are on)")
+    want_id = getattr(inst, "_msg_id", None)
+    if want_id is not None and m.group("id") is not None and int(m.group("id")) != want_id:
+        raise ValueError(f"reply has message id {m.group('id').decode()}, expected {want_id:02d}")
     out = {"reply": m.group("reply").decode(), "busy": m.group("state") == b"BUSY",
            "flag": m.group("flag").decode(), "data": m.group("data").decode("ascii").strip()}
     if out["reply"] == "RJ":
@@ -51,9 +73,14 @@ parse_zaber_reply = parse_reply
 
 
 def format_zaber_reply(data: str | int = 0, *, device: int = 1, axis: int = 1, reply: str = "OK",
-                       busy: bool = False, flag: str = "--") -> bytes:
+                       busy: bool = False, flag: str = "--", msg_id: int | None = None,
+                       checksum: bool = False) -> bytes:
     """A reply line as the controller sends it (tests and emulators)."""
-    return f"@{device:02d} {axis} {reply} {'BUSY' if busy else 'IDLE'} {flag} {data}\r\n".encode("ascii")
+    mid = f" {msg_id:02d}" if msg_id is not None else ""
+    body = f"{device:02d} {axis}{mid} {reply} {'BUSY' if busy else 'IDLE'} {flag} {data}".encode("ascii")
+    if checksum:
+        body += b":" + zaber_checksum(body)
+    return b"@" + body + b"\r\n"
 
 
 def _cmd(name: str, template: bytes) -> Command:
@@ -91,8 +118,12 @@ class ZaberRotaryStage(SerialInstrument):
                  max_speed_deg_s: float, device: int = 1, axis: int = 1, encoder: Any = None,
                  tolerance_deg: float = 0.001, max_corrections: int = 5, poll_interval_s: float = 0.05,
                  move_timeout_s: float = 120.0, speed_data_per_microstep_s: float = 1.6384,
-                 write_settings: bool = False, settings: Mapping[str, Any] | None = None, **kw: Any) -> None:
+                 write_settings: bool = False, settings: Mapping[str, Any] | None = None,
+                 message_ids: bool = False, checksums: bool = False, **kw: Any) -> None:
         super().__init__(name, transport, **kw)
+        self.message_ids, self.checksums = bool(message_ids), bool(checksums)
+        self._next_id = 0
+        self._msg_id: int | None = None
         lo, hi = (float(v) for v in soft_limits_deg)
         if not lo < hi:
             raise ValueError(f"{name}: soft_limits_deg must be (low, high) with low < high, got {soft_limits_deg}")
@@ -125,7 +156,30 @@ class ZaberRotaryStage(SerialInstrument):
         return {**super().describe(), "soft_limits_deg": list(self.soft_limits_deg),
                 "max_speed_deg_s": self.max_speed_deg_s, "microsteps_per_deg": self.microsteps_per_deg,
                 "device": self.device, "axis": self.axis, "tolerance_deg": self.tolerance_deg,
-                "closed_loop": self.encoder is not None, "write_settings": self.write_settings}
+                "closed_loop": self.encoder is not None, "write_settings": self.write_settings,
+                "message_ids": self.message_ids, "checksums": self.checksums}
+
+    # --- framing (message ids, checksums, alerts) ------------------------------------------------
+    def frame_request(self, cmd: Command, request: bytes) -> bytes:
+        body = request.rstrip(b"\r\n")
+        end = request[len(body):]
+        if self.message_ids:
+            self._msg_id = self._next_id
+            self._next_id = (self._next_id + 1) % 100
+            words = body.split(b" ")
+            # "/<device> <axis> <id> <command>": the id goes after the axis (zaber.md)
+            body = b" ".join(words[:2] + [f"{self._msg_id:02d}".encode("ascii")] + words[2:])
+        if self.checksums:
+            body += b":" + zaber_checksum(body[1:])
+        return body + end
+
+    def _read_reply(self, cmd: Command) -> bytes:
+        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped."""
+        for _ in range(MAX_SKIPPED_LINES + 1):
+            line = self.transport.read_until(cmd.terminator)
+            if not (line[:1] in (b"!", b"#") and line.endswith(cmd.terminator)):
+                return line
+        return line
 
     # --- helpers -----------------------------------------------------------------------------------
     def _q(self, command: str, **fields: Any) -> dict[str, Any]:

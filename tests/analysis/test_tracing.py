@@ -269,7 +269,7 @@ def test_docs_list_every_effect_and_threshold():
     text = (Path(__file__).resolve().parents[2] / "docs" / "effects.md").read_text(encoding="utf-8")
     for name in ALL:
         assert f"`{name}`" in text, name
-    for const in ("P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR"):
+    for const in ("P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR", "TIE_REL"):
         v = getattr(tracing, const)
         assert f"`{const}` = {v:g}" in text or f"`{const}` = {v:.0e}".replace("e-0", "e-") in text, (const, v)
 

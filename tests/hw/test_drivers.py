@@ -328,6 +328,26 @@ def test_zaber_move_polls_through_injected_sleep():
     rt.assert_done()
 
 
+def test_zaber_message_ids_checksums_and_alerts():
+    # zaber_ids_checksums.jsonl: ids after the axis, checksums both ways, a stale reply (wrong id),
+    # an alert before a reply, a reply with a bad checksum; each handled without a wrong reading
+    rt = replay("zaber_ids_checksums.jsonl")
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), clock=Clock(), poll_interval_s=0.0, message_ids=True,
+                           checksums=True, **STAGE)
+    assert st_.move_to(90.0)["status"] == "ok"
+    assert st_.position()["angle_deg"] == 90.0
+    rt.assert_done()
+    assert st_.describe()["message_ids"] and st_.describe()["checksums"]
+    assert format_zaber_reply(5, msg_id=3, checksum=True) == b"@01 1 03 OK IDLE -- 5:04\r\n"
+
+
+def test_zaber_reply_without_checksum_when_checksums_are_on_is_retried():
+    rt = ReplayTransport([{"request": "/1 1 get pos:AC\n", "response": "@01 1 OK IDLE -- 5\r\n"}])
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), retries=0, checksums=True, **STAGE)
+    with pytest.raises(InstrumentError, match="without checksum"):
+        st_._stage_deg()
+
+
 def test_zaber_soft_limit_refused_before_anything_is_sent():
     rt = ReplayTransport([])
     st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), **STAGE)

@@ -158,7 +158,7 @@ def test_framing_across_chunks_and_cr_lf():
 # --------------------------------------------------------------------------- pty server + faults
 
 def _port(path, timeout=0.3):
-    return serial.serial_for_url(path, baudrate=9600, timeout=timeout)
+    return serial.serial_for_url(path, baudrate=4800, timeout=timeout)   # the TESA TT is at 4800 baud (tesa.md)
 
 
 def test_pty_server_serves_and_applies_faults(tmp_path):
@@ -214,3 +214,67 @@ def test_fault_plan_validation(tmp_path):
         load_fault_plan([{"port": "x", "request": 1, "action": "explode"}])
     with pytest.raises(ValueError, match="unknown port"):
         PtyServer({"a": None}, [{"port": "b", "request": 1, "action": "drop"}], link_dir=tmp_path / "p")
+
+
+# --------------------------------------------------------------------------- issue 18: faithful protocols
+
+def _cs(body: bytes) -> bytes:
+    """zaber.md: the checksum makes the byte sum after '/' or '@' zero mod 256."""
+    return f"{(-sum(body)) & 0xFF:02X}".encode()
+
+
+def test_zaber_message_ids_checksums_and_identity():
+    z = ZaberEmulator("stage", Stub())
+    assert one(z, b"/1 1 07 get pos\n") == b"@01 1 07 OK IDLE -- 0\r\n"        # the id is echoed
+    req = b"1 0 42 get deviceid"
+    r = one(z, b"/" + req + b":" + _cs(req) + b"\n")
+    body, cs = r[1:-2].split(b":")
+    assert body == b"01 0 42 OK IDLE -- 50419" and cs == _cs(body)             # checksummed reply
+    assert (sum(body) + int(cs, 16)) % 256 == 0
+    assert one(z, b"/1 0 get deviceid:00\n") is None                           # corrupted: dropped
+    assert one(z, b"/1 1 get deviceid\n") == b"@01 1 RJ IDLE -- BADAXIS\r\n"   # a device setting
+    assert one(z, b"/1 2 get pos\n") == b"@01 2 RJ IDLE -- BADAXIS\r\n"        # no such axis
+    for key, want in [("system.serial", b"70001"), ("version", b"7.38"), ("limit.min", b"-360000"),
+                      ("limit.max", b"720000"), ("resolution", b"1800")]:
+        assert one(z, b"/1 0 get " + key.encode() + b"\n").endswith(b" " + want + b"\r\n"), key
+    assert one(z, b"/1 1 move abs 900000\n") == b"@01 1 RJ IDLE -- BADDATA\r\n"   # beyond limit.max
+    assert one(z, b"noise /1 1\n") == b"@01 1 OK IDLE -- 0\r\n"   # bytes before '/' are line noise
+
+
+def test_zaber_alerts_info_and_warnings():
+    src = Stub()
+    z = ZaberEmulator("stage", src, busy_polls=1)
+    assert one(z, b"/1 0 set comm.alert 1\n") == b"@01 0 OK IDLE -- 0\r\n"
+    assert one(z, b"/1 1 move abs 1000\n") == b"@01 1 OK BUSY -- 0\r\n"
+    # the move ends after the last BUSY reply: the unsolicited alert follows it (zaber.md)
+    assert one(z, b"/1 1\n") == b"@01 1 OK BUSY -- 0\r\n!01 1 IDLE --\r\n"
+    assert one(z, b"/1 1\n") == b"@01 1 OK IDLE -- 0\r\n"
+    z.warnings |= {"WL", "NC", "FS"}
+    assert one(z, b"/1 1\n") == b"@01 1 OK IDLE FS 0\r\n"                     # highest priority: fault
+    assert one(z, b"/1 1 warnings clear\n") == b"@01 1 OK IDLE FS 03 FS WL NC\r\n"
+    assert one(z, b"/1 1 warnings\n") == b"@01 1 OK IDLE FS 01 FS\r\n"          # a fault is not cleared
+    assert one(z, b"/1 help\n").split(b"\r\n")[1].startswith(b"#01 0 ")          # info line
+    assert one(z, b"/1 0 system reset\n") == b"@01 0 OK IDLE -- 0\r\n"
+
+
+def test_heidenhain_fixed_length_sequences_identification_error_status():
+    src = Stub(encoder={"angle_deg": [1.5], "status": "ok"})
+    e = HeidenhainEmulator("enc", src, decimals=4)
+    # ESC sequences are fixed length: no CR needed, a CR after one is ignored, noise before ESC dropped
+    assert e.feed(b"\x1bA0200") == [(b"\x1bA0200", b"\x02+000015000\r\n")]
+    assert e.feed(b"\r") == []
+    assert e.feed(b"xx\x1bA02") == []
+    assert e.feed(b"00\r\n") == [(b"\x1bA0200", b"\x02+000015000\r\n")]
+    ident = one(e, b"\x1bA0000")
+    assert len(ident) == 37 and ident.startswith(b"\x02ND 287 ") and ident.endswith(b"\r\n")
+    assert one(e, b"\x1bA0301") == b"\x02" + b"NO ERROR".ljust(33) + b"\r\n"
+    assert one(e, b"\x1bA0800") == b"\x02REF OK DEG   \r\n"
+    assert one(e, b"\x1bX9999") == b"\x15"
+    assert one(e, b"hello\r") == b"\x15"                            # a line that is no sequence: NAK
+    e.connect({"baudrate": 9600, "stopbits": 2})
+    assert e.feed(b"\x1bA02") == [] and e.understood
+    e.connect({"baudrate": 9600, "stopbits": 1})                    # 7E1 talks to a 7E2 device
+    assert e.feed(b"00\r") == [(b"00", b"\x15")]    # the old half request is gone: "00" alone is NAK
+    e.connect({"baudrate": 19200})
+    assert not e.understood and e.feed(b"\x1bA0200") == [] and e.noise_bytes == 6
+    assert "19200 baud" in e.framing_notes[-1]

@@ -312,7 +312,7 @@ def test_bench_file_not_toml(tmp_path):
 
 def test_cli_acquire_reports_bench_errors(tmp_path, capsys):
     from benchtwin import cli
-    import benchtwin.commands_hw  # noqa: F401 - registers emulate/acquire
+    import benchtwin.app.commands_hw  # noqa: F401 - registers emulate/acquire
 
     p = tmp_path / "b.toml"
     p.write_text('[bench]\nsource = "twin"\n')
@@ -322,7 +322,7 @@ def test_cli_acquire_reports_bench_errors(tmp_path, capsys):
 
 def test_cli_emulate_serves_and_writes_a_bench_file(tmp_path, capsys):
     from benchtwin import cli
-    import benchtwin.commands_hw  # noqa: F401
+    import benchtwin.app.commands_hw  # noqa: F401
 
     faults = tmp_path / "faults.toml"
     faults.write_text('[[faults]]\nport = "encoder"\nrequest = 1\naction = "drop"\n')

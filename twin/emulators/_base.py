@@ -1,11 +1,24 @@
-"""Shared machinery of the protocol emulators: request framing and the reading source.
+"""Shared machinery of the protocol emulators: request framing, the client's line settings, and
+the reading source.
 
 An emulator is a state machine: ``feed(bytes)`` accumulates what arrived on the port, cuts it into
-requests (every protocol emulated here ends its requests with CR and/or LF: docs/protocols/*.md)
-and returns, per complete request, the reply bytes (``None``: the instrument stays silent).
-``handle(request)`` answers one request without its terminator. The numbers come from a *source*:
-anything with ``read(name) -> reading dict`` and ``move(target_deg) -> deg`` (an
-``EmulatedBench``, or a stub in tests), so the byte formats can be tested without the physics.
+requests and returns, per complete request, the reply bytes (``None``: the instrument stays
+silent). By default a request ends with CR and/or LF (every protocol emulated here does:
+docs/protocols/*.md); a protocol with fixed-length requests (the Heidenhain ``ESC Axxxx``
+sequences) overrides ``split``. ``handle(request)`` answers one request without its terminator.
+The numbers come from a *source*: anything with ``read(name) -> reading dict`` and
+``move(target_deg) -> deg`` (an ``EmulatedBench``, or a stub in tests), so the byte formats can be
+tested without the physics.
+
+Connections (what a real instrument sees as "somebody plugged in and configured their port"):
+``connect(framing)`` is called by the server when a client opens the port (a pseudo-terminal whose
+line settings changed, or a new TCP connection). It throws away a partial request left by the
+previous client (on a real serial line those bytes are noise the device discards when the next
+terminator comes: here the previous client is gone, so they would only corrupt the first request
+of the next one), and compares the client's line settings with the instrument's (``SERIAL``).
+A client at the wrong baud rate (or odd parity on an even-parity instrument) is not understood by
+the real device: its bytes are line noise, counted in ``noise_bytes`` and answered with silence,
+and ``framing_notes`` says why. Which settings a pseudo-terminal shows is in pty.py.
 
 Written from docs/protocols/*.md only (import-linter forbids importing ``benchtwin.hw.drivers``).
 """
@@ -16,9 +29,13 @@ import math
 import re
 from typing import Any, Protocol
 
-__all__ = ["ReadingSource", "ProtocolEmulator", "decimals_for"]
+__all__ = ["ReadingSource", "ProtocolEmulator", "decimals_for", "Framing"]
 
 _TERM = re.compile(rb"[\r\n]")
+
+# What the server could see of the client's line settings: any key may be missing (unknown).
+# {"baudrate": int, "stopbits": 1|2, "parity_odd": bool, "transport": "pty"|"tcp"}
+Framing = dict
 
 
 class ReadingSource(Protocol):
@@ -36,12 +53,14 @@ def decimals_for(resolution: float, minimum: int = 2, maximum: int = 6) -> int:
 
 
 class ProtocolEmulator:
-    """Base: framing on CR/LF, request counting, a ``describe()`` for logs and bench files."""
+    """Base: framing on CR/LF, connections, request counting, a ``describe()`` for logs and bench
+    files."""
 
     PROTOCOL = "generic"
     PROTOCOL_DOC = "docs/protocols/README.md"
     DRIVER = ""            # the bench-file driver name that talks this protocol
     SERIAL: dict[str, Any] = {}
+    TCP_PORT = 0           # the instrument's own TCP port where its Ethernet interface has one (0: any)
 
     def __init__(self, name: str, source: ReadingSource):
         self.name = str(name)
@@ -50,18 +69,62 @@ class ProtocolEmulator:
         self.requests = 0
         self.log: list[tuple[bytes, bytes | None]] = []
         self.keep_log = False
+        self.connections = 0
+        self.client: Framing = {}
+        self.understood = True
+        self.noise_bytes = 0
+        self.framing_notes: list[str] = []
+
+    # ------------------------------------------------------------------ connections
+    def framing_mismatch(self, framing: Framing) -> str | None:
+        """Why a client with these line settings cannot talk to this instrument (None: it can).
+        Only what a receiver really cannot cope with: a baud rate off by more than the few percent
+        a UART tolerates, or odd parity where the instrument uses even/none. Stop bits are not
+        compared: a receiver checks only the first one, so 7E1 talks to a 7E2 device."""
+        want = self.SERIAL
+        baud = framing.get("baudrate")
+        if baud and want.get("baudrate") and abs(baud / want["baudrate"] - 1.0) > 0.03:
+            return f"client at {baud} baud, the instrument is set to {want['baudrate']} baud"
+        if framing.get("parity_odd") and want.get("parity", "N") not in ("O", "M"):
+            return f"client set odd/mark parity, the instrument uses parity {want.get('parity', 'N')}"
+        return None
+
+    def connect(self, framing: Framing | None = None) -> None:
+        """A client opened the port: drop the previous client's partial request, check its framing."""
+        self.connections += 1
+        self._buf = b""
+        self.client = dict(framing or {})
+        why = self.framing_mismatch(self.client)
+        self.understood = why is None
+        if why is not None:
+            note = f"{self.name}: connection {self.connections}: {why}; its bytes are line noise to the device"
+            self.framing_notes.append(note)
+        self.on_connect()
+
+    def on_connect(self) -> None:
+        """Per-protocol state reset on a new connection (nothing by default)."""
+
+    # ------------------------------------------------------------------ requests
+    def split(self, buf: bytes) -> tuple[list[bytes], bytes]:
+        """Complete requests in ``buf`` (terminators removed, empty lines dropped) and the rest."""
+        out = []
+        while True:
+            m = _TERM.search(buf)
+            if m is None:
+                return out, buf
+            req, buf = buf[:m.start()], buf[m.end():]
+            if req:
+                out.append(req)
 
     def feed(self, data: bytes) -> list[tuple[bytes, bytes | None]]:
         """Bytes from the port -> [(request, reply or None)] for every complete request."""
+        if not self.understood:
+            self.noise_bytes += len(data)
+            return []
         self._buf += bytes(data)
+        reqs, self._buf = self.split(self._buf)
         out = []
-        while True:
-            m = _TERM.search(self._buf)
-            if m is None:
-                break
-            req, self._buf = self._buf[:m.start()], self._buf[m.end():]
-            if not req:
-                continue  # the LF of a CR LF pair, or an empty line
+        for req in reqs:
             self.requests += 1
             reply = self.handle(req)
             if self.keep_log:

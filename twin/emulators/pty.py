@@ -16,6 +16,20 @@ adapters. A disconnect fault closes the pseudo-terminal (the client's next read 
 with EIO: ``serial.SerialException``), opens a new one and re-points the link, so a driver whose
 ``reconnect`` re-opens the same path finds the instrument again.
 
+The client's line settings: Linux pseudo-terminals carry no parity and force 8 data bits (the
+kernel clears ``CSIZE``/``PARENB`` in every ``tcsetattr`` on a pty), so a 7E2 client and an 8N1
+client send the same bytes. What a pty does keep is the speed, ``CSTOPB`` and ``PARODD``. The
+server therefore parks each idle port at a speed no client uses (``B50``, "pristine") and reads the
+slave side's settings with ``termios.tcgetattr`` on every turn of its loop: when they leave the
+pristine state, a client has opened and configured the port (pyserial always sets the speed on
+open). That is a *connection*: the emulator's ``connect(framing)`` drops the previous client's
+partial request and compares the client's baud rate and parity kind with the instrument's
+(_base.py); then the port is parked again, so the next open is seen too (and so that pyserial
+re-opening a 7E2 port does not fail: a pty refuses with EINVAL a ``tcsetattr`` whose only change is
+the character size or parity, and with the speed changed as well the kernel accepts it). Data bits
+and even-vs-no parity cannot be seen on a pty: a client at 8N1 talking to a 7E2 instrument is
+understood here, where the real instrument would see parity errors (docs/protocols/README.md).
+
 Fault plan: a list of ``{"port": name, "request": n, "action": ..., "seconds": s}`` (a dict
 ``{"faults": [...]}`` or a TOML/JSON file with a ``[[faults]]`` array; ``load_fault_plan``). ``n``
 counts the complete requests that port has received since start, from 1 (retries count too).
@@ -31,7 +45,6 @@ in the bench file): faults are a property of the emulated instruments, and the b
 from __future__ import annotations
 
 import errno
-import json
 import os
 import select
 import tempfile
@@ -43,9 +56,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from benchtwin.schema import Key, SchemaError, check_table, check_version, loads_json, loads_toml, read_input_text
+
 __all__ = ["PtyServer", "load_fault_plan", "FAULT_ACTIONS"]
 
 FAULT_ACTIONS = ("drop", "garble", "partial", "delay", "disconnect")
+MAX_FAULTS = 10_000
+# the fault plan's schema (benchtwin.schema: the one validator mechanism of the input files)
+FAULT_PLAN_KEYS = {"version": Key("int"), "faults": Key("list")}
+FAULT_KEYS = {
+    "port": Key("str", required=True, n_min=1, n_max=64, doc="the port's name in the bench file"),
+    "request": Key("int", required=True, lo=1, hi=10**9, doc="the n-th request on that port"),
+    "action": Key("str", required=True, choices=FAULT_ACTIONS),
+    "seconds": Key("float", lo=0.0, hi=3600.0, doc="delay/disconnect duration"),
+}
 
 
 def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> list[dict[str, Any]]:
@@ -56,43 +80,64 @@ def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> lis
     if isinstance(source, (str, Path)):
         p = Path(source)
         where = str(p)
-        if not p.is_file():
+        if not p.exists():
             raise ValueError(f"{p}: no such fault plan file")
-        text = p.read_text(encoding="utf-8")
-        if p.suffix == ".json":
-            data: Any = json.loads(text)
-        else:
-            import tomllib
-
-            try:
-                data = tomllib.loads(text)
-            except tomllib.TOMLDecodeError as exc:
-                raise ValueError(f"{p}: not valid TOML: {exc}") from None
+        # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        try:
+            text = read_input_text(p, what="fault plan")
+            data: Any = loads_json(text, where) if p.suffix == ".json" else loads_toml(text, where)
+        except SchemaError as exc:
+            raise ValueError(str(exc)) from None
     else:
         data = source
-    items = data.get("faults", []) if isinstance(data, Mapping) else data
-    if not isinstance(items, list):
-        raise ValueError(f"{where}: key 'faults': expected an array of tables")
+    if isinstance(data, Mapping):
+        check_version(data, where, fail=ValueError)
+        check_table(data, FAULT_PLAN_KEYS, where, fail=ValueError)
+        items = data.get("faults", [])
+    else:
+        items = data
+    if not isinstance(items, list) or len(items) > MAX_FAULTS:
+        raise ValueError(f"{where}: key 'faults': expected an array of at most {MAX_FAULTS} tables")
     out = []
     for k, f in enumerate(items):
-        at = f"{where}: faults[{k}]"
-        if not isinstance(f, Mapping):
-            raise ValueError(f"{at}: expected a table with port, request, action")
-        unknown = set(f) - {"port", "request", "action", "seconds"}
-        if unknown:
-            raise ValueError(f"{at}: unknown keys {sorted(unknown)}; expected port, request, action, seconds")
-        if not isinstance(f.get("port"), str):
-            raise ValueError(f"{at}: key 'port': expected a port name (string), got {f.get('port')!r}")
-        n = f.get("request")
-        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-            raise ValueError(f"{at}: key 'request': expected an integer >= 1, got {n!r}")
-        if f.get("action") not in FAULT_ACTIONS:
-            raise ValueError(f"{at}: key 'action': expected one of {FAULT_ACTIONS}, got {f.get('action')!r}")
-        secs = f.get("seconds", 0.0)
-        if not isinstance(secs, (int, float)) or secs < 0:
-            raise ValueError(f"{at}: key 'seconds': expected a number >= 0, got {secs!r}")
-        out.append({"port": f["port"], "request": int(n), "action": f["action"], "seconds": float(secs)})
+        # one declarative check (benchtwin.schema.check_table): seconds = nan stops here, not in
+        # the emulator's port thread (issue #13)
+        f = check_table(f, FAULT_KEYS, where, at=f"faults[{k}]", fail=ValueError)
+        out.append({"port": f["port"], "request": int(f["request"]), "action": f["action"],
+                    "seconds": float(f.get("seconds", 0.0))})
     return out
+
+
+PRISTINE = termios.B50   # the speed an idle port is parked at: no client uses 50 baud
+_SPEEDS = {getattr(termios, f"B{b}"): b for b in (50, 75, 110, 134, 150, 200, 300, 600, 1200, 1800, 2400, 4800,
+                                                   9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000,
+                                                   576000, 921600, 1000000, 1152000, 1500000, 2000000)
+           if hasattr(termios, f"B{b}")}
+
+
+def park(fd: int) -> None:
+    """Put a pty slave back to the pristine settings (speed B50, one stop bit, no PARODD)."""
+    try:
+        attrs = termios.tcgetattr(fd)
+        if attrs[4] != PRISTINE or attrs[5] != PRISTINE or attrs[2] & (termios.CSTOPB | termios.PARODD):
+            attrs[4] = attrs[5] = PRISTINE
+            attrs[2] &= ~(termios.CSTOPB | termios.PARODD)
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    except (termios.error, OSError):
+        pass
+
+
+def client_framing(fd: int) -> dict[str, Any] | None:
+    """The line settings a client put on the pty slave ``fd`` (None: still pristine, nobody opened
+    and configured it since it was parked). Only what a pty keeps: speed, stop bits, PARODD."""
+    try:
+        attrs = termios.tcgetattr(fd)
+    except (termios.error, OSError):
+        return None
+    if attrs[4] == PRISTINE and attrs[5] == PRISTINE and not attrs[2] & (termios.CSTOPB | termios.PARODD):
+        return None
+    return {"transport": "pty", "baudrate": _SPEEDS.get(attrs[4], 0),
+            "stopbits": 2 if attrs[2] & termios.CSTOPB else 1, "parity_odd": bool(attrs[2] & termios.PARODD)}
 
 
 class _Port:
@@ -113,6 +158,7 @@ class _Port:
         master, slave = os.openpty()
         tty.setraw(slave)
         os.set_blocking(master, False)
+        park(slave)
         self.master, self.slave, self.pts = master, slave, os.ttyname(slave)
         tmp = self.link.with_name(self.link.name + ".new")
         if tmp.is_symlink() or tmp.exists():
@@ -208,7 +254,7 @@ class PtyServer:
                 time.sleep(self.poll_s)
                 continue
             if not r:
-                self._idle(p)
+                self._watch(p)
                 continue
             try:
                 data = os.read(p.master, 4096)
@@ -221,6 +267,7 @@ class PtyServer:
                 raise
             if not data:
                 continue
+            self._watch(p)  # after the read: a client sets its line before it writes
             try:
                 with self.lock:
                     exchanges = p.emulator.feed(data)
@@ -247,19 +294,14 @@ class PtyServer:
                 if reply:
                     self._write(p, reply)
 
-    @staticmethod
-    def _idle(p: _Port) -> None:
-        """Put the line speed back to the pristine B38400 while nobody talks. Linux pseudo-terminals
-        force 8 data bits and no parity, and refuse (EINVAL) a ``tcsetattr`` that then changes only
-        the character size or parity: pyserial re-opening a 7E2 port whose speed is already set
-        would fail. With the speed changed too, the kernel accepts it."""
-        try:
-            attrs = termios.tcgetattr(p.slave)
-            if attrs[4] != termios.B38400 or attrs[5] != termios.B38400:
-                attrs[4] = attrs[5] = termios.B38400
-                termios.tcsetattr(p.slave, termios.TCSANOW, attrs)
-        except (termios.error, OSError):
-            pass
+    def _watch(self, p: _Port) -> None:
+        """A client (re)configured the port since the last look: a connection (module docstring)."""
+        framing = client_framing(p.slave)
+        if framing is None:
+            return
+        park(p.slave)
+        with self.lock:
+            p.emulator.connect(framing)
 
     def _write(self, p: _Port, data: bytes) -> None:
         view = memoryview(data)

@@ -6,7 +6,9 @@ talks to them.
     ...                                              # benchtwin acquire bench.toml -o DATASET
     session.stop()
 
-Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``stage`` (Zaber
+Ports are pseudo-terminals (``PtyServer``), or with ``tcp=True`` loopback TCP sockets
+(``TcpServer``: the same protocols, as the instruments' Ethernet interfaces carry them; the bench
+file then names ``tcp://127.0.0.1:PORT`` ports). Ports (one protocol each, docs/protocols/*.md): ``encoder`` (Heidenhain ND), ``stage`` (Zaber
 ASCII), ``autocollimator`` (ELCOMAT 3000 by default, or TriAngle), and the probes: one Millimar
 C1202 port with ``probe_top`` on feature 1 and ``probe_bottom`` on feature 2 (by default), or one
 TESA TT display per probe. X probes, when the scenario has them, go to features 3/… of a second
@@ -27,6 +29,9 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchtwin.fsio import atomic_write_text
+from benchtwin.units import ARCSEC
+
 from ._base import decimals_for
 from .backend import EmulatedBench
 from .camera import FolderCameraEmulator
@@ -34,13 +39,13 @@ from .elcomat import ElcomatEmulator
 from .heidenhain import HeidenhainEmulator
 from .millimar import MillimarEmulator
 from .pty import PtyServer
+from .tcp import TcpServer
 from .tesa import TesaEmulator
 from .triangle import TriAngleEmulator
 from .zaber import ZaberEmulator
 
 __all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
 
-ARCSEC = math.pi / 648000.0
 MICROSTEPS_PER_DEG = 1000.0
 
 
@@ -91,7 +96,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
     lines = [
         f"# Written by `benchtwin emulate` for scenario {sc.name!r} (seed {sc.seed}).",
-        "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs.",
+        ("# The ports are loopback TCP sockets served by the emulator; they exist while it runs."
+         if any(str(v).startswith("tcp://") for v in ports.values()) else
+         "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs."),
         "", "[bench]", f'name = "{sc.name}-emulated"', 'source = "emulated"',
         f'description = "emulated instruments of scenario {sc.name} (benchtwin emulate)"',
         "", "[geometry]",
@@ -105,6 +112,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
         f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
         f"scale_edge_radius = {_q(float(b['scale_edge_radius']) * 1e3, 'mm')}",
     ]
+    ac = sc["instruments"]["autocollimator"]
+    lines += [f"autocollimator_resolution = {_q(float(ac['resolution']) / ARCSEC, 'arcsec')}",
+              f"autocollimator_accuracy = {_q(float(ac['accuracy']) / ARCSEC, 'arcsec')}"]
     if camera is not None:
         c = camera.camera
         ref = ", ".join(f"{float(v):.12g}" for v in c.reference_px)
@@ -142,7 +152,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
                 probe_names = probe_names if n in probe_names else probe_names + [n]
                 inst(n, "tesa", ports[n])
     st = emulators["stage"]
-    inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0",
+    # message ids and checksums on (zaber.md): a corrupted or stale reply is detected, not parsed
+    inst("stage", "zaber", ports["stage"], f"microsteps_per_deg = {st.microsteps_per_deg:g}, poll_interval_s = 0.0, "
+         "message_ids = true, checksums = true",
          ('soft_limits = ["-1 deg", "361 deg"]', f'max_speed = "{st.speed_deg_s * 1.25:g} deg/s"'))
     if camera is not None:
         lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
@@ -168,7 +180,7 @@ class EmulationSession:
     """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
 
     def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
-                 timeout_s: float = 0.25, camera: str | None = None):
+                 timeout_s: float = 0.25, camera: str | None = None, tcp: bool = False, tcp_base_port: int = 0):
         self.sc = sc
         self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG, camera_backend=camera)
         self.camera = FolderCameraEmulator("ccd") if camera is not None else None
@@ -177,18 +189,23 @@ class EmulationSession:
         self.emulators = build_emulators(sc, self.backend, autocollimator, probes)
         self.faults = faults
         self.timeout_s = float(timeout_s)
-        self.server: PtyServer | None = None
+        self.tcp, self.tcp_base_port = bool(tcp), int(tcp_base_port)
+        self.server: Any = None
         self.bench_path: Path | None = None
 
     def start(self, directory: str | Path) -> Path:
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
+        if self.tcp:
+            self.server = TcpServer(self.emulators, self.faults, base_port=self.tcp_base_port)
+        else:
+            self.server = PtyServer(self.emulators, self.faults, link_dir=d / "ports")
         ports = self.server.start()
         frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"
-        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
-                                                   self.backend.camera, frames), encoding="utf-8")
+        # atomic (benchtwin.fsio): a client polling for the bench file never reads half of it
+        atomic_write_text(self.bench_path, bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
+                                                           self.backend.camera, frames))
         return self.bench_path
 
     def ports(self) -> dict[str, str]:

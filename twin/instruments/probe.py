@@ -25,11 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.units import quantise
+from benchtwin.units import UM, quantise
 
 from .stage import SimBenchState, sim_rng
 
-UM = 1e-6
 
 
 class SimProbe:

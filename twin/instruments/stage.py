@@ -40,8 +40,8 @@ from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
 from benchtwin.hw.interfaces import SoftLimitError
 from benchtwin.twin.pose import BenchPose, BodyPose
+from benchtwin.units import ARCSEC
 
-ARCSEC = math.pi / 648000.0
 TWO_PI = 2.0 * math.pi
 #: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
 SIM_OFFSET_CACHE_SIZE = 8192

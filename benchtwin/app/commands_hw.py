@@ -1,12 +1,13 @@
 """Hardware-side subcommands: ``emulate`` (serve a scenario's instruments on pseudo-terminals) and
 ``acquire`` (run a bench file's procedures on real or emulated instruments -> dataset).
 
-Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.commands_hw``).
+Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.app.commands_hw``).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import threading
 from pathlib import Path
@@ -27,6 +28,11 @@ def _emulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", choices=("auto", "pyrender", "analytic", "none"), default="auto",
                    help="render backend of the hot-folder CCD camera (frames in DIR/frames; the bench file then "
                         "runs the CCD sweep too, as simulate does); 'none': no camera, no CCD sweep")
+    p.add_argument("--tcp", action="store_true",
+                   help="serve the instruments on loopback TCP sockets (their Ethernet interfaces) instead of "
+                        "pseudo-terminals; the bench file names tcp://127.0.0.1:PORT ports")
+    p.add_argument("--tcp-port", type=int, default=0,
+                   help="with --tcp: first port (the k-th instrument gets PORT+k); default 0: free ports")
     p.add_argument("--duration", type=float, default=None,
                    help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
 
@@ -47,7 +53,8 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
         raise InputError(str(exc)) from None
     directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
     session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes,
-                               camera=None if ns.camera == "none" else ns.camera)
+                               camera=None if ns.camera == "none" else ns.camera, tcp=ns.tcp,
+                               tcp_base_port=ns.tcp_port)
     try:
         bench = session.start(directory)
     except ValueError as exc:
@@ -55,13 +62,29 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
     if not (ns.quiet or ns.json):
+        pts = session.server.pts() if session.server is not None and not ns.tcp else {}
         for name, link in session.ports().items():
-            print(f"{name:16s} {link} -> {session.server.pts()[name]}", flush=True)
+            ser = session.emulators[name].SERIAL
+            line = "" if ns.tcp else f", {ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
+            where = f" -> {pts[name]}" if name in pts else ""
+            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}{line})", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)
+    import time
+
+    t_end = None if ns.duration is None else time.monotonic() + ns.duration
+    shown: dict[str, int] = {}
     try:
-        stop.wait(ns.duration)
+        while not stop.wait(0.2 if t_end is None else max(0.0, min(0.2, t_end - time.monotonic()))):
+            if not (ns.quiet or ns.json):
+                # a client at the wrong baud rate gets silence, as from the real instrument: say why
+                for name, emu in session.emulators.items():
+                    for note in emu.framing_notes[shown.get(name, 0):]:
+                        print(f"warning: {note}", flush=True)
+                    shown[name] = len(emu.framing_notes)
+            if t_end is not None and time.monotonic() >= t_end:
+                break
     except KeyboardInterrupt:
         pass
     finally:
@@ -76,16 +99,38 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("bench", type=Path, help="bench file (TOML, docs/bench-file.md)")
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
+    p.add_argument("--force", action="store_true",
+                   help="start again in a non-empty folder: deletes its contents, journal included")
+
+
+_DEVICE_GONE = (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF, errno.EPIPE)
+
+
+def _error_line(exc: BaseException) -> str:
+    port = getattr(exc, "port", None) or getattr(exc, "filename", None)
+    text = str(exc) or type(exc).__name__
+    return f"{port}: {text}" if port and str(port) not in text else text
 
 
 @command("acquire", "run a bench file's procedures on real or emulated instruments; writes a dataset", _acquire_args)
 def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
-    from benchtwin.hw.acquisition.acquire import acquire
-    from benchtwin.hw.acquisition.bench import BenchFileError
-    from benchtwin.hw.acquisition.runner import RunnerError
+    import serial
 
+    from benchtwin.hw.acquisition.acquire import JOURNAL, acquire
+    from benchtwin.hw.drivers.base import InstrumentError
+
+    if ns.resume and ns.force:
+        raise InputError("acquire: --resume and --force contradict each other (continue the run, or delete it)")
     try:
-        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json))
-    except (BenchFileError, RunnerError) as exc:
-        raise InputError(str(exc)) from None
+        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), force=ns.force)
+    except (InstrumentError, serial.SerialException, OSError) as exc:
+        # an instrument that stopped answering (retries exhausted) or a port that vanished (EIO,
+        # ENXIO, ENODEV on a pty or USB adapter): the readings taken so far are in the journal; say
+        # so and how to continue. Other OSErrors (a folder not writable) take the generic exit 2.
+        if isinstance(exc, OSError) and not isinstance(exc, serial.SerialException) and exc.errno not in _DEVICE_GONE:
+            raise
+        j = ns.out / JOURNAL
+        kept = (f"the readings taken so far are kept in {j}; continue with `benchtwin acquire {ns.bench} "
+                f"-o {ns.out} --resume`" if j.is_file() else "no reading was taken")
+        raise InputError(f"{ns.bench}: acquisition stopped by an instrument error: {_error_line(exc)}; {kept}") from None
     return {"ok": True, "dataset": str(out), "message": f"dataset written: {out}"}

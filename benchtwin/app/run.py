@@ -1,6 +1,6 @@
 """Simulate → analyze in one call, and the scalar outputs a design study collects from it.
 
-Why: a design study's ``full`` fidelity (``twin/study_points.py``) asks, per point and repetition,
+Why: a design study's ``full`` fidelity (``benchtwin/app/study/points.py``) asks, per point and repetition,
 what the *whole* bench would report — measured encoder error from the polygon, the Jia error model
 predicted from the measured eccentricity and radial motion, the residual, the stated uncertainties,
 the effects the close-the-loop step identifies — not only what the posed disk does. This module is
@@ -114,7 +114,7 @@ def simulate_and_analyze(scenario: Any, out_dir: str | Path, rep_seed: int | Non
     contents of ``results.json`` as written (read back from the file)."""
     from benchtwin.analysis.pipeline import analyze
 
-    from .simulate import simulate
+    from benchtwin.twin.simulate import simulate
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

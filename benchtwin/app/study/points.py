@@ -1,12 +1,12 @@
 """Point functions of a design study: one resolved scenario (+ repetition) -> a dict of outputs.
 
-Why a separate module: the runner (``study.py``) only schedules, caches and tabulates; what a
+Why a separate module: the runner (``execution.py``) only schedules, caches and tabulates; what a
 point *costs* is decided here, by fidelity, so that a study whose outputs need no images and no
 dynamics never pays for them:
 
 - ``physics``: build the twin's ``Bench`` (MuJoCo, quasi-static poses) and read the posed disk
   with exact trigonometry. Outputs: ``PHYSICS_OUTPUTS``. Milliseconds to a second per point.
-- ``full``: the whole simulate → analyze pipeline (``twin/run.py``: rendered CCD images, every
+- ``full``: the whole simulate → analyze pipeline (``benchtwin/app/run.py``: rendered CCD images, every
   instrument, the analysis of the dataset it wrote). Outputs: ``run.FULL_OUTPUTS`` by name (measured,
   predicted, residual, uncertainty, eccentricity, true α from the twin's truth),
   ``identified.<effect>`` and any number in the pipeline's ``results.json`` written
@@ -32,13 +32,14 @@ from __future__ import annotations
 import importlib
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from benchtwin.units import ARCSEC, UM
 
-from . import run as _run
+from benchtwin.app import run as _run
 
 # name -> what it is (units in the name; docs/studies.md lists them too).
 PHYSICS_OUTPUTS: dict[str, str] = {
@@ -55,10 +56,10 @@ PHYSICS_OUTPUTS: dict[str, str] = {
 }
 
 FULL_PREFIX = "results."
-# The simulate -> analyze entry point (module, function), twin/run.py:
+# The simulate -> analyze entry point (module, function), benchtwin/app/run.py:
 #   simulate_and_analyze(scenario: Scenario, out_dir: pathlib.Path, rep_seed: int,
 #                        progress: bool = False, *, order=10, close_loop=True) -> dict  # results.json
-FULL_ENTRY_POINT = ("benchtwin.twin.run", "simulate_and_analyze")
+FULL_ENTRY_POINT = ("benchtwin.app.run", "simulate_and_analyze")
 FIDELITY_ORDER = ("physics", "full", "full+close_loop")  # cheapest first
 
 _BENCHES: OrderedDict[str, Any] = OrderedDict()
@@ -75,7 +76,7 @@ def output_fidelity(output: str) -> str:
     raise KeyError(output)
 
 
-def full_entry_point():
+def full_entry_point() -> Callable[..., dict[str, Any]]:
     """The simulate → analyze function (``FULL_ENTRY_POINT``)."""
     mod, fn = FULL_ENTRY_POINT
     return getattr(importlib.import_module(mod), fn)

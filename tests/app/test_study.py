@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchtwin.twin import study as st
-from benchtwin.twin.study import StudyError, expand_points, load_study, run_study
+from benchtwin.app.study import execution as st
+from benchtwin.app.study import StudyError, expand_points, load_study, run_study
 from benchtwin.units import ARCSEC
 
 HERE = Path(__file__).resolve().parent
@@ -239,7 +239,7 @@ def test_physics_fidelity_refuses_pipeline_outputs(tmp_path):
 def test_fidelity_is_chosen_per_output(tmp_path):
     """The cheapest fidelity per output: physics outputs never start a simulation; named full outputs
     and results.<path> keys run simulate → analyze; only outputs that need it run the close loop."""
-    from benchtwin.twin import study_points as sp
+    from benchtwin.app.study import points as sp
 
     assert sp.output_fidelity("angle_error_pv_arcsec") == "physics"
     assert sp.output_fidelity("measured_angle_error_pv_arcsec") == "full"
@@ -409,10 +409,11 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
     p = _write(tmp_path, body)
     out = tmp_path / "out"
     script = textwrap.dedent(f"""
-        import functools, sys
-        sys.path.insert(0, {str(HERE)!r})
-        from test_study import counting_point
-        import benchtwin.twin.study as st
+        import functools, importlib, sys
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parents[1])!r}]
+        # the same module name as in this process (the point function's name enters the cache key)
+        counting_point = importlib.import_module({counting_point.__module__!r}).counting_point
+        import benchtwin.app.study.execution as st
         st.code_version = lambda: "test-fixed"
         st.run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
                   point_fn=functools.partial(counting_point, delay_s=0.4))
@@ -465,7 +466,7 @@ def test_killed_cli_study_resumes_with_only_the_missing_points(tmp_path):
     out = tmp_path / "out"
     # the command line's own entry point (benchtwin.cli:main), with the code version pinned: other
     # work editing the sources between the two runs must not invalidate the cache under the test
-    launcher = ("import sys, benchtwin.twin.study as st; st.code_version = lambda: 'test-fixed'; "
+    launcher = ("import sys, benchtwin.app.study.execution as st; st.code_version = lambda: 'test-fixed'; "
                 "from benchtwin.cli import main; sys.exit(main(sys.argv[1:]))")
 
     def cli(*args: str) -> list[str]:

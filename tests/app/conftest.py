@@ -1,0 +1,30 @@
+"""Shared fixtures of the scoring tests: one twin dataset of the suite, simulated once."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def grad_dataset(tmp_path_factory):
+    """The suite's graduation_error dataset at seed 11 (~20 s): the hidden division error with X probes."""
+    from benchtwin.app.suite import ENTRIES, _simulate_one
+
+    e = next(e for e in ENTRIES if e.name == "graduation_error")
+    out = tmp_path_factory.mktemp("suite_one") / e.name
+    _simulate_one((e, 11, str(out)))
+    return out
+
+
+@pytest.fixture(scope="session")
+def grad_results(grad_dataset, tmp_path_factory):
+    """The project's close-loop analysis of it, run on a copy without truth/ (~10 s)."""
+    import shutil
+
+    from benchtwin.analysis.pipeline import analyze
+
+    ds = tmp_path_factory.mktemp("blind") / "ds"
+    shutil.copytree(grad_dataset, ds, ignore=shutil.ignore_patterns("truth", "journal.jsonl"))
+    out = tmp_path_factory.mktemp("analysis")
+    analyze(ds, out, progress=False, close_loop=True)
+    return out / "results.json"

@@ -1,0 +1,193 @@
+"""Serve the protocol emulators on loopback TCP sockets (``benchtwin emulate --tcp``).
+
+Many current instruments have an Ethernet interface that carries the same ASCII protocol as their
+serial port: Zaber's Ethernet controllers speak Zaber ASCII on TCP port 55550, position displays
+and autocollimators with a LAN option speak their serial protocol over a raw socket (the
+"serial device server" model). ``TcpServer`` serves each emulator on its own socket of
+``127.0.0.1`` (loopback only: nothing listens on another address), with the same fault plan as
+``PtyServer`` (pty.py: ``drop``, ``garble``, ``partial``, ``delay``; ``disconnect`` closes the
+client's connection, and the next connection is served again).
+
+    server = TcpServer({"encoder": HeidenhainEmulator(...), ...}, faults=plan, base_port=0)
+    ports = server.start()        # {"encoder": "tcp://127.0.0.1:40123", ...}
+    server.stop()
+
+Ports: ``base_port`` 0 (default) lets the system choose a free port for every emulator; otherwise
+port ``base_port + k`` for the k-th emulator (in the bench's order). A socket has no line settings,
+so a connection is only a connection: ``emulator.connect({"transport": "tcp"})`` drops a previous
+client's partial request. One client per instrument at a time, as the instruments' single command
+channel: a new connection replaces the old one (a client that re-connects after a network fault
+is served at once; the stale connection is closed).
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import threading
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from .pty import load_fault_plan
+
+__all__ = ["TcpServer", "HOST"]
+
+HOST = "127.0.0.1"
+
+
+class _Endpoint:
+    def __init__(self, name: str, emulator: Any, sock: socket.socket):
+        self.name = name
+        self.emulator = emulator
+        self.sock = sock
+        self.port = sock.getsockname()[1]
+        self.client: socket.socket | None = None
+        self.count = 0
+        self.faults: dict[int, dict[str, Any]] = {}
+        self.fired: list[dict[str, Any]] = []
+        self.thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        return f"tcp://{HOST}:{self.port}"
+
+
+class TcpServer:
+    """Serve ``emulators`` (``{port name: ProtocolEmulator}``) on loopback TCP sockets."""
+
+    def __init__(self, emulators: Mapping[str, Any], faults: Any = None, base_port: int = 0,
+                 poll_s: float = 0.02):
+        self.emulators = dict(emulators)
+        self.plan = load_fault_plan(faults)
+        unknown = sorted({f["port"] for f in self.plan} - set(self.emulators))
+        if unknown:
+            raise ValueError(f"fault plan names unknown port(s) {unknown}; ports: {sorted(self.emulators)}")
+        if not isinstance(base_port, int) or not (base_port == 0 or 1024 <= base_port <= 65535 - len(emulators)):
+            raise ValueError(f"TCP base port must be 0 (any free port) or 1024..{65535 - len(emulators)}, "
+                             f"got {base_port!r}")
+        self.base_port = base_port
+        self.poll_s = float(poll_s)
+        self.lock = threading.Lock()
+        self._stop = threading.Event()
+        self.ends: dict[str, _Endpoint] = {}
+        self.errors: list[str] = []
+
+    def start(self) -> dict[str, str]:
+        try:
+            for k, (name, emu) in enumerate(self.emulators.items()):
+                s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                try:
+                    s.bind((HOST, self.base_port + k if self.base_port else 0))
+                except OSError as exc:
+                    s.close()
+                    raise ValueError(f"cannot listen on {HOST}:{self.base_port + k} for {name!r}: {exc}") from None
+                s.listen(2)
+                s.setblocking(False)
+                e = _Endpoint(name, emu, s)
+                e.faults = {f["request"]: f for f in self.plan if f["port"] == name}
+                self.ends[name] = e
+        except BaseException:
+            for e in self.ends.values():
+                e.sock.close()
+            raise
+        for e in self.ends.values():
+            e.thread = threading.Thread(target=self._serve, args=(e,), name=f"emu-tcp-{e.name}", daemon=True)
+            e.thread.start()
+        return self.paths()
+
+    def paths(self) -> dict[str, str]:
+        return {n: e.url for n, e in self.ends.items()}
+
+    def pts(self) -> dict[str, str]:
+        """Where each port listens (the same as ``paths``: a socket has no device behind it)."""
+        return {n: f"{HOST}:{e.port}" for n, e in self.ends.items()}
+
+    def fired(self) -> list[dict[str, Any]]:
+        return [f for e in self.ends.values() for f in e.fired]
+
+    def stop(self) -> None:
+        self._stop.set()
+        for e in self.ends.values():
+            if e.thread is not None:
+                e.thread.join(timeout=2.0)
+            self._drop(e)
+            e.sock.close()
+
+    def __enter__(self) -> "TcpServer":
+        if not self.ends:
+            self.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ serving
+    @staticmethod
+    def _drop(e: _Endpoint) -> None:
+        if e.client is not None:
+            try:
+                e.client.close()
+            except OSError:
+                pass
+            e.client = None
+
+    def _serve(self, e: _Endpoint) -> None:
+        while not self._stop.is_set():
+            watch = [e.sock] + ([e.client] if e.client is not None else [])
+            try:
+                r, _, _ = select.select(watch, [], [], self.poll_s)
+            except (OSError, ValueError):
+                self._drop(e)
+                continue
+            if e.sock in r:
+                try:
+                    conn, _ = e.sock.accept()
+                except OSError:
+                    conn = None
+                if conn is not None:
+                    self._drop(e)
+                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    e.client = conn
+                    with self.lock:
+                        e.emulator.connect({"transport": "tcp"})
+                continue
+            if e.client is None or e.client not in r:
+                continue
+            try:
+                data = e.client.recv(4096)
+            except OSError:
+                data = b""
+            if not data:          # the client closed its end
+                self._drop(e)
+                continue
+            try:
+                with self.lock:
+                    exchanges = e.emulator.feed(data)
+            except Exception as exc:  # noqa: BLE001 - an emulator bug must not kill the port silently
+                self.errors.append(f"{e.name}: {type(exc).__name__}: {exc}")
+                continue
+            for _req, reply in exchanges:
+                e.count += 1
+                fault = e.faults.get(e.count)
+                if fault is not None:
+                    e.fired.append(dict(fault))
+                    act = fault["action"]
+                    if act == "disconnect":
+                        self._drop(e)
+                        break
+                    if act == "drop" or reply is None:
+                        continue
+                    if act == "garble":
+                        reply = b"#" + reply[1:]
+                    elif act == "partial":
+                        reply = reply[:-1]
+                    elif act == "delay":
+                        time.sleep(fault["seconds"])
+                if reply and e.client is not None:
+                    try:
+                        e.client.sendall(reply)
+                    except OSError:
+                        self._drop(e)
+                        break
