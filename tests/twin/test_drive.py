@@ -13,7 +13,7 @@ from benchtwin.twin.instruments.drive import DriveParams, DriveServo, spin_inert
 from benchtwin.twin.physics import Bench
 from benchtwin.twin.scenario import load_scenario
 
-ARCSEC = math.pi / 648000.0
+from benchtwin.units import ARCSEC  # noqa: E402
 RES = 0.39 * ARCSEC
 CELL_SIGMA = RES / math.sqrt(12.0)          # rectangular distribution over one count (GUM 4.3.7)
 

@@ -60,7 +60,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-ARCSEC = math.pi / 648000.0
+from benchtwin.units import ARCSEC
 
 #: seconds of the deceleration simulated before the reference stops (the rest is the profile)
 DRIVE_TAIL_S = 0.003
