@@ -220,6 +220,8 @@ BENCH_RANGES: dict[str, tuple[float, float]] = {
     "encoder_lines": (0, 10_000_000),
     "scale_edge_radius_mm": (1.0, 1000.0),
     "encoder_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_accuracy_arcsec": (0.0, 3600.0),
 }
 
 
@@ -651,8 +653,11 @@ class Dataset:
             elif img.shape != shape:
                 raise DatasetError(f"{where}: {img.shape[1]}×{img.shape[0]} px, but the frame of row {first_row} is "
                                    f"{shape[1]}×{shape[0]} px (expected one frame size for the whole sweep)")
+            # a uniform frame (fogged, dark, saturated) carries no image: two of them are alike by
+            # nature, and the image analysis rejects them with its own note; any other frame is unique
+            uniform = img.size == 0 or int(img.min()) == int(img.max())
             dg = hashlib.blake2b(img.tobytes(), digest_size=16).digest()
-            if dg in digests:
+            if not uniform and dg in digests:
                 raise DatasetError(f"{where}: identical to the frame of row {digests[dg]}; a frame at another angle "
                                    "cannot be pixel-for-pixel the same (a duplicated file?)")
             digests[dg] = row

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.hw.interfaces import CameraFrame
+
 from .stage import SimBenchState
 
 
@@ -82,7 +84,7 @@ class SimCamera:
                 "pixel_um": float(self.camera.true_pixel_m * 1e6),
                 "reference_px": [float(v) for v in self.camera.reference_px]}
 
-    def capture(self) -> dict[str, Any]:
+    def capture(self) -> CameraFrame:
         st = self.state
         frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
         tr = frame.truth
