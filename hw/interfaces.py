@@ -62,7 +62,7 @@ class StageMove(Stamped):
 class CameraFrame(Stamped):
     image: np.ndarray  # 2-D greyscale, uint8 or uint16
     file: NotRequired[str]  # the frame's file name (folder cameras)
-    truth: NotRequired[dict[str, Any]]  # twin only: what the frame shows exactly (goes to truth/)
+    backend: NotRequired[str]  # twin only: the renderer that drew it (a reading never holds a true value)
 
 
 @runtime_checkable

@@ -55,7 +55,7 @@ def _sweep(seed: int | None, ks, sensor_kw: dict | None = None):
             state.on_step(int(k), None, {}, False)  # noise stream keyed by the step, as in the runner
             stage.move_to(k * STEP_DEG)
             r = cam.capture()
-            frames.append((k * STEP_DEG, r["image"], r["truth"]))
+            frames.append((k * STEP_DEG, r["image"], cam.last_truth))
     finally:
         cam.close()
     return sc, frames

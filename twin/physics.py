@@ -602,8 +602,10 @@ class Bench:
         d.qvel[:] = 0.0
         d.ctrl[self._act] = cmd_rad
         d.qfrc_applied[:] = 0.0
-        # Sliding bearing friction opposing the approach direction (see module docstring).
-        d.qfrc_applied[4] = -float(np.sign(direction)) * self.friction_torque_Nm
+        # Sliding bearing friction opposing the approach direction (see module docstring), or the
+        # torque the friction holds at the drive servo's rest (twin/instruments/drive.py).
+        held = getattr(self, "_held_torque_Nm", None)
+        d.qfrc_applied[4] = -float(np.sign(direction)) * self.friction_torque_Nm if held is None else held
 
     def _set_centrifugal(self, spin_rad: float) -> None:
         """Unbalance force U·ω² at steady speed ``bench.speed`` (0 for stop-and-go readings):
@@ -724,7 +726,7 @@ class Bench:
         return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
 
     def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1,
-                rolling: bool = False) -> BenchPose:
+                rolling: bool = False, bearing_torque_Nm: float | None = None) -> BenchPose:
         """Command the drive to ``shaft_angle_rad`` approached in ``direction`` (+1 CCW, −1 CW),
         settle to static equilibrium and return the posed bodies (lab frame, m).
 
@@ -732,14 +734,21 @@ class Bench:
         per rep). ``t_s`` is the bench clock: for ball bearings a pose at a new time is a new
         stop on the bench's path (the cages roll with the shaft from the previous stop, with
         slip), a pose at the same time refines the current stop (the servo's iterations).
-        ``rolling``: a sample during steady rotation (twin/continuous.py): no start/stop slip."""
+        ``rolling``: a sample during steady rotation (twin/continuous.py): no start/stop slip.
+        ``bearing_torque_Nm``: the friction torque the bearing holds on the disk section at rest
+        (from the drive servo's dynamics, twin/instruments/drive.py); None: the sliding friction
+        opposing ``direction`` (a quasi-static approach)."""
         if direction not in (1, -1):
             raise ValueError("direction must be +1 or -1")
         self._advance_path(t_s, rolling)
         if self.thermal.active:   # the housings' thermal drift at this time (twin/thermal.py)
             d = self.thermal.axis_drift_m(t_s)
             self._drift4 = np.array([d[0], d[1], d[0], d[1]])
-        it = self._solve(float(shaft_angle_rad), direction, int(rep))
+        self._held_torque_Nm = None if bearing_torque_Nm is None else float(bearing_torque_Nm)
+        try:
+            it = self._solve(float(shaft_angle_rad), direction, int(rep))
+        finally:
+            self._held_torque_Nm = None
         self.last_iterations = it
         self.total_iterations += it
         self.n_poses += 1

@@ -134,6 +134,25 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "disk_cte": Field("per_kelvin", 8e-6, lo=0.0, hi=1e-4, doc="uniform: no angle change (truth only)"),
         "polygon_cte": Field("per_kelvin", 8e-6, lo=0.0, hi=1e-4, doc="uniform: no angle change (truth only)"),
     },
+    # The drive servo (twin/instruments/drive.py): a PID on the encoder's count, the drive train
+    # integrated by MuJoCo (models/drive.xml). Coupling and shaft stiffness, sliding friction:
+    # [bearings]. Defaults: ASSUMPTIONS (a small brushless torque motor and a ball-bearing spindle;
+    # sources in drive.py).
+    "drive": {
+        "motor_inertia": Field("inertia", 1.8e-5, lo=1e-9, hi=10.0, doc="rotor + coupling hub"),
+        "static_friction_ratio": Field("dimensionless", 1.2, lo=1.0, hi=3.0,
+                                       doc="breakaway / sliding friction torque (Stribeck)"),
+        "stribeck_speed": Field("angular_speed", 1e-3, lo=1e-6, hi=10.0),
+        "presliding_angle": Field("angle", 5e-5, lo=1e-8, hi=0.01,
+                                  doc="elastic (pre-sliding) rotation of the bearing at breakaway"),
+        "bandwidth": Field("frequency", 200.0, lo=1.0, hi=2000.0, doc="position-loop bandwidth"),
+        "servo_rate": Field("frequency", 5000.0, lo=100.0, hi=20000.0, doc="sample rate of the loop"),
+        "torque_limit": Field("torque", 0.5, lo=1e-3, hi=100.0),
+        "torque_noise": Field("torque", 2e-5, lo=0.0, hi=1.0, doc="amplifier current noise, rms per sample"),
+        "settle_window": Field("time", 3e-3, lo=1e-4, hi=1.0, doc="count held and shaft still this long = at rest"),
+        "settle_time": Field("time", 0.1, lo=1e-3, hi=10.0,
+                             doc="the stage reports the move done this long after the profile"),
+    },
     "instruments.probe": {
         "repeatability": Field("length", 0.1 * UM, lo=0.0, hi=100 * UM),
         "linearity_a": Field("length", 0.2 * UM, lo=0.0, hi=100 * UM),

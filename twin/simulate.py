@@ -46,6 +46,7 @@ from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
+from .instruments.drive import DriveServo
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
@@ -91,8 +92,11 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
     """Bench, state and instruments of a scenario: (bench, state, instruments dict)."""
     bench = Bench(sc) if bench is None else bench
     state = SimBenchState(bench, SimClock())
-    enc = SimEncoder.sim_from_scenario(sc, state)
-    inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc)}
+    # One Hidden per bench (twin/hidden.py): the physics built it; every instrument gets that one.
+    hidden = bench.hidden
+    enc = SimEncoder.sim_from_scenario(sc, state, hidden=hidden)
+    servo = DriveServo.sim_from_bench(sc, bench)   # the drive servo on the encoder's count
+    inst: dict[str, Any] = {"encoder": enc, "stage": SimRotaryStage("stage", state, enc, servo=servo)}
     key = 0
     axes = ("y", "x") if sc["instruments"]["probe"]["x_probes"] else ("y",)
     for ax in axes:
@@ -100,11 +104,11 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
             p = SimProbe.sim_from_scenario(sc, state, bench, s, ax, key=key)
             inst[p.name] = p
             key += 1
-    inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state)
+    inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state, hidden=hidden)
     if camera:
         from .instruments.camera import SimCamera
 
-        inst["ccd"] = SimCamera.sim_from_scenario(sc, state, backend=backend)
+        inst["ccd"] = SimCamera.sim_from_scenario(sc, state, backend=backend, hidden=hidden)
     return bench, state, inst
 
 
@@ -192,6 +196,8 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     stage: SimRotaryStage = inst["stage"]
     ac: SimAutocollimator = inst["autocollimator"]
     truth_rows: dict[int, tuple] = {}
+    ccd_truth: dict[int, dict] = {}      # per frame, from the posed geometry (never journaled)
+    held: dict[int, float] = {}          # the count the servo holds at each reading (deg)
 
     def on_step(i, step, context, replay):
         state.on_step(i, step, context, replay)
@@ -208,6 +214,9 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
             stage.sim_hold = False
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
+            held[i] = float(stage.held_deg)
+        if isinstance(step, P.Capture) and cam is not None:
+            ccd_truth[i] = cam.sim_frame_truth()
         bar.update(1)
         if live is not None:
             live.on_step(i, step, context, replay)
@@ -236,7 +245,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
 
         writer.write_table("radial_continuous", continuous_run(
             bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-    _write_truth(sc, writer, rows, bench, inst, truth_rows)
+    _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
     writer.close()
     return out
 
@@ -290,6 +299,9 @@ def _instrument_truth(inst: dict) -> dict:
                    for n, p in inst.items() if isinstance(p, SimProbe)},
         "stage": inst["stage"].describe(),
     }
+    servo = getattr(inst["stage"], "servo", None)
+    if servo is not None:   # truth only: its friction is the TRUE one (hidden extra friction included)
+        out["drive_servo"] = servo.describe()
     return out
 
 
@@ -315,7 +327,10 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
 
 
 def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple]) -> None:
+                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None,
+                 ccd_truth: dict[int, dict] | None = None) -> None:
+    held = held or {}
+    ccd_truth = ccd_truth or {}
     N = bench.n_faces
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
@@ -325,7 +340,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     # initial angles, rolling with the shaft along the grid, no start/stop slip: one time).
     bench.reset_path()
     st = SimBenchState(bench, SimClock())
-    enc = SimEncoder.sim_from_scenario(sc, st)
+    enc = SimEncoder.sim_from_scenario(sc, st, hidden=bench.hidden)
     stage = SimRotaryStage("truth_stage", st, enc)
 
     def stop(tag, t_s: float = 0.0) -> tuple:
@@ -356,13 +371,14 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
 
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
     if radial:
-        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
+        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "target_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
                                               "axis_dy_um", "disk_centre_x_um", "disk_centre_y_um",
                                               "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
                                               "sphere_bottom_y_um")}
         for r in radial:
             phi, x0, *pos_m = truth_rows[r["i"]][:10]
-            vals = (r["tag"]["rep"], r["tag"]["k"], _theta(r), math.degrees(phi), (x0 - phi) / ARCSEC,
+            vals = (r["tag"]["rep"], r["tag"]["k"], held.get(r["i"], _theta(r)), _theta(r), math.degrees(phi),
+                    (x0 - phi) / ARCSEC,
                     *(v * 1e6 for v in pos_m))
             for k, v in zip(t, vals):
                 t[k].append(v)
@@ -376,7 +392,7 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
     setup: dict[tuple, list] = {}
     if poly:
-        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "true_deg",
+        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "target_deg", "true_deg",
                              "alpha_arcsec", "ac_exact_arcsec", "ac_exact_y_arcsec", "physics_face", "beta_sum_arcsec",
                              "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
         for r in poly:
@@ -385,8 +401,12 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
             j, i = int(tag["start_face"]), int(tag["step"])
             bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
             alpha = (x0 - phi) / ARCSEC
-            U = ex / ARCSEC - alpha - bsum
-            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], _theta(r), math.degrees(phi),
+            # Hsieh eq. 3 at the commanded stop θ: ε = U + Σβ + (θ − θ_true) − twist. The servo rests
+            # anywhere in the held count and the friction it holds twists the shaft per stop, so U,
+            # the mounting's constant, is what remains after both (twin/instruments/drive.py).
+            U = ex / ARCSEC - (math.radians(_theta(r)) - phi) / ARCSEC - bsum + twist / ARCSEC
+            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], held.get(r["i"], _theta(r)), _theta(r),
+                    math.degrees(phi),
                     alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, setup_err / ARCSEC, twist / ARCSEC)
             for k, v in zip(t, vals):
                 t[k].append(v)
@@ -403,13 +423,14 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
 
     caps = [r for r in rows if r["type"] == "capture"]
     if caps:
+        ct = [ccd_truth[r["i"]] for r in caps]
         w.write_truth_table("ccd", {
             "k": [r["tag"]["k"] for r in caps],
-            "centre_x_px": [r["reading"]["truth"]["centre_px"][0] for r in caps],
-            "centre_y_px": [r["reading"]["truth"]["centre_px"][1] for r in caps],
-            "edge_radius_px": [r["reading"]["truth"]["edge_radius_px"] for r in caps],
-            "pixel_um": [r["reading"]["truth"]["pixel_um"] for r in caps],
-            "backend": [r["reading"]["truth"]["backend"] for r in caps]})
+            "centre_x_px": [c["centre_px"][0] for c in ct],
+            "centre_y_px": [c["centre_px"][1] for c in ct],
+            "edge_radius_px": [c["edge_radius_px"] for c in ct],
+            "pixel_um": [c["pixel_um"] for c in ct],
+            "backend": [r["reading"].get("backend", "") for r in caps]})
 
     bt = bench.truth()
     bt["polygon_pitch_deviation_hsieh_arcsec"] = beta_h.tolist()

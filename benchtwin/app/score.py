@@ -418,7 +418,9 @@ def read_truth(truth_dir: str | Path, dataset_dir: str | Path | None = None) -> 
     t["alpha_stops"] = None
     if (td / "polygon.csv").exists():
         p = _read_csv(td / "polygon.csv")
-        th = np.round(np.mod(p["theta_deg"], 360.0), 6)
+        # keyed by the commanded stop (the dataset's theta_deg): truth's theta_deg is the count the
+        # drive servo held there (twin/instruments/drive.py), target_deg the commanded stop
+        th = np.round(np.mod(p["target_deg"] if "target_deg" in p else p["theta_deg"], 360.0), 6)
         keys = np.unique(th)
         t["alpha_stops"] = (keys, np.array([p["alpha_arcsec"][th == k].mean() for k in keys]))
     t["alpha_grid"] = None

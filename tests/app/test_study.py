@@ -321,7 +321,13 @@ def test_full_fidelity_simulates_and_analyses_against_the_truth(tmp_path, fixed_
     assert 0 < row["eccentricity_u_um"] < 0.2
     # the measured α (polygon) agrees with the twin's true α within its stated uncertainty
     assert 0 < row["measured_angle_error_u_arcsec"] < 0.5
-    assert row["measurement_error_rms_arcsec"] < 2 * row["measured_angle_error_u_arcsec"]
+    # ... plus what the analysis' budget does not hold: the drive servo rests where the bearing
+    # friction sticks (twin/instruments/drive.py), holding a torque anywhere in ±T_s = ±1.2·0.02 N·m
+    # that twists the shaft between disk and polygon by T/k_shaft (k_shaft = 5000 N·m/rad) per stop;
+    # bound: a rectangular spread over the whole static band, σ ≤ T_s/(√3·k_shaft)
+    sigma_twist = 1.2 * 0.02 / (math.sqrt(3.0) * 5000.0) / ARCSEC
+    u = row["measured_angle_error_u_arcsec"]
+    assert row["measurement_error_rms_arcsec"] < 2 * math.hypot(u, sigma_twist)
     # ≈ 2e/r: the once-per-turn eccentricity term dominates (P-V over 8 faces is a bit lower)
     two_e_over_r = 2 * 5e-6 / 22e-3 / ARCSEC
     assert 0.85 * two_e_over_r < row["true_angle_error_pv_arcsec"] < 1.1 * two_e_over_r

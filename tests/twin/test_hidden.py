@@ -47,7 +47,16 @@ def channels(sc, direction: str = "forward", times_s=None, faces: bool = True) -
     probes = [n for n in inst if n.startswith("probe")]
     for n in probes:
         out[n] = []
-    for i, th in enumerate(STOPS_DEG):
+    out["rest_torque"] = []
+    # The drive servo approaches each stop in the direction it truly moves (its friction and rest
+    # torque follow the motion, not the label): forward runs up from −15°, backward runs down from
+    # 375° (the channels are returned in STOPS_DEG order either way).
+    order = list(range(len(STOPS_DEG)))
+    if direction == "backward":
+        order.reverse()
+    inst["stage"].move_to(-15.0 if direction == "forward" else 375.0)
+    for i in order:
+        th = STOPS_DEG[i]
         t = 0.0 if times_s is None else float(times_s[i])
         st.clock.set(t)
         inst["stage"].move_to(th)
@@ -58,7 +67,10 @@ def channels(sc, direction: str = "forward", times_s=None, faces: bool = True) -
             out[n].append(inst[n].sim_displacement_m(p) * 1e6)
         if faces:
             out["ac"].append(inst["autocollimator"].read()["x_arcsec"])
-    return {k: np.asarray(v, dtype=float) for k, v in out.items()}
+        rest = inst["stage"].last_rest
+        out["rest_torque"].append(0.0 if rest is None else rest.friction_torque_Nm)
+    back = np.argsort(order)   # visit order -> STOPS_DEG order
+    return {k: np.asarray(v, dtype=float)[back] if v else np.zeros(0) for k, v in out.items()}
 
 
 def diff(name: str, **kw) -> tuple[dict, dict, dict]:
@@ -149,7 +161,8 @@ def test_ccd_pixel_scale_changes_only_the_images():
             inst["stage"].move_to(30.0)
             with SimCamera.sim_from_scenario(s, st, backend="analytic") as cam:
                 assert cam.camera.pixel_pitch_m == pytest.approx(0.667e-6)   # nominal: the manifest's
-                truths.append((cam.capture()["truth"], cam.grating))
+                cam.capture()
+                truths.append((cam.last_truth, cam.grating))
         (t1, g1), (t0, g0) = truths
         assert t1["pixel_um"] / t0["pixel_um"] == pytest.approx(px, rel=1e-12)
         assert g1.period_m / g0.period_m == pytest.approx(period, rel=1e-12)
@@ -201,8 +214,20 @@ def test_torsion_hysteresis_twists_the_polygon_with_the_direction():
     fwd, _, _ = diff("torsion_hysteresis", direction="forward")
     bwd, _, _ = diff("torsion_hysteresis", direction="backward")
     h = 0.03 / 5000.0 / ARCSEC                           # T / k_shaft = 1.24″
-    assert peak(fwd["alpha"]) < 1e-6 and peak(bwd["alpha"]) < 1e-6
-    assert abs(np.mean(fwd["ac"]) - np.mean(bwd["ac"])) == pytest.approx(2 * h, rel=0.05)
+    # the drive servo (twin/instruments/drive.py) rests elsewhere in the count's cell with more
+    # friction: α moves by its slope over that (≲ 1e-4″), far below the 0.001″ floor
+    assert peak(fwd["alpha"]) < 1e-3 and peak(bwd["alpha"]) < 1e-3
+    # The twist is the torque the friction HOLDS at the servo's rest (|T| ≤ T_static = 1.2·T_c),
+    # not ±T_c: the hysteresis is the mean held torque over k_shaft, a large part of 2·T_c/k_shaft.
+    _, a_f, _ = diff("torsion_hysteresis", direction="forward")
+    _, a_b, _ = diff("torsion_hysteresis", direction="backward")
+    dT = np.mean(a_f["rest_torque"]) - np.mean(a_b["rest_torque"])     # N·m, forward − backward
+    assert dT < 0                                                      # friction opposes the motion
+    hyst = abs(np.mean(fwd["ac"]) - np.mean(bwd["ac"]))
+    # (plus where the servo rests in the count: with friction ±0.09″ past the centre with the
+    # direction, without it about centred; the AC sees the polygon, which turns with the disk)
+    assert hyst == pytest.approx(abs(dT) / 5000.0 / ARCSEC, abs=0.2)
+    assert 0.3 * 2 * h < hyst < 1.2 * 2 * h
 
 
 def test_polygon_pitch_pattern_moves_the_faces_not_alpha():

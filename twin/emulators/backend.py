@@ -90,18 +90,19 @@ class EmulatedBench:
     def _same(self, a: float, b: float) -> bool:
         return abs(a - b) * self.microsteps_per_deg < 0.5 + 1e-9
 
-    def _exec(self, i: int) -> None:
+    def _exec(self, i: int, dynamics: bool = True) -> None:
         step = self.script[i]
         self.state.on_step(i, step, dict(self.ctx_at[i]), False)
         if isinstance(step, P.Move):
-            self.stage.move_to(step.target_deg)
+            # (stops passed through on the way to a requested one: no drive-servo simulation)
+            self.stage.move_to(step.target_deg, dynamics=dynamics)
         elif isinstance(step, P.Wait):
             self.state.clock.advance(step.seconds)
         self.t_after[i] = self.state.clock.now()
 
     def _advance_to(self, j: int) -> None:
         for i in range(self.cursor + 1, j + 1):
-            self._exec(i)
+            self._exec(i, dynamics=(i == j))
         self.cursor = j
 
     def _jump(self, m: int) -> None:

@@ -64,13 +64,16 @@ class SimAutocollimator:
         self.hidden = None   # [hidden] ac_scale / ac_drift (twin/hidden.py)
 
     @classmethod
-    def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "autocollimator") -> "SimAutocollimator":
+    def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "autocollimator",
+                          hidden: Any = None) -> "SimAutocollimator":
+        """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
+        from the scenario."""
         from benchtwin.twin.hidden import Hidden
 
         a = sc["instruments"]["autocollimator"]
         obj = cls(name, state, resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
                   noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
-        hidden = Hidden.from_scenario(sc)
+        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
         obj.hidden = hidden if ("ac_scale" in hidden.effects or "ac_drift" in hidden.effects) else None
         return obj
 

@@ -3,10 +3,14 @@
 The instrument takes the posed disk from the shared state and calls the renderer
 (``benchtwin.twin.render``): the image comes from the exact posed geometry (eccentricity, radial
 motion, tilt), then the sensor model (blur, vignetting, shot/read noise, dust, quantisation).
-``capture()`` returns the ``Camera`` protocol shape plus ``truth``: the disk's geometric centre in
-pixels (``centre_px``), the edge radius in true pixels (``edge_radius_px``), the true pixel size,
-the reference point and the backend used. The sensor noise stream is keyed by the runner's step,
-so a resumed run renders identical frames.
+``capture()`` returns the ``Camera`` protocol shape (image, time, status) and the backend that
+rendered it — never a true value: a capture's row goes to the run's journal in the dataset root,
+and truth lives only in truth/ (issue 15). The frame's truth — the disk's geometric centre in
+pixels (``centre_px``), the edge radius in true pixels (``edge_radius_px``), the true pixel size and
+the reference point — is ``sim_frame_truth()``, computed from the posed geometry alone (no
+rendering; ``simulate`` takes it for every frame, live or replayed on resume, and writes it to
+truth/ccd.csv); ``last_truth`` is the last captured frame's. The sensor noise stream is keyed by the
+runner's step, so a resumed run renders identical frames.
 """
 
 from __future__ import annotations
@@ -40,7 +44,9 @@ class SimCamera:
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "ccd", backend: str = "auto",
-                          tangential: str = "+x") -> "SimCamera":
+                          tangential: str = "+x", hidden: Any = None) -> "SimCamera":
+        """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
+        from the scenario."""
         import dataclasses
 
         from benchtwin.twin.hidden import Hidden
@@ -49,7 +55,7 @@ class SimCamera:
         b = sc["bench"]
         sensor = SensorParams.from_section(sc["instruments"]["ccd"])
         grating = GratingSpec.from_bench(b)
-        hidden = Hidden.from_scenario(sc)
+        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
         if "ccd_pixel_scale" in hidden.effects:
             # true pixel ≠ nominal (camera.pixel_pitch_m stays the nominal: the manifest's value);
             # true grating period at the edge ≠ datasheet, same line count (larger ruling radius)
@@ -67,15 +73,26 @@ class SimCamera:
                 "pixel_um": c.pixel_pitch_m * 1e6, "position_deg": float(np.degrees(c.azimuth_rad)),
                 "tangential": c.tangential, "reference_px": list(c.reference_px), "bit_depth": self.sensor.bit_depth}
 
+    def sim_frame_truth(self, pose: Any = None) -> dict[str, Any]:
+        """The geometric truth of a frame taken at ``pose`` (default: the bench's current pose),
+        without rendering it: what the renderer draws from (``build_scene``)."""
+        from benchtwin.twin.render.grating import build_scene
+
+        p = self.state.pose if pose is None else pose
+        scene = build_scene(p.disk, self.grating, self.camera)
+        return {"centre_px": [float(v) for v in scene.centre_px], "edge_radius_px": float(scene.edge_radius_px),
+                "pixel_um": float(self.camera.true_pixel_m * 1e6),
+                "reference_px": [float(v) for v in self.camera.reference_px]}
+
     def capture(self) -> CameraFrame:
         st = self.state
         frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
         tr = frame.truth
-        truth = {"centre_px": [float(v) for v in tr["centre_px"]], "edge_radius_px": float(tr["edge_radius_px"]),
-                 "pixel_um": float(tr["pixel_um"]), "reference_px": [float(v) for v in tr["reference_px"]],
-                 "backend": tr["backend"]}
-        self.last_truth = truth
-        return {"image": frame.image, "t_s": float(st.clock.now()), "status": "ok", "truth": truth}
+        self.last_truth = {"centre_px": [float(v) for v in tr["centre_px"]],
+                           "edge_radius_px": float(tr["edge_radius_px"]), "pixel_um": float(tr["pixel_um"]),
+                           "reference_px": [float(v) for v in tr["reference_px"]], "backend": tr["backend"]}
+        # no true value in the reading: it is journaled outside truth/
+        return {"image": frame.image, "t_s": float(st.clock.now()), "status": "ok", "backend": tr["backend"]}
 
     def close(self) -> None:
         if self._own:

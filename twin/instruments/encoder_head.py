@@ -109,11 +109,14 @@ class SimEncoder:
         self.sim_last_exact: tuple | None = None
 
     @classmethod
-    def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "encoder") -> "SimEncoder":
+    def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "encoder",
+                          hidden: Any = None) -> "SimEncoder":
+        """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
+        from the scenario."""
         from benchtwin.twin.hidden import Hidden
 
         b, enc = sc["bench"], sc["instruments"]["encoder"]
-        hidden = Hidden.from_scenario(sc)
+        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
         # hidden.optical_radius: the heads sit at the TRUE radius (the manifest keeps the nominal)
         obj = cls(name, state, heads_rad=[float(h) for h in b["heads"]],
                   radius_m=float(b["optical_radius"]) * hidden.optical_radius_factor,

@@ -57,6 +57,7 @@ SIM_STREAMS = {
     "ac_accuracy": 107,
     "polygon_setup": 108,
     "ccd": 109,
+    "servo": 110,
 }
 
 
@@ -161,9 +162,13 @@ class SimBenchState:
         return BodyPose(pos=p.polygon.pos, R=p.polygon.R @ sim_rz(self.polygon_mounting_rad))
 
     # ------------------------------------------------------------------ posing
-    def pose_at_command(self, command_rad: float) -> BenchPose:
-        self.pose = self.bench.pose_at(float(command_rad), rep=self.rep, t_s=self.clock.now(),
-                                       direction=self.direction)
+    def pose_at_command(self, command_rad: float, bearing_torque_Nm: float | None = None) -> BenchPose:
+        if bearing_torque_Nm is None:   # (keeps the physics' call as before for the ideal positioner)
+            self.pose = self.bench.pose_at(float(command_rad), rep=self.rep, t_s=self.clock.now(),
+                                           direction=self.direction)
+        else:
+            self.pose = self.bench.pose_at(float(command_rad), rep=self.rep, t_s=self.clock.now(),
+                                           direction=self.direction, bearing_torque_Nm=bearing_torque_Nm)
         return self.pose
 
 
@@ -174,8 +179,13 @@ class SimRotaryStage:
 
     def __init__(self, name: str, state: SimBenchState, encoder: Any, speed_deg_s: float = 20.0,
                  accel_deg_s2: float = 40.0, settle_s: float = 0.0, tol_arcsec: float = 1e-6,
-                 max_iter: int = 20, soft_limits_deg: tuple[float, float] | None = None):
+                 max_iter: int = 20, soft_limits_deg: tuple[float, float] | None = None,
+                 servo: Any = None):
         self.name = name
+        # The drive servo (twin/instruments/drive.py): None = an ideal positioner that lands the
+        # continuous reading on the target (the truth grid of α(θ) uses it).
+        self.servo = servo
+        self.last_rest = None
         self.state = state
         self.encoder = encoder
         self.speed_deg_s = float(speed_deg_s)
@@ -188,6 +198,7 @@ class SimRotaryStage:
         self.soft_limits_deg = None if soft_limits_deg is None else (float(soft_limits_deg[0]),
                                                                       float(soft_limits_deg[1]))
         self.command_rad = 0.0
+        self.held_deg = 0.0
         self.target_deg: float | None = None
         self.position_deg = 0.0
         self.last_iterations = 0
@@ -210,7 +221,11 @@ class SimRotaryStage:
                 "tolerance_arcsec": self.tol_rad / ARCSEC,
                 "soft_limits_deg": None if self.soft_limits_deg is None else [float(v) for v in self.soft_limits_deg]}
 
-    def move_to(self, target_deg: float) -> StageMove:
+    def move_to(self, target_deg: float, dynamics: bool = True) -> StageMove:
+        """Move to ``target_deg`` (an encoder reading). ``dynamics=False``: no servo simulation for
+        this move (an ideal landing on the target; the clock advances as with it, by the profile
+        plus the servo's settle time): for callers that pass through stops nobody reads (the
+        emulators fast-forwarding their script)."""
         target_deg = float(target_deg)
         st = self.state
         lim = self.soft_limits_deg
@@ -222,9 +237,36 @@ class SimRotaryStage:
             if self.target_deg == target_deg and self.last_pose is not None and st.pose is self.last_pose:
                 return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
                         "iterations": 0}
+        if (self.servo is not None and self.target_deg == target_deg and self.last_pose is not None
+                and st.pose is self.last_pose):
+            # Commanding the count the servo already holds moves nothing: the shaft stays stuck where
+            # it rests (a re-issued move, e.g. an emulated acquisition resumed at this stop).
+            return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
+                    "iterations": 0}
         duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
-        st.clock.advance(duration)
         target = math.radians(target_deg)
+        torque = None
+        res = getattr(self.encoder, "resolution_rad", 0.0)
+        if self.servo is not None and res > 0:
+            # The controller reports the move done a fixed settle time after the profile (drive.py):
+            # the clock never depends on how the servo settled, so a stop passed through without
+            # dynamics (dynamics=False) leaves every later stop exactly as with them.
+            duration += self.servo.p.max_settle_s
+        if self.servo is not None and res > 0 and dynamics:
+            # The servo holds the COUNT nearest the target: simulate the end of the move and the
+            # settling (drive.py); the continuous reading at rest is the count's cell centre plus
+            # the rest offset, and the bearing holds the rest torque.
+            n_cmd = round(target / res)
+            rest = self.servo.settle(math.radians(target_deg - self.position_deg), math.radians(self.speed_deg_s),
+                                     math.radians(self.accel_deg_s2), st.clock.now() + duration,
+                                     rng=st.rng("servo", 0))
+            self.last_rest = rest
+            target = n_cmd * res + rest.offset_rad        # the continuous reading to land on
+            torque = rest.friction_torque_Nm
+            held_deg = math.degrees((n_cmd + rest.held_count) * res)
+        else:
+            held_deg = target_deg
+        st.clock.advance(duration)
         # Warm start: the offset between command and reading found the last time this target was
         # approached in this rep and direction (the polygon runs come back to the same stops for
         # every start face: the first pose usually holds), else the previous stop's offset.
@@ -236,7 +278,7 @@ class SimRotaryStage:
             offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
         cmd = target + offset
         for it in range(1, self.max_iter + 1):
-            pose = st.pose_at_command(cmd)
+            pose = st.pose_at_command(cmd, torque)
             x = self.encoder.sim_exact_readings(pose)
             err = x[0] - target
             if abs(err) <= self.tol_rad:
@@ -254,6 +296,7 @@ class SimRotaryStage:
         self.command_rad = cmd
         self.target_deg = target_deg
         self.position_deg = target_deg
+        self.held_deg = held_deg      # the count the encoder shows at rest (the target without a servo)
         return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": duration, "status": "ok",
                 "iterations": it}
 
