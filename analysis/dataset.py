@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.jsonable import json_default
+
 from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir
 from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
@@ -111,7 +113,18 @@ TABLES: dict[str, TableSpec] = {
         ("theta_deg", "head", "rep", "direction"),
         ranges={"rep": (0, 10000)}, choices={"direction": DIRECTIONS},
     ),
+    # an "error curve" dataset (kind "error-curve"): a measured encoder error α(θ), e.g. a lab's table
+    # from an earlier calibration (benchtwin import); α = reading − reference, arcsec
+    "error_curve": TableSpec(
+        {"theta_deg": float, "error_arcsec": float},
+        {"direction": str, "u_arcsec": float},
+        ("theta_deg", "direction"),
+    ),
 }
+#: manifest "kind": a bench dataset (default, the bench geometry required) or an error curve (an
+#: imported α(θ) table: the bench keys are optional, they are unknown for most old tables)
+KINDS = ("bench", "error-curve")
+DIRECTIONS = ("forward", "backward")
 
 
 def column_range(spec: TableSpec | None, col: str) -> tuple[float, float] | None:
@@ -162,7 +175,15 @@ def validate_manifest(m: Any, where: str = "manifest.json") -> dict[str, Any]:
         raise DatasetError(f"{where}: key 'version': expected {VERSION}, got {m.get('version')!r}")
     if m.get("source") not in SOURCES:
         raise DatasetError(f"{where}: key 'source': expected one of {SOURCES}, got {m.get('source')!r}")
+    kind = m.get("kind", "bench")
+    if kind not in KINDS:
+        raise DatasetError(f"{where}: key 'kind': expected one of {KINDS}, got {kind!r}")
     bench = m.get("bench")
+    if kind == "error-curve":
+        if not isinstance(bench, Mapping):
+            raise DatasetError(f"{where}: key 'bench': expected an object (may be empty for an error curve)")
+        _check_keys(bench, {k: (t, False) for k, (t, _) in BENCH_KEYS.items()}, f"{where}: bench")
+        return dict(m)
     if not isinstance(bench, Mapping):
         raise DatasetError(f"{where}: key 'bench': expected an object with {', '.join(k for k, (_, r) in BENCH_KEYS.items() if r)}")
     _check_keys(bench, BENCH_KEYS, f"{where}: bench")
@@ -226,6 +247,8 @@ BENCH_RANGES: dict[str, tuple[float, float]] = {
     "encoder_lines": (0, 10_000_000),
     "scale_edge_radius_mm": (1.0, 1000.0),
     "encoder_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_accuracy_arcsec": (0.0, 3600.0),
 }
 
 
@@ -405,13 +428,7 @@ class DatasetWriter:
             self.close()
 
 
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
-
+_json_default = json_default  # the one numpy -> JSON conversion (benchtwin/jsonable.py)
 
 # --------------------------------------------------------------------------- reader
 
@@ -575,7 +592,24 @@ class Dataset:
             self._cache[name] = cols
         return self._cache[name]
 
+    @property
+    def kind(self) -> str:
+        return str(self.manifest.get("kind", "bench"))
+
     def _check_semantics(self, name: str, cols: Mapping[str, np.ndarray], p: Path) -> None:
+        if name == "error_curve":
+            if "direction" in cols:
+                bad = [i for i, d in enumerate(cols["direction"]) if d not in DIRECTIONS]
+                if bad:
+                    raise DatasetError(f"{p}: row {bad[0] + 2}, column 'direction': expected one of {DIRECTIONS}, "
+                                       f"got {cols['direction'][bad[0]]!r}")
+            if "u_arcsec" in cols:
+                bad = np.flatnonzero(cols["u_arcsec"] <= 0)
+                if bad.size:
+                    raise DatasetError(f"{p}: row {bad[0] + 2}, column 'u_arcsec': expected > 0")
+            return
+        if self.kind == "error-curve":
+            raise DatasetError(f"{p}: an error-curve dataset holds error_curve.csv only")
         n_faces = self.bench["polygon_faces"]
         if name == "polygon":
             for col in ("start_face", "step"):
@@ -657,8 +691,11 @@ class Dataset:
             elif img.shape != shape:
                 raise DatasetError(f"{where}: {img.shape[1]}×{img.shape[0]} px, but the frame of row {first_row} is "
                                    f"{shape[1]}×{shape[0]} px (expected one frame size for the whole sweep)")
+            # a uniform frame (fogged, dark, saturated) carries no image: two of them are alike by
+            # nature, and the image analysis rejects them with its own note; any other frame is unique
+            uniform = img.size == 0 or int(img.min()) == int(img.max())
             dg = hashlib.blake2b(img.tobytes(), digest_size=16).digest()
-            if dg in digests:
+            if not uniform and dg in digests:
                 raise DatasetError(f"{where}: identical to the frame of row {digests[dg]}; a frame at another angle "
                                    "cannot be pixel-for-pixel the same (a duplicated file?)")
             digests[dg] = row

@@ -28,7 +28,7 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from benchtwin import __version__
 
@@ -178,7 +178,7 @@ class _Parser(argparse.ArgumentParser):
 
     json_mode = False
 
-    def error(self, message: str):  # noqa: D401 - argparse's hook
+    def error(self, message: str) -> NoReturn:  # argparse's hook
         if _Parser.json_mode:
             print(json.dumps({"ok": False, "error": f"{self.prog}: {message}", "kind": "usage"}))
             self.exit(2)
@@ -240,7 +240,8 @@ def _load_commands() -> None:
     """Import the modules that register further subcommands (kept lazy: `validate` stays fast)."""
     import importlib
 
-    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands"):
+    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands",
+                "benchtwin.app.commands_cert", "benchtwin.app.commands_loop"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

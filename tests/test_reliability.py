@@ -574,3 +574,12 @@ def test_validate_reads_study_bench_and_fault_plan_files_as_their_commands_do(tm
     b = _bench_file(tmp_path)
     b.write_text(b.read_text().replace('source = "emulated"', 'source = "twin"'))
     _err(["validate", str(b)], capsys, "b.toml", "bench.source")
+
+
+def test_a_uniform_blank_frames_are_left_to_the_image_analysis(tmp_path):
+    """Two fogged (uniform) frames are alike by nature: not a duplicated file; the analysis rejects
+    them with its own note (tests/test_pipeline.py::test_too_many_bad_ccd_frames_abort_naming_the_threshold)."""
+    root = make_dataset(tmp_path / "ds")
+    for k in range(2):
+        _png(root / "ccd" / f"img_{k:03d}.png", np.full((12, 16), 117, np.uint8))
+    assert open_dataset(root).validate()

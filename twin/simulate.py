@@ -54,22 +54,37 @@ from .physics import Bench
 ALPHA_GRID_STEP_DEG = 0.1
 
 
-def sim_procedure(sc: Any) -> list:
-    """The scenario's procedures as one list of steps (a dry run of the simulation)."""
+def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = True) -> list[dict[str, Any]]:
+    """The scenario's ``[procedure]`` in the procedure language (``hw.acquisition.procedures``:
+    specs in degrees and seconds), in the order the simulation runs them: radial motion, CCD sweep,
+    polygon shift-angle, self-calibration (with more than one head). The same specs are the
+    emulated bench file's ``[[procedure]]`` tables (``twin.emulators.serve``). ``probes``: the
+    radial-motion probes (default: the top and bottom probes, plus the X probes when the
+    scenario has them); ``ccd``: include the CCD sweep."""
     b, pr = sc["bench"], sc["procedure"]
     dwell = float(pr["dwell"])
-    probes = ["probe_top", "probe_bottom"]
-    if sc["instruments"]["probe"]["x_probes"]:
-        probes += ["probe_top_x", "probe_bottom_x"]
-    steps: list = []
-    steps += P.radial_motion_run(int(pr["radial_reps"]), int(pr["radial_positions"]), dwell, probes)
-    steps += P.ccd_sweep(_deg(pr["ccd_step"]), dwell)
-    steps += P.polygon_shift_angle(int(b["polygon_faces"]), [_deg(s) for s in pr["polygon_shifts"]],
-                                   int(pr["polygon_reps"]), list(pr["directions"]), dwell)
+    if probes is None:
+        probes = ["probe_top", "probe_bottom"]
+        if sc["instruments"]["probe"]["x_probes"]:
+            probes += ["probe_top_x", "probe_bottom_x"]
+    dirs = list(pr["directions"])
+    specs: list[dict[str, Any]] = [{"type": "radial_motion", "reps": int(pr["radial_reps"]),
+                                    "positions": int(pr["radial_positions"]), "dwell": dwell,
+                                    "probes": list(probes)}]
+    if ccd:
+        specs.append({"type": "ccd_sweep", "step": _deg(pr["ccd_step"]), "dwell": dwell, "camera": "ccd"})
+    specs.append({"type": "polygon_shift_angle", "shifts": [_deg(s) for s in pr["polygon_shifts"]],
+                  "reps": int(pr["polygon_reps"]), "directions": dirs, "dwell": dwell,
+                  "faces": int(b["polygon_faces"])})
     if pr["selfcal"] and len(b["heads"]) > 1:
-        steps += P.selfcal_sweep([_deg(h) for h in b["heads"]], _deg(pr["selfcal_step"]),
-                                 list(pr["directions"]), dwell)
-    return steps
+        specs.append({"type": "selfcal", "step": _deg(pr["selfcal_step"]), "directions": dirs, "dwell": dwell,
+                      "heads": [_deg(h) for h in b["heads"]]})
+    return specs
+
+
+def sim_procedure(sc: Any) -> list:
+    """The scenario's procedures as one list of steps (a dry run of the simulation)."""
+    return list(P.steps_from_specs(scenario_procedures(sc)))
 
 
 def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera: bool = True):
@@ -136,12 +151,14 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
 
 
 def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False, force: bool = False) -> Path:
+             resume: bool = False, force: bool = False, live: Any | None = None) -> Path:
     """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
 
     ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
     ``force`` clears it first (``benchtwin.fsio.check_output_dir``). A lock file keeps a second
-    run off the folder; the manifest is written last (a killed run leaves no dataset)."""
+    run off the folder; the manifest is written last (a killed run leaves no dataset).
+    ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
+    of ``simulate --live``); it only watches the run."""
     out = Path(out_dir)
     try:
         check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
@@ -149,12 +166,12 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         raise DatasetError(str(exc)) from None
     try:
         with DirLock(out, "simulate"):
-            return _simulate(sc, out, progress, backend, resume)
+            return _simulate(sc, out, progress, backend, resume, live)
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
 
 
-def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool) -> Path:
+def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None) -> Path:
     from tqdm import tqdm
 
     steps = sim_procedure(sc)
@@ -185,11 +202,17 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool) ->
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
         bar.update(1)
+        if live is not None:
+            live.on_step(i, step, context, replay)
 
     def on_row(row, result):
         if row["type"] == "capture":
             writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+        if live is not None:
+            live.on_row(row, result)
 
+    if live is not None:
+        live.start(len(steps))
     try:
         rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
                       fsync=False).run(steps, resume=resume)

@@ -42,6 +42,9 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto",
                    help="CCD renderer (auto: pyrender when OpenGL is available)")
     _force_arg(p)
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
 
 
 def _force_arg(p: argparse.ArgumentParser) -> None:
@@ -55,12 +58,22 @@ def _remap(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
 
 
 def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.app.live import live_for
     from benchtwin.twin.simulate import simulate
 
     sc = _scenario(ns.scenario)
-    out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend, force=ns.force)
+    live = live_for(ns, f"simulate {sc.name}")
+    try:
+        out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend, force=ns.force,
+                       live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        raise
+    if live is not None:
+        live.close("finished")
     return {"ok": True, "dataset": str(out), "scenario": sc.name, "seed": sc.seed,
-            "message": f"dataset written: {out}"}
+            **({"live": str(live.path)} if live else {}), "message": f"dataset written: {out}"}
 
 
 # ----------------------------------------------------------------------------- analyze
@@ -85,9 +98,12 @@ def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, A
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.fsio import AtomicDir
 
+    from benchtwin.app.bench_view import bench_preface_for_dataset
+
     with AtomicDir(ns.out, force=ns.force, what="analysis output folder") as tmp:
         res = analyze(ns.dataset, tmp, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=close_loop)
+                      progress=not (ns.quiet or ns.json), close_loop=close_loop,
+                      preface=bench_preface_for_dataset(ns.dataset))
     res["paths"] = _remap(res["paths"], tmp, ns.out)
     return res
 
@@ -119,10 +135,12 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     sc = _scenario(ns.scenario)
     out = ns.out or Path("out") / sc.name
     quiet = ns.quiet or ns.json
+    from benchtwin.app.bench_view import bench_preface
+
     # the whole run (dataset + analysis) is built beside OUT and renamed onto it when complete
     with AtomicDir(out, force=ns.force, what="run output folder") as tmp:
         ds = simulate(sc, tmp / "dataset", progress=not quiet, backend=ns.backend)
-        res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop)
+        res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
     paths = _remap({"dataset": str(ds), **res["paths"]}, tmp, out)
     return {"ok": True, **paths, "message": f"report: {paths['report']}"}
 

@@ -101,6 +101,9 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
     p.add_argument("--force", action="store_true",
                    help="start again in a non-empty folder: deletes its contents, journal included")
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
 
 
 _DEVICE_GONE = (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF, errno.EPIPE)
@@ -116,14 +119,21 @@ def _error_line(exc: BaseException) -> str:
 def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
     import serial
 
+    from benchtwin.app.live import live_for
     from benchtwin.hw.acquisition.acquire import JOURNAL, acquire
     from benchtwin.hw.drivers.base import InstrumentError
 
     if ns.resume and ns.force:
         raise InputError("acquire: --resume and --force contradict each other (continue the run, or delete it)")
+    live = live_for(ns, f"acquire {ns.bench.stem}")
     try:
-        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), force=ns.force)
-    except (InstrumentError, serial.SerialException, OSError) as exc:
+        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), force=ns.force,
+                      live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        if not isinstance(exc, (InstrumentError, serial.SerialException, OSError)):
+            raise
         # an instrument that stopped answering (retries exhausted) or a port that vanished (EIO,
         # ENXIO, ENODEV on a pty or USB adapter): the readings taken so far are in the journal; say
         # so and how to continue. Other OSErrors (a folder not writable) take the generic exit 2.
@@ -133,4 +143,7 @@ def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
         kept = (f"the readings taken so far are kept in {j}; continue with `benchtwin acquire {ns.bench} "
                 f"-o {ns.out} --resume`" if j.is_file() else "no reading was taken")
         raise InputError(f"{ns.bench}: acquisition stopped by an instrument error: {_error_line(exc)}; {kept}") from None
-    return {"ok": True, "dataset": str(out), "message": f"dataset written: {out}"}
+    if live is not None:
+        live.close("finished")
+    return {"ok": True, "dataset": str(out), **({"live": str(live.path)} if live else {}),
+            "message": f"dataset written: {out}"}

@@ -45,7 +45,7 @@ def _suite_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--blind", action="store_true",
                    help="anonymised folder names; truth and key moved to OUT/truth/, datasets in OUT/datasets/")
     p.add_argument("--size", choices=SIZES, default="full",
-                   help="full: every scenario (~10 min on one core); small: six of them (~3 min)")
+                   help="full: all 19 datasets (~6 min with --jobs 2); small: six of them")
     p.add_argument("--jobs", type=int, default=1, help="simulate this many datasets in parallel (default 1)")
 
 

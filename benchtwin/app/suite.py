@@ -61,10 +61,10 @@ class Entry:
     overrides: Mapping[str, Any] = field(default_factory=dict)
     small: bool = False
 
-    def expected(self) -> dict[str, Any] | None:
-        if self.accept is None:
-            return None
-        return {"expect": list(self.expect or ()), "accept": list(self.accept), "why": self.why,
+    def expected(self) -> dict[str, Any]:
+        """truth/expected.json: the decided naming outcome (accept None: naming not scored)."""
+        return {"expect": None if self.expect is None else list(self.expect),
+                "accept": None if self.accept is None else list(self.accept), "why": self.why,
                 "suite_version": SUITE_VERSION}
 
 
@@ -133,9 +133,7 @@ def _simulate_one(args: tuple[Entry, int, str]) -> tuple[str, float]:
         shutil.rmtree(out)  # a partial dataset from an interrupted suite: redo it
     sc = load_scenario(_scenario_path(e)).with_overrides({**e.overrides, "scenario.seed": seed})
     simulate(sc, Path(out), progress=False, backend="analytic")
-    exp = e.expected()
-    if exp is not None:
-        (Path(out) / "truth" / "expected.json").write_text(json.dumps(exp, indent=1) + "\n", encoding="utf-8")
+    (Path(out) / "truth" / "expected.json").write_text(json.dumps(e.expected(), indent=1) + "\n", encoding="utf-8")
     return e.name, time.time() - t0
 
 
@@ -289,7 +287,7 @@ def _qmean(vals: Iterable[float | None]) -> tuple[float | None, int]:
 def overall(scores: Mapping[str, Mapping[str, Any] | None]) -> dict[str, Any]:
     """One figure per criterion over the suite: quadratic means of the errors (and of z), pooled
     coverage, the count of correct namings, spurious names, the residual-after/floor ratio."""
-    got = [s for s in scores.values() if not s.get("missing")]
+    got = [s for s in scores.values() if s is not None and not s.get("missing")]
     o: dict[str, Any] = {"datasets": len(scores), "with_results": len(got)}
     for k in ("e_error_um", "theta0_error_deg", "e_z", "theta0_z", "e_error_sweep_um", "theta0_error_sweep_deg",
               "beta_rms_error_arcsec", "alpha_rms_error_arcsec", "selfcal_rms_error_arcsec"):
@@ -340,7 +338,7 @@ def score_suite_files(results_dir: str | Path, suite_dir: str | Path) -> dict[st
         raise InputError(f"{rd}: not a directory of results (RESULTS_DIR/<dataset>/results.json or <dataset>.json)")
     found: dict[str, str | None] = {}
 
-    def results_for(it: SuiteItem):
+    def results_for(it: SuiteItem) -> dict[str, Any] | None:
         p = find_results(rd, it.name)
         found[it.name] = str(p) if p else None
         return read_results(p) if p else None
@@ -434,7 +432,7 @@ def score_callable(fn: Callable[[str], Mapping[str, Any] | None], suite: str | P
     errors: dict[str, str] = {}
     name = getattr(fn, "__name__", "fn")
     with tempfile.TemporaryDirectory(prefix="benchtwin-score-") as tmp:
-        def results_for(it: SuiteItem):
+        def results_for(it: SuiteItem) -> dict[str, Any] | None:
             ds = it.dataset
             if not meta.get("blind"):
                 ds = Path(tmp) / it.name

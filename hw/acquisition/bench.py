@@ -43,7 +43,7 @@ DRIVERS: dict[str, tuple[str, str]] = {
 }
 CAMERA_DRIVERS = ("folder", "watch_folder", "opencv")
 SOURCES = ("hardware", "emulated")
-PROCEDURES = ("radial_motion", "ccd_sweep", "polygon_shift_angle", "polygon_traditional", "selfcal")
+PROCEDURES = P.PROCEDURE_TYPES
 
 _TOP = {"bench", "geometry", "run", "instruments", "procedure", "ccd"}
 _CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_size": "length"}
@@ -58,15 +58,7 @@ _RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target
 _INSTRUMENT = {"driver", "port", "serial", "options", "commands", "retries", "backoff", "reconnect",
                "soft_limits", "max_speed", "closed_loop_encoder", "heads"}
 _SERIAL = {"baudrate", "bytesize", "parity", "stopbits", "timeout", "xonxoff", "rtscts"}
-_PROC_KEYS = {
-    "radial_motion": {"reps": int, "positions": int, "dwell": "time", "probes": list, "encoder": str},
-    "polygon_shift_angle": {"faces": int, "shifts": "angles", "reps": int, "directions": list, "dwell": "time",
-                            "all_faces_each_shift": bool, "encoder": str, "autocollimator": str},
-    "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
-                            "dwell": "time", "encoder": str, "autocollimator": str},
-    "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
-    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
-}
+_PROC_KEYS = P.PROCEDURE_PARAMS  # the procedure language (hw/acquisition/procedures.py)
 
 
 class BenchFileError(ValueError):
@@ -411,27 +403,7 @@ def build_procedure(cfg: BenchConfig) -> list:
 
 def iter_procedure(cfg: BenchConfig) -> Iterator:
     """The steps of every ``[[procedure]]`` table, in order, generated lazily (flat memory)."""
-    for p in cfg.procedures:
-        typ = p["type"]
-        dwell = p.get("dwell", 0.5)
-        enc = p.get("encoder", "encoder")
-        dirs = p.get("directions", ["forward"])
-        if typ == "radial_motion":
-            yield from P.radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
-                                           p.get("probes", ["probe_top", "probe_bottom"]), enc)
-        elif typ == "polygon_shift_angle":
-            yield from P.polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
-                                             p.get("all_faces_each_shift", False), enc,
-                                             p.get("autocollimator", "autocollimator"))
-        elif typ == "polygon_traditional":
-            yield from P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
-                                             p.get("rep", 0), dirs, dwell, enc,
-                                             p.get("autocollimator", "autocollimator"))
-        elif typ == "ccd_sweep":
-            yield from P.ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc)
-        elif typ == "selfcal":
-            yield from P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
-                                       dwell, enc)
+    return P.steps_from_specs(cfg.procedures)
 
 
 # --------------------------------------------------------------------------- instruments

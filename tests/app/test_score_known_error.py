@@ -217,3 +217,22 @@ def test_bad_csv_names_the_row():
 def test_beta_face_outside_polygon(truth):
     with pytest.raises(InputError, match=r"face\(s\) \[5\]"):
         _score(truth, _min(beta={"face": [1, 2, 3, 5], "value_arcsec": [0.0] * 4}))
+
+
+def test_floor_leaves_out_a_hidden_autocollimator_scale(truth):
+    """An AC gain the truth hid is the effect, not the floor: its form is fitted out of the AC error."""
+    ex = np.array([10.0, -5.0, 3.0, 1.0, 40.0, -30.0])
+    th = [0, 0, 90, 90, 180, 180]
+    noise = np.array([0.02, -0.02, 0.01, -0.01, 0.0, 0.0])
+    lines_t = ["theta_deg,alpha_arcsec,ac_exact_arcsec,start_face,step"]
+    lines_d = ["theta_deg,ac_arcsec,start_face,step"]
+    for i in range(6):
+        lines_t.append(f"{th[i]},0,{float(ex[i])!r},{i % 2 + 1},{i // 2 + 1}")
+        lines_d.append(f"{th[i]},{float(ex[i] * 1.01 + 1e-4 * ex[i] ** 2 + noise[i])!r},{i % 2 + 1},{i // 2 + 1}")
+    (truth / "truth" / "polygon.csv").write_text("\n".join(lines_t) + "\n")
+    (truth / "polygon.csv").write_text("\n".join(lines_d) + "\n")
+    with_gain = read_truth(truth / "truth", truth)["floor"]["parts"]["alpha_measurement_arcsec"]
+    assert with_gain > 0.05  # nothing hidden: the gain (0.07″ per stop here) counts as the instrument's error
+    (truth / "truth" / "hidden.json").write_text(json.dumps({"effects": {"ac_scale": {"gain": 0.01}}}))
+    without = read_truth(truth / "truth", truth)["floor"]["parts"]["alpha_measurement_arcsec"]
+    assert without < 0.02

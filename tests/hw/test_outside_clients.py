@@ -212,3 +212,22 @@ def test_wrong_baud_rate_is_line_noise_and_said_so():
         assert "9600 baud" in emu.framing_notes[-1] and "4800" in emu.framing_notes[-1]
         with serial.Serial(path, 4800, bytesize=7, parity="E", stopbits=2, timeout=1) as p:
             assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"       # the right framing: understood
+
+
+def test_what_a_pty_shows_of_the_client_line_settings():
+    """docs/protocols/README.md: on a pty, speed, stop bits and odd parity are visible, data bits and
+    even parity are not (the kernel forces CS8 and clears PARENB)."""
+    src = Stub(probe_top={"value_um": 1.0, "status": "ok"})
+    emu = TesaEmulator("tesa", src, "probe_top")
+    with PtyServer({"tesa": emu}) as server:
+        path = server.paths()["tesa"]
+        with serial.Serial(path, 4800, bytesize=7, parity="E", stopbits=2, timeout=1) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"
+        assert emu.client == {"transport": "pty", "baudrate": 4800, "stopbits": 2, "parity_odd": False}
+        with serial.Serial(path, 4800, bytesize=8, parity="N", stopbits=1, timeout=1) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"     # 8N1: indistinguishable from 7E1 on a pty
+        assert emu.client["stopbits"] == 1
+        with serial.Serial(path, 4800, bytesize=7, parity="O", stopbits=2, timeout=0.3) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b""              # odd parity on an even-parity display
+        assert emu.client["parity_odd"] and "odd/mark parity" in emu.framing_notes[-1]
+        assert emu.connections == 3

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.fsio import atomic_write_text
+from benchtwin.hw.acquisition.procedures import specs_toml
 from benchtwin.units import ARCSEC
 
 from ._base import decimals_for
@@ -90,7 +91,7 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
                     camera: Any = None, frames_dir: str | Path | None = None) -> str:
     """A ready-to-use bench file for the emulated instruments (docs/bench-file.md). ``camera``:
     the twin's ``SimCamera`` (its nominal geometry goes to ``[ccd]``), served from ``frames_dir``."""
-    b, pr = sc["bench"], sc["procedure"]
+    b = sc["bench"]
     from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
 
     heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
@@ -159,20 +160,10 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     if camera is not None:
         lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
                   "options = { timeout_s = 30.0 }", ""]
-    dwell = f'"{float(pr["dwell"]):g} s"'
-    dirs = ", ".join(f'"{d}"' for d in pr["directions"])
-    probes_list = ", ".join(f'"{n}"' for n in probe_names)
-    lines += ["[[procedure]]", 'type = "radial_motion"', f"reps = {int(pr['radial_reps'])}",
-              f"positions = {int(pr['radial_positions'])}", f"dwell = {dwell}", f"probes = [{probes_list}]", ""]
-    if camera is not None:
-        lines += ["[[procedure]]", 'type = "ccd_sweep"', f"step = {_q(_deg(pr['ccd_step']), 'deg')}",
-                  f"dwell = {dwell}", 'camera = "ccd"', ""]
-    shifts = ", ".join(_q(_deg(s), "deg") for s in pr["polygon_shifts"])
-    lines += ["[[procedure]]", 'type = "polygon_shift_angle"', f"shifts = [{shifts}]",
-              f"reps = {int(pr['polygon_reps'])}", f"directions = [{dirs}]", f"dwell = {dwell}", ""]
-    if pr["selfcal"] and len(b["heads"]) > 1:
-        lines += ["[[procedure]]", 'type = "selfcal"', f"step = {_q(_deg(pr['selfcal_step']), 'deg')}",
-                  f"directions = [{dirs}]", f"dwell = {dwell}", ""]
+    # the procedures simulate runs, in the one procedure language (faces and heads: from [geometry])
+    from benchtwin.twin.simulate import scenario_procedures
+
+    lines += specs_toml(scenario_procedures(sc, probes=probe_names, ccd=camera is not None), omit=("faces", "heads"))
     return "\n".join(lines)
 
 
