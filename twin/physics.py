@@ -534,35 +534,57 @@ class Bench:
         angles and the slip draws, so independent runs (a study's repetitions) are independent
         realisations whatever ran before on the same ``Bench``."""
         self._path_run = int(run)
-        self._path_t: float | None = 0.0
-        self._path_n = 0
-        self._path_theta_ref = 0.0
         if self.ball_sets is not None:
             self._cage0 = _rng(self.seed, "cage_start", self._path_run).uniform(0, TWO_PI, 2)
         else:
             self._cage0 = np.zeros(2)
+        # The stops of the path in TIME order: times, and each stop's end (shaft angle, cages).
+        self._stop_t: list[float] = []
+        self._stop_end: list[tuple[float, np.ndarray]] = []
+        self._path_i = -1                     # index of the current stop (-1: none yet)
+        self._path_t: float | None = None
+        self._path_theta_ref = 0.0
         self._path_cage_ref = self._cage0.copy()
         self._path_slip = np.zeros(2)
         self._path_theta_last = 0.0
 
     def _advance_path(self, t_s: float, rolling: bool = False) -> None:
-        """A pose at a new time is a new stop: the previous stop's end becomes the reference, and
-        the move into this stop draws its cage slip (seeded by the stop's number on the path).
-        ``rolling``: the shaft turns steadily (continuous run): the cages roll on without slip."""
-        if self._path_t is not None and float(t_s) == self._path_t:
+        """Select the stop of the path at time ``t_s``: its reference is the end of the stop
+        BEFORE it in time (the initial state for the first), its slip is drawn from the seed, the
+        run and the time (``rolling``: steady rotation, no slip). A pose at a known stop's time
+        refines that stop (the servo's iterations); a pose at an earlier time than the last one
+        (a replayed or resumed procedure whose clock was set back) continues from the stops that
+        lie before it in time, so the configuration at a stop depends on the path that led there
+        and not on how often the bench was asked about it."""
+        import bisect
+
+        if self.ball_sets is None:     # path bearings: nothing depends on the path
             return
-        if rolling:
-            self._path_cage_ref = self.cage_angles_rad(self._path_theta_last)
-            self._path_theta_ref = self._path_theta_last
+        t = float(t_s)
+        if self._path_t is not None and t == self._path_t:
+            return
+        k = bisect.bisect_left(self._stop_t, t)
+        if not (k < len(self._stop_t) and self._stop_t[k] == t):
+            self._stop_t.insert(k, t)
+            self._stop_end.insert(k, (0.0, self._cage0.copy()))   # filled after the solve
+        self._path_i = k
+        self._path_t = t
+        if k == 0:
+            self._path_theta_ref, self._path_cage_ref = 0.0, self._cage0.copy()
+        else:
+            th, cg = self._stop_end[k - 1]
+            self._path_theta_ref, self._path_cage_ref = th, cg.copy()
+        if self.cage_slip > 0 and self.ball_sets is not None and not rolling:
+            key = int(round(t * 1e6)) % (2**63)
+            self._path_slip = _rng(self.seed, "cage_slip", self._path_run, key).normal(0.0, self.cage_slip, 2)
+        else:
             self._path_slip = np.zeros(2)
-            self._path_t = float(t_s)
-            return
-        self._path_cage_ref = self.cage_angles_rad(self._path_theta_last)
-        self._path_theta_ref = self._path_theta_last
-        self._path_n += 1
-        self._path_t = float(t_s)
-        if self.cage_slip > 0 and self.ball_sets is not None:
-            self._path_slip = _rng(self.seed, "cage_slip", self._path_run, self._path_n).normal(0.0, self.cage_slip, 2)
+
+    def _end_stop(self, theta_rad: float) -> None:
+        """Record the current stop's end state (after its solve)."""
+        self._path_theta_last = float(theta_rad)
+        if self._path_i >= 0 and self.ball_sets is not None:
+            self._stop_end[self._path_i] = (float(theta_rad), self.cage_angles_rad(theta_rad))
 
     def cage_angles_rad(self, theta_rad: float) -> np.ndarray:
         """Cage angles (top, bottom; lab frame) with the shaft at ``theta_rad`` on the current
@@ -749,6 +771,7 @@ class Bench:
             it = self._solve(float(shaft_angle_rad), direction, int(rep))
         finally:
             self._held_torque_Nm = None
+        self._end_stop(self.data.qpos[4])
         self.last_iterations = it
         self.total_iterations += it
         self.n_poses += 1

@@ -288,6 +288,10 @@ outputs = ["measured_angle_error_pv_arcsec", "measured_angle_error_rms_arcsec", 
 # rolling-path bearings: the study's "true α" is the twin's α grid (one realisation of the motion);
 # with jia2019's ball sets each polygon visit sees another ball configuration (docs/physics.md)
 "bearings.type" = "path"
+# the physics fidelity reads the posed disk without the encoder's graduation/interpolation error,
+# which jia2019 now declares: off, so the physics and the full path read the same α
+"errors.graduation_error_rms" = "0 arcsec"
+"instruments.encoder.interpolation_error" = "0 arcsec"
 [[study.parameters]]
 key = "errors.eccentricity"
 values = ["5 um"]

@@ -63,7 +63,11 @@ def test_every_driver_records_and_replays_its_emulated_session(tmp_path, protoco
     from benchtwin.twin.scenario import load_scenario
 
     ac, probes = protocols
-    sc = load_scenario().with_overrides({"bench.heads": ["0 deg", "120 deg", "240 deg"]})
+    # path bearings: the drivers' transcripts are the subject here, not the bearings. The emulator
+    # poses the whole script up to a served move (FACE_3: the radial runs, the CCD sweep, ...), which
+    # with jia2019's ball sets takes ~3x the CPU of path springs and misses the drivers' 1 s reply
+    # timeout (measured 9.2 s vs 2.8 s on the loaded 2-core machine; reported in issue 15's notes)
+    sc = load_scenario().with_overrides({"bench.heads": ["0 deg", "120 deg", "240 deg"], "bearings.type": "path"})
     # the TriAngle/TESA session also runs the stage with Zaber message ids and checksums (zaber.md)
     stage_kw = dict(microsteps_per_deg=1000.0, soft_limits_deg=(-1.0, 361.0), max_speed_deg_s=50.0,
                     poll_interval_s=0.0, message_ids=ac == "triangle", checksums=ac == "triangle")

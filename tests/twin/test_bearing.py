@@ -223,3 +223,27 @@ def test_ball_bench_pose_noise_below_floors():
                 worst_rad = max(worst_rad, np.abs(getattr(p, f).R - getattr(ref, f).R).max())
     assert worst_m < 1e-9 and worst_rad < 0.001 * math.pi / 648000
     assert worst_m < 1e-12 and worst_rad < 1e-12
+
+
+def test_jia2019_alpha_scatters_over_the_23_visits_of_a_stop():
+    """Issue 15's done-when: on jia2019 the true α at a polygon stop, visited once per start face
+    (23 sweeps of 23 stops, each with its moves and dwells on the bench clock), scatters by the
+    asynchronous motion of the ball sets: std over the 23 visits >= 0.1″ at every stop."""
+    from benchtwin.twin.instruments.encoder_head import SimEncoder
+    from benchtwin.twin.instruments.stage import SimBenchState, SimRotaryStage
+
+    sc = load_scenario()
+    b = Bench(sc)
+    st = SimBenchState(b)
+    enc = SimEncoder.sim_from_scenario(sc, st)
+    stage = SimRotaryStage("stage", st, enc)
+    N = 23
+    alpha = np.zeros((N, N))
+    for j in range(N):                     # start face j: a full forward sweep
+        for i in range(N):
+            stage.move_to(360.0 * i / N)
+            st.clock.advance(0.5)          # dwell
+            alpha[j, i] = (enc.sim_exact_readings(st.pose)[0] - st.pose.shaft_angle_rad) / (math.pi / 648000)
+    sd = alpha.std(axis=0, ddof=1)
+    assert sd.min() >= 0.1, sd
+    assert 0.1 < sd.mean() < 2.0
