@@ -601,10 +601,10 @@ class Dataset:
     def _check_semantics(self, name: str, cols: Mapping[str, np.ndarray], p: Path) -> None:
         if name == "error_curve":
             if "direction" in cols:
-                bad = [i for i, d in enumerate(cols["direction"]) if d not in DIRECTIONS]
-                if bad:
-                    raise DatasetError(f"{p}: row {bad[0] + 2}, column 'direction': expected one of {DIRECTIONS}, "
-                                       f"got {cols['direction'][bad[0]]!r}")
+                wrong = [i for i, d in enumerate(cols["direction"]) if d not in DIRECTIONS]
+                if wrong:
+                    raise DatasetError(f"{p}: row {wrong[0] + 2}, column 'direction': expected one of {DIRECTIONS}, "
+                                       f"got {cols['direction'][wrong[0]]!r}")
             if "u_arcsec" in cols:
                 bad = np.flatnonzero(cols["u_arcsec"] <= 0)
                 if bad.size:

@@ -70,7 +70,7 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
         if len(row) != len(header):
             raise ImportError_(f"{p}: row {rowno}: expected {len(header)} fields, got {len(row)}")
         for k, i in idx.items():
-            out[k].append(_number(row[i], str(p), rowno, want[k]))
+            out[k].append(_number(row[i], str(p), rowno, str(want[k])))
     if len(out["angle"]) < 3:
         raise ImportError_(f"{p}: {len(out['angle'])} data rows; an error curve needs at least 3")
     seen: dict[float, int] = {}
@@ -94,7 +94,8 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
     f = ERROR_UNITS[error_unit]
     cols = read_columns(table, angle, error, reverse, u)
     th = cols["angle"]
-    rows = {"theta_deg": list(th), "error_arcsec": [v * f for v in cols["error"]], "direction": ["forward"] * len(th)}
+    rows: dict[str, list[Any]] = {"theta_deg": list(th), "error_arcsec": [v * f for v in cols["error"]],
+                                  "direction": ["forward"] * len(th)}
     if u is not None:
         rows["u_arcsec"] = [v * f for v in cols["u"]]
         bad = [i for i, v in enumerate(rows["u_arcsec"]) if v <= 0]
