@@ -676,14 +676,17 @@ class _Problem:
           determined; a shift set with one face per shift loses one θ set per fold);
         - else leave-one-shift-out with ≥ 3 shifts (shift sets: SelfA-like 0…14° in 1° steps);
         - else interleaved stop positions: every MAX_CV_FOLDS-th position of θ held out (one rep,
-          one start face, one shift, one or both directions): the held-out stops are between
-          trained ones, so the harmonics a candidate fits are still determined.
+          one start face, one shift, one or both directions; or keys whose largest group holds more
+          than a third of the readings): the held-out stops are between trained ones, so the
+          harmonics a candidate fits are still determined.
         Groups are merged cyclically into ≤ MAX_CV_FOLDS folds. None with fewer than 3 groups."""
         ev = self.ev
         f = np.full(self.n_rows, -1)
         for key in (ev.rep, ev.start_face, ev.shift_deg):
             u, inv = np.unique(np.round(np.asarray(key, dtype=float), 6), return_inverse=True)
-            if u.size >= 3:
+            # balanced only: no group may hold more than a third of the readings (all start faces
+            # at S = 0 but one face at the other shifts put every shifted reading into one fold)
+            if u.size >= 3 and np.bincount(inv).max() <= ev.n / 3.0 + 1e-9:
                 f[: ev.n] = inv % MAX_CV_FOLDS
                 return f
         u, inv = np.unique(ev.theta_bin, return_inverse=True)
