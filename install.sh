@@ -6,7 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-apt_pkgs="libegl1 libgl1 libopengl0 libgl1-mesa-dri libosmesa6"
+# chromium: the headless browser the live-view test opens the page of a running acquisition in
+apt_pkgs="libegl1 libgl1 libopengl0 libgl1-mesa-dri libosmesa6 chromium"
 PY="${PYTHON:-python3}"
 "$PY" -c 'import ensurepip, venv' 2>/dev/null || apt_pkgs="$apt_pkgs python3-venv"
 missing=""

@@ -10,7 +10,13 @@ A dataset is a directory (documented in docs/dataset-format.md)::
     truth (folder)         written by the twin only; the analysis never opens it
 
 Readers validate what they read and name file, row and column in every error; extra columns and
-files are allowed and ignored. Writers write each file atomically (temporary file + rename) so an
+files are allowed and ignored. They are strict (issue #13, docs/reliability.md): one number grammar
+(``benchtwin.schema.parse_float``: ASCII decimal, no ``_``, finite, no overflow), a range or an
+enumeration for every column (``TableSpec.ranges``/``choices``), every table a regular file inside
+the dataset (no symlink out of it; an error never shows a line of a file outside it), every CCD
+image named by a relative path that stays inside the dataset, one frame size for all images with
+``reference_px`` inside it, frames checked against ``theta_read_deg`` (swapped angles) and against
+each other (a duplicated or identical frame), and limits on sizes, counts, cell length and nesting. Writers write each file atomically (temporary file + rename) so an
 interrupted writer never leaves a half file behind.
 
 This module is in ``analysis`` because the analysis is the format's reader; the twin and the
@@ -22,15 +28,17 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
-import tempfile
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir
+from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
+                              read_input_text, resolve_inside, check_relative_name)
 
 FORMAT = "bench-dataset"
 VERSION = 1
@@ -47,26 +55,67 @@ class TableSpec:
     required: dict[str, type]
     optional: dict[str, type]
     key: tuple[str, ...]  # columns that identify a row (duplicates are an error)
+    # inclusive (lo, hi) of numeric columns (any column ending in _deg/_arcsec/_um/_s not listed
+    # takes the default range of its unit, _UNIT_RANGES), and the allowed values of text columns
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    choices: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+
+# Limits (issue #13: 36 000 frames ≈ 42 GB were accepted). The largest scenario the schema allows
+# gives radial_reps·radial_positions = 10·100 000 = 1e6 rows; a real sweep is far below these.
+MAX_TABLE_BYTES = 512 * 1024 * 1024
+MAX_ROWS = 2_000_000
+MAX_CCD_FRAMES = 720          # one frame every 0.5°; Jia sec. 4.2 takes one every 6° (60 frames)
+MAX_IMAGE_BYTES = 64 * 1024 * 1024
+MAX_IMAGE_PIXELS = 20000 * 20000  # the scenario's largest sensor (instruments.ccd width/height)
+MAX_MANIFEST_BYTES = 1024 * 1024
+DIRECTIONS = ("forward", "backward")
+
+# Default ranges by unit suffix: angles of a turn (a reading may run past 360° by a shift or a
+# backward overshoot, never by turns: 7200° is an error), error angles of at most 10° (the
+# autocollimator's largest range in the scenario schema), probe readings within ±10 mm (the
+# largest probe range), times of at most a year of running.
+_UNIT_RANGES: dict[str, tuple[float, float]] = {
+    "_deg": (-360.0, 720.0),
+    "_arcsec": (-36000.0, 36000.0),
+    "_um": (-10000.0, 10000.0),
+    "_s": (0.0, 3.2e7),
+}
+THETA_RANGE = (-360.0, 720.0)
 
 
 TABLES: dict[str, TableSpec] = {
     "radial_motion": TableSpec(
         {"rep": int, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
-        {"probe_top_x_um": float, "probe_bottom_x_um": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float, "theta_read_deg": float, "t_s": float},
         ("rep", "theta_deg"),
+        ranges={"rep": (0, 10000)},
     ),
-    "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {}, ("k",)),
+    "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {"theta_read_deg": float, "t_s": float},
+                           ("k",), ranges={"k": (0, 10**6)}),
     "polygon": TableSpec(
         {"shift_deg": float, "start_face": int, "step": int, "theta_deg": float, "ac_arcsec": float, "t_s": float},
-        {"rep": int, "direction": str},
+        {"rep": int, "direction": str, "theta_read_deg": float, "ac_y_arcsec": float},
         ("shift_deg", "start_face", "step", "rep", "direction"),
+        ranges={"shift_deg": (-360.0, 360.0), "rep": (0, 10000)}, choices={"direction": DIRECTIONS},
     ),
     "heads": TableSpec(
         {"theta_deg": float, "head": int, "delta_arcsec": float},
-        {"rep": int, "direction": str},
+        {"rep": int, "direction": str, "theta_read_deg": float, "t_s": float},
         ("theta_deg", "head", "rep", "direction"),
+        ranges={"rep": (0, 10000)}, choices={"direction": DIRECTIONS},
     ),
 }
+
+
+def column_range(spec: TableSpec | None, col: str) -> tuple[float, float] | None:
+    """The inclusive range of a numeric column: the spec's own, else its unit's default."""
+    if spec is not None and col in spec.ranges:
+        return spec.ranges[col]
+    for suffix, rng in _UNIT_RANGES.items():
+        if col.endswith(suffix):
+            return rng
+    return None
 
 # manifest["bench"]: key -> (type, required)
 BENCH_KEYS: dict[str, tuple[type, bool]] = {
@@ -111,18 +160,27 @@ def validate_manifest(m: Any, where: str = "manifest.json") -> dict[str, Any]:
     if not isinstance(bench, Mapping):
         raise DatasetError(f"{where}: key 'bench': expected an object with {', '.join(k for k, (_, r) in BENCH_KEYS.items() if r)}")
     _check_keys(bench, BENCH_KEYS, f"{where}: bench")
+    for key, (lo, hi) in BENCH_RANGES.items():
+        v = bench.get(key)
+        if v is not None and not lo <= v <= hi:
+            raise DatasetError(f"{where}: bench.{key}: expected {lo:g}…{hi:g}, got {v!r}")
     if bench["optical_radius_mm"] <= 0:
         raise DatasetError(f"{where}: bench.optical_radius_mm: expected > 0 mm, got {bench['optical_radius_mm']}")
     if bench["polygon_faces"] < 3:
         raise DatasetError(f"{where}: bench.polygon_faces: expected an integer >= 3, got {bench['polygon_faces']}")
     if not 0 <= bench["L1_mm"] < bench["L2_mm"]:
         raise DatasetError(f"{where}: bench.L1_mm/L2_mm: expected 0 <= L1 < L2, got {bench['L1_mm']}, {bench['L2_mm']}")
-    if "heads_deg" in bench and not all(_is_number(h) for h in bench["heads_deg"]):
-        raise DatasetError(f"{where}: bench.heads_deg: expected a list of numbers in degrees")
+    if "heads_deg" in bench:
+        heads = bench["heads_deg"]
+        if not 1 <= len(heads) <= MAX_HEADS or not all(_is_number(h) and 0.0 <= h < 360.0 for h in heads):
+            raise DatasetError(f"{where}: bench.heads_deg: expected 1…{MAX_HEADS} azimuths in degrees, each in [0, 360)")
+        if len(set(heads)) != len(heads):
+            raise DatasetError(f"{where}: bench.heads_deg: two heads at the same azimuth")
     if "polygon_certificate_arcsec" in bench:
         cert = bench["polygon_certificate_arcsec"]
-        if len(cert) != bench["polygon_faces"] or not all(_is_number(c) for c in cert):
-            raise DatasetError(f"{where}: bench.polygon_certificate_arcsec: expected {bench['polygon_faces']} numbers")
+        if len(cert) != bench["polygon_faces"] or not all(_is_number(c) and abs(c) <= 3600.0 for c in cert):
+            raise DatasetError(f"{where}: bench.polygon_certificate_arcsec: expected {bench['polygon_faces']} numbers "
+                               "of at most ±3600 arcsec")
     if "ccd" in m:
         ccd = m["ccd"]
         if not isinstance(ccd, Mapping):
@@ -133,13 +191,38 @@ def validate_manifest(m: Any, where: str = "manifest.json") -> dict[str, Any]:
         if ccd["tangential"] not in ("+x", "-x"):
             raise DatasetError(f"{where}: ccd.tangential: expected '+x' or '-x', got {ccd['tangential']!r}")
         ref = ccd["reference_px"]
-        if len(ref) != 2 or not all(_is_number(v) for v in ref):
-            raise DatasetError(f"{where}: ccd.reference_px: expected [x, y] in pixels, got {ref!r}")
+        if len(ref) != 2 or not all(_is_number(v) and 0 <= v <= 20000 for v in ref):
+            raise DatasetError(f"{where}: ccd.reference_px: expected [x, y] in pixels (0…20000), got {_short(ref)}")
+        if not 0.0 <= ccd["position_deg"] < 360.0:
+            raise DatasetError(f"{where}: ccd.position_deg: expected [0, 360) degrees, got {ccd['position_deg']!r}")
+        if "pixel_um" in ccd and not 0.01 <= ccd["pixel_um"] <= 100.0:
+            raise DatasetError(f"{where}: ccd.pixel_um: expected 0.01…100 µm, got {ccd['pixel_um']!r}")
     return dict(m)
 
 
 def _is_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    return is_number(x)
+
+
+def _short(v: Any, n: int = 60) -> str:
+    s = repr(v)
+    return s if len(s) <= n else s[: n - 1] + "…"
+
+
+MAX_HEADS = 64
+# manifest bench ranges, in the manifest's units (the scenario schema's bounds, twin/scenario_schema.py)
+BENCH_RANGES: dict[str, tuple[float, float]] = {
+    "optical_radius_mm": (1.0, 1000.0),
+    "L1_mm": (0.0, 2000.0),
+    "L2_mm": (1.0, 2000.0),
+    "grating_period_um": (0.1, 1000.0),
+    "polygon_faces": (3, 360),
+    "encoder_lines": (0, 10_000_000),
+    "scale_edge_radius_mm": (1.0, 1000.0),
+    "encoder_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_resolution_arcsec": (0.0, 3600.0),
+    "autocollimator_accuracy_arcsec": (0.0, 3600.0),
+}
 
 
 def _check_keys(d: Mapping[str, Any], spec: Mapping[str, tuple[type, bool]], where: str) -> None:
@@ -155,25 +238,13 @@ def _check_keys(d: Mapping[str, Any], spec: Mapping[str, tuple[type, bool]], whe
             else isinstance(v, typ)
         )
         if not ok:
-            raise DatasetError(f"{where}.{key}: expected {typ.__name__}, got {v!r}")
+            raise DatasetError(f"{where}.{key}: expected {typ.__name__}, got {_short(v)}")
 
 
 # --------------------------------------------------------------------------- writer
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+_atomic_write = atomic_write_bytes  # the project's one atomic writer (benchtwin.fsio)
 
 
 def _cell(v: Any) -> str:
@@ -250,13 +321,32 @@ class TableAppender:
             self.part.unlink()
 
 
-class DatasetWriter:
-    """Write a dataset directory. The manifest is validated first and written last."""
+JOURNAL = "journal.jsonl"  # the run journal simulate and acquire keep in the dataset folder
 
-    def __init__(self, path: str | Path, manifest: Mapping[str, Any]):
+
+class DatasetWriter:
+    """Write a dataset directory. The manifest is validated first and written last: it is the
+    completion marker (a folder without it is unfinished, and ``Dataset`` refuses it).
+
+    The folder must be new or empty (``force``: its contents are removed first; ``resume``: it holds
+    the journal of an unfinished run, which continues) so a dataset never mixes two runs' files
+    (issue #13: scenario B simulated over A's folder kept A's heads.csv). ``prepared=True``: the
+    caller has already checked the folder with ``benchtwin.fsio.check_output_dir``."""
+
+    def __init__(self, path: str | Path, manifest: Mapping[str, Any], *, force: bool = False,
+                 resume: bool = False, prepared: bool = False):
         self.path = Path(path)
         self.manifest = validate_manifest(dict(manifest), f"{self.path}/manifest.json")
+        if not prepared:
+            try:
+                check_output_dir(self.path, force=force, resume=resume, resume_marker=JOURNAL,
+                                 what="dataset folder")
+            except OutputError as exc:
+                raise DatasetError(str(exc)) from None
         self.path.mkdir(parents=True, exist_ok=True)
+        stale = self.path / "manifest.json"
+        if resume and stale.is_file():  # resuming a run that had finished: complete again only when closed
+            stale.unlink()
 
     def write_table(self, name: str, columns: Mapping[str, Sequence[Any]]) -> Path:
         if name in TABLES:
@@ -327,12 +417,19 @@ def parse_table(text: str, name: str, where: str, spec: TableSpec | None = None)
 
     Rows are numbered as in a text editor (the header is row 1)."""
     spec = spec or TABLES.get(name)
+    if "\x00" in text:
+        raise DatasetError(f"{where}: contains NUL bytes; expected CSV text")
     reader = csv.reader(io.StringIO(text))
+    rowno = 1
     try:
         header = next(reader)
     except StopIteration:
         raise DatasetError(f"{where}: empty file (expected a header row)") from None
+    except csv.Error as exc:
+        raise DatasetError(f"{where}: row 1: not valid CSV ({exc})") from None
     header = [h.strip() for h in header]
+    if len(header) > 256 or any(len(h) > 128 for h in header):
+        raise DatasetError(f"{where}: row 1: expected at most 256 column names of at most 128 characters")
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise DatasetError(f"{where}: row 1: duplicated column names {dup}")
@@ -343,13 +440,28 @@ def parse_table(text: str, name: str, where: str, spec: TableSpec | None = None)
             raise DatasetError(f"{where}: row 1: missing required columns {missing} (has {header})")
         types = {**spec.required, **spec.optional}
     raw: dict[str, list[Any]] = {h: [] for h in header}
-    for rowno, row in enumerate(reader, start=2):
+    n_rows = 0
+    rows = enumerate(reader, start=2)
+    while True:
+        try:
+            rowno, row = next(rows)
+        except StopIteration:
+            break
+        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
+            raise DatasetError(f"{where}: row {rowno + 1}: not valid CSV ({exc}); a cell may have at most "
+                               f"{MAX_CELL_CHARS} characters") from None
         if not row or all(not c.strip() for c in row):
             continue
+        n_rows += 1
+        if n_rows > MAX_ROWS:
+            raise DatasetError(f"{where}: more than {MAX_ROWS} rows; a table may have at most {MAX_ROWS}")
         if len(row) != len(header):
             raise DatasetError(f"{where}: row {rowno}: expected {len(header)} fields, got {len(row)}")
         for h, cell in zip(header, row):
-            raw[h].append(_parse_cell(cell.strip(), types.get(h), where, rowno, h))
+            if len(cell) > MAX_CELL_CHARS:
+                raise DatasetError(f"{where}: row {rowno}, column {h!r}: a cell of {len(cell)} characters; "
+                                   f"at most {MAX_CELL_CHARS} are allowed")
+            raw[h].append(_parse_cell(cell.strip(), types.get(h), where, rowno, h, spec))
     out: dict[str, np.ndarray] = {}
     for h, vals in raw.items():
         t = types.get(h)
@@ -364,20 +476,32 @@ def parse_table(text: str, name: str, where: str, spec: TableSpec | None = None)
     return out
 
 
-def _parse_cell(cell: str, typ: type | None, where: str, rowno: int, col: str) -> Any:
+def _parse_cell(cell: str, typ: type | None, where: str, rowno: int, col: str,
+                spec: TableSpec | None = None) -> Any:
+    """One cell by the one number grammar (benchtwin.schema), checked against its column's range
+    or enumeration."""
+    at = f"{where}: row {rowno}, column {col!r}"
     if typ is None or typ is str:
+        allowed = spec.choices.get(col) if spec is not None else None
+        if allowed is not None and cell not in allowed:
+            raise DatasetError(f"{at}: expected one of {', '.join(allowed)}, got {_short(cell)}")
         return cell
     if typ is int:
         try:
-            return int(cell)
-        except ValueError:
-            raise DatasetError(f"{where}: row {rowno}, column {col!r}: expected an integer, got {cell!r}") from None
-    try:
-        x = float(cell)
-    except ValueError:
-        raise DatasetError(f"{where}: row {rowno}, column {col!r}: expected a number, got {cell!r}") from None
-    if not math.isfinite(x):
-        raise DatasetError(f"{where}: row {rowno}, column {col!r}: expected a finite number, got {cell!r}")
+            x: float = parse_int(cell)
+        except ValueError as exc:
+            raise DatasetError(f"{at}: {exc}, got {_short(cell)}") from None
+    else:
+        try:
+            x = parse_float(cell)
+        except ValueError as exc:
+            msg = str(exc)
+            if cell.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+                msg = "expected a finite number"
+            raise DatasetError(f"{at}: {msg}, got {_short(cell)}") from None
+    rng = column_range(spec, col) if spec is not None else None
+    if rng is not None and not rng[0] <= x <= rng[1]:
+        raise DatasetError(f"{at}: expected {rng[0]:g}…{rng[1]:g}, got {cell}")
     return x
 
 
@@ -401,12 +525,13 @@ class Dataset:
         if not self.path.is_dir():
             raise DatasetError(f"{self.path}: not a dataset directory")
         mp = self.path / "manifest.json"
-        if not mp.is_file():
+        if not mp.exists() and not mp.is_symlink():
             raise DatasetError(f"{mp}: missing (every dataset starts with its manifest)")
         try:
-            m = json.loads(mp.read_text(encoding="utf-8"))
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise DatasetError(f"{mp}: not valid JSON: {exc}") from None
+            text = read_input_text(mp, max_bytes=MAX_MANIFEST_BYTES, what="manifest", root=self.path)
+            m = loads_json(text, str(mp))
+        except SchemaError as exc:
+            raise DatasetError(str(exc).replace(": not valid JSON", ": not valid JSON", 1)) from None
         self.manifest = validate_manifest(m, str(mp))
         self._cache: dict[str, dict[str, np.ndarray]] = {}
 
@@ -415,17 +540,32 @@ class Dataset:
         return self.manifest["bench"]
 
     def has(self, name: str) -> bool:
-        return (self.path / f"{name}.csv").is_file()
+        """The table is present: anything under its name counts (a folder or a dangling symlink
+        there is an error when read, never a silently missing section)."""
+        p = self.path / f"{name}.csv"
+        return p.exists() or p.is_symlink()
+
+    def tables(self) -> list[str]:
+        """The known tables present in the dataset."""
+        return [name for name in TABLES if self.has(name)]
+
+    def require_tables(self) -> list[str]:
+        """The tables present; a dataset with none is an error (issue #13: analyze exited 0)."""
+        names = self.tables()
+        if not names:
+            raise DatasetError(f"{self.path}: no data tables (expected at least one of "
+                               f"{', '.join(t + '.csv' for t in TABLES)})")
+        return names
 
     def table(self, name: str) -> dict[str, np.ndarray]:
         if name not in self._cache:
             p = self.path / f"{name}.csv"
-            if not p.is_file():
+            if not self.has(name):
                 raise DatasetError(f"{p}: missing")
             try:
-                text = p.read_text(encoding="utf-8")
-            except UnicodeDecodeError as exc:
-                raise DatasetError(f"{p}: not UTF-8 text: {exc}") from None
+                text = read_input_text(p, max_bytes=MAX_TABLE_BYTES, what="CSV table", root=self.path)
+            except SchemaError as exc:
+                raise DatasetError(str(exc)) from None
             cols = parse_table(text, name, str(p))
             self._check_semantics(name, cols, p)
             self._cache[name] = cols
@@ -452,21 +592,102 @@ class Dataset:
             bad = np.flatnonzero(cols["rep"] < 0)
             if bad.size:
                 raise DatasetError(f"{p}: row {bad[0] + 2}, column 'rep': expected >= 0")
+        if name == "ccd/index":
+            self._check_ccd_index(cols, p)
+
+    def _check_ccd_index(self, cols: Mapping[str, np.ndarray], p: Path) -> None:
+        """The CCD sweep's index: a bounded number of frames, each file named once, each angle
+        once, and (with ``theta_read_deg``) every commanded angle next to the encoder's reading of
+        it: swapped or shifted angles are caught here (issue #13)."""
+        n = len(cols["k"])
+        if n > MAX_CCD_FRAMES:
+            raise DatasetError(f"{p}: {n} CCD frames; at most {MAX_CCD_FRAMES} are allowed (one every 0.5°)")
+        if "ccd" not in self.manifest:
+            raise DatasetError(f"{self.path / 'manifest.json'}: key 'ccd' is required when ccd/index.csv is present")
+        seen: dict[str, int] = {}
+        for i, f in enumerate(cols["file"]):
+            key = str(f).strip()
+            if key in seen:
+                raise DatasetError(f"{p}: rows {seen[key] + 2} and {i + 2}: the same image file {key!r} twice")
+            seen[key] = i
+        th = np.asarray(cols["theta_deg"], dtype=float)
+        wrapped = np.mod(th, 360.0)
+        order = np.argsort(wrapped, kind="stable")
+        same = np.flatnonzero(np.diff(wrapped[order]) == 0.0)
+        if same.size:
+            a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+            raise DatasetError(f"{p}: rows {a + 2} and {b + 2}: two frames at the same angle theta_deg = {th[a]:g}")
+        if "theta_read_deg" in cols and n >= 1:
+            gaps = np.diff(np.concatenate([wrapped[order], wrapped[order][:1] + 360.0])) if n > 1 else np.array([360.0])
+            # a reading belongs to its own commanded angle: within half the closest spacing of two
+            # frames (else it is nearer another frame's angle: swapped rows) and within 1° (the
+            # encoder's error is arcseconds; Jia eq. 5 with e/r ≤ 5 % stays well below)
+            tol = min(1.0, 0.5 * float(np.min(gaps)))
+            d = np.abs((np.asarray(cols["theta_read_deg"], dtype=float) - th + 180.0) % 360.0 - 180.0)
+            bad = np.flatnonzero(d >= tol)
+            if bad.size:
+                i = int(bad[0])
+                raise DatasetError(
+                    f"{p}: row {i + 2}: theta_deg = {th[i]:g} but the encoder read theta_read_deg = "
+                    f"{float(cols['theta_read_deg'][i]):g} (expected within {tol:g}°: swapped or wrong angles?)")
 
     def ccd_frames(self) -> Iterator[tuple[int, float, np.ndarray, str]]:
-        """Yield (k, theta_deg, image, file) for every row of ccd/index.csv, checking each image."""
+        """Yield (k, theta_deg, image, file) for every row of ccd/index.csv, checking each image:
+        all frames one size, with ``ccd.reference_px`` inside it, and no two identical frames."""
+        import hashlib
+
         idx = self.table("ccd/index")
+        ref = self.manifest["ccd"]["reference_px"]
+        shape: tuple[int, ...] | None = None
+        first_row = 0
+        digests: dict[bytes, int] = {}
         for i, (k, theta, f) in enumerate(zip(idx["k"], idx["theta_deg"], idx["file"])):
-            yield int(k), float(theta), self.read_image(str(f), row=i + 2), str(f)
+            row = i + 2
+            img = self.read_image(str(f), row=row)
+            where = f"{self.path / 'ccd' / 'index.csv'}: row {row}: image {str(f)!r}"
+            if shape is None:
+                shape, first_row = img.shape, row
+                h, w = shape
+                if not (0 <= ref[0] <= w - 1 and 0 <= ref[1] <= h - 1):
+                    raise DatasetError(f"{where}: {w}×{h} px, but manifest ccd.reference_px = {ref} lies outside it")
+            elif img.shape != shape:
+                raise DatasetError(f"{where}: {img.shape[1]}×{img.shape[0]} px, but the frame of row {first_row} is "
+                                   f"{shape[1]}×{shape[0]} px (expected one frame size for the whole sweep)")
+            # a uniform frame (fogged, dark, saturated) carries no image: two of them are alike by
+            # nature, and the image analysis rejects them with its own note; any other frame is unique
+            uniform = img.size == 0 or int(img.min()) == int(img.max())
+            dg = hashlib.blake2b(img.tobytes(), digest_size=16).digest()
+            if not uniform and dg in digests:
+                raise DatasetError(f"{where}: identical to the frame of row {digests[dg]}; a frame at another angle "
+                                   "cannot be pixel-for-pixel the same (a duplicated file?)")
+            digests[dg] = row
+            yield int(k), float(theta), img, str(f)
 
     def read_image(self, relpath: str, row: int | None = None) -> np.ndarray:
         import cv2
 
         where = f"{self.path / 'ccd' / 'index.csv'}: row {row}: " if row else ""
-        p = (self.path / "ccd" / relpath) if not (self.path / relpath).is_file() else (self.path / relpath)
-        if not p.is_file():
+        try:
+            # relative to ccd/ (docs/dataset-format.md), or else to the dataset root; never outside
+            # it (no absolute path, no '..', no symlink out: issue #13)
+            check_relative_name(relpath, f"{where}image")  # the name as written
+            in_ccd = self.path / "ccd" / relpath
+            base = "" if (self.path / relpath).is_file() and not (in_ccd.exists() or in_ccd.is_symlink()) else "ccd/"
+            p = resolve_inside(self.path, base + relpath, f"{where}image")
+        except SchemaError as exc:
+            raise DatasetError(str(exc)) from None
+        if not p.exists():
             raise DatasetError(f"{where}image {relpath!r} is missing")
-        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        if p.is_dir() or not p.is_file():
+            raise DatasetError(f"{where}image {relpath!r}: not a regular file")
+        size = p.stat().st_size
+        if size > MAX_IMAGE_BYTES:
+            raise DatasetError(f"{where}image {relpath!r}: {size} bytes; at most {MAX_IMAGE_BYTES} are allowed")
+        data = np.fromfile(p, dtype=np.uint8)
+        hdr = _png_size(data)
+        if hdr is not None and hdr[0] * hdr[1] > MAX_IMAGE_PIXELS:
+            raise DatasetError(f"{where}image {relpath!r}: {hdr[0]}×{hdr[1]} px; at most {MAX_IMAGE_PIXELS} pixels")
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
         if img is None:
             raise DatasetError(f"{where}image {p} is not a readable image")
         if img.ndim != 2:
@@ -478,16 +699,21 @@ class Dataset:
     def validate(self) -> list[str]:
         """Read every known table and image; returns a list of what was checked, raises on error."""
         checked = ["manifest.json"]
-        for name in TABLES:
-            if self.has(name):
-                cols = self.table(name)
-                checked.append(f"{name}.csv ({len(next(iter(cols.values())))} rows)")
+        for name in self.require_tables():
+            cols = self.table(name)
+            checked.append(f"{name}.csv ({len(next(iter(cols.values())))} rows)")
         if self.has("ccd/index"):
             n = sum(1 for _ in self.ccd_frames())
             checked.append(f"{n} CCD images")
-        if len(checked) == 1:
-            raise DatasetError(f"{self.path}: no data tables (expected at least one of {', '.join(t + '.csv' for t in TABLES)})")
         return checked
+
+
+def _png_size(data: np.ndarray) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR, before decoding it (a decompression bomb stops here)."""
+    b = data[:24].tobytes()
+    if len(b) == 24 and b[:8] == b"\x89PNG\r\n\x1a\n" and b[12:16] == b"IHDR":
+        return int.from_bytes(b[16:20], "big"), int.from_bytes(b[20:24], "big")
+    return None
 
 
 def open_dataset(path: str | Path) -> Dataset:

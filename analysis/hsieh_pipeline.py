@@ -303,6 +303,13 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     if res.beta_closure_arcsec is not None:
         out["certificate_minus_closure_arcsec"] = res.beta_arcsec - res.beta_closure_arcsec
     # ---- self-calibration and comparison (sec. 3.2, eq. 13)
+    if heads is not None and heads_deg is not None and len(heads_deg) < 3:
+        # two heads give δ = α(θ) − α(θ + 180°): every odd harmonic exactly, with no redundancy, so
+        # no residual degrees of freedom and no uncertainty of the self-calibration (Hsieh sec. 2.3
+        # uses sets of ≥ 3 heads); issue #13: it ended in a TypeError in the report
+        notes.append(f"self-calibration skipped: {len(heads_deg)} heads; Hsieh's multi-head method needs at "
+                     "least 3 (with 2 the residual has no degrees of freedom, so no uncertainty)")
+        heads = None
     if heads is not None:
         if heads_deg is None:
             raise ValueError("heads table given without heads_deg (head azimuths from head 1)")
@@ -328,7 +335,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         if _full_grid(th):
             n_sa = th.size
             alpha_cmp = _drop_harmonics(th, alpha, [m for m in drop if m <= n_sa // 2])
-            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th), 
+            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th),
                                     [m for m in drop if m <= n_sa // 2])
             cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
                         f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")

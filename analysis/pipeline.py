@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.fsio import atomic_write_text
 
 
 def _jsonable(x: Any) -> Any:
@@ -58,6 +59,21 @@ def step_radial_motion(ds: Dataset, order: int) -> dict[str, Any]:
         t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
         probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"), order=order,
     )
+
+
+def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]:
+    """ISO 230-7 total / synchronous / asynchronous radial error motion (analysis.iso230_7)."""
+    from benchtwin.analysis.iso230_7 import radial_error_motion
+
+    t = ds.table("radial_motion")
+    probes = {k: t.get(k) for k in ("probe_top_um", "probe_bottom_um", "probe_top_x_um", "probe_bottom_x_um")}
+    return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm, order=order)
+
+
+def _iso_summary(iso: dict[str, Any]) -> dict[str, Any]:
+    from benchtwin.analysis.iso230_7 import summary
+
+    return summary(iso)
 
 
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
@@ -226,17 +242,39 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dic
     return out
 
 
-def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_file: str | Path | None = None,
-            progress: bool = True, close_loop: bool = True) -> dict[str, Any]:
+def _step(ds: Dataset, table: str, fn, *args):
+    """One analysis step; data it cannot analyse (a ValueError of the analysis: too few positions
+    for the Fourier order, a singular design, …) is the dataset's error, named by its table (issue
+    #13: what validate accepts either runs or gets a clear exit 2, never a traceback)."""
+    try:
+        return fn(*args)
+    except DatasetError:
+        raise
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
+
+
+def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+            model_file: str | Path | dict[str, Any] | None = None,
+            progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
+
+    ``preface``: [(matplotlib figure, caption)] the report opens with (the app layer's rendered
+    view of the bench; the analysis itself never builds the twin).
 
     Returns ``{"results": dict, "paths": {"results": ..., "report": ..., "model": ...?}}``.
     Raises :class:`DatasetError` for invalid input (naming file, row, column).
     """
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-    from benchtwin.analysis.report.html import Report
 
     ds = open_dataset(dataset)
+    for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
+        ds.table(name)  # every table read and checked before any analysis step runs
+    model_payload: dict[str, Any] | None = None
+    if model_file is not None:
+        from benchtwin.analysis.model_file import read_model_file
+
+        model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     b = ds.bench
@@ -245,11 +283,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
         "bench": dict(b), "notes": [],
     }
-    figs: list[tuple[str, Any, str]] = []  # (section, figure, caption)
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
-        rm = step_radial_motion(ds, order)
+        rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
         results["radial_motion"] = {
             "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
             "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
@@ -257,8 +294,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
             "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
         }
+        rm["iso230_7"] = step_iso230_7(ds, rm, order)  # ISO 230-7 values and polar plots (issue 20)
+        results["radial_error_motion"] = _iso_summary(rm["iso230_7"])
     if ds.has("ccd/index"):
-        ecc = step_eccentricity(ds, order, progress)
+        ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
             from benchtwin.analysis.eccentricity import with_async_motion
 
@@ -280,7 +319,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
                 f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
                 f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
-        pol = step_polygon(ds)
+        pol = _step(ds, "polygon.csv", step_polygon, ds)
         for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                     "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
                     "difference_arcsec", "repeatability", "autocollimator_declared"):
@@ -292,10 +331,10 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     model = None
     if ecc is not None:
         model = error_model_from_results(ecc, rm, r_um)
-        if model_file is not None:
+        if model_payload is not None:
             from benchtwin.analysis.tracing import add_to_error_model
 
-            added = add_to_error_model(model, model_file)
+            added = add_to_error_model(model, model_payload)
             results["model_file_terms"] = added
         grid = np.arange(0.0, 360.0, 1.0)
         results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),
@@ -317,10 +356,9 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10, model_
     if close_loop and cmp is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
-    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr)
-    tmp = out / "results.json.tmp"
-    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(out / "results.json")
+    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
+    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
+    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
 
 
@@ -388,7 +426,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
     return ev, tr
 
 
-def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
+def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -398,6 +436,8 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
     rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}). Analysis: Jia et al. 2019 "
                   "(radial motion, eccentricity from CCD images, error model eq. 5) and Hsieh et al. 2022 "
                   "(shift-angle method, self-calibration, GUM budget). Standard uncertainties unless stated.")
+    for fig, caption in preface or []:
+        rep.figure(fig, caption)
     rows = []
     if ecc is not None:
         rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc["e_um"], ecc["e_u_um"], "µm")])
@@ -430,8 +470,14 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr) -> None:
     if rm is not None:
         rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
         rep.figure(fj.fig_radial_motion(rm), "Radial error motion of the test spheres and of the grating disk along the head direction")
+        from benchtwin.analysis.report.figures_iso import add_iso230_7_section
+
+        add_iso230_7_section(rep, rm["iso230_7"], ds, filtered=rm["summary"])
     if ecc is not None:
         rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
+        from benchtwin.analysis.report.figures_ccd import add_ccd_pictures
+
+        add_ccd_pictures(rep, ds, ecc)  # the pictures of the image analysis (issue 20)
         rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
         if ecc.get("rejected_frames"):
             rep.paragraph(f"{len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected by the image analysis "

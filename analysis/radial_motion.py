@@ -37,8 +37,12 @@ from benchtwin.analysis.fourier import FourierFit, design_matrix, evaluate, fit_
 
 __all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights"]
 
-# d_n of the range method (mean range of n normal samples / σ), n = 2…10. Jia uses 1.69 for n = 3.
-D_N: dict[int, float] = {2: 1.128, 3: 1.693, 4: 2.059, 5: 2.326, 6: 2.534, 7: 2.704, 8: 2.847, 9: 2.970, 10: 3.078}
+# d_n of the range method (mean range of n normal samples / σ), n = 2…25 (the d2 constants of
+# control-chart tables, e.g. Montgomery, Introduction to Statistical Quality Control, app. VI).
+# Jia uses 1.69 for n = 3. The scenario schema allows radial_reps ≤ 25 to match (issue #13).
+D_N: dict[int, float] = {2: 1.128, 3: 1.693, 4: 2.059, 5: 2.326, 6: 2.534, 7: 2.704, 8: 2.847, 9: 2.970, 10: 3.078,
+                         11: 3.173, 12: 3.258, 13: 3.336, 14: 3.407, 15: 3.472, 16: 3.532, 17: 3.588, 18: 3.640,
+                         19: 3.689, 20: 3.735, 21: 3.778, 22: 3.819, 23: 3.858, 24: 3.895, 25: 3.931}
 
 
 def disk_weights(L1_mm: float, L2_mm: float) -> tuple[float, float]:
@@ -58,7 +62,7 @@ def range_method_u(values_reps: np.ndarray, d_n: float | None = None) -> np.ndar
     n = v.shape[0]
     if d_n is None:
         if n not in D_N:
-            raise ValueError(f"no d_n tabulated for n = {n} repetitions (2…10); pass d_n")
+            raise ValueError(f"no d_n tabulated for n = {n} repetitions (2…25); pass d_n")
         d_n = D_N[n]
     return (v.max(axis=0) - v.min(axis=0)) / d_n
 

@@ -796,7 +796,6 @@ def direction_difference(table: PolygonTable, beta_arcsec: np.ndarray, s_reading
     mean difference of the setup errors U (forward − backward), a constant hysteresis, which eq. 7
     puts into U and which therefore does not bias α. None with fewer than two directions.
     """
-    N = table.n_faces
     b = np.asarray(beta_arcsec, dtype=float)
     dirs = sorted({k[1] for S in table.shifts_deg for k in table.runs.get(float(S), {})})
     if len(dirs) < 2:

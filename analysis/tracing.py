@@ -39,7 +39,6 @@ import itertools
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -1515,19 +1514,9 @@ def _jsonable(x):
 
 def save_model(path, payload: dict) -> None:
     """Write the ``model_file`` payload as JSON, atomically (temporary file, fsync, rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(payload), f, indent=2, allow_nan=False)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from benchtwin.fsio import atomic_write_text
+
+    atomic_write_text(path, json.dumps(_jsonable(payload), indent=2, allow_nan=False))
 
 
 def _read(path_or_payload) -> dict:

@@ -85,8 +85,9 @@ def en_number(x1: np.ndarray | float, U1: np.ndarray | float, x2: np.ndarray | f
     return float(out) if out.ndim == 0 else out
 
 
-#: d_n of the range method (the mean range of n normal samples in units of σ), n = 2…10.
-D_N: dict[int, float] = {2: 1.128, 3: 1.693, 4: 2.059, 5: 2.326, 6: 2.534, 7: 2.704, 8: 2.847, 9: 2.970, 10: 3.078}
+#: d_n of the range method (the mean range of n normal samples in units of σ), n = 2…25: the one
+#: table, in analysis.radial_motion (it was copied here for n ≤ 10).
+from benchtwin.analysis.radial_motion import D_N  # noqa: E402
 
 
 def range_uncertainty(values_or_range: Sequence[float] | np.ndarray | float, n: int | None = None, *,
@@ -106,7 +107,7 @@ def range_uncertainty(values_or_range: Sequence[float] | np.ndarray | float, n: 
         R = float(v.max() - v.min())
     if d_n is None:
         if n not in D_N:
-            raise ValueError(f"d_n tabulated for n = 2…10 only, got n = {n}")
+            raise ValueError(f"d_n tabulated for n = 2…25 only, got n = {n}")
         d_n = D_N[n]
     return R / d_n
 

@@ -461,7 +461,7 @@ What the numbers say:
 
 def markdown(summ: dict[str, Any], seeds: list[int]) -> str:
     c, s = summ["coverage"], summ["scalars"]
-    lines = [PREAMBLE, 
+    lines = [PREAMBLE,
         "| quantity (truth) | n | within 1·u | within 2·u | mean z | sd z | \\|z\\| 68 % / 95 % |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]

@@ -255,7 +255,7 @@ def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float
         "  the notes below).",
         "- RMS before / after: the tracing's residual per polygon reading (α − Jia model, closure-centred),",
         "  before and after the traced effect(s), arcsec, median over seeds.",
-        f"- floor: the noise floor of each seed = the RMS the Jia model leaves on `null_a` with the same seed",
+        "- floor: the noise floor of each seed = the RMS the Jia model leaves on `null_a` with the same seed",
         "  (same declared bench and draws, nothing hidden), combined with the non-repeating motion the probes",
         "  measured where the bench has one (`null_paper`: its X part at the stops, r·σ_async).",
         "  **after/floor** is the worst seed's ratio;",
@@ -270,7 +270,10 @@ def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float
     ]
     total_ok = total = 0
     floor_fail = []
-    med = (lambda v: v[len(v) // 2] if v else None)
+
+    def med(v):
+        return v[len(v) // 2] if v else None
+
     for name in sorted(by):
         rs = by[name]
         why = EXPECTED.get(name, ("?", "", set()))[1]

@@ -3,10 +3,51 @@
 Subpackages (each a top-level folder of the repository, installed under this one name):
 ``benchtwin.twin`` (simulation), ``benchtwin.analysis`` (the pipeline, reads datasets only),
 ``benchtwin.hw`` (hardware adapters), ``benchtwin.models`` (MJCF and assets),
-``benchtwin.scenarios`` (embedded scenario files).
+``benchtwin.scenarios`` (embedded scenario files), and ``benchtwin.app`` (the application layer:
+commands, studies, scoring).
+
+What a user script needs (docs/api.md)::
+
+    import benchtwin
+    sc = benchtwin.load_scenario("scenarios/jia2019.toml")     # or None: the embedded default
+    ds = benchtwin.simulate(sc, "out/jia/dataset")             # dataset + truth/
+    res = benchtwin.analyze(ds, "out/jia")                     # results.json + report.html
+    benchtwin.acquire("bench.toml", "out/real")                # the same format from instruments
+    benchtwin.run_study("scenarios/studies/bearing_distance.toml", "out/study")
+    benchtwin.score(my_algorithm)                              # against the benchmark suite
+
+Exports are imported lazily (``benchtwin._exports``): ``import benchtwin`` stays cheap.
 """
 
+from typing import TYPE_CHECKING
+
+from benchtwin._exports import lazy_exports
+
 __version__ = "0.1.0"
+
+_EXPORTS = {
+    "load_scenario": "benchtwin.twin.scenario",
+    "Scenario": "benchtwin.twin.scenario",
+    "ScenarioError": "benchtwin.twin.scenario",
+    "simulate": "benchtwin.twin.simulate",
+    "analyze": "benchtwin.analysis.pipeline",
+    "open_dataset": "benchtwin.analysis.dataset",
+    "DatasetError": "benchtwin.analysis.dataset",
+    "acquire": "benchtwin.hw.acquisition.acquire",
+    "run_study": "benchtwin.app.study",
+    "simulate_and_analyze": "benchtwin.app.run",
+}
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)
+__all__ = ["__version__", "score", *_EXPORTS]
+
+if TYPE_CHECKING:
+    from benchtwin.analysis.dataset import DatasetError, open_dataset
+    from benchtwin.analysis.pipeline import analyze
+    from benchtwin.app.run import simulate_and_analyze
+    from benchtwin.app.study import run_study
+    from benchtwin.hw.acquisition.acquire import acquire
+    from benchtwin.twin.scenario import Scenario, ScenarioError, load_scenario
+    from benchtwin.twin.simulate import simulate
 
 
 def score(fn, suite=None, *, seed=11, size="small", jobs=1):

@@ -10,16 +10,25 @@ Subcommands land with their capability (no stubs that pretend):
 Every subcommand takes ``--quiet`` (no progress, only the final line) and ``--json`` (one JSON
 object on stdout, for scripts). Exit codes: 0 ok, 2 invalid input (the message names file, key or
 row), 1 any other failure.
+
+One error path for every command (issue #13, docs/reliability.md): ``main`` turns the project's
+own error types (``DOMAIN_ERRORS``: bad datasets, scenarios, studies, bench files, model files,
+output folders, units, instrument and port failures) and ``OSError`` into exit 2 with their
+message, and anything else into exit 1 with one line (``BENCHTWIN_TRACEBACK=1`` shows the
+traceback); under ``--json`` either is one JSON object ``{"ok": false, "error": ..., "kind": ...}``
+on stdout. Usage errors (argparse) are exit 2 and JSON too.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from benchtwin import __version__
 
@@ -27,7 +36,8 @@ Handler = Callable[[argparse.Namespace], dict[str, Any]]
 _COMMANDS: dict[str, tuple[Handler, Callable[[argparse.ArgumentParser], None], str]] = {}
 
 
-def command(name: str, help: str, args: Callable[[argparse.ArgumentParser], None] = lambda p: None):
+def command(name: str, help: str,
+            args: Callable[[argparse.ArgumentParser], None] = lambda p: None) -> Callable[[Handler], Handler]:
     """Register a subcommand: the handler returns a JSON-ready dict whose 'message' is printed."""
 
     def deco(fn: Handler) -> Handler:
@@ -45,7 +55,7 @@ class InputError(Exception):
 
 
 def _validate_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("path", type=Path, help="a scenario file (.toml) or a dataset directory")
+    p.add_argument("path", type=Path, help="a scenario, study, bench or fault-plan file, or a dataset directory")
 
 
 @command("validate", "check a scenario file or a dataset directory", _validate_args)
@@ -59,6 +69,9 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
             checked = open_dataset(path).validate()
             return {"ok": True, "kind": "dataset", "path": str(path), "checked": checked,
                     "message": f"{path}: valid dataset ({'; '.join(checked)})"}
+        other = _validate_other_file(path)
+        if other is not None:
+            return other
         sc = load_scenario(path)
     except (ScenarioError, DatasetError) as exc:
         raise InputError(str(exc)) from None
@@ -68,11 +81,112 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
             "message": f"{path}: valid scenario {sc.name!r} (seed {sc.seed}, {len(hidden)} hidden effects)"}
 
 
+def _validate_other_file(path: Path) -> dict[str, Any] | None:
+    """A study file ([study]), a bench file ([instruments]) or a fault plan ([[faults]] / .json),
+    checked by the reader of the command that uses it (study, acquire, emulate --faults), so that
+    what validate accepts, that command reads; None for anything else (a scenario)."""
+    from benchtwin.schema import SchemaError, load_toml_file
+
+    if path.suffix == ".json" and path.is_file():
+        from benchtwin.twin.emulators.pty import load_fault_plan
+
+        try:
+            n = len(load_fault_plan(path))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
+                "message": f"{path}: valid fault plan ({n} faults)"}
+    try:
+        top = set(load_toml_file(path))
+    except SchemaError:
+        return None  # the scenario reader gives the error, named as before
+    if "scenario" in top:  # a scenario also has [bench] and [instruments.*]
+        return None
+    if "study" in top:
+        from benchtwin.app.study import load_study
+
+        st = load_study(path)
+        return {"ok": True, "kind": "study", "path": str(path), "name": st.name,
+                "message": f"{path}: valid study {st.name!r}"}
+    if "instruments" in top:
+        from benchtwin.hw.acquisition.bench import load_bench
+
+        cfg = load_bench(path)
+        return {"ok": True, "kind": "bench", "path": str(path), "name": cfg.name,
+                "instruments": sorted(cfg.instruments), "message": f"{path}: valid bench file {cfg.name!r}"}
+    if "faults" in top:
+        from benchtwin.twin.emulators.pty import load_fault_plan
+
+        try:
+            n = len(load_fault_plan(path))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
+                "message": f"{path}: valid fault plan ({n} faults)"}
+    return None
+
+
 # ----------------------------------------------------------------------------- main
 
 
+# (module, class) of the project's own error types: each message names the file, key or row and
+# what was expected, so they end as exit 2. Looked up in sys.modules only: a module that was never
+# imported cannot have raised, and `validate` stays fast.
+DOMAIN_ERRORS: tuple[tuple[str, str], ...] = (
+    ("benchtwin.fsio", "OutputError"),
+    ("benchtwin.units", "UnitError"),
+    ("benchtwin.analysis.dataset", "DatasetError"),
+    ("benchtwin.analysis.shift_angle", "PolygonDataError"),
+    ("benchtwin.analysis.eccentricity", "ImageAnalysisError"),
+    ("benchtwin.analysis.model_file", "ModelFileError"),
+    ("benchtwin.schema", "SchemaError"),
+    ("benchtwin.twin.scenario", "ScenarioError"),
+    ("benchtwin.app.study.spec", "StudyError"),
+    ("benchtwin.hw.acquisition.bench", "BenchFileError"),
+    ("benchtwin.hw.acquisition.runner", "RunnerError"),
+    ("benchtwin.hw.drivers.base", "InstrumentError"),
+    ("benchtwin.hw.drivers.base", "FormatError"),
+    ("benchtwin.hw.interfaces", "SoftLimitError"),
+    ("serial", "SerialException"),  # a port that vanished (device unplugged, emulator stopped)
+)
+
+
+def _domain_error_types() -> tuple[type, ...]:
+    types: list[type] = [InputError, OSError]
+    for mod, name in DOMAIN_ERRORS:
+        cls = getattr(sys.modules.get(mod), name, None)
+        if isinstance(cls, type) and issubclass(cls, BaseException):
+            types.append(cls)
+    return tuple(types)
+
+
+def _error_kind(exc: BaseException) -> str:
+    return "input" if isinstance(exc, InputError) else type(exc).__name__
+
+
+def _error_text(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.filename is not None and str(exc.filename) not in str(exc):
+        return f"{exc.filename}: {exc.strerror or exc}"
+    msg = str(exc)
+    if isinstance(exc, KeyError) and exc.args:  # KeyError's str() is the repr of its key
+        msg = str(exc.args[0])
+    return msg or type(exc).__name__
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with usage errors as one JSON object on stdout when ``--json`` was asked."""
+
+    json_mode = False
+
+    def error(self, message: str) -> NoReturn:  # argparse's hook
+        if _Parser.json_mode:
+            print(json.dumps({"ok": False, "error": f"{self.prog}: {message}", "kind": "usage"}))
+            self.exit(2)
+        super().error(message)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="benchtwin", description=__doc__.split("\n\n")[0])
+    parser = _Parser(prog="benchtwin", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"benchtwin {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (fn, add_args, help) in _COMMANDS.items():
@@ -86,28 +200,48 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     _load_commands()
-    ns = build_parser().parse_args(argv)
+    args = sys.argv[1:] if argv is None else list(argv)
+    _Parser.json_mode = "--json" in args
+    try:
+        ns = build_parser().parse_args(args)
+    finally:
+        _Parser.json_mode = False
     try:
         result = ns._handler(ns)
-    except InputError as exc:
-        _emit(ns, {"ok": False, "error": str(exc)}, stream=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        _emit(ns, {"ok": False, "error": "interrupted", "kind": "interrupted"}, error=True)
+        return 130
+    except Exception as exc:
+        domain = isinstance(exc, _domain_error_types())
+        # a deep recursion is input too: deeply nested JSON/TOML that a reader let through
+        domain = domain or isinstance(exc, RecursionError)
+        text = _error_text(exc)
+        if not domain:
+            if os.environ.get("BENCHTWIN_TRACEBACK"):
+                traceback.print_exc()
+            text = (f"internal error ({type(exc).__name__}: {text}); this is a bug in benchtwin, please report "
+                    "it with the command line (BENCHTWIN_TRACEBACK=1 shows the traceback)")
+        _emit(ns, {"ok": False, "error": text, "kind": _error_kind(exc) if domain else "internal"}, error=True)
+        return 2 if domain else 1
     _emit(ns, result)
     return 0
 
 
-def _emit(ns: argparse.Namespace, result: dict[str, Any], stream=None) -> None:
+def _emit(ns: argparse.Namespace, result: dict[str, Any], error: bool = False) -> None:
+    """The result (or error) as one JSON object on stdout under --json, else its message (errors
+    on stderr)."""
     if ns.json:
-        print(json.dumps(result, default=str))
+        print(json.dumps(result, default=str), flush=True)
     else:
-        print(result.get("message") or result.get("error"), file=stream or sys.stdout)
+        print(result.get("message") or result.get("error"), file=sys.stderr if error else sys.stdout, flush=True)
 
 
 def _load_commands() -> None:
     """Import the modules that register further subcommands (kept lazy: `validate` stays fast)."""
     import importlib
 
-    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands"):
+    for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands",
+                "benchtwin.app.commands_cert"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

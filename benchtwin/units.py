@@ -17,7 +17,8 @@ from dataclasses import dataclass
 # Conversion constants (exact by definition).
 DEG = math.pi / 180.0
 ARCMIN = DEG / 60.0
-ARCSEC = DEG / 3600.0  # = pi / 648000 rad
+ARCSEC = DEG / 3600.0  # = pi / 648000 rad (the same float)
+ARCSEC_PER_RAD = 648000.0 / math.pi  # = 1 / ARCSEC (the same float)
 UM = 1e-6
 MM = 1e-3
 NM = 1e-9
@@ -79,7 +80,9 @@ _UNITS: dict[str, tuple[float, str]] = {
 
 DIMENSIONS = frozenset(d for _, d in _UNITS.values())
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+# ASCII digits only: \d would also take other scripts' digits ("١٢ mm"), the one number grammar
+# of benchtwin.schema (issue #13)
+_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
 _QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([^\s\d.+-][^\s]*)?\s*$")
 
 
@@ -120,7 +123,10 @@ def parse_quantity(value: str | int | float, dimension: str) -> float:
                 f"expected a {dimension} with a unit (one of {', '.join(units_of(dimension))}), "
                 f"got the bare number {value!r}"
             )
-        return _finite(float(value), value)
+        try:
+            return _finite(float(value), value)
+        except OverflowError:  # an integer beyond a double
+            raise UnitError(f"{value!r} is too large for a number") from None
     if not isinstance(value, str):
         raise UnitError(f"expected a string like '1.5 {units_of(dimension)[0] if units_of(dimension) else ''}', got {type(value).__name__}")
     m = _QUANTITY.match(value)

@@ -67,7 +67,7 @@ def _check_reading(label: str, r: Any, required: dict[str, str], units: dict[str
     status = r.get("status")
     if not isinstance(status, str) or not status:
         problems.append(f"{label}: 'status' must be a non-empty str, got {status!r}")
-    t = r.get("t_s")
+    t: Any = r.get("t_s")
     if not _is_float(t) or not math.isfinite(float(t)):
         problems.append(f"{label}: 't_s' must be a finite float, got {t!r}")
     ok = status == "ok"
@@ -194,7 +194,7 @@ def check_conformance(instrument: Any, kind: str, *, move_to_deg: float | None =
                 if h and h[0] != 0:
                     problems.append(f"{label}: heads_deg[0] must be 0 (azimuths from head 1), got {h[0]}")
         if label.startswith("move_to") and isinstance(r, dict):
-            dur = r.get("duration_s")
+            dur: Any = r.get("duration_s")
             if _is_float(dur) and float(dur) < 0:
                 problems.append(f"{label}: duration_s is negative ({dur})")
     return problems

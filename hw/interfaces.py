@@ -6,13 +6,63 @@ Return shapes are plain dicts with units in the keys, so a reading can go straig
 line or a dataset row. Every reading carries ``t_s`` (seconds on the runner's clock: simulated for
 the twin, monotonic wall time for hardware) and ``status`` ("ok" or a short reason such as
 "no_signal", "out_of_range"). Instruments never sleep; a runner owns the clock.
+
+The shapes are written twice on purpose, for two checkers: as ``TypedDict`` reading types
+(``ProbeReading``, ``EncoderReading``, ...), which the Protocols' methods return, so that mypy
+tells the kinds apart statically (a probe's ``read() -> ProbeReading`` does not satisfy
+``AngleEncoder.read() -> EncoderReading``; ``hw/conformance_static.py`` and
+``twin/instruments/conformance_static.py`` check every driver and twin instrument that way), and
+as the run-time check of ``hw/conformance.py``. ``runtime_checkable`` ``isinstance`` only sees
+method names, which several kinds share (``read``): at run time ``is_kind`` adds the kind each
+instrument declares (``describe()["kind"]``).
 """
 
-from __future__ import annotations
-
-from typing import Any, Protocol, runtime_checkable
+# No `from __future__ import annotations` here: TypedDict computes __required_keys__ (NotRequired)
+# from the evaluated annotations at class creation.
+from typing import Any, NotRequired, Protocol, TypedDict, runtime_checkable
 
 import numpy as np
+
+
+class Stamped(TypedDict):
+    """What every reading carries: the runner's clock and a status."""
+
+    t_s: float  # seconds on the runner's clock (simulated or monotonic wall time)
+    status: str  # "ok" or a short reason ("no_signal", "out_of_range", ...)
+    message: NotRequired[str]  # the instrument's own words, when it sent some (e.g. an error text)
+
+
+class ProbeReading(Stamped):
+    value_um: float  # displacement along the probe's measuring axis, µm
+
+
+class EncoderReading(Stamped):
+    heads_deg: list[float]  # azimuth of each reading head, head 1 first (0)
+    angle_deg: list[float]  # reading of each head, degrees
+
+
+class AutocollimatorReading(Stamped):
+    x_arcsec: float  # rotation-plane angle (the axis the polygon calibration uses)
+    y_arcsec: float  # the other axis
+
+
+class StagePosition(Stamped):
+    angle_deg: float  # the stage's position in encoder degrees
+    stage_deg: NotRequired[float]  # the stage's own position, when it differs from the encoder's
+
+
+class StageMove(Stamped):
+    target_deg: float  # the commanded position, encoder degrees
+    duration_s: float  # time the move took (>= 0)
+    corrections: NotRequired[int]  # closed-loop corrections on the encoder (drivers)
+    error_deg: NotRequired[float]  # remaining encoder error after them (drivers)
+    iterations: NotRequired[int]  # closed-loop iterations of the twin's servo on the encoder
+
+
+class CameraFrame(Stamped):
+    image: np.ndarray  # 2-D greyscale, uint8 or uint16
+    file: NotRequired[str]  # the frame's file name (folder cameras)
+    truth: NotRequired[dict[str, Any]]  # twin only: what the frame shows exactly (goes to truth/)
 
 
 @runtime_checkable
@@ -31,7 +81,7 @@ class DisplacementProbe(Instrument, Protocol):
     """Inductive/lever probe. ``read()`` -> ``{"value_um": float, "t_s": float, "status": str}``;
     ``value_um`` is the displacement along the probe's measuring axis (see docs/conventions.md)."""
 
-    def read(self) -> dict[str, Any]: ...
+    def read(self) -> ProbeReading: ...
 
 
 @runtime_checkable
@@ -40,7 +90,7 @@ class AngleEncoder(Instrument, Protocol):
     ``{"heads_deg": [azimuth of each head], "angle_deg": [reading of each head], "t_s", "status"}``;
     head 1 is the bench's reference reading."""
 
-    def read(self) -> dict[str, Any]: ...
+    def read(self) -> EncoderReading: ...
 
 
 @runtime_checkable
@@ -48,7 +98,7 @@ class Autocollimator(Instrument, Protocol):
     """Two-axis autocollimator. ``read()`` -> ``{"x_arcsec": float, "y_arcsec": float, "t_s", "status"}``;
     X is the rotation plane (the axis the polygon calibration uses)."""
 
-    def read(self) -> dict[str, Any]: ...
+    def read(self) -> AutocollimatorReading: ...
 
 
 @runtime_checkable
@@ -73,9 +123,9 @@ class RotaryStage(Instrument, Protocol):
     Speed limits: a driver refuses to move a stage whose speed exceeds the bench file's
     ``max_speed`` (and never raises the stage's speed itself)."""
 
-    def move_to(self, target_deg: float) -> dict[str, Any]: ...
+    def move_to(self, target_deg: float) -> StageMove: ...
 
-    def position(self) -> dict[str, Any]: ...
+    def position(self) -> StagePosition: ...
 
 
 class SoftLimitError(ValueError):
@@ -85,7 +135,7 @@ class SoftLimitError(ValueError):
         self.stage = stage
         self.target_deg = float(target_deg)
         self.limits_deg = None if limits_deg is None else (float(limits_deg[0]), float(limits_deg[1]))
-        lim = "" if limits_deg is None else f" [{self.limits_deg[0]:g}, {self.limits_deg[1]:g}] deg"
+        lim = "" if self.limits_deg is None else f" [{self.limits_deg[0]:g}, {self.limits_deg[1]:g}] deg"
         super().__init__(f"{stage}: move to {target_deg} deg refused: outside the soft limits{lim}; "
                          f"nothing was sent, nothing moved")
 
@@ -95,7 +145,7 @@ class Camera(Instrument, Protocol):
     """Microscope camera. ``capture()`` -> ``{"image": 2-D np.ndarray (uint8 or uint16, greyscale),
     "t_s": float, "status": str}``."""
 
-    def capture(self) -> dict[str, Any]: ...
+    def capture(self) -> CameraFrame: ...
 
 
 INSTRUMENT_KINDS: dict[str, type] = {
@@ -105,6 +155,22 @@ INSTRUMENT_KINDS: dict[str, type] = {
     "stage": RotaryStage,
     "camera": Camera,
 }
+
+
+def is_kind(instrument: object, kind: str) -> bool:
+    """Whether ``instrument`` is an instrument of ``kind`` (a key of ``INSTRUMENT_KINDS``): it has
+    the kind's methods (the Protocol) and declares that kind (``describe()["kind"]``). The
+    Protocol alone cannot tell a probe from an encoder at run time: both have ``read``."""
+    proto = INSTRUMENT_KINDS.get(kind)
+    if proto is None:
+        raise KeyError(f"unknown instrument kind {kind!r}; known: {', '.join(INSTRUMENT_KINDS)}")
+    if not isinstance(instrument, proto) or not isinstance(instrument, Instrument):
+        return False
+    try:
+        declared = instrument.describe().get("kind")
+    except Exception:  # noqa: BLE001 - an instrument whose describe() fails is of no kind
+        return False
+    return bool(declared == kind)
 
 
 def check_image(image: Any) -> np.ndarray:

@@ -18,6 +18,7 @@ from benchtwin.analysis.dataset import (
     DatasetError,
     DatasetWriter,
     open_dataset,
+    column_range,
     parse_table,
     table_to_csv,
 )
@@ -41,9 +42,9 @@ def make_dataset(root: Path, **overrides) -> Path:
     rows = [(0.0, j, i, (i - 1) * 90.0, 0.1 * i - 0.05 * j, float(4 * j + i)) for j in range(1, 5) for i in range(1, 5)]
     w.write_table("polygon", dict(zip(["shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s"], map(list, zip(*rows)))))
     w.write_table("heads", {"theta_deg": [0.0, 0.0, 90.0, 90.0], "head": [1, 2, 1, 2], "delta_arcsec": [0.0, 0.3, 0.0, -0.2]})
-    img = np.full((12, 16), 200, np.uint8)
-    img[:, 8:] = 30
-    for k in range(2):
+    for k in range(2):  # two frames at different angles are never pixel-identical (the reader checks)
+        img = np.full((12, 16), 200, np.uint8)
+        img[:, 8 + k:] = 30
         w.write_image(f"ccd/img_{k:03d}.png", img)
     w.write_table("ccd/index", {"k": [0, 1], "theta_deg": [0.0, 6.0], "file": ["img_000.png", "img_001.png"]})
     w.close()
@@ -63,7 +64,7 @@ def test_valid_dataset_round_trip(tmp_path):
 def test_analysis_runs_without_truth_folder(tmp_path):
     """Truth is never needed to read a dataset (the twin writes it; the reader never opens it)."""
     root = make_dataset(tmp_path / "ds")
-    w = DatasetWriter(root, MANIFEST)
+    w = DatasetWriter(root, MANIFEST, prepared=True)  # adds truth/ to a finished dataset (the folder is not empty)
     w.write_truth_json("params.json", {"e_um": 7.1})
     import shutil
 
@@ -145,7 +146,17 @@ def table_columns(draw, name):
     n = draw(st.integers(min_value=0, max_value=20))
     cols = {}
     for col, typ in {**spec.required, **{k: v for k, v in spec.optional.items() if draw(st.booleans())}}.items():
-        cols[col] = draw(st.lists(_strats[typ], min_size=n, max_size=n))
+        # values within the column's range or enumeration (the reader enforces them, issue #13)
+        rng = column_range(spec, col)
+        if col in spec.choices:
+            strat = st.sampled_from(spec.choices[col])
+        elif rng is not None and typ is int:
+            strat = st.integers(min_value=int(rng[0]), max_value=int(rng[1]))
+        elif rng is not None:
+            strat = st.floats(min_value=rng[0], max_value=rng[1], allow_nan=False, width=64)
+        else:
+            strat = _strats[typ]
+        cols[col] = draw(st.lists(strat, min_size=n, max_size=n))
     return cols
 
 

@@ -123,13 +123,17 @@ def test_broken_dataset_names_the_file(jia_small, tmp_path):
 
 
 def _blank_frames(ds: Path, n: int) -> list[str]:
-    """Replace the first n CCD frames by a uniform grey image (no line ends: the image analysis fails)."""
+    """Replace the first n CCD frames by a fogged one: uniform grey plus its own sensor noise (no line
+    ends: the image analysis fails; each frame differs, as real fogged frames do, so the dataset
+    reader's duplicate-frame check does not take them for copies)."""
     import cv2
 
     files = [line.split(",")[2] for line in (ds / "ccd" / "index.csv").read_text().splitlines()[1:]]
-    for f in files[:n]:
+    for i, f in enumerate(files[:n]):
         img = cv2.imread(str(ds / "ccd" / f), cv2.IMREAD_UNCHANGED)
-        cv2.imwrite(str(ds / "ccd" / f), np.full_like(img, int(np.median(img))))
+        rng = np.random.default_rng([125, i])
+        fog = np.median(img) + rng.normal(0.0, 2.0, img.shape)
+        cv2.imwrite(str(ds / "ccd" / f), np.clip(np.rint(fog), 0, np.iinfo(img.dtype).max).astype(img.dtype))
     return files[:n]
 
 

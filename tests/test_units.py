@@ -63,3 +63,20 @@ def test_quantise_to_a_display_step():
     assert repr(quantise(1.005001, 0.005)) == "1.005"
     assert quantise(1.0, 0.39) == 3 * 0.39               # any other step: the nearest multiple
     assert quantise(0.123456, 0.0) == 0.123456           # no step: unchanged
+
+
+def test_unit_constants_live_only_in_the_units_module():
+    """One place for unit factors: no module of the package defines its own arcsecond, degree or
+    micrometre constant (they once were defined in 7 places); they import benchtwin.units."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    pattern = re.compile(r"^(ARCSEC|ARCSEC_PER_RAD|ARCSEC_RAD|DEG|UM|MM|NM)\s*=|648000|206264", re.M)
+    offenders = []
+    for folder in ("benchtwin", "twin", "analysis", "hw"):
+        for p in (root / folder).rglob("*.py"):
+            if p.name == "units.py" and p.parent.name == "benchtwin":
+                continue
+            offenders += [f"{p.relative_to(root)}: {m.group(0)}" for m in pattern.finditer(p.read_text())]
+    assert not offenders, offenders

@@ -65,7 +65,8 @@ from typing import Any
 
 import numpy as np
 
-ARCSEC = math.pi / 648000.0
+from benchtwin.units import ARCSEC
+
 TWO_PI = 2.0 * math.pi
 HIDDEN_STREAMS = {"polygon_pitch_pattern": 201}
 

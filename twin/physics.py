@@ -65,11 +65,12 @@ import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from benchtwin.units import ARCSEC
+
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import Hidden, TrueScenario
 from .pose import BenchPose, BodyPose
 
-ARCSEC = math.pi / 648000.0
 TWO_PI = 2.0 * math.pi
 
 # Seeded random streams: one independent stream per generated quantity, so adding a quantity

@@ -9,15 +9,18 @@ expected, so a metrologist can fix the file without reading code.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from benchtwin.schema import SchemaError, check_version, load_toml_file
 from benchtwin.units import UnitError, parse_quantity
 
+from .scenario_schema import DEG as DEG_RAD
 from .scenario_schema import HIDDEN_EFFECTS, OPTIONAL_SCHEMA, REQUIRED_SECTIONS, SCHEMA, Field
+
+MAX_LIST = 100_000  # elements of a list-valued key (the longest: a motion table of one reading per stop)
 
 DEFAULT_SCENARIO = "jia2019.toml"
 
@@ -94,14 +97,13 @@ def default_scenario_path() -> Path:
 def load_scenario(path: str | Path | None = None) -> Scenario:
     """Read and validate a scenario file; ``None`` loads the embedded default (jia2019)."""
     p = Path(path) if path is not None else default_scenario_path()
-    if not p.is_file():
+    if not p.exists():
         raise ScenarioError(f"{p}: no such scenario file")
     try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{p}: not UTF-8 text: {exc}") from None
+        # regular file, size and nesting limits, finite numbers (benchtwin.schema; issue #13)
+        raw = load_toml_file(p, what="scenario file")
+    except SchemaError as exc:
+        raise ScenarioError(str(exc)) from None
     sc = validate(raw, str(p))
     sc.path = p
     return sc
@@ -111,6 +113,9 @@ def validate(raw: Mapping[str, Any], where: str = "<scenario>") -> Scenario:
     """Validate a parsed TOML mapping; raises ``ScenarioError`` on the first problem found."""
     if not isinstance(raw, Mapping):
         raise ScenarioError(f"{where}: expected a table at the top level")
+    # the file format's optional version (missing = 1; an unknown one is refused, not guessed)
+    check_version(raw, where, fail=ScenarioError)
+    raw = {k: v for k, v in raw.items() if k != "version"}
     known_top = {s.split(".")[0] for s in SCHEMA} | {"hidden"} | set(OPTIONAL_SCHEMA)
     for key in raw:
         if key not in known_top:
@@ -238,12 +243,16 @@ def _convert(value: Any, field: Field, path: str, where: str) -> Any:
                 if not isinstance(v, str) or (field.choices and v not in field.choices):
                     raise fail(f"{v!r} is not one of {', '.join(field.choices or ())}")
             return list(value)
+        if len(value) > MAX_LIST:
+            raise fail(f"expected at most {MAX_LIST} values, got {len(value)}")
         out = []
         for i, v in enumerate(value):
             try:
                 out.append(parse_quantity(v, inner))
             except UnitError as exc:
                 raise fail(f"item {i}: {exc}") from None
+            # every element has the field's range (issue #13: heads = 1e300° passed)
+            _check_range(out[-1], field, lambda m, i=i: fail(f"item {i}: {m}"))
         return out
     try:
         x = parse_quantity(value, dim)
@@ -290,8 +299,35 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         for k, v in mt.items():
             if v is not None and len(v) != n:
                 raise ScenarioError(f"{where}: motion_table.{k}: expected {n} values (as many as motion_table.theta), got {len(v)}")
+        th = mt["theta"]
+        bad = [i for i in range(1, n) if not th[i] > th[i - 1]]
+        if n < 2 or bad:
+            # the twin interpolates the table periodically (scipy): it needs θ increasing
+            raise ScenarioError(f"{where}: motion_table.theta: expected at least 2 strictly increasing angles"
+                                + (f"; item {bad[0]} is not above item {bad[0] - 1}" if bad else ""))
+        if th[-1] - th[0] >= 2 * 3.141592653589793:
+            raise ScenarioError(f"{where}: motion_table.theta: expected angles within one turn (< 360°)")
         data["motion_table"] = {k: v for k, v in mt.items() if v is not None}
-    e = data["errors"]["eccentricity"]
+    for key in ("heads",):
+        v = b[key]
+        if len(set(v)) != len(v):
+            raise ScenarioError(f"{where}: bench.{key}: two heads at the same azimuth")
+        if v and v[0] != 0.0:
+            raise ScenarioError(f"{where}: bench.heads: item 0 is head 1, the reference, at 0 deg; got {v[0]:g} rad")
+    pr = data["procedure"]
+    if pr["selfcal"] and len(b["heads"]) == 2:
+        raise ScenarioError(f"{where}: procedure.selfcal: needs 1 head (no sweep) or at least 3 (bench.heads has 2): "
+                            "with 2 heads the self-calibration has no residual degrees of freedom, so no "
+                            "uncertainty (Hsieh 2022 sec. 2.3)")
+    shifts = pr["polygon_shifts"]
+    if len(set(shifts)) != len(shifts):
+        # simulate would write the same readings twice: a dataset its own validate rejects (issue #13)
+        dup = next(s for s in shifts if shifts.count(s) > 1)
+        raise ScenarioError(f"{where}: procedure.polygon_shifts: the shift {dup / DEG_RAD:g} deg is listed twice; "
+                            "expected distinct shift angles")
+    if len(set(pr["directions"])) != len(pr["directions"]):
+        raise ScenarioError(f"{where}: procedure.directions: a direction is listed twice")
+    e = data["errors"]["eccentricity"]  # noqa: E501
     if e > 0.05 * b["optical_radius"]:
         raise ScenarioError(f"{where}: errors.eccentricity ({e:g} m) is over 5 % of bench.optical_radius")
     if data["procedure"]["traditional_start_face"] > b["polygon_faces"]:

@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from benchtwin.units import ARCSEC, DEG, MM, UM
+
 _REQUIRED = object()
 
 
@@ -32,9 +34,6 @@ class Field:
         return self.default is _REQUIRED
 
 
-MM, UM = 1e-3, 1e-6
-DEG = 3.141592653589793 / 180
-ARCSEC = DEG / 3600
 
 SCHEMA: dict[str, dict[str, Field]] = {
     "scenario": {
@@ -50,7 +49,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "grating_duty": Field("dimensionless", 0.5, lo=0.05, hi=0.95),
         "encoder_lines": Field("int", 0, lo=0, hi=10_000_000, doc="0: derive from period and radius"),
         "encoder_resolution": Field("angle", lo=0.0, hi=1 * DEG),
-        "heads": Field("list[angle]", [0.0], doc="head azimuths from head 1, CCW"),
+        "heads": Field("list[angle]", [0.0], lo=0.0, hi=360 * DEG, doc="head azimuths from head 1, CCW"),
         "L1": Field("length", lo=0.0, hi=2.0, doc="top sphere -> disk"),
         "L2": Field("length", lo=1 * MM, hi=2.0, doc="top sphere -> bottom sphere"),
         "bearing_top_z": Field("length", lo=-2.0, hi=2.0, doc="from the disk plane"),
@@ -133,10 +132,11 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "pixel_scale_error": Field("dimensionless", 0.0, lo=-0.1, hi=0.1),
     },
     "procedure": {
-        "radial_reps": Field("int", 3, lo=1, hi=100),
+        "radial_reps": Field("int", 3, lo=1, hi=25, doc="range method: d_n tabulated for n ≤ 25"),
         "radial_positions": Field("int", 360, lo=8, hi=100_000),
-        "ccd_step": Field("angle", 6 * DEG, lo=0.01 * DEG, hi=180 * DEG),
-        "polygon_shifts": Field("list[angle]", [0.0]),
+        "ccd_step": Field("angle", 6 * DEG, lo=0.5 * DEG, hi=180 * DEG,
+                          doc="≥ 0.5°: at most 720 frames (a dataset's limit)"),
+        "polygon_shifts": Field("list[angle]", [0.0], lo=0.0, hi=360 * DEG, doc="distinct shift angles S"),
         "traditional_start_face": Field("int", 1, lo=1, hi=360),
         "selfcal": Field("bool", False),
         "selfcal_step": Field("angle", 1 * DEG, lo=0.001 * DEG, hi=90 * DEG),
@@ -151,11 +151,11 @@ OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
     # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
     # a real spindle). Equal-length lists; missing motion columns count as 0.
     "motion_table": {
-        "theta": Field("list[angle]"),
-        "dx": Field("list[length]", None),
-        "dy": Field("list[length]", None),
-        "tilt_x": Field("list[angle]", None),
-        "tilt_y": Field("list[angle]", None),
+        "theta": Field("list[angle]", lo=-360 * DEG, hi=360 * DEG, doc="strictly increasing, within one turn"),
+        "dx": Field("list[length]", None, lo=-1 * MM, hi=1 * MM),
+        "dy": Field("list[length]", None, lo=-1 * MM, hi=1 * MM),
+        "tilt_x": Field("list[angle]", None, lo=-1 * DEG, hi=1 * DEG),
+        "tilt_y": Field("list[angle]", None, lo=-1 * DEG, hi=1 * DEG),
     },
 }
 
@@ -168,8 +168,9 @@ REQUIRED_SECTIONS = ("scenario", "bench", "bearings", "errors")
 HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
     "graduation_error": {
         "orders": Field("list[dimensionless]", [], lo=1, hi=1000, doc="disk harmonics k (integers)"),
-        "amplitudes": Field("list[angle]", [], doc="a_k: E(g) += a_k·cos(k·g − φ_k), g the line's nominal value"),
-        "phases": Field("list[angle]", [], doc="φ_k"),
+        "amplitudes": Field("list[angle]", [], lo=-600 * ARCSEC, hi=600 * ARCSEC,
+                            doc="a_k: E(g) += a_k·cos(k·g − φ_k), g the line's nominal value"),
+        "phases": Field("list[angle]", [], lo=-360 * DEG, hi=360 * DEG, doc="φ_k"),
     },
     "optical_radius": {
         "relative": Field("dimensionless", 0.0, lo=-0.2, hi=0.2,

@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.analysis.dataset import DatasetWriter
+from benchtwin.analysis.dataset import JOURNAL, DatasetError, DatasetWriter
+from benchtwin.fsio import DirLock, OutputError, check_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
@@ -50,26 +51,40 @@ from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
 from .physics import Bench
 
-JOURNAL = "journal.jsonl"
 ALPHA_GRID_STEP_DEG = 0.1
+
+
+def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = True) -> list[dict[str, Any]]:
+    """The scenario's ``[procedure]`` in the procedure language (``hw.acquisition.procedures``:
+    specs in degrees and seconds), in the order the simulation runs them: radial motion, CCD sweep,
+    polygon shift-angle, self-calibration (with more than one head). The same specs are the
+    emulated bench file's ``[[procedure]]`` tables (``twin.emulators.serve``). ``probes``: the
+    radial-motion probes (default: the top and bottom probes, plus the X probes when the
+    scenario has them); ``ccd``: include the CCD sweep."""
+    b, pr = sc["bench"], sc["procedure"]
+    dwell = float(pr["dwell"])
+    if probes is None:
+        probes = ["probe_top", "probe_bottom"]
+        if sc["instruments"]["probe"]["x_probes"]:
+            probes += ["probe_top_x", "probe_bottom_x"]
+    dirs = list(pr["directions"])
+    specs: list[dict[str, Any]] = [{"type": "radial_motion", "reps": int(pr["radial_reps"]),
+                                    "positions": int(pr["radial_positions"]), "dwell": dwell,
+                                    "probes": list(probes)}]
+    if ccd:
+        specs.append({"type": "ccd_sweep", "step": _deg(pr["ccd_step"]), "dwell": dwell, "camera": "ccd"})
+    specs.append({"type": "polygon_shift_angle", "shifts": [_deg(s) for s in pr["polygon_shifts"]],
+                  "reps": int(pr["polygon_reps"]), "directions": dirs, "dwell": dwell,
+                  "faces": int(b["polygon_faces"])})
+    if pr["selfcal"] and len(b["heads"]) > 1:
+        specs.append({"type": "selfcal", "step": _deg(pr["selfcal_step"]), "directions": dirs, "dwell": dwell,
+                      "heads": [_deg(h) for h in b["heads"]]})
+    return specs
 
 
 def sim_procedure(sc: Any) -> list:
     """The scenario's procedures as one list of steps (a dry run of the simulation)."""
-    b, pr = sc["bench"], sc["procedure"]
-    dwell = float(pr["dwell"])
-    probes = ["probe_top", "probe_bottom"]
-    if sc["instruments"]["probe"]["x_probes"]:
-        probes += ["probe_top_x", "probe_bottom_x"]
-    steps: list = []
-    steps += P.radial_motion_run(int(pr["radial_reps"]), int(pr["radial_positions"]), dwell, probes)
-    steps += P.ccd_sweep(_deg(pr["ccd_step"]), dwell)
-    steps += P.polygon_shift_angle(int(b["polygon_faces"]), [_deg(s) for s in pr["polygon_shifts"]],
-                                   int(pr["polygon_reps"]), list(pr["directions"]), dwell)
-    if pr["selfcal"] and len(b["heads"]) > 1:
-        steps += P.selfcal_sweep([_deg(h) for h in b["heads"]], _deg(pr["selfcal_step"]),
-                                 list(pr["directions"]), dwell)
-    return steps
+    return list(P.steps_from_specs(scenario_procedures(sc)))
 
 
 def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera: bool = True):
@@ -136,17 +151,35 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
 
 
 def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False) -> Path:
-    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it."""
+             resume: bool = False, force: bool = False, live: Any | None = None) -> Path:
+    """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
+
+    ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
+    ``force`` clears it first (``benchtwin.fsio.check_output_dir``). A lock file keeps a second
+    run off the folder; the manifest is written last (a killed run leaves no dataset).
+    ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
+    of ``simulate --live``); it only watches the run."""
+    out = Path(out_dir)
+    try:
+        check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+    try:
+        with DirLock(out, "simulate"):
+            return _simulate(sc, out, progress, backend, resume, live)
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+
+
+def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None) -> Path:
     from tqdm import tqdm
 
-    out = Path(out_dir)
     steps = sim_procedure(sc)
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench))
+    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume)
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
     stage: SimRotaryStage = inst["stage"]
@@ -169,11 +202,17 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
             truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
         bar.update(1)
+        if live is not None:
+            live.on_step(i, step, context, replay)
 
     def on_row(row, result):
         if row["type"] == "capture":
             writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+        if live is not None:
+            live.on_row(row, result)
 
+    if live is not None:
+        live.start(len(steps))
     try:
         rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
                       fsync=False).run(steps, resume=resume)

@@ -21,12 +21,11 @@ import ``tracing``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 
 import numpy as np
 
-ARCSEC_PER_RAD = 648000.0 / math.pi
+from benchtwin.units import ARCSEC_PER_RAD as ARCSEC_PER_RAD  # re-exported to the effect modules
 
 #: Harmonic order set of the radial-motion series (Jia eq. 7: orders 2…10; 0 = probe position and
 #: 1 = sphere centring are removed).

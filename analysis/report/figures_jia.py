@@ -48,7 +48,7 @@ def fig_radial_motion(rm: dict, show_reps: bool = True) -> Figure:
                 ax.plot(th[o], rep[o], color=col, lw=0.6, alpha=0.35)
         ax.plot(th[o], np.asarray(rm[f"{key}_um"])[o], color=col, lw=1.6, label=label)
     s = rm.get("summary", {}).get("disk")
-    title = "Radial error motion (harmonics 2…%d, eq. 7)" % rm.get("order", 10)
+    title = f"Radial error motion (harmonics 2…{rm.get('order', 10)}, eq. 7)"
     if s:
         title += f"\ndisk: total {s['total_um']:.3f} µm, sync {s['synchronous_um']:.3f} µm, async {s['asynchronous_um']:.3f} µm"
     ax.set_title(title, fontsize=10)

@@ -62,12 +62,9 @@ class Report:
                 f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>\n{body}\n</body></html>\n")
 
     def write(self, path: str | Path) -> Path:
-        p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_suffix(p.suffix + ".tmp")
-        tmp.write_text(self.render(), encoding="utf-8")
-        tmp.replace(p)
-        return p
+        from benchtwin.fsio import atomic_write_text
+
+        return atomic_write_text(path, self.render())
 
 
 def _td(v: Any) -> str:

@@ -9,9 +9,12 @@ from __future__ import annotations
 import argparse
 import importlib.util
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from benchtwin.cli import InputError, command
+
+if TYPE_CHECKING:
+    from benchtwin.twin.scenario import Scenario
 
 
 def _have(module: str) -> bool:
@@ -21,7 +24,7 @@ def _have(module: str) -> bool:
         return False
 
 
-def _scenario(path: Path | None):
+def _scenario(path: Path | None) -> Scenario:
     from benchtwin.twin.scenario import ScenarioError, load_scenario
 
     try:
@@ -38,15 +41,39 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto",
                    help="CCD renderer (auto: pyrender when OpenGL is available)")
+    _force_arg(p)
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
+
+
+def _force_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty output folder (default: refuse it; docs/reliability.md)")
+
+
+def _remap(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
+    """Paths built under an AtomicDir's temporary folder, as they are after its rename."""
+    return {k: str(out / Path(v).relative_to(tmp)) if Path(v).is_relative_to(tmp) else v for k, v in paths.items()}
 
 
 def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
+    from benchtwin.app.live import live_for
     from benchtwin.twin.simulate import simulate
 
     sc = _scenario(ns.scenario)
-    out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend)
+    live = live_for(ns, f"simulate {sc.name}")
+    try:
+        out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend, force=ns.force,
+                       live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        raise
+    if live is not None:
+        live.close("finished")
     return {"ok": True, "dataset": str(out), "scenario": sc.name, "seed": sc.seed,
-            "message": f"dataset written: {out}"}
+            **({"live": str(live.path)} if live else {}), "message": f"dataset written: {out}"}
 
 
 # ----------------------------------------------------------------------------- analyze
@@ -57,29 +84,32 @@ def _analyze_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--order", type=int, default=10, help="Fourier order (Jia eqs. 6, 10); default 10")
     p.add_argument("--model", type=Path, default=None,
                    help="a model file from close-loop: its effects join the error model")
+    _force_arg(p)
 
 
 def cmd_analyze(ns: argparse.Namespace) -> dict[str, Any]:
-    from benchtwin.analysis.dataset import DatasetError
-    from benchtwin.analysis.pipeline import analyze
-
-    try:
-        res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=False)
-    except DatasetError as exc:
-        raise InputError(str(exc)) from None
+    res = _analyze_atomically(ns, close_loop=False)
     return {"ok": True, **res["paths"], "message": f"report: {res['paths']['report']}"}
 
 
-def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
-    from benchtwin.analysis.dataset import DatasetError
+def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, Any]:
+    """analyze/close-loop into a temporary sibling of OUT, renamed onto OUT when complete: a killed
+    analysis leaves neither a half report nor the previous results.json under OUT (issue #13)."""
     from benchtwin.analysis.pipeline import analyze
+    from benchtwin.fsio import AtomicDir
 
-    try:
-        res = analyze(ns.dataset, ns.out, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=True)
-    except DatasetError as exc:
-        raise InputError(str(exc)) from None
+    from benchtwin.app.bench_view import bench_preface_for_dataset
+
+    with AtomicDir(ns.out, force=ns.force, what="analysis output folder") as tmp:
+        res = analyze(ns.dataset, tmp, order=ns.order, model_file=ns.model,
+                      progress=not (ns.quiet or ns.json), close_loop=close_loop,
+                      preface=bench_preface_for_dataset(ns.dataset))
+    res["paths"] = _remap(res["paths"], tmp, ns.out)
+    return res
+
+
+def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
+    res = _analyze_atomically(ns, close_loop=True)
     names = [e["name"] for e in res["results"].get("identified_effects", [])]
     return {"ok": True, **res["paths"], "identified_effects": names,
             "message": f"identified: {', '.join(names) or 'none'}; report: {res['paths']['report']}"}
@@ -94,18 +124,35 @@ def _run_args(p: argparse.ArgumentParser) -> None:
                    help="output directory (default: out/<scenario name>); the dataset goes to OUT/dataset")
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto")
     p.add_argument("--no-close-loop", action="store_true", help="stop after the Jia/Hsieh analysis")
+    _force_arg(p)
 
 
 def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.analysis.pipeline import analyze
+    from benchtwin.fsio import AtomicDir
     from benchtwin.twin.simulate import simulate
 
     sc = _scenario(ns.scenario)
     out = ns.out or Path("out") / sc.name
     quiet = ns.quiet or ns.json
-    ds = simulate(sc, out / "dataset", progress=not quiet, backend=ns.backend)
-    res = analyze(ds, out, progress=not quiet, close_loop=not ns.no_close_loop)
-    return {"ok": True, "dataset": str(ds), **res["paths"], "message": f"report: {res['paths']['report']}"}
+    from benchtwin.app.bench_view import bench_preface
+
+    # the whole run (dataset + analysis) is built beside OUT and renamed onto it when complete
+    with AtomicDir(out, force=ns.force, what="run output folder") as tmp:
+        ds = simulate(sc, tmp / "dataset", progress=not quiet, backend=ns.backend)
+        res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
+    paths = _remap({"dataset": str(ds), **res["paths"]}, tmp, out)
+    return {"ok": True, **paths, "message": f"report: {paths['report']}"}
+
+
+def _study_output(out: Path, force: bool) -> None:
+    """A study's folder is resumable (its cache/ is keyed by content): an earlier study folder is
+    continued; any other non-empty folder is refused unless --force (which clears it)."""
+    from benchtwin.fsio import check_output_dir
+
+    if (out / "cache").is_dir() and not out.is_symlink() and not force:
+        return
+    check_output_dir(out, force=force, what="study output folder")
 
 
 if _have("benchtwin.twin.simulate"):
@@ -123,12 +170,15 @@ if _have("benchtwin.app.study"):
         p.add_argument("-o", "--out", type=Path, default=None, help="output directory (default: out/<study name>)")
         p.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://HOST:PORT (default: local pool)")
         p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+        _force_arg(p)
 
     @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
     def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:
-        from benchtwin.app.study import run_study
+        from benchtwin.app.study import load_study, run_study
 
+        load_study(ns.study)  # a bad study file: exit 2 before any output folder is touched
         out = ns.out or Path("out") / ns.study.stem
+        _study_output(out, ns.force)
         res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers, progress=not (ns.quiet or ns.json))
         # run_study's dict is JSON-ready (it is also written as study.json): counts, wall time,
         # fidelity per output and the target verdict go to --json as they are

@@ -7,6 +7,7 @@ Registered by ``benchtwin.cli._load_commands`` (module name ``benchtwin.app.comm
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import threading
 from pathlib import Path
@@ -61,11 +62,12 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *a: stop.set())
     if not (ns.quiet or ns.json):
+        pts = session.server.pts() if session.server is not None and not ns.tcp else {}
         for name, link in session.ports().items():
             ser = session.emulators[name].SERIAL
-            line = f"{ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
-            where = "" if ns.tcp else f" -> {session.server.pts()[name]}"
-            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}, {line})", flush=True)
+            line = "" if ns.tcp else f", {ser['baudrate']} {ser['bytesize']}{ser['parity']}{ser['stopbits']}"
+            where = f" -> {pts[name]}" if name in pts else ""
+            print(f"{name:16s} {link}{where}  ({session.emulators[name].PROTOCOL}{line})", flush=True)
         if session.camera is not None:
             print(f"{'ccd':16s} {session.camera.folder} (hot folder: numbered PNG frames)", flush=True)
     print(f"bench file: {bench}", flush=True)
@@ -97,16 +99,51 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("bench", type=Path, help="bench file (TOML, docs/bench-file.md)")
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
+    p.add_argument("--force", action="store_true",
+                   help="start again in a non-empty folder: deletes its contents, journal included")
+    from benchtwin.app.live import add_live_argument
+
+    add_live_argument(p)
+
+
+_DEVICE_GONE = (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF, errno.EPIPE)
+
+
+def _error_line(exc: BaseException) -> str:
+    port = getattr(exc, "port", None) or getattr(exc, "filename", None)
+    text = str(exc) or type(exc).__name__
+    return f"{port}: {text}" if port and str(port) not in text else text
 
 
 @command("acquire", "run a bench file's procedures on real or emulated instruments; writes a dataset", _acquire_args)
 def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
-    from benchtwin.hw.acquisition.acquire import acquire
-    from benchtwin.hw.acquisition.bench import BenchFileError
-    from benchtwin.hw.acquisition.runner import RunnerError
+    import serial
 
+    from benchtwin.app.live import live_for
+    from benchtwin.hw.acquisition.acquire import JOURNAL, acquire
+    from benchtwin.hw.drivers.base import InstrumentError
+
+    if ns.resume and ns.force:
+        raise InputError("acquire: --resume and --force contradict each other (continue the run, or delete it)")
+    live = live_for(ns, f"acquire {ns.bench.stem}")
     try:
-        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json))
-    except (BenchFileError, RunnerError) as exc:
-        raise InputError(str(exc)) from None
-    return {"ok": True, "dataset": str(out), "message": f"dataset written: {out}"}
+        out = acquire(ns.bench, ns.out, resume=ns.resume, progress=not (ns.quiet or ns.json), force=ns.force,
+                      live=live)
+    except BaseException as exc:
+        if live is not None:
+            live.close(f"failed: {type(exc).__name__}: {exc}")
+        if not isinstance(exc, (InstrumentError, serial.SerialException, OSError)):
+            raise
+        # an instrument that stopped answering (retries exhausted) or a port that vanished (EIO,
+        # ENXIO, ENODEV on a pty or USB adapter): the readings taken so far are in the journal; say
+        # so and how to continue. Other OSErrors (a folder not writable) take the generic exit 2.
+        if isinstance(exc, OSError) and not isinstance(exc, serial.SerialException) and exc.errno not in _DEVICE_GONE:
+            raise
+        j = ns.out / JOURNAL
+        kept = (f"the readings taken so far are kept in {j}; continue with `benchtwin acquire {ns.bench} "
+                f"-o {ns.out} --resume`" if j.is_file() else "no reading was taken")
+        raise InputError(f"{ns.bench}: acquisition stopped by an instrument error: {_error_line(exc)}; {kept}") from None
+    if live is not None:
+        live.close("finished")
+    return {"ok": True, "dataset": str(out), **({"live": str(live.path)} if live else {}),
+            "message": f"dataset written: {out}"}

@@ -32,7 +32,7 @@ import csv
 import json
 import math
 import shutil
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -137,94 +137,95 @@ def simulate_and_analyze(scenario: Any, out_dir: str | Path, rep_seed: int | Non
     return json.loads((out / "analysis" / "results.json").read_text(encoding="utf-8"))
 
 
-def study_outputs(results: dict[str, Any], out_dir: str | Path, names: Iterable[str]) -> dict[str, float]:
-    """The named outputs (``FULL_OUTPUTS``, ``identified.<effect>``) of one simulate → analyze run.
+def _rms0(x: Any) -> float:
+    x = np.asarray(x, float)
+    return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
 
-    ``results`` is what ``simulate_and_analyze`` returned for ``out_dir`` (whose ``truth/`` gives the
-    true α). A missing piece raises ``RunOutputError`` naming the output and what is missing."""
-    out = Path(out_dir)
-    cache: dict[str, Any] = {}
 
-    def need(key: str, name: str) -> Any:
-        node = results.get(key)
+def _rms(x: Any) -> float:
+    return float(np.sqrt(np.mean(np.square(np.asarray(x, float)))))
+
+
+class _RunOutputs:
+    """The pieces the outputs of one simulate → analyze run are computed from: the results (each
+    missing piece an error naming the output) and the twin's truth (read once)."""
+
+    def __init__(self, results: dict[str, Any], out_dir: Path):
+        self.results = results
+        self.out = out_dir
+        self._truth: tuple[np.ndarray, np.ndarray] | None = None
+
+    def need(self, key: str, name: str) -> Any:
+        node = self.results.get(key)
         if node is None:
             why = "the close-the-loop step did not run" if key in CLOSE_LOOP_KEYS else \
                 "the dataset lacks the data it comes from (see the results' notes)"
-            notes = "; ".join(results.get("notes", []))
+            notes = "; ".join(self.results.get("notes", []))
             raise RunOutputError(f"output {name!r}: results.json has no {key!r} ({why}){': ' + notes if notes else ''}")
         return node
 
-    def measured(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        e = need("encoder_error_arcsec", name)
+    def measured(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        e = self.need("encoder_error_arcsec", name)
         th, v = np.asarray(e["theta_deg"], float), np.asarray(e["value"], float)
         if e.get("u") is None:
             raise RunOutputError(f"output {name!r}: results.json encoder_error_arcsec has no u")
         return th, v, np.asarray(e["u"], float)
 
-    def true_alpha(name: str) -> tuple[np.ndarray, np.ndarray]:
-        if "truth" not in cache:
-            p = out / "truth" / "encoder_error.csv"
+    def true_alpha(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        if self._truth is None:
+            p = self.out / "truth" / "encoder_error.csv"
             if not p.is_file():
                 raise RunOutputError(f"output {name!r}: no twin truth at {p}")
             with p.open(newline="", encoding="utf-8") as f:
                 rows = list(csv.DictReader(f))
             col = "alpha_h1_arcsec" if rows and "alpha_h1_arcsec" in rows[0] else "alpha_arcsec"
-            cache["truth"] = (np.array([float(r["theta_deg"]) for r in rows]),
-                              np.array([float(r[col]) for r in rows]))
-        return cache["truth"]
+            self._truth = (np.array([float(r["theta_deg"]) for r in rows]), np.array([float(r[col]) for r in rows]))
+        return self._truth
 
-    def meas_minus_true(name: str) -> np.ndarray:
-        th, v, _ = measured(name)
-        g, a = true_alpha(name)
+    def meas_minus_true(self, name: str) -> np.ndarray:
+        th, v, _ = self.measured(name)
+        g, a = self.true_alpha(name)
         t = np.interp(th % 360.0, g, a, period=360.0)
-        return (v - v.mean()) - (t - t.mean())
+        result: np.ndarray = (v - v.mean()) - (t - t.mean())
+        return result
 
-    def rms0(x: np.ndarray) -> float:
-        x = np.asarray(x, float)
-        return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
 
-    def rms(x: Any) -> float:
-        return float(np.sqrt(np.mean(np.square(np.asarray(x, float)))))
+# output name -> how it is computed from one run (FULL_OUTPUTS describes each in words)
+_OUTPUTS: dict[str, Callable[[_RunOutputs, str], float]] = {
+    "measured_angle_error_pv_arcsec": lambda r, n: float(np.ptp(r.measured(n)[1])),
+    "measured_angle_error_rms_arcsec": lambda r, n: _rms0(r.measured(n)[1]),
+    "measured_angle_error_u_arcsec": lambda r, n: _rms(r.measured(n)[2]),
+    "predicted_angle_error_pv_arcsec": lambda r, n: float(np.ptp(r.need("model_prediction_arcsec", n)["value"])),
+    "predicted_angle_error_rms_arcsec": lambda r, n: _rms0(r.need("model_prediction_arcsec", n)["value"]),
+    "predicted_angle_error_u_arcsec": lambda r, n: _rms(r.need("model_prediction_arcsec", n)["u"]),
+    "residual_pv_arcsec": lambda r, n: float(r.need("residual_before", n)["pv_arcsec"]),
+    "residual_rms_arcsec": lambda r, n: float(r.need("residual_before", n)["rms_arcsec"]),
+    "eccentricity_um": lambda r, n: float(r.need("eccentricity_um", n)),
+    "eccentricity_u_um": lambda r, n: float(r.need("eccentricity_u_um", n)),
+    "true_angle_error_pv_arcsec": lambda r, n: float(np.ptp(r.true_alpha(n)[1])),
+    "true_angle_error_rms_arcsec": lambda r, n: _rms0(r.true_alpha(n)[1]),
+    "measurement_error_rms_arcsec": lambda r, n: _rms(r.meas_minus_true(n)),
+    "measurement_error_max_arcsec": lambda r, n: float(np.max(np.abs(r.meas_minus_true(n)))),
+    "residual_after_pv_arcsec": lambda r, n: float(r.need("residual_after", n)["pv_arcsec"]),
+    "residual_after_rms_arcsec": lambda r, n: float(r.need("residual_after", n)["rms_arcsec"]),
+    "n_identified_effects": lambda r, n: float(len(r.need("identified_effects", n))),
+}
 
+
+def study_outputs(results: dict[str, Any], out_dir: str | Path, names: Iterable[str]) -> dict[str, float]:
+    """The named outputs (``FULL_OUTPUTS``, ``identified.<effect>``) of one simulate → analyze run.
+
+    ``results`` is what ``simulate_and_analyze`` returned for ``out_dir`` (whose ``truth/`` gives the
+    true α). A missing piece raises ``RunOutputError`` naming the output and what is missing."""
+    run = _RunOutputs(results, Path(out_dir))
     res: dict[str, float] = {}
     for name in names:
-        if name == "measured_angle_error_pv_arcsec":
-            v = float(np.ptp(measured(name)[1]))
-        elif name == "measured_angle_error_rms_arcsec":
-            v = rms0(measured(name)[1])
-        elif name == "measured_angle_error_u_arcsec":
-            v = rms(measured(name)[2])
-        elif name == "predicted_angle_error_pv_arcsec":
-            v = float(np.ptp(need("model_prediction_arcsec", name)["value"]))
-        elif name == "predicted_angle_error_rms_arcsec":
-            v = rms0(need("model_prediction_arcsec", name)["value"])
-        elif name == "predicted_angle_error_u_arcsec":
-            v = rms(need("model_prediction_arcsec", name)["u"])
-        elif name == "residual_pv_arcsec":
-            v = float(need("residual_before", name)["pv_arcsec"])
-        elif name == "residual_rms_arcsec":
-            v = float(need("residual_before", name)["rms_arcsec"])
-        elif name == "eccentricity_um":
-            v = float(need("eccentricity_um", name))
-        elif name == "eccentricity_u_um":
-            v = float(need("eccentricity_u_um", name))
-        elif name == "true_angle_error_pv_arcsec":
-            v = float(np.ptp(true_alpha(name)[1]))
-        elif name == "true_angle_error_rms_arcsec":
-            v = rms0(true_alpha(name)[1])
-        elif name == "measurement_error_rms_arcsec":
-            v = rms(meas_minus_true(name))
-        elif name == "measurement_error_max_arcsec":
-            v = float(np.max(np.abs(meas_minus_true(name))))
-        elif name == "residual_after_pv_arcsec":
-            v = float(need("residual_after", name)["pv_arcsec"])
-        elif name == "residual_after_rms_arcsec":
-            v = float(need("residual_after", name)["rms_arcsec"])
-        elif name == "n_identified_effects":
-            v = float(len(need("identified_effects", name)))
+        fn = _OUTPUTS.get(name)
+        if fn is not None:
+            v = fn(run, name)
         elif name.startswith(IDENTIFIED_PREFIX) and is_full_output(name):
             effect = name[len(IDENTIFIED_PREFIX):]
-            v = float(any(e.get("name") == effect for e in need("identified_effects", name)))
+            v = float(any(e.get("name") == effect for e in run.need("identified_effects", name)))
         else:
             raise RunOutputError(f"output {name!r}: not a full-fidelity output; known: "
                                  f"{', '.join(FULL_OUTPUTS)}, {IDENTIFIED_PREFIX}<effect>")
@@ -232,7 +233,6 @@ def study_outputs(results: dict[str, Any], out_dir: str | Path, names: Iterable[
             raise RunOutputError(f"output {name!r}: the run gave a non-finite value ({v})")
         res[name] = v
     return res
-
 
 __all__ = ["simulate_and_analyze", "study_outputs", "FULL_OUTPUTS", "is_full_output", "needs_close_loop",
            "effect_names", "RunOutputError"]

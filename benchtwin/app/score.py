@@ -91,6 +91,13 @@ def _num(x: Any, where: str, allow_none: bool = True) -> float | None:
     return float(x)
 
 
+def _required_num(x: Any, where: str) -> float:
+    """``_num`` for a value that must be present (never ``None``)."""
+    v = _num(x, where, allow_none=False)
+    assert v is not None  # allow_none=False: _num raised InputError instead
+    return v
+
+
 def _arr(x: Any, where: str, n: int | None = None) -> np.ndarray:
     if isinstance(x, np.ndarray) and x.ndim == 1:
         x = x.tolist()
@@ -121,9 +128,9 @@ def _curve(d: Any, where: str, x_key: str, keys: Sequence[tuple[str, str]]) -> d
                     raise InputError(f"{where}.{uk}: standard uncertainties must be > 0")
     if value is None:
         raise InputError(f"{where}: missing the values (one of {', '.join(repr(k) for k, _ in keys)})")
-    out = {"x": x, "value": value, "u": u}
+    out: dict[str, Any] = {"x": x, "value": value, "u": u}
     if d.get("unobservable_harmonics") is not None:
-        out["drop"] = [int(_num(k, f"{where}.unobservable_harmonics", False)) for k in d["unobservable_harmonics"]]
+        out["drop"] = [int(_required_num(k, f"{where}.unobservable_harmonics")) for k in d["unobservable_harmonics"]]
     return out
 
 

@@ -287,7 +287,7 @@ def _qmean(vals: Iterable[float | None]) -> tuple[float | None, int]:
 def overall(scores: Mapping[str, Mapping[str, Any] | None]) -> dict[str, Any]:
     """One figure per criterion over the suite: quadratic means of the errors (and of z), pooled
     coverage, the count of correct namings, spurious names, the residual-after/floor ratio."""
-    got = [s for s in scores.values() if not s.get("missing")]
+    got = [s for s in scores.values() if s is not None and not s.get("missing")]
     o: dict[str, Any] = {"datasets": len(scores), "with_results": len(got)}
     for k in ("e_error_um", "theta0_error_deg", "e_z", "theta0_z", "e_error_sweep_um", "theta0_error_sweep_deg",
               "beta_rms_error_arcsec", "alpha_rms_error_arcsec", "selfcal_rms_error_arcsec"):
@@ -338,7 +338,7 @@ def score_suite_files(results_dir: str | Path, suite_dir: str | Path) -> dict[st
         raise InputError(f"{rd}: not a directory of results (RESULTS_DIR/<dataset>/results.json or <dataset>.json)")
     found: dict[str, str | None] = {}
 
-    def results_for(it: SuiteItem):
+    def results_for(it: SuiteItem) -> dict[str, Any] | None:
         p = find_results(rd, it.name)
         found[it.name] = str(p) if p else None
         return read_results(p) if p else None
@@ -388,7 +388,7 @@ def format_suite_table(out: Mapping[str, Any]) -> str:
               f"{o['alpha_rms_error_arcsec_n']} |",
               f"| self-calibration RMS error | {_c(o['selfcal_rms_error_arcsec'], '.4f')}″ | "
               f"{o['selfcal_rms_error_arcsec_n']} |",
-              f"| coverage ≤1u / ≤2u (pooled; normal 68.3 % / 95.4 %) | "
+              "| coverage ≤1u / ≤2u (pooled; normal 68.3 % / 95.4 %) | "
               + ("–" if o["coverage_1u"] is None else f"{o['coverage_1u']:.1%} / {o['coverage_2u']:.1%}")
               + f" | {o['coverage_n']} points |",
               f"| effect named correctly | {o['identification_correct']}/{o['identification_scored']} | "
@@ -432,7 +432,7 @@ def score_callable(fn: Callable[[str], Mapping[str, Any] | None], suite: str | P
     errors: dict[str, str] = {}
     name = getattr(fn, "__name__", "fn")
     with tempfile.TemporaryDirectory(prefix="benchtwin-score-") as tmp:
-        def results_for(it: SuiteItem):
+        def results_for(it: SuiteItem) -> dict[str, Any] | None:
             ds = it.dataset
             if not meta.get("blind"):
                 ds = Path(tmp) / it.name

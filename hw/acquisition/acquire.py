@@ -27,14 +27,15 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.analysis.dataset import DatasetWriter
+from benchtwin.fsio import DirLock, OutputError, atomic_write_text, check_output_dir
 
-from .bench import BenchConfig, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
+from .bench import BenchConfig, BenchFileError, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
 from .runner import Runner, WallClock
 from .tables import TableSink
 
 __all__ = ["acquire", "AcquireClock", "TableSink", "sink_for_bench", "write_tables", "JOURNAL"]
 
-JOURNAL = "journal.jsonl"
+JOURNAL = "journal.jsonl"  # = benchtwin.analysis.dataset.JOURNAL
 
 
 class AcquireClock(WallClock):
@@ -57,7 +58,8 @@ def _scaled_sleep(scale: float) -> Callable[[float], None]:
 
 
 def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, progress: bool = True,
-            *, on_row: Callable[[dict, dict], None] | None = None) -> Path:
+            *, on_row: Callable[[dict, dict], None] | None = None, force: bool = False,
+            live: Any | None = None) -> Path:
     """Run the bench file's procedures and write the dataset directory ``out_dir``; returns it.
 
     Flat memory: the procedure is generated lazily and every row goes straight from the runner to
@@ -65,22 +67,54 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     ``<table>.csv`` when the run has ended), so nothing grows with the number of readings. A run that
     fails keeps its journal (every reading taken, fsynced) and removes the part files;
     ``resume=True`` rewrites the tables from the journal and continues. The manifest is written last: a dataset without it is
-    unfinished."""
-    from tqdm import tqdm
+    unfinished. ``live``: an observer with ``start(n_steps)``, ``on_step(i, step, context, replay)``
+    and ``on_row(row, result)`` (the live view of ``acquire --live``); it never changes the run.
 
+    Readings are never discarded unasked: a folder holding a journal is refused without ``resume``
+    (the error says to resume, or to restart with ``force``, which clears the folder); any other
+    non-empty folder is refused without ``force``; a lock file (``benchtwin.fsio.DirLock``, O_EXCL
+    with the pid) stops a second run on the same folder (issue #13: two acquires interleaved one
+    journal)."""
     cfg = load_bench(bench_path)
     out = Path(out_dir)
+    try:
+        check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
+        with DirLock(out, "acquire"):
+            return _acquire(cfg, out, resume, progress, on_row, live)
+    except OutputError as exc:
+        raise BenchFileError(str(exc)) from None
+
+
+def _acquire(cfg: BenchConfig, out: Path, resume: bool, progress: bool,
+             on_row: Callable[[dict, dict], None] | None, live: Any | None = None) -> Path:
+    from tqdm import tqdm
+
     n_steps = sum(1 for _ in iter_procedure(cfg))
     clock = AcquireClock(time.sleep if cfg.run["waits"] == "real" else None)
     inst, ports = open_instruments(cfg, sleep=_scaled_sleep(float(cfg.run["driver_sleep_scale"])), clock=clock.now)
     bar = tqdm(total=n_steps, desc=f"acquire {cfg.name}", unit="step", disable=not progress, leave=False)
     try:
-        writer = DatasetWriter(out, dataset_manifest(cfg, inst))
+        writer = DatasetWriter(out, dataset_manifest(cfg, inst), prepared=True, resume=resume)
         sink = sink_for_bench(writer, cfg)
+
+        def step_cb(*a):
+            bar.update(1)
+            if live is not None:
+                live.on_step(*a)
+
+        def row_cb(row, result):
+            if on_row is not None:
+                on_row(row, result)
+            if live is not None:
+                live.on_row(row, result)
+
+        if live is not None:
+            live.start(n_steps)
         try:
             Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
-                   fsync=cfg.run["fsync"], on_step=lambda *a: bar.update(1),
-                   on_row=on_row).stream(iter_procedure(cfg), sink, resume=resume)
+                   fsync=cfg.run["fsync"], on_step=step_cb,
+                   on_row=row_cb if (on_row is not None or live is not None) else None).stream(
+                       iter_procedure(cfg), sink, resume=resume)
         except BaseException:
             sink.abort()
             raise
@@ -89,7 +123,7 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
         close_instruments(ports)
     sink.close()
     if cfg.text is not None:
-        (out / "bench.toml").write_text(cfg.text, encoding="utf-8")
+        atomic_write_text(out / "bench.toml", cfg.text)
     writer.close()
     return out
 

@@ -15,14 +15,13 @@ callable re-opening its port (unless ``reconnect = false``). This module never i
 from __future__ import annotations
 
 import importlib
-import math
-import tomllib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchtwin.units import UnitError, parse_quantity
+from benchtwin.schema import SchemaError, check_version, loads_toml, read_input_text
+from benchtwin.units import ARCSEC, DEG, UnitError, parse_quantity
 
 from . import procedures as P
 
@@ -44,31 +43,22 @@ DRIVERS: dict[str, tuple[str, str]] = {
 }
 CAMERA_DRIVERS = ("folder", "watch_folder", "opencv")
 SOURCES = ("hardware", "emulated")
-PROCEDURES = ("radial_motion", "ccd_sweep", "polygon_shift_angle", "polygon_traditional", "selfcal")
+PROCEDURES = P.PROCEDURE_TYPES
 
 _TOP = {"bench", "geometry", "run", "instruments", "procedure", "ccd"}
 _CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_size": "length"}
 _BENCH = {"name", "source", "description"}
 _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
              "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
-             "polygon_certificate": "angle", "scale_edge_radius": "length"}
+             "polygon_certificate": "angle", "scale_edge_radius": "length",
+             "autocollimator_resolution": "angle", "autocollimator_accuracy": "angle"}
 _GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
 _RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
         "stage": None, "fsync": None}
 _INSTRUMENT = {"driver", "port", "serial", "options", "commands", "retries", "backoff", "reconnect",
                "soft_limits", "max_speed", "closed_loop_encoder", "heads"}
 _SERIAL = {"baudrate", "bytesize", "parity", "stopbits", "timeout", "xonxoff", "rtscts"}
-_PROC_KEYS = {
-    "radial_motion": {"reps": int, "positions": int, "dwell": "time", "probes": list, "encoder": str},
-    "polygon_shift_angle": {"faces": int, "shifts": "angles", "reps": int, "directions": list, "dwell": "time",
-                            "all_faces_each_shift": bool, "encoder": str, "autocollimator": str},
-    "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
-                            "dwell": "time", "encoder": str, "autocollimator": str},
-    "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
-    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
-}
-DEG = math.pi / 180.0
-ARCSEC = DEG / 3600.0
+_PROC_KEYS = P.PROCEDURE_PARAMS  # the procedure language (hw/acquisition/procedures.py)
 
 
 class BenchFileError(ValueError):
@@ -93,15 +83,13 @@ class BenchConfig:
 
 def load_bench(path: str | Path) -> BenchConfig:
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise BenchFileError(f"{p}: no such bench file")
-    try:
-        text = p.read_text(encoding="utf-8")
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BenchFileError(f"{p}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise BenchFileError(f"{p}: not UTF-8 text: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        text = read_input_text(p, what="bench file")
+        raw = loads_toml(text, str(p))
+    except SchemaError as exc:
+        raise BenchFileError(str(exc)) from None
     cfg = parse_bench(raw, str(p))
     cfg.path, cfg.text = p, text
     return cfg
@@ -144,7 +132,26 @@ def _fmt(x: float) -> float:
 
 
 def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
-    """Validate a parsed bench file (see docs/bench-file.md)."""
+    """Validate a parsed bench file (see docs/bench-file.md).
+
+    The checks below name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``BenchFileError`` naming the section, never as a
+    TypeError (issue #13)."""
+    section = ["the top level"]
+    try:
+        return _parse_bench(raw, where, section)
+    except BenchFileError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise BenchFileError(f"{where}: {section[0]}: a value of the wrong type or shape ({type(exc).__name__}: "
+                             f"{str(exc)[:120]}); see docs/bench-file.md") from None
+
+
+def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConfig:
+    if not isinstance(raw, Mapping):
+        raise BenchFileError(f"{where}: expected a table at the top level")
+    check_version(raw, where, fail=BenchFileError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     unknown = sorted(set(raw) - _TOP)
     if unknown:
         raise BenchFileError(f"{where}: unknown top-level key(s) {unknown}; known: {sorted(_TOP)}")
@@ -181,6 +188,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     if "encoder_resolution" in g:
         geo["encoder_resolution_arcsec"] = _fmt(_q(g["encoder_resolution"], "angle", where,
                                                    "geometry.encoder_resolution") / ARCSEC)
+    # the autocollimator's datasheet resolution and maximum error: GUM type B inputs of Hsieh's budget
+    # (sec. 3.3 (2), (4)), declared in the manifest like the encoder's resolution
+    for k in ("autocollimator_resolution", "autocollimator_accuracy"):
+        if k in g:
+            geo[f"{k}_arcsec"] = _fmt(_q(g[k], "angle", where, f"geometry.{k}") / ARCSEC)
     if "polygon_certificate" in g:
         cert = g["polygon_certificate"]
         if not isinstance(cert, list) or len(cert) != geo["polygon_faces"]:
@@ -208,7 +220,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     insts = _table(raw.get("instruments"), where, "instruments")
     if not insts:
         raise BenchFileError(f"{where}: [instruments]: expected at least one instrument table")
-    instruments = {n: _instrument(n, sec, where, geo) for n, sec in insts.items()}
+    instruments = {}
+    for n, sec in insts.items():
+        section[0] = f"[instruments.{n}]"
+        instruments[n] = _instrument(n, sec, where, geo)
+    section[0] = "the top level"
     if run["stage"] not in instruments:
         raise _fail(where, "run.stage", f"the name of an instrument table (have {sorted(instruments)})", run["stage"])
     if instruments[run["stage"]]["driver"] != "zaber":
@@ -222,7 +238,11 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     procs = raw.get("procedure")
     if not isinstance(procs, list) or not procs:
         raise BenchFileError(f"{where}: missing [[procedure]] tables (expected at least one, type one of {PROCEDURES})")
-    procedures = [_procedure(k, p, where, geo) for k, p in enumerate(procs)]
+    procedures = []
+    for k, p in enumerate(procs):
+        section[0] = f"procedure[{k}]"
+        procedures.append(_procedure(k, p, where, geo))
+    section[0] = "the top level"
     cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd)
     if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
         raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
@@ -383,27 +403,7 @@ def build_procedure(cfg: BenchConfig) -> list:
 
 def iter_procedure(cfg: BenchConfig) -> Iterator:
     """The steps of every ``[[procedure]]`` table, in order, generated lazily (flat memory)."""
-    for p in cfg.procedures:
-        typ = p["type"]
-        dwell = p.get("dwell", 0.5)
-        enc = p.get("encoder", "encoder")
-        dirs = p.get("directions", ["forward"])
-        if typ == "radial_motion":
-            yield from P.radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
-                                           p.get("probes", ["probe_top", "probe_bottom"]), enc)
-        elif typ == "polygon_shift_angle":
-            yield from P.polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
-                                             p.get("all_faces_each_shift", False), enc,
-                                             p.get("autocollimator", "autocollimator"))
-        elif typ == "polygon_traditional":
-            yield from P.polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
-                                             p.get("rep", 0), dirs, dwell, enc,
-                                             p.get("autocollimator", "autocollimator"))
-        elif typ == "ccd_sweep":
-            yield from P.ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc)
-        elif typ == "selfcal":
-            yield from P.selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
-                                       dwell, enc)
+    return P.steps_from_specs(cfg.procedures)
 
 
 # --------------------------------------------------------------------------- instruments

@@ -18,6 +18,16 @@ Step types
   A context key ``polygon_start_face`` means the polygon is re-clamped (operator action on the
   bench; the twin re-mounts its polygon with a new setup error).
 
+The procedure language
+----------------------
+One language names a bench's procedures, whoever runs them: a list of *procedure specs*, plain
+dicts ``{"type": <one of PROCEDURE_TYPES>, <parameter>: <value>, ...}`` with angles in degrees and
+times in seconds, the parameters of the generator of that type (``PROCEDURE_PARAMS``). The bench
+file's ``[[procedure]]`` tables are this language written in TOML (``hw/acquisition/bench.py``
+parses and writes them); the twin turns a scenario's ``[procedure]`` into it
+(``twin.simulate.scenario_procedures``); ``steps_from_specs`` is the one place where specs become
+steps, for ``simulate``, ``emulate`` (its operator and its bench file) and ``acquire`` alike.
+
 Polygon numbering (Hsieh 2022 eq. 3): with start face j at step i (1…N) the autocollimator sees
 face j+i−1 (mod N), the encoder stands at (i−1)·360°/N + S. Start face j is set at S: the
 polygon is clamped so that face j faces the autocollimator when the encoder reads S.
@@ -25,7 +35,7 @@ polygon is clamped so that face j faces the autocollimator when the encoder read
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +43,7 @@ __all__ = [
     "Move", "Read", "Capture", "Wait", "Mark", "Step",
     "radial_motion_run", "ccd_sweep", "polygon_traditional", "polygon_shift_angle", "selfcal_sweep",
     "count_steps", "estimate_duration", "describe_step",
+    "PROCEDURE_TYPES", "PROCEDURE_PARAMS", "steps_from_specs", "specs_toml",
 ]
 
 
@@ -192,6 +203,82 @@ def selfcal_sweep(heads: Sequence[float], step_deg: float = 1.0, directions: Seq
 
 
 # --------------------------------------------------------------------------- dry run helpers
+
+# --------------------------------------------------------------------------- the procedure language
+
+PROCEDURE_TYPES = ("radial_motion", "ccd_sweep", "polygon_shift_angle", "polygon_traditional", "selfcal")
+
+# type -> parameter -> kind: int, bool, str (an instrument name), list (of strings), "angle" (deg),
+# "angles" (list of deg), "time" (s). The bench file's schema is this table (hw/acquisition/bench.py).
+PROCEDURE_PARAMS: dict[str, dict[str, Any]] = {
+    "radial_motion": {"reps": int, "positions": int, "dwell": "time", "probes": list, "encoder": str},
+    "polygon_shift_angle": {"faces": int, "shifts": "angles", "reps": int, "directions": list, "dwell": "time",
+                            "all_faces_each_shift": bool, "encoder": str, "autocollimator": str},
+    "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
+                            "dwell": "time", "encoder": str, "autocollimator": str},
+    "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
+    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
+}
+
+
+def steps_from_specs(specs: Iterable[Mapping[str, Any]]) -> Iterator[Step]:
+    """The steps of every procedure spec, in order, generated lazily (flat memory). Defaults of
+    absent parameters are the generators' (dwell 0.5 s, instrument names "encoder", "ccd",
+    "autocollimator", "probe_top"/"probe_bottom"); ``polygon_*`` need ``faces``, ``selfcal``
+    needs ``heads``."""
+    for p in specs:
+        typ = p["type"]
+        dwell = p.get("dwell", 0.5)
+        enc = p.get("encoder", "encoder")
+        dirs = p.get("directions", ["forward"])
+        if typ == "radial_motion":
+            yield from radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
+                                         p.get("probes", ["probe_top", "probe_bottom"]), enc)
+        elif typ == "polygon_shift_angle":
+            yield from polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
+                                           p.get("all_faces_each_shift", False), enc,
+                                           p.get("autocollimator", "autocollimator"))
+        elif typ == "polygon_traditional":
+            yield from polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
+                                           p.get("rep", 0), dirs, dwell, enc,
+                                           p.get("autocollimator", "autocollimator"))
+        elif typ == "ccd_sweep":
+            yield from ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc)
+        elif typ == "selfcal":
+            yield from selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
+                                     dwell, enc)
+        else:
+            raise ValueError(f"unknown procedure type {typ!r}; expected one of {', '.join(PROCEDURE_TYPES)}")
+
+
+def _toml_value(v: Any, kind: Any) -> str:
+    if kind == "angle":
+        return f'"{float(v):.12g} deg"'
+    if kind == "angles":
+        return "[" + ", ".join(f'"{float(x):.12g} deg"' for x in v) + "]"
+    if kind == "time":
+        return f'"{float(v):.12g} s"'
+    if kind is bool:
+        return "true" if v else "false"
+    if kind is int:
+        return str(int(v))
+    if kind is list:
+        return "[" + ", ".join(f'"{x}"' for x in v) + "]"
+    return f'"{v}"'
+
+
+def specs_toml(specs: Sequence[Mapping[str, Any]], omit: Sequence[str] = ()) -> list[str]:
+    """Procedure specs as the bench file's ``[[procedure]]`` tables (lines; what
+    ``hw.acquisition.bench`` parses back into the same specs). ``omit``: parameters left to the bench file's defaults
+    (``faces``, ``heads`` come from ``[geometry]``)."""
+    lines: list[str] = []
+    for p in specs:
+        kinds = PROCEDURE_PARAMS[p["type"]]
+        lines += ["[[procedure]]", f'type = "{p["type"]}"']
+        lines += [f"{k} = {_toml_value(v, kinds[k])}" for k, v in p.items() if k != "type" and k not in omit]
+        lines.append("")
+    return lines
+
 
 def count_steps(procedure: Iterable[Step]) -> dict[str, int]:
     """Numbers of steps of each type (``readings`` = Read + Capture rows)."""

@@ -113,7 +113,7 @@ def iter_journal(path: str | Path) -> Iterator[dict[str, Any]]:
     p = Path(path)
     if not p.is_file():
         return
-    with open(p, "r", encoding="utf-8") as fh:
+    with open(p, encoding="utf-8") as fh:
         n = 0
         line = fh.readline()
         while line:
@@ -196,21 +196,27 @@ class Runner:
             os.fsync(fh.fileno())
 
     # ------------------------------------------------------------------ run
-    def run(self, procedure: Iterable[Step], resume: bool = False) -> list[dict[str, Any]]:
+    def run(self, procedure: Iterable[Step], resume: bool = False, restart: bool = False) -> list[dict[str, Any]]:
         """Execute the procedure; returns every row (replayed and live), in order."""
         rows: list[dict] = []
-        self.stream(procedure, lambda row, _res: rows.append(row), resume=resume)
+        self.stream(procedure, lambda row, _res: rows.append(row), resume=resume, restart=restart)
         return rows
 
     def stream(self, procedure: Iterable[Step], sink: Callable[[dict, Any], None] | None = None,
-               resume: bool = False) -> int:
+               resume: bool = False, restart: bool = False) -> int:
         """Execute the procedure, handing every row to ``sink(row, live_result)`` and keeping none;
         returns the number of rows. ``live_result`` is the instrument's result (with a capture's
-        image) for a live row, None for a row replayed from the journal."""
+        image) for a live row, None for a row replayed from the journal.
+
+        An existing journal is continued with ``resume`` and replaced only with ``restart``; with
+        neither, the run stops (RunnerError) rather than discard the readings it holds (issue #13)."""
         journal_iter: Iterator[dict] | None = None
         if self.journal is not None and resume:
             journal_iter = (r for r in iter_journal(self.journal) if "i" in r)
         elif self.journal is not None and self.journal.exists():
+            if not restart:
+                raise RunnerError(f"{self.journal}: a journal of an earlier run exists (its readings are kept); "
+                                  "resume it, or restart (which deletes it)")
             self.journal.unlink()
         fh = None
         n_rows = 0

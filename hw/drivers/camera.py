@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from benchtwin.hw.drivers.base import InstrumentError
-from benchtwin.hw.interfaces import check_image
+from benchtwin.hw.interfaces import CameraFrame, check_image
 
 __all__ = ["OpenCVCamera", "FolderCamera", "WatchFolderCamera", "to_grey"]
 
@@ -84,7 +84,7 @@ class OpenCVCamera:
         return {"name": self.name, "kind": self.KIND, "model": self.model, "units": {"image": "DN", "t_s": "s"},
                 "dtype": self.dtype, "pixel_size_um": self.pixel_size_um}
 
-    def capture(self) -> dict[str, Any]:
+    def capture(self) -> CameraFrame:
         for _ in range(self.retries + 1):
             ok, frame = self.capture_device.read()
             if ok and frame is not None:
@@ -132,7 +132,7 @@ class FolderCamera:
                 "folder": str(self.folder), "frames": len(self.frames), "dtype": self.dtype,
                 "pixel_size_um": self.pixel_size_um}
 
-    def capture(self) -> dict[str, Any]:
+    def capture(self) -> CameraFrame:
         if self.pos >= len(self.frames):
             if not self.loop:
                 raise InstrumentError(self.name, "capture", f"all {len(self.frames)} frames of {self.folder} used", b"")
@@ -182,7 +182,7 @@ class WatchFolderCamera:
                 "folder": str(self.folder), "pattern": self.pattern, "dtype": self.dtype,
                 "pixel_size_um": self.pixel_size_um}
 
-    def capture(self) -> dict[str, Any]:
+    def capture(self) -> CameraFrame:
         t0 = self.clock()
         while True:
             newest = self._newest()

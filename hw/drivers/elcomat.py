@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, SerialInstrument, parse_float, parse_raw
+from benchtwin.hw.interfaces import AutocollimatorReading
 
 __all__ = ["Elcomat", "format_elcomat"]
 
@@ -63,6 +64,6 @@ class Elcomat(SerialInstrument):
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "mode": self.mode, "rotation_plane_axis": "x"}
 
-    def read(self) -> dict[str, Any]:
+    def read(self) -> AutocollimatorReading:
         r = self.query(f"read_{self.mode}")
-        return self.reading(**r)
+        return cast(AutocollimatorReading, self.reading(**r))

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import re
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, SerialInstrument, parse_raw
+from benchtwin.hw.interfaces import EncoderReading
 
 __all__ = ["HeidenhainND", "format_heidenhain"]
 
@@ -73,6 +74,6 @@ class HeidenhainND(SerialInstrument):
         scale = 10.0 ** -self.decimals
         return {"angle_deg": [s * c * scale for s, c in zip(self.signs, counts)]}
 
-    def read(self) -> dict[str, Any]:
+    def read(self) -> EncoderReading:
         r = self.query("read", _post=self._to_deg)
-        return self.reading(heads_deg=list(self.heads_deg), angle_deg=r["angle_deg"])
+        return cast(EncoderReading, self.reading(heads_deg=list(self.heads_deg), angle_deg=r["angle_deg"]))

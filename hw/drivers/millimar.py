@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import (Command, FormatError, InstrumentError, SerialInstrument, SharedPort,
                                        parse_float, parse_raw)
+from benchtwin.hw.interfaces import ProbeReading
 
 __all__ = ["MillimarC1202", "format_millimar"]
 
@@ -84,5 +85,5 @@ class MillimarC1202(SerialInstrument):
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "channel": self.channel}
 
-    def read(self) -> dict[str, Any]:
-        return self.reading(**self.query("read", channel=self.channel))
+    def read(self) -> ProbeReading:
+        return cast(ProbeReading, self.reading(**self.query("read", channel=self.channel)))

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, SerialInstrument, parse_float, parse_raw
+from benchtwin.hw.interfaces import ProbeReading
 
 __all__ = ["TesaTT", "format_tesa"]
 
@@ -52,9 +53,9 @@ class TesaTT(SerialInstrument):
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "um_per_unit": self.um_per_unit}
 
-    def read(self) -> dict[str, Any]:
+    def read(self) -> ProbeReading:
         r = self.query("read")
         out = {"value_um": r["value"] * self.um_per_unit, "status": r["status"]}
         if "message" in r:
             out["message"] = r["message"]
-        return self.reading(**out)
+        return cast(ProbeReading, self.reading(**out))

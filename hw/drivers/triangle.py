@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, FormatError, SerialInstrument, parse_float, parse_raw
+from benchtwin.hw.interfaces import AutocollimatorReading
 
 __all__ = ["TriAngle", "format_triangle"]
 
@@ -72,5 +73,6 @@ class TriAngle(SerialInstrument):
                 out.update(x_arcsec=math.nan, y_arcsec=math.nan, status="no_signal")
         return out
 
-    def read(self) -> dict[str, Any]:
-        return self.reading(**self.query("poll", _post=lambda r: self._interpret(r["fields"])))
+    def read(self) -> AutocollimatorReading:
+        return cast(AutocollimatorReading,
+                    self.reading(**self.query("poll", _post=lambda r: self._interpret(r["fields"]))))

@@ -10,7 +10,8 @@ explicit ``settings`` dict, ``set <setting> <value>``.
 
 Options from the bench file (``options = { message_ids = true, checksums = true }``): with
 ``message_ids`` each attempt carries a message id (0…99, cycling) after the axis and a reply
-whose id differs (a late reply to an earlier attempt) is not taken; with ``checksums`` each
+whose id differs (a late reply to an earlier attempt) is skipped: the reply to this attempt may
+still follow within the timeout; with ``checksums`` each
 command ends with ``:XX`` (the 8-bit two's complement of the byte sum after ``/``) and a reply's
 checksum is verified (a corrupted reply is retried). Unsolicited alerts (``!``, with
 ``comm.alert`` on) and info lines (``#``) before the reply are skipped, not taken as garbled.
@@ -38,7 +39,8 @@ __all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply", "zaber
 
 _REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d+)(?: (?P<id>\d{1,2}|--))? (?P<reply>OK|RJ) (?P<state>IDLE|BUSY)"
           rb" (?P<flag>--|[FWN][A-Z]) (?P<data>[ -~]*?)(?::(?P<cs>[0-9A-Fa-f]{2}))?\r?\n")
-MAX_SKIPPED_LINES = 8   # alerts/info lines skipped before a reply
+MAX_SKIPPED_LINES = 8   # alerts/info lines (and stale replies) skipped before a reply
+_STALE = re.compile(rb"@\d{2} \d+ (\d{1,2}) ")   # a reply's message id
 
 
 def zaber_checksum(body: bytes) -> bytes:
@@ -60,13 +62,12 @@ def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dic
     want_id = getattr(inst, "_msg_id", None)
     if want_id is not None and m.group("id") is not None and int(m.group("id")) != want_id:
         raise ValueError(f"reply has message id {m.group('id').decode()}, expected {want_id:02d}")
-    out = {"reply": m.group("reply").decode(), "busy": m.group("state") == b"BUSY",
-           "flag": m.group("flag").decode(), "data": m.group("data").decode("ascii").strip()}
-    if out["reply"] == "RJ":
-        raise InstrumentError(inst.name, cmd.name, f"stage rejected the command ({out['data']})", m.group(0))
-    if out["flag"].startswith("F"):
-        raise InstrumentError(inst.name, cmd.name, f"stage reports fault {out['flag']}", m.group(0))
-    return out
+    reply, flag, data = m.group("reply").decode(), m.group("flag").decode(), m.group("data").decode("ascii").strip()
+    if reply == "RJ":
+        raise InstrumentError(inst.name, cmd.name, f"stage rejected the command ({data})", m.group(0))
+    if flag.startswith("F"):
+        raise InstrumentError(inst.name, cmd.name, f"stage reports fault {flag}", m.group(0))
+    return {"reply": reply, "busy": m.group("state") == b"BUSY", "flag": flag, "data": data}
 
 
 parse_zaber_reply = parse_reply
@@ -174,11 +175,21 @@ class ZaberRotaryStage(SerialInstrument):
         return body + end
 
     def _read_reply(self, cmd: Command) -> bytes:
-        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped."""
+        """The ``@`` reply line; alerts (``!``) and info lines (``#``) before it are skipped, and so,
+        with message ids, is a complete reply carrying another id (a late reply to an earlier
+        attempt: the reply to this one may still follow within the timeout)."""
+        line = b""
         for _ in range(MAX_SKIPPED_LINES + 1):
             line = self.transport.read_until(cmd.terminator)
-            if not (line[:1] in (b"!", b"#") and line.endswith(cmd.terminator)):
+            if not line.endswith(cmd.terminator):
                 return line
+            if line[:1] in (b"!", b"#"):
+                continue
+            if self.message_ids and self._msg_id is not None and line[:1] == b"@":
+                m = _STALE.match(line)
+                if m is not None and m.group(1) != f"{self._msg_id:02d}".encode("ascii"):
+                    continue
+            return line
         return line
 
     # --- helpers -----------------------------------------------------------------------------------

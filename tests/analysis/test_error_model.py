@@ -10,7 +10,6 @@ import pytest
 from benchtwin.analysis.error_model import (
     ErrorModel,
     compare_with_measured,
-    eccentricity_term,
     jia_error_model,
     periodic_integral,
     radial_motion_term,

@@ -103,12 +103,12 @@ def test_en_number_standard_formula():
 
 
 def test_range_method():
-    assert un.D_N[3] == 1.693 and un.D_N[10] == 3.078 and len(un.D_N) == 9
+    assert un.D_N[3] == 1.693 and un.D_N[10] == 3.078 and un.D_N[25] == 3.931 and len(un.D_N) == 24
     assert un.range_uncertainty([1.0, 2.0, 3.5]) == pytest.approx(2.5 / 1.693)
     assert un.range_uncertainty(2.5, 3, d_n=1.69) == pytest.approx(2.5 / 1.69)  # Jia 2019
     assert un.range_uncertainty(1.0, 2) == pytest.approx(1 / 1.128)
     with pytest.raises(ValueError):
-        un.range_uncertainty(1.0, 11)
+        un.range_uncertainty(1.0, 26)
     # the estimator is unbiased for normal data: mean range / d_n ≈ σ
     rng = np.random.default_rng(77)
     x = rng.normal(0.0, 2.0, (20000, 5))

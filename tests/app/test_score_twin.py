@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import shutil
 
-import pytest
 
 import benchtwin
 from benchtwin.app import suite as S

@@ -403,9 +403,10 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
     p = _write(tmp_path, body)
     out = tmp_path / "out"
     script = textwrap.dedent(f"""
-        import functools, sys
-        sys.path.insert(0, {str(HERE)!r})
-        from test_study import counting_point
+        import functools, importlib, sys
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parents[1])!r}]
+        # the same module name as in this process (the point function's name enters the cache key)
+        counting_point = importlib.import_module({counting_point.__module__!r}).counting_point
         import benchtwin.app.study.execution as st
         st.code_version = lambda: "test-fixed"
         st.run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,

@@ -341,6 +341,16 @@ def test_zaber_message_ids_checksums_and_alerts():
     assert format_zaber_reply(5, msg_id=3, checksum=True) == b"@01 1 03 OK IDLE -- 5:04\r\n"
 
 
+def test_zaber_stale_reply_is_skipped_and_the_own_reply_taken():
+    # the reply to the previous attempt (id 00, 5) came late; this attempt's own (id 01, 7) follows it
+    rt = ReplayTransport([{"request": "/1 1 00 get pos\n", "response": ""},
+                          {"request": "/1 1 01 get pos\n",
+                           "response": "@01 1 00 OK IDLE -- 5\r\n@01 1 01 OK IDLE -- 7\r\n"}])
+    st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), retries=1, message_ids=True, **STAGE)
+    assert st_._stage_deg() == 0.007
+    rt.assert_done()
+
+
 def test_zaber_reply_without_checksum_when_checksums_are_on_is_retried():
     rt = ReplayTransport([{"request": "/1 1 get pos:AC\n", "response": "@01 1 OK IDLE -- 5\r\n"}])
     st_ = ZaberRotaryStage("stage", rt, sleep=Sleeps(), retries=0, checksums=True, **STAGE)

@@ -10,9 +10,10 @@ Reduced-size overrides, for time (the physics, instruments, protocols and analys
 the full scenarios): one revolution of 36 radial stops; a CCD frame every 45° at 512×384 px
 (8 frames: the order-1 eccentricity fit needs 6); polygon shifts 0° (all N start faces) and 5°,
 forward only; self-calibration every 30°, forward only. Scenario-specific: hsieh2022's polygon has
-12 faces instead of 24 (its N×N first shift is 576 readings otherwise), and jia2019 gets a second
-reading head at 180° with ``selfcal = true`` (the paper's bench has one head, and a
-self-calibration needs several) so that each procedure kind runs on both benches.
+12 faces instead of 24 (its N×N first shift is 576 readings otherwise), and jia2019 gets reading
+heads at 120° and 240° with ``selfcal = true`` (the paper's bench has one head, and a
+self-calibration needs at least 3: the scenario refuses 2, which leave no residual degrees of
+freedom) so that each procedure kind runs on both benches.
 
 Tolerances ("within noise"): the emulators draw the twin's noise streams of the same steps, so
 the readings are the simulation's exactly, except head 1's displayed reading (``theta_read_deg``:
@@ -46,7 +47,7 @@ REDUCED = {"procedure.radial_positions": 36, "procedure.radial_reps": 1, "proced
            "procedure.polygon_reps": 1, "procedure.ccd_step": "45 deg", "procedure.selfcal_step": "30 deg",
            "procedure.directions": ["forward"], "instruments.ccd.width": "512 px", "instruments.ccd.height": "384 px"}
 SCENARIOS = {
-    "jia2019": {**REDUCED, "bench.heads": ["0 deg", "180 deg"], "procedure.selfcal": True},
+    "jia2019": {**REDUCED, "bench.heads": ["0 deg", "120 deg", "240 deg"], "procedure.selfcal": True},
     "hsieh2022": {**REDUCED, "bench.polygon_faces": 12},
 }
 # request numbers per port: encoder 1…36 radial, 37…44 CCD stops (41: a retried read at a CCD stop
@@ -135,7 +136,9 @@ def test_emulated_acquisition_with_faults_equals_simulation(run):
     _compare(a, b)   # identical readings: the emulators draw the twin's noise streams of the same steps
     for f in b["ccd/index"]["file"]:  # frames rendered by the emulator, taken by the watch_folder driver
         assert filecmp.cmp(sim / "ccd" / f, emu["path"] / "ccd" / f, shallow=False), f
-    assert emu["frames"] == 9     # 8 stops + the frame rendered again for the retried encoder read
+    # 8 stops + a frame rendered again for each retried read at a CCD stop: the encoder garble at
+    # request 41 always lands there; the stage's disconnect may too, by the bench's request count
+    assert 9 <= emu["frames"] <= 8 + sum(f["port"] in ("encoder", "stage") for f in FAULTS), emu["frames"]
     assert np.all(np.diff(b["polygon"]["t_s"]) >= 0)
     assert not any(p.name.startswith(".") for p in emu["path"].rglob("*"))  # no part file left
 

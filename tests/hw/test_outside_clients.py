@@ -14,8 +14,9 @@ written for the real devices, not for our drivers.
 What the Zaber Motion Library cannot do here: identify the device and convert units
 (``Units.ANGLE_DEGREES``) — that needs Zaber's device database (a web service, or a database file
 downloaded from Zaber; neither is on PyPI nor reachable here). The tests point the library at a
-missing local database file, so it never tries the network, and check that identification fails
-for exactly that reason (docs/protocols/zaber.md, "Outside clients").
+missing local database file, so it never tries the network, and do not ask for identification
+(docs/protocols/README.md, "Outside clients"). The library runs in a process of its own, as a
+lab's software would.
 """
 
 from __future__ import annotations
@@ -51,66 +52,85 @@ def _wait(cond, timeout_s: float = 2.0) -> bool:
 
 # --------------------------------------------------------------------------- Zaber Motion Library
 
-@pytest.fixture
-def zml(tmp_path):
-    """The Zaber Motion Library, with its device database pointed at a local file that does not
-    exist: no identification ever goes to the network."""
-    from zaber_motion import DeviceDbSourceType, Library
+# The library runs in its own process, as a lab's bench software would (the emulator serves from
+# this one): its Go core installs signal handlers that must not share the test process with MuJoCo
+# and the other native libraries. Its device database is pointed at a local file that does not
+# exist, so nothing can go to the network. Identification is not attempted: without a database
+# the library 10.3.0 raises DeviceDbFailedException from the web source, but with a missing file
+# source it can also crash with a nil-pointer panic in its Go core (identify.go:342), which would
+# take the client process down (docs/protocols/README.md, "Outside clients").
+ZML_CLIENT = r"""
+import json, sys
+from zaber_motion import DeviceDbSourceType, Library
+from zaber_motion.ascii import Connection
+from zaber_motion.exceptions import MotionLibException
 
-    Library.set_device_db_source(DeviceDbSourceType.FILE, str(tmp_path / "no-devices.sqlite"))
-    return Library
-
-
-def _zml_session(conn, src):
-    from zaber_motion.ascii import Connection  # noqa: F401 - the type under test
-
+kind, where, db = sys.argv[1], sys.argv[2], sys.argv[3]
+Library.set_device_db_source(DeviceDbSourceType.FILE, db)
+out = {}
+conn = Connection.open_serial_port(where) if kind == "serial" else Connection.open_tcp("127.0.0.1", int(where))
+with conn:
     devices = conn.detect_devices(identify_devices=False)
-    assert [d.device_address for d in devices] == [1]
-    ids = {k: conn.generic_command(f"get {k}", device=1).data
-           for k in ("deviceid", "system.serial", "version", "system.axiscount")}
-    assert ids == {"deviceid": "50419", "system.serial": "70001", "version": "7.38", "system.axiscount": "1"}
+    out["addresses"] = [d.device_address for d in devices]
+    out["ids"] = {k: conn.generic_command(f"get {k}", device=1).data
+                  for k in ("deviceid", "system.serial", "version", "system.axiscount")}
     r = conn.generic_command("get pos", device=1, axis=1)
-    assert (r.reply_flag, r.status, r.warning_flag, r.data) == ("OK", "IDLE", "--", "0")
+    out["status"] = [r.reply_flag, r.status, r.warning_flag, r.data]
     axis = devices[0].get_axis(1)
-    axis.move_absolute(90000)                      # native units: microsteps (1000 per degree)
-    assert src.moves == [90.0]                     # the twin's stage got the move
-    assert axis.get_position() == 90000.0
+    axis.move_absolute(90000)                 # native units: microsteps
+    out["pos1"] = axis.get_position()
     axis.move_relative(-2500)
-    assert src.moves[-1] == pytest.approx(87.5) and axis.get_position() == 87500.0
-    with pytest.raises(Exception, match="BADCOMMAND"):
+    out["pos2"] = axis.get_position()
+    try:
         conn.generic_command("fly", device=1, axis=1)
-    return devices[0]
+    except MotionLibException as exc:
+        out["rejected"] = str(exc)
+print(json.dumps(out))
+"""
 
 
-def test_zaber_motion_library_on_a_pty(zml):
-    from zaber_motion.ascii import Connection
-    from zaber_motion.exceptions import DeviceDbFailedException
+def _zml(kind: str, where: str, tmp_path) -> dict:
+    import json
+    import subprocess
+    import sys
 
+    script = tmp_path / "zml_client.py"
+    script.write_text(ZML_CLIENT)
+    run = subprocess.run([sys.executable, str(script), kind, where, str(tmp_path / "no-devices.sqlite")],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def _check_zml(out: dict, src: Stub) -> None:
+    assert out["addresses"] == [1]
+    assert out["ids"] == {"deviceid": "50419", "system.serial": "70001", "version": "7.38", "system.axiscount": "1"}
+    assert out["status"] == ["OK", "IDLE", "--", "0"]
+    assert out["pos1"] == 90000.0 and out["pos2"] == 87500.0
+    assert src.moves == [90.0, pytest.approx(87.5)]         # the twin's stage got both moves
+    assert "BADCOMMAND" in out["rejected"]
+
+
+def test_zaber_motion_library_on_a_pty(tmp_path):
     src = Stub()
     emu = ZaberEmulator("stage", src)
     emu.keep_log = True
     with PtyServer({"stage": emu}) as server:
-        with Connection.open_serial_port(server.paths()["stage"]) as conn:
-            device = _zml_session(conn, src)
-            # identification needs Zaber's device database: here, exactly that is missing
-            with pytest.raises(DeviceDbFailedException, match="offline source for the Device Database"):
-                device.identify()
+        out = _zml("serial", server.paths()["stage"], tmp_path)
         assert server.errors == []
+    _check_zml(out, src)
     sent = [q for q, _ in emu.log]
     # the library numbers its messages and checksums them; the emulator answered every one
     assert all(re.fullmatch(rb"/\d+ \d+ \d\d[ -~]*:[0-9A-F]{2}", q) for q in sent), sent[:3]
     assert all(r is not None and r.endswith(b"\r\n") for _, r in emu.log)
 
 
-def test_zaber_motion_library_over_tcp(zml):
-    from zaber_motion.ascii import Connection
-
+def test_zaber_motion_library_over_tcp(tmp_path):
     src = Stub()
     with TcpServer({"stage": ZaberEmulator("stage", src)}) as server:
-        port = int(server.paths()["stage"].rsplit(":", 1)[1])
-        with Connection.open_tcp("127.0.0.1", port) as conn:
-            _zml_session(conn, src)
+        out = _zml("tcp", server.paths()["stage"].rsplit(":", 1)[1], tmp_path)
         assert server.errors == []
+    _check_zml(out, src)
 
 
 # --------------------------------------------------------------------------- pymeasure ND287
@@ -192,3 +212,22 @@ def test_wrong_baud_rate_is_line_noise_and_said_so():
         assert "9600 baud" in emu.framing_notes[-1] and "4800" in emu.framing_notes[-1]
         with serial.Serial(path, 4800, bytesize=7, parity="E", stopbits=2, timeout=1) as p:
             assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"       # the right framing: understood
+
+
+def test_what_a_pty_shows_of_the_client_line_settings():
+    """docs/protocols/README.md: on a pty, speed, stop bits and odd parity are visible, data bits and
+    even parity are not (the kernel forces CS8 and clears PARENB)."""
+    src = Stub(probe_top={"value_um": 1.0, "status": "ok"})
+    emu = TesaEmulator("tesa", src, "probe_top")
+    with PtyServer({"tesa": emu}) as server:
+        path = server.paths()["tesa"]
+        with serial.Serial(path, 4800, bytesize=7, parity="E", stopbits=2, timeout=1) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"
+        assert emu.client == {"transport": "pty", "baudrate": 4800, "stopbits": 2, "parity_odd": False}
+        with serial.Serial(path, 4800, bytesize=8, parity="N", stopbits=1, timeout=1) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b"+1.00\r\n"     # 8N1: indistinguishable from 7E1 on a pty
+        assert emu.client["stopbits"] == 1
+        with serial.Serial(path, 4800, bytesize=7, parity="O", stopbits=2, timeout=0.3) as p:
+            assert _ask(p, b"?\r", b"\r\n") == b""              # odd parity on an even-parity display
+        assert emu.client["parity_odd"] and "odd/mark parity" in emu.framing_notes[-1]
+        assert emu.connections == 3

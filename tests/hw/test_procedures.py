@@ -190,11 +190,17 @@ def test_journal_resume_checks_the_procedure_and_tolerates_a_torn_line(tmp_path)
         Runner(inst, clock, journal=j).run(polygon_traditional(6, start_face=2), resume=True)
 
 
-def test_no_resume_starts_a_new_journal(tmp_path):
+def test_no_resume_keeps_the_journal_and_restart_starts_a_new_one(tmp_path):
     j = tmp_path / "run.jsonl"
-    for _ in range(2):
-        clock, inst = _bench()
+    clock, inst = _bench()
+    Runner(inst, clock, journal=j).run(polygon_traditional(4))
+    before = j.read_bytes()
+    clock, inst = _bench()
+    with pytest.raises(RunnerError, match="resume it, or restart"):
         Runner(inst, clock, journal=j).run(polygon_traditional(4))
+    assert j.read_bytes() == before  # issue #13: a run without --resume deleted the readings taken
+    clock, inst = _bench()
+    Runner(inst, clock, journal=j).run(polygon_traditional(4), restart=True)
     recs = read_journal(j)
     assert recs[0]["journal"] == "benchtwin-run" and sum("row" in r for r in recs) == 4
 

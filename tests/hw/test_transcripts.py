@@ -64,8 +64,9 @@ def test_every_driver_records_and_replays_its_emulated_session(tmp_path, protoco
 
     ac, probes = protocols
     sc = load_scenario().with_overrides({"bench.heads": ["0 deg", "120 deg", "240 deg"]})
+    # the TriAngle/TESA session also runs the stage with Zaber message ids and checksums (zaber.md)
     stage_kw = dict(microsteps_per_deg=1000.0, soft_limits_deg=(-1.0, 361.0), max_speed_deg_s=50.0,
-                    poll_interval_s=0.0)
+                    poll_interval_s=0.0, message_ids=ac == "triangle", checksums=ac == "triangle")
     uses = {
         "stage": (ZaberRotaryStage, "stage", stage_kw, lambda d: [d.move_to(12.5), d.position(), d.move_to(FACE_3)]),
         "encoder": (HeidenhainND, "encoder", {"heads_deg": [0.0, 120.0, 240.0], "decimals": 6},

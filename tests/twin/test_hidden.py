@@ -16,15 +16,15 @@ from benchtwin.twin.hidden import Hidden
 from benchtwin.twin.scenario import load_scenario, validate
 from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS
 from benchtwin.twin.simulate import sim_build, simulate
+from benchtwin.units import ARCSEC
 
 ROOT = Path(__file__).resolve().parents[2]
 HIDDEN_DIR = ROOT / "scenarios" / "hidden"
 SCENARIOS = sorted(HIDDEN_DIR.glob("*.toml"))
-ARCSEC = math.pi / 648000.0
 # An effect that moves the stop's true angle by ~1″ moves the 3 µm-centred spheres by ~1e-5 µm:
 # "unchanged" probes means below this, 100× under the probe's 0.01 µm resolution.
 PROBE_TOL_UM = 1e-4
-ARCSEC_RAD = math.pi / 648000.0
+ARCSEC_RAD = ARCSEC
 STOPS_DEG = [0.0, 31.3, 62.6, 93.9, 125.2, 156.5, 187.8, 219.1, 250.4, 281.7, 313.0, 344.3]
 
 

@@ -162,13 +162,12 @@ def test_pure_translation_comes_out_where_expected(jia, axis):
     f = lambda th: A * np.cos(2 * th + 0.3)  # noqa: E731
     b = _table_bench(jia, **{f"d{axis}": f})
     i, j = (0, 1) if axis == "x" else (1, 0)
-    ref = b.pose_at(0.0)
     for th in np.linspace(0.1, 6.2, 9):
         p = b.pose_at(th)
         true_th = p.shaft_angle_rad
         for body in ("disk", "sphere_top", "sphere_bottom"):
             # body centre = rotated body offset + δ; remove the rotation of the offset
-            bp, b0 = getattr(p, body), getattr(ref, body)
+            bp = getattr(p, body)
             off = p.extra["shaft"].to_body(bp.pos)
             moved = bp.pos - p.extra["shaft"].R @ off
             assert abs(moved[i] - f(true_th)) < EXACT_M

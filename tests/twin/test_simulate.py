@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -191,13 +190,12 @@ def test_dry_run_of_the_jia_scenario():
     assert kinds.count("Read") == 1080 + 60 + 23 * 23
 
 
-def test_jia2019_full_run_is_fast(tmp_path):
-    """The embedded default scenario, analytic renderer: well under a minute on 2 cores."""
+def test_jia2019_full_run(tmp_path):
+    """The embedded default scenario end to end (analytic renderer): the dataset's shape and the size of
+    its error. Its speed is a benchmark (benchmarks/run_bench.py, docs/benchmarks.md), not a timed test:
+    a wall-clock bound fails on a loaded machine and passes a slow change on a fast one."""
     sc = load_scenario(ROOT / "scenarios" / "jia2019.toml")
-    t0 = time.perf_counter()
     out = simulate(sc, tmp_path / "jia", progress=False, backend="analytic")
-    dt = time.perf_counter() - t0
-    assert dt < 45.0, dt
     ds = Dataset(out)
     assert len(ds.table("radial_motion")["rep"]) == 1080
     assert len(ds.table("polygon")["step"]) == 529 and not ds.has("heads")

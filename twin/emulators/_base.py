@@ -107,7 +107,7 @@ class ProtocolEmulator:
     # ------------------------------------------------------------------ requests
     def split(self, buf: bytes) -> tuple[list[bytes], bytes]:
         """Complete requests in ``buf`` (terminators removed, empty lines dropped) and the rest."""
-        out = []
+        out: list[bytes] = []
         while True:
             m = _TERM.search(buf)
             if m is None:

@@ -14,11 +14,12 @@ renderer's truth stays in the twin.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from benchtwin.fsio import atomic_write_bytes
 
 __all__ = ["FolderCameraEmulator"]
 
@@ -48,10 +49,8 @@ class FolderCameraEmulator:
             raise RuntimeError(f"{self.name}: PNG encoding failed for step {step}")
         self.frames += 1
         p = self.folder / f"frame_{self.frames:06d}.png"
-        tmp = self.folder / f".{p.name}.tmp"
-        tmp.write_bytes(png.tobytes())
-        os.replace(tmp, p)
-        return p
+        # atomic (benchtwin.fsio: a dot-named temporary sibling the driver ignores, then rename)
+        return atomic_write_bytes(p, png.tobytes(), fsync=False)
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "protocol": "hot folder (numbered PNG frames)", "driver": self.DRIVER,

@@ -55,7 +55,7 @@ class HeidenhainEmulator(ProtocolEmulator):
     def split(self, buf: bytes) -> tuple[list[bytes], bytes]:
         """Complete ``ESC`` sequences; bytes before an ``ESC`` are noise, a line without one is an
         unidentifiable command (NAK); a half sequence waits for its last characters."""
-        out = []
+        out: list[bytes] = []
         while buf:
             esc = buf.find(ESC)
             if esc < 0:

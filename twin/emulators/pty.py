@@ -45,7 +45,6 @@ in the bench file): faults are a property of the emulated instruments, and the b
 from __future__ import annotations
 
 import errno
-import json
 import os
 import select
 import tempfile
@@ -57,9 +56,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from benchtwin.schema import Key, SchemaError, check_table, check_version, loads_json, loads_toml, read_input_text
+
 __all__ = ["PtyServer", "load_fault_plan", "FAULT_ACTIONS"]
 
 FAULT_ACTIONS = ("drop", "garble", "partial", "delay", "disconnect")
+MAX_FAULTS = 10_000
+# the fault plan's schema (benchtwin.schema: the one validator mechanism of the input files)
+FAULT_PLAN_KEYS = {"version": Key("int"), "faults": Key("list")}
+FAULT_KEYS = {
+    "port": Key("str", required=True, n_min=1, n_max=64, doc="the port's name in the bench file"),
+    "request": Key("int", required=True, lo=1, hi=10**9, doc="the n-th request on that port"),
+    "action": Key("str", required=True, choices=FAULT_ACTIONS),
+    "seconds": Key("float", lo=0.0, hi=3600.0, doc="delay/disconnect duration"),
+}
 
 
 def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> list[dict[str, Any]]:
@@ -70,42 +80,31 @@ def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> lis
     if isinstance(source, (str, Path)):
         p = Path(source)
         where = str(p)
-        if not p.is_file():
+        if not p.exists():
             raise ValueError(f"{p}: no such fault plan file")
-        text = p.read_text(encoding="utf-8")
-        if p.suffix == ".json":
-            data: Any = json.loads(text)
-        else:
-            import tomllib
-
-            try:
-                data = tomllib.loads(text)
-            except tomllib.TOMLDecodeError as exc:
-                raise ValueError(f"{p}: not valid TOML: {exc}") from None
+        # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        try:
+            text = read_input_text(p, what="fault plan")
+            data: Any = loads_json(text, where) if p.suffix == ".json" else loads_toml(text, where)
+        except SchemaError as exc:
+            raise ValueError(str(exc)) from None
     else:
         data = source
-    items = data.get("faults", []) if isinstance(data, Mapping) else data
-    if not isinstance(items, list):
-        raise ValueError(f"{where}: key 'faults': expected an array of tables")
+    if isinstance(data, Mapping):
+        check_version(data, where, fail=ValueError)
+        check_table(data, FAULT_PLAN_KEYS, where, fail=ValueError)
+        items = data.get("faults", [])
+    else:
+        items = data
+    if not isinstance(items, list) or len(items) > MAX_FAULTS:
+        raise ValueError(f"{where}: key 'faults': expected an array of at most {MAX_FAULTS} tables")
     out = []
     for k, f in enumerate(items):
-        at = f"{where}: faults[{k}]"
-        if not isinstance(f, Mapping):
-            raise ValueError(f"{at}: expected a table with port, request, action")
-        unknown = set(f) - {"port", "request", "action", "seconds"}
-        if unknown:
-            raise ValueError(f"{at}: unknown keys {sorted(unknown)}; expected port, request, action, seconds")
-        if not isinstance(f.get("port"), str):
-            raise ValueError(f"{at}: key 'port': expected a port name (string), got {f.get('port')!r}")
-        n = f.get("request")
-        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-            raise ValueError(f"{at}: key 'request': expected an integer >= 1, got {n!r}")
-        if f.get("action") not in FAULT_ACTIONS:
-            raise ValueError(f"{at}: key 'action': expected one of {FAULT_ACTIONS}, got {f.get('action')!r}")
-        secs = f.get("seconds", 0.0)
-        if not isinstance(secs, (int, float)) or secs < 0:
-            raise ValueError(f"{at}: key 'seconds': expected a number >= 0, got {secs!r}")
-        out.append({"port": f["port"], "request": int(n), "action": f["action"], "seconds": float(secs)})
+        # one declarative check (benchtwin.schema.check_table): seconds = nan stops here, not in
+        # the emulator's port thread (issue #13)
+        f = check_table(f, FAULT_KEYS, where, at=f"faults[{k}]", fail=ValueError)
+        out.append({"port": f["port"], "request": int(f["request"]), "action": f["action"],
+                    "seconds": float(f.get("seconds", 0.0))})
     return out
 
 

@@ -29,6 +29,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchtwin.fsio import atomic_write_text
+from benchtwin.hw.acquisition.procedures import specs_toml
+from benchtwin.units import ARCSEC
+
 from ._base import decimals_for
 from .backend import EmulatedBench
 from .camera import FolderCameraEmulator
@@ -43,7 +47,6 @@ from .zaber import ZaberEmulator
 
 __all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
 
-ARCSEC = math.pi / 648000.0
 MICROSTEPS_PER_DEG = 1000.0
 
 
@@ -88,7 +91,7 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
                     camera: Any = None, frames_dir: str | Path | None = None) -> str:
     """A ready-to-use bench file for the emulated instruments (docs/bench-file.md). ``camera``:
     the twin's ``SimCamera`` (its nominal geometry goes to ``[ccd]``), served from ``frames_dir``."""
-    b, pr = sc["bench"], sc["procedure"]
+    b = sc["bench"]
     from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
 
     heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
@@ -110,6 +113,9 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
         f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
         f"scale_edge_radius = {_q(float(b['scale_edge_radius']) * 1e3, 'mm')}",
     ]
+    ac = sc["instruments"]["autocollimator"]
+    lines += [f"autocollimator_resolution = {_q(float(ac['resolution']) / ARCSEC, 'arcsec')}",
+              f"autocollimator_accuracy = {_q(float(ac['accuracy']) / ARCSEC, 'arcsec')}"]
     if camera is not None:
         c = camera.camera
         ref = ", ".join(f"{float(v):.12g}" for v in c.reference_px)
@@ -154,20 +160,10 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     if camera is not None:
         lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
                   "options = { timeout_s = 30.0 }", ""]
-    dwell = f'"{float(pr["dwell"]):g} s"'
-    dirs = ", ".join(f'"{d}"' for d in pr["directions"])
-    probes_list = ", ".join(f'"{n}"' for n in probe_names)
-    lines += ["[[procedure]]", 'type = "radial_motion"', f"reps = {int(pr['radial_reps'])}",
-              f"positions = {int(pr['radial_positions'])}", f"dwell = {dwell}", f"probes = [{probes_list}]", ""]
-    if camera is not None:
-        lines += ["[[procedure]]", 'type = "ccd_sweep"', f"step = {_q(_deg(pr['ccd_step']), 'deg')}",
-                  f"dwell = {dwell}", 'camera = "ccd"', ""]
-    shifts = ", ".join(_q(_deg(s), "deg") for s in pr["polygon_shifts"])
-    lines += ["[[procedure]]", 'type = "polygon_shift_angle"', f"shifts = [{shifts}]",
-              f"reps = {int(pr['polygon_reps'])}", f"directions = [{dirs}]", f"dwell = {dwell}", ""]
-    if pr["selfcal"] and len(b["heads"]) > 1:
-        lines += ["[[procedure]]", 'type = "selfcal"', f"step = {_q(_deg(pr['selfcal_step']), 'deg')}",
-                  f"directions = [{dirs}]", f"dwell = {dwell}", ""]
+    # the procedures simulate runs, in the one procedure language (faces and heads: from [geometry])
+    from benchtwin.twin.simulate import scenario_procedures
+
+    lines += specs_toml(scenario_procedures(sc, probes=probe_names, ccd=camera is not None), omit=("faces", "heads"))
     return "\n".join(lines)
 
 
@@ -198,8 +194,9 @@ class EmulationSession:
         ports = self.server.start()
         frames = self.camera.start(d / "frames") if self.camera is not None else None
         self.bench_path = d / "bench.toml"
-        self.bench_path.write_text(bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
-                                                   self.backend.camera, frames), encoding="utf-8")
+        # atomic (benchtwin.fsio): a client polling for the bench file never reads half of it
+        atomic_write_text(self.bench_path, bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
+                                                           self.backend.camera, frames))
         return self.bench_path
 
     def ports(self) -> dict[str, str]:

@@ -25,8 +25,9 @@ axis setting at axis 0 answers every axis, as a device does; a device setting at
 ``RJ … BADAXIS``. Unknown commands ``RJ … BADCOMMAND``, bad numbers ``RJ … BADDATA``, a target
 outside ``limit.min``…``limit.max`` ``RJ … BADDATA``, a bad message id ``RJ … BADMESSAGEID``.
 
-The identity is that of a Zaber rotary stage with integrated controller (``deviceid`` and firmware
-``version`` below: docs/protocols/zaber.md says where they come from and how sure we are). The
+The identity is meant as a Zaber rotary stage with integrated controller (``deviceid`` and firmware
+``version`` below are our choices, not checked against Zaber's device database: docs/protocols/zaber.md
+says so, and what a client cannot get without that database). The
 move is done on the twin at once; the reply says BUSY and so do the next ``busy_polls`` status
 polls, then IDLE, so a client's wait loop is exercised. The stage's native unit is the microstep:
 ``microsteps_per_deg`` (1000 on the emulated bench) is the conversion a client gets from
@@ -43,7 +44,8 @@ from ._base import ProtocolEmulator
 __all__ = ["ZaberEmulator", "zaber_checksum", "ROTARY_DEVICE_ID"]
 
 SPEED_UNIT = 1.6384  # Zaber data units per (microstep/s)
-# X-RSW60A (integrated rotary stage): docs/protocols/zaber.md, "identity".
+# Our choice, meant as an integrated rotary stage; NOT verified against Zaber's device database
+# (unreachable from here): docs/protocols/zaber.md, "identity". Option ``device_id`` overrides it.
 ROTARY_DEVICE_ID = 50419
 FIRMWARE = "7.38"
 FIRMWARE_BUILD = "17690"

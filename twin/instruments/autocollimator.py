@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.hw.interfaces import AutocollimatorReading
 from benchtwin.units import quantise
 
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
@@ -107,7 +108,7 @@ class SimAutocollimator:
         return self.accuracy_rad * (c["scale"][axis] * x + c["bow"][axis] * math.sin(math.pi * x + c["phase"][axis]))
 
     # ------------------------------------------------------------------ signal chain
-    def read(self) -> dict[str, Any]:
+    def read(self) -> AutocollimatorReading:
         st = self.state
         t = float(st.clock.now())
         x, y, _ = self.sim_exact_angles(st.pose)

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.hw.interfaces import CameraFrame
+
 from .stage import SimBenchState
 
 
@@ -65,7 +67,7 @@ class SimCamera:
                 "pixel_um": c.pixel_pitch_m * 1e6, "position_deg": float(np.degrees(c.azimuth_rad)),
                 "tangential": c.tangential, "reference_px": list(c.reference_px), "bit_depth": self.sensor.bit_depth}
 
-    def capture(self) -> dict[str, Any]:
+    def capture(self) -> CameraFrame:
         st = self.state
         frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
         tr = frame.truth

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.hw.interfaces import EncoderReading
 from benchtwin.twin.pose import BenchPose
 
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
@@ -225,7 +226,7 @@ class SimEncoder:
         phi = pose.shaft_angle_rad
         return phi + _wrap_pi(raw - phi)
 
-    def read(self) -> dict[str, Any]:
+    def read(self) -> EncoderReading:
         st = self.state
         c = self.sim_last_exact
         x = c[1].copy() if c is not None and c[0] is st.pose else self.sim_exact_readings(st.pose)

@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.units import quantise
+from benchtwin.hw.interfaces import ProbeReading
+from benchtwin.units import UM, quantise
 
 from .stage import SimBenchState, sim_rng
 
-UM = 1e-6
 
 
 class SimProbe:
@@ -124,7 +124,7 @@ class SimProbe:
         env = self.linearity_a_m + self.linearity_b_m * (L / 1e-3) ** 2
         return env * self._lin_scale * self._lin_shape(L)
 
-    def read(self) -> dict[str, Any]:
+    def read(self) -> ProbeReading:
         st = self.state
         L = self.sim_displacement_m(st.pose)
         t = float(st.clock.now())

@@ -38,10 +38,10 @@ import numpy as np
 
 from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
-from benchtwin.hw.interfaces import SoftLimitError
+from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
 from benchtwin.twin.pose import BenchPose, BodyPose
+from benchtwin.units import ARCSEC
 
-ARCSEC = math.pi / 648000.0
 TWO_PI = 2.0 * math.pi
 #: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
 SIM_OFFSET_CACHE_SIZE = 8192
@@ -210,7 +210,7 @@ class SimRotaryStage:
                 "tolerance_arcsec": self.tol_rad / ARCSEC,
                 "soft_limits_deg": None if self.soft_limits_deg is None else [float(v) for v in self.soft_limits_deg]}
 
-    def move_to(self, target_deg: float) -> dict[str, Any]:
+    def move_to(self, target_deg: float) -> StageMove:
         target_deg = float(target_deg)
         st = self.state
         lim = self.soft_limits_deg
@@ -257,5 +257,5 @@ class SimRotaryStage:
         return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": duration, "status": "ok",
                 "iterations": it}
 
-    def position(self) -> dict[str, Any]:
+    def position(self) -> StagePosition:
         return {"angle_deg": self.position_deg, "t_s": self.state.clock.now(), "status": "ok"}

@@ -40,7 +40,7 @@ def configure() -> str:
     if os.environ["MUJOCO_GL"] != os.environ["PYOPENGL_PLATFORM"] and "OpenGL" not in sys.modules:
         os.environ["PYOPENGL_PLATFORM"] = os.environ["MUJOCO_GL"]
     if not hasattr(np, "infty"):
-        np.infty = np.inf  # pyrender 0.1.45 (scene.py, camera.py) uses the numpy-1 alias
+        np.infty = np.inf  # noqa: NPY201 - pyrender 0.1.45 (scene.py, camera.py) uses the numpy-1 alias
     return os.environ["PYOPENGL_PLATFORM"]
 
 

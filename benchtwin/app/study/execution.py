@@ -34,7 +34,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-import benchtwin
+from benchtwin.fsio import atomic_write_text
 
 from . import points as study_points
 from . import report
@@ -111,11 +111,7 @@ class _Cache:
         return entry
 
     def put(self, key: str, entry: dict[str, Any]) -> None:
-        p = self.path(key)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(json.dumps(entry))
-        os.replace(tmp, p)
+        atomic_write_text(self.path(key), json.dumps(entry), fsync=False)  # benchtwin.fsio
 
 
 class _Bar(Protocol):
@@ -177,6 +173,9 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
     study = load_study(study_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    # study.json is written last (the completion marker): an earlier run's must not outlive a new
+    # run that is killed (benchtwin.fsio; issue #13)
+    (out / "study.json").unlink(missing_ok=True)
     points = expand_points(study)
     fidelity = study.run_fidelity
     if point_fn is not None:
@@ -314,8 +313,8 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
     cols: dict[str, list[Any]] = {"point": [], "rep": [], "rep_seed": []}
     for p in params:
         cols[p.column] = []
-        for k in p.sets:
-            cols[_column(k, p.unit)] = []
+        for key in p.sets:
+            cols[_column(key, p.unit)] = []
     for o in study.outputs:
         cols[o] = []
     cols["fidelity"] = []
@@ -393,5 +392,5 @@ def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[i
         f"study {study.name}: {len(points)} points × {study.repetitions} reps ({info.computed} computed, "
         f"{info.cached} from cache) -> {out}",
     }
-    (out / "study.json").write_text(json.dumps(result, indent=2, default=str), encoding="utf-8")
+    atomic_write_text(out / "study.json", json.dumps(result, indent=2, default=str))  # last: the completion marker
     return result

@@ -32,6 +32,7 @@ from __future__ import annotations
 import importlib
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -75,7 +76,7 @@ def output_fidelity(output: str) -> str:
     raise KeyError(output)
 
 
-def full_entry_point():
+def full_entry_point() -> Callable[..., dict[str, Any]]:
     """The simulate → analyze function (``FULL_ENTRY_POINT``)."""
     mod, fn = FULL_ENTRY_POINT
     return getattr(importlib.import_module(mod), fn)

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.fsio import atomic_write_text
+
 from .spec import Study, _output_dim
 
 
@@ -58,8 +60,8 @@ def write_report(study: Study, rows: list[dict[str, Any]], done: dict[tuple[int,
     verdict = _target_verdict(study, rows) if study.target else None
     figures = _figures(study, rows, done, out, verdict)
     md = _markdown(study, rows, verdict, info)
-    (out / "summary.md").write_text(md, encoding="utf-8")
-    (out / "summary.html").write_text(_html(md), encoding="utf-8")
+    atomic_write_text(out / "summary.md", md)
+    atomic_write_text(out / "summary.html", _html(md))
     report = _report(study, _html(md), figures, out / "report.html")
     return Written(verdict, figures, report)
 
@@ -83,7 +85,7 @@ def _target_verdict(study: Study, rows: list[dict]) -> dict[str, Any]:
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault(tuple(repr(r["values"][o]) for o in others), []).append(r)
-    result_groups = []
+    result_groups: list[dict[str, Any]] = []
     for gkey, grs in groups.items():
         numeric = param.kind in ("quantity", "int", "number")
         if numeric:

@@ -35,8 +35,7 @@ import itertools
 import json
 import math
 import re
-import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -44,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.schema import SchemaError, check_version, load_toml_file
 from benchtwin.twin.scenario import Scenario, ScenarioError, load_scenario
 from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS, SCHEMA, Field
 from benchtwin.units import DIMENSIONS, UnitError, parse_quantity, units_of
@@ -58,10 +58,16 @@ _STUDY_KEYS = {"name", "description", "base", "seed", "repetitions", "outputs", 
 _PARAM_KEYS = {"key", "name", "values", "labels", "low", "high", "n", "sampling", "set"}
 _TARGET_KEYS = {"output", "below", "parameter", "coverage", "criterion"}
 _SEED_MAX = 2**63 - 1
+# A value level whose scenario overrides follow from its value once the parameter is parsed
+# (``Parameter.overrides_for``); compared by identity, never mutated.
+_UNRESOLVED: dict[str, Any] = {}
 
 
 class StudyError(ValueError):
     """A study file that cannot be run; the message names the file, the key and what was expected."""
+
+
+_Fail = Callable[[str], StudyError]  # message -> the error naming the study file
 
 
 # ------------------------------------------------------------------------------------ spec
@@ -205,24 +211,41 @@ def _flatten(node: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every point's resolved scenario is validated too."""
+    """Read and validate a study file; every point's resolved scenario is validated too.
+
+    The checks name each key; a value of a type no check foresaw (found by the fuzz tests,
+    tests/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
+    try:
+        return _load_study(path)
+    except StudyError:
+        raise
+    except (TypeError, KeyError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise StudyError(f"{path}: a value of the wrong type or shape ({type(exc).__name__}: {str(exc)[:120]}); "
+                         "see docs/studies.md") from None
+
+
+def _load_study(path: str | Path) -> Study:
     p = Path(path)
     where = str(p)
 
     def fail(msg: str) -> StudyError:
         return StudyError(f"{where}: {msg}")
 
-    if not p.is_file():
+    if not p.exists():
         raise fail("no such study file")
-    try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise fail(f"not valid TOML: {exc}") from None
+    try:  # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
+        raw = load_toml_file(p, what="study file")
+    except SchemaError as exc:
+        raise StudyError(str(exc)) from None
+    check_version(raw, where, fail=StudyError)  # optional top-level version: missing = 1
+    raw = {k: v for k, v in raw.items() if k != "version"}
     if set(raw) != {"study"}:
         extra = sorted(set(raw) - {"study"})
         raise fail(f"unknown section [{extra[0]}]; a study file holds only [study] and its sub-tables"
                    if extra else "missing section [study]")
     st = raw["study"]
+    if not isinstance(st, Mapping):
+        raise fail("[study] must be a table")
     for k in st:
         if k not in _STUDY_KEYS:
             raise fail(f"unknown key study.{k}; expected one of {', '.join(sorted(_STUDY_KEYS))}")
@@ -244,29 +267,7 @@ def load_study(path: str | Path) -> Study:
     fidelity = st.get("fidelity", "auto")
     if fidelity not in FIDELITIES:
         raise fail(f"study.fidelity: {fidelity!r} is not one of {', '.join(FIDELITIES)}")
-    outputs = st["outputs"]
-    if not isinstance(outputs, list) or not outputs or not all(isinstance(o, str) for o in outputs):
-        raise fail("study.outputs: expected a non-empty list of output names")
-    if len(set(outputs)) != len(outputs):
-        raise fail("study.outputs: an output is listed twice")
-    for o in outputs:
-        try:
-            fo = study_points.output_fidelity(o)
-        except KeyError:
-            raise fail(f"study.outputs: unknown output {o!r}; physics outputs: "
-                       f"{', '.join(study_points.PHYSICS_OUTPUTS)}; full outputs: "
-                       f"{', '.join(study_points._run.FULL_OUTPUTS)}, identified.<effect> (effect one of "
-                       f"{', '.join(study_points._run.effect_names())}), and numbers of the pipeline's "
-                       f"results.json written '{study_points.FULL_PREFIX}<key.in.results.json>'") from None
-        if fidelity == "physics" and fo != "physics":
-            raise fail(f"study.outputs: {o!r} needs fidelity 'full' (the simulate → analyze pipeline) "
-                       "but study.fidelity is 'physics'")
-    order = st.get("order", 10)
-    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= 60:
-        raise fail(f"study.order: expected an integer 1…60 (Fourier order of the analysis), got {order!r}")
-    if "order" in st and fidelity != "full" and all(study_points.output_fidelity(o) == "physics" for o in outputs):
-        raise fail("study.order: the analysis' Fourier order applies to full-fidelity studies only; every "
-                   "output here is a physics output (no analysis runs)")
+    outputs, order = _parse_outputs(st, fidelity, fail)
     base, base_ref = _resolve_base(st["base"], p, fail)
     fixed_raw = st.get("fixed", {})
     if not isinstance(fixed_raw, Mapping):
@@ -294,7 +295,35 @@ def load_study(path: str | Path) -> Study:
     return study
 
 
-def _resolve_base(base: Any, study_path: Path, fail) -> tuple[Scenario, str]:
+def _parse_outputs(st: Mapping[str, Any], fidelity: str, fail: _Fail) -> tuple[list[str], int]:
+    """``study.outputs`` (each known, at a fidelity the study allows) and ``study.order``."""
+    outputs = st["outputs"]
+    if not isinstance(outputs, list) or not outputs or not all(isinstance(o, str) for o in outputs):
+        raise fail("study.outputs: expected a non-empty list of output names")
+    if len(set(outputs)) != len(outputs):
+        raise fail("study.outputs: an output is listed twice")
+    for o in outputs:
+        try:
+            fo = study_points.output_fidelity(o)
+        except KeyError:
+            raise fail(f"study.outputs: unknown output {o!r}; physics outputs: "
+                       f"{', '.join(study_points.PHYSICS_OUTPUTS)}; full outputs: "
+                       f"{', '.join(study_points._run.FULL_OUTPUTS)}, identified.<effect> (effect one of "
+                       f"{', '.join(study_points._run.effect_names())}), and numbers of the pipeline's "
+                       f"results.json written '{study_points.FULL_PREFIX}<key.in.results.json>'") from None
+        if fidelity == "physics" and fo != "physics":
+            raise fail(f"study.outputs: {o!r} needs fidelity 'full' (the simulate → analyze pipeline) "
+                       "but study.fidelity is 'physics'")
+    order = st.get("order", 10)
+    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= 60:
+        raise fail(f"study.order: expected an integer 1…60 (Fourier order of the analysis), got {order!r}")
+    if "order" in st and fidelity != "full" and all(study_points.output_fidelity(o) == "physics" for o in outputs):
+        raise fail("study.order: the analysis' Fourier order applies to full-fidelity studies only; every "
+                   "output here is a physics output (no analysis runs)")
+    return outputs, order
+
+
+def _resolve_base(base: Any, study_path: Path, fail: _Fail) -> tuple[Scenario, str]:
     if not isinstance(base, str) or not base:
         raise fail("study.base: expected a scenario path (relative to the study file) or a packaged "
                    "scenario name such as 'jia2019'")
@@ -315,7 +344,7 @@ def _resolve_base(base: Any, study_path: Path, fail) -> tuple[Scenario, str]:
         raise fail(f"study.base: the base scenario is invalid: {exc}") from None
 
 
-def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
+def _parse_parameter(i: int, pr: Any, fail: _Fail) -> Parameter:
     at = f"study.parameters[{i}]"
     if not isinstance(pr, Mapping):
         raise fail(f"{at}: expected a table")
@@ -354,119 +383,149 @@ def _parse_parameter(i: int, pr: Any, fail) -> Parameter:
         raise fail(f"{at}.sampling ({name}): random/lhs sampling needs low, high, n (values are a grid)")
 
     p = Parameter(name=name, kind="", unit="", sampling=sampling, key=key)
-    if has_values:
-        values = pr["values"]
-        if not isinstance(values, list) or not values:
-            raise fail(f"{at}.values ({name}): expected a non-empty list")
-        first = values[0]
-        labels = pr.get("labels")
-        if all(isinstance(v, str) for v in values) and (dim in DIMENSIONS or (key is None)):
-            p.kind = "quantity"
-            p.unit = _split_unit(first)
-            if key is None:
-                d = _dim_of_unit(p.unit)
-                if d is None:
-                    raise fail(f"{at}.values ({name}): unknown unit in {first!r}")
-                dim = d
-            for j, v in enumerate(values):
-                try:
-                    x_si = parse_quantity(v, dim)
-                except UnitError as exc:
-                    raise fail(f"{at}.values[{j}] ({name}): {exc}") from None
-                shown = _round(x_si / _factor(p.unit, dim)) if p.unit else x_si
-                p.levels.append((shown, None))
-        elif dim == "dimensionless" and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            p.kind = "number"
-            p.levels = [(float(v), None) for v in values]
-        elif dim == "int" and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
-            p.kind = "int"
-            p.levels = [(int(v), None) for v in values]
-        elif dim in ("str", "bool") and labels is None:
-            p.kind = dim
-            p.levels = [(v, None) for v in values]
-        else:
-            if labels is None or not isinstance(labels, list) or len(labels) != len(values) or \
-                    not all(isinstance(s, str) for s in labels):
-                raise fail(f"{at} ({name}): values of kind {dim or 'unknown'} that are not plain quantities "
-                           f"need labels = [...] of the same length (one name per value, for the table); "
-                           f"got values {values!r}")
-            if key is None:
-                raise fail(f"{at} ({name}): labelled values need key = \"section.key\"")
-            p.kind = "label"
-            p.levels = [(lab, {key: v}) for lab, v in zip(labels, values)]
-        if len({repr(v) for v, _ in p.levels}) != len(p.levels):
-            raise fail(f"{at}.values ({name}): a value is listed twice")
-    else:
-        for k in ("low", "high", "n"):
-            if k not in pr:
-                raise fail(f"{at} ({name}): missing {k} (low, high and n go together)")
-        n = pr["n"]
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise fail(f"{at}.n ({name}): expected an integer ≥ 1, got {n!r}")
-        lo, hi = pr["low"], pr["high"]
-        if dim == "int" or (isinstance(lo, int) and isinstance(hi, int) and not isinstance(lo, bool)
-                            and dim in ("int", "")):
-            if not (isinstance(lo, int) and isinstance(hi, int)) or isinstance(lo, bool):
-                raise fail(f"{at} ({name}): low/high of an integer key must be integers")
-            p.kind, p.dim, lo_v, hi_v = "int", "int", float(lo), float(hi)
-        elif isinstance(lo, str):
-            p.kind = "quantity"
-            p.unit = _split_unit(lo)
-            if key is None:
-                d = _dim_of_unit(p.unit)
-                if d is None:
-                    raise fail(f"{at}.low ({name}): unknown unit in {lo!r}")
-                dim = d
-            if dim not in DIMENSIONS:
-                raise fail(f"{at} ({name}): low/high/n needs a quantity or integer key; {key} is {dim}")
-            try:
-                f = _factor(p.unit, dim)
-                lo_v = _round(parse_quantity(lo, dim) / f)
-                hi_v = _round(parse_quantity(hi, dim) / f)
-            except UnitError as exc:
-                raise fail(f"{at}.low/high ({name}): {exc}") from None
-        elif dim == "dimensionless" and isinstance(lo, (int, float)) and isinstance(hi, (int, float)):
-            p.kind, lo_v, hi_v = "number", float(lo), float(hi)
-        else:
-            raise fail(f"{at} ({name}): low/high must be quantities with units (\"2 mm\") or integers")
-        if not hi_v > lo_v:
-            raise fail(f"{at} ({name}): high must be greater than low")
-        p.low, p.high, p.n = lo_v, hi_v, n
-        if sampling == "grid":
-            grid = np.linspace(lo_v, hi_v, n)
-            if p.kind == "int":
-                p.levels = [(int(v), None) for v in np.unique(np.round(grid).astype(int))]
-            else:
-                p.levels = [(_round(float(v)), None) for v in grid]
+    ctx = _ParamContext(at, name, key, fail)
+    dim = _parse_values(p, pr, dim, ctx) if has_values else _parse_range(p, pr, dim, ctx)
     p.dim = dim
     if sets is not None:
-        if not isinstance(sets, Mapping) or not sets:
-            raise fail(f"{at}.set ({name}): expected a table {{ \"section.key\" = {{ scale = 1, offset = \"0 mm\" }} }}")
-        if p.kind != "quantity":
-            raise fail(f"{at}.set ({name}): set needs quantity values with units")
-        for k, spec in _flatten_set(sets).items():
-            fld = _field(k)
-            if fld is None:
-                raise fail(f"{at}.set ({name}): unknown scenario key {k!r}")
-            if fld.dim != dim:
-                raise fail(f"{at}.set ({name}): {k} is a {fld.dim}, the parameter's values are a {dim}")
-            if not isinstance(spec, Mapping) or set(spec) - {"scale", "offset"}:
-                raise fail(f"{at}.set.{k} ({name}): expected {{ scale = <number>, offset = \"<quantity>\" }}")
-            scale = spec.get("scale", 1.0)
-            if isinstance(scale, bool) or not isinstance(scale, (int, float)):
-                raise fail(f"{at}.set.{k}.scale ({name}): expected a number, got {scale!r}")
-            off_txt = spec.get("offset", f"0 {p.unit}")
-            try:
-                off = parse_quantity(off_txt, dim)
-            except UnitError as exc:
-                raise fail(f"{at}.set.{k}.offset ({name}): {exc}") from None
-            p.sets[k] = (float(scale), off, p.unit)
+        _parse_sets(p, sets, dim, ctx)
     # resolve overrides of value levels
-    p.levels = [(v, ov if ov is not None else p.overrides_for(v)) for v, ov in p.levels]
+    p.levels = [(v, p.overrides_for(v) if ov is _UNRESOLVED else ov) for v, ov in p.levels]
     return p
 
 
-def _parse_table_parameter(i: int, pr: Mapping[str, Any], fail) -> Parameter:
+@dataclass(frozen=True)
+class _ParamContext:
+    """Where a parameter stands in the study file, for its error messages."""
+
+    at: str  # "study.parameters[i]"
+    name: str  # the parameter's column name
+    key: str | None  # its scenario key (None for set = {...} parameters)
+    fail: _Fail
+
+
+def _parse_values(p: Parameter, pr: Mapping[str, Any], dim: str, ctx: _ParamContext) -> str:
+    """``values = [...]``: the levels of a grid parameter; returns the dimension (from the unit
+    when the parameter has no key)."""
+    at, name, key, fail = ctx.at, ctx.name, ctx.key, ctx.fail
+    values = pr["values"]
+    if not isinstance(values, list) or not values:
+        raise fail(f"{at}.values ({name}): expected a non-empty list")
+    first = values[0]
+    labels = pr.get("labels")
+    if all(isinstance(v, str) for v in values) and (dim in DIMENSIONS or (key is None)):
+        p.kind = "quantity"
+        p.unit = _split_unit(first)
+        if key is None:
+            d = _dim_of_unit(p.unit)
+            if d is None:
+                raise fail(f"{at}.values ({name}): unknown unit in {first!r}")
+            dim = d
+        for j, v in enumerate(values):
+            try:
+                x_si = parse_quantity(v, dim)
+            except UnitError as exc:
+                raise fail(f"{at}.values[{j}] ({name}): {exc}") from None
+            shown = _round(x_si / _factor(p.unit, dim)) if p.unit else x_si
+            p.levels.append((shown, _UNRESOLVED))
+    elif dim == "dimensionless" and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        p.kind = "number"
+        p.levels = [(float(v), _UNRESOLVED) for v in values]
+    elif dim == "int" and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        p.kind = "int"
+        p.levels = [(int(v), _UNRESOLVED) for v in values]
+    elif dim in ("str", "bool") and labels is None:
+        p.kind = dim
+        p.levels = [(v, _UNRESOLVED) for v in values]
+    else:
+        if labels is None or not isinstance(labels, list) or len(labels) != len(values) or \
+                not all(isinstance(s, str) for s in labels):
+            raise fail(f"{at} ({name}): values of kind {dim or 'unknown'} that are not plain quantities "
+                       f"need labels = [...] of the same length (one name per value, for the table); "
+                       f"got values {values!r}")
+        if key is None:
+            raise fail(f"{at} ({name}): labelled values need key = \"section.key\"")
+        p.kind = "label"
+        p.levels = [(lab, {key: v}) for lab, v in zip(labels, values)]
+    if len({repr(v) for v, _ in p.levels}) != len(p.levels):
+        raise fail(f"{at}.values ({name}): a value is listed twice")
+    return dim
+
+
+def _parse_range(p: Parameter, pr: Mapping[str, Any], dim: str, ctx: _ParamContext) -> str:
+    """``low, high, n``: a linear grid or the bounds of random/LHS sampling; returns the dimension."""
+    at, name, key, fail = ctx.at, ctx.name, ctx.key, ctx.fail
+    sampling = p.sampling
+    for k in ("low", "high", "n"):
+        if k not in pr:
+            raise fail(f"{at} ({name}): missing {k} (low, high and n go together)")
+    n = pr["n"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise fail(f"{at}.n ({name}): expected an integer ≥ 1, got {n!r}")
+    lo, hi = pr["low"], pr["high"]
+    if dim == "int" or (isinstance(lo, int) and isinstance(hi, int) and not isinstance(lo, bool)
+                        and dim in ("int", "")):
+        if not (isinstance(lo, int) and isinstance(hi, int)) or isinstance(lo, bool):
+            raise fail(f"{at} ({name}): low/high of an integer key must be integers")
+        p.kind, p.dim, lo_v, hi_v = "int", "int", float(lo), float(hi)
+    elif isinstance(lo, str):
+        p.kind = "quantity"
+        p.unit = _split_unit(lo)
+        if key is None:
+            d = _dim_of_unit(p.unit)
+            if d is None:
+                raise fail(f"{at}.low ({name}): unknown unit in {lo!r}")
+            dim = d
+        if dim not in DIMENSIONS:
+            raise fail(f"{at} ({name}): low/high/n needs a quantity or integer key; {key} is {dim}")
+        try:
+            f = _factor(p.unit, dim)
+            lo_v = _round(parse_quantity(lo, dim) / f)
+            hi_v = _round(parse_quantity(hi, dim) / f)
+        except UnitError as exc:
+            raise fail(f"{at}.low/high ({name}): {exc}") from None
+    elif dim == "dimensionless" and isinstance(lo, (int, float)) and isinstance(hi, (int, float)):
+        p.kind, lo_v, hi_v = "number", float(lo), float(hi)
+    else:
+        raise fail(f"{at} ({name}): low/high must be quantities with units (\"2 mm\") or integers")
+    if not hi_v > lo_v:
+        raise fail(f"{at} ({name}): high must be greater than low")
+    p.low, p.high, p.n = lo_v, hi_v, n
+    if sampling == "grid":
+        grid = np.linspace(lo_v, hi_v, n)
+        if p.kind == "int":
+            p.levels = [(int(v), _UNRESOLVED) for v in np.unique(np.round(grid).astype(int))]
+        else:
+            p.levels = [(_round(float(v)), _UNRESOLVED) for v in grid]
+    return dim
+
+
+def _parse_sets(p: Parameter, sets: Any, dim: str, ctx: _ParamContext) -> None:
+    """``set = { "section.key" = { scale, offset } }``: the keys one value sets, affinely."""
+    at, name, fail = ctx.at, ctx.name, ctx.fail
+    if not isinstance(sets, Mapping) or not sets:
+        raise fail(f"{at}.set ({name}): expected a table {{ \"section.key\" = {{ scale = 1, offset = \"0 mm\" }} }}")
+    if p.kind != "quantity":
+        raise fail(f"{at}.set ({name}): set needs quantity values with units")
+    for k, spec in _flatten_set(sets).items():
+        fld = _field(k)
+        if fld is None:
+            raise fail(f"{at}.set ({name}): unknown scenario key {k!r}")
+        if fld.dim != dim:
+            raise fail(f"{at}.set ({name}): {k} is a {fld.dim}, the parameter's values are a {dim}")
+        if not isinstance(spec, Mapping) or set(spec) - {"scale", "offset"}:
+            raise fail(f"{at}.set.{k} ({name}): expected {{ scale = <number>, offset = \"<quantity>\" }}")
+        scale = spec.get("scale", 1.0)
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+            raise fail(f"{at}.set.{k}.scale ({name}): expected a number, got {scale!r}")
+        off_txt = spec.get("offset", f"0 {p.unit}")
+        try:
+            off = parse_quantity(off_txt, dim)
+        except UnitError as exc:
+            raise fail(f"{at}.set.{k}.offset ({name}): {exc}") from None
+        p.sets[k] = (float(scale), off, p.unit)
+
+
+def _parse_table_parameter(i: int, pr: Mapping[str, Any], fail: _Fail) -> Parameter:
     """A labelled parameter whose values are tables of overrides (e.g. a bearing grade that sets
     both races' waviness and the asynchronous motion)."""
     at = f"study.parameters[{i}]"
@@ -521,7 +580,7 @@ def _output_dim(output: str) -> tuple[str, str]:
     return "", "dimensionless"
 
 
-def _parse_target(t: Any, outputs: list[str], params: list[Parameter], fail) -> Target | None:
+def _parse_target(t: Any, outputs: list[str], params: list[Parameter], fail: _Fail) -> Target | None:
     if t is None:
         return None
     if not isinstance(t, Mapping):
@@ -580,7 +639,7 @@ def expand_points(study: Study) -> list[Point]:
         ns = {p.n for p in sampled}
         if len(ns) > 1:
             raise StudyError(f"{study.path}: study.parameters: sampled parameters ({', '.join(p.name for p in sampled)}) "
-                             f"must share the same n (they are drawn jointly), got {sorted(ns)}")
+                             f"must share the same n (they are drawn jointly), got {sorted(n for n in ns if n is not None)}")
         n = ns.pop()
         assert n is not None
         seed_seq = np.random.SeedSequence([study.seed, 0x5A3])

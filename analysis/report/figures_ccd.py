@@ -1,0 +1,102 @@
+"""Pictures of the CCD image analysis (Jia et al. 2019 sec. 4.2, figs. 10–12): one raw frame with
+the detected line ends, the fitted edge circle and the reference point R drawn on it, and a frame
+the analysis rejected with the reason.
+
+The overlay is recomputed with the same function and arguments the pipeline used for d_ref
+(``analysis.eccentricity.d_ref_px`` with the reference point of the manifest and the edge radius
+fixed from the pixel scale), so what is drawn is what was fitted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+
+def _grey8(image: np.ndarray) -> np.ndarray:
+    g = np.asarray(image, dtype=float)
+    lo, hi = np.percentile(g, [0.5, 99.5])
+    return np.clip((g - lo) / max(hi - lo, 1e-9), 0, 1)
+
+
+def fig_ccd_overlay(image: np.ndarray, fit: Mapping, name: str, theta_deg: float):
+    """The frame with line ends (points), rejected ends (crosses), the fitted circle and R."""
+    import matplotlib.pyplot as plt
+
+    H, W = image.shape[:2]
+    fig, ax = plt.subplots(figsize=(9, 9 * H / W))
+    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest")
+    P = np.asarray(fit["points_px"])
+    ax.plot(P[:, 0], P[:, 1], "o", ms=3.5, mfc="none", mec="#00c0ff", mew=1.0, label=f"line ends ({P.shape[0]})")
+    rej = np.asarray(fit.get("rejected_points_px", np.empty((0, 2)))).reshape(-1, 2)
+    if rej.size:
+        ax.plot(rej[:, 0], rej[:, 1], "x", ms=7, color="#ff3030", mew=1.5, label=f"rejected ends ({rej.shape[0]})")
+    cx, cy = fit["centre_px"]
+    r = fit["radius_px"]
+    a0 = np.arctan2(-cy, W - cx)
+    a1 = np.arctan2(H - cy, W - cx)
+    a = np.linspace(min(a0, a1) - 0.05, max(a0, a1) + 0.05, 400)
+    ax.plot(cx + r * np.cos(a), cy + r * np.sin(a), "-", color="#ffb000", lw=1.2, label=f"fitted edge (r = {r:.0f} px)")
+    rx, ry = fit["reference_px"]
+    ax.plot([rx], [ry], "+", ms=16, mew=2, color="#ff40ff", label="reference point R")
+    # l: distance from the fitted centre to R, along the radius through R (d_ref = l − r)
+    ang = np.arctan2(ry - cy, rx - cx)
+    ex, ey = cx + r * np.cos(ang), cy + r * np.sin(ang)
+    ax.plot([rx, ex], [ry, ey], "-", color="#ff40ff", lw=1.5)
+    ax.set_xlim(0, W)
+    ax.set_ylim(H, 0)
+    ax.set_xlabel("x (px, radially outward)")
+    ax.set_ylabel("y (px)")
+    ax.set_title(f"{name} at θ = {theta_deg:.1f}°: d_ref = l − r = {fit['d_ref_px']:.2f} px "
+                 f"(residual {fit['residual_rms_px']:.3f} px RMS)", fontsize=10)
+    ax.legend(loc="lower left", fontsize=8, framealpha=0.8)
+    fig.tight_layout()
+    return fig
+
+
+def fig_rejected(image: np.ndarray, info: Mapping):
+    import matplotlib.pyplot as plt
+
+    H, W = image.shape[:2]
+    fig, ax = plt.subplots(figsize=(7, 7 * H / W))
+    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest")
+    ax.set_title(f"rejected: {info['file']} at θ = {info['theta_deg']:.1f}° ({info['stage']})", fontsize=10)
+    ax.text(0.01, 0.01, _wrap(str(info["reason"]), 90), transform=ax.transAxes, fontsize=8, color="#ff3030",
+            va="bottom", bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none"})
+    ax.set_axis_off()
+    fig.tight_layout()
+    return fig
+
+
+def _wrap(s: str, n: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(s, n)[:6])
+
+
+def add_ccd_pictures(rep, ds, ecc: Mapping) -> None:
+    """Report: the first analysed frame with its overlay, and the first rejected frame (if any)."""
+    from benchtwin.analysis import eccentricity as E
+
+    files: Sequence[str] = ecc.get("files") or []
+    thetas = ecc.get("theta_deg") or []
+    if not files:
+        return
+    idx = ds.table("ccd/index")
+    row = {str(f): i for i, f in enumerate(idx["file"])}
+    f0 = files[0]
+    img = ds.read_image(f0, row=row.get(f0, 0) + 2)
+    ref = tuple(ds.manifest["ccd"]["reference_px"])
+    fit = E.d_ref_px(img, ref, radius_px=ecc.get("radius_fixed_px"), name=f0)
+    rep.figure(fig_ccd_overlay(img, fit, f0, float(thetas[0])),
+               "A raw CCD frame with the detected line ends, the fitted edge circle and the reference point R (Jia fig. 12)")
+    rej = ecc.get("rejected_frames") or []
+    if rej:
+        r0 = rej[0]
+        try:
+            img_r = ds.read_image(r0["file"], row=row.get(r0["file"], 0) + 2)
+        except Exception:  # noqa: BLE001 - a frame that cannot even be read is stated, not drawn
+            rep.paragraph(f"Rejected frame {r0['file']}: {r0['reason']} (the image itself cannot be shown)", note=True)
+            return
+        rep.figure(fig_rejected(img_r, r0), f"A frame the analysis rejected, with the reason: {r0['reason']}")

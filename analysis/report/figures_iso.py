@@ -1,0 +1,123 @@
+"""ISO 230-7:2015 polar plots of radial error motion (total, synchronous, asynchronous) and the
+spectrum of a continuous rotation with the bearing's kinematic orders marked.
+
+A polar plot draws r(θ) = R0 + S·δ(θ) about the plot's least-squares centre (``analysis.iso230_7``:
+the fundamental removed). R0 is chosen so the plot never crosses the centre (R0 = 1.5 × the largest
+|δ| of the row); the rings of the grid are labelled in µm of δ, not in r. As spindle analysers do
+(Lion Precision SEA), the total plot shows every revolution, the synchronous plot their mean and
+the asynchronous plot the deviation of each revolution from that mean around the base circle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+
+def _closed(th_deg: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    o = np.argsort(th_deg)
+    t = np.deg2rad(np.asarray(th_deg)[o])
+    v = np.asarray(r)[..., o]
+    return np.append(t, t[0] + 2 * np.pi), np.concatenate([v, v[..., :1]], axis=-1)
+
+
+def fig_polar(locations: Sequence[Mapping], title: str = "Radial error motion, ISO 230-7 (fixed sensitive direction, LSC)"):
+    """One row per location, columns total / synchronous / asynchronous."""
+    import matplotlib.pyplot as plt
+
+    n = len(locations)
+    fig, axes = plt.subplots(n, 3, subplot_kw={"projection": "polar"}, figsize=(10.5, 3.3 * n + 0.6), squeeze=False)
+    for row, loc in zip(axes, locations):
+        th = np.asarray(loc["theta_deg"], dtype=float)
+        tot = np.atleast_2d(loc["total_plot_um"])
+        syn = np.asarray(loc["synchronous_plot_um"])
+        asy = np.atleast_2d(loc["asynchronous_plot_um"])
+        amax = max(float(np.max(np.abs(tot))), float(np.max(np.abs(syn))), float(np.max(np.abs(asy))), 1e-6)
+        R0 = 1.5 * amax
+        panels = ((tot, "total", loc["total_um"], "#888", 0.8),
+                  (syn[None, :], "synchronous", loc["synchronous_um"], "#1f4e9a", 1.6),
+                  (asy, "asynchronous", loc["asynchronous_um"], "#b5401a", 0.8))
+        for ax, (curves, kind, value, colour, lw) in zip(row, panels):
+            t, c = _closed(th, curves)
+            for cur in c:
+                ax.plot(t, R0 + cur, color=colour, lw=lw)
+            ax.plot(np.linspace(0, 2 * np.pi, 361), np.full(361, R0), color="k", lw=0.5, ls=":")
+            ax.set_ylim(0, R0 + 1.05 * amax)
+            ticks = np.array([-amax, 0.0, amax])
+            ax.set_yticks(R0 + ticks)
+            ax.set_yticklabels([f"{x:+.2f}" for x in ticks], fontsize=7)
+            ax.set_xticks(np.deg2rad(np.arange(0, 360, 45)))
+            ax.tick_params(axis="x", labelsize=7)
+            ax.set_title(f"{loc['label']}\n{kind}: {value:.3f} µm", fontsize=8.5)
+    fig.suptitle(title + "; rings: δ in µm about the base circle", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, label: str):
+    """Amplitude per order (cycles/rev) with the bearing's kinematic orders as vertical lines."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 3.4))
+    o, a = np.asarray(spec["order"]), np.asarray(spec["amplitude_um"])
+    ax.vlines(o, 0, a, color="#1f4e9a", lw=0.8)
+    top = float(np.max(a[1:])) if a.size > 1 else 1.0
+    for i, (name, k) in enumerate(sorted((kinematic_orders or {}).items(), key=lambda kv: kv[1])):
+        for h in (1, 2):
+            if h * k <= o[-1]:
+                ax.axvline(h * k, color=f"C{i + 1}", ls="--" if h == 1 else ":", lw=0.9,
+                           label=f"{name} = {k:.3f}/rev" if h == 1 else None)
+    ax.set_xlabel("order (cycles per revolution)")
+    ax.set_ylabel("amplitude (µm)")
+    ax.set_ylim(0, 1.15 * top)
+    ax.set_title(f"Spectrum of the continuous rotation: {label} ({spec['n_revolutions']} revolutions)", fontsize=10)
+    if kinematic_orders:
+        ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = None) -> None:
+    """The report's ISO 230-7 subsection: the values with u, the polar plots, and the spectrum of a
+    continuous rotation when the dataset has one (table ``continuous_rotation``: ``theta_deg``
+    unwrapped, the probe columns; the bearing's kinematic orders from the manifest's
+    ``bench.bearing_kinematic_orders``, {name: order per revolution})."""
+    from benchtwin.analysis.report.html import value_with_u
+
+    locs = iso["locations"]
+    rep.heading("Radial error motion values (ISO 230-7:2015)", level=3)
+    how = (f"the order-{iso['order']} Fourier series of each revolution (revolutions read at different angles)"
+           if iso["filtered"] else "the readings themselves (unfiltered)")
+    rep.paragraph(f"Fixed sensitive direction, fundamental removed, about the least-squares centre; "
+                  f"{iso['n_revolutions']} revolutions; from {how}. u: reading noise of the probes "
+                  "(√2·σ for a range, √(2/n)·σ for the synchronous mean), standard uncertainties.")
+    rows = []
+    for loc in locs:
+        rows.append([loc["label"]] + [value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
+                                      for k in ("total", "synchronous", "asynchronous")])
+    rep.table(rows, ["location", "total", "synchronous", "asynchronous"])
+    if filtered and not iso["filtered"]:
+        f = [(loc["label"], filtered[loc["name"]]) for loc in locs if filtered.get(loc["name"])]
+        rep.paragraph("The same values of the order-2…10 Fourier series of each revolution (Jia eq. 7: probe noise "
+                      "and motion above order 10 filtered out), for comparison: "
+                      + "; ".join(f"{lab}: {v['total_um']:.3f} / {v['synchronous_um']:.3f} / {v['asynchronous_um']:.3f} µm"
+                                  for lab, v in f) + " (total / synchronous / asynchronous).", note=True)
+    y = [loc for loc in locs if not loc["name"].endswith("_x")]
+    x = [loc for loc in locs if loc["name"].endswith("_x")]
+    rep.figure(fig_polar(y), "ISO 230-7 polar plots along Y (the head direction): total (all revolutions), "
+                             "synchronous (their mean), asynchronous (each revolution minus the mean)")
+    if x:
+        rep.figure(fig_polar(x, "Radial error motion along X, ISO 230-7 (fixed sensitive direction, LSC)"),
+                   "ISO 230-7 polar plots along X (the X probes)")
+    if ds is not None and ds.has("continuous_rotation"):
+        from benchtwin.analysis.iso230_7 import spectrum_orders
+        from benchtwin.analysis.radial_motion import disk_weights
+
+        t = ds.table("continuous_rotation")
+        w_top, w_bot = disk_weights(ds.bench["L1_mm"], ds.bench["L2_mm"])
+        d = w_top * np.asarray(t["probe_top_um"], dtype=float) + w_bot * np.asarray(t["probe_bottom_um"], dtype=float)
+        spec = spectrum_orders(t["theta_deg"], d)
+        rep.heading("Spectrum of the continuous rotation", level=3)
+        rep.figure(fig_spectrum(spec, ds.bench.get("bearing_kinematic_orders"), "disk plane, Y"),
+                   "Amplitude per order of the disk-plane radial motion with the bearing's kinematic orders")

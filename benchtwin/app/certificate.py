@@ -1,0 +1,818 @@
+"""A PTB Digital Calibration Certificate (DCC 3.1.2, D-SI 2.1.0) for a rotary-encoder calibration.
+
+What a calibration lab hands on (issue 20): the analysis's ``results.json`` becomes an XML
+certificate in the PTB DCC format (https://ptb.de/dcc/, schema v3.1.2; quantities in D-SI v2.1.0,
+https://ptb.de/si/), validated against the schemas before it is written. The schemas ship with the
+package (``benchtwin/app/dcc/``, LGPL-3.0, unchanged copies of ``../shared/dcc/``) so a certificate
+is checked offline: ``dcc.xsd`` imports D-SI by its URL, which :func:`load_schema` resolves to the
+local ``SI_Format.xsd``.
+
+Contents (one ``measurementResult``):
+
+- the encoder error at every calibrated angle (the loop's corrected curve when there is one, else
+  the shift-angle result of Hsieh et al. 2022 sec. 2, eq. 3), each value with its expanded
+  uncertainty ``si:expandedUncXMLList`` (U, k, p: k and p from the GUM budget, Hsieh Table 3 /
+  JCGM 100:2008 G.4 with Welch–Satterthwaite ν_eff);
+- the self-calibration curve (Hsieh sec. 2.3) when it was measured;
+- the polygon pitch deviations β (Hsieh eq. 1) and the eccentricity e, θ0 (Jia et al. 2019
+  eqs. 10–12), each with U = k·u, k = 2 (p ≈ 95 %, normal distribution, GUM 6.3.3: these are
+  least-squares results with many degrees of freedom);
+- the radial error motion values of ISO 230-7:2015 (total / synchronous / asynchronous) at each
+  test sphere and at the disk plane, when the analysis computed them;
+- the methods (``usedMethods``), the effects the loop identified (a statement plus each effect's
+  parameters with U), the measuring equipment (dataset manifest + lab file) and the environment
+  (manifest ``environment`` or the lab file's ``[environment]``) as ``influenceConditions``;
+- the administrative data (laboratory, customer, item, responsible persons, dates) from a lab file
+  (TOML, example in ``docs/lab.example.toml``); without one, every field says "not stated" and a
+  statement says so.
+
+Rounding (EA-4/02 M:2022 sec. 5): U to two significant digits, the value to the same decimal
+place as its U.
+
+A dataset from the twin is declared as such in a statement: the values then describe the simulated
+bench, not a physical item.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from lxml import etree
+
+from benchtwin import __version__
+
+DCC_NS = "https://ptb.de/dcc"
+SI_NS = "https://ptb.de/si"
+SI_SCHEMA_URL = "https://ptb.de/si/v2.1.0/SI_Format.xsd"
+SCHEMA_VERSION = "3.1.2"
+SCHEMA_DIR = Path(__file__).with_name("dcc")
+NSMAP = {"dcc": DCC_NS, "si": SI_NS}
+
+#: D-SI unit strings (D-SI 2.1.0 unit syntax) for the unit suffixes of our names (docs/conventions.md)
+DSI_UNITS = {"arcsec": r"\arcsecond", "deg": r"\degree", "um": r"\micro\metre", "mm": r"\milli\metre",
+             "urad": r"\micro\radian", "rad": r"\radian", "degC": r"\degreecelsius", "K": r"\kelvin",
+             "percent": r"\percent", "hPa": r"\hecto\pascal", "Pa": r"\pascal", "one": r"\one",
+             "s": r"\second", "h": r"\hour", "per_h": r"\hour\tothe{-1}", "arcsec_per_h": r"\arcsecond\hour\tothe{-1}"}
+
+NOT_STATED = "not stated"
+K_DEFAULT = 2.0  # coverage factor where no budget gives one (GUM 6.3.3; p ≈ 95 % for a normal distribution)
+P_DEFAULT = 0.95
+
+
+class CertificateInputError(ValueError):
+    """Bad results.json or lab file (the CLI turns it into exit 2); the message names file and key."""
+
+
+# ----------------------------------------------------------------------------- schema
+
+
+class _LocalSchemas(etree.Resolver):
+    """Resolve the D-SI import of dcc.xsd (by URL) to the packaged copy: validation stays offline."""
+
+    def resolve(self, url: str, pubid: str | None, context: Any) -> Any:  # noqa: D401 - lxml API
+        if url in (SI_SCHEMA_URL, "SI_Format.xsd") or url.endswith("/SI_Format.xsd"):
+            return self.resolve_filename(str(self.directory / "SI_Format.xsd"), context)
+        return None
+
+    def __init__(self, directory: Path):
+        super().__init__()
+        self.directory = directory
+
+
+@lru_cache(maxsize=4)
+def load_schema(directory: str | Path = SCHEMA_DIR) -> etree.XMLSchema:
+    """dcc.xsd 3.1.2 with D-SI 2.1.0 from ``directory`` (no network: the import URL is resolved locally)."""
+    d = Path(directory)
+    parser = etree.XMLParser(no_network=True)
+    parser.resolvers.add(_LocalSchemas(d))
+    doc = etree.parse(str(d / "dcc.xsd"), parser)
+    return etree.XMLSchema(doc)
+
+
+def validation_errors(xml: etree._Element | etree._ElementTree | bytes, schema_dir: str | Path = SCHEMA_DIR) -> list[str]:
+    """The schema's complaints about a certificate ([] when it validates)."""
+    if isinstance(xml, bytes):
+        xml = etree.fromstring(xml, etree.XMLParser(no_network=True))
+    schema = load_schema(str(schema_dir))
+    if schema.validate(xml):
+        return []
+    return [f"line {e.line}: {e.message}" for e in schema.error_log]
+
+
+# ----------------------------------------------------------------------------- numbers
+
+
+def round_expanded(U: float) -> tuple[float, int]:
+    """U to two significant digits (EA-4/02 M:2022 sec. 5, GUM 7.2.6) and the number of decimals
+    it has then. Rounded to nearest: at two digits that lowers U by at most 0.5/10.5 = 4.8 %,
+    inside the 5 % beyond which EA-4/02 asks to round up."""
+    if not (math.isfinite(U) and U > 0):
+        raise ValueError(f"expanded uncertainty must be finite and > 0, got {U!r}")
+    decimals = 1 - int(math.floor(math.log10(U)))
+    r = round(U, decimals)
+    if r >= 10.0 ** (2 - decimals):  # 9.96 -> 10: the second digit moved one place left
+        decimals -= 1
+    return r, decimals
+
+
+def _dec(x: float, decimals: int) -> str:
+    """A D-SI decimal: fixed notation with ``decimals`` places (negative: rounded to tens, hundreds...)."""
+    if decimals >= 0:
+        s = f"{x:.{decimals}f}"
+    else:
+        s = f"{round(x, decimals):.0f}"
+    return s[1:] if s.startswith("-") and float(s) == 0.0 else s  # no "-0.00"
+
+
+def value_and_U(x: float, U: float) -> tuple[str, str]:
+    """(value, U) as D-SI decimal strings, value rounded to U's last digit."""
+    r, d = round_expanded(U)
+    return _dec(x, d), _dec(r, d)
+
+
+def _k_str(k: float) -> str:
+    # si:kValueType is ≥ 1 written as [1-9]\d*(\.\d*)?
+    if not (math.isfinite(k) and k >= 1.0):
+        raise ValueError(f"coverage factor must be ≥ 1, got {k!r}")
+    return f"{k:.2f}"
+
+
+def _p_str(p: float) -> str:
+    if not (math.isfinite(p) and 0.0 < p <= 1.0):
+        raise ValueError(f"coverage probability must be in (0, 1], got {p!r}")
+    return f"{p:.2f}" if p < 1 else "1.0"
+
+
+def _unit_of(name: str) -> tuple[str, str]:
+    """('gain', r'\\one') from a name whose suffix is a unit (``amplitude_arcsec`` -> \\arcsecond)."""
+    for suffix in sorted(DSI_UNITS, key=len, reverse=True):
+        if name.endswith("_" + suffix):
+            return name[: -len(suffix) - 1], DSI_UNITS[suffix]
+    return name, DSI_UNITS["one"]
+
+
+# ----------------------------------------------------------------------------- the lab file
+
+
+@dataclass(frozen=True)
+class Contact:
+    name: str
+    email: str
+    street: str = ""
+    street_no: str = ""
+    post_code: str = ""
+    city: str = ""
+    country: str = ""
+    phone: str = ""
+
+
+@dataclass
+class LabFile:
+    """The administrative data of a certificate (docs/lab.example.toml)."""
+
+    certificate_id: str
+    language: str
+    country: str
+    begin_date: str
+    end_date: str
+    receipt_date: str | None
+    location: str
+    laboratory: Contact
+    laboratory_code: str
+    customer: Contact
+    item: dict[str, str]
+    persons: list[dict[str, Any]]
+    equipment: list[dict[str, str]]
+    environment: dict[str, float]
+    stated: bool  # False: no lab file was given, every field is a placeholder
+    source: str = "(no lab file)"
+
+
+_CONTACT_KEYS = {"name", "email", "street", "street_no", "post_code", "city", "country", "phone"}
+_LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
+
+
+def _s(where: str, table: Mapping[str, Any], key: str, default: str | None = None) -> str:
+    v = table.get(key, default)
+    if v is None:
+        raise CertificateInputError(f"{where}: key {key!r} is required (a string)")
+    if not isinstance(v, str) or not v.strip():
+        raise CertificateInputError(f"{where}: key {key!r} must be a non-empty string, got {v!r}")
+    return v
+
+
+def _date(where: str, table: Mapping[str, Any], key: str, default: str | None) -> str | None:
+    v = table.get(key, default)
+    if v is None:
+        return None
+    if isinstance(v, _dt.date) and not isinstance(v, _dt.datetime):
+        return v.isoformat()
+    if isinstance(v, str):
+        try:
+            return _dt.date.fromisoformat(v).isoformat()
+        except ValueError:
+            pass
+    raise CertificateInputError(f"{where}: key {key!r} must be a date YYYY-MM-DD, got {v!r}")
+
+
+def _unknown(where: str, table: Mapping[str, Any], allowed: set[str]) -> None:
+    extra = sorted(set(table) - allowed)
+    if extra:
+        raise CertificateInputError(f"{where}: unknown key {extra[0]!r} (expected one of {', '.join(sorted(allowed))})")
+
+
+def _contact(where: str, t: Any) -> Contact:
+    if not isinstance(t, Mapping):
+        raise CertificateInputError(f"{where}: expected a table with name, email, city, country, ...")
+    _unknown(where, t, _CONTACT_KEYS)
+    c = Contact(name=_s(where, t, "name"), email=_s(where, t, "email"),
+                **{k: str(t[k]) for k in ("street", "street_no", "post_code", "city", "country", "phone") if k in t})
+    if c.country and not (len(c.country) == 2 and c.country.isalpha() and c.country.isupper()):
+        raise CertificateInputError(f"{where}: key 'country' must be an ISO 3166-1 code like 'DE', got {c.country!r}")
+    return c
+
+
+def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
+    """Check a lab file's tables (docs/lab.example.toml); errors name the file and the key."""
+    _unknown(source, data, {"certificate", "laboratory", "customer", "item", "person", "equipment", "environment"})
+    for key in ("certificate", "laboratory", "customer", "item"):
+        if key not in data:
+            raise CertificateInputError(f"{source}: table [{key}] is required")
+    cert = data["certificate"]
+    w = f"{source} [certificate]"
+    _unknown(w, cert, {"id", "language", "country", "begin_date", "end_date", "receipt_date", "location"})
+    lang = _s(w, cert, "language", "en")
+    if not (len(lang) == 2 and lang.isalpha() and lang.islower()):
+        raise CertificateInputError(f"{w}: key 'language' must be an ISO 639-1 code like 'en', got {lang!r}")
+    country = _s(w, cert, "country")
+    if not (len(country) == 2 and country.isalpha() and country.isupper()):
+        raise CertificateInputError(f"{w}: key 'country' must be an ISO 3166-1 code like 'DE', got {country!r}")
+    loc = _s(w, cert, "location", "laboratory")
+    if loc not in _LOCATIONS:
+        raise CertificateInputError(f"{w}: key 'location' must be one of {', '.join(_LOCATIONS)}, got {loc!r}")
+    end = _date(w, cert, "end_date", today) or today
+    begin = _date(w, cert, "begin_date", end) or end
+    if begin > end:
+        raise CertificateInputError(f"{w}: begin_date {begin} is after end_date {end}")
+    lab = data["laboratory"]
+    lab_code = str(lab.get("code", "")) if isinstance(lab, Mapping) else ""
+    lab_t = {k: v for k, v in lab.items() if k != "code"} if isinstance(lab, Mapping) else lab
+    item = data["item"]
+    wi = f"{source} [item]"
+    _unknown(wi, item, {"name", "manufacturer", "model", "serial", "customer_id", "description"})
+    item_d = {"name": _s(wi, item, "name"), "manufacturer": _s(wi, item, "manufacturer"),
+              "serial": _s(wi, item, "serial")}
+    for k in ("model", "customer_id", "description"):
+        if k in item:
+            item_d[k] = _s(wi, item, k)
+    persons = []
+    for i, p in enumerate(data.get("person", [])):
+        wp = f"{source} [[person]] #{i + 1}"
+        if not isinstance(p, Mapping):
+            raise CertificateInputError(f"{wp}: expected a table with name, role, main_signer")
+        _unknown(wp, p, {"name", "role", "main_signer"})
+        ms = p.get("main_signer", False)
+        if not isinstance(ms, bool):
+            raise CertificateInputError(f"{wp}: key 'main_signer' must be true or false, got {ms!r}")
+        persons.append({"name": _s(wp, p, "name"), "role": p.get("role", ""), "main_signer": ms})
+    if not persons:
+        raise CertificateInputError(f"{source}: at least one [[person]] (the responsible person) is required")
+    equipment = []
+    for i, e in enumerate(data.get("equipment", [])):
+        we = f"{source} [[equipment]] #{i + 1}"
+        if not isinstance(e, Mapping):
+            raise CertificateInputError(f"{we}: expected a table with name, manufacturer, model, serial, certificate")
+        _unknown(we, e, {"name", "manufacturer", "model", "serial", "certificate", "instrument"})
+        equipment.append({k: _s(we, e, k) for k in e})
+        if "name" not in e:
+            raise CertificateInputError(f"{we}: key 'name' is required")
+    env = _environment(f"{source} [environment]", data.get("environment", {}))
+    return LabFile(certificate_id=_s(w, cert, "id"), language=lang, country=country, begin_date=begin, end_date=end,
+                   receipt_date=_date(w, cert, "receipt_date", None), location=loc,
+                   laboratory=_contact(f"{source} [laboratory]", lab_t), laboratory_code=lab_code,
+                   customer=_contact(f"{source} [customer]", data["customer"]), item=item_d, persons=persons,
+                   equipment=equipment, environment=env, stated=True, source=source)
+
+
+def _environment(where: str, env: Any) -> dict[str, float]:
+    if not isinstance(env, Mapping):
+        raise CertificateInputError(f"{where}: expected a table of numbers such as temperature_degC = 20.1")
+    out: dict[str, float] = {}
+    for k, v in env.items():
+        base, unit = _unit_of(k)
+        if unit == DSI_UNITS["one"] and not k.endswith("_one"):
+            raise CertificateInputError(
+                f"{where}: key {k!r} needs a unit suffix (_degC, _K, _percent, _hPa, _Pa), e.g. temperature_degC")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+            raise CertificateInputError(f"{where}: key {k!r} must be a finite number, got {v!r}")
+        out[k] = float(v)
+    return out
+
+
+def load_lab(path: str | Path | None, today: str) -> LabFile:
+    """The lab file at ``path``, or placeholders ("not stated") when there is none (country "ZZ": the
+    ISO 3166 user-assigned code commonly used for "unknown")."""
+    if path is None:
+        nc = Contact(name=NOT_STATED, email=NOT_STATED, city=NOT_STATED)
+        return LabFile(certificate_id=f"benchtwin-{today}", language="en", country="ZZ", begin_date=today,
+                       end_date=today, receipt_date=None, location="laboratory", laboratory=nc, laboratory_code="",
+                       customer=nc, item={"name": "rotary encoder", "manufacturer": NOT_STATED, "serial": NOT_STATED},
+                       persons=[{"name": NOT_STATED, "role": "", "main_signer": False}], equipment=[],
+                       environment={}, stated=False)
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CertificateInputError(f"{p}: lab file not found") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CertificateInputError(f"{p}: not a TOML file ({exc})") from None
+    return parse_lab(data, str(p), today)
+
+
+# ----------------------------------------------------------------------------- results.json
+
+
+def load_results(path: str | Path) -> dict[str, Any]:
+    p = Path(path)
+    try:
+        res = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CertificateInputError(f"{p}: results file not found") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CertificateInputError(f"{p}: not a JSON file ({exc})") from None
+    if not isinstance(res, dict) or res.get("format") != "bench-results":
+        raise CertificateInputError(f"{p}: key 'format' must be 'bench-results' (the results.json of `benchtwin analyze`)")
+    if not isinstance(res.get("encoder_error_arcsec"), Mapping):
+        raise CertificateInputError(
+            f"{p}: key 'encoder_error_arcsec' is required: a certificate states the encoder error, which needs the "
+            "polygon measurement (polygon.csv) in the dataset")
+    return res
+
+
+def _series(where: str, d: Mapping[str, Any], key: str, n: int | None = None, positive: bool = False) -> list[float]:
+    v = d.get(key)
+    if not isinstance(v, Sequence) or isinstance(v, str) or not v:
+        raise CertificateInputError(f"{where}: key {key!r} must be a non-empty list of numbers")
+    out = []
+    for i, x in enumerate(v):
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or (positive and x <= 0):
+            raise CertificateInputError(f"{where}: {key}[{i}] must be a finite{' positive' if positive else ''} number, got {x!r}")
+        out.append(float(x))
+    if n is not None and len(out) != n:
+        raise CertificateInputError(f"{where}: key {key!r} has {len(out)} values, expected {n} (one per angle)")
+    return out
+
+
+def _number(where: str, d: Mapping[str, Any], key: str, positive: bool = False) -> float:
+    x = d.get(key)
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or (positive and x <= 0):
+        raise CertificateInputError(f"{where}: key {key!r} must be a finite{' positive' if positive else ''} number, got {x!r}")
+    return float(x)
+
+
+def encoder_curve(res: Mapping[str, Any], src: str) -> dict[str, Any]:
+    """The curve the certificate states: the loop's corrected curve when there is one, else the
+    measured encoder error; values, U and the k, p they were expanded with."""
+    bs = res.get("budget_summary") or {}
+    k = float(bs.get("k", K_DEFAULT)) if isinstance(bs.get("k"), (int, float)) else K_DEFAULT
+    p = float(bs.get("p", P_DEFAULT)) if isinstance(bs.get("p"), (int, float)) else P_DEFAULT
+    key, label = "encoder_error_arcsec", "measured (shift-angle method, Hsieh 2022 eq. 3)"
+    corrected = res.get("corrected_error_arcsec")
+    if isinstance(corrected, Mapping) and corrected.get("value"):
+        key, label = "corrected_error_arcsec", "corrected by the effects the loop identified"
+    d = res[key]
+    w = f"{src}: {key}"
+    theta = _series(w, d, "theta_deg")
+    value = _series(w, d, "value", len(theta))
+    if d.get("U"):
+        U = _series(w, d, "U", len(theta), positive=True)
+    else:
+        U = [k * u for u in _series(w, d, "u", len(theta), positive=True)]
+    return {"key": key, "label": label, "theta_deg": theta, "value": value, "U": U, "k": k, "p": p}
+
+
+# ----------------------------------------------------------------------------- XML building
+
+
+def _el(parent: etree._Element, tag: str, text: str | None = None, ns: str = DCC_NS, **attrib: str) -> etree._Element:
+    e = etree.SubElement(parent, f"{{{ns}}}{tag}", {k: v for k, v in attrib.items() if v})
+    if text is not None:
+        e.text = text
+    return e
+
+
+def _text(parent: etree._Element, tag: str, text: str, lang: str) -> etree._Element:
+    t = _el(parent, tag)
+    _el(t, "content", text, lang=lang)
+    return t
+
+
+def _contact_xml(parent: etree._Element, tag: str, c: Contact, lang: str, strict: bool = True) -> etree._Element:
+    e = _el(parent, tag)
+    _text(e, "name", c.name, lang)
+    if strict or c.email:
+        _el(e, "eMail", c.email or NOT_STATED)
+    if c.phone:
+        _el(e, "phone", c.phone)
+    loc_fields = [("city", c.city), ("countryCode", c.country), ("postCode", c.post_code), ("street", c.street),
+                  ("streetNo", c.street_no)]
+    if strict or any(v for _, v in loc_fields):
+        loc = _el(e, "location")
+        wrote = False
+        for tag_, v in loc_fields:
+            if v:
+                _el(loc, tag_, v)
+                wrote = True
+        if not wrote:
+            _el(loc, "city", NOT_STATED)
+    return e
+
+
+def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | None, k: float, p: float) -> etree._Element:
+    r = _el(parent, "real", ns=SI_NS)
+    _el(r, "label", label, ns=SI_NS)
+    if U is None:
+        _el(r, "value", repr(float(x)), ns=SI_NS)
+        _el(r, "unit", unit, ns=SI_NS)
+        return r
+    v, Us = value_and_U(x, U)
+    _el(r, "value", v, ns=SI_NS)
+    _el(r, "unit", unit, ns=SI_NS)
+    eu = _el(r, "expandedUnc", ns=SI_NS)
+    _el(eu, "uncertainty", Us, ns=SI_NS)
+    _el(eu, "coverageFactor", _k_str(k), ns=SI_NS)
+    _el(eu, "coverageProbability", _p_str(p), ns=SI_NS)
+    _el(eu, "distribution", "normal", ns=SI_NS)
+    return r
+
+
+def _real_list(parent: etree._Element, labels: Sequence[str] | None, values: Sequence[float], unit: str,
+               U: Sequence[float] | None = None, k: float = K_DEFAULT, p: float = P_DEFAULT,
+               decimals: int | None = None) -> etree._Element:
+    """si:realListXMLList: one unit for all, each value rounded to its own U (or to ``decimals``)."""
+    r = _el(parent, "realListXMLList", ns=SI_NS)
+    if labels is not None:
+        _el(r, "labelXMLList", " ".join(labels), ns=SI_NS)
+    if U is not None:
+        pairs = [value_and_U(x, u) for x, u in zip(values, U)]
+        _el(r, "valueXMLList", " ".join(a for a, _ in pairs), ns=SI_NS)
+    else:
+        _el(r, "valueXMLList", " ".join(_dec(x, decimals) if decimals is not None else repr(float(x)) for x in values),
+            ns=SI_NS)
+    _el(r, "unitXMLList", unit, ns=SI_NS)
+    if U is not None:
+        eu = _el(r, "expandedUncXMLList", ns=SI_NS)
+        _el(eu, "uncertaintyXMLList", " ".join(b for _, b in pairs), ns=SI_NS)
+        _el(eu, "coverageFactorXMLList", _k_str(k), ns=SI_NS)
+        _el(eu, "coverageProbabilityXMLList", _p_str(p), ns=SI_NS)
+        _el(eu, "distributionXMLList", "normal", ns=SI_NS)
+    return r
+
+
+def _quantity(parent: etree._Element, name: str, lang: str, ref: str = "") -> etree._Element:
+    q = _el(parent, "quantity", refType=ref)
+    _text(q, "name", name, lang)
+    return q
+
+
+def _result(results: etree._Element, name: str, lang: str, ref: str, description: str = "") -> etree._Element:
+    r = _el(results, "result", refType=ref)
+    _text(r, "name", name, lang)
+    if description:
+        _text(r, "description", description, lang)
+    return _el(r, "data")
+
+
+def _statement(parent: etree._Element, text: str, lang: str, ref: str, norm: str = "", reference: str = "") -> None:
+    s = _el(parent, "statement", refType=ref)
+    if norm:
+        _el(s, "norm", norm)
+    if reference:
+        _el(s, "reference", reference)
+    _text(s, "declaration", text, lang)
+
+
+METHODS = [
+    ("shift-angle method", "benchtwin_shiftAngle",
+     "Cross-calibration of the encoder against an optical polygon read by an autocollimator at several shift angles; "
+     "the polygon's pitch deviations and the encoder error separate by the closure condition (Hsieh eqs. 1-3).",
+     "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.2"),
+    ("multi-head self-calibration", "benchtwin_selfCalibration",
+     "Equal-division-averaged self-calibration from several reading heads of the encoder (Hsieh sec. 2.3).",
+     "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.3"),
+    ("Jia error model", "benchtwin_jiaModel",
+     "Angle error from installation eccentricity (CCD images of the grating edge) and radial error motion (two test "
+     "spheres): Δθ = [e·sin(θ−θ0) + ∫δY dθ]/r.",
+     "", "Jia et al. 2019, Appl. Sci. 9, 3415, eqs. 5-13"),
+    ("GUM uncertainty evaluation", "basic_GUM",
+     "Standard uncertainties by the GUM law of propagation with Welch-Satterthwaite effective degrees of freedom, "
+     "validated by a Monte Carlo method (JCGM 101).", "JCGM 100:2008", ""),
+    ("ISO 230-7 radial error motion", "benchtwin_iso230_7",
+     "Total, synchronous and asynchronous radial error motion, fixed sensitive direction, fundamental removed, about "
+     "the least-squares centre.", "ISO 230-7:2015", ""),
+]
+
+
+def _methods_used(res: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]]:
+    used = [METHODS[0]]
+    if res.get("selfcal_error_arcsec"):
+        used.append(METHODS[1])
+    if res.get("eccentricity_um") is not None:
+        used.append(METHODS[2])
+    used.append(METHODS[3])
+    if res.get("radial_error_motion"):
+        used.append(METHODS[4])
+    return used
+
+
+def effects_statement(res: Mapping[str, Any]) -> str:
+    """The effects the loop identified, in one sentence a reader of the certificate can check."""
+    if "identified_effects" not in res:
+        return "The residual of the error model was not traced (the loop was not closed)."
+    eff = res.get("identified_effects") or []
+    rb, ra = res.get("residual_before") or {}, res.get("residual_after") or {}
+    if not eff:
+        extra = " It is significant but no effect of the library explains it." if res.get("unexplained") else ""
+        return f"No effect beyond the Jia error model was identified in the residual.{extra}"
+    parts = []
+    for e in eff:
+        ps = ", ".join(f"{k} = {v:.4g} ± {e.get('u', {}).get(k, float('nan')):.2g}" for k, v in e.get("params", {}).items())
+        parts.append(f"{e['name']} ({ps}; standard uncertainties)")
+    s = "The loop identified: " + "; ".join(parts) + "."
+    if rb.get("rms_arcsec") is not None and ra.get("rms_arcsec") is not None:
+        s += (f" With it the residual of the error model went from {rb['rms_arcsec']:.3f} arcsec RMS to "
+              f"{ra['rms_arcsec']:.3f} arcsec RMS.")
+    amb = res.get("ambiguous") or []
+    if amb:
+        s += " Ambiguous: " + "; ".join(", ".join(a.get("names", [])) for a in amb) + "."
+    return s
+
+
+def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[str, Any] | None = None,
+                      src: str = "results.json") -> etree._ElementTree:
+    """The DCC as an lxml tree (pure: no I/O). ``res``: results.json; ``manifest``: the dataset's."""
+    lang = lab.language
+    man = manifest or {}
+    root = etree.Element(f"{{{DCC_NS}}}digitalCalibrationCertificate", nsmap=NSMAP, schemaVersion=SCHEMA_VERSION)
+    adm = _el(root, "administrativeData")
+    sw = _el(_el(adm, "dccSoftware"), "software")
+    _text(sw, "name", "benchtwin", lang)
+    _el(sw, "release", __version__)
+    _el(sw, "type", "application")
+
+    core = _el(adm, "coreData")
+    _el(core, "countryCodeISO3166_1", lab.country)
+    _el(core, "usedLangCodeISO639_1", lang)
+    _el(core, "mandatoryLangCodeISO639_1", lang)
+    _el(core, "uniqueIdentifier", lab.certificate_id)
+    if lab.receipt_date:
+        _el(core, "receiptDate", lab.receipt_date)
+    _el(core, "beginPerformanceDate", lab.begin_date)
+    _el(core, "endPerformanceDate", lab.end_date)
+    _el(core, "performanceLocation", lab.location)
+
+    items = _el(adm, "items")
+    item = _el(items, "item")
+    _text(item, "name", lab.item["name"], lang)
+    if lab.item.get("description"):
+        _text(item, "description", lab.item["description"], lang)
+    man_el = _el(item, "manufacturer")
+    _text(man_el, "name", lab.item["manufacturer"], lang)
+    if lab.item.get("model"):
+        _el(item, "model", lab.item["model"])
+    ids = _el(item, "identifications")
+    ident = _el(ids, "identification")
+    _el(ident, "issuer", "manufacturer")
+    _el(ident, "value", lab.item["serial"])
+    _text(ident, "name", "serial number", lang)
+    if lab.item.get("customer_id"):
+        ident = _el(ids, "identification")
+        _el(ident, "issuer", "customer")
+        _el(ident, "value", lab.item["customer_id"])
+        _text(ident, "name", "customer's inventory number", lang)
+
+    cl = _el(adm, "calibrationLaboratory")
+    if lab.laboratory_code:
+        _el(cl, "calibrationLaboratoryCode", lab.laboratory_code)
+    _contact_xml(cl, "contact", lab.laboratory, lang)
+    rps = _el(adm, "respPersons")
+    for p in lab.persons:
+        rp = _el(rps, "respPerson")
+        _text(_el(rp, "person"), "name", p["name"], lang)
+        if p.get("role"):
+            _el(rp, "role", p["role"])
+        if p.get("main_signer"):
+            _el(rp, "mainSigner", "true")
+    _contact_xml(adm, "customer", lab.customer, lang)
+
+    st = _el(adm, "statements")
+    source = str(res.get("source", man.get("source", "unknown")))
+    if source == "twin":
+        _statement(st, f"The values were obtained on the benchtwin digital twin (scenario "
+                       f"{man.get('scenario', NOT_STATED)!s}, seed {man.get('seed', NOT_STATED)!s}), not on a physical "
+                       "item: they describe the simulated bench.", lang, "benchtwin_simulated")
+    else:
+        _statement(st, f"Measured data source: {source}.", lang, "benchtwin_dataSource")
+    if not lab.stated:
+        _statement(st, "No lab file was given: laboratory, customer, item and responsible person are not stated.",
+                   lang, "benchtwin_adminNotStated")
+    _statement(st, "The expanded uncertainties are the standard uncertainties multiplied by the coverage factor k "
+                   "stated with them; for the encoder error k follows from the effective degrees of freedom of the "
+                   "budget (t-distribution), elsewhere k = 2 (normal distribution, about 95 %).",
+               lang, "basic_uncertainty", norm="JCGM 100:2008", reference="EA-4/02 M:2022")
+    _statement(st, effects_statement(res), lang, "benchtwin_identifiedEffects")
+    for n in res.get("notes") or []:
+        _statement(st, str(n), lang, "benchtwin_note")
+
+    # ----------------------------------------------------------------- measurement results
+    mr = _el(_el(root, "measurementResults"), "measurementResult")
+    _text(mr, "name", "Angle calibration of a rotary encoder", lang)
+    um = _el(mr, "usedMethods")
+    for name, ref, desc, norm, reference in _methods_used(res):
+        m = _el(um, "usedMethod", refType=ref)
+        _text(m, "name", name, lang)
+        _text(m, "description", desc, lang)
+        if norm:
+            _el(m, "norm", norm)
+        if reference:
+            _el(m, "reference", reference)
+    usw = _el(_el(mr, "usedSoftware"), "software")
+    _text(usw, "name", "benchtwin", lang)
+    _el(usw, "release", __version__)
+    _el(usw, "type", "application")
+
+    equipment = _equipment(man, lab)
+    if equipment:
+        me = _el(mr, "measuringEquipments")
+        for e in equipment:
+            eq = _el(me, "measuringEquipment", refType=f"benchtwin_{e.get('instrument', 'instrument')}")
+            _text(eq, "name", e["name"], lang)
+            if e.get("certificate"):
+                c = _el(eq, "certificate")
+                _text(c, "referral", "calibration certificate", lang)
+                _el(c, "referralID", e["certificate"])
+                _el(c, "procedure", NOT_STATED)
+                _el(c, "value", NOT_STATED)
+            if e.get("manufacturer"):
+                _text(_el(eq, "manufacturer"), "name", e["manufacturer"], lang)
+            if e.get("model"):
+                _el(eq, "model", e["model"])
+            if e.get("serial"):
+                i = _el(_el(eq, "identifications"), "identification")
+                _el(i, "issuer", "manufacturer")
+                _el(i, "value", e["serial"])
+
+    env = dict(man.get("environment") or {}) if isinstance(man.get("environment"), Mapping) else {}
+    env_src = "the dataset manifest"
+    if not env and lab.environment:
+        env, env_src = lab.environment, lab.source
+    env = {k: v for k, v in env.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    if env:
+        ic = _el(mr, "influenceConditions")
+        for k in sorted(env):
+            base, unit = _unit_of(k)
+            if base.endswith("_u"):
+                continue  # a standard uncertainty of another entry
+            c = _el(ic, "influenceCondition", refType=f"basic_{base}")
+            _text(c, "name", base.replace("_", " "), lang)
+            _text(c, "description", f"from {env_src}", lang)
+            u_key = f"{base}_u_{k[len(base) + 1:]}"
+            u = env.get(u_key)
+            q = _quantity(_el(c, "data"), base.replace("_", " "), lang)
+            _real(q, base, float(env[k]), unit, K_DEFAULT * float(u) if u else None, K_DEFAULT, P_DEFAULT)
+
+    results = _el(mr, "results")
+    curve = encoder_curve(res, src)
+    d = _result(results, "Encoder error", lang, "benchtwin_encoderError",
+                f"Encoder error (reading minus reference angle), {curve['label']}, at every calibrated angle; the "
+                "mean over the angles is removed (the method determines the error up to a constant).")
+    lst = _el(d, "list")
+    q = _quantity(lst, "angle", lang, "benchtwin_angle")
+    _real_list(q, None, curve["theta_deg"], DSI_UNITS["deg"], decimals=6)
+    q = _quantity(lst, "encoder error", lang, "benchtwin_encoderErrorValue")
+    _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"], curve["k"], curve["p"])
+
+    sc = res.get("selfcal_error_arcsec")
+    if isinstance(sc, Mapping) and sc.get("value"):
+        w = f"{src}: selfcal_error_arcsec"
+        th = _series(w, sc, "theta_deg")
+        d = _result(results, "Encoder error by self-calibration", lang, "benchtwin_selfCalibrationError",
+                    "Encoder error from the multi-head self-calibration (Hsieh sec. 2.3), mean removed.")
+        lst = _el(d, "list")
+        _real_list(_quantity(lst, "angle", lang, "benchtwin_angle"), None, th, DSI_UNITS["deg"], decimals=6)
+        _real_list(_quantity(lst, "encoder error", lang, "benchtwin_encoderErrorValue"), None,
+                   _series(w, sc, "value", len(th)), DSI_UNITS["arcsec"],
+                   [K_DEFAULT * u for u in _series(w, sc, "u", len(th), positive=True)])
+
+    if res.get("polygon_pitch_deviation_arcsec"):
+        beta = _series(src, res, "polygon_pitch_deviation_arcsec")
+        u_beta = _series(src, res, "polygon_pitch_deviation_u_arcsec", len(beta), positive=True)
+        d = _result(results, "Polygon pitch deviations", lang, "benchtwin_polygonPitchDeviation",
+                    "Pitch deviation β of each polygon face (Hsieh eq. 1, sum zero), determined with the encoder.")
+        lst = _el(d, "list")
+        _real_list(_quantity(lst, "face", lang, "benchtwin_face"), None, list(range(1, len(beta) + 1)),
+                   DSI_UNITS["one"], decimals=0)
+        _real_list(_quantity(lst, "pitch deviation", lang, "benchtwin_pitchDeviationValue"), None, beta,
+                   DSI_UNITS["arcsec"], [K_DEFAULT * u for u in u_beta])
+
+    if res.get("eccentricity_um") is not None:
+        d = _result(results, "Installation eccentricity", lang, "benchtwin_eccentricity",
+                    "Eccentricity of the grating relative to the axis from the CCD images of its edge (Jia eqs. 10-12).")
+        q = _quantity(d, "eccentricity e", lang, "benchtwin_eccentricityValue")
+        _real(q, "e", _number(src, res, "eccentricity_um"), DSI_UNITS["um"],
+              K_DEFAULT * _number(src, res, "eccentricity_u_um", positive=True), K_DEFAULT, P_DEFAULT)
+        q = _quantity(d, "eccentricity phase θ0", lang, "benchtwin_eccentricityPhase")
+        _real(q, "theta0", _number(src, res, "eccentricity_phase_deg"), DSI_UNITS["deg"],
+              K_DEFAULT * _number(src, res, "eccentricity_phase_u_deg", positive=True), K_DEFAULT, P_DEFAULT)
+
+    rem = res.get("radial_error_motion")
+    if isinstance(rem, Mapping) and rem.get("locations"):
+        d = _result(results, "Radial error motion (ISO 230-7)", lang, "benchtwin_radialErrorMotion",
+                    "Error motion values, fixed sensitive direction, fundamental removed, about the least-squares "
+                    f"centre; {rem.get('n_revolutions', NOT_STATED)} revolutions.")
+        for loc in rem["locations"]:
+            w = f"{src}: radial_error_motion.locations[{loc.get('name')!r}]"
+            lst = _el(d, "list", refType=f"benchtwin_{loc['name']}")
+            _text(lst, "name", loc.get("label", loc["name"]), lang)
+            for kind in ("total", "synchronous", "asynchronous"):
+                x = _number(w, loc, f"{kind}_um")
+                u = loc.get(f"{kind}_u_um")
+                q = _quantity(lst, f"{kind} error motion value", lang, f"benchtwin_{kind}ErrorMotion")
+                _real(q, kind, x, DSI_UNITS["um"],
+                      K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None, K_DEFAULT, P_DEFAULT)
+
+    eff = res.get("identified_effects") or []
+    if eff:
+        d = _result(results, "Identified effects", lang, "benchtwin_identifiedEffects", effects_statement(res))
+        for e in eff:
+            lst = _el(d, "list", refType=f"benchtwin_effect_{e['name']}")
+            _text(lst, "name", str(e["name"]), lang)
+            for pk, pv in (e.get("params") or {}).items():
+                base, unit = _unit_of(pk)
+                u = (e.get("u") or {}).get(pk)
+                q = _quantity(lst, base, lang)
+                _real(q, pk, float(pv), unit, K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None,
+                      K_DEFAULT, P_DEFAULT)
+    return etree.ElementTree(root)
+
+
+def _equipment(man: Mapping[str, Any], lab: LabFile) -> list[dict[str, str]]:
+    """The manifest's instruments (kind, model, serial) merged with the lab file's entries (which add
+    manufacturer and the instrument's own calibration certificate); joined on ``instrument``."""
+    out: dict[str, dict[str, str]] = {}
+    for name, d in (man.get("instruments") or {}).items():
+        if isinstance(d, Mapping):
+            out[name] = {"instrument": name, "name": f"{name} ({d.get('kind', 'instrument')})",
+                         **{k: str(d[k]) for k in ("model", "serial") if d.get(k)}}
+    for e in lab.equipment:
+        key = e.get("instrument", e["name"])
+        out.setdefault(key, {"instrument": key})
+        out[key].update(e)
+    return list(out.values())
+
+
+# ----------------------------------------------------------------------------- command
+
+
+def dataset_manifest(res: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The manifest of the dataset the results came from, when it is still there."""
+    ds = res.get("dataset")
+    if not ds:
+        return None
+    p = Path(str(ds)) / "manifest.json"
+    try:
+        m = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+        return None
+    return m if isinstance(m, dict) else None
+
+
+def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: str | Path | None = None,
+                      today: str | None = None) -> dict[str, Any]:
+    """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically)."""
+    today = today or _dt.datetime.now(_dt.UTC).date().isoformat()
+    res = load_results(results_path)
+    lab = load_lab(lab_path, today)
+    man = dataset_manifest(res)
+    tree = build_certificate(res, lab, man, src=str(results_path))
+    errors = validation_errors(tree)
+    if errors:  # a bug in the writer, not bad input: never hand on a certificate that does not validate
+        raise RuntimeError("the certificate does not validate against dcc.xsd 3.1.2: " + "; ".join(errors[:5]))
+    out = Path(out_path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    tree.write(str(tmp), xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    tmp.replace(out)
+    curve = encoder_curve(res, str(results_path))
+    return {"certificate": str(out), "unique_identifier": lab.certificate_id, "schema": f"DCC {SCHEMA_VERSION} / D-SI 2.1.0",
+            "valid": True, "n_angles": len(curve["theta_deg"]), "curve": curve["key"],
+            "max_U_arcsec": max(curve["U"]), "administrative_data": "lab file" if lab.stated else "not stated",
+            "identified_effects": [e["name"] for e in res.get("identified_effects") or []]}
