@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.jsonable import json_default
+
 from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir
 from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
@@ -91,6 +93,12 @@ TABLES: dict[str, TableSpec] = {
         ("rep", "theta_deg"),
         ranges={"rep": (0, 10000)},
     ),
+    # ISO 230-7 continuous-rotation run (twin/continuous.py): probes sampled in time while turning
+    "radial_continuous": TableSpec(
+        {"t_s": float, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float},
+        ("t_s",),
+    ),
     "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {"theta_read_deg": float, "t_s": float},
                            ("k",), ranges={"k": (0, 10**6)}),
     "polygon": TableSpec(
@@ -105,7 +113,18 @@ TABLES: dict[str, TableSpec] = {
         ("theta_deg", "head", "rep", "direction"),
         ranges={"rep": (0, 10000)}, choices={"direction": DIRECTIONS},
     ),
+    # an "error curve" dataset (kind "error-curve"): a measured encoder error α(θ), e.g. a lab's table
+    # from an earlier calibration (benchtwin import); α = reading − reference, arcsec
+    "error_curve": TableSpec(
+        {"theta_deg": float, "error_arcsec": float},
+        {"direction": str, "u_arcsec": float},
+        ("theta_deg", "direction"),
+    ),
 }
+#: manifest "kind": a bench dataset (default, the bench geometry required) or an error curve (an
+#: imported α(θ) table: the bench keys are optional, they are unknown for most old tables)
+KINDS = ("bench", "error-curve")
+DIRECTIONS = ("forward", "backward")
 
 
 def column_range(spec: TableSpec | None, col: str) -> tuple[float, float] | None:
@@ -156,7 +175,15 @@ def validate_manifest(m: Any, where: str = "manifest.json") -> dict[str, Any]:
         raise DatasetError(f"{where}: key 'version': expected {VERSION}, got {m.get('version')!r}")
     if m.get("source") not in SOURCES:
         raise DatasetError(f"{where}: key 'source': expected one of {SOURCES}, got {m.get('source')!r}")
+    kind = m.get("kind", "bench")
+    if kind not in KINDS:
+        raise DatasetError(f"{where}: key 'kind': expected one of {KINDS}, got {kind!r}")
     bench = m.get("bench")
+    if kind == "error-curve":
+        if not isinstance(bench, Mapping):
+            raise DatasetError(f"{where}: key 'bench': expected an object (may be empty for an error curve)")
+        _check_keys(bench, {k: (t, False) for k, (t, _) in BENCH_KEYS.items()}, f"{where}: bench")
+        return dict(m)
     if not isinstance(bench, Mapping):
         raise DatasetError(f"{where}: key 'bench': expected an object with {', '.join(k for k, (_, r) in BENCH_KEYS.items() if r)}")
     _check_keys(bench, BENCH_KEYS, f"{where}: bench")
@@ -401,13 +428,7 @@ class DatasetWriter:
             self.close()
 
 
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
-
+_json_default = json_default  # the one numpy -> JSON conversion (benchtwin/jsonable.py)
 
 # --------------------------------------------------------------------------- reader
 
@@ -571,7 +592,24 @@ class Dataset:
             self._cache[name] = cols
         return self._cache[name]
 
+    @property
+    def kind(self) -> str:
+        return str(self.manifest.get("kind", "bench"))
+
     def _check_semantics(self, name: str, cols: Mapping[str, np.ndarray], p: Path) -> None:
+        if name == "error_curve":
+            if "direction" in cols:
+                bad = [i for i, d in enumerate(cols["direction"]) if d not in DIRECTIONS]
+                if bad:
+                    raise DatasetError(f"{p}: row {bad[0] + 2}, column 'direction': expected one of {DIRECTIONS}, "
+                                       f"got {cols['direction'][bad[0]]!r}")
+            if "u_arcsec" in cols:
+                bad = np.flatnonzero(cols["u_arcsec"] <= 0)
+                if bad.size:
+                    raise DatasetError(f"{p}: row {bad[0] + 2}, column 'u_arcsec': expected > 0")
+            return
+        if self.kind == "error-curve":
+            raise DatasetError(f"{p}: an error-curve dataset holds error_curve.csv only")
         n_faces = self.bench["polygon_faces"]
         if name == "polygon":
             for col in ("start_face", "step"):

@@ -50,11 +50,14 @@ for SelfA) and the Nyquist term — when the shift-angle θ form a full equally 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+
+from benchtwin.jsonable import to_json
 
 from . import selfcal as sc
 from . import shift_angle as sa
@@ -63,21 +66,8 @@ from . import uncertainty as un
 __all__ = ["analyze_polygon", "fourier_resample_arcsec"]
 
 
-def _json(x: Any) -> Any:
-    if isinstance(x, Mapping):
-        return {str(k): _json(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _json(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
+# plain JSON types, non-finite floats -> null (benchtwin/jsonable.py)
+_json = functools.partial(to_json, nonfinite="null")
 
 
 def _skey(s: float) -> str:

@@ -16,6 +16,7 @@ Steps, each from its paper:
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -24,22 +25,12 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items() if not callable(v)}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        return _jsonable(x.item())
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
+# results.json: strict JSON (non-finite -> null), model-term functions left out (benchtwin/jsonable.py)
+_jsonable = functools.partial(to_json, nonfinite="null", drop_callables=True)
 
 def _progress(enabled: bool, total: int, desc: str):
     from tqdm import tqdm
@@ -255,7 +246,7 @@ def _step(ds: Dataset, table: str, fn, *args):
 
 
 def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
-            model_file: str | Path | dict[str, Any] | None = None,
+            model_file: str | Path | None = None,
             progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
 
@@ -277,6 +268,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    if ds.kind == "error-curve":
+        return analyze_error_curve_dataset(ds, out, close_loop=close_loop)
     b = ds.bench
     r_um = b["optical_radius_mm"] * 1000.0
     results: dict[str, Any] = {
@@ -353,6 +346,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
 
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     ev = tr = None
+    if pol is not None:  # the raw curve until the loop identifies an artefact of the reference chain
+        results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], None, {})
     if close_loop and cmp is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
@@ -360,6 +355,76 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
     atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
+
+
+def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The encoder's error after removing the identified artefacts of the reference chain.
+
+    ``enc``: the measured curve {theta_deg, value, u} (Hsieh's combined α); ``corrections``: per
+    reading (at ``theta_read_deg``) the contribution and u of each identified reference-chain effect
+    (tracing ``reference_corrections``). At each θ of the curve the correction is the mean of the
+    readings' contributions at that stop (±``THETA_BIN_DEG``/2; the curve averages the same readings)
+    and its u the mean of theirs (fully correlated: one set of parameters); u of the corrected value =
+    √(u_curve² + Σ u_correction²). Unchanged (and ``corrections_applied`` empty) without corrections."""
+    from benchtwin.analysis.tracing import THETA_BIN_DEG
+
+    th = np.asarray(enc["theta_deg"], dtype=float)
+    val = np.asarray(enc["value"], dtype=float).copy()
+    u2 = np.asarray(enc["u"], dtype=float) ** 2
+    applied = []
+    if corrections and theta_read_deg is not None:
+        tr_ = np.mod(np.asarray(theta_read_deg, dtype=float), 360.0)
+        d = np.abs(((tr_[None, :] - np.mod(th, 360.0)[:, None]) + 180.0) % 360.0 - 180.0)
+        near = d <= THETA_BIN_DEG / 2.0
+        cnt = near.sum(axis=1)
+        for name, c in sorted(corrections.items()):
+            v = np.asarray(c["value_arcsec"], dtype=float)
+            uc = np.asarray(c["u_arcsec"], dtype=float)
+            corr = np.where(cnt > 0, (near @ v) / np.maximum(cnt, 1), 0.0)
+            ucorr = np.where(cnt > 0, (near @ uc) / np.maximum(cnt, 1), 0.0)
+            val = val - corr
+            u2 = u2 + ucorr ** 2
+            applied.append({"effect": name, "rms_arcsec": float(np.sqrt(np.mean(corr ** 2))),
+                            "u_rms_arcsec": float(np.sqrt(np.mean(ucorr ** 2))), "params": c.get("params"),
+                            "angles_without_readings": int(np.sum(cnt == 0))})
+    return {"theta_deg": th, "value": val, "u": np.sqrt(u2), "corrections_applied": applied,
+            "note": "the measured encoder error minus the identified artefacts of the reference chain "
+                    "(autocollimator scale, non-linearity and drift, polygon pitch, disk-to-polygon twist); "
+                    "the raw curve when none is identified"}
+
+
+def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n_faces: int) -> np.ndarray | None:
+    """The α per reading that a perturbation ``d`` of every autocollimator reading produces after the
+    shift-angle analysis (Hsieh eqs. 5-7: β from the closure of the reference shift's full table, or
+    the certificate, which does not move; U_j per start face; α = ε − Σβ − U, eq. 3). The analysis is
+    linear in ε, so this is the exact first-order column of an effect that adds ``d`` to the readings:
+    e.g. an autocollimator non-linearity q·ε² (ac_scale), whose face-fixed part the closure puts into
+    β and whose per-run mean goes into U. None if the analysis cannot be repeated on ``d``."""
+    from benchtwin.analysis import shift_angle as sa
+
+    N = int(n_faces)
+    try:
+        t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
+                                theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
+        src = pol.get("beta_source", "auto")
+        res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
+                                      beta_source=src)
+    except (sa.PolygonDataError, ValueError):
+        return None
+    U = {}
+    for sr in res.shifts:
+        for f, u in zip(sr.start_faces, sr.U_arcsec):
+            U[(round(float(sr.shift_deg), 6), int(f))] = float(u)
+    beta = np.asarray(res.beta_arcsec, dtype=float)
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
+    j = np.asarray(poly["start_face"]).astype(int)
+    i = np.asarray(poly["step"]).astype(int)
+    S = np.asarray(poly["shift_deg"], dtype=float)
+    try:
+        Uj = np.array([U[(round(float(s_), 6), int(f))] for s_, f in zip(S, j)])
+    except KeyError:
+        return None
+    return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
 def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
@@ -400,6 +465,8 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         radial_term="radial_motion" if rm is not None else None,
         u_floor_arcsec=max(float(u_read), u_eps),
     )
+    ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(poly["ac_arcsec"], dtype=float) ** 2,
+                                                b["polygon_faces"])
     ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
     tr = trace(ev)
     results["close_loop"] = {k: tr[k] for k in ("status", "signature", "selection", "skipped", "thresholds",
@@ -409,6 +476,8 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
     results["unexplained"] = tr["unexplained"]
     results["residual_test"] = tr["residual_before"]
     results["residual_after_trace"] = tr["residual_after"]
+    results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], ev.theta_deg,
+                                                                tr.get("reference_corrections") or {})
     if tr["identified_effects"]:
         mpath = out / "model.json"
         save_model(mpath, tr["model_file"])
@@ -536,6 +605,15 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=No
         for e in tr["identified_effects"]:
             rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
                       [f"{e['name']}: parameter", "value"])
+        cc = results.get("encoder_error_corrected_arcsec") or {}
+        if cc.get("corrections_applied"):
+            rep.paragraph("Corrected calibration curve (encoder_error_corrected_arcsec, the curve a certificate states): "
+                          "the measured encoder error minus " + "; ".join(
+                              f"{a['effect']} ({a['rms_arcsec']:.3f}″ RMS, u {a['u_rms_arcsec']:.3f}″)"
+                              for a in cc["corrections_applied"]) + ".")
+        else:
+            rep.paragraph("Corrected calibration curve: no artefact of the reference chain identified; the "
+                          "measured encoder error is stated unchanged.", note=True)
         for a in tr["ambiguous"]:
             rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
         if tr["unexplained"]:
@@ -548,4 +626,110 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=No
         rep.figure(fl.plot_residual_before_after(ev, tr), "Residual before and after adding the traced effect")
         rep.figure(fl.plot_harmonic_spectrum(tr), "Harmonic spectrum of the residual with uncertainties")
         rep.figure(fl.plot_signature(ev, tr), "Signature of the residual: time, start face, direction")
+    rep.write(out / "report.html")
+
+
+# ----------------------------------------------------------------------------- error curves
+
+
+def _write_results(out: Path, results: dict[str, Any]) -> None:
+    tmp = out / "results.json.tmp"
+    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    tmp.replace(out / "results.json")
+
+
+def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = True) -> dict[str, Any]:
+    """An "error curve" dataset (an imported α(θ) table): coverage, closure, hysteresis, harmonics with
+    u, what a lone curve cannot separate (analysis.error_curve) → results.json + report.html.
+    ``close_loop`` adds the verdict keys (status, ambiguous, unexplained) that close-loop reports;
+    a lone curve identifies no effect and changes no curve."""
+    from benchtwin.analysis.error_curve import analyze_error_curve
+
+    t = ds.table("error_curve")
+    try:
+        ec = analyze_error_curve(t["theta_deg"], t["error_arcsec"], t.get("direction"), t.get("u_arcsec"))
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
+    mc = ec["mean_curve"]
+    results: dict[str, Any] = {
+        "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
+        "kind": "error-curve", "bench": dict(ds.bench), "notes": list(ec["notes"]),
+        "imported_from": ds.manifest.get("import"),
+        "coverage_deg": ec["coverage_deg"], "coverage": ec["coverage"], "closure": ec["closure"],
+        "hysteresis": ec["hysteresis"], "u_point": ec["u_point"], "harmonics": ec["harmonics"],
+        "error_curve": {k: v for k, v in ec.items() if k not in ("notes",)},
+        "encoder_error_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"], "u": mc["u_arcsec"]},
+        # nothing of the reference chain is identified on a lone curve: the corrected curve is the raw one
+        "encoder_error_corrected_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"],
+                                           "u": mc["u_arcsec"], "corrections_applied": []},
+    }
+    if close_loop:
+        results.update(identified_effects=[], ambiguous=ec["ambiguous"], unexplained=ec["unexplained"],
+                       close_loop={"status": ec["status"], "left": ec.get("left", [])})
+    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
+    _write_error_curve_report(out, ds, ec, close_loop)
+    _write_results(out, results)
+    return {"results": results, "paths": paths}
+
+
+def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from benchtwin.analysis.report.html import Report, value_with_u
+
+    rep = Report(f"Encoder error curve — {ds.path.name}")
+    imp = ds.manifest.get("import") or {}
+    rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}, an imported error curve"
+                  + (f" from {imp.get('table')}" if imp.get("table") else "") + "). A lone curve: no radial probes, "
+                  "no CCD, no polygon start faces; what it cannot separate is stated below.")
+    cov = ec["coverage"]
+    rows = [["coverage", f"{ec['coverage_deg']:.1f}° ({'full turn' if cov['full_turn'] else 'arc'}, "
+                         f"{cov['n_angles']} angles, step {cov['step_deg'] or float('nan'):.3g}°)"],
+            ["closure", ec["closure"]["state"]],
+            ["u of one point", f"{ec['u_point']['u_arcsec']:.3f}″ ({ec['u_point']['source']})"]]
+    h = ec.get("hysteresis")
+    if h and h.get("available"):
+        rows.append(["hysteresis: mean half difference", value_with_u(h["mean_arcsec"], h["u_mean_arcsec"], "″")])
+        rows.append(["hysteresis: RMS / max |half difference|", f"{h['rms_arcsec']:.3f}″ / {h['max_abs_arcsec']:.3f}″"])
+        rows.append(["angles where the directions differ in sign", str(h["opposite_sign_angles"])])
+    if "trend" in ec:
+        tr = ec["trend"]
+        rows.append(["slope over the arc", value_with_u(tr["slope_arcsec_per_deg"], tr["u_slope"], "″/°")])
+    rows.append(["residual: RMS / P-V", f"{ec['residual']['rms_arcsec']:.3f}″ / {ec['residual']['pv_arcsec']:.3f}″"])
+    if close_loop:
+        rows.append(["status", ec["status"]])
+    rep.heading("Summary")
+    rep.table(rows, ["quantity", "value"])
+    for n in ec["notes"]:
+        rep.paragraph(str(n), note=True)
+    if ec["harmonics"]:
+        rep.heading("Harmonics (Jia 2019 eqs. 6, 11, 12), direction mean", level=3)
+        rep.table([[x["k"], value_with_u(x["amplitude_arcsec"], x["u_arcsec"], "″"), f"{x['phase_deg']:.1f}°",
+                    f"{x['p_value']:.2g}", "yes" if x["significant"] else ""] for x in ec["harmonics"]],
+                  ["k", "amplitude", "phase", "p", "significant"])
+    for a in ec.get("ambiguous", []):
+        rep.paragraph(f"Cannot be separated on this curve: {', '.join(a['names'])}"
+                      + (f" (harmonics {a['harmonics']})" if a["harmonics"] else "")
+                      + f". Separating measurement: {a['separating_measurement']}", note=True)
+    if ec.get("unexplained"):
+        rep.paragraph("Unexplained: " + "; ".join(ec.get("left", [])), note=True)
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    t = ds.table("error_curve")
+    d = t.get("direction")
+    for name in ("forward", "backward"):
+        m = np.ones(len(t["theta_deg"]), bool) if d is None else (d == name)
+        if m.any():
+            o = np.argsort(t["theta_deg"][m])
+            ax.plot(t["theta_deg"][m][o], t["error_arcsec"][m][o], "o-", ms=3, label=name if d is not None else "error")
+    mc = ec["mean_curve"]
+    ax.errorbar(mc["theta_deg"], mc["value_arcsec"], yerr=mc["u_arcsec"], fmt="k.", ms=2, lw=0.6, label="mean ± u")
+    ax.set_xlabel("θ (°)")
+    ax.set_ylabel("error (″)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    rep.figure(fig, "The imported error curve")
+    plt.close(fig)
     rep.write(out / "report.html")

@@ -24,7 +24,8 @@ This module takes everything the analysis knows about a dataset, per polygon rea
 
 The polygon closure (Hsieh eq. 2: Σα = 0 per run; eq. 7 solves U_j from it) leaves α known only up
 to a constant per set of readings that share one setup error U ("closure group", default: one
-(shift, start face) mounting). Every fit here therefore removes the weighted mean per closure group
+(shift, start face, repetition) mounting: the twin and Hsieh's six measurements mount the polygon
+anew for every repetition; the two directions of one repetition share it). Every fit here therefore removes the weighted mean per closure group
 from the residual and from every column (equivalent to free offsets per group); the degrees of
 freedom count them.
 
@@ -35,6 +36,7 @@ ambiguity when ΔBIC < ``AMBIG_DBIC`` = 6 and the predictions' cos² > ``COLLINE
 
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import math
@@ -45,6 +47,8 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
+
+from benchtwin.jsonable import to_json
 
 from .effects import ALL
 from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
@@ -340,7 +344,8 @@ class Evidence:
       ``start_face`` (1…N), ``shift_deg`` (S), ``step`` (position index i, 1…N; derived from θ and
       S if omitted), ``face`` (face under the autocollimator, derived as (j + i − 2) mod N + 1).
     - ``ac_arcsec``: raw autocollimator reading ε (optional; used by ``ac_scale``).
-    - ``closure_group``: readings sharing one setup error U (default: one per (shift, start face)).
+    - ``closure_group``: readings sharing one setup error U (default: one per (shift, start face,
+      repetition): each repetition a new mounting, both directions of a repetition in one).
     - ``model_sensitivity``: optional dict name → per-reading change of the model (arcsec) for a
       one-standard-uncertainty change of one model parameter (e.g. u(e), u(θ0), u(δY) per
       harmonic) — the model's uncertainty, entered as nuisance columns with a unit prior.
@@ -386,6 +391,10 @@ class Evidence:
     radial_term: str | None = "radial_motion_integral"
     sphere_form_um: float | None = SPHERE_FORM_UM
     u_floor_arcsec: float | None = None
+    #: per reading: the α that ε² added to every autocollimator reading produces after the
+    #: shift-angle analysis (the closure puts its face-fixed part into β, its per-run mean into U);
+    #: the exact column of a quadratic autocollimator non-linearity (ac_scale). None: ε² itself
+    ac_quadratic_response: np.ndarray | None = None
 
     def __post_init__(self):
         self.theta_deg = np.asarray(self.theta_deg, dtype=float).ravel()
@@ -412,7 +421,10 @@ class Evidence:
         if self.ac_arcsec is not None:
             self.ac_arcsec = np.asarray(self.ac_arcsec, dtype=float)
         if self.closure_group is None:
-            keys = np.column_stack([np.round(self.shift_deg, 6), self.start_face])
+            # one mounting per (shift, start face, repetition): a repetition is a new run of the
+            # closure (Hsieh eq. 2 holds per run, sec. 3.3 (1): "the average of six measurement
+            # results", each one mounted anew); its two directions are swept in one mounting
+            keys = np.column_stack([np.round(self.shift_deg, 6), self.start_face, self.rep])
             self.closure_group = np.unique(keys, axis=0, return_inverse=True)[1].ravel()
         else:
             self.closure_group = np.unique(np.asarray(self.closure_group), return_inverse=True)[1].ravel()
@@ -655,13 +667,30 @@ class _Problem:
         return out if x.ndim == 2 else out[:, 0]
 
     def _folds(self):
+        """Cross-validation folds over the polygon rows (self-calibration rows always train).
+
+        Every training set must still identify what the candidates fit, whatever the design:
+        - leave-one-repetition-out when there are ≥ 3 repetitions: a repetition is the same design
+          again (all shifts, start faces and directions stay in every training set);
+        - else leave-one-start-face-out with ≥ 3 start faces (the other faces keep the face pattern
+          determined; a shift set with one face per shift loses one θ set per fold);
+        - else leave-one-shift-out with ≥ 3 shifts (shift sets: SelfA-like 0…14° in 1° steps);
+        - else interleaved stop positions: every MAX_CV_FOLDS-th position of θ held out (one rep,
+          one start face, one shift, one or both directions): the held-out stops are between
+          trained ones, so the harmonics a candidate fits are still determined.
+        Groups are merged cyclically into ≤ MAX_CV_FOLDS folds. None with fewer than 3 groups."""
         ev = self.ev
         f = np.full(self.n_rows, -1)
-        for key in (ev.shift_deg, ev.rep, ev.start_face):
+        for key in (ev.rep, ev.start_face, ev.shift_deg):
             u, inv = np.unique(np.round(np.asarray(key, dtype=float), 6), return_inverse=True)
             if u.size >= 3:
                 f[: ev.n] = inv % MAX_CV_FOLDS
                 return f
+        u, inv = np.unique(ev.theta_bin, return_inverse=True)
+        k = min(MAX_CV_FOLDS, u.size // 4)   # ≥ 4 positions per fold's complement share
+        if k >= 3:
+            f[: ev.n] = inv % k
+            return f
         return None
 
     # -- columns -----------------------------------------------------------------------------
@@ -1403,7 +1432,30 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         result["status"] = "ambiguous" if result["ambiguous"] else "explained"
         result["unexplained_signature"] = None
     result["model_file"] = _payload(ev, effects if not result["unexplained"] else [], result["ambiguous"], result["status"], ctx)
+    result["reference_corrections"] = (_reference_corrections(pb, chosen, cands_mod, scale)
+                                       if not result["unexplained"] else {})
     return _jsonable(result)
+
+
+def _reference_corrections(pb: _Problem, c: _Cand, mods: dict, scale: float) -> dict[str, dict[str, Any]]:
+    """Per polygon reading, the contribution of each identified member that is not an encoder
+    error (SEEN_BY_SELFCAL false: the autocollimator's scale, non-linearity and drift, the polygon's
+    pitch, the twist between disk and polygon) and its standard uncertainty from the parameters'
+    covariance (× √(χ²/dof) when > 1): what is subtracted from the measured α to give the encoder's
+    own error (pipeline: ``encoder_error_corrected_arcsec``). Closure-centred, as α is."""
+    out: dict[str, dict[str, Any]] = {}
+    i = 0
+    n = pb.ev.n
+    for member, names in zip(c.names, c.pnames):
+        j = i + len(names)
+        if not mods[member].SEEN_BY_SELFCAL:
+            Xm = c.X[:n, i:j]
+            Cm = c.fit["cov"][i:j, i:j] * scale
+            val = Xm @ c.fit["beta"][i:j]
+            u = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", Xm, Cm, Xm), 0.0, None))
+            out[member] = {"value_arcsec": val, "u_arcsec": u, "params": list(names)}
+        i = j
+    return out
 
 
 def _significant_parts(sig: dict, n: int, u_rms: float = 0.0) -> list[str]:
@@ -1497,20 +1549,8 @@ def _payload(ev: Evidence, effects: list[dict], ambiguous: list[dict], status: s
             "created_by": "benchtwin.analysis.tracing.trace"}
 
 
-def _jsonable(x):
-    """Plain JSON types; non-finite floats become None."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
+# plain JSON types, non-finite floats -> null (benchtwin/jsonable.py)
+_jsonable = functools.partial(to_json, nonfinite="null")
 
 def save_model(path, payload: dict) -> None:
     """Write the ``model_file`` payload as JSON, atomically (temporary file, fsync, rename)."""

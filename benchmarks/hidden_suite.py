@@ -64,6 +64,11 @@ EXPECTED = {
     "interpolation_error": ("interpolation_error", "named (shifts 0/5/10°)", {"named"}),
     "thermal_growth": ("unexplained", "unexplained (outside the library: the pattern grows with time)",
                        {"ok (unexplained)"}),
+    # issue 16
+    "ac_nonlinearity": ("ac_scale", "named (self-calibration; the quadratic column passed through the "
+                                    "shift-angle analysis)", {"named"}),
+    "selfa_graduation": ("graduation_error", "named (12-head self-calibration, X probes, shifts 0…14°)", {"named"}),
+    "null_y_probes": ("none", "no effect named (Y probes only, both directions, 2 reps)", {"ok (nothing)"}),
 }
 
 #: residual after within this factor of the noise floor (issue 7)

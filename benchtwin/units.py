@@ -68,6 +68,16 @@ _UNITS: dict[str, tuple[float, str]] = {
     "arcsec/h": (ARCSEC / 3600.0, "angular_speed"),
     "um/s": (UM, "speed"),
     "mm/s": (MM, "speed"),
+    # thermal (twin/thermal.py): temperatures in °C (the scenario's "SI" for a temperature is °C:
+    # the bench's models use differences and the papers' 20 °C reference), differences in K
+    "degC": (1.0, "temperature"),
+    "K": (1.0, "temperature_difference"),
+    "mK": (1e-3, "temperature_difference"),
+    "um/K": (UM, "length_per_kelvin"),
+    "nm/K": (NM, "length_per_kelvin"),
+    "arcsec/K": (ARCSEC, "angle_per_kelvin"),
+    "ppm/K": (1e-6, "per_kelvin"),
+    "per_K": (1.0, "per_kelvin"),
     # optics / sensor
     "um/px": (UM, "pixel_pitch"),
     "px": (1.0, "pixels"),

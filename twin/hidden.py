@@ -65,6 +65,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 
 TWO_PI = 2.0 * math.pi
@@ -219,15 +220,7 @@ class Hidden:
         return out
 
 
-def _json(x: Any) -> Any:
-    if isinstance(x, Mapping):
-        return {k: _json(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    return x
-
+_json = to_json  # the one numpy -> JSON conversion (benchtwin/jsonable.py)
 
 class TrueScenario:
     """A read-only view of a scenario with some ``[bench]`` values replaced by their TRUE values

@@ -12,7 +12,23 @@ axis average line as reference):
   its bearings' rolling paths move, under gravity and the other loads — so the disk, the spheres
   and the polygon move as one rigid body and the disk-plane motion follows from the bearing
   geometry (Jia sec. 6: "reduce the distance between the grating disk and the bearing").
-- Rolling-path offsets (per bearing, lab x/y):
+- Bearings of ``bearings.type = "ball"`` (twin/bearing.py; Harris & Kotzalas, Wardle 1988): each
+  bearing is a set of Z balls between a wavy inner race (turning with the shaft) and a wavy outer
+  race (in the housing). The tendon springs are switched off; the journal displacement u = T·q
+  (the tendons' lengths) relative to the housing gives every ball's Hertzian contact load at its
+  actual azimuth, and the summed ball forces enter the equilibrium as generalized forces Tᵀ·F.
+  So the shaft's radial and tilt motion is its response to those forces plus gravity, unbalance
+  and the drive; which waviness orders move the centre, and at which frequencies, follows from
+  the sums (tests/twin/test_bearing.py checks Wardle's rule emerges). The cage angle is the
+  integral of the shaft's true rotation times the kinematic ratio rho along the bench's path,
+  plus a seeded random slip per start/stop (``bearings.cage_slip``, relative to the move's
+  rolling): poses at a new ``t_s`` are a new stop (the path advances); poses at the same ``t_s``
+  are the servo refining the same stop. A stop revisited after a different path therefore sees
+  another ball configuration: the asynchronous error motion. Quasi-static: the bearings' radial
+  modes are at ~1.6 kHz, the drive settles in ms, the stops last 0.5 s; a test integrates the same
+  model with mj_step and finds the static pose.
+- Rolling-path offsets of ``bearings.type = "path"`` (per bearing, lab x/y; an air bearing or a
+  replayed motion table — the only model before the ball sets):
   * race waviness ``waviness_top/bottom``: lobes of the rotating (inner) race, synchronous with
     the shaft. A lobe {order k, amplitude a, phase ψ} moves the rolling-path centre by
     a·(cos(kθ − ψ), sin(kθ − ψ)) at shaft angle θ: a whirl at k cycles/rev (ISO 230-7 polar
@@ -67,9 +83,11 @@ from scipy.interpolate import CubicSpline
 
 from benchtwin.units import ARCSEC
 
+from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import Hidden, TrueScenario
 from .pose import BenchPose, BodyPose
+from .thermal import Thermal
 
 TWO_PI = 2.0 * math.pi
 
@@ -83,6 +101,11 @@ _STREAM = {
     "sphere_form": 5,
     "rep_cage_phase": 6,
     "rep_async": 7,
+    "ball_set": 8,
+    "cage_slip": 9,
+    "cage_start": 10,
+    "thermal_phase": 11,
+    "thermal_axis_azimuth": 12,
 }
 
 # Joints of the model in the order of the solve vector q (names in models/bench.xml).
@@ -92,7 +115,7 @@ _LINEAR = np.array([True, True, False, False, False, False])
 # Settle criterion: |Δq_i| <= ATOL + 4·eps·|q_i| on the last Newton step (m for slides, rad for
 # hinges). 1e-14 m = 1e-5 nm and 1e-14 rad = 2e-9″: the pose noise is then the float64 rounding.
 SETTLE_ATOL = 1e-14
-SETTLE_MAX_ITER = 30
+SETTLE_MAX_ITER = 60
 
 # Cage lobing (rolling-element set) and random non-repeating motion: model constants.
 CAGE_ORDERS = (1, 2, 3)              # low orders: ball diameter variation around the set
@@ -196,8 +219,17 @@ class Bench:
         self.async_rms_m = float(br["async_rms"])
         # Shaft speed while measuring: 0 = stop-and-go (quasi-static stops, the default).
         self.speed_rad_s = float(_opt(sc, "bench", "speed", 0.0))
+        # Bearing model: "ball" = rolling-element sets (twin/bearing.py, Hertzian contact forces);
+        # "path" = a journal on a given rolling path (air bearing, or a replayed motion table).
+        self.bearing_type = str(_opt(sc, "bearings", "type", "path"))
+        if sc.get("motion_table") if hasattr(sc, "get") else None:
+            self.bearing_type = "path"          # a measured motion replaces the bearings' own
+        self.ball_sets: dict[str, BallSet] | None = None
+        self.cage_slip = float(_opt(sc, "bearings", "cage_slip", 0.0))
 
         self._generate(sc)
+        self.thermal = self._thermal(sc)
+        self._drift4 = np.zeros(4)           # thermal translation of the bearing seats now
         place = Placement(
             disk_offset_m=self.disk_offset_m,
             disk_tilt_rad=float(er["disk_tilt"]),
@@ -220,6 +252,12 @@ class Bench:
             sc_true = TrueScenario(sc, {"L1": L1})   # the spheres where they truly are
         self.model, self.geometry = build_model(sc_true, place)
         m = self.model
+        if self.ball_sets is not None:
+            # The ball sets carry the shaft (forces from twin/bearing.py, added to MuJoCo's
+            # generalized forces through the tendons' moment arms): the tendons keep only their
+            # damping (dynamic runs) and measure the journal displacement.
+            for n in BEARING_TENDONS:
+                m.tendon_stiffness[m.tendon(n).id] = 0.0
         # Statics: no constraint rows (no contacts, friction is applied as its sliding value).
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         self.data = mujoco.MjData(m)
@@ -233,6 +271,7 @@ class Bench:
                      ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom", "unbalance")}
         self._centrifugal_N = float(br["unbalance"]) * self.speed_rad_s**2
         self._housing_m = np.zeros(4)      # constant race offsets (housing position), per tendon
+        self._solve_housing: np.ndarray | None = None
         self._rep_cache: dict[int, dict] = {}
         self._terms_cache: dict[tuple, Any] = {}
         self._q_last = np.zeros(6)
@@ -241,9 +280,17 @@ class Bench:
         self.total_iterations = 0
         self.n_poses = 0
 
+        # Journal displacement at the bearings = T·q (the fixed tendons are linear in q).
+        self._T = self._tendon_matrix()
+        self.reset_path()
+        if self.ball_sets is not None:
+            bs, self.ball_sets = self.ball_sets, None      # MuJoCo's part alone
+            self._K_mj = self._stiffness_matrix()
+            self.ball_sets = bs
         self._K = self._stiffness_matrix()
         self._Kinv = np.linalg.inv(self._K)
         self._center_axis_average_line()
+        self.reset_path()
 
     # ------------------------------------------------------------------ generated parameters --
     def _generate(self, sc) -> None:
@@ -309,11 +356,41 @@ class Bench:
             a *= rms_cage / math.sqrt(0.5 * np.sum(a**2)) if rms_cage > 0 else 0.0
             p = r.uniform(0, TWO_PI, k.size)
             self.cage_lobes[s] = (k, a, p)
+        if self.bearing_type == "ball":
+            self.ball_sets = {}
+            for i, s_ in enumerate(("top", "bottom")):
+                g = BallBearingGeometry(
+                    balls=int(br["balls"]), ball_diameter_m=float(br["ball_diameter"]),
+                    pitch_diameter_m=float(br["pitch_diameter"]), contact_angle_rad=float(br["contact_angle"]),
+                    preload_N=float(br["preload"]), groove_inner=float(br["groove_inner"]),
+                    groove_outer=float(br["groove_outer"]))
+                self.ball_sets[s_] = generate_ball_set(g, str(br["grade"]), str(br["ball_grade"]),
+                                                       _rng(seed, "ball_set", i),
+                                                       float(_opt(sc, "bearings", "waviness_scale", 1.0)))
+            self.cage_ratio = self.ball_sets["top"].rho
         # Optional measured motion table: replaces the synchronous waviness.
         self.motion_table = None
         table = sc.get("motion_table") if hasattr(sc, "get") else None
         if table:
             self._set_motion_table(table, b)
+
+    def _thermal(self, sc) -> Thermal:
+        """The bench's thermal state (twin/thermal.py); random phases from the seed unless given."""
+        try:
+            th = dict(sc["thermal"])
+        except KeyError:
+            th = {}
+        from .scenario_schema import SCHEMA
+
+        for k, f in SCHEMA["thermal"].items():
+            if th.get(k) is None:
+                th[k] = f.default
+        phase = th["ambient_phase"]
+        if phase is None:
+            phase = _rng(self.seed, "thermal_phase").uniform(0, TWO_PI)
+        if th["axis_drift_azimuth"] is None:
+            th["axis_drift_azimuth"] = _rng(self.seed, "thermal_axis_azimuth").uniform(0, TWO_PI)
+        return Thermal(th, float(phase))
 
     def _set_motion_table(self, table, b) -> None:
         th = _table_column(table, "theta", "theta_rad")
@@ -403,7 +480,8 @@ class Bench:
             out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
         else:
             out = np.zeros(4)
-        t = self._race_terms(rep, include_async)
+        # ball bearings: the races' shapes act through the ball forces (_ball_forces), not here
+        t = self._race_terms(rep, include_async) if self.ball_sets is None else None
         if t is not None:
             f, ph, Cm, Sm = t
             arg = f * th + ph
@@ -421,7 +499,103 @@ class Bench:
         d = self.data
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
-        return d.qfrc_smooth.copy()
+        r = d.qfrc_smooth.copy()
+        if self.ball_sets is not None:
+            r += self._T.T @ self._ball_forces(q)
+        return r
+
+    def _residual_and_K(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and the Newton matrix of a ball bench: MuJoCo's part of K (constant: its forces
+        are linear in the small radial/tilt coordinates) plus Tᵀ·K_balls·T of the ball sets at this
+        configuration (analytic), so Newton converges quadratically."""
+        d = self.data
+        d.qpos[:] = q
+        mujoco.mj_forward(self.model, d)
+        F, Kb = self._ball_forces(q, with_stiffness=True)
+        return d.qfrc_smooth + self._T.T @ F, self._K_mj + self._T.T @ Kb @ self._T
+
+    def _tendon_matrix(self) -> np.ndarray:
+        """(4, 6) T with journal displacements (top x, top y, bottom x, bottom y) = T·q."""
+        d = self.data
+        T = np.zeros((4, 6))
+        for i in range(6):
+            d.qpos[:] = 0.0
+            d.qpos[i] = 1.0
+            mujoco.mj_kinematics(self.model, d)
+            mujoco.mj_tendon(self.model, d)
+            T[:, i] = d.ten_length[self._ten]
+        d.qpos[:] = 0.0
+        return T
+
+    # ---------------------------------------------------------------- ball sets and cage path --
+    def reset_path(self, run: int = 0) -> None:
+        """Start the cage path afresh: every cage at its seeded initial angle, shaft angle 0, no
+        stop yet (a new run on a bench whose history is forgotten). ``run`` keys the initial cage
+        angles and the slip draws, so independent runs (a study's repetitions) are independent
+        realisations whatever ran before on the same ``Bench``."""
+        self._path_run = int(run)
+        self._path_t: float | None = 0.0
+        self._path_n = 0
+        self._path_theta_ref = 0.0
+        if self.ball_sets is not None:
+            self._cage0 = _rng(self.seed, "cage_start", self._path_run).uniform(0, TWO_PI, 2)
+        else:
+            self._cage0 = np.zeros(2)
+        self._path_cage_ref = self._cage0.copy()
+        self._path_slip = np.zeros(2)
+        self._path_theta_last = 0.0
+
+    def _advance_path(self, t_s: float, rolling: bool = False) -> None:
+        """A pose at a new time is a new stop: the previous stop's end becomes the reference, and
+        the move into this stop draws its cage slip (seeded by the stop's number on the path).
+        ``rolling``: the shaft turns steadily (continuous run): the cages roll on without slip."""
+        if self._path_t is not None and float(t_s) == self._path_t:
+            return
+        if rolling:
+            self._path_cage_ref = self.cage_angles_rad(self._path_theta_last)
+            self._path_theta_ref = self._path_theta_last
+            self._path_slip = np.zeros(2)
+            self._path_t = float(t_s)
+            return
+        self._path_cage_ref = self.cage_angles_rad(self._path_theta_last)
+        self._path_theta_ref = self._path_theta_last
+        self._path_n += 1
+        self._path_t = float(t_s)
+        if self.cage_slip > 0 and self.ball_sets is not None:
+            self._path_slip = _rng(self.seed, "cage_slip", self._path_run, self._path_n).normal(0.0, self.cage_slip, 2)
+
+    def cage_angles_rad(self, theta_rad: float) -> np.ndarray:
+        """Cage angles (top, bottom; lab frame) with the shaft at ``theta_rad`` on the current
+        move: the integral of the shaft's rotation times the kinematic ratio rho, each move
+        rolling with a random relative slip (``bearings.cage_slip``) — so the balls' configuration
+        at a stop depends on the path that led there."""
+        if self.ball_sets is None:
+            return np.zeros(2)
+        rho = np.array([self.ball_sets["top"].rho, self.ball_sets["bottom"].rho])
+        return self._path_cage_ref + rho * (float(theta_rad) - self._path_theta_ref) * (1.0 + self._path_slip)
+
+    def _ball_forces(self, q: np.ndarray, housing_m: np.ndarray | None = None, with_stiffness: bool = False):
+        """Ball-set forces on the journals (top x, top y, bottom x, bottom y), N (and, with
+        ``with_stiffness``, their 4×4 block-diagonal stiffness −dF/du)."""
+        housing = self._housing_m if housing_m is None else housing_m
+        if self._solve_housing is not None:
+            housing = self._solve_housing
+        u = self._T @ q - housing
+        th = float(q[4])
+        if self.hidden:
+            dx = self.hidden.race_x_offset_m(th)     # hidden tangential motion: X only
+            u[0] -= dx
+            u[2] -= dx
+        cage = self.cage_angles_rad(th)
+        if with_stiffness:
+            ft, kt = self.ball_sets["top"].force_and_stiffness(u[:2], th, cage[0])
+            fb, kb = self.ball_sets["bottom"].force_and_stiffness(u[2:], th, cage[1])
+            K = np.zeros((4, 4))
+            K[:2, :2], K[2:, 2:] = kt, kb
+            return np.concatenate([ft, fb]), K
+        ft = self.ball_sets["top"].force_on_shaft_N(u[:2], th, cage[0])
+        fb = self.ball_sets["bottom"].force_on_shaft_N(u[2:], th, cage[1])
+        return np.concatenate([ft, fb])
 
     def _set_loads(self, cmd_rad: float, direction: int) -> None:
         d = self.data
@@ -445,24 +619,28 @@ class Bench:
         ls[self._ten, 0] = offsets
         ls[self._ten, 1] = offsets
 
-    def _stiffness_matrix(self) -> np.ndarray:
-        """K = −∂qfrc_smooth/∂q by central differences at the unposed state (springs held)."""
-        self._set_loads(0.0, +1)
+    def _stiffness_matrix(self, housing_m: np.ndarray | None = None, q0: np.ndarray | None = None) -> np.ndarray:
+        """K = −∂(generalized force)/∂q by central differences at q0 (default: the unposed
+        state; springs held)."""
+        self._set_loads(0.0 if q0 is None else float(q0[4]), +1)
         self._set_springs(np.zeros(4))
-        q0 = np.zeros(6)
+        self._solve_housing = np.zeros(4) if housing_m is None else np.asarray(housing_m, dtype=float)
+        q0 = np.zeros(6) if q0 is None else np.asarray(q0, dtype=float).copy()
         h = np.where(_LINEAR, 1e-8, 1e-7)
         K = np.zeros((6, 6))
         for i in range(6):
             dq = np.zeros(6)
             dq[i] = h[i]
             K[:, i] = -(self._residual(q0 + dq) - self._residual(q0 - dq)) / (2 * h[i])
+        self._solve_housing = None
         return K
 
     def _solve(self, cmd_rad: float, direction: int, rep: int, include_async: bool = True,
                housing_m: np.ndarray | None = None) -> int:
         """Static equilibrium for drive command ``cmd_rad``; leaves ``self.data`` posed there.
         Returns the number of Newton iterations."""
-        housing = self._housing_m if housing_m is None else housing_m
+        housing = self._housing_m + self._drift4 if housing_m is None else housing_m
+        self._solve_housing = housing
         self._set_loads(cmd_rad, direction)
         q = self._q_last.copy()
         q[4] += cmd_rad - self._cmd_last          # warm start: keep the previous lag
@@ -470,8 +648,12 @@ class Bench:
         for it in range(1, SETTLE_MAX_ITER + 1):
             self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
             self._set_centrifugal(q[4])
-            r = self._residual(q)
-            dq = self._Kinv @ r
+            if self.ball_sets is not None:
+                r, Kq = self._residual_and_K(q)
+                dq = np.linalg.solve(Kq, r)
+            else:
+                r = self._residual(q)
+                dq = self._Kinv @ r
             q = q + dq
             if np.all(np.abs(dq) <= SETTLE_ATOL + 4 * np.finfo(float).eps * np.abs(q)):
                 break
@@ -484,7 +666,9 @@ class Bench:
         mujoco.mj_forward(self.model, d)
         if np.any(d.warning.number):
             raise RuntimeError(f"MuJoCo warnings during the static solve: {d.warning.number}")
+        self._solve_housing = None
         self._q_last = q
+        self._path_theta_last = float(q[4])
         self._cmd_last = cmd_rad
         return it
 
@@ -519,8 +703,16 @@ class Bench:
             self._solve(0.0, +1, 0, include_async=False, housing_m=h0)
             p0, a0 = self._axis_line()
             J[:, i] = (np.concatenate([p1[:2], a1[:2]]) - np.concatenate([p0[:2], a0[:2]])) / 1e-6
-        self._housing_m = -np.linalg.solve(J, y0)
-        self.axis_average_residual = mean_axis(self._housing_m)
+        h = -np.linalg.solve(J, y0)
+        y = mean_axis(h)
+        # Rolling-element sets are nonlinear (Hertz): a few more corrections with the same J.
+        for _ in range(8 if self.ball_sets is not None else 0):
+            if np.abs(y).max() < 1e-15:
+                break
+            h = h - np.linalg.solve(J, y)
+            y = mean_axis(h)
+        self._housing_m = h
+        self.axis_average_residual = y
         self._q_last = np.zeros(6)
         self._cmd_last = 0.0
         self.total_iterations = 0
@@ -531,14 +723,22 @@ class Bench:
         i = self._bid[name]
         return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
 
-    def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1) -> BenchPose:
+    def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1,
+                rolling: bool = False) -> BenchPose:
         """Command the drive to ``shaft_angle_rad`` approached in ``direction`` (+1 CCW, −1 CW),
         settle to static equilibrium and return the posed bodies (lab frame, m).
 
-        ``rep`` selects the run (the non-repeating motion and cage phase differ between reps);
-        ``t_s`` is recorded only (no time-dependent physics yet)."""
+        ``rep`` selects the run for "path" bearings (their random non-repeating motion is drawn
+        per rep). ``t_s`` is the bench clock: for ball bearings a pose at a new time is a new
+        stop on the bench's path (the cages roll with the shaft from the previous stop, with
+        slip), a pose at the same time refines the current stop (the servo's iterations).
+        ``rolling``: a sample during steady rotation (twin/continuous.py): no start/stop slip."""
         if direction not in (1, -1):
             raise ValueError("direction must be +1 or -1")
+        self._advance_path(t_s, rolling)
+        if self.thermal.active:   # the housings' thermal drift at this time (twin/thermal.py)
+            d = self.thermal.axis_drift_m(t_s)
+            self._drift4 = np.array([d[0], d[1], d[0], d[1]])
         it = self._solve(float(shaft_angle_rad), direction, int(rep))
         self.last_iterations = it
         self.total_iterations += it
@@ -573,6 +773,7 @@ class Bench:
         the disk plane z = 0, relative to the axis average line, at each commanded angle."""
         angles = np.atleast_1d(np.asarray(angles_rad, dtype=float))
         out = np.zeros((angles.size, 2))
+        self._drift4 = np.zeros(4)    # the bench as at t = 0 (no thermal drift yet)
         for i, th in enumerate(angles):
             self._solve(float(th), direction, int(rep))
             out[i] = self._axis_line()[0][:2]
@@ -647,4 +848,11 @@ class Bench:
                                                        + 1 / float(br["shaft_torsional_stiffness"])),
             "settle_atol": SETTLE_ATOL,
         }
+        if self.thermal.active:
+            truth["thermal"] = self.thermal.truth()
+        if self.ball_sets is not None:
+            truth["bearing_type"] = self.bearing_type
+            truth["ball_sets"] = {k: v.truth() for k, v in self.ball_sets.items()}
+            truth["cage_slip_relative"] = self.cage_slip
+            truth["cage_start_rad"] = self._cage0.tolist()
         return truth

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.schema import SchemaError, check_version, load_toml_file
+from benchtwin.jsonable import to_json
 from benchtwin.units import UnitError, parse_quantity
 
 from .scenario_schema import DEG as DEG_RAD
@@ -81,13 +82,7 @@ class Scenario(Mapping):
         return validate(raw, str(self.path or "<overrides>"))
 
 
-def _plain(x: Any) -> Any:
-    if isinstance(x, Mapping):
-        return {k: _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    return x
-
+_plain = to_json  # plain dicts and lists (benchtwin/jsonable.py)
 
 def default_scenario_path() -> Path:
     """The embedded default scenario (Jia 2019), shipped inside the package."""

@@ -77,6 +77,24 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "async_cage_fraction": Field("dimensionless", 0.5, lo=0.0, hi=1.0,
                                      doc="share of async_rms² from cage lobing; the rest is random"),
         "unbalance_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
+        # Rolling-element sets (twin/bearing.py; docs/physics.md). type = "path" keeps the journal on a
+        # given rolling path (radial_stiffness, waviness_*, async_rms: an air bearing or a replay).
+        "type": Field("str", "path", choices=("path", "ball"),
+                      doc="ball: angular-contact ball sets with Hertzian contact; path: springs on a rolling path"),
+        "balls": Field("int", 12, lo=3, hi=200, doc="Z per bearing (ball type)"),
+        "ball_diameter": Field("length", 6.35 * MM, lo=0.1 * MM, hi=0.2, doc="Dw"),
+        "pitch_diameter": Field("length", 31 * MM, lo=1 * MM, hi=2.0, doc="Dpw"),
+        "contact_angle": Field("angle", 15 * DEG, lo=1 * DEG, hi=60 * DEG, doc="under preload"),
+        "preload": Field("force", 50.0, lo=0.1, hi=1e5, doc="axial preload of the pair"),
+        "groove_inner": Field("dimensionless", 0.52, lo=0.501, hi=0.6, doc="inner groove radius / Dw"),
+        "groove_outer": Field("dimensionless", 0.53, lo=0.501, hi=0.6, doc="outer groove radius / Dw"),
+        "grade": Field("str", "P4", choices=("P0", "P6", "P5", "P4", "P2"),
+                       doc="ISO 492 class: ring run-out and race waviness level"),
+        "ball_grade": Field("str", "G5", choices=("G3", "G5", "G10", "G16", "G20", "G28"),
+                            doc="ISO 3290-1: ball diameter variation"),
+        "waviness_scale": Field("dimensionless", 1.0, lo=0.0, hi=100.0, doc="scales the grade's race waviness"),
+        "cage_slip": Field("dimensionless", 0.0, lo=0.0, hi=0.5,
+                           doc="std of the cage's relative slip per start/stop (ball type)"),
     },
     "errors": {
         "eccentricity": Field("length", lo=0.0, hi=5 * MM),
@@ -95,6 +113,26 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                             doc="absent: drawn from the seed"),
         "polygon_tilt": Field("angle", 0.0, lo=0.0, hi=1 * DEG),
         "polygon_tilt_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+    },
+    # The bench's thermal state (twin/thermal.py; docs/physics.md). The defaults make the bench
+    # thermally inert (no variation, no coefficient): a scenario states its environment.
+    "thermal": {
+        "ambient": Field("temperature", 20.0, lo=-50.0, hi=100.0, doc="lab mean, °C"),
+        "ambient_amplitude": Field("temperature_difference", 0.0, lo=0.0, hi=20.0, doc="slow lab variation ±A"),
+        "ambient_period": Field("time", 86400.0, lo=60.0, hi=1e7),
+        "ambient_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
+        "motor_rise": Field("temperature_difference", 0.0, lo=0.0, hi=100.0, doc="steady rise of the drive motor"),
+        "motor_time_constant": Field("time", 1200.0, lo=1.0, hi=1e7),
+        "structure_time_constant": Field("time", 7200.0, lo=1.0, hi=1e7, doc="shaft and housings"),
+        "structure_motor_share": Field("dimensionless", 0.3, lo=0.0, hi=1.0, doc="share of the motor rise reaching them"),
+        "probe_stand_time_constant": Field("time", 1800.0, lo=1.0, hi=1e7),
+        "autocollimator_time_constant": Field("time", 3600.0, lo=1.0, hi=1e7),
+        "axis_drift": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4, doc="bearing seats' translation per K of the structure"),
+        "axis_drift_azimuth": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
+        "probe_stand_growth": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4, doc="along the probe axis, per K"),
+        "ac_drift": Field("angle_per_kelvin", 0.0, lo=-1e-4, hi=1e-4, doc="autocollimator zero per K"),
+        "disk_cte": Field("per_kelvin", 8e-6, lo=0.0, hi=1e-4, doc="uniform: no angle change (truth only)"),
+        "polygon_cte": Field("per_kelvin", 8e-6, lo=0.0, hi=1e-4, doc="uniform: no angle change (truth only)"),
     },
     "instruments.probe": {
         "repeatability": Field("length", 0.1 * UM, lo=0.0, hi=100 * UM),
@@ -143,6 +181,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "directions": Field("list[str]", ["forward"], choices=("forward", "backward")),
         "dwell": Field("time", 0.5, lo=0.0, hi=3600.0),
         "polygon_reps": Field("int", 1, lo=1, hi=100),
+        # ISO 230-7 continuous-rotation radial error motion run (twin/continuous.py): 0 = off
+        "continuous_revolutions": Field("int", 0, lo=0, hi=10_000, doc="0: no continuous run; ISO 230-7: >= 20"),
+        "continuous_speed": Field("angular_speed", 60 * DEG, lo=1e-3, hi=1000.0, doc="shaft speed of the run"),
+        "continuous_samples_per_rev": Field("int", 256, lo=8, hi=100_000),
     },
 }
 

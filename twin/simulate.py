@@ -222,6 +222,13 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
             cam.close()
 
     _write_tables(writer, rows, enc)
+    pr = sc["procedure"]
+    n_rev = int(pr.get("continuous_revolutions", 0) or 0) if hasattr(pr, "get") else 0
+    if n_rev > 0:   # ISO 230-7 continuous run, after the stop-and-go procedures (twin/continuous.py)
+        from .continuous import continuous_run
+
+        writer.write_table("radial_continuous", continuous_run(
+            bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
     _write_truth(sc, writer, rows, bench, inst, truth_rows)
     writer.close()
     return out
@@ -306,7 +313,10 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
                                          "path": str(sc.path) if getattr(sc, "path", None) else None})
-    # An independent state + stage for the α grid (the run's clock is not touched).
+    # An independent state + stage for the α grid (the run's clock is not touched). The grid is
+    # one continuous sweep of a bench whose path starts afresh (ball bearings: cages at their
+    # initial angles, rolling with the shaft along the grid, no start/stop slip: one time).
+    bench.reset_path()
     st = SimBenchState(bench, SimClock())
     enc = SimEncoder.sim_from_scenario(sc, st)
     stage = SimRotaryStage("truth_stage", st, enc)

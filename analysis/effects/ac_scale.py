@@ -51,11 +51,21 @@ def available(ev, ctx=None):
     return True, "" if getattr(ev, "ac_arcsec", None) is not None else "no raw autocollimator readings: ε ≈ α used for the quadratic term"
 
 
+def _quad(ev):
+    """The quadratic column: q·ε² as the shift-angle analysis passes it to α (the evidence's
+    ``ac_quadratic_response``: its face-fixed part is in β, its per-run mean in U — ε² alone left
+    0.75–0.8 of a 2–4e-4/″ non-linearity in the residual, issue 16), else ε²."""
+    r = getattr(ev, "ac_quadratic_response", None)
+    if r is not None and len(r) == len(ev.theta_deg):
+        return np.asarray(r, dtype=float)
+    e = _eps(ev)
+    return e * e
+
+
 def design(ev, ctx=None):
     # α ≈ the model: the measured α itself would put the residual (and its noise) into the regressor
     a = sum(np.asarray(v, dtype=float) for v in ev.model_terms.values()) + np.zeros(len(ev.theta_deg))
-    e = _eps(ev)
-    return np.column_stack([a / 100.0, e * e]), ["gain_pct", "quad_per_arcsec"]
+    return np.column_stack([a / 100.0, _quad(ev)]), ["gain_pct", "quad_per_arcsec"]
 
 
 #: plausible ranges: an autocollimator's scale is calibrated to well below 1 % (TriAngle: 0.25″ over

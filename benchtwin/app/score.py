@@ -493,9 +493,9 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
             ex = np.array([x for _, x in rows])
             err = d["ac_arcsec"][idx] - ex
             cols = [np.ones_like(err)]
-            if "ac_scale" in hidden:
+            if hidden is not None and "ac_scale" in hidden:
                 cols += [ex, ex**2]
-            if "ac_drift" in hidden and "t_s" in d:
+            if hidden is not None and "ac_drift" in hidden and "t_s" in d:
                 cols += [d["t_s"][idx]]
             if len(cols) > 1:
                 A = np.column_stack(cols)

@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.jsonable import to_json
+
 from .procedures import Capture, Mark, Move, Read, Step, Wait, describe_step
 
 __all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "dry_run", "read_journal", "iter_journal"]
@@ -93,18 +95,8 @@ def dry_run(procedure: Iterable[Step]) -> list[dict[str, Any]]:
     return [describe_step(s) for s in procedure]
 
 
-def _plain(x: Any) -> Any:
-    """JSON-ready copy: numpy scalars -> Python, arrays -> lists (images are not journaled)."""
-    if isinstance(x, Mapping):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, np.generic):
-        return x.item()
-    return x
-
+# JSON-ready copy: numpy scalars -> Python, arrays -> lists (images are not journaled)
+_plain = to_json
 
 def iter_journal(path: str | Path) -> Iterator[dict[str, Any]]:
     """Journal records, read line by line. A last line without its newline is a torn write from a

@@ -30,10 +30,10 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
-from benchtwin.hw.interfaces import SoftLimitError
+from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
 
 __all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
 
@@ -236,16 +236,17 @@ class ZaberRotaryStage(SerialInstrument):
         return parse_float(self._q("get_pos")["data"].split()[0], "pos") / self.microsteps_per_deg
 
     # --- RotaryStage ------------------------------------------------------------------------------
-    def position(self) -> dict[str, Any]:
+    def position(self) -> StagePosition:
         """``{"angle_deg", "t_s", "status", "stage_deg"}``: head 1 of the encoder when one is given,
         else the stage's own position."""
         stage = self._stage_deg()
         if self.encoder is not None:
             enc = self.encoder.read()
-            return self.reading(angle_deg=float(enc["angle_deg"][0]), stage_deg=stage, status=enc["status"])
-        return self.reading(angle_deg=stage, stage_deg=stage)
+            return cast(StagePosition, self.reading(angle_deg=float(enc["angle_deg"][0]), stage_deg=stage,
+                                                    status=enc["status"]))
+        return cast(StagePosition, self.reading(angle_deg=stage, stage_deg=stage))
 
-    def move_to(self, target_deg: float) -> dict[str, Any]:
+    def move_to(self, target_deg: float) -> StageMove:
         target_deg = float(target_deg)
         self._check_limits(target_deg)
         self._prepare()
@@ -279,4 +280,4 @@ class ZaberRotaryStage(SerialInstrument):
         out["duration_s"] = float(out["t_s"] - t0)
         if error_deg is not None:
             out["error_deg"] = error_deg
-        return out
+        return cast(StageMove, out)

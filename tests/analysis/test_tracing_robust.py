@@ -114,3 +114,42 @@ def test_same_decision_under_another_blas_kernel(coretype, reference):
     assert out.returncode == 0, out.stderr[-2000:]
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got == reference, coretype
+
+
+# ---------------------------------------------------------------------------------------------
+# cross-validation folds and closure groups valid for every design (issue 16)
+# ---------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kw, by", [
+    (dict(start_faces=range(1, 24, 4), reps=3, directions=(1, -1)), "rep"),
+    (dict(start_faces=range(1, 24, 4)), "start_face"),
+    (dict(start_faces=[1], shifts=tuple(float(s) for s in range(15))), "shift_deg"),   # SelfA-like shift set
+    (dict(start_faces=[1], directions=(1, -1)), "theta"),                               # one rep, both directions
+    (dict(start_faces=[1], selfcal=True, n_heads=12), "theta"),                         # 12 heads, one sweep
+])
+def test_cv_folds_keep_every_training_set_complete(kw, by):
+    from benchtwin.analysis.tracing import MAX_CV_FOLDS, _Problem
+
+    ev, _ = make_evidence(np.random.default_rng(1), **kw)
+    pb = _Problem(ev, use_selfcal=True)
+    f = pb.folds[: ev.n]
+    assert pb.folds is not None and np.all(f >= 0) and np.all(pb.folds[ev.n:] == -1)  # selfcal rows always train
+    k = np.unique(f).size
+    assert 3 <= k <= MAX_CV_FOLDS
+    key = {"rep": ev.rep, "start_face": ev.start_face, "shift_deg": np.round(ev.shift_deg, 6), "theta": ev.theta_bin}[by]
+    for g in np.unique(key):  # a fold is made of whole groups of its key
+        assert np.unique(f[key == g]).size == 1
+    for fold in np.unique(f):  # every training set still has both directions and most stop positions
+        train = f != fold
+        assert set(ev.direction[train]) == set(ev.direction)
+        assert np.unique(ev.theta_bin[train]).size >= 0.5 * np.unique(ev.theta_bin).size
+
+
+def test_closure_group_is_one_mounting_per_repetition():
+    ev, _ = make_evidence(np.random.default_rng(2), start_faces=[1, 5], reps=3, directions=(1, -1))
+    g = ev.closure_group
+    assert g.max() + 1 == 2 * 3  # (shift, start face, rep)
+    for r in range(3):
+        for j in (1, 5):
+            m = (ev.rep == r) & (ev.start_face == j)
+            assert np.unique(g[m]).size == 1 and set(ev.direction[m]) == {1, -1}  # both directions share it

@@ -32,6 +32,14 @@ SMALL = {
     "instruments.autocollimator.accuracy": "0 arcsec",
     "instruments.autocollimator.noise": "0 arcsec",
     "errors.graduation_error_rms": "0.5 arcsec",
+    # rolling-path bearings with the waviness and rep-wise non-repeating motion jia2019.toml had
+    # before its ball sets: these tests check the instruments' equations against the truth α grid,
+    # which a ball bench's path-dependent asynchronous motion (tests/twin/test_bearing.py) would blur
+    "bearings.type": "path",
+    "bearings.waviness_top": [{"order": 2, "amplitude": "0.15 um", "phase": "30 deg"},
+                              {"order": 3, "amplitude": "0.10 um", "phase": "110 deg"}],
+    "bearings.waviness_bottom": [{"order": 2, "amplitude": "0.10 um", "phase": "250 deg"}],
+    "bearings.async_rms": "0.06 um",
 }
 
 
@@ -145,21 +153,27 @@ def test_probe_readings_follow_the_true_sphere_motion(small_ds):
     assert np.max(np.abs(dY_axis - axis_dy)) < 0.005
 
 
-def test_same_seed_byte_identical_and_seed_matters(tmp_path):
-    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False})
+@pytest.mark.parametrize("bearings", ["path", "ball"])
+def test_same_seed_byte_identical_and_seed_matters(tmp_path, bearings):
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
+                           "bearings.type": bearings})
     a = simulate(sc, tmp_path / "a", progress=False, backend="analytic")
     b = simulate(sc, tmp_path / "b", progress=False, backend="analytic")
     fa, fb = files(a), files(b)
     assert fa.keys() == fb.keys() and all(fa[k] == fb[k] for k in fa)
     c = simulate(small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
-                                   "scenario.seed": 7}), tmp_path / "c", progress=False, backend="analytic")
+                                   "bearings.type": bearings, "scenario.seed": 7}),
+                 tmp_path / "c", progress=False, backend="analytic")
     assert files(c)["polygon.csv"] != fa["polygon.csv"]
 
 
-def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch):
+@pytest.mark.parametrize("bearings", ["path", "ball"])
+def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch, bearings):
+    """Ball bearings too: the cage path (and its slip draws) is re-done by the replayed moves."""
     from benchtwin.twin.instruments.probe import SimProbe
 
-    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"]})
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
+                           "bearings.type": bearings})
     ref = simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
 
     calls = {"n": 0}
@@ -212,6 +226,9 @@ def test_physics_bench_eccentricity_alone_gives_the_exact_law():
     from benchtwin.twin.physics import Bench
 
     sc = load_scenario(ROOT / "scenarios" / "jia2019.toml").with_overrides({
+        "bearings.type": "path",   # ideal rolling paths: no ball set, no waviness
+        "errors.graduation_error_rms": "0 arcsec", "instruments.encoder.interpolation_error": "0 arcsec",
+        "thermal.axis_drift": "0 um/K",
         "bearings.waviness_top": [], "bearings.waviness_bottom": [], "bearings.unbalance": "0 g*mm",
         "bearings.async_rms": "0 um", "bearings.friction_torque": "0 N*m", "bench.gravity_direction": "none"})
     st = SimBenchState(Bench(sc))

@@ -115,10 +115,14 @@ class SimAutocollimator:
         if abs(x) > self.range_rad or abs(y) > self.range_rad:
             return {"x_arcsec": float("nan"), "y_arcsec": float("nan"), "t_s": t, "status": "out_of_range"}
         vals = []
+        th = getattr(st.bench, "thermal", None)
+        drift_T = th.ac_drift_rad(t) if th is not None and th.ac_rad_K else 0.0   # twin/thermal.py
         for axis, v in enumerate((x, y)):
             if self.hidden is not None:   # undeclared scale / non-linearity / drift of the instrument
                 v = self.hidden.ac_angle_rad(v, axis, t)
             v = v + self.sim_accuracy_error(v, axis) + self.drift_rate_rad_s * t
+            if drift_T:
+                v = v + drift_T
             vals.append(v)
         if self.noise_rad > 0:
             nz = st.rng("ac_noise", self.key).normal(0.0, self.noise_rad, 2)

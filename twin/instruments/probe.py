@@ -131,6 +131,9 @@ class SimProbe:
         if abs(L) > self.range_m:
             return {"value_um": float("nan"), "t_s": t, "status": "out_of_range"}
         v = L + float(self.sim_linearity_error_m(L))
+        th = getattr(st.bench, "thermal", None)
+        if th is not None and th.probe_stand_m_K:   # the stand's thermal growth (twin/thermal.py)
+            v += th.probe_stand_drift_m(t)
         if self.repeatability_m > 0:
             v += st.rng("probe_noise", self.key).normal(0.0, self.repeatability_m)
         return {"value_um": quantise(v / UM, self.resolution_m / UM), "t_s": t, "status": "ok"}

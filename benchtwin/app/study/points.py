@@ -111,6 +111,8 @@ def physics_point(task: dict) -> list[dict[str, float]]:
     dwell = float(sc["procedure"]["dwell"])
     out = []
     for rep in task["reps"]:
+        if hasattr(bench, "reset_path"):   # each repetition its own run of the bench's path
+            bench.reset_path(run=int(rep))
         err = np.empty(n)
         tilt = np.empty(n)
         axis = np.full((n, 2), np.nan)

@@ -1,0 +1,162 @@
+"""The bench's thermal state: lumped first-order nodes driven by the lab air and the drive motor.
+
+Model (lumped capacitance, Incropera & DeWitt, *Fundamentals of Heat and Mass Transfer*, ch. 5:
+a body whose Biot number is small follows its surroundings as a first-order lag with time
+constant tau = m·c/(h·A)); every node starts in the periodic steady state of the lab (the bench
+stood in the lab before the run) and the motor is switched on at t = 0 (cold start):
+
+- lab air  T_a(t) = T_0 + A·sin(2·pi·t/P + phi): the papers' environment, 20 ± 1 °C (Jia 2019
+  sec. 5 and Hsieh 2022 sec. 3: calibrations in a temperature-controlled room), varying slowly
+  (``ambient_period``, a day by default; the phase is drawn from the seed unless given);
+- motor  T_m = lag_{tau_m}(T_a) + dT_m·(1 - exp(-t/tau_m)): the drive's dissipation (servo
+  holding current) raises it by dT_m at steady state;
+- structure (shaft, housings)  T_s = lag_{tau_s}(T_a + share·(T_m - lag(T_a))): fed by the lab and
+  a share of the motor's rise through the shaft (two lags in series for the motor's step);
+- probe stand and autocollimator: lags of the lab air with their own time constants (they stand
+  away from the motor).
+
+Effects (each applied where it physically acts, with its own coefficient):
+- axis drift: the housings' uneven growth translates the bearing seats by
+  ``axis_drift``·(T_s(t) - T_s(0)) towards the azimuth ``axis_drift_azimuth`` (lab frame); the
+  physics moves the housings (twin/physics.py), the shaft follows under its ball/spring forces;
+- probe-stand drift: the stand grows along the probe axis by ``probe_stand_growth``·(T_p - T_p(0))
+  (an uncompensated aluminium length: 23 ppm/K × 10 mm ≈ 0.2 µm/K); the probes read it as motion;
+- autocollimator drift: its zero moves by ``ac_drift``·(T_ac - T_ac(0)) (both axes);
+- disk and polygon expansion (``disk_cte``, ``polygon_cte``): a UNIFORM expansion changes no
+  angle — the graduation lines and the faces keep their angular positions; it scales radii only
+  (the disk's edge radius grows 0.18 µm/K at 22.5 mm in glass). Recorded in truth (scale factors);
+  not rendered by the camera (whose edge radius error it would be, ~0.3 px/K: left to the
+  camera's model).
+
+Every response is closed-form (the lag of a constant, an exponential and a sinusoid are exact), so
+the state at any time costs a few exponentials and no integration error accumulates; ``state(t)``
+is a pure function of t for a given scenario and seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+
+def _lag_sine(A: float, w: float, phi: float, tau: float, t: float) -> float:
+    """Periodic steady state of tau·y' + y = A·sin(w·t + phi)."""
+    if A == 0.0:
+        return 0.0
+    wt = w * tau
+    return A / math.sqrt(1.0 + wt * wt) * math.sin(w * t + phi - math.atan(wt))
+
+
+def _lag_step(tau: float, t: float) -> float:
+    """Step response 1 - exp(-t/tau) of one lag (0 for t <= 0)."""
+    return 0.0 if t <= 0 else -math.expm1(-t / tau)
+
+
+def _lag2_step(tau1: float, tau2: float, t: float) -> float:
+    """Step response of two lags in series (tau1 then tau2), 0 for t <= 0."""
+    if t <= 0:
+        return 0.0
+    if abs(tau1 - tau2) < 1e-9 * max(tau1, tau2):
+        x = t / tau1
+        return 1.0 - math.exp(-x) * (1.0 + x)
+    return 1.0 - (tau1 * math.exp(-t / tau1) - tau2 * math.exp(-t / tau2)) / (tau1 - tau2)
+
+
+@dataclass(frozen=True)
+class ThermalState:
+    """Temperatures (°C) of the bench's nodes at one time."""
+
+    t_s: float
+    ambient_degC: float
+    motor_degC: float
+    structure_degC: float
+    probe_stand_degC: float
+    autocollimator_degC: float
+
+
+class Thermal:
+    """The thermal model of one bench (scenario section ``[thermal]``, SI / °C values)."""
+
+    def __init__(self, th: dict, phase_rad: float):
+        self.T0 = float(th["ambient"])
+        self.A = float(th["ambient_amplitude"])
+        self.P = float(th["ambient_period"])
+        self.w = TWO_PI / self.P
+        self.phi = float(phase_rad)
+        self.dTm = float(th["motor_rise"])
+        self.tau_m = float(th["motor_time_constant"])
+        self.tau_s = float(th["structure_time_constant"])
+        self.share = float(th["structure_motor_share"])
+        self.tau_p = float(th["probe_stand_time_constant"])
+        self.tau_ac = float(th["autocollimator_time_constant"])
+        self.axis_drift_m_K = float(th["axis_drift"])
+        self.axis_azimuth_rad = float(th["axis_drift_azimuth"])
+        self.probe_stand_m_K = float(th["probe_stand_growth"])
+        self.ac_rad_K = float(th["ac_drift"])
+        self.disk_cte = float(th["disk_cte"])
+        self.polygon_cte = float(th["polygon_cte"])
+        self._s0 = self.state(0.0)
+
+    @property
+    def active(self) -> bool:
+        """False when nothing can change with time (all drifts or all variations zero)."""
+        varies = self.A > 0 or self.dTm > 0
+        acts = self.axis_drift_m_K or self.probe_stand_m_K or self.ac_rad_K
+        return bool(varies and acts)
+
+    def state(self, t_s: float) -> ThermalState:
+        t = float(t_s)
+        T0, A, w, phi = self.T0, self.A, self.w, self.phi
+        amb = T0 + A * math.sin(w * t + phi)
+        motor = T0 + _lag_sine(A, w, phi, self.tau_m, t) + self.dTm * _lag_step(self.tau_m, t)
+        struct = (T0 + _lag_sine(A, w, phi, self.tau_s, t)
+                  + self.share * self.dTm * _lag2_step(self.tau_m, self.tau_s, t))
+        probe = T0 + _lag_sine(A, w, phi, self.tau_p, t)
+        ac = T0 + _lag_sine(A, w, phi, self.tau_ac, t)
+        return ThermalState(t, amb, motor, struct, probe, ac)
+
+    # ------------------------------------------------------------------ effects
+    def axis_drift_m(self, t_s: float) -> np.ndarray:
+        """Translation (x, y) of both bearing seats (lab frame, m) since t = 0."""
+        d = self.axis_drift_m_K * (self.state(t_s).structure_degC - self._s0.structure_degC)
+        return d * np.array([math.cos(self.axis_azimuth_rad), math.sin(self.axis_azimuth_rad)])
+
+    def probe_stand_drift_m(self, t_s: float) -> float:
+        """Growth of the probe stand along the probe axis since t = 0 (m), read as motion."""
+        return self.probe_stand_m_K * (self.state(t_s).probe_stand_degC - self._s0.probe_stand_degC)
+
+    def ac_drift_rad(self, t_s: float) -> float:
+        """Autocollimator zero drift since t = 0 (rad, both axes)."""
+        return self.ac_rad_K * (self.state(t_s).autocollimator_degC - self._s0.autocollimator_degC)
+
+    def disk_scale(self, t_s: float) -> float:
+        """Radius scale of the disk (uniform expansion of the structure's temperature)."""
+        return 1.0 + self.disk_cte * (self.state(t_s).structure_degC - self.T0)
+
+    def truth(self, t_end_s: float | None = None) -> dict:
+        out: dict[str, Any] = {
+            "ambient_degC": self.T0, "ambient_amplitude_K": self.A, "ambient_period_s": self.P,
+            "ambient_phase_rad": self.phi, "motor_rise_K": self.dTm, "motor_time_constant_s": self.tau_m,
+            "structure_time_constant_s": self.tau_s, "structure_motor_share": self.share,
+            "probe_stand_time_constant_s": self.tau_p, "autocollimator_time_constant_s": self.tau_ac,
+            "axis_drift_m_per_K": self.axis_drift_m_K, "axis_drift_azimuth_rad": self.axis_azimuth_rad,
+            "probe_stand_growth_m_per_K": self.probe_stand_m_K, "ac_drift_rad_per_K": self.ac_rad_K,
+            "disk_cte_per_K": self.disk_cte, "polygon_cte_per_K": self.polygon_cte,
+        }
+        if t_end_s is not None:
+            e = self.state(t_end_s)
+            out["at_end"] = {"t_s": float(t_end_s), **{k: getattr(e, k) for k in
+                             ("ambient_degC", "motor_degC", "structure_degC", "probe_stand_degC",
+                              "autocollimator_degC")},
+                             "axis_drift_m": self.axis_drift_m(t_end_s).tolist(),
+                             "probe_stand_drift_m": self.probe_stand_drift_m(t_end_s),
+                             "ac_drift_rad": self.ac_drift_rad(t_end_s)}
+        return out
+
+
+__all__ = ["Thermal", "ThermalState"]
