@@ -474,6 +474,7 @@ def _sweep_truth(td: Path, ds: Path) -> tuple[float, float] | None:
 def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
            hidden: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The residual floor no analysis of this bench's data can beat (docs/scoring.md)."""
+    hidden = hidden or {}
     parts: dict[str, float] = {}
     per_reading: dict[str, float] = {}
     # 1. the autocollimator's own error: per reading the displayed reading − the exact face angle
