@@ -110,6 +110,13 @@ class EmulatedBench:
         st.step_index = m
         st._draws = {}
         st.apply_context(self.ctx_at[m])
+        # Re-do the move from the time it started: the bench's physics is a function of its clock
+        # (the cage path, the thermal state), and a pose at a time the bench has already seen
+        # refines that stop instead of starting a new one (twin/physics.py), so a re-issued move
+        # (a resumed acquisition) finds the bench as the uninterrupted run had it.
+        t0 = self.t_after[m - 1] if m > 0 else math.nan
+        if not math.isnan(t0):
+            st.clock.set(t0)
         self.stage.move_to(self.script[m].target_deg)
         if not math.isnan(self.t_after[m]):
             st.clock.set(self.t_after[m])
