@@ -616,8 +616,8 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
         return Path(out)
 
     def fake_analyze(ds, out, **kw):
-        (Path(out) / "results.json").write_text(json.dumps({"n": len(calls)}))
-        (Path(out) / "report.html").write_text("<html></html>")
+        (Path(out) / "results.json").write_text(json.dumps({"n": len(calls), "dataset": str(ds)}))
+        (Path(out) / "report.html").write_text(f"<html>Dataset {ds}</html>")
         return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
                                          "report": str(Path(out) / "report.html")}}
 
@@ -627,7 +627,9 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
     out = tmp_path / "out"
     assert main(["run", "-o", str(out), "--quiet"]) == 0
     assert main(["run", "-o", str(out), "--quiet"]) == 0          # its own output: replaced
-    assert json.loads((out / "results.json").read_text()) == {"n": 2}
+    assert json.loads((out / "results.json").read_text())["n"] == 2
+    # the report names OUT, not the temporary sibling it was built in
+    assert ".partial-" not in (out / "report.html").read_text() + (out / "results.json").read_text()
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("a user's file")

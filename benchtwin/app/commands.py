@@ -54,7 +54,17 @@ def _force_arg(p: argparse.ArgumentParser) -> None:
 
 
 def _remap(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
-    """Paths built under an AtomicDir's temporary folder, as they are after its rename."""
+    """Paths built under an AtomicDir's temporary folder, as they are after its rename. The texts
+    written there (report, results, model file) named the temporary folder; they are rewritten
+    (atomically) to name OUT, so no report points at a folder that no longer exists."""
+    from benchtwin.fsio import atomic_write_text
+
+    for name in ("report.html", "results.json", "model.json"):
+        f = out / name
+        if f.is_file():
+            text = f.read_text(encoding="utf-8")
+            if str(tmp) in text:
+                atomic_write_text(f, text.replace(str(tmp), str(out)))
     return {k: str(out / Path(v).relative_to(tmp)) if Path(v).is_relative_to(tmp) else v for k, v in paths.items()}
 
 
