@@ -275,22 +275,10 @@ class PtyServer:
                 self.errors.append(f"{p.name}: {type(exc).__name__}: {exc}")
                 continue
             for _req, reply in exchanges:
-                p.count += 1
-                fault = p.faults.get(p.count)
-                if fault is not None:
-                    p.fired.append(dict(fault))
-                    act = fault["action"]
-                    if act == "drop" or reply is None and act != "disconnect":
-                        continue
-                    if act == "disconnect":
-                        p.reopen()
-                        break  # the rest of this read went to the dead port
-                    if act == "garble":
-                        reply = b"#" + reply[1:]
-                    elif act == "partial":
-                        reply = reply[:-1]
-                    elif act == "delay":
-                        time.sleep(fault["seconds"])
+                reply, disconnect = fault_reply(p, reply)
+                if disconnect:
+                    p.reopen()
+                    break  # the rest of this read went to the dead port
                 if reply:
                     self._write(p, reply)
 
@@ -311,3 +299,27 @@ class PtyServer:
                 view = view[n:]
             except BlockingIOError:
                 select.select([], [p.master], [], self.poll_s)
+
+
+def fault_reply(port: Any, reply: bytes | None) -> tuple[bytes | None, bool]:
+    """Count one request/reply exchange of ``port`` (pty or TCP: ``count``, ``faults``, ``fired``)
+    and apply the fault plan's action planned for it. Returns (the bytes to send, or None; whether
+    to disconnect the client). One implementation for both servers, so a fault plan means the same
+    on a pseudo-terminal and on a socket."""
+    port.count += 1
+    fault = port.faults.get(port.count)
+    if fault is None:
+        return reply, False
+    port.fired.append(dict(fault))
+    act = fault["action"]
+    if act == "disconnect":
+        return None, True
+    if act == "drop" or reply is None:
+        return None, False
+    if act == "garble":
+        return b"#" + reply[1:], False
+    if act == "partial":
+        return reply[:-1], False
+    if act == "delay":
+        time.sleep(fault["seconds"])
+    return reply, False

@@ -25,11 +25,10 @@ from __future__ import annotations
 import select
 import socket
 import threading
-import time
 from collections.abc import Mapping
 from typing import Any
 
-from .pty import load_fault_plan
+from .pty import fault_reply, load_fault_plan
 
 __all__ = ["TcpServer", "HOST"]
 
@@ -169,22 +168,10 @@ class TcpServer:
                 self.errors.append(f"{e.name}: {type(exc).__name__}: {exc}")
                 continue
             for _req, reply in exchanges:
-                e.count += 1
-                fault = e.faults.get(e.count)
-                if fault is not None:
-                    e.fired.append(dict(fault))
-                    act = fault["action"]
-                    if act == "disconnect":
-                        self._drop(e)
-                        break
-                    if act == "drop" or reply is None:
-                        continue
-                    if act == "garble":
-                        reply = b"#" + reply[1:]
-                    elif act == "partial":
-                        reply = reply[:-1]
-                    elif act == "delay":
-                        time.sleep(fault["seconds"])
+                reply, disconnect = fault_reply(e, reply)
+                if disconnect:
+                    self._drop(e)
+                    break
                 if reply and e.client is not None:
                     try:
                         e.client.sendall(reply)
