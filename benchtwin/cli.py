@@ -246,7 +246,7 @@ def _load_commands() -> None:
     import importlib
 
     for mod in ("benchtwin.app.commands", "benchtwin.app.commands_hw", "benchtwin.app.score_commands",
-                "benchtwin.app.commands_cert", "benchtwin.app.commands_loop"):
+                "benchtwin.app.commands_cert", "benchtwin.app.commands_loop", "benchtwin.app.commands_calib"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:
