@@ -1,0 +1,132 @@
+"""The twin learns the bench (issue 16, item 3): simulate a bench, calibrate-twin, simulate again.
+
+The bench is scenarios/hidden/graduation_error.toml (a disk division error of 0.8″/0.5″ at k = 4, 6
+that the dataset does not declare) with a short procedure; the BASE scenario the engineer starts
+from is the same bench without the hidden effect and with a nominal, wrong installation (e = 6.5 µm
+at 185° instead of 7.1 µm at 192.08°). The calibrated twin's TRUE α (truth/ of its own dataset)
+must come within 0.3″ RMS of the bench's (issue 16, "Done when"); the base is 6.9″ away.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchtwin.app.calibrate_twin import calibrate_twin, dump_toml
+from benchtwin.app.compare import compare, compare_results
+from benchtwin.cli import main
+from benchtwin.schema import load_toml_file
+from benchtwin.twin.scenario import load_scenario
+from benchtwin.twin.simulate import simulate
+
+ROOT = Path(__file__).resolve().parents[2]
+SHORT = {"radial_positions": 72, "ccd_step": "12 deg"}   # as tests/test_pipeline.py REDUCED
+
+
+def _alpha(ds: Path) -> np.ndarray:
+    t = np.genfromtxt(ds / "truth" / "encoder_error.csv", delimiter=",", names=True)
+    a = np.asarray(t["alpha_arcsec"], dtype=float)
+    return a - a.mean()   # α is known up to a constant
+
+
+@pytest.fixture(scope="module")
+def round_trip(tmp_path_factory):
+    d = tmp_path_factory.mktemp("calib")
+    raw = load_toml_file(ROOT / "scenarios" / "hidden" / "graduation_error.toml")
+    raw["procedure"].update(SHORT)
+    (d / "bench.toml").write_text(dump_toml(raw, {}, ["the bench"]), encoding="utf-8")
+    base = copy.deepcopy(raw)
+    base.pop("hidden")
+    base["errors"].update({"eccentricity": "6.5 um", "theta0": "185 deg"})
+    (d / "base.toml").write_text(dump_toml(base, {}, ["the engineer's design values"]), encoding="utf-8")
+    bench = simulate(load_scenario(d / "bench.toml"), d / "bench", progress=False, backend="analytic")
+    # the analysis never sees truth/ (principle 3): calibrate a copy without it
+    measured = d / "measured"
+    shutil.copytree(bench, measured, ignore=shutil.ignore_patterns("truth"))
+    info = calibrate_twin(measured, d / "calibrated.toml", base=d / "base.toml")
+    twin = simulate(load_scenario(d / "calibrated.toml"), d / "twin", progress=False, backend="analytic")
+    return {"dir": d, "bench": bench, "measured": measured, "twin": twin, "info": info}
+
+
+def test_round_trip_true_alpha(round_trip):
+    a_bench, a_twin = _alpha(round_trip["bench"]), _alpha(round_trip["twin"])
+    rms = float(np.sqrt(np.mean((a_twin - a_bench) ** 2)))
+    assert rms < 0.3, rms
+    assert float(np.sqrt(np.mean(a_bench ** 2))) > 40   # the bench's α is large (e/r ≈ 66″): not a null test
+    assert round_trip["info"]["identified_effects"] == ["graduation_error"]
+
+
+def test_written_scenario_validates_and_documents(round_trip):
+    path = round_trip["dir"] / "calibrated.toml"
+    assert main(["validate", str(path), "--quiet"]) == 0
+    text = path.read_text(encoding="utf-8")
+    line = next(x for x in text.splitlines() if x.startswith("eccentricity = "))
+    assert re.search(r'eccentricity = "7\.[01]\d* um"\s+# u = [0-9.e-]+ um, from \d+ CCD frames', line), line
+    # every fitted value carries a comment with its u or source
+    raw = load_toml_file(path)
+    assert raw["hidden"]["graduation_error"]["orders"][:2] == [4, 6]
+    for key in ("theta0 =", "async_rms =", "orders =", "amplitudes =", "dy =", "dx ="):
+        ln = next(x for x in text.splitlines() if x.startswith(key))
+        assert "  # " in ln, ln
+    # the base's non-fitted values are kept
+    assert raw["scenario"]["seed"] == load_toml_file(round_trip["dir"] / "base.toml")["scenario"]["seed"]
+    assert raw["bearings"]["radial_stiffness"] == "150 N/um"
+
+
+def test_bad_input_exit_2(tmp_path, round_trip, capsys):
+    assert main(["calibrate-twin", str(tmp_path / "nope"), "-o", str(tmp_path / "x.toml")]) == 2
+    assert "nope" in capsys.readouterr().err
+    bad = tmp_path / "res"
+    bad.mkdir()
+    res = {"format": "bench-results", "version": 1, "dataset": str(round_trip["measured"])}
+    (bad / "results.json").write_text(json.dumps(res), encoding="utf-8")
+    assert main(["calibrate-twin", str(bad), "-o", str(tmp_path / "x.toml")]) == 2
+    assert "eccentricity_um" in capsys.readouterr().err
+    base = tmp_path / "base.toml"
+    base.write_text("[scenario]\nname = 'x'\n", encoding="utf-8")
+    assert main(["calibrate-twin", str(round_trip["measured"]), "-o", str(tmp_path / "x.toml"),
+                 "--base", str(base), "--results", str(bad / "results.json")]) == 2
+    assert "base.toml" in capsys.readouterr().err
+    assert not (tmp_path / "x.toml").exists()
+    assert main(["compare", str(tmp_path / "nope"), str(bad)]) == 2
+    assert "nope" in capsys.readouterr().err
+
+
+def test_compare_results_arithmetic():
+    th = np.arange(0.0, 360.0, 15.0)
+    a = {"encoder_error_arcsec": {"theta_deg": th.tolist(), "value": (10 * np.sin(np.radians(th))).tolist(),
+                                  "u": [0.1] * th.size},
+         "eccentricity_um": 7.0, "eccentricity_u_um": 0.03, "eccentricity_phase_deg": 359.9,
+         "eccentricity_phase_u_deg": 0.1}
+    b = {"encoder_error_arcsec": {"theta_deg": th.tolist(), "value": (10 * np.sin(np.radians(th)) + 5 +
+                                                                      np.cos(2 * np.radians(th))).tolist()},
+         "eccentricity_um": 7.04, "eccentricity_u_um": 0.0, "eccentricity_phase_deg": 0.1,
+         "eccentricity_phase_u_deg": 0.0}
+    c = compare_results(a, b)
+    assert c["alpha_arcsec"]["rms"] == pytest.approx(np.sqrt(0.5))   # the constant 5″ is not a difference
+    assert c["alpha_arcsec"]["pv"] == pytest.approx(2.0)
+    assert c["eccentricity_um"]["E_n"] == pytest.approx(0.04 / 0.03)
+    assert c["eccentricity_phase_deg"]["difference"] == pytest.approx(0.2)   # across 0°/360°
+    assert c["radial_motion_dY_um"] == {"available": False}
+
+
+@pytest.mark.slow
+def test_compare_before_and_after(round_trip, tmp_path):
+    """compare bench vs base twin (before) and bench vs calibrated twin (after): the α curves,
+    e and its phase all move towards the bench."""
+    d = round_trip["dir"]
+    before_ds = simulate(load_scenario(d / "base.toml"), tmp_path / "before", progress=False, backend="analytic")
+    before = compare(round_trip["measured"], before_ds)
+    after = compare(round_trip["measured"], round_trip["twin"])
+    assert after["alpha_arcsec"]["rms"] < 0.1 * before["alpha_arcsec"]["rms"]
+    assert after["alpha_arcsec"]["rms"] < 0.3
+    assert abs(after["eccentricity_um"]["difference"]) < 0.1 < abs(before["eccentricity_um"]["difference"])
+    assert after["eccentricity_phase_deg"]["E_n"] < 3 < before["eccentricity_phase_deg"]["E_n"]
+    assert after["residuals"]["b"]["identified_effects"] == ["graduation_error"]
+    assert before["residuals"]["b"]["identified_effects"] == []
