@@ -233,6 +233,30 @@ def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb:
     return design_matrix(theta_deg, order) @ (p * keep), kept
 
 
+def _form_lobes(eff: dict[str, Any], sphere: str, fits: list | None = None) -> dict[int, tuple[float, float]]:
+    """{k: (sin, cos) µm} of a traced sphere form in that sphere's Y reading (analysis/effects/
+    sphere_form.py: explicit lobes, or ``form_fraction`` × the reading's own lobes 2…10)."""
+    p = eff["params"]
+    out: dict[int, tuple[float, float]] = {}
+    for name in p:
+        if name.startswith(f"{sphere}_h") and name.endswith("_sin_um"):
+            k = int(name[len(sphere) + 2:-len("_sin_um")])
+            out[k] = (float(p[name]), float(p.get(f"{sphere}_h{k}_cos_um", 0.0)))
+    fr = float(p.get("form_fraction", 0.0))
+    if fr and fits:
+        m = sum(x.params for x in fits) / len(fits)
+        for k in range(2, (m.size - 1) // 2 + 1):
+            a, b = out.get(k, (0.0, 0.0))
+            out[k] = (a + fr * float(m[2 * k - 1]), b + fr * float(m[2 * k]))
+    return out
+
+
+def _form_curve(theta_deg: np.ndarray, eff: dict[str, Any], sphere: str, fits: list) -> np.ndarray:
+    th = np.radians(theta_deg)
+    return sum((a * np.sin(k * th) + b * np.cos(k * th) for k, (a, b) in _form_lobes(eff, sphere, fits).items()),
+               np.zeros_like(th))
+
+
 def _eff_u(e: dict[str, Any], name: str) -> float:
     return float((e.get("u") or {}).get(name, float("nan")))
 
@@ -278,6 +302,14 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
         dY, kY = _significant_curve(th, f["top"], f["bottom"], w_top, w_bot, order)
         # ε_X = −(δ_top − δ_bot)/L2: eq. 8 (radial_motion.py) is a rotation about −X; µm/mm = mrad → µrad
         tilt_x, kTx = _significant_curve(th, f["top"], f["bottom"], -1e3 / L2, 1e3 / L2, order)
+        form = identified.get("sphere_form")
+        if form is not None:
+            # a traced form error is part of the sphere's reading, not motion: out of the table, into
+            # the sphere ([hidden.sphere_form], _sphere_form)
+            ft, fb = (_form_curve(th, form, s_, f[s_]) for s_ in ("top", "bottom"))
+            dY = dY - (w_top * ft + w_bot * fb)
+            tilt_x = tilt_x + (ft - fb) / L2 * 1e3
+            notes.append("sphere_form: the traced form removed from the motion table (it is the sphere's, not the axis's)")
         has_x = "top_x" in f
         u_dy = float(np.nanmax(rm["u_dY_theta_um"]))
         reps = int(rm["n_reps"])
@@ -353,7 +385,10 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
         if fn is None:
             notes.append(f"{name}: identified, but has no physical counterpart calibrate-twin can set; not transferred")
             continue
-        fn(eff, raw, hidden, comments, notes)
+        if name == "sphere_form":
+            _sphere_form(eff, raw, hidden, comments, notes, fits=rm["fits"] if rm is not None else None)
+        else:
+            fn(eff, raw, hidden, comments, notes)
     for x in res.get("ambiguous") or []:
         notes.append(f"ambiguous (not transferred): {x}")
     if res.get("unexplained"):
@@ -469,9 +504,32 @@ def _interpolation(
                  "not checked in a round trip")
 
 
+def _sphere_form(
+        eff: dict[str, Any], raw: dict[str, Any], hidden: dict[str, Any], comments: dict[tuple[str, str], str],
+        notes: list[str], fits: dict[str, list] | None = None) -> None:
+    d: dict[str, Any] = {}
+    for s_ in ("top", "bottom"):
+        lobes = []
+        for k, (a, b) in sorted(_form_lobes(eff, s_, (fits or {}).get(s_)).items()):
+            # the probe on +Y touches the body polar angle 90° − θ and reads +f there (twin/instruments/
+            # probe.py): f_k(g) = R cos(k·g − p) reads R cos(kθ − (k·90° − p)) ⇒ p = k·90° − atan2(a, b)
+            R = math.hypot(a, b)
+            if R > 0:
+                lobes.append({"order": int(k), "amplitude": _q(R, "um", 5),
+                              "phase": _q((k * 90.0 - math.degrees(math.atan2(a, b))) % 360.0, "deg", 6)})
+        if lobes:
+            d[s_] = lobes
+            us = [f"{n}: {v:.2g} um" for n, v in (eff.get("u") or {}).items() if n.startswith(s_)]
+            comments[("hidden.sphere_form", s_)] = (f"traced sphere_form (results.json identified_effects); u {', '.join(us)}"
+                                                   if us else "traced sphere_form (results.json identified_effects)")
+    if d:
+        hidden["sphere_form"] = d
+
+
 _EFFECTS = {"graduation_error": _graduation, "ac_scale": _ac_scale, "ac_drift": _ac_drift,
             "torsion_hysteresis": _torsion, "optical_radius": _optical_radius, "tilt_abbe": _tilt_abbe,
-            "ccd_pixel_scale": _ccd_scale, "interpolation_error": _interpolation}
+            "ccd_pixel_scale": _ccd_scale, "interpolation_error": _interpolation,
+            "sphere_form": _sphere_form}
 
 
 # ----------------------------------------------------------------------------- TOML out
