@@ -205,13 +205,10 @@ def _quadrature_on_grid(theta_deg: np.ndarray, y: np.ndarray, order: int) -> np.
 SIGNIFICANCE_P = 0.999
 
 
-def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb: float, order: int) -> tuple[
-        np.ndarray, list[int]]:
-    """wa·(series a) + wb·(series b), mean over the revolutions, harmonics 2…order kept only where
-    significant; returns (curve on theta_deg, kept orders)."""
+def _significant_series(fa: list, fb: list, wa: float, wb: float, order: int) -> tuple[np.ndarray, list[int]]:
+    """Fourier parameters (design_matrix order) of wa·a + wb·b, mean over the revolutions, with
+    only the significant harmonics 2…order kept; and the kept orders."""
     from scipy import stats
-
-    from benchtwin.analysis.fourier import design_matrix
 
     n = len(fa)
     p = sum(wa * x.params + wb * y.params for x, y in zip(fa, fb)) / n
@@ -230,7 +227,17 @@ def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb:
         if not np.all(np.isfinite(c)) or z2 > crit:
             keep[i] = 1.0
             kept.append(k)
-    return design_matrix(theta_deg, order) @ (p * keep), kept
+    return p * keep, kept
+
+
+def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb: float, order: int) -> tuple[
+        np.ndarray, list[int]]:
+    """wa·(series a) + wb·(series b), mean over the revolutions, harmonics 2…order kept only where
+    significant; returns (curve on theta_deg, kept orders)."""
+    from benchtwin.analysis.fourier import design_matrix
+
+    p, kept = _significant_series(fa, fb, wa, wb, order)
+    return design_matrix(theta_deg, order) @ p, kept
 
 
 def _form_lobes(eff: dict[str, Any], sphere: str, fits: list | None = None) -> dict[int, tuple[float, float]]:
@@ -293,6 +300,7 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
     br = raw.setdefault("bearings", {})
     rm = _radial(ds, order)
     tang = identified.get("tangential_motion")
+    dx_params: np.ndarray | None = None   # the replayed δX (design_matrix order), for the division error
     if rm is not None:
         th = np.asarray(rm["theta_deg"], dtype=float)
         w_top, w_bot = disk_weights(float(ds.bench["L1_mm"]), float(ds.bench["L2_mm"]))
@@ -316,6 +324,7 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
         src = f"{reps} revolution{'s' if reps > 1 else ''} × {th.size} positions of radial_motion.csv"
         if has_x:
             dX, kX = _significant_curve(th, f["top_x"], f["bottom_x"], w_top, w_bot, order)
+            dx_params = _significant_series(f["top_x"], f["bottom_x"], w_top, w_bot, order)[0]
             tilt_y, kTy = _significant_curve(th, f["top_x"], f["bottom_x"], 1e3 / L2, -1e3 / L2, order)
             u_dx = float(np.nanmax(rm.get("u_dX_range_theta_um", [np.nan])))
             dx_src = f"δX from the X probes (eq. 9 on X), harmonics {kX or 'none'} significant, u ≤ {u_dx:.2g} um"
@@ -329,6 +338,9 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
                 p = float(tang["params"].get("inphase_gain", 0.0))
                 q = float(tang["params"].get("quadrature_gain", 0.0))
                 dX = p * dY + q * _quadrature_on_grid(th, dY, order)
+                from benchtwin.analysis.fourier import design_matrix
+
+                dx_params = np.linalg.lstsq(design_matrix(th, order), dX, rcond=None)[0]
                 dx_src = (f"δX = p·δY + q·H[δY] of the traced tangential_motion, p = {p:.3g} (u {_eff_u(tang, 'inphase_gain'):.2g}),"
                           f" q = {q:.3g} (u {_eff_u(tang, 'quadrature_gain'):.2g})")
             else:
@@ -379,6 +391,9 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
         notes.append("no radial_motion.csv: the bearings are kept from the base scenario")
 
     # --- identified effects as physical causes
+    if "graduation_error" in identified:
+        identified["graduation_error"] = _division_error_for_twin(
+            identified["graduation_error"], res, e_true, ph, float(ds.bench["optical_radius_mm"]), dx_params, order, notes)
     hidden = raw.setdefault("hidden", {})
     for name, eff in identified.items():
         fn = _EFFECTS.get(name)
@@ -398,6 +413,46 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
     return raw, comments, notes
 
 
+def _division_error_for_twin(eff: dict[str, Any], res: dict[str, Any], e_um: float, theta0_deg: float, r_mm: float,
+                             dx_params: np.ndarray | None, order: int, notes: list[str]) -> dict[str, Any]:
+    """The disk's division harmonics as the calibrated twin needs them: the measured encoder curve
+    (the corrected one, docs/effects.md) minus what the twin itself will produce from the fitted
+    eccentricity (sin α = (e/r)·sin(θ − θ0), exact for the head on +Y, encoder_head.py) and from the
+    replayed motion (−δX/r), fitted (weighted least squares, u of the curve) at the orders close-loop
+    identified. The close-loop's own a_k, b_k are fitted to the residual of Jia's model, whose ∫δY dθ/r
+    holds only 1/k of a k-lobed whirl's −δX/r: taken as they are, the twin would play the missing
+    (1 − 1/k) twice, once as motion and once as division error."""
+    c = res.get("encoder_error_corrected_arcsec") or res.get("encoder_error_arcsec")
+    orders = sorted({int(k[1:].split("_")[0]) for k in eff["params"] if k.startswith(("a", "b")) and k.endswith("_arcsec")})
+    if not isinstance(c, dict) or not orders:
+        return eff
+    from benchtwin.analysis.fourier import design_matrix
+
+    th = np.asarray(c["theta_deg"], dtype=float)
+    y = np.asarray(c["value"], dtype=float)
+    u = np.ones_like(y) if c.get("u") is None else np.asarray(c["u"], dtype=float)
+    r_um = r_mm * 1e3
+    y = y - np.degrees(np.arcsin(e_um / r_um * np.sin(np.radians(th - theta0_deg)))) * 3600.0
+    if dx_params is not None:
+        y = y + (design_matrix(th, order) @ dx_params) / r_um * ARCSEC_PER_RAD
+    cols = [np.ones_like(th)] + [f(k * np.radians(th)) for k in orders for f in (np.sin, np.cos)]
+    X = np.column_stack(cols) / u[:, None]
+    if X.shape[0] <= X.shape[1]:
+        return eff
+    beta, *_ = np.linalg.lstsq(X, y / u, rcond=None)
+    cov = np.linalg.inv(X.T @ X)
+    params, uu = {}, {}
+    for i, k in enumerate(orders):
+        params[f"a{k}_arcsec"], params[f"b{k}_arcsec"] = float(beta[1 + 2 * i]), float(beta[2 + 2 * i])
+        uu[f"a{k}_arcsec"] = float(math.sqrt(cov[1 + 2 * i, 1 + 2 * i]))
+        uu[f"b{k}_arcsec"] = float(math.sqrt(cov[2 + 2 * i, 2 + 2 * i]))
+    shift = max(math.hypot(params[f"a{k}_arcsec"] - float(eff["params"].get(f"a{k}_arcsec", 0.0)),
+                           params[f"b{k}_arcsec"] - float(eff["params"].get(f"b{k}_arcsec", 0.0))) for k in orders)
+    notes.append(f"graduation_error: harmonics {orders} refitted to the measured curve minus the twin's own e and "
+                 f"−δX/r terms (largest change from close-loop's values {shift:.2g}″)")
+    return {**eff, "params": params, "u": uu, "refit": True}
+
+
 def _graduation(
         eff: dict[str, Any], raw: dict[str, Any], hidden: dict[str, Any], comments: dict[tuple[str, str], str],
         notes: list[str]) -> None:
@@ -413,7 +468,9 @@ def _graduation(
         phases.append(_q((k * 90.0 - psi) % 360.0, "deg", 6))
         us.append(f"k={k}: u(a) = {float(u.get(f'a{k}_arcsec', float('nan'))):.2g}″, u(b) = {float(u.get(f'b{k}_arcsec', float('nan'))):.2g}″")
     hidden["graduation_error"] = {"orders": orders, "amplitudes": amps, "phases": phases}
-    comments[("hidden.graduation_error", "orders")] = "the harmonics close-loop found significant (results.json identified_effects graduation_error)"
+    comments[("hidden.graduation_error", "orders")] = (
+        "the orders close-loop identified (results.json identified_effects graduation_error)"
+        + ("; a_k, b_k refitted to encoder_error_corrected_arcsec minus the twin's e and −δX/r terms" if eff.get("refit") else ""))
     comments[("hidden.graduation_error", "amplitudes")] = "; ".join(us)
     comments[("hidden.graduation_error", "phases")] = "φ_k = k·90° − atan2(a_k, b_k): the head on +Y sees the line g = 90° − θ"
     raw.setdefault("errors", {})["graduation_error_rms"] = "0 arcsec"
