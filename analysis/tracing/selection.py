@@ -50,9 +50,9 @@ from scipy import stats
 
 from benchtwin.jsonable import to_json
 
-from .effects import ALL
-from .effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
-                            perturbation_columns)
+from ..effects import ALL
+from ..effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
+                             perturbation_columns)
 
 __all__ = [
     "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
