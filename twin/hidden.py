@@ -32,8 +32,13 @@ with the analysis's fitting formula (``analysis/effects/*.py``):
   heights); the encoder's α does not.
 - ``ac_drift``: autocollimator zero drift ``rate``·t_s (both axes), added to the declared
   ``drift_rate``.
-- ``ac_scale``: the autocollimator's reading of a face angle v is v·(1 + gain) + q·v²/1″
-  (``quadratic_per_arcsec`` = q), X axis, before its declared accuracy curve, drift and noise.
+- ``ac_scale``: the autocollimator's true optics (``instruments/ac_optics.py``): the returned
+  beam lands on the detector at f·tan 2v with the TRUE focal length f = f_nom·(1 + δf), on a
+  detector tilted by τ, through the objective's Seidel distortion k₁; the firmware inverts with
+  f_nom (both axes, before the declared accuracy curve, drift and noise). Keys
+  ``focal_length_error``, ``detector_tilt``, ``distortion_k1``, ``focal_length``; the legacy
+  ``gain`` / ``quadratic_per_arcsec`` give the δf and τ whose small-angle reading is
+  v·(1 + gain) + q·v²/1″ (the exact law then adds its own higher orders).
 - ``sphere_form``: extra form lobes of a test sphere (body frame, equatorial), added to the
   sphere's declared form; the probes read the lobes turning with the shaft as if it were motion.
 - ``torsion_hysteresis``: extra bearing friction torque on the disk section; the static solve
@@ -67,6 +72,8 @@ import numpy as np
 
 from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
+
+from .instruments.ac_optics import FOCAL_LENGTH_M, AutocollimatorOptics
 
 TWO_PI = 2.0 * math.pi
 HIDDEN_STREAMS = {"polygon_pitch_pattern": 201}
@@ -205,16 +212,33 @@ class Hidden:
         return out
 
     # ------------------------------------------------------------------ autocollimator
-    def ac_angle_rad(self, v: float, axis: int, t_s: float) -> float:
-        """The autocollimator's response to a face angle v (rad) on ``axis`` (0 = X) at t."""
-        if axis == 0 and "ac_scale" in self.effects:
-            v = v * (1.0 + self._p("ac_scale", "gain")) + self._p("ac_scale", "quadratic_per_arcsec") * (v / ARCSEC) * v
-        return v + self._p("ac_drift", "rate") * float(t_s)
+    def ac_optics(self) -> AutocollimatorOptics | None:
+        """The autocollimator's true optics (``ac_scale``), None when the effect is not listed."""
+        e = self.effects.get("ac_scale")
+        if not e:
+            return None
+        f_nom = float(e.get("focal_length", FOCAL_LENGTH_M))
+        k1 = float(e.get("distortion_k1", 0.0))
+        g, q = float(e.get("gain", 0.0)), float(e.get("quadratic_per_arcsec", 0.0))
+        df, tau = float(e.get("focal_length_error", 0.0)), float(e.get("detector_tilt", 0.0))
+        if (g or q) and (df or tau):
+            raise ValueError("hidden.ac_scale: give the optics (focal_length_error, detector_tilt) or the "
+                             "legacy coefficients (gain, quadratic_per_arcsec), not both")
+        if g or q:
+            return AutocollimatorOptics.from_coefficients(g, q, focal_length_m=f_nom, distortion_k1=k1)
+        return AutocollimatorOptics(focal_length_error=df, detector_tilt_rad=tau, distortion_k1=k1, focal_length_m=f_nom)
+
+    def ac_zero_drift_rad(self, t_s: float) -> float:
+        """Extra autocollimator zero drift at t (``ac_drift``), both axes."""
+        return self._p("ac_drift", "rate") * float(t_s)
 
     # ------------------------------------------------------------------ truth
     def truth(self, n_faces: int | None = None) -> dict:
         out: dict[str, Any] = {"effects": {k: _json(v) for k, v in self.effects.items()},
                                "note": "SI values; see twin/hidden.py for each effect's physics"}
+        optics = self.ac_optics()
+        if optics is not None:
+            out["autocollimator_optics"] = optics.truth()
         if n_faces and "polygon_pitch_ignored" in self.effects:
             out["polygon_pitch_pattern_physics_arcsec"] = (self.polygon_pitch_pattern_rad(n_faces) / ARCSEC).tolist()
         return out

@@ -252,9 +252,20 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
     "ac_drift": {
         "rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3, doc="extra autocollimator zero drift"),
     },
+    # The autocollimator's optics (twin/instruments/ac_optics.py): physical keys, or the legacy
+    # small-angle coefficients gain / quadratic_per_arcsec, mapped to the focal-length error and
+    # detector tilt with those first- and second-order terms (not both at once).
     "ac_scale": {
-        "gain": Field("dimensionless", 0.0, lo=-0.1, hi=0.1, doc="reading = v·(1 + gain) + q·v²/1″"),
-        "quadratic_per_arcsec": Field("dimensionless", 0.0, lo=-0.01, hi=0.01, doc="q, per arcsec"),
+        "focal_length_error": Field("dimensionless", 0.0, lo=-0.95, hi=0.5,
+                                    doc="true f = f_nom·(1 + δf); the firmware inverts with f_nom"),
+        "detector_tilt": Field("angle", 0.0, lo=-89.9 * DEG, hi=89.9 * DEG,
+                               doc="detector turned about its y axis: even (v²) non-linearity on x"),
+        "distortion_k1": Field("dimensionless", 0.0, lo=-1e4, hi=1e4,
+                               doc="Seidel distortion s·(1 + k1·(s/f_nom)²): odd (v³)"),
+        "focal_length": Field("length", 0.3, lo=1 * MM, hi=10.0, doc="f_nom of the objective (300 mm: TriAngle 300-57)"),
+        "gain": Field("dimensionless", 0.0, lo=-0.1, hi=0.1,
+                      doc="legacy: small-angle reading v·(1 + gain) + q·v²/1″, mapped to δf and tilt"),
+        "quadratic_per_arcsec": Field("dimensionless", 0.0, lo=-0.01, hi=0.01, doc="legacy: q, per arcsec"),
     },
     "sphere_form": {
         "top": Field("lobes", [], doc="extra form lobes of the top sphere (body frame)"),

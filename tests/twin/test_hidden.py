@@ -196,10 +196,16 @@ def test_ac_drift_grows_with_time_in_the_autocollimator_only():
     assert peak(d["alpha"]) < 1e-9
 
 
-def test_ac_scale_is_gain_and_quadratic_on_the_reading():
+def test_ac_scale_is_the_optics_law_on_the_reading():
+    """The legacy keys (gain 0.01, q = 1e-4/″) build optics with those small-angle terms
+    (twin/instruments/ac_optics.py); the reading follows the exact law, whose cubic (4ρ·tan²τ·v³
+    of the 84° tilt this q needs) adds 0.1″ at 200″ to the quadratic."""
     d, _, b = diff("ac_scale")
     v = b["ac"]
-    np.testing.assert_allclose(d["ac"], 0.01 * v + 1e-4 * v**2, atol=0.02)
+    o = Hidden.from_scenario(load("ac_scale")).ac_optics()
+    exact = np.array([o.reading_rad(x * ARCSEC)[0] / ARCSEC - x for x in v])
+    np.testing.assert_allclose(d["ac"], exact, atol=0.02)
+    np.testing.assert_allclose(d["ac"], 0.01 * v + 1e-4 * v**2, atol=0.15)
     assert peak(d["ac"]) > 0.3 and peak(d["alpha"]) < 1e-9
 
 
