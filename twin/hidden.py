@@ -74,9 +74,10 @@ from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 
 from .instruments.ac_optics import FOCAL_LENGTH_M, AutocollimatorOptics
+from .instruments.graduation import brownian_bridge, eccentric_ruling, harmonics, remove_orders
 
 TWO_PI = 2.0 * math.pi
-HIDDEN_STREAMS = {"polygon_pitch_pattern": 201}
+HIDDEN_STREAMS = {"polygon_pitch_pattern": 201, "graduation_walk": 202}
 
 
 def hidden_of(sc: Any) -> dict[str, dict[str, Any]]:
@@ -182,24 +183,42 @@ class Hidden:
     # ------------------------------------------------------------------ the disk / heads
     @property
     def has_graduation(self) -> bool:
-        return bool(self._grad[0].size) or self._p("thermal_growth", "amplitude") != 0.0
+        e = self.effects.get("graduation_error") or {}
+        static = bool(self._grad[0].size) or any(float(e.get(k, 0.0)) for k in ("ruling_walk_rms", "ruling_eccentricity"))
+        return static or self._p("thermal_growth", "amplitude") != 0.0
 
-    def graduation_error_rad(self, g, t_s: float = 0.0) -> np.ndarray:
-        """Extra E(g) (rad) at nominal graduation value g and time t: static harmonics + the
-        thermal clamp deformation."""
-        g = np.asarray(g, dtype=float)
-        out = np.zeros_like(g)
+    def graduation_line_error_rad(self, n_lines: int, radius_m: float) -> np.ndarray | None:
+        """The hidden part of the disk's line-position map (rad per line, ``graduation.py``): the
+        ruling engine's closed random walk (``ruling_walk_rms``, rms of the line positions, its own
+        seeded stream), the clamping harmonics (``orders``/``amplitudes``/``phases``) and an
+        eccentric ruling (``ruling_eccentricity`` at ``ruling_eccentricity_azimuth``, seen at the
+        heads' radius). None when the effect is not listed."""
+        e = self.effects.get("graduation_error")
+        if not e:
+            return None
+        n = int(n_lines)
         k, a, p = self._grad
-        if k.size:
-            gf = g.reshape(-1)
-            out = out + (a @ np.cos(np.outer(k, gf) - p[:, None])).reshape(g.shape)
-        A = self._p("thermal_growth", "amplitude")
-        if A:
-            tau = self._p("thermal_growth", "time_constant", 3600.0)
-            k7 = float(self.effects["thermal_growth"].get("order", 7))
-            ph = self._p("thermal_growth", "phase")
-            out = out + A * (1.0 - math.exp(-max(float(t_s), 0.0) / tau)) * np.cos(k7 * g - ph)
+        out = harmonics(n, k, a, p)
+        walk_rms = float(e.get("ruling_walk_rms", 0.0))
+        if walk_rms:
+            r = np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["graduation_walk"]]))
+            w = remove_orders(brownian_bridge(n, r), (0, 1))
+            out = out + w * (walk_rms / math.sqrt(np.mean(w**2)))
+        ecc = float(e.get("ruling_eccentricity", 0.0))
+        if ecc:
+            out = out + eccentric_ruling(n, ecc, float(e.get("ruling_eccentricity_azimuth", 0.0)), radius_m)
         return out
+
+    def thermal_graduation_error_rad(self, g, t_s: float, n_lines: int, window_lines: int) -> np.ndarray | np.floating:
+        """The clamp's thermal k-lobed distortion of the graduation at t (rad), as the heads read it."""
+        A = self._p("thermal_growth", "amplitude")
+        if not A:
+            return np.zeros_like(np.asarray(g, dtype=float))
+        g = np.asarray(g, dtype=float)
+        tau = self._p("thermal_growth", "time_constant", 3600.0)
+        k7 = float(self.effects["thermal_growth"].get("order", 7))
+        ph = self._p("thermal_growth", "phase")
+        return A * (1.0 - math.exp(-max(float(t_s), 0.0) / tau)) * np.cos(k7 * g - ph)
 
     def interpolation_error_rad(self, signal_phase) -> np.ndarray:
         """Extra sub-division error at grating signal phase L·g (rad)."""

@@ -230,8 +230,13 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
     "graduation_error": {
         "orders": Field("list[dimensionless]", [], lo=1, hi=1000, doc="disk harmonics k (integers)"),
         "amplitudes": Field("list[angle]", [], lo=-600 * ARCSEC, hi=600 * ARCSEC,
-                            doc="a_k: E(g) += a_k·cos(k·g − φ_k), g the line's nominal value"),
+                            doc="k-fold clamping: the lines move by a_k·cos(k·g − φ_k), g the line's nominal value"),
         "phases": Field("list[angle]", [], lo=-360 * DEG, hi=360 * DEG, doc="φ_k"),
+        "ruling_walk_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                                 doc="rms of the ruling engine's closed random walk of the line positions (orders ≥ 2)"),
+        "ruling_eccentricity": Field("length", 0.0, lo=0.0, hi=1 * MM,
+                                     doc="lines ruled radially from a point this far from the edge's centre"),
+        "ruling_eccentricity_azimuth": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
     },
     "optical_radius": {
         "relative": Field("dimensionless", 0.0, lo=-0.2, hi=0.2,
