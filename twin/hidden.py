@@ -53,10 +53,15 @@ with the analysis's fitting formula (``analysis/effects/*.py``):
   the certificate in use.
 - ``interpolation_error``: extra sub-division error of the head, periodic in the grating pitch:
   c1·sin(L·g + φ1) + c2·sin(2·L·g + φ2), L = line count, added to the declared one.
-- ``thermal_growth`` (OUTSIDE the analysis's library): the disk clamp warms up; its k-fold (default
-  7 screws) deformation of the graduation grows as the temperature rise,
-  E_T(g, t) = A·(1 − exp(−t/τ))·cos(k·g − φ). A disk-fixed harmonic whose amplitude changes with
-  time: neither graduation_error (static) nor ac_drift (reference chain) explains it.
+- ``thermal_growth`` (OUTSIDE the analysis's library): the disk's hub warms with the bench
+  (the structure node of twin/thermal.py: lab air and a share of the motor's heat, through its
+  time constants); the hub and the disk expand differently (``cte_mismatch`` = α_hub − α_disk), the
+  k clamping screws (``order``, default 7) hold the disk at k points, and the constrained radial
+  mismatch Δα·ΔT·r_hub becomes a k-lobed tangential displacement of the lines, a fraction
+  ``lobe_coupling`` of it at the graduation: E_T(g, t) = c·Δα·ΔT(t)·(r_hub/r)·cos(k·g − φ),
+  ΔT(t) = T_s(t) − T_s(0). A disk-fixed harmonic whose amplitude follows the temperature: neither
+  graduation_error (static) nor ac_drift (reference chain) explains it. Without a temperature
+  change (no ``[thermal]`` motor rise or lab variation) it is zero.
 
 Seeds: the only random hidden quantity (the polygon pattern) has its own stream (201), so hidden
 effects never change the declared quantities' draws.
@@ -74,7 +79,7 @@ from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 
 from .instruments.ac_optics import FOCAL_LENGTH_M, AutocollimatorOptics
-from .instruments.graduation import brownian_bridge, eccentric_ruling, harmonics, remove_orders
+from .instruments.graduation import brownian_bridge, dirichlet_factor, eccentric_ruling, harmonics, remove_orders
 
 TWO_PI = 2.0 * math.pi
 HIDDEN_STREAMS = {"polygon_pitch_pattern": 201, "graduation_walk": 202}
@@ -185,7 +190,7 @@ class Hidden:
     def has_graduation(self) -> bool:
         e = self.effects.get("graduation_error") or {}
         static = bool(self._grad[0].size) or any(float(e.get(k, 0.0)) for k in ("ruling_walk_rms", "ruling_eccentricity"))
-        return static or self._p("thermal_growth", "amplitude") != 0.0
+        return static or self.thermal_lobe_rad_per_K(1.0) != 0.0
 
     def graduation_line_error_rad(self, n_lines: int, radius_m: float) -> np.ndarray | None:
         """The hidden part of the disk's line-position map (rad per line, ``graduation.py``): the
@@ -209,16 +214,31 @@ class Hidden:
             out = out + eccentric_ruling(n, ecc, float(e.get("ruling_eccentricity_azimuth", 0.0)), radius_m)
         return out
 
-    def thermal_graduation_error_rad(self, g, t_s: float, n_lines: int, window_lines: int) -> np.ndarray | np.floating:
-        """The clamp's thermal k-lobed distortion of the graduation at t (rad), as the heads read it."""
-        A = self._p("thermal_growth", "amplitude")
-        if not A:
-            return np.zeros_like(np.asarray(g, dtype=float))
+    def thermal_lobe_rad_per_K(self, radius_m: float) -> float:
+        """Amplitude of the clamp's k-lobed line displacement per kelvin of hub temperature rise,
+        at the heads' radius: c·Δα·r_hub / r (``thermal_growth``; 0 when not listed)."""
+        e = self.effects.get("thermal_growth")
+        if not e:
+            return 0.0
+        return (float(e.get("lobe_coupling", 0.5)) * float(e.get("cte_mismatch", 15e-6))
+                * float(e.get("hub_radius", 10e-3)) / float(radius_m))
+
+    def thermal_graduation_error_rad(self, g, t_s: float, thermal, radius_m: float, n_lines: int,
+                                     window_lines: int) -> np.ndarray:
+        """The clamp's thermal k-lobed distortion of the graduation at t (rad), as the heads read it:
+        amplitude per K × the hub's temperature rise ΔT(t) = T_s(t) − T_s(0) of the thermal model's
+        structure node (twin/thermal.py), times the head field's Dirichlet factor."""
         g = np.asarray(g, dtype=float)
-        tau = self._p("thermal_growth", "time_constant", 3600.0)
-        k7 = float(self.effects["thermal_growth"].get("order", 7))
-        ph = self._p("thermal_growth", "phase")
-        return A * (1.0 - math.exp(-max(float(t_s), 0.0) / tau)) * np.cos(k7 * g - ph)
+        a_K = self.thermal_lobe_rad_per_K(radius_m)
+        if not a_K or thermal is None:
+            return np.zeros_like(g)
+        dT = thermal.structure_rise_K(t_s)
+        if dT == 0.0:
+            return np.zeros_like(g)
+        e = self.effects["thermal_growth"]
+        k = int(e.get("order", 7))
+        A = a_K * dT * dirichlet_factor(k, n_lines, window_lines)
+        return A * np.cos(k * g - float(e.get("phase", 0.0)))
 
     def interpolation_error_rad(self, signal_phase) -> np.ndarray:
         """Extra sub-division error at grating signal phase L·g (rad)."""
@@ -252,9 +272,17 @@ class Hidden:
         return self._p("ac_drift", "rate") * float(t_s)
 
     # ------------------------------------------------------------------ truth
-    def truth(self, n_faces: int | None = None) -> dict:
+    def truth(self, n_faces: int | None = None, thermal: Any = None, radius_m: float | None = None,
+              t_end_s: float | None = None) -> dict:
         out: dict[str, Any] = {"effects": {k: _json(v) for k, v in self.effects.items()},
                                "note": "SI values; see twin/hidden.py for each effect's physics"}
+        if "thermal_growth" in self.effects and radius_m:
+            tg: dict[str, Any] = {"amplitude_rad_per_K": self.thermal_lobe_rad_per_K(radius_m),
+                                  "temperature": "structure node of twin/thermal.py, rise since t = 0"}
+            if thermal is not None and t_end_s is not None:
+                tg["structure_rise_K_at_end"] = thermal.structure_rise_K(t_end_s)
+                tg["t_end_s"] = float(t_end_s)
+            out["thermal_growth"] = tg
         optics = self.ac_optics()
         if optics is not None:
             out["autocollimator_optics"] = optics.truth()

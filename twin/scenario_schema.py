@@ -291,11 +291,13 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
         "c2_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
     },
     "thermal_growth": {
-        "amplitude": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
-                           doc="outside the library: A·(1 − exp(−t/τ))·cos(k·g − φ) on the disk"),
-        "order": Field("int", 7, lo=1, hi=100),
+        "order": Field("int", 7, lo=1, hi=100, doc="k clamping screws: outside the library, the lobes follow the hub's ΔT"),
         "phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
-        "time_constant": Field("time", 3600.0, lo=1.0, hi=1e7),
+        "cte_mismatch": Field("per_kelvin", 15e-6, lo=-1e-4, hi=1e-4,
+                              doc="α_hub − α_disk (aluminium on glass: 23 − 8 ppm/K)"),
+        "hub_radius": Field("length", 10 * MM, lo=1 * MM, hi=0.5, doc="radius of the clamping screws"),
+        "lobe_coupling": Field("dimensionless", 0.5, lo=0.0, hi=2.0,
+                               doc="tangential lobe / constrained radial mismatch at the graduation (ASSUMPTION)"),
     },
 }
 

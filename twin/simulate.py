@@ -463,7 +463,9 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
             "line": list(range(gm.n_lines)), "nominal_deg": (np.arange(gm.n_lines) * math.degrees(gm.pitch_rad)).tolist(),
             "line_error_arcsec": (gm.lines / ARCSEC).tolist(), "head_error_arcsec": (gm.head / ARCSEC).tolist()})
     if bench.hidden:
-        w.write_truth_json("hidden.json", bench.hidden.truth(N))
+        t_end = max((float(r["t_s"]) for r in rows if "t_s" in r), default=0.0)
+        w.write_truth_json("hidden.json", bench.hidden.truth(N, thermal=bench.thermal,
+                                                              radius_m=inst["encoder"].radius_m, t_end_s=t_end))
     w.write_truth_json("seeds.json", {"scenario_seed": int(sc.seed), "instrument_streams": SIM_STREAMS,
                                       "note": "every random quantity is drawn from SeedSequence([seed, stream, keys…])"})
 

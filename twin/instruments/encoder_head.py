@@ -151,7 +151,9 @@ class SimEncoder:
         m = self.sim_graduation_map()
         out = np.zeros_like(g) if m is None else m.error_rad(g)
         if self.hidden is not None:
-            out = out + self.hidden.thermal_graduation_error_rad(g, t_s, self.n_lines, self.scanning_field_lines)
+            thermal = getattr(getattr(self.state, "bench", None), "thermal", None)   # twin/thermal.py
+            out = out + self.hidden.thermal_graduation_error_rad(g, t_s, thermal, self.radius_m, self.n_lines,
+                                                                 self.scanning_field_lines)
         return out
 
     def sim_graduation_value(self, gamma, t_s: float = 0.0) -> np.ndarray:
