@@ -6,12 +6,23 @@ manifest and every dataset table are written from the declared (nominal) scenari
 without them. The analysis has to find them from the data alone; ``benchmarks/hidden_suite.py``
 scores how well it does (docs/hidden-suite.md).
 
-Every effect is implemented where it physically lives, with the twin's exact geometry — never
-with the analysis's fitting formula (``analysis/effects/*.py``):
+Every effect is implemented where it physically lives, as its physical cause with its own
+parameters and the twin's exact geometry — never with the analysis's fitting formula
+(``analysis/effects/*.py``), so that the analysis's library stays an independent description and
+a residual can reveal a mismatch (docs/physics.md, "Hidden effects as physical causes"). Where an
+effect's parameter is still a coefficient (``interpolation_error``'s c1/c2, ``tangential_motion``'s
+lobes, ``sphere_form``'s lobes) it is a coefficient of the physical object (the head's signal, the
+bearing's rolling path, the sphere's form), not of the analysis's reading model:
 
-- ``graduation_error``: extra division-error harmonics of the disk, E_h(g) = Σ a_k·cos(k·g − φ_k)
-  added to the disk's graduation error E(g) (g = nominal value of a line, the line lies at body
-  angle g + E(g)); the heads solve g + E(g) = γ as for the declared error (``SimEncoder``).
+- ``graduation_error``: the hidden part of the disk's LINE-POSITION MAP
+  (``instruments/graduation.py``), added to the declared map: k-fold clamping harmonics of the
+  lines a_k·cos(k·g − φ_k) (``orders``/``amplitudes``/``phases``; g = nominal value of a line, the
+  line lies at body angle g + E(g)), the ruling engine's closed random walk (``ruling_walk_rms``,
+  a Brownian bridge, its own stream 202) and an eccentric ruling (``ruling_eccentricity`` at
+  ``ruling_eccentricity_azimuth``: lines radial from a point off the edge's centre, a first
+  harmonic the heads see and the CCD, which measures the edge, does not). The heads read the
+  mean of the lines under their scanning field (65 lines), interpolated between lines, and solve
+  g + E(g) = γ as for the declared error (``SimEncoder``).
 - ``optical_radius``: the heads sit at r·(1 + relative) from the axis; the manifest keeps r. The
   exact head geometry then gives the eccentricity and radial-motion errors of the TRUE radius.
 - ``ccd_pixel_scale``: the camera's true object-side pixel is pitch·(1 + pixel_relative) (the
@@ -63,8 +74,8 @@ with the analysis's fitting formula (``analysis/effects/*.py``):
   graduation_error (static) nor ac_drift (reference chain) explains it. Without a temperature
   change (no ``[thermal]`` motor rise or lab variation) it is zero.
 
-Seeds: the only random hidden quantity (the polygon pattern) has its own stream (201), so hidden
-effects never change the declared quantities' draws.
+Seeds: the random hidden quantities have their own streams (the polygon pattern 201, the ruling
+walk 202), so hidden effects never change the declared quantities' draws.
 """
 
 from __future__ import annotations

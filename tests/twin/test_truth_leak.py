@@ -63,6 +63,8 @@ def runs(tmp_path_factory):
                                                      "instruments.ccd.height": "192 px"})
     hid = simulate(sc, base / "hidden", progress=False, backend="analytic")
     plain = simulate(without_hidden(sc), base / "plain", progress=False, backend="analytic")
+    again = simulate(sc, base / "again", progress=False, backend="analytic")
+    assert _files(hid) == _files(again)    # same seed, same dataset (the new physics included)
     return hid, plain
 
 
