@@ -48,8 +48,8 @@ bearing's rolling path, the sphere's form), not of the analysis's reading model:
   detector tilted by τ, through the objective's Seidel distortion k₁; the firmware inverts with
   f_nom (both axes, before the declared accuracy curve, drift and noise). Keys
   ``focal_length_error``, ``detector_tilt``, ``distortion_k1``, ``focal_length``; the legacy
-  ``gain`` / ``quadratic_per_arcsec`` give the δf and τ whose small-angle reading is
-  v·(1 + gain) + q·v²/1″ (the exact law then adds its own higher orders).
+  ``gain`` / ``quadratic_per_arcsec`` give the δf and τ whose small-angle X reading is
+  v·(1 + gain) + q·v²/1″ (the exact law then adds its own higher orders; X axis only, as before).
 - ``sphere_form``: extra form lobes of a test sphere (body frame, equatorial), added to the
   sphere's declared form; the probes read the lobes turning with the shaft as if it were motion.
 - ``torsion_hysteresis``: extra bearing friction torque on the disk section; the static solve

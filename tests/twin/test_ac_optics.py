@@ -78,6 +78,7 @@ def test_q_of_a_real_instrument_needs_a_tiny_tilt():
     assert 0.55 < abs(math.degrees(o.detector_tilt_rad)) < 0.6
     big = AutocollimatorOptics.from_coefficients(0.01, 1e-4)
     assert 84.0 < math.degrees(big.detector_tilt_rad) < 85.0
+    assert big.x_only and big.reading_rad(1e-4, 3e-5)[1] == 3e-5     # legacy: X reading only
 
 
 def test_hidden_ac_scale_physical_keys_build_the_optics_and_forbid_mixing():

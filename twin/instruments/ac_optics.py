@@ -42,7 +42,9 @@ coefficients: ρ = (1 + δf)/cosτ = 1 + g and 2ρ·tanτ = q/1″ (``from_coeff
 autocollimator of 0.05–0.25″ accuracy over ±1000″ has |q| ≲ 1e-7/″ (q·v² ≤ 0.1″ at 1000″), i.e.
 tanτ = q/(2·1″) ≈ 0.01: τ ≲ 0.6° (an earlier draft said 0.01°, reading q as per radian); the
 suite's q = 1e-4/″ needs τ ≈ 84° (and δf ≈ −0.9): a stress test of the analysis, not a real
-instrument.
+instrument. The legacy keys described the X reading only, so their optics act on X alone (the Y
+axis of such an instrument, at f ≈ 0.1·f_nom, would read a tenth of the face's tilt); the physical
+keys act on both axes.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class AutocollimatorOptics:
     detector_tilt_rad: float = 0.0    # τ, about the detector's y axis
     distortion_k1: float = 0.0        # k₁, at the normalised field height s/f_nom
     focal_length_m: float = FOCAL_LENGTH_M   # f_nom, what the firmware uses
+    x_only: bool = False              # the Y axis reads ideally (the legacy coefficients' X-only mapping)
 
     def __post_init__(self) -> None:
         if not self.focal_length_m > 0:
@@ -81,7 +84,7 @@ class AutocollimatorOptics:
         rho = 1.0 + float(gain)
         tilt = math.atan(float(quadratic_per_arcsec) / ARCSEC / (2.0 * rho))
         return cls(focal_length_error=rho * math.cos(tilt) - 1.0, detector_tilt_rad=tilt,
-                   distortion_k1=float(distortion_k1), focal_length_m=float(focal_length_m))
+                   distortion_k1=float(distortion_k1), focal_length_m=float(focal_length_m), x_only=True)
 
     @property
     def ideal(self) -> bool:
@@ -107,6 +110,9 @@ class AutocollimatorOptics:
         exactly, without the tan/atan round trip)."""
         if self.ideal:
             return float(vx_rad), float(vy_rad)
+        if self.x_only:
+            sx, _ = self.detector_position_m(vx_rad, 0.0)
+            return 0.5 * math.atan(sx / self.focal_length_m), float(vy_rad)
         sx, sy = self.detector_position_m(vx_rad, vy_rad)
         return 0.5 * math.atan(sx / self.focal_length_m), 0.5 * math.atan(sy / self.focal_length_m)
 
