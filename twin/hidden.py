@@ -6,12 +6,23 @@ manifest and every dataset table are written from the declared (nominal) scenari
 without them. The analysis has to find them from the data alone; ``benchmarks/hidden_suite.py``
 scores how well it does (docs/hidden-suite.md).
 
-Every effect is implemented where it physically lives, with the twin's exact geometry — never
-with the analysis's fitting formula (``analysis/effects/*.py``):
+Every effect is implemented where it physically lives, as its physical cause with its own
+parameters and the twin's exact geometry — never with the analysis's fitting formula
+(``analysis/effects/*.py``), so that the analysis's library stays an independent description and
+a residual can reveal a mismatch (docs/physics.md, "Hidden effects as physical causes"). Where an
+effect's parameter is still a coefficient (``interpolation_error``'s c1/c2, ``tangential_motion``'s
+lobes, ``sphere_form``'s lobes) it is a coefficient of the physical object (the head's signal, the
+bearing's rolling path, the sphere's form), not of the analysis's reading model:
 
-- ``graduation_error``: extra division-error harmonics of the disk, E_h(g) = Σ a_k·cos(k·g − φ_k)
-  added to the disk's graduation error E(g) (g = nominal value of a line, the line lies at body
-  angle g + E(g)); the heads solve g + E(g) = γ as for the declared error (``SimEncoder``).
+- ``graduation_error``: the hidden part of the disk's LINE-POSITION MAP
+  (``instruments/graduation.py``), added to the declared map: k-fold clamping harmonics of the
+  lines a_k·cos(k·g − φ_k) (``orders``/``amplitudes``/``phases``; g = nominal value of a line, the
+  line lies at body angle g + E(g)), the ruling engine's closed random walk (``ruling_walk_rms``,
+  a Brownian bridge, its own stream 202) and an eccentric ruling (``ruling_eccentricity`` at
+  ``ruling_eccentricity_azimuth``: lines radial from a point off the edge's centre, a first
+  harmonic the heads see and the CCD, which measures the edge, does not). The heads read the
+  mean of the lines under their scanning field (65 lines), interpolated between lines, and solve
+  g + E(g) = γ as for the declared error (``SimEncoder``).
 - ``optical_radius``: the heads sit at r·(1 + relative) from the axis; the manifest keeps r. The
   exact head geometry then gives the eccentricity and radial-motion errors of the TRUE radius.
 - ``ccd_pixel_scale``: the camera's true object-side pixel is pitch·(1 + pixel_relative) (the
@@ -32,8 +43,13 @@ with the analysis's fitting formula (``analysis/effects/*.py``):
   heights); the encoder's α does not.
 - ``ac_drift``: autocollimator zero drift ``rate``·t_s (both axes), added to the declared
   ``drift_rate``.
-- ``ac_scale``: the autocollimator's reading of a face angle v is v·(1 + gain) + q·v²/1″
-  (``quadratic_per_arcsec`` = q), X axis, before its declared accuracy curve, drift and noise.
+- ``ac_scale``: the autocollimator's true optics (``instruments/ac_optics.py``): the returned
+  beam lands on the detector at f·tan 2v with the TRUE focal length f = f_nom·(1 + δf), on a
+  detector tilted by τ, through the objective's Seidel distortion k₁; the firmware inverts with
+  f_nom (both axes, before the declared accuracy curve, drift and noise). Keys
+  ``focal_length_error``, ``detector_tilt``, ``distortion_k1``, ``focal_length``; the legacy
+  ``gain`` / ``quadratic_per_arcsec`` give the δf and τ whose small-angle X reading is
+  v·(1 + gain) + q·v²/1″ (the exact law then adds its own higher orders; X axis only, as before).
 - ``sphere_form``: extra form lobes of a test sphere (body frame, equatorial), added to the
   sphere's declared form; the probes read the lobes turning with the shaft as if it were motion.
 - ``torsion_hysteresis``: extra bearing friction torque on the disk section; the static solve
@@ -48,13 +64,18 @@ with the analysis's fitting formula (``analysis/effects/*.py``):
   the certificate in use.
 - ``interpolation_error``: extra sub-division error of the head, periodic in the grating pitch:
   c1·sin(L·g + φ1) + c2·sin(2·L·g + φ2), L = line count, added to the declared one.
-- ``thermal_growth`` (OUTSIDE the analysis's library): the disk clamp warms up; its k-fold (default
-  7 screws) deformation of the graduation grows as the temperature rise,
-  E_T(g, t) = A·(1 − exp(−t/τ))·cos(k·g − φ). A disk-fixed harmonic whose amplitude changes with
-  time: neither graduation_error (static) nor ac_drift (reference chain) explains it.
+- ``thermal_growth`` (OUTSIDE the analysis's library): the disk's hub warms with the bench
+  (the structure node of twin/thermal.py: lab air and a share of the motor's heat, through its
+  time constants); the hub and the disk expand differently (``cte_mismatch`` = α_hub − α_disk), the
+  k clamping screws (``order``, default 7) hold the disk at k points, and the constrained radial
+  mismatch Δα·ΔT·r_hub becomes a k-lobed tangential displacement of the lines, a fraction
+  ``lobe_coupling`` of it at the graduation: E_T(g, t) = c·Δα·ΔT(t)·(r_hub/r)·cos(k·g − φ),
+  ΔT(t) = T_s(t) − T_s(0). A disk-fixed harmonic whose amplitude follows the temperature: neither
+  graduation_error (static) nor ac_drift (reference chain) explains it. Without a temperature
+  change (no ``[thermal]`` motor rise or lab variation) it is zero.
 
-Seeds: the only random hidden quantity (the polygon pattern) has its own stream (201), so hidden
-effects never change the declared quantities' draws.
+Seeds: the random hidden quantities have their own streams (the polygon pattern 201, the ruling
+walk 202), so hidden effects never change the declared quantities' draws.
 """
 
 from __future__ import annotations
@@ -68,8 +89,11 @@ import numpy as np
 from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 
+from .instruments.ac_optics import FOCAL_LENGTH_M, AutocollimatorOptics
+from .instruments.graduation import brownian_bridge, dirichlet_factor, eccentric_ruling, harmonics, remove_orders
+
 TWO_PI = 2.0 * math.pi
-HIDDEN_STREAMS = {"polygon_pitch_pattern": 201}
+HIDDEN_STREAMS = {"polygon_pitch_pattern": 201, "graduation_walk": 202}
 
 
 def hidden_of(sc: Any) -> dict[str, dict[str, Any]]:
@@ -175,24 +199,57 @@ class Hidden:
     # ------------------------------------------------------------------ the disk / heads
     @property
     def has_graduation(self) -> bool:
-        return bool(self._grad[0].size) or self._p("thermal_growth", "amplitude") != 0.0
+        e = self.effects.get("graduation_error") or {}
+        static = bool(self._grad[0].size) or any(float(e.get(k, 0.0)) for k in ("ruling_walk_rms", "ruling_eccentricity"))
+        return static or self.thermal_lobe_rad_per_K(1.0) != 0.0
 
-    def graduation_error_rad(self, g, t_s: float = 0.0) -> np.ndarray:
-        """Extra E(g) (rad) at nominal graduation value g and time t: static harmonics + the
-        thermal clamp deformation."""
-        g = np.asarray(g, dtype=float)
-        out = np.zeros_like(g)
+    def graduation_line_error_rad(self, n_lines: int, radius_m: float) -> np.ndarray | None:
+        """The hidden part of the disk's line-position map (rad per line, ``graduation.py``): the
+        ruling engine's closed random walk (``ruling_walk_rms``, rms of the line positions, its own
+        seeded stream), the clamping harmonics (``orders``/``amplitudes``/``phases``) and an
+        eccentric ruling (``ruling_eccentricity`` at ``ruling_eccentricity_azimuth``, seen at the
+        heads' radius). None when the effect is not listed."""
+        e = self.effects.get("graduation_error")
+        if not e:
+            return None
+        n = int(n_lines)
         k, a, p = self._grad
-        if k.size:
-            gf = g.reshape(-1)
-            out = out + (a @ np.cos(np.outer(k, gf) - p[:, None])).reshape(g.shape)
-        A = self._p("thermal_growth", "amplitude")
-        if A:
-            tau = self._p("thermal_growth", "time_constant", 3600.0)
-            k7 = float(self.effects["thermal_growth"].get("order", 7))
-            ph = self._p("thermal_growth", "phase")
-            out = out + A * (1.0 - math.exp(-max(float(t_s), 0.0) / tau)) * np.cos(k7 * g - ph)
+        out = harmonics(n, k, a, p)
+        walk_rms = float(e.get("ruling_walk_rms", 0.0))
+        if walk_rms:
+            r = np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["graduation_walk"]]))
+            w = remove_orders(brownian_bridge(n, r), (0, 1))
+            out = out + w * (walk_rms / math.sqrt(np.mean(w**2)))
+        ecc = float(e.get("ruling_eccentricity", 0.0))
+        if ecc:
+            out = out + eccentric_ruling(n, ecc, float(e.get("ruling_eccentricity_azimuth", 0.0)), radius_m)
         return out
+
+    def thermal_lobe_rad_per_K(self, radius_m: float) -> float:
+        """Amplitude of the clamp's k-lobed line displacement per kelvin of hub temperature rise,
+        at the heads' radius: c·Δα·r_hub / r (``thermal_growth``; 0 when not listed)."""
+        e = self.effects.get("thermal_growth")
+        if not e:
+            return 0.0
+        return (float(e.get("lobe_coupling", 0.5)) * float(e.get("cte_mismatch", 15e-6))
+                * float(e.get("hub_radius", 10e-3)) / float(radius_m))
+
+    def thermal_graduation_error_rad(self, g, t_s: float, thermal, radius_m: float, n_lines: int,
+                                     window_lines: int) -> np.ndarray:
+        """The clamp's thermal k-lobed distortion of the graduation at t (rad), as the heads read it:
+        amplitude per K × the hub's temperature rise ΔT(t) = T_s(t) − T_s(0) of the thermal model's
+        structure node (twin/thermal.py), times the head field's Dirichlet factor."""
+        g = np.asarray(g, dtype=float)
+        a_K = self.thermal_lobe_rad_per_K(radius_m)
+        if not a_K or thermal is None:
+            return np.zeros_like(g)
+        dT = thermal.structure_rise_K(t_s)
+        if dT == 0.0:
+            return np.zeros_like(g)
+        e = self.effects["thermal_growth"]
+        k = int(e.get("order", 7))
+        A = a_K * dT * dirichlet_factor(k, n_lines, window_lines)
+        return A * np.cos(k * g - float(e.get("phase", 0.0)))
 
     def interpolation_error_rad(self, signal_phase) -> np.ndarray:
         """Extra sub-division error at grating signal phase L·g (rad)."""
@@ -205,16 +262,41 @@ class Hidden:
         return out
 
     # ------------------------------------------------------------------ autocollimator
-    def ac_angle_rad(self, v: float, axis: int, t_s: float) -> float:
-        """The autocollimator's response to a face angle v (rad) on ``axis`` (0 = X) at t."""
-        if axis == 0 and "ac_scale" in self.effects:
-            v = v * (1.0 + self._p("ac_scale", "gain")) + self._p("ac_scale", "quadratic_per_arcsec") * (v / ARCSEC) * v
-        return v + self._p("ac_drift", "rate") * float(t_s)
+    def ac_optics(self) -> AutocollimatorOptics | None:
+        """The autocollimator's true optics (``ac_scale``), None when the effect is not listed."""
+        e = self.effects.get("ac_scale")
+        if not e:
+            return None
+        f_nom = float(e.get("focal_length", FOCAL_LENGTH_M))
+        k1 = float(e.get("distortion_k1", 0.0))
+        g, q = float(e.get("gain", 0.0)), float(e.get("quadratic_per_arcsec", 0.0))
+        df, tau = float(e.get("focal_length_error", 0.0)), float(e.get("detector_tilt", 0.0))
+        if (g or q) and (df or tau):
+            raise ValueError("hidden.ac_scale: give the optics (focal_length_error, detector_tilt) or the "
+                             "legacy coefficients (gain, quadratic_per_arcsec), not both")
+        if g or q:
+            return AutocollimatorOptics.from_coefficients(g, q, focal_length_m=f_nom, distortion_k1=k1)
+        return AutocollimatorOptics(focal_length_error=df, detector_tilt_rad=tau, distortion_k1=k1, focal_length_m=f_nom)
+
+    def ac_zero_drift_rad(self, t_s: float) -> float:
+        """Extra autocollimator zero drift at t (``ac_drift``), both axes."""
+        return self._p("ac_drift", "rate") * float(t_s)
 
     # ------------------------------------------------------------------ truth
-    def truth(self, n_faces: int | None = None) -> dict:
+    def truth(self, n_faces: int | None = None, thermal: Any = None, radius_m: float | None = None,
+              t_end_s: float | None = None) -> dict:
         out: dict[str, Any] = {"effects": {k: _json(v) for k, v in self.effects.items()},
                                "note": "SI values; see twin/hidden.py for each effect's physics"}
+        if "thermal_growth" in self.effects and radius_m:
+            tg: dict[str, Any] = {"amplitude_rad_per_K": self.thermal_lobe_rad_per_K(radius_m),
+                                  "temperature": "structure node of twin/thermal.py, rise since t = 0"}
+            if thermal is not None and t_end_s is not None:
+                tg["structure_rise_K_at_end"] = thermal.structure_rise_K(t_end_s)
+                tg["t_end_s"] = float(t_end_s)
+            out["thermal_growth"] = tg
+        optics = self.ac_optics()
+        if optics is not None:
+            out["autocollimator_optics"] = optics.truth()
         if n_faces and "polygon_pitch_ignored" in self.effects:
             out["polygon_pitch_pattern_physics_arcsec"] = (self.polygon_pitch_pattern_rad(n_faces) / ARCSEC).tolist()
         return out

@@ -230,8 +230,13 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
     "graduation_error": {
         "orders": Field("list[dimensionless]", [], lo=1, hi=1000, doc="disk harmonics k (integers)"),
         "amplitudes": Field("list[angle]", [], lo=-600 * ARCSEC, hi=600 * ARCSEC,
-                            doc="a_k: E(g) += a_k·cos(k·g − φ_k), g the line's nominal value"),
+                            doc="k-fold clamping: the lines move by a_k·cos(k·g − φ_k), g the line's nominal value"),
         "phases": Field("list[angle]", [], lo=-360 * DEG, hi=360 * DEG, doc="φ_k"),
+        "ruling_walk_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                                 doc="rms of the ruling engine's closed random walk of the line positions (orders ≥ 2)"),
+        "ruling_eccentricity": Field("length", 0.0, lo=0.0, hi=1 * MM,
+                                     doc="lines ruled radially from a point this far from the edge's centre"),
+        "ruling_eccentricity_azimuth": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
     },
     "optical_radius": {
         "relative": Field("dimensionless", 0.0, lo=-0.2, hi=0.2,
@@ -252,9 +257,20 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
     "ac_drift": {
         "rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3, doc="extra autocollimator zero drift"),
     },
+    # The autocollimator's optics (twin/instruments/ac_optics.py): physical keys, or the legacy
+    # small-angle coefficients gain / quadratic_per_arcsec, mapped to the focal-length error and
+    # detector tilt with those first- and second-order terms (not both at once).
     "ac_scale": {
-        "gain": Field("dimensionless", 0.0, lo=-0.1, hi=0.1, doc="reading = v·(1 + gain) + q·v²/1″"),
-        "quadratic_per_arcsec": Field("dimensionless", 0.0, lo=-0.01, hi=0.01, doc="q, per arcsec"),
+        "focal_length_error": Field("dimensionless", 0.0, lo=-0.95, hi=0.5,
+                                    doc="true f = f_nom·(1 + δf); the firmware inverts with f_nom"),
+        "detector_tilt": Field("angle", 0.0, lo=-89.9 * DEG, hi=89.9 * DEG,
+                               doc="detector turned about its y axis: even (v²) non-linearity on x"),
+        "distortion_k1": Field("dimensionless", 0.0, lo=-1e4, hi=1e4,
+                               doc="Seidel distortion s·(1 + k1·(s/f_nom)²): odd (v³)"),
+        "focal_length": Field("length", 0.3, lo=1 * MM, hi=10.0, doc="f_nom of the objective (300 mm: TriAngle 300-57)"),
+        "gain": Field("dimensionless", 0.0, lo=-0.1, hi=0.1,
+                      doc="legacy: small-angle reading v·(1 + gain) + q·v²/1″, mapped to δf and tilt"),
+        "quadratic_per_arcsec": Field("dimensionless", 0.0, lo=-0.01, hi=0.01, doc="legacy: q, per arcsec"),
     },
     "sphere_form": {
         "top": Field("lobes", [], doc="extra form lobes of the top sphere (body frame)"),
@@ -275,11 +291,13 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
         "c2_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
     },
     "thermal_growth": {
-        "amplitude": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
-                           doc="outside the library: A·(1 − exp(−t/τ))·cos(k·g − φ) on the disk"),
-        "order": Field("int", 7, lo=1, hi=100),
+        "order": Field("int", 7, lo=1, hi=100, doc="k clamping screws: outside the library, the lobes follow the hub's ΔT"),
         "phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
-        "time_constant": Field("time", 3600.0, lo=1.0, hi=1e7),
+        "cte_mismatch": Field("per_kelvin", 15e-6, lo=-1e-4, hi=1e-4,
+                              doc="α_hub − α_disk (aluminium on glass: 23 − 8 ppm/K)"),
+        "hub_radius": Field("length", 10 * MM, lo=1 * MM, hi=0.5, doc="radius of the clamping screws"),
+        "lobe_coupling": Field("dimensionless", 0.5, lo=0.0, hi=2.0,
+                               doc="tangential lobe / constrained radial mismatch at the graduation (ASSUMPTION)"),
     },
 }
 

@@ -279,6 +279,22 @@ def _write_tables(w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
 
 # --------------------------------------------------------------------------- truth
 
+def _graduation_map_truth(enc: SimEncoder) -> dict:
+    """The disk's static line-position map as the heads read it (twin/instruments/graduation.py):
+    model, field, rms and its first harmonics (the full map: truth/graduation_map.csv)."""
+    m = enc.sim_graduation_map()
+    out: dict = {"model": "line-position map: closed ruling walk + clamping harmonics, head field average",
+                 "scanning_field_lines": enc.scanning_field_lines}
+    if m is None:
+        return {**out, "head_rms_rad": 0.0, "line_rms_rad": 0.0}
+    c = np.fft.rfft(m.head) * (2.0 / m.n_lines)
+    k = np.arange(1, min(21, c.size))
+    return {**out, "head_rms_rad": m.rms_rad, "line_rms_rad": float(np.sqrt(np.mean(m.lines**2))),
+            "head_harmonics": {"order": k.tolist(), "amplitude_rad": np.abs(c[k]).tolist(),
+                               "phase_rad": np.angle(c[k]).tolist(),
+                               "form": "a_k·cos(k·g + phase_k), g the nominal graduation value"}}
+
+
 def _instrument_truth(inst: dict) -> dict:
     enc: SimEncoder = inst["encoder"]
     ac: SimAutocollimator = inst["autocollimator"]
@@ -286,7 +302,7 @@ def _instrument_truth(inst: dict) -> dict:
         "encoder": {"lines": enc.n_lines, "heads_rad": enc.heads_rad.tolist(), "optical_radius_m": enc.radius_m,
                     "index_line_body_angle_rad": math.pi / 2,
                     "graduation_error_rms_rad": enc.graduation_error_rms_rad,
-                    "graduation_harmonics": {k: np.asarray(v).tolist() for k, v in enc.graduation_harmonics.items()},
+                    "graduation_map": _graduation_map_truth(enc),
                     "interpolation": {k: np.asarray(v).tolist() for k, v in enc.interpolation.items()},
                     "resolution_rad": enc.resolution_rad, "noise_rad": enc.noise_rad},
         "autocollimator": {"azimuth_rad": ac.azimuth_rad, "accuracy_curve": {k: v.tolist() for k, v in ac._acc.items()},
@@ -441,8 +457,15 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                 "U_arcsec": float(np.mean([u for u, _ in v])), "setup_error_arcsec": v[0][1]}
                                for k, v in setup.items()]
     w.write_truth_json("bench.json", bt)
+    gm = inst["encoder"].sim_graduation_map()
+    if gm is not None:   # the disk's static line map: per line, and as the heads read it
+        w.write_truth_table("graduation_map", {
+            "line": list(range(gm.n_lines)), "nominal_deg": (np.arange(gm.n_lines) * math.degrees(gm.pitch_rad)).tolist(),
+            "line_error_arcsec": (gm.lines / ARCSEC).tolist(), "head_error_arcsec": (gm.head / ARCSEC).tolist()})
     if bench.hidden:
-        w.write_truth_json("hidden.json", bench.hidden.truth(N))
+        t_end = max((float(r["t_s"]) for r in rows if "t_s" in r), default=0.0)
+        w.write_truth_json("hidden.json", bench.hidden.truth(N, thermal=bench.thermal,
+                                                              radius_m=inst["encoder"].radius_m, t_end_s=t_end))
     w.write_truth_json("seeds.json", {"scenario_seed": int(sc.seed), "instrument_streams": SIM_STREAMS,
                                       "note": "every random quantity is drawn from SeedSequence([seed, stream, keys…])"})
 

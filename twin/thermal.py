@@ -126,6 +126,11 @@ class Thermal:
         d = self.axis_drift_m_K * (self.state(t_s).structure_degC - self._s0.structure_degC)
         return d * np.array([math.cos(self.axis_azimuth_rad), math.sin(self.axis_azimuth_rad)])
 
+    def structure_rise_K(self, t_s: float) -> float:
+        """Temperature of the structure (shaft, hub, housings) at t minus at t = 0 (K): drives the
+        hidden clamp distortion of the disk (twin/hidden.py, thermal_growth)."""
+        return self.state(t_s).structure_degC - self._s0.structure_degC
+
     def probe_stand_drift_m(self, t_s: float) -> float:
         """Growth of the probe stand along the probe axis since t = 0 (m), read as motion."""
         return self.probe_stand_m_K * (self.state(t_s).probe_stand_degC - self._s0.probe_stand_degC)

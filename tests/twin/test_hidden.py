@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from benchtwin.twin.hidden import Hidden
+from benchtwin.twin.instruments.graduation import dirichlet_factor
 from benchtwin.twin.scenario import load_scenario, validate
 from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS
 from benchtwin.twin.simulate import sim_build, simulate
@@ -134,10 +135,11 @@ def test_graduation_error_changes_alpha_and_polygon_not_probes():
         assert peak(d[n]) < PROBE_TOL_UM
     np.testing.assert_allclose(d["ac"], d["alpha"], atol=0.02)   # the polygon sees α (+ quantisation)
     # the harmonics are fixed to the disk: 4 and 6 cycles per revolution
+    # (the head reads the line map averaged over its field: twin/instruments/graduation.py)
     sc = load("graduation_error")
-    h = Hidden.from_scenario(sc)
+    _, _, inst = sim_build(sc, camera=False)
     g = np.radians(90.0 - np.asarray(STOPS_DEG))       # line under head 1 (centred-disk approximation)
-    np.testing.assert_allclose(d["alpha"], h.graduation_error_rad(g) / ARCSEC, atol=0.01)
+    np.testing.assert_allclose(d["alpha"], inst["encoder"].sim_graduation_error(g) / ARCSEC, atol=0.01)
 
 
 def test_optical_radius_scales_the_geometric_error():
@@ -196,10 +198,16 @@ def test_ac_drift_grows_with_time_in_the_autocollimator_only():
     assert peak(d["alpha"]) < 1e-9
 
 
-def test_ac_scale_is_gain_and_quadratic_on_the_reading():
+def test_ac_scale_is_the_optics_law_on_the_reading():
+    """The legacy keys (gain 0.01, q = 1e-4/″) build optics with those small-angle terms
+    (twin/instruments/ac_optics.py); the reading follows the exact law, whose cubic (4ρ·tan²τ·v³
+    of the 84° tilt this q needs) adds 0.1″ at 200″ to the quadratic."""
     d, _, b = diff("ac_scale")
     v = b["ac"]
-    np.testing.assert_allclose(d["ac"], 0.01 * v + 1e-4 * v**2, atol=0.02)
+    o = Hidden.from_scenario(load("ac_scale")).ac_optics()
+    exact = np.array([o.reading_rad(x * ARCSEC)[0] / ARCSEC - x for x in v])
+    np.testing.assert_allclose(d["ac"], exact, atol=0.02)
+    np.testing.assert_allclose(d["ac"], 0.01 * v + 1e-4 * v**2, atol=0.15)
     assert peak(d["ac"]) > 0.3 and peak(d["alpha"]) < 1e-9
 
 
@@ -254,14 +262,41 @@ def test_interpolation_error_is_periodic_in_the_grating_pitch():
     np.testing.assert_allclose(enc.sim_interpolation_error(g + pitch), e, atol=1e-15)
 
 
-def test_thermal_growth_grows_with_time_on_the_disk():
-    d0, _, _ = diff("thermal_growth", times_s=np.zeros(len(STOPS_DEG)), faces=False)
-    d1, _, _ = diff("thermal_growth", times_s=np.full(len(STOPS_DEG), 1200.0), faces=False)
-    d2, _, _ = diff("thermal_growth", times_s=np.full(len(STOPS_DEG), 20000.0), faces=False)
-    assert peak(d0["alpha"]) < 0.01        # the move to a stop takes ~2 s: A·(1 − exp(−2 s/τ))
-    assert peak(d1["alpha"]) / peak(d2["alpha"]) == pytest.approx(1 - math.exp(-1), rel=0.02)
-    assert peak(d2["alpha"]) == pytest.approx(1.5, abs=0.2)
-    assert peak(d2["probe_top"]) < PROBE_TOL_UM
+def test_thermal_growth_follows_the_hub_temperature():
+    """The clamp's 7 lobes grow as the thermal model's structure node warms (twin/thermal.py):
+    α(t) − α_plain = c·Δα·(r_hub/r)·ΔT(t)·D₇·cos(7g − φ), ΔT the structure's rise since t = 0,
+    within 0.01″ at every stop; proportional to ΔT (not to a template of t); nothing on the probes."""
+    sc = load("thermal_growth")
+    bench, _, inst = sim_build(sc, camera=False)
+    enc = inst["encoder"]
+    a_K = bench.hidden.thermal_lobe_rad_per_K(enc.radius_m) / ARCSEC
+    assert a_K == pytest.approx(0.5 * 15e-6 * 10e-3 / 22e-3 / ARCSEC, rel=1e-12)    # 0.70″/K
+    g = np.radians(90.0 - np.asarray(STOPS_DEG))
+    peaks = {}
+    for t in (0.0, 1200.0, 20000.0):
+        d, _, _ = diff("thermal_growth", times_s=np.full(len(STOPS_DEG), t), faces=False)
+        dT = bench.thermal.structure_rise_K(t)
+        k, ph = 7, math.radians(80.0)
+        lobe = a_K * dT * dirichlet_factor(k, enc.n_lines) * np.cos(k * g - ph)
+        np.testing.assert_allclose(d["alpha"], lobe, atol=0.01)
+        assert peak(d["probe_top"]) < PROBE_TOL_UM
+        peaks[t] = (peak(d["alpha"]), dT)
+    assert peaks[0.0][0] < 0.01
+    assert peaks[20000.0][1] == pytest.approx(0.3 * 7.0, rel=1e-6)            # share × motor rise
+    assert peaks[1200.0][0] / peaks[20000.0][0] == pytest.approx(peaks[1200.0][1] / peaks[20000.0][1], rel=0.02)
+    # no temperature change, no growth: the same hidden clamp on a thermally inert bench
+    inert = sc.with_overrides({"thermal.motor_rise": "0 K"})
+    b2, _, inst2 = sim_build(inert, camera=False)
+    gg = np.linspace(0, 2 * np.pi, 100)
+    assert np.max(np.abs(inst2["encoder"].sim_graduation_error(gg, 20000.0))) == 0.0
+    # the lab's daily cycle alone drives it through the structure's lag
+    lab = sc.with_overrides({"thermal.motor_rise": "0 K", "thermal.ambient_amplitude": "1 K",
+                             "thermal.ambient_phase": "0 deg"})
+    b3, _, inst3 = sim_build(lab, camera=False)
+    e3 = inst3["encoder"].sim_graduation_error(gg, 6 * 3600.0)
+    expect = a_K * ARCSEC * b3.thermal.structure_rise_K(6 * 3600.0) * dirichlet_factor(7, enc.n_lines)
+    assert abs(expect) > 0.1 * ARCSEC
+    assert np.max(np.abs(e3)) == pytest.approx(abs(expect), rel=0.01)
 
 
 # --------------------------------------------------------------------------- datasets

@@ -18,6 +18,10 @@ i.e. X is positive when the face normal is turned CLOCKWISE (seen from +z) from 
 axis: an encoder that reads too much (α > 0) leaves the polygon short of its nominal angle, and
 the autocollimator shows +α. Y is positive when the normal tilts towards +z.
 
+The reading is where the returned beam lands on the detector, inverted by the firmware
+(``ac_optics.py``): exact for the ideal instrument of a declared scenario; a hidden ``ac_scale``
+gives the true optics (focal-length error, detector tilt, distortion).
+
 Imperfections, in this order: accuracy (a deterministic seeded error curve inside ±``accuracy``
 over ±``range``: a scale error plus one smooth bow), zero drift ``drift_rate``·t_s, noise (rms,
 independent per axis), resolution quantisation; beyond ±``range`` on either axis the status is
@@ -34,6 +38,7 @@ import numpy as np
 from benchtwin.hw.interfaces import AutocollimatorReading
 from benchtwin.units import quantise
 
+from .ac_optics import AutocollimatorOptics
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
 
 
@@ -61,7 +66,10 @@ class SimAutocollimator:
         c1 = r.uniform(-0.6, 0.6, 2)
         c2 = (1.0 - np.abs(c1)) * r.uniform(0.5, 1.0, 2) * np.sign(r.uniform(-1, 1, 2))
         self._acc = {"scale": c1, "bow": c2, "phase": r.uniform(0, TWO_PI, 2)}
-        self.hidden = None   # [hidden] ac_scale / ac_drift (twin/hidden.py)
+        self.hidden = None   # [hidden] ac_drift (twin/hidden.py)
+        # The true optics (ac_optics.py; [hidden] ac_scale): None = ideal, the reading is the face
+        # angle itself (no tan/atan round trip, so an ideal instrument's datasets are unchanged).
+        self.optics: AutocollimatorOptics | None = None
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "autocollimator",
@@ -75,6 +83,7 @@ class SimAutocollimator:
                   noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
         hidden = Hidden.from_scenario(sc) if hidden is None else hidden
         obj.hidden = hidden if ("ac_scale" in hidden.effects or "ac_drift" in hidden.effects) else None
+        obj.optics = hidden.ac_optics()
         return obj
 
     def describe(self) -> dict[str, Any]:
@@ -120,9 +129,11 @@ class SimAutocollimator:
         vals = []
         th = getattr(st.bench, "thermal", None)
         drift_T = th.ac_drift_rad(t) if th is not None and th.ac_rad_K else 0.0   # twin/thermal.py
+        if self.optics is not None:       # where the beam lands on the detector, read by the firmware
+            x, y = self.optics.reading_rad(x, y)
         for axis, v in enumerate((x, y)):
-            if self.hidden is not None:   # undeclared scale / non-linearity / drift of the instrument
-                v = self.hidden.ac_angle_rad(v, axis, t)
+            if self.hidden is not None:   # undeclared zero drift of the instrument
+                v = v + self.hidden.ac_zero_drift_rad(t)
             v = v + self.sim_accuracy_error(v, axis) + self.drift_rate_rad_s * t
             if drift_T:
                 v = v + drift_T

@@ -9,9 +9,11 @@ eccentricity, radial motion or tilt of the disk. No small-angle step anywhere.
 
 Graduation (division) error, fixed to the disk: the line of nominal value g lies at body angle
 g + E(g); the head that sees body angle γ therefore reads the value g solving g + E(g) = γ
-(fixed-point iteration, E is a few arcsec). E = low-order harmonics (orders 2…10, amplitudes
-∝ 1/k, seeded phases; 90 % of the variance) + random per-line errors averaged over the head's
-scanning window (``head_window_lines``, 10 %), scaled to ``errors.graduation_error_rms``.
+(fixed-point iteration, E is a few arcsec). E is the head's view of the disk's LINE-POSITION MAP
+(``graduation.py``): the ruling engine's closed random walk plus the disk's clamping harmonics
+(declared: ``errors.graduation_error_rms``, the rms the head reads; hidden: ``[hidden]
+graduation_error``), averaged over the head's scanning field and interpolated between lines; the
+hidden ``thermal_growth`` adds a k-lobed distortion that follows the clamp's temperature.
 
 Reading: head j reports (90° + h_j) − g_j: the graduation value counted from the index (the line
 under head 1 at zero shaft angle of a centred disk, body polar angle 90°), plus its own azimuth,
@@ -37,9 +39,9 @@ import numpy as np
 from benchtwin.hw.interfaces import EncoderReading
 from benchtwin.twin.pose import BenchPose
 
+from .graduation import SCANNING_FIELD_LINES, HeadMap, declared_line_map
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
 
-GRADUATION_ORDERS = tuple(range(2, 11))
 # Fixed point g + E(g) = γ: stop when the step is ≤ 8 ulp of π (1.8e-15 rad = 3.7e-10″).
 GRADUATION_FIXED_POINT_TOL_RAD = 8 * math.ulp(math.pi)
 
@@ -66,7 +68,7 @@ class SimEncoder:
                  radius_m: float = 22e-3, n_lines: int = 7069, resolution_rad: float = 0.39 * ARCSEC,
                  noise_rad: float = 0.0, interpolation_error_rad: float = 0.0,
                  graduation_error_rms_rad: float = 0.0, seed: int = 0, key: int = 0,
-                 per_line_fraction: float = 0.1, head_window_lines: int = 64):
+                 scanning_field_lines: int = SCANNING_FIELD_LINES):
         self.name = name
         self.state = state
         self.heads_rad = np.asarray(heads_rad, dtype=float)
@@ -78,31 +80,20 @@ class SimEncoder:
         self.resolution_rad = float(resolution_rad)
         self.noise_rad = float(noise_rad)
         self.key = int(key)
-        # Graduation error: harmonics + per-line part (a property of the disk: seeded, fixed).
+        # Graduation error: the declared line-position map (a property of the disk: seeded, fixed).
         self.graduation_error_rms_rad = float(graduation_error_rms_rad)
-        r = sim_rng(seed, "encoder_graduation")
-        k = np.array(GRADUATION_ORDERS, dtype=float)
-        a = r.uniform(0.5, 1.0, k.size) / k
-        ph = r.uniform(0, TWO_PI, k.size)
-        a *= math.sqrt(1.0 - per_line_fraction) * self.graduation_error_rms_rad / math.sqrt(0.5 * np.sum(a**2))
-        self.graduation_harmonics = {"order": k.astype(int), "amplitude_rad": a, "phase_rad": ph}
-        self._line_err = None
-        if self.graduation_error_rms_rad > 0 and per_line_fraction > 0:
-            e = r.normal(0.0, 1.0, self.n_lines)
-            w = max(1, int(head_window_lines))
-            c = np.concatenate([e[-w:], e, e[:w]])  # circular moving average over the head window
-            avg = np.convolve(c, np.full(w, 1.0 / w), mode="same")[w:w + self.n_lines]
-            avg -= avg.mean()
-            avg *= math.sqrt(per_line_fraction) * self.graduation_error_rms_rad / np.sqrt(np.mean(avg**2))
-            self._line_err = avg
+        self.scanning_field_lines = int(scanning_field_lines)
+        self._declared_lines = None
+        if self.graduation_error_rms_rad > 0:
+            self._declared_lines = declared_line_map(self.n_lines, self.graduation_error_rms_rad,
+                                                     sim_rng(seed, "encoder_graduation"), self.scanning_field_lines)
+        self._map_cache: tuple | None = None
         # Interpolation error: orders 1 and 2 of the grating pitch.
         ri = sim_rng(seed, "encoder_interpolation")
         self.interpolation = {"amplitude_rad": np.array([1.0, 1.0 / 3.0]) * float(interpolation_error_rad),
                               "phase_rad": ri.uniform(0, TWO_PI, 2)}
         # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
         self.hidden = None
-        self._harm_cols = None
-        self._line_err_ext = None
         self._head_points = None
         # (pose, exact readings) of the stage's last stop: read() there reuses them (the servo's
         # last evaluation of the same pose); set by SimRotaryStage.move_to.
@@ -137,42 +128,33 @@ class SimEncoder:
     def _hidden_graduation(self) -> bool:
         return self.hidden is not None and self.hidden.has_graduation
 
+    def sim_graduation_map(self) -> HeadMap | None:
+        """The disk's static line-position map as the heads read it (declared + hidden), None when
+        the disk is perfect."""
+        key = (self.hidden, self._declared_lines is None)
+        c = self._map_cache
+        if c is not None and c[0] is key[0] and c[1] == key[1]:
+            return c[2]
+        lines = None if self._declared_lines is None else self._declared_lines.copy()
+        if self.hidden is not None:
+            h = self.hidden.graduation_line_error_rad(self.n_lines, self.radius_m)
+            if h is not None:
+                lines = h if lines is None else lines + h
+        m = None if lines is None else HeadMap(lines, self.scanning_field_lines)
+        self._map_cache = (key[0], key[1], m)
+        return m
+
     def sim_graduation_error(self, g, t_s: float = 0.0) -> np.ndarray:
-        """E(g): body angle of the line of nominal value g minus g (rad), at time t (the hidden
-        thermal deformation is the only time-dependent part)."""
+        """E(g): body angle of the line of nominal value g minus g (rad), as the head reads it, at
+        time t (the hidden thermal deformation is the only time-dependent part)."""
         g = np.asarray(g, dtype=float)
-        out = self._declared_graduation_error(g)
-        if self._hidden_graduation():
-            out = out + self.hidden.graduation_error_rad(g, t_s)
+        m = self.sim_graduation_map()
+        out = np.zeros_like(g) if m is None else m.error_rad(g)
+        if self.hidden is not None:
+            thermal = getattr(getattr(self.state, "bench", None), "thermal", None)   # twin/thermal.py
+            out = out + self.hidden.thermal_graduation_error_rad(g, t_s, thermal, self.radius_m, self.n_lines,
+                                                                 self.scanning_field_lines)
         return out
-
-    def _declared_graduation_error(self, g: np.ndarray) -> np.ndarray:
-        h = self.graduation_harmonics
-        if self.graduation_error_rms_rad == 0:
-            return np.zeros_like(g)
-        gf = g.reshape(-1)
-        k_col, ph_col = self._harmonic_columns()
-        out = h["amplitude_rad"] @ np.cos(k_col * gf - ph_col)
-        if self._line_err is not None:
-            # linear interpolation between lines (the line after the last is line 0 again)
-            ext = self._line_err_ext
-            if ext is None or ext.size != self._line_err.size + 1:
-                ext = self._line_err_ext = np.append(self._line_err, self._line_err[0])
-            x = np.mod(gf, TWO_PI) / self.pitch_rad
-            fl = np.floor(x)
-            f = x - fl
-            i0 = fl.astype(np.intp) % self.n_lines
-            out = out + (1 - f) * ext[i0] + f * ext[i0 + 1]
-        return out.reshape(g.shape)
-
-    def _harmonic_columns(self) -> tuple[np.ndarray, np.ndarray]:
-        """(orders, phases) of the graduation harmonics as float column vectors (cached)."""
-        h = self.graduation_harmonics
-        c = self._harm_cols
-        if c is None or c[0] is not h["order"] or c[1] is not h["phase_rad"]:
-            c = self._harm_cols = (h["order"], h["phase_rad"], np.asarray(h["order"], dtype=float)[:, None],
-                                   np.asarray(h["phase_rad"], dtype=float)[:, None])
-        return c[2], c[3]
 
     def sim_graduation_value(self, gamma, t_s: float = 0.0) -> np.ndarray:
         """Value g of the graduation seen at body polar angle γ: solves g + E(g) = γ."""
