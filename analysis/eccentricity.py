@@ -91,6 +91,7 @@ __all__ = [
     "eccentricity_monte_carlo",
     "eccentricity_range_method",
     "eccentricity_from_images",
+    "frame_edges_and_scale",
 ]
 
 MIN_LINES = 5
@@ -501,9 +502,9 @@ def _dref_from_circle(cx: float, cy: float, r: float, cov: np.ndarray, reference
     return l - r, math.sqrt(var) if var >= 0 else float("nan"), l
 
 
-def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
+def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
              name: str | int | None = None, u_px: float | None = None, reject_outliers: bool = True,
-             min_lines: int = MIN_LINES, **edge_kw) -> dict:
+             min_lines: int = MIN_LINES, edges: LineEdges | None = None, **edge_kw) -> dict:
     """Jia's d_ref = l − r_fitting (px) of one image: edge points → circle → distance to R.
 
     ``reference_px``: the reference point R (default: the image centre (W/2, H/2), (1024, 768) for
@@ -516,10 +517,25 @@ def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, rad
     Keys: d_ref_px, u_d_ref_px, l_px, centre_px (cx, cy), radius_px, cov_circle (cx, cy, r),
     points_px, residual_rms_px, n_lines, polarity, reference_px, edges (LineEdges),
     rejected_points_px.
+
+    ``edges``: this image's :func:`edge_details` (found once per frame, with the same
+    ``min_lines``/``reject_outliers``/``edge_kw``), so a caller that needs the edges for the pixel
+    scale and for d_ref does not find them twice; by default they are found here. With ``edges``
+    and ``reference_px`` given, ``image`` is not used (may be None).
     """
-    ed = edge_details(image, name, min_lines=min_lines, reject_outliers=reject_outliers, **edge_kw)
-    H, W = np.asarray(image).shape[:2]
-    ref = (W / 2.0, H / 2.0) if reference_px is None else (float(reference_px[0]), float(reference_px[1]))
+    if edges is not None:
+        ed = edges
+    elif image is not None:
+        ed = edge_details(image, name, min_lines=min_lines, reject_outliers=reject_outliers, **edge_kw)
+    else:
+        raise ValueError("d_ref_px: give the image or its edges")
+    if reference_px is None:
+        if image is None:
+            raise ValueError("d_ref_px: give the image or the reference point reference_px")
+        H, W = np.asarray(image).shape[:2]
+        ref = (W / 2.0, H / 2.0)
+    else:
+        ref = (float(reference_px[0]), float(reference_px[1]))
     P = ed.points_px.copy()
     cols = ed.centre_col_px.copy()
     rejected = ed.rejected_ends_px.copy()  # contaminated ends rejected before the fit
@@ -556,7 +572,7 @@ def d_ref_px(image: np.ndarray, reference_px: Sequence[float] | None = None, rad
 
 def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None = None,
                    period_radius_um: float | None = None, edge_radius_um: float | None = None,
-                   periods: int = 3, **edge_kw) -> dict:
+                   periods: int = 3, edges: LineEdges | None = None, **edge_kw) -> dict:
     """Object-side pixel size (µm/px) from the grating period (Jia eq. 13 and a better estimate).
 
     - ``um_per_px_count``: the paper's way: the pixels over ``periods`` (3) periods, counted as an
@@ -582,6 +598,8 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
 
     Extra keys: ``n_lines`` (line ends used), ``line_index`` (their integer indices),
     ``rejected_spacing_px``, ``spacing_residual_rms_px``.
+
+    ``edges``: this image's :func:`edge_details`, if already found (see :func:`d_ref_px`).
     """
     if not period_um > 0:
         raise ValueError(f"period_um must be > 0, got {period_um}")
@@ -591,7 +609,7 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
             raise ValueError("period_radius_um given: edge_radius_um is needed to refer the period to the edge")
         p_edge = period_um * edge_radius_um / period_radius_um
     reject = bool(edge_kw.get("reject_outliers", True))
-    res = d_ref_px(image, None, name=name, **edge_kw)
+    res = d_ref_px(image, None, name=name, edges=edges, **edge_kw)
     ed: LineEdges = res["edges"]
     r = res["radius_px"]
     P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
@@ -674,6 +692,25 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
         "count_column_px": col, "n_lines": int(np.count_nonzero(inl)), "line_index": idx[inl].astype(int),
         "rejected_spacing_px": P[~inl], "spacing_residual_rms_px": rms,
     }
+
+
+def frame_edges_and_scale(image: np.ndarray, period_um: float, name: str | int | None = None,
+                          ) -> tuple[LineEdges | None, float | None, ImageAnalysisError | None]:
+    """One frame of a sweep, its image work done once: (edges, pixel scale µm/px, None), or
+    (None, None, error) for a frame the analysis rejects.
+
+    The edges (:func:`edge_details`, the expensive part: threshold, connected parts, sub-pixel
+    edges) are found once and serve both the pixel scale here (:func:`pixel_scale_um`, eq. 13) and
+    the later d_ref with the sweep's fixed radius (:func:`d_ref_px` with ``edges=``), which needs the
+    median scale of all frames first. Pure (an array in, small results out), so frames can be
+    analysed in parallel processes (analysis/parallel.py) with the serial path's results.
+    """
+    try:
+        ed = edge_details(image, name)
+        scale = float(pixel_scale_um(image, period_um, name=name, edges=ed)["pixel_um"])
+    except ImageAnalysisError as exc:
+        return None, None, exc
+    return ed, scale, None
 
 
 # --------------------------------------------------------------------------- sweep → e, θ0
@@ -849,14 +886,16 @@ def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[f
     per, dpx, upx, scales, counts = [], [], [], [], []
     for k, img in enumerate(images):
         nm = names[k] if names is not None else k
-        r = d_ref_px(img, reference_px, radius_px, name=nm, **edge_kw)
+        # the edges once per image, for d_ref and the pixel scale alike
+        ed = edge_details(img, nm, **{k2: v for k2, v in edge_kw.items() if k2 != "u_px"})
+        r = d_ref_px(img, reference_px, radius_px, name=nm, edges=ed, **edge_kw)
         dpx.append(r["d_ref_px"])
         upx.append(r["u_d_ref_px"])
         per.append({k2: v for k2, v in r.items() if k2 != "edges"})
         if um_per_px is None:
             if period_um is None:
                 raise ValueError("give um_per_px or period_um")
-            s = pixel_scale_um(img, period_um, name=nm, **edge_kw)
+            s = pixel_scale_um(img, period_um, name=nm, edges=ed, **edge_kw)
             scales.append(s["um_per_px"])
             counts.append(s["um_per_px_count"])
     scale = float(um_per_px) if um_per_px is not None else float(np.median(scales))

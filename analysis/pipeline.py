@@ -87,19 +87,26 @@ def ccd_frame_limits(n_frames: int, order: int) -> dict[str, int]:
     return {"min_frames": max(by_fit, by_fraction), "by_fit": by_fit, "by_fraction": by_fraction}
 
 
-def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]:
+def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | None = None) -> dict[str, Any]:
     from benchtwin.analysis import eccentricity as ecc
+    from collections.abc import Iterator
+
+    from benchtwin.analysis.parallel import ordered_map
 
     ccd = ds.manifest.get("ccd")
     if ccd is None:
         raise DatasetError(f"{ds.path}/manifest.json: key 'ccd' is required when ccd/index.csv is present")
     period_um = ds.bench["grating_period_um"]
     ref = tuple(ccd["reference_px"])
-    # Two passes: the pixel scale first (from the grating period, Jia eq. 13), then d_ref with the
+    # Two stages: the pixel scale first (from the grating period, Jia eq. 13), then d_ref with the
     # edge radius fixed where the manifest knows it (Jia: "r_fitting is already known") — a short arc
     # of a 22 mm circle does not determine its radius well.
-    # Images are read twice rather than held: memory stays flat for long sweeps of large frames.
-    # A frame the image analysis rejects is dropped from that pass and recorded (module constants).
+    # Each frame is decoded once and its line edges found once (ecc.frame_edges_and_scale), frames in
+    # parallel processes (analysis/parallel.py: in order, bit-identical to the serial loop, at most a
+    # few frames in flight); only the edges (a few hundred numbers per frame) are kept for the d_ref
+    # stage, so memory stays flat for long sweeps of large frames. ``workers``: processes (default:
+    # BENCHTWIN_WORKERS or min(cores, 2); 1 = serial, in this process).
+    # A frame the image analysis rejects is dropped from that stage on and recorded (module constants).
     n_frames = len(ds.table("ccd/index")["k"])
     limits = ccd_frame_limits(n_frames, order)
     rejected: dict[str, dict[str, Any]] = {}
@@ -120,30 +127,41 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool) -> dict[str, Any]
                 f"+ {CCD_MIN_DOF} residual dof for u(e), and at most {CCD_MAX_REJECTED_FRACTION:.0%} of the frames "
                 f"may be rejected before the failure counts as systematic). Rejected: {lst}{more}")
 
-    scales = []
-    for k, theta, image, f in ds.ccd_frames():
-        try:
-            scales.append(ecc.pixel_scale_um(image, period_um, name=f)["pixel_um"])
-        except ecc.ImageAnalysisError as exc:
-            reject(f, theta, "pixel scale (eq. 13)", exc)
+    meta: list[tuple[float, str]] = []  # (theta, file) per frame, in index order
+
+    def frames() -> Iterator[tuple[np.ndarray, float, str]]:
+        for _k, theta, image, f in ds.ccd_frames():
+            meta.append((float(theta), f))
+            yield image, period_um, f
+
+    scales: list[float] = []
+    edges: list[Any] = []  # per frame: its LineEdges, or None if rejected
+    bar = _progress(progress, n_frames, "CCD images")
+    for i, (ed, scale_i, exc) in enumerate(ordered_map(ecc.frame_edges_and_scale, frames(), workers)):
+        bar.update()
+        theta, f = meta[i]
+        if exc is not None or scale_i is None:
+            reject(f, theta, "pixel scale (eq. 13)", exc or ecc.ImageAnalysisError("no pixel scale"))
+            edges.append(None)
+            continue
+        scales.append(scale_i)
+        edges.append(ed)
+    bar.close()
     check(len(scales), "pixel scale (Jia eq. 13)")
     scale = float(np.median(scales))
     edge_mm = ds.bench.get("scale_edge_radius_mm")
     radius_px = edge_mm * 1000.0 / scale if edge_mm else None
     thetas, drefs_px, files = [], [], []
-    bar = _progress(progress, n_frames, "CCD images")
-    for k, theta, image, f in ds.ccd_frames():
-        bar.update()
-        if f in rejected:
-            continue  # its line ends were not found in the first pass: not trusted for d_ref either
+    for (theta, f), ed in zip(meta, edges):
+        if ed is None:
+            continue  # its line ends were not found for the pixel scale: not trusted for d_ref either
         try:
-            drefs_px.append(ecc.d_ref_px(image, ref, radius_px=radius_px, name=f)["d_ref_px"])
+            drefs_px.append(ecc.d_ref_px(None, ref, radius_px=radius_px, name=f, edges=ed)["d_ref_px"])
         except ecc.ImageAnalysisError as exc:
             reject(f, theta, "d_ref (eqs. 10-12)", exc)
             continue
         thetas.append(theta)
         files.append(f)
-    bar.close()
     check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
     dref_um = np.asarray(drefs_px) * scale
     res = ecc.eccentricity_from_dref(np.asarray(thetas), dref_um, camera_azimuth_deg=ccd["position_deg"], order=order)

@@ -1,0 +1,149 @@
+"""Whole-process timings of the main job's stages, each against its floor measured in the same run.
+
+Issue #17. Stages (each a fresh ``benchtwin`` process, as a user runs them, ``--quiet``):
+
+- ``simulate``: the scenario (default: the embedded jia2019) → a dataset with its CCD frames;
+- ``analyze``: that dataset (its ``truth/`` moved aside first, as ``benchtwin run`` does);
+- ``close-loop``: the same analysis + tracing the residual to an effect; "tracing" = close-loop − analyze;
+- ``run``: simulate → analyze → close the loop in one process (the README's command).
+
+Floors, measured in the same run by the scripts beside this one:
+
+- I/O floor (benchmarks/io_floor.py): decode, Otsu, label and PNG-encode each of the dataset's
+  frames once, in one process (the work, without interpreter start and imports);
+- render floor (benchmarks/render_floor.py): a bare OpenCV rasteriser (supersampled ``fillPoly``)
+  and bare OpenCV sensor operations on one frame of the same scenario, next to the twin's renderer
+  and sensor model on the same frame;
+- physics floor: not measured here (the closed-form solve of the poses is not written yet);
+  benchmarks/physics_bench.py and servo_bench.py give the physics' own rates.
+
+Ratios printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
+twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
+encode), tracing against its 1 s target. Wall AND CPU time (user + system of the process and its
+children, e.g. a process pool) are printed for every stage: the machine is shared, so wall figures
+are taken under load (the load average is printed) and CPU time is the steadier figure.
+
+Usage: ``.venv/bin/python benchmarks/run_bench.py [scenario.toml] [--repeat 1] [--keep DIR] [--json]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BIN = Path(sys.executable).parent
+ENV = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
+       "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+
+
+def timed_run(cmd: list[str], capture: bool = False) -> tuple[float, float, str]:
+    """(wall s, CPU s of the process and its reaped children, stdout) of one command."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE if capture else subprocess.DEVNULL,
+                       stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)}: exit {p.returncode}\n{p.stderr[-3000:]}")
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return wall, cpu, p.stdout or ""
+
+
+def last_json(text: str) -> dict:
+    return json.loads(text.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenario", nargs="?", default=None, help="scenario TOML (default: the embedded jia2019)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per stage; the median is printed")
+    ap.add_argument("--keep", type=Path, default=None, help="keep the outputs in this folder")
+    ap.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
+    args = ap.parse_args(argv)
+
+    bt = str(BIN / "benchtwin")
+    py = sys.executable
+    sc = [args.scenario] if args.scenario else []
+    work = Path(tempfile.mkdtemp(prefix="benchtwin-run-bench-")) if args.keep is None else args.keep
+    work.mkdir(parents=True, exist_ok=True)
+    load0 = os.getloadavg()
+    stages: dict[str, list[tuple[float, float]]] = {k: [] for k in ("simulate", "analyze", "close-loop", "run")}
+    io: list[dict] = []
+    try:
+        for i in range(args.repeat):
+            ds, truth = work / f"ds{i}", work / f"truth{i}"
+            for p in (ds, truth, work / f"an{i}", work / f"cl{i}", work / f"run{i}"):
+                shutil.rmtree(p, ignore_errors=True)
+            stages["simulate"].append(timed_run([bt, "simulate", *sc, "-o", str(ds), "--quiet"])[:2])
+            shutil.move(str(ds / "truth"), str(truth))  # the analysis runs with truth/ out of the dataset
+            stages["analyze"].append(timed_run([bt, "analyze", str(ds), "-o", str(work / f"an{i}"), "--quiet"])[:2])
+            stages["close-loop"].append(timed_run([bt, "close-loop", str(ds), "-o", str(work / f"cl{i}"),
+                                                   "--quiet"])[:2])
+            stages["run"].append(timed_run([bt, "run", *sc, "-o", str(work / f"run{i}"), "--quiet"])[:2])
+            io.append(last_json(timed_run([py, str(HERE / "io_floor.py"), str(ds), "--json"], capture=True)[2]))
+        rf = last_json(timed_run([py, str(HERE / "render_floor.py"), "--json"], capture=True)[2])
+    finally:
+        if args.keep is None:
+            shutil.rmtree(work, ignore_errors=True)
+    load1 = os.getloadavg()
+
+    def med(xs: list[float]) -> float:
+        return float(statistics.median(xs))
+
+    wall = {k: med([w for w, _ in v]) for k, v in stages.items()}
+    cpu = {k: med([c for _, c in v]) for k, v in stages.items()}
+    n = int(io[0]["frames"])
+    io_w = {k: med([d["wall_s"][k] for d in io]) for k in ("decode", "otsu", "label", "encode")}
+    io_c = {k: med([d["cpu_s"][k] for d in io]) for k in ("decode", "otsu", "label", "encode")}
+    floor_io_w, floor_io_c = sum(io_w.values()), sum(io_c.values())
+    floor_an_w = io_w["decode"] + io_w["otsu"] + io_w["label"]
+    floor_an_c = io_c["decode"] + io_c["otsu"] + io_c["label"]
+    floor_sim_w = n * (rf["floor_render_s"] + rf["floor_sensor_s"]) + io_w["encode"]
+    floor_sim_c = n * (rf["floor_render_cpu_s"] + rf["floor_sensor_cpu_s"]) + io_c["encode"]
+    tr_w, tr_c = wall["close-loop"] - wall["analyze"], cpu["close-loop"] - cpu["analyze"]
+
+    rows = [
+        ("simulate", wall["simulate"], cpu["simulate"], "frames×(render+sensor)+encode", floor_sim_w, floor_sim_c),
+        ("analyze", wall["analyze"], cpu["analyze"], "decode+Otsu+label", floor_an_w, floor_an_c),
+        ("close-loop", wall["close-loop"], cpu["close-loop"], "decode+Otsu+label", floor_an_w, floor_an_c),
+        ("  tracing (close-loop − analyze)", tr_w, tr_c, "target 1 s", 1.0, 1.0),
+        ("run", wall["run"], cpu["run"], "I/O floor", floor_io_w, floor_io_c),
+        ("render of a frame", rf["twin_render_s"], rf["twin_render_cpu_s"], f"cv2 fillPoly {rf['k']}×{rf['k']}",
+         rf["floor_render_s"], rf["floor_render_cpu_s"]),
+        ("sensor model of a frame", rf["twin_sensor_s"], rf["twin_sensor_cpu_s"], "cv2 blur+noise+vignetting",
+         rf["floor_sensor_s"], rf["floor_sensor_cpu_s"]),
+    ]
+    print(f"scenario {args.scenario or 'jia2019 (embedded default)'}, {n} CCD frames, median of {args.repeat}; "
+          f"{os.cpu_count()} cores; load average {load0[0]:.1f} before, {load1[0]:.1f} after: wall figures "
+          "were taken under load (shared machine), CPU = user + system of the process and its children")
+    print(f"{'stage':34s} {'wall s':>8s} {'CPU s':>8s}   {'floor':31s} {'wall s':>7s} {'CPU s':>7s} "
+          f"{'×wall':>6s} {'×CPU':>6s}")
+    for name, w, c, fname, fw, fc in rows:
+        print(f"{name:34s} {w:8.3f} {c:8.3f}   {fname:31s} {fw:7.3f} {fc:7.3f} {w / fw:6.2f} {c / fc:6.2f}")
+    print(f"I/O floor over {n} frames (one process, work only): "
+          + ", ".join(f"{k} {io_w[k]:.3f} s" for k in io_w)
+          + f"; whole process incl. start and imports {med([d['process_wall_s'] for d in io]):.2f} s wall")
+    print(f"render: twin backend {rf['twin_backend']}, line-end error ≤ {rf['twin_end_error_px']:.4f} px; "
+          f"floor ≤ {rf['floor_end_error_px']:.4f} px (against the exact analytic coverage)")
+    print("physics floor: not measured (closed-form solve not written); see physics_bench.py, servo_bench.py")
+    print(f"Goal (issue #17): run ≤ 3× I/O floor: {wall['run'] / floor_io_w:.2f}× wall, "
+          f"{cpu['run'] / floor_io_c:.2f}× CPU")
+    if args.json:
+        print(json.dumps({"wall_s": wall, "cpu_s": cpu, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
+                          "render_floor": rf, "load_average": [load0[0], load1[0]], "frames": n}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,117 @@
+"""The CCD sweep's frames analysed once each and in parallel give the serial path's results, bit for bit.
+
+analysis/parallel.py (ordered, bounded process-pool map) and the eccentricity step's decode-once /
+edges-once path (analysis/pipeline.py step_eccentricity with analysis/eccentricity.py
+frame_edges_and_scale): the pool and the serial loop must give byte-identical results.json, the
+same rejected frames in the same order, and the same d_ref as the former two-pass path (edges found
+separately for the pixel scale and for d_ref). Issue #17.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchtwin.analysis import eccentricity as ecc
+from benchtwin.analysis.dataset import open_dataset
+from benchtwin.analysis.parallel import default_workers, ordered_map
+from benchtwin.analysis.pipeline import analyze, step_eccentricity
+from benchtwin.twin.scenario import load_scenario
+from benchtwin.twin.simulate import simulate
+
+REDUCED = {"procedure.radial_positions": 36, "procedure.ccd_step": "12 deg"}  # 30 frames (≥ 24 at order 10)
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def _fail_on_three(x: int) -> int:
+    if x == 3:
+        raise ValueError("three")
+    return x
+
+
+def test_ordered_map_keeps_order_and_raises_in_order():
+    items = [(i,) for i in range(23)]
+    assert list(ordered_map(_square, iter(items), workers=2, window=3)) == [i * i for i in range(23)]
+    assert list(ordered_map(_square, items, workers=1)) == [i * i for i in range(23)]
+    assert list(ordered_map(_square, [], workers=2)) == []
+    assert list(ordered_map(_square, [(5,)], workers=2)) == [25]
+    got = []
+    with pytest.raises(ValueError, match="three"):
+        for r in ordered_map(_fail_on_three, [(i,) for i in range(8)], workers=2):
+            got.append(r)
+    assert got == [0, 1, 2]
+
+
+def test_default_workers_env(monkeypatch):
+    monkeypatch.setenv("BENCHTWIN_WORKERS", "1")
+    assert default_workers() == 1
+    monkeypatch.setenv("BENCHTWIN_WORKERS", "two")
+    with pytest.raises(ValueError, match="BENCHTWIN_WORKERS"):
+        default_workers()
+    monkeypatch.delenv("BENCHTWIN_WORKERS")
+    assert 1 <= default_workers() <= 2
+
+
+@pytest.fixture(scope="module")
+def small_ds(tmp_path_factory) -> Path:
+    """A reduced jia2019 dataset (30 frames) with its first frame fogged (rejected by the analysis)."""
+    import cv2
+
+    sc = load_scenario().with_overrides(REDUCED)
+    ds = simulate(sc, tmp_path_factory.mktemp("par") / "ds", progress=False, backend="analytic")
+    shutil.rmtree(ds / "truth")
+    f = (ds / "ccd" / "index.csv").read_text().splitlines()[1].split(",")[2]
+    img = cv2.imread(str(ds / "ccd" / f), cv2.IMREAD_UNCHANGED)
+    fog = np.median(img) + np.random.default_rng(3).normal(0.0, 2.0, img.shape)
+    cv2.imwrite(str(ds / "ccd" / f), np.clip(np.rint(fog), 0, np.iinfo(img.dtype).max).astype(img.dtype))
+    return ds
+
+
+def test_pool_and_serial_results_json_byte_identical(small_ds, tmp_path, monkeypatch):
+    out = {}
+    for w in ("1", "2"):
+        monkeypatch.setenv("BENCHTWIN_WORKERS", w)
+        r = analyze(small_ds, tmp_path / f"out{w}", progress=False, close_loop=False)
+        out[w] = Path(r["paths"]["results"]).read_bytes()
+    assert out["1"] == out["2"]
+    res = json.loads(out["2"])
+    rej = res["ccd_rejected_frames"]
+    assert rej and rej[0]["file"] == "img_000.png"  # the fogged frame, first in index order
+    assert res["ccd"]["n_images"] == 30 - len(rej)
+
+
+def test_edges_once_equals_the_two_pass_path(small_ds):
+    """The former path: pixel scale and d_ref each found the frame's edges themselves."""
+    ds = open_dataset(small_ds)
+    new = step_eccentricity(ds, 10, False, workers=2)
+    ccd = ds.manifest["ccd"]
+    scales, frames, rejected = [], [], []
+    for _k, _theta, image, f in ds.ccd_frames():
+        try:
+            scales.append(ecc.pixel_scale_um(image, ds.bench["grating_period_um"], name=f)["pixel_um"])
+        except ecc.ImageAnalysisError:
+            rejected.append((f, "pixel scale (eq. 13)"))
+            continue
+        frames.append((f, image))
+    scale = float(np.median(scales))
+    radius_px = ds.bench["scale_edge_radius_mm"] * 1000.0 / scale
+    d_old, files = [], []
+    for f, img in frames:
+        try:
+            d_old.append(ecc.d_ref_px(img, tuple(ccd["reference_px"]), radius_px=radius_px, name=f)["d_ref_px"])
+        except ecc.ImageAnalysisError:
+            rejected.append((f, "d_ref (eqs. 10-12)"))
+            continue
+        files.append(f)
+    assert new["pixel_um"] == scale
+    assert new["files"] == files
+    assert np.array_equal(np.asarray(new["d_ref_um"]), np.asarray(d_old) * scale)
+    assert [(r["file"], r["stage"]) for r in new["rejected_frames"]] == rejected
+    assert rejected[0] == ("img_000.png", "pixel scale (eq. 13)")
