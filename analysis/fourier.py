@@ -42,7 +42,15 @@ __all__ = [
     "remove_harmonics",
     "amplitude_phase",
     "param_index",
+    "harmonic_columns",
+    "fit_harmonics",
+    "evaluate_harmonics",
+    "integrate_harmonics",
+    "perturbation_columns",
 ]
+
+#: {k: (a_k, b_k)}: the coefficients of a series over a chosen set of harmonics (a: sin, b: cos)
+Coefs = dict[int, tuple[float, float]]
 
 
 def param_index(harmonic: int) -> tuple[int, ...]:
@@ -52,18 +60,44 @@ def param_index(harmonic: int) -> tuple[int, ...]:
     return (0,) if harmonic == 0 else (2 * harmonic - 1, 2 * harmonic)
 
 
+def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[int], prefix: str = "",
+                     unit: str = "arcsec") -> tuple[np.ndarray, list[str]]:
+    """Columns ``[sin k₁θ, cos k₁θ, sin k₂θ, cos k₂θ, ...]`` for the harmonics ``ks`` (θ in degrees;
+    n × 2·len(ks)) and their names ``{prefix}a{k}_{unit}`` / ``{prefix}b{k}_{unit}``: the terms of
+    eq. 6 of the orders listed, the one place this module builds them."""
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
+    cols, names = [], []
+    for k in ks:
+        cols += [np.sin(k * th), np.cos(k * th)]
+        names += [f"{prefix}a{k}_{unit}", f"{prefix}b{k}_{unit}"]
+    X = np.column_stack(cols) if cols else np.zeros((th.size, 0))
+    return X, names
+
+
+def _solve(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, yw: np.ndarray,
+           rcond: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted linear least squares from the SVD ``U·diag(s)·Vt`` of the weighted design (rows
+    divided by u) and the weighted data ``yw``: (parameters, (AᵀWA)⁻¹). ``rcond``: singular values
+    ≤ rcond·s_max are dropped (the minimum-norm solution and the pseudo-inverse, as
+    ``numpy.linalg.lstsq``); None keeps all (the caller has checked the rank)."""
+    if rcond is not None and s.size and s[-1] <= rcond * s[0]:
+        keep = s > rcond * s[0]
+        U, s, Vt = U[:, keep], s[keep], Vt[keep]
+    params = Vt.T @ ((U.T @ yw) / s)
+    inv = (Vt.T / s**2) @ Vt
+    return params, inv
+
+
 def design_matrix(theta_deg: np.ndarray, order: int, harmonics: Iterable[int] | None = None) -> np.ndarray:
     """Columns ``[1, sin θ, cos θ, sin 2θ, cos 2θ, ...]`` (n × (2·order+1)).
 
     With ``harmonics`` the columns of the harmonics not listed are zero (the shape stays the same,
     so the matrix can be applied to the full parameter vector).
     """
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
+    th = np.asarray(theta_deg, dtype=float).ravel()
     A = np.empty((th.size, 2 * order + 1))
     A[:, 0] = 1.0
-    for i in range(1, order + 1):
-        A[:, 2 * i - 1] = np.sin(i * th)
-        A[:, 2 * i] = np.cos(i * th)
+    A[:, 1:] = harmonic_columns(th, range(1, order + 1))[0]
     if harmonics is not None:
         keep = set(int(h) for h in harmonics)
         bad = [h for h in keep if h < 0 or h > order]
@@ -153,8 +187,7 @@ def fit_fourier(theta_deg: np.ndarray, y: np.ndarray, order: int = 10, u: np.nda
     if s[-1] <= s[0] * 1e-10:
         raise ValueError(f"the θ samples do not determine a Fourier series of order {order} "
                          f"(rank deficient; {np.unique(np.round(th % 360, 9)).size} distinct angles)")
-    params = Vt.T @ ((U.T @ (yy * w)) / s)
-    inv = (Vt.T / s**2) @ Vt  # (Aᵀ W A)⁻¹
+    params, inv = _solve(U, s, Vt, yy * w)  # inv = (Aᵀ W A)⁻¹
     resid = yy - A @ params
     dof = th.size - p
     sigma = float(math.sqrt(np.sum(resid**2) / dof)) if dof > 0 else float("nan")
@@ -176,6 +209,82 @@ def evaluate(fit: FourierFit | np.ndarray, theta_deg: np.ndarray, harmonics: Ite
     th = np.asarray(theta_deg, dtype=float)
     A = design_matrix(th.ravel(), n_ord, harmonics)
     return (A @ params).reshape(th.shape)
+
+
+# ----------------------------------------------------------------------------------------------
+# Series over a chosen set of harmonics, as {k: (a_k, b_k)}. The tracing and the effect library
+# (analysis/tracing/, analysis/effects/) describe a residual, a motion or a division error by a
+# few orders (eq. 7: 2…10; a division error at orders 4 and 6; a polygon's aliases), not by a full
+# series 0…order: the same least squares (:func:`_solve`) on the columns of those orders.
+# ----------------------------------------------------------------------------------------------
+
+
+def fit_harmonics(theta_deg: np.ndarray, y: np.ndarray, ks: Iterable[int], with_mean: bool = True,
+                  nuisance_ks: Iterable[int] = (), return_u: bool = False):
+    """Least-squares coefficients {k: (a_k, b_k)} of Σ a_k sin kθ + b_k cos kθ over the orders ``ks``
+    (+ a free mean and free orders ``nuisance_ks``, fitted but not returned: e.g. order 1, the
+    sphere centring of eq. 7). With ``return_u`` also {k: (u(a_k), u(b_k))}, type A from the
+    residual scatter: ``s² (AᵀA)⁻¹``, s² = RSS / (n − p) (as :func:`fit_fourier` without ``u``).
+    Where the samples do not determine every column the minimum-norm solution is returned (no
+    error: the tracing tries orders a design may not resolve, and tests them itself)."""
+    ks = list(ks)
+    nk = [k for k in nuisance_ks if k not in ks]
+    X, _ = harmonic_columns(theta_deg, ks + nk)
+    if with_mean:
+        X = np.column_stack([X, np.ones(X.shape[0])])
+    yy = np.asarray(y, dtype=float).ravel()
+    if X.size == 0:  # no samples or no columns: nothing determined
+        beta, inv = np.zeros(X.shape[1]), np.zeros((X.shape[1], X.shape[1]))
+    else:
+        U, s, Vt = np.linalg.svd(X, full_matrices=False)
+        # numpy.linalg.lstsq's default cut-off: machine ε × the larger dimension
+        beta, inv = _solve(U, s, Vt, yy, rcond=float(np.finfo(float).eps) * max(X.shape))
+    coefs = {k: (float(beta[2 * i]), float(beta[2 * i + 1])) for i, k in enumerate(ks)}
+    if not return_u:
+        return coefs
+    dof = max(yy.size - X.shape[1], 1)
+    s2 = float(np.sum((yy - X @ beta) ** 2)) / dof
+    cov = s2 * inv
+    u = {k: (float(np.sqrt(cov[2 * i, 2 * i])), float(np.sqrt(cov[2 * i + 1, 2 * i + 1]))) for i, k in enumerate(ks)}
+    return coefs, u
+
+
+def _vector(coefs: Coefs) -> tuple[list[int], np.ndarray]:
+    ks = [int(k) for k in coefs]
+    return ks, np.array([float(c) for k in coefs for c in coefs[k]], dtype=float)
+
+
+def evaluate_harmonics(theta_deg: np.ndarray, coefs: Coefs) -> np.ndarray:
+    """Σ a_k sin kθ + b_k cos kθ at ``theta_deg`` (degrees; eq. 6 without the mean), same shape."""
+    th = np.asarray(theta_deg, dtype=float)
+    ks, p = _vector(coefs)
+    return (harmonic_columns(th, ks)[0] @ p).reshape(th.shape)
+
+
+def integrate_harmonics(theta_deg: np.ndarray, coefs: Coefs) -> np.ndarray:
+    """Antiderivative in θ (radians) of the series, without constant: ∫ a sin kθ + b cos kθ dθ =
+    (b/k) sin kθ − (a/k) cos kθ (eq. 5's ∫δY dθ; the constant of its ∫_0^θ is a per-run offset,
+    which the polygon closure removes)."""
+    return evaluate_harmonics(theta_deg, {int(k): (b / int(k), -a / int(k)) for k, (a, b) in coefs.items()})
+
+
+def perturbation_columns(theta_deg: np.ndarray, u: Coefs, weight: float = 1.0, kind: str = "value") -> np.ndarray:
+    """Columns: the change of a series (``kind`` = "value", "integral" or "quadrature") at θ for a
+    one-standard-uncertainty change of each of its coefficients (u from :func:`fit_harmonics`)."""
+    th = np.asarray(theta_deg, dtype=float)
+    cols = []
+    for k, (ua, ub) in u.items():
+        k = int(k)
+        s_, c_ = harmonic_columns(th, [k])[0].T
+        if kind == "value":
+            cols += [ua * s_, ub * c_]
+        elif kind == "integral":
+            cols += [-ua * c_ / k, ub * s_ / k]
+        elif kind == "quadrature":
+            cols += [-ua * c_, ub * s_]
+        else:
+            raise ValueError(kind)
+    return weight * (np.column_stack(cols) if cols else np.zeros((np.size(th), 0)))
 
 
 def remove_harmonics(theta_deg: np.ndarray, y: np.ndarray, order: int = 10, remove: Iterable[int] = (0, 1),

@@ -30,12 +30,29 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from benchtwin.analysis.fourier import FourierFit, design_matrix, evaluate, fit_fourier
+from benchtwin.analysis.fourier import (FourierFit, design_matrix, evaluate, evaluate_harmonics, fit_fourier,
+                                        fit_harmonics, integrate_harmonics, perturbation_columns)
 
-__all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights"]
+__all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights", "RadialMotion",
+           "RADIAL_ORDERS", "ASYNC_P", "ASYNC_NOISE_ORDER", "ASYNC_BAND"]
+
+#: Harmonic order set of the radial-motion series (eq. 7: orders 2…10; 0 = probe position and
+#: 1 = sphere centring are removed).
+RADIAL_ORDERS = tuple(range(2, 11))
+
+#: Non-repeating (asynchronous) motion of the axis (:meth:`RadialMotion.async_rms`): its part along
+#: X at the time of the polygon readings is unmeasured (the probes run in other revolutions) and
+#: reads −δX_async/r. Its size is known from the probes' rep-to-rep scatter (isotropic: the same
+#: along X as along Y) in the band of orders 1…ASYNC_BAND (eq. 7's series and the order 1), with
+#: the probes' noise from each rep's residual about a series of order ASYNC_NOISE_ORDER (white
+#: noise, smooth motion); counted only if the scatter exceeds that noise at p < ASYNC_P (F test).
+ASYNC_P = 0.01
+ASYNC_NOISE_ORDER = 40
+ASYNC_BAND = 10
 
 # d_n of the range method (mean range of n normal samples / σ), n = 2…25 (the d2 constants of
 # control-chart tables, e.g. Montgomery, Introduction to Statistical Quality Control, app. VI).
@@ -80,6 +97,151 @@ def error_motion_values(values_reps: np.ndarray) -> dict[str, float]:
         "asynchronous_um": float(np.max(np.ptp(v, axis=0))) if v.shape[0] > 1 else 0.0,
         "asynchronous_pv_um": float(np.ptp(asyn)),
     }
+
+
+@dataclass
+class RadialMotion:
+    """Sphere probe readings on a θ grid (radial_motion.csv), µm, all reps pooled: the motion as a
+    series the tracing (analysis/tracing/) evaluates at any θ, with the uncertainty of each of its
+    coefficients (:func:`radial_motion` is the per-repetition reduction the results report).
+
+    Each channel is reduced to its Fourier series of orders 2…10 (Jia eq. 7: orders 0 and 1 are
+    probe position and sphere centring); δY at the disk by eq. 9, δX likewise from the X probes.
+    Channels: ``top_um``, ``bottom_um``, ``dY_um`` and, with X probes, ``top_x_um``,
+    ``bottom_x_um``, ``dX_um``. ``at``/``integral_at`` evaluate a channel or its antiderivative in θ
+    (radians; µm·rad) anywhere.
+    """
+
+    theta_deg: np.ndarray
+    top_um: np.ndarray
+    bottom_um: np.ndarray
+    L1_mm: float
+    L2_mm: float
+    top_x_um: np.ndarray | None = None
+    bottom_x_um: np.ndarray | None = None
+    orders: tuple = RADIAL_ORDERS
+    rep: np.ndarray | None = None
+    _coefs: dict = field(default_factory=dict, init=False, repr=False)
+    _u: dict = field(default_factory=dict, init=False, repr=False)
+
+    def __post_init__(self):
+        th = np.asarray(self.theta_deg, dtype=float)
+        wt, wb = disk_weights(self.L1_mm, self.L2_mm)  # eq. 9
+        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um}
+        if self.has_x:
+            raw.update(top_x_um=self.top_x_um, bottom_x_um=self.bottom_x_um)
+        for name, y in raw.items():
+            # orders 0 and 1 fitted and dropped (eq. 7), orders 2…10 kept, with their type-A u
+            self._coefs[name], self._u[name] = fit_harmonics(th, y, self.orders, nuisance_ks=(1,), return_u=True)
+        self.combos = {n: {n: 1.0} for n in raw}
+        self.combos["dY_um"] = {"top_um": wt, "bottom_um": wb}
+        if self.has_x:
+            self.combos["dX_um"] = {"top_x_um": wt, "bottom_x_um": wb}
+        self.combos["bottom_minus_top_um"] = {"bottom_um": 1.0, "top_um": -1.0}
+        for out, combo in self.combos.items():
+            if out not in self._coefs:
+                self._coefs[out] = {k: (sum(w * self._coefs[c][k][0] for c, w in combo.items()),
+                                        sum(w * self._coefs[c][k][1] for c, w in combo.items())) for k in self.orders}
+
+    def perturbations(self, theta_deg, name: str, kind: str = "value", orders=None) -> np.ndarray:
+        """(n × m) change of channel ``name`` (value, integral or quadrature) at θ for a 1-u change of
+        each raw Fourier coefficient it is made of (the probe data's own uncertainty); ``orders``:
+        only those harmonics."""
+        sel = (lambda u: u) if orders is None else (lambda u: {k: v for k, v in u.items() if k in orders})
+        return np.hstack([perturbation_columns(theta_deg, sel(self._u[c]), w, kind) for c, w in self.combos[name].items()])
+
+    def form_perturbations(self, theta_deg, name: str, u_um: float, kind: str = "integral", orders=None) -> np.ndarray:
+        """(n × m) change of channel ``name`` at θ for a change of u_um (µm) in each Fourier coefficient
+        (orders 2…10, or ``orders``) of the spheres' readings it is made of: the unmeasured sphere
+        form (type B)."""
+        if not u_um or u_um <= 0:
+            return np.zeros((np.size(theta_deg), 0))
+        u = {k: (float(u_um), float(u_um)) for k in (self.orders if orders is None else orders)}
+        return np.hstack([perturbation_columns(theta_deg, u, w, kind) for c, w in self.combos[name].items()])
+
+    def async_rms(self, name: str = "dY_um", p: float = ASYNC_P) -> dict:
+        """The non-repeating (asynchronous) motion of channel ``name`` (µm RMS over θ), in the band of
+        orders 1…``ASYNC_BAND`` (eq. 7's series and the order 1 that a sphere's centring hides only
+        when it repeats): the scatter of each rep's Fourier coefficients about their mean over the
+        reps (ISO 230-7's asynchronous error, band-limited), minus the probes' own noise in that band
+        (the noise from each rep's residual about a series of order ``ASYNC_NOISE_ORDER``: white
+        noise, smooth motion). ``sigma_um`` = 0 unless the scatter exceeds the noise at
+        significance ``p`` (F test). Needs ``rep`` with ≥ 3 reps; {} otherwise."""
+        if self.rep is None:
+            return {}
+        rep = np.asarray(self.rep).astype(int)
+        reps = np.unique(rep)
+        R = reps.size
+        if R < 3:
+            return {}
+        th = np.asarray(self.theta_deg, dtype=float)
+        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um, "top_x_um": self.top_x_um, "bottom_x_um": self.bottom_x_um}
+        y = sum(w * np.asarray(raw[c], dtype=float) for c, w in self.combos[name].items())
+        KB = ASYNC_BAND
+        coefs, d2, nd, v = [], 0.0, 0, []
+        for r in reps:
+            m = rep == r
+            n_r = int(m.sum())
+            K = int(min(ASYNC_NOISE_ORDER, (n_r - 1) // 3))
+            if K < KB:
+                return {}
+            try:  # eq. 6 per revolution, order K
+                f = fit_fourier(th[m], y[m], K)
+            except ValueError:  # the revolution's angles do not determine the series: no estimate
+                return {}
+            d2 += float(np.sum(f.residual ** 2))
+            nd += f.dof
+            coefs.append(f.params[1:2 * KB + 1])
+            v.append(2.0 / n_r)   # a sine/cosine coefficient's variance per unit noise variance
+        n2 = d2 / max(nd, 1)
+        C = np.array(coefs)
+        dev = C - C.mean(axis=0)
+        s2 = float(np.sum(dev ** 2)) / 2.0 / (R - 1)        # band RMS² of a rep's deviation
+        noise_band = KB * n2 * float(np.mean(v))             # the noise's share of it
+        from scipy import stats
+
+        f_crit = float(stats.f.isf(p, 2 * KB * (R - 1), max(nd, 1)))
+        sig = s2 > f_crit * noise_band
+        return {"sigma_um": math.sqrt(max(s2 - noise_band, 0.0)) if sig else 0.0, "scatter_um": math.sqrt(s2),
+                "noise_in_band_um": math.sqrt(noise_band), "noise_um": math.sqrt(n2), "band_orders": KB,
+                "significant": bool(sig), "n_reps": int(R)}
+
+    def coef_u(self, name: str) -> dict[int, tuple[float, float]]:
+        """Type-A standard uncertainties of channel ``name``'s coefficients {k: (u(a_k), u(b_k))}."""
+        combo = self.combos[name]
+        return {k: (math.sqrt(sum((w * self._u[c][k][0]) ** 2 for c, w in combo.items())),
+                    math.sqrt(sum((w * self._u[c][k][1]) ** 2 for c, w in combo.items()))) for k in self.orders}
+
+    def significant_orders(self, name: str, z_min: float = 3.0) -> list[int]:
+        """Orders whose amplitude in channel ``name`` is ≥ z_min standard uncertainties (type A):
+        the motion the probes resolve, as opposed to their noise."""
+        c, u = self.coefs(name), self.coef_u(name)
+        out = []
+        for k in self.orders:
+            a, b = c[k]
+            amp = math.hypot(a, b)
+            ua = math.sqrt((a * u[k][0]) ** 2 + (b * u[k][1]) ** 2) / amp if amp > 0 else 0.0
+            if amp > 0 and (ua == 0 or amp / ua >= z_min):
+                out.append(k)
+        return out
+
+    @property
+    def has_x(self) -> bool:
+        return self.top_x_um is not None and self.bottom_x_um is not None
+
+    @property
+    def channels(self) -> list[str]:
+        return [c for c in self._coefs if c != "bottom_minus_top_um"]
+
+    def coefs(self, name: str) -> dict[int, tuple[float, float]]:
+        return self._coefs[name]
+
+    def at(self, theta_deg, name: str, orders=None) -> np.ndarray:
+        c = self._coefs[name]
+        return evaluate_harmonics(theta_deg, c if orders is None else {k: c[k] for k in orders if k in c})
+
+    def integral_at(self, theta_deg, name: str) -> np.ndarray:
+        return integrate_harmonics(theta_deg, self._coefs[name])
 
 
 def _check(name: str, a: np.ndarray | None, n: int) -> np.ndarray | None:

@@ -1,4 +1,4 @@
-"""Shared helpers for the effect modules (plain numpy; no dependency on the rest of the analysis).
+"""Shared helpers for the effect modules (numpy and the analysis's Fourier series, :mod:`benchtwin.analysis.fourier`).
 
 Every effect module in this package follows one protocol (see ``docs/effects.md``):
 
@@ -21,87 +21,21 @@ import ``tracing``.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 
 import numpy as np
 
+from benchtwin.analysis.fourier import evaluate_harmonics, fit_harmonics, integrate_harmonics
+from benchtwin.analysis.fourier import perturbation_columns as perturbation_columns  # re-exported
+from benchtwin.analysis.fourier import harmonic_columns as harmonic_columns  # re-exported to the effect modules
+from benchtwin.analysis.radial_motion import RADIAL_ORDERS as RADIAL_ORDERS  # re-exported (Jia eq. 7)
 from benchtwin.units import ARCSEC_PER_RAD as ARCSEC_PER_RAD  # re-exported to the effect modules
 
-#: Harmonic order set of the radial-motion series (Jia eq. 7: orders 2…10; 0 = probe position and
-#: 1 = sphere centring are removed).
-RADIAL_ORDERS = tuple(range(2, 11))
+# The series over a set of harmonics ({k: (a_k, b_k)}) are the analysis's one Fourier engine
+# (analysis/fourier.py, Jia eqs. 6-7); the effect modules know them by these names.
+fourier_fit = fit_harmonics
+fourier_eval = evaluate_harmonics
+fourier_integral = integrate_harmonics
 
-
-def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[int], prefix: str = "", unit: str = "arcsec"):
-    """Columns sin kθ, cos kθ for each k (θ in degrees) and their names ``a{k}_<unit>``/``b{k}_<unit>``."""
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
-    cols, names = [], []
-    for k in ks:
-        cols += [np.sin(k * th), np.cos(k * th)]
-        names += [f"{prefix}a{k}_{unit}", f"{prefix}b{k}_{unit}"]
-    X = np.column_stack(cols) if cols else np.zeros((th.size, 0))
-    return X, names
-
-
-def fourier_fit(theta_deg: np.ndarray, y: np.ndarray, ks: Iterable[int] = RADIAL_ORDERS,
-                with_mean: bool = True, nuisance_ks: Iterable[int] = (), return_u: bool = False):
-    """Least-squares coefficients {k: (a_k, b_k)} of Σ a_k sin kθ + b_k cos kθ (+ a free mean and
-    free harmonics ``nuisance_ks``, fitted but not returned — e.g. order 1 = sphere centring, eq. 7).
-    With ``return_u`` also {k: (u(a_k), u(b_k))} from the residual scatter (type A)."""
-    ks = list(ks)
-    nk = [k for k in nuisance_ks if k not in ks]
-    X, _ = harmonic_columns(theta_deg, ks + nk)
-    if with_mean:
-        X = np.column_stack([X, np.ones(X.shape[0])])
-    yy = np.asarray(y, dtype=float)
-    beta, *_ = np.linalg.lstsq(X, yy, rcond=None)
-    coefs = {k: (float(beta[2 * i]), float(beta[2 * i + 1])) for i, k in enumerate(ks)}
-    if not return_u:
-        return coefs
-    dof = max(yy.size - X.shape[1], 1)
-    s2 = float(np.sum((yy - X @ beta) ** 2)) / dof
-    cov = s2 * np.linalg.pinv(X.T @ X)
-    u = {k: (float(np.sqrt(cov[2 * i, 2 * i])), float(np.sqrt(cov[2 * i + 1, 2 * i + 1]))) for i, k in enumerate(ks)}
-    return coefs, u
-
-
-def fourier_eval(theta_deg: np.ndarray, coefs: dict[int, tuple[float, float]]) -> np.ndarray:
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
-    out = np.zeros_like(th)
-    for k, (a, b) in coefs.items():
-        out += a * np.sin(int(k) * th) + b * np.cos(int(k) * th)
-    return out
-
-
-def fourier_integral(theta_deg: np.ndarray, coefs: dict[int, tuple[float, float]]) -> np.ndarray:
-    """Antiderivative in θ (radians) of the series, without constant: ∫ a sin kθ + b cos kθ dθ =
-    (−a cos kθ + b sin kθ)/k. The constant of Jia eq. 5's ∫_0^θ is a per-run offset, which the
-    polygon closure removes anyway."""
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
-    out = np.zeros_like(th)
-    for k, (a, b) in coefs.items():
-        k = int(k)
-        out += (-a * np.cos(k * th) + b * np.sin(k * th)) / k
-    return out
-
-
-def perturbation_columns(theta_deg, u: dict[int, tuple[float, float]], weight: float = 1.0, kind: str = "value"):
-    """Columns: the change of a series (``kind`` = "value", "integral" or "quadrature") at θ for a
-    one-standard-uncertainty change of each of its coefficients (u from :func:`fourier_fit`)."""
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
-    cols = []
-    for k, (ua, ub) in u.items():
-        k = int(k)
-        s_, c_ = np.sin(k * th), np.cos(k * th)
-        if kind == "value":
-            cols += [ua * s_, ub * c_]
-        elif kind == "integral":
-            cols += [-ua * c_ / k, ub * s_ / k]
-        elif kind == "quadrature":
-            cols += [-ua * c_, ub * s_]
-        else:
-            raise ValueError(kind)
-    return weight * (np.column_stack(cols) if cols else np.zeros((th.size, 0)))
 
 
 def quadrature(coefs: dict[int, tuple[float, float]]) -> dict[int, tuple[float, float]]:

@@ -2,7 +2,7 @@
 
 α per polygon reading (Hsieh et al. 2022 eq. 3: ε_ij = α((i−1)·360/N + S) + Σβ + U_j, so α = ε − Σβ −
 U), its uncertainty, the Jia et al. 2019 model terms (eq. 5: e·sin(θ−θ0) and ∫δY dθ / r), the
-probes' radial motion (:class:`RadialMotion`, eq. 7), the multi-head self-calibration
+probes' radial motion (:class:`benchtwin.analysis.radial_motion.RadialMotion`, eq. 7), the multi-head self-calibration
 (:class:`SelfCal`, Hsieh eqs. 8–9) and the CCD's d_ref (:class:`CCDData`, Jia eqs. 10–12).
 :func:`evidence_from_polygon` builds it from polygon.csv's columns.
 """
@@ -10,158 +10,18 @@ probes' radial motion (:class:`RadialMotion`, eq. 7), the multi-head self-calibr
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
-from ..effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
-                             perturbation_columns)
-from .thresholds import ASYNC_BAND, ASYNC_NOISE_ORDER, ASYNC_P, SPHERE_FORM_UM, THETA_BIN_DEG
+from ..effects._base import ARCSEC_PER_RAD
+from ..radial_motion import RadialMotion
+from .thresholds import SPHERE_FORM_UM, THETA_BIN_DEG
 
 
 # ----------------------------------------------------------------------------------------------
 # evidence containers
 # ----------------------------------------------------------------------------------------------
-
-@dataclass
-class RadialMotion:
-    """Sphere probe readings on a θ grid (radial_motion.csv), µm, all reps pooled.
-
-    Each channel is reduced to its Fourier series of orders 2…10 (Jia eq. 7: orders 0 and 1 are
-    probe position and sphere centring); δY at the disk by eq. 9, δX likewise from the X probes.
-    Channels: ``top_um``, ``bottom_um``, ``dY_um`` and, with X probes, ``top_x_um``,
-    ``bottom_x_um``, ``dX_um``. ``at``/``integral_at`` evaluate a channel or its antiderivative in θ
-    (radians; µm·rad) anywhere.
-    """
-
-    theta_deg: np.ndarray
-    top_um: np.ndarray
-    bottom_um: np.ndarray
-    L1_mm: float
-    L2_mm: float
-    top_x_um: np.ndarray | None = None
-    bottom_x_um: np.ndarray | None = None
-    orders: tuple = RADIAL_ORDERS
-    rep: np.ndarray | None = None
-    _coefs: dict = field(default_factory=dict, init=False, repr=False)
-    _u: dict = field(default_factory=dict, init=False, repr=False)
-
-    def __post_init__(self):
-        th = np.asarray(self.theta_deg, dtype=float)
-        wt, wb = (self.L2_mm - self.L1_mm) / self.L2_mm, self.L1_mm / self.L2_mm
-        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um}
-        if self.has_x:
-            raw.update(top_x_um=self.top_x_um, bottom_x_um=self.bottom_x_um)
-        for name, y in raw.items():
-            # orders 0 and 1 fitted and dropped (eq. 7), orders 2…10 kept, with their type-A u
-            self._coefs[name], self._u[name] = fourier_fit(th, y, self.orders, nuisance_ks=(1,), return_u=True)
-        self.combos = {n: {n: 1.0} for n in raw}
-        self.combos["dY_um"] = {"top_um": wt, "bottom_um": wb}
-        if self.has_x:
-            self.combos["dX_um"] = {"top_x_um": wt, "bottom_x_um": wb}
-        self.combos["bottom_minus_top_um"] = {"bottom_um": 1.0, "top_um": -1.0}
-        for out, combo in self.combos.items():
-            if out not in self._coefs:
-                self._coefs[out] = {k: (sum(w * self._coefs[c][k][0] for c, w in combo.items()),
-                                        sum(w * self._coefs[c][k][1] for c, w in combo.items())) for k in self.orders}
-
-    def perturbations(self, theta_deg, name: str, kind: str = "value", orders=None) -> np.ndarray:
-        """(n × m) change of channel ``name`` (value, integral or quadrature) at θ for a 1-u change of
-        each raw Fourier coefficient it is made of (the probe data's own uncertainty); ``orders``:
-        only those harmonics."""
-        sel = (lambda u: u) if orders is None else (lambda u: {k: v for k, v in u.items() if k in orders})
-        return np.hstack([perturbation_columns(theta_deg, sel(self._u[c]), w, kind) for c, w in self.combos[name].items()])
-
-    def form_perturbations(self, theta_deg, name: str, u_um: float, kind: str = "integral", orders=None) -> np.ndarray:
-        """(n × m) change of channel ``name`` at θ for a change of u_um (µm) in each Fourier coefficient
-        (orders 2…10, or ``orders``) of the spheres' readings it is made of: the unmeasured sphere
-        form (type B)."""
-        if not u_um or u_um <= 0:
-            return np.zeros((np.size(theta_deg), 0))
-        u = {k: (float(u_um), float(u_um)) for k in (self.orders if orders is None else orders)}
-        return np.hstack([perturbation_columns(theta_deg, u, w, kind) for c, w in self.combos[name].items()])
-
-    def async_rms(self, name: str = "dY_um", p: float = ASYNC_P) -> dict:
-        """The non-repeating (asynchronous) motion of channel ``name`` (µm RMS over θ), in the band of
-        orders 1…``ASYNC_BAND`` (eq. 7's series and the order 1 that a sphere's centring hides only
-        when it repeats): the scatter of each rep's Fourier coefficients about their mean over the
-        reps (ISO 230-7's asynchronous error, band-limited), minus the probes' own noise in that band
-        (the noise from each rep's residual about a series of order ``ASYNC_NOISE_ORDER``: white
-        noise, smooth motion). ``sigma_um`` = 0 unless the scatter exceeds the noise at
-        significance ``p`` (F test). Needs ``rep`` with ≥ 3 reps; {} otherwise."""
-        if self.rep is None:
-            return {}
-        rep = np.asarray(self.rep).astype(int)
-        reps = np.unique(rep)
-        R = reps.size
-        if R < 3:
-            return {}
-        th = np.deg2rad(np.asarray(self.theta_deg, dtype=float))
-        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um, "top_x_um": self.top_x_um, "bottom_x_um": self.bottom_x_um}
-        y = sum(w * np.asarray(raw[c], dtype=float) for c, w in self.combos[name].items())
-        KB = ASYNC_BAND
-        coefs, d2, nd, v = [], 0.0, 0, []
-        for r in reps:
-            m = rep == r
-            n_r = int(m.sum())
-            K = int(min(ASYNC_NOISE_ORDER, (n_r - 1) // 3))
-            if K < KB:
-                return {}
-            X = np.column_stack([np.ones(n_r)] + [f(k * th[m]) for k in range(1, K + 1) for f in (np.sin, np.cos)])
-            beta, *_ = np.linalg.lstsq(X, y[m], rcond=None)
-            d2 += float(np.sum((y[m] - X @ beta) ** 2))
-            nd += n_r - X.shape[1]
-            coefs.append(beta[1:2 * KB + 1])
-            v.append(2.0 / n_r)   # a sine/cosine coefficient's variance per unit noise variance
-        n2 = d2 / max(nd, 1)
-        C = np.array(coefs)
-        dev = C - C.mean(axis=0)
-        s2 = float(np.sum(dev ** 2)) / 2.0 / (R - 1)        # band RMS² of a rep's deviation
-        noise_band = KB * n2 * float(np.mean(v))             # the noise's share of it
-        f_crit = float(stats.f.isf(p, 2 * KB * (R - 1), max(nd, 1)))
-        sig = s2 > f_crit * noise_band
-        return {"sigma_um": math.sqrt(max(s2 - noise_band, 0.0)) if sig else 0.0, "scatter_um": math.sqrt(s2),
-                "noise_in_band_um": math.sqrt(noise_band), "noise_um": math.sqrt(n2), "band_orders": KB,
-                "significant": bool(sig), "n_reps": int(R)}
-
-    def coef_u(self, name: str) -> dict[int, tuple[float, float]]:
-        """Type-A standard uncertainties of channel ``name``'s coefficients {k: (u(a_k), u(b_k))}."""
-        combo = self.combos[name]
-        return {k: (math.sqrt(sum((w * self._u[c][k][0]) ** 2 for c, w in combo.items())),
-                    math.sqrt(sum((w * self._u[c][k][1]) ** 2 for c, w in combo.items()))) for k in self.orders}
-
-    def significant_orders(self, name: str, z_min: float = 3.0) -> list[int]:
-        """Orders whose amplitude in channel ``name`` is ≥ z_min standard uncertainties (type A):
-        the motion the probes resolve, as opposed to their noise."""
-        c, u = self.coefs(name), self.coef_u(name)
-        out = []
-        for k in self.orders:
-            a, b = c[k]
-            amp = math.hypot(a, b)
-            ua = math.sqrt((a * u[k][0]) ** 2 + (b * u[k][1]) ** 2) / amp if amp > 0 else 0.0
-            if amp > 0 and (ua == 0 or amp / ua >= z_min):
-                out.append(k)
-        return out
-
-    @property
-    def has_x(self) -> bool:
-        return self.top_x_um is not None and self.bottom_x_um is not None
-
-    @property
-    def channels(self) -> list[str]:
-        return [c for c in self._coefs if c != "bottom_minus_top_um"]
-
-    def coefs(self, name: str) -> dict[int, tuple[float, float]]:
-        return self._coefs[name]
-
-    def at(self, theta_deg, name: str, orders=None) -> np.ndarray:
-        c = self._coefs[name]
-        return fourier_eval(theta_deg, c if orders is None else {k: c[k] for k in orders if k in c})
-
-    def integral_at(self, theta_deg, name: str) -> np.ndarray:
-        return fourier_integral(theta_deg, self._coefs[name])
-
 
 @dataclass
 class SelfCal:

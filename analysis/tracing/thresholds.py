@@ -6,6 +6,11 @@
 The bench constants (``SPHERE_FORM_UM``: Jia et al. 2019 sec. 4.1) say where their numbers come from.
 """
 
+# the async-motion estimator's constants (analysis/radial_motion.py), re-exported
+from ..radial_motion import ASYNC_BAND as ASYNC_BAND
+from ..radial_motion import ASYNC_NOISE_ORDER as ASYNC_NOISE_ORDER
+from ..radial_motion import ASYNC_P as ASYNC_P
+
 P_SIG = 1e-3        # χ² tests (residual before/after, nested signature tests)
 Z_GATE = 4.0        # a candidate's parameters must be ≥ 4 standard uncertainties from zero (jointly)
 DBIC_GATE = 10.0    # ... and lower the BIC by ≥ 10 ("very strong" on Kass & Raftery's scale)
@@ -28,13 +33,10 @@ SIZE_GATE = 0.5
 #: rectangular distribution within ±0.014 µm per Fourier coefficient (u = 0.014/√3 µm).
 SPHERE_FORM_UM = 0.014
 #: Non-repeating (asynchronous) motion of the axis: its part along X at the time of the polygon
-#: readings is unmeasured (the probes run in other revolutions) and reads −δX_async/r. Its size is
-#: known from the probes' rep-to-rep scatter (isotropic: the same along X as along Y); it enters the
-#: model's uncertainty as one random offset per stop position and polygon rep (nuisance columns),
-#: counted only if the scatter exceeds the probes' noise at p < ASYNC_P (F test).
-ASYNC_P = 0.01
-ASYNC_NOISE_ORDER = 40
-ASYNC_BAND = 10
+#: readings is unmeasured and enters the model's uncertainty as one random offset per stop position
+#: and polygon rep (nuisance columns), counted only if the probes' rep-to-rep scatter exceeds their
+#: noise at p < ASYNC_P (F test). The estimator and its constants are the radial motion's
+#: (analysis/radial_motion.py, RadialMotion.async_rms), imported above.
 #: Two effects fitted together whose contributions are nearly collinear (cos² > COLLINEAR), of
 #: opposite sign and each more than 1/DEGENERATE_RATIO times larger than their sum explain only a
 #: small difference with two large terms: a degenerate pair (e.g. +105 % on the eccentricity term and

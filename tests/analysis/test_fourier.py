@@ -139,3 +139,37 @@ def test_recovery_property(params, n):
     th = (np.arange(n) + 0.37) * 360.0 / n
     fit = fit_fourier(th, _series(th, p), order=5)
     np.testing.assert_allclose(fit.params, p, atol=1e-8 * (1 + np.abs(p).max()))
+
+
+def test_series_over_chosen_harmonics_is_the_same_least_squares():
+    """fit_harmonics (the tracing's and the effects' series over chosen orders) on orders 2…10 with a free
+    mean and a free order 1 is eq. 7's fit: the same coefficients and type-A u as fit_fourier of order 10;
+    evaluate_harmonics / integrate_harmonics are the series and its antiderivative."""
+    from benchtwin.analysis.fourier import evaluate_harmonics, fit_harmonics, integrate_harmonics
+
+    rng = np.random.default_rng(12)
+    th = np.sort(rng.uniform(0, 360, 150))
+    y = _series(th, rng.normal(0, 1, 21)) + rng.normal(0, 0.1, th.size)
+    full = fit_fourier(th, y, order=10)
+    coefs, u = fit_harmonics(th, y, range(2, 11), nuisance_ks=(1,), return_u=True)
+    for k in range(2, 11):
+        ia, ib = param_index(k)
+        assert coefs[k] == pytest.approx((full.params[ia], full.params[ib]), rel=1e-10, abs=1e-12)
+        assert u[k] == pytest.approx((math.sqrt(full.cov[ia, ia]), math.sqrt(full.cov[ib, ib])), rel=1e-8)
+    np.testing.assert_allclose(evaluate_harmonics(th, coefs), evaluate(full, th, range(2, 11)), atol=1e-10)
+    # d/dθ of the antiderivative is the series (θ in radians)
+    h = 1e-6
+    d = (integrate_harmonics(th + np.rad2deg(h), coefs) - integrate_harmonics(th - np.rad2deg(h), coefs)) / (2 * h)
+    np.testing.assert_allclose(d, evaluate_harmonics(th, coefs), atol=1e-6)
+
+
+def test_series_over_chosen_harmonics_is_minimum_norm_where_undetermined():
+    """Eight equally spaced angles cannot tell order 3 from order 5 (aliases): no error, the minimum-norm
+    split, which reproduces the data."""
+    from benchtwin.analysis.fourier import evaluate_harmonics, fit_harmonics
+
+    th = np.arange(8) * 45.0
+    y = np.sin(np.deg2rad(3 * th))
+    coefs = fit_harmonics(th, y, [3, 5], with_mean=False)
+    np.testing.assert_allclose(evaluate_harmonics(th, coefs), y, atol=1e-12)
+    assert all(np.isfinite(v).all() for v in map(np.asarray, coefs.values()))
