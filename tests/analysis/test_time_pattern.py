@@ -1,4 +1,4 @@
-"""The stationarity test of the close-the-loop signature (analysis/tracing.py, ``_time_pattern``)
+"""The stationarity test of the close-the-loop signature (analysis/tracing/signature.py, ``_time_pattern``)
 against the asynchronous motion of a ball-bearing shaft.
 
 The cage of a preloaded ball bearing creeps: its slip accumulates over the moves between polygon
