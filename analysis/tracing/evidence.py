@@ -1,0 +1,401 @@
+"""What the tracing knows about a dataset, per polygon reading: :class:`Evidence`.
+
+α per polygon reading (Hsieh et al. 2022 eq. 3: ε_ij = α((i−1)·360/N + S) + Σβ + U_j, so α = ε − Σβ −
+U), its uncertainty, the Jia et al. 2019 model terms (eq. 5: e·sin(θ−θ0) and ∫δY dθ / r), the
+probes' radial motion (:class:`RadialMotion`, eq. 7), the multi-head self-calibration
+(:class:`SelfCal`, Hsieh eqs. 8–9) and the CCD's d_ref (:class:`CCDData`, Jia eqs. 10–12).
+:func:`evidence_from_polygon` builds it from polygon.csv's columns.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ..effects._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, fourier_eval, fourier_fit, fourier_integral,
+                             perturbation_columns)
+from .thresholds import ASYNC_BAND, ASYNC_NOISE_ORDER, ASYNC_P, SPHERE_FORM_UM, THETA_BIN_DEG
+
+
+# ----------------------------------------------------------------------------------------------
+# evidence containers
+# ----------------------------------------------------------------------------------------------
+
+@dataclass
+class RadialMotion:
+    """Sphere probe readings on a θ grid (radial_motion.csv), µm, all reps pooled.
+
+    Each channel is reduced to its Fourier series of orders 2…10 (Jia eq. 7: orders 0 and 1 are
+    probe position and sphere centring); δY at the disk by eq. 9, δX likewise from the X probes.
+    Channels: ``top_um``, ``bottom_um``, ``dY_um`` and, with X probes, ``top_x_um``,
+    ``bottom_x_um``, ``dX_um``. ``at``/``integral_at`` evaluate a channel or its antiderivative in θ
+    (radians; µm·rad) anywhere.
+    """
+
+    theta_deg: np.ndarray
+    top_um: np.ndarray
+    bottom_um: np.ndarray
+    L1_mm: float
+    L2_mm: float
+    top_x_um: np.ndarray | None = None
+    bottom_x_um: np.ndarray | None = None
+    orders: tuple = RADIAL_ORDERS
+    rep: np.ndarray | None = None
+    _coefs: dict = field(default_factory=dict, init=False, repr=False)
+    _u: dict = field(default_factory=dict, init=False, repr=False)
+
+    def __post_init__(self):
+        th = np.asarray(self.theta_deg, dtype=float)
+        wt, wb = (self.L2_mm - self.L1_mm) / self.L2_mm, self.L1_mm / self.L2_mm
+        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um}
+        if self.has_x:
+            raw.update(top_x_um=self.top_x_um, bottom_x_um=self.bottom_x_um)
+        for name, y in raw.items():
+            # orders 0 and 1 fitted and dropped (eq. 7), orders 2…10 kept, with their type-A u
+            self._coefs[name], self._u[name] = fourier_fit(th, y, self.orders, nuisance_ks=(1,), return_u=True)
+        self.combos = {n: {n: 1.0} for n in raw}
+        self.combos["dY_um"] = {"top_um": wt, "bottom_um": wb}
+        if self.has_x:
+            self.combos["dX_um"] = {"top_x_um": wt, "bottom_x_um": wb}
+        self.combos["bottom_minus_top_um"] = {"bottom_um": 1.0, "top_um": -1.0}
+        for out, combo in self.combos.items():
+            if out not in self._coefs:
+                self._coefs[out] = {k: (sum(w * self._coefs[c][k][0] for c, w in combo.items()),
+                                        sum(w * self._coefs[c][k][1] for c, w in combo.items())) for k in self.orders}
+
+    def perturbations(self, theta_deg, name: str, kind: str = "value", orders=None) -> np.ndarray:
+        """(n × m) change of channel ``name`` (value, integral or quadrature) at θ for a 1-u change of
+        each raw Fourier coefficient it is made of (the probe data's own uncertainty); ``orders``:
+        only those harmonics."""
+        sel = (lambda u: u) if orders is None else (lambda u: {k: v for k, v in u.items() if k in orders})
+        return np.hstack([perturbation_columns(theta_deg, sel(self._u[c]), w, kind) for c, w in self.combos[name].items()])
+
+    def form_perturbations(self, theta_deg, name: str, u_um: float, kind: str = "integral", orders=None) -> np.ndarray:
+        """(n × m) change of channel ``name`` at θ for a change of u_um (µm) in each Fourier coefficient
+        (orders 2…10, or ``orders``) of the spheres' readings it is made of: the unmeasured sphere
+        form (type B)."""
+        if not u_um or u_um <= 0:
+            return np.zeros((np.size(theta_deg), 0))
+        u = {k: (float(u_um), float(u_um)) for k in (self.orders if orders is None else orders)}
+        return np.hstack([perturbation_columns(theta_deg, u, w, kind) for c, w in self.combos[name].items()])
+
+    def async_rms(self, name: str = "dY_um", p: float = ASYNC_P) -> dict:
+        """The non-repeating (asynchronous) motion of channel ``name`` (µm RMS over θ), in the band of
+        orders 1…``ASYNC_BAND`` (eq. 7's series and the order 1 that a sphere's centring hides only
+        when it repeats): the scatter of each rep's Fourier coefficients about their mean over the
+        reps (ISO 230-7's asynchronous error, band-limited), minus the probes' own noise in that band
+        (the noise from each rep's residual about a series of order ``ASYNC_NOISE_ORDER``: white
+        noise, smooth motion). ``sigma_um`` = 0 unless the scatter exceeds the noise at
+        significance ``p`` (F test). Needs ``rep`` with ≥ 3 reps; {} otherwise."""
+        if self.rep is None:
+            return {}
+        rep = np.asarray(self.rep).astype(int)
+        reps = np.unique(rep)
+        R = reps.size
+        if R < 3:
+            return {}
+        th = np.deg2rad(np.asarray(self.theta_deg, dtype=float))
+        raw = {"top_um": self.top_um, "bottom_um": self.bottom_um, "top_x_um": self.top_x_um, "bottom_x_um": self.bottom_x_um}
+        y = sum(w * np.asarray(raw[c], dtype=float) for c, w in self.combos[name].items())
+        KB = ASYNC_BAND
+        coefs, d2, nd, v = [], 0.0, 0, []
+        for r in reps:
+            m = rep == r
+            n_r = int(m.sum())
+            K = int(min(ASYNC_NOISE_ORDER, (n_r - 1) // 3))
+            if K < KB:
+                return {}
+            X = np.column_stack([np.ones(n_r)] + [f(k * th[m]) for k in range(1, K + 1) for f in (np.sin, np.cos)])
+            beta, *_ = np.linalg.lstsq(X, y[m], rcond=None)
+            d2 += float(np.sum((y[m] - X @ beta) ** 2))
+            nd += n_r - X.shape[1]
+            coefs.append(beta[1:2 * KB + 1])
+            v.append(2.0 / n_r)   # a sine/cosine coefficient's variance per unit noise variance
+        n2 = d2 / max(nd, 1)
+        C = np.array(coefs)
+        dev = C - C.mean(axis=0)
+        s2 = float(np.sum(dev ** 2)) / 2.0 / (R - 1)        # band RMS² of a rep's deviation
+        noise_band = KB * n2 * float(np.mean(v))             # the noise's share of it
+        f_crit = float(stats.f.isf(p, 2 * KB * (R - 1), max(nd, 1)))
+        sig = s2 > f_crit * noise_band
+        return {"sigma_um": math.sqrt(max(s2 - noise_band, 0.0)) if sig else 0.0, "scatter_um": math.sqrt(s2),
+                "noise_in_band_um": math.sqrt(noise_band), "noise_um": math.sqrt(n2), "band_orders": KB,
+                "significant": bool(sig), "n_reps": int(R)}
+
+    def coef_u(self, name: str) -> dict[int, tuple[float, float]]:
+        """Type-A standard uncertainties of channel ``name``'s coefficients {k: (u(a_k), u(b_k))}."""
+        combo = self.combos[name]
+        return {k: (math.sqrt(sum((w * self._u[c][k][0]) ** 2 for c, w in combo.items())),
+                    math.sqrt(sum((w * self._u[c][k][1]) ** 2 for c, w in combo.items()))) for k in self.orders}
+
+    def significant_orders(self, name: str, z_min: float = 3.0) -> list[int]:
+        """Orders whose amplitude in channel ``name`` is ≥ z_min standard uncertainties (type A):
+        the motion the probes resolve, as opposed to their noise."""
+        c, u = self.coefs(name), self.coef_u(name)
+        out = []
+        for k in self.orders:
+            a, b = c[k]
+            amp = math.hypot(a, b)
+            ua = math.sqrt((a * u[k][0]) ** 2 + (b * u[k][1]) ** 2) / amp if amp > 0 else 0.0
+            if amp > 0 and (ua == 0 or amp / ua >= z_min):
+                out.append(k)
+        return out
+
+    @property
+    def has_x(self) -> bool:
+        return self.top_x_um is not None and self.bottom_x_um is not None
+
+    @property
+    def channels(self) -> list[str]:
+        return [c for c in self._coefs if c != "bottom_minus_top_um"]
+
+    def coefs(self, name: str) -> dict[int, tuple[float, float]]:
+        return self._coefs[name]
+
+    def at(self, theta_deg, name: str, orders=None) -> np.ndarray:
+        c = self._coefs[name]
+        return fourier_eval(theta_deg, c if orders is None else {k: c[k] for k in orders if k in c})
+
+    def integral_at(self, theta_deg, name: str) -> np.ndarray:
+        return fourier_integral(theta_deg, self._coefs[name])
+
+
+@dataclass
+class SelfCal:
+    """Multi-head self-calibration curve μ(θ) of head 1 (Hsieh eq. 9), arcsec, on its own θ grid.
+
+    Harmonics that are multiples of ``n_heads`` are blind (eq. 9 removes them); ``model_terms``
+    (and ``model_sensitivity`` if the evidence has one) are the model's terms at ``theta_deg``.
+    """
+
+    theta_deg: np.ndarray
+    value_arcsec: np.ndarray
+    u_arcsec: np.ndarray | float
+    n_heads: int
+    model_terms: dict[str, np.ndarray]
+    model_sensitivity: dict[str, np.ndarray] | None = None
+
+
+@dataclass
+class CCDData:
+    """CCD d_ref(θ) (Jia eqs. 10–13), µm."""
+
+    theta_deg: np.ndarray
+    d_ref_um: np.ndarray
+    u_um: np.ndarray | float | None = None
+
+
+@dataclass
+class Evidence:
+    """Everything the analysis has about one dataset, per polygon reading.
+
+    Per reading (arrays of length n):
+
+    - ``theta_deg``: encoder reading at the stop (Hsieh eq. 3's (i−1)·360/N + S, as read).
+    - ``alpha_arcsec``: the measured α contribution: ε − Σβ − U (the polygon's pitch sums and the
+      setup error removed), i.e. the measured encoder error at θ (conventions: reading − true).
+    - ``u_arcsec``: standard uncertainty of ``alpha_arcsec`` (scalar or per reading).
+    - ``model_terms``: the model's own named terms at θ, arcsec (e.g. ``"eccentricity"``,
+      ``"radial_motion_integral"``; the residual is alpha − Σ terms).
+    - ``t_s`` (time of the reading), ``rep`` (int), ``direction`` (+1 forward / −1 backward),
+      ``start_face`` (1…N), ``shift_deg`` (S), ``step`` (position index i, 1…N; derived from θ and
+      S if omitted), ``face`` (face under the autocollimator, derived as (j + i − 2) mod N + 1).
+    - ``ac_arcsec``: raw autocollimator reading ε (optional; used by ``ac_scale``).
+    - ``closure_group``: readings sharing one setup error U (default: one per (shift, start face,
+      repetition): each repetition a new mounting, both directions of a repetition in one).
+    - ``model_sensitivity``: optional dict name → per-reading change of the model (arcsec) for a
+      one-standard-uncertainty change of one model parameter (e.g. u(e), u(θ0), u(δY) per
+      harmonic) — the model's uncertainty, entered as nuisance columns with a unit prior.
+
+    Bench: ``n_faces``, ``optical_radius_mm``, ``L1_mm``, ``L2_mm``, ``grating_period_um``,
+    ``encoder_lines``; ``radial``: :class:`RadialMotion` (the measured radial motion; evaluated at
+    θ as ``radial_at``), ``selfcal``: :class:`SelfCal`, ``ccd``: :class:`CCDData`.
+
+    ``radial_term``: name of the model term computed from ``radial`` (∫δY/r, eq. 5); when set and
+    present, the probe data's own uncertainty (type A, per Fourier coefficient) is added to the
+    model's uncertainty as nuisance columns. ``None`` if the term comes from elsewhere.
+    ``sphere_form_um``: bound of the test spheres' unmeasured form (µm, default Jia's 0.014 µm); it
+    enters the ∫δY term's uncertainty as type B (``SPHERE_FORM_UM``); ``None`` or 0: not included.
+    ``u_floor_arcsec``: the combined standard uncertainty of one α (GUM, type A and B, e.g. Hsieh's
+    budget u_c): the noise floor of the practical-significance gate (``SIZE_GATE``); default: the
+    RMS of ``u_arcsec``.
+    """
+
+    theta_deg: np.ndarray
+    alpha_arcsec: np.ndarray
+    u_arcsec: np.ndarray | float
+    model_terms: dict[str, np.ndarray]
+    t_s: np.ndarray | None = None
+    rep: np.ndarray | None = None
+    direction: np.ndarray | None = None
+    start_face: np.ndarray | None = None
+    shift_deg: np.ndarray | None = None
+    step: np.ndarray | None = None
+    face: np.ndarray | None = None
+    n_faces: int = 23
+    optical_radius_mm: float = 22.0
+    L1_mm: float = 6.81
+    L2_mm: float = 122.96
+    grating_period_um: float | None = 20.0
+    encoder_lines: int | None = None
+    radial: RadialMotion | None = None
+    ac_arcsec: np.ndarray | None = None
+    selfcal: SelfCal | None = None
+    ccd: CCDData | None = None
+    model_sensitivity: dict[str, np.ndarray] | None = None
+    closure_group: np.ndarray | None = None
+    eccentricity_term: str = "eccentricity"
+    radial_term: str | None = "radial_motion_integral"
+    sphere_form_um: float | None = SPHERE_FORM_UM
+    u_floor_arcsec: float | None = None
+    #: per reading: the α that ε² added to every autocollimator reading produces after the
+    #: shift-angle analysis (the closure puts its face-fixed part into β, its per-run mean into U);
+    #: the exact column of a quadratic autocollimator non-linearity (ac_scale). None: ε² itself
+    ac_quadratic_response: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.theta_deg = np.asarray(self.theta_deg, dtype=float).ravel()
+        n = self.theta_deg.size
+        self.alpha_arcsec = np.asarray(self.alpha_arcsec, dtype=float).ravel()
+        if self.alpha_arcsec.size != n:
+            raise ValueError("alpha_arcsec and theta_deg differ in length")
+        self.u_arcsec = np.broadcast_to(np.asarray(self.u_arcsec, dtype=float), (n,)).copy()
+        if np.any(~np.isfinite(self.u_arcsec)) or np.any(self.u_arcsec <= 0):
+            raise ValueError("u_arcsec must be finite and > 0")
+        self.model_terms = {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy() for k, v in self.model_terms.items()}
+        self.t_s = np.arange(n, dtype=float) if self.t_s is None else np.asarray(self.t_s, dtype=float)
+        self.rep = np.zeros(n, int) if self.rep is None else np.asarray(self.rep).astype(int)
+        self.direction = np.ones(n, int) if self.direction is None else np.sign(np.asarray(self.direction, dtype=float)).astype(int)
+        self.start_face = np.ones(n, int) if self.start_face is None else np.asarray(self.start_face).astype(int)
+        self.shift_deg = np.zeros(n) if self.shift_deg is None else np.broadcast_to(np.asarray(self.shift_deg, dtype=float), (n,)).copy()
+        N = int(self.n_faces)
+        if self.step is None:
+            self.step = (np.round((self.theta_deg - self.shift_deg) / (360.0 / N)).astype(int) % N) + 1
+        self.step = np.asarray(self.step).astype(int)
+        if self.face is None:
+            self.face = (self.start_face + self.step - 2) % N + 1
+        self.face = np.asarray(self.face).astype(int)
+        if self.ac_arcsec is not None:
+            self.ac_arcsec = np.asarray(self.ac_arcsec, dtype=float)
+        if self.closure_group is None:
+            # one mounting per (shift, start face, repetition): a repetition is a new run of the
+            # closure (Hsieh eq. 2 holds per run, sec. 3.3 (1): "the average of six measurement
+            # results", each one mounted anew); its two directions are swept in one mounting
+            keys = np.column_stack([np.round(self.shift_deg, 6), self.start_face, self.rep])
+            self.closure_group = np.unique(keys, axis=0, return_inverse=True)[1].ravel()
+        else:
+            self.closure_group = np.unique(np.asarray(self.closure_group), return_inverse=True)[1].ravel()
+        if self.model_sensitivity:
+            self.model_sensitivity = {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()
+                                      for k, v in self.model_sensitivity.items()}
+        # stop positions to THETA_BIN_DEG (stop jitter of a few arcsec is not a new position)
+        self.theta_bin = np.round((self.theta_deg % 360.0) / THETA_BIN_DEG).astype(int) % int(round(360 / THETA_BIN_DEG))
+        n_theta = np.unique(self.theta_bin).size
+        self.kmax = int(min(20, max(1, (n_theta - 1) // 2)))
+
+    @property
+    def n(self) -> int:
+        return self.theta_deg.size
+
+    @property
+    def model_arcsec(self) -> np.ndarray:
+        return sum(self.model_terms.values()) + np.zeros(self.n) if self.model_terms else np.zeros(self.n)
+
+    @property
+    def residual_arcsec(self) -> np.ndarray:
+        return self.alpha_arcsec - self.model_arcsec
+
+    @property
+    def radial_at(self) -> dict[str, np.ndarray]:
+        """The measured radial motion channels (µm) at the readings' θ."""
+        if self.radial is None:
+            return {}
+        return {c: self.radial.at(self.theta_deg, c) for c in self.radial.channels}
+
+    def add_eccentricity_uncertainty(self, e_um: float, theta0_deg: float, u_e_um: float, u_theta0_deg: float) -> None:
+        """Add u(e) and u(θ0) of the CCD eccentricity (Jia sec. 5: 0.24 µm, 1.13°) to the model's
+        uncertainty: the sensitivities of e/r·sin(θ−θ0) (eq. 3) times u, at the readings and on the
+        self-calibration grid."""
+        def sens(th_deg):
+            t = np.deg2rad(np.asarray(th_deg, dtype=float) - theta0_deg)
+            k = ARCSEC_PER_RAD / (self.optical_radius_mm * 1000.0)
+            return {"u_e": k * u_e_um * np.sin(t), "u_theta0": -k * e_um * np.cos(t) * math.radians(u_theta0_deg)}
+        self.model_sensitivity = {**(self.model_sensitivity or {}), **sens(self.theta_deg)}
+        if self.selfcal is not None:
+            self.selfcal.model_sensitivity = {**(self.selfcal.model_sensitivity or {}), **sens(self.selfcal.theta_deg)}
+
+    def selfcal_view(self) -> "_View | None":
+        if self.selfcal is None:
+            return None
+        sc = self.selfcal
+        return _View(theta_deg=np.asarray(sc.theta_deg, dtype=float), alpha_arcsec=np.asarray(sc.value_arcsec, dtype=float),
+                     model_terms={k: np.asarray(v, dtype=float) for k, v in sc.model_terms.items()}, parent=self)
+
+
+@dataclass
+class _View:
+    """The self-calibration grid seen as evidence (θ-related attributes only)."""
+
+    theta_deg: np.ndarray
+    alpha_arcsec: np.ndarray
+    model_terms: dict
+    parent: Evidence
+
+    def __getattr__(self, name):
+        if name in ("optical_radius_mm", "L1_mm", "L2_mm", "grating_period_um", "encoder_lines", "radial", "n_faces",
+                    "eccentricity_term", "kmax", "sphere_form_um"):
+            return getattr(self.parent, name)
+        if name == "ac_arcsec":
+            return None
+        raise AttributeError(name)
+
+
+def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model, *, n_faces: int,
+                          u_arcsec=0.07, radial: RadialMotion | None = None, selfcal_theta_deg=None,
+                          selfcal_value_arcsec=None, selfcal_u_arcsec=None, n_heads: int | None = None,
+                          **bench) -> Evidence:
+    """Evidence from the polygon table (dataset ``polygon.csv`` columns) and the shift-angle results.
+
+    ``columns``: ``shift_deg``, ``start_face``, ``step``, ``theta_deg``, ``ac_arcsec``, ``t_s`` and
+    optionally ``rep``, ``direction`` (+1/−1 or "forward"/"backward"). ``beta_arcsec``: the N pitch
+    deviations used; ``setup_error_arcsec``: {(shift_deg, start_face): U} (Hsieh eq. 7) or a callable
+    (shift, face) → U. α per reading = ε − Σ_{k=j}^{j+i−1} β_k − U_j (eq. 3). ``model``: anything with
+    ``predict_terms(theta_deg) -> {name: arcsec}`` (the project's ErrorModel) or a callable doing the
+    same. ``bench``: further Evidence keywords (optical_radius_mm, L1_mm, L2_mm, encoder_lines, ...).
+    """
+    N = int(n_faces)
+    c = {k: np.asarray(v) for k, v in columns.items()}
+    S = c["shift_deg"].astype(float)
+    j = c["start_face"].astype(int)
+    i = c["step"].astype(int)
+    th = c["theta_deg"].astype(float)
+    beta = np.asarray(beta_arcsec, dtype=float)
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
+    sumbeta = cum[j - 1 + i] - cum[j - 1]  # Σ_{k=j}^{j+i−1} β_k, indices mod N via the doubled sum
+    U_of = setup_error_arcsec if callable(setup_error_arcsec) else (
+        lambda s, f: setup_error_arcsec[(float(s), int(f))])
+    U = np.array([U_of(float(s), int(f)) for s, f in zip(S, j)], dtype=float)
+    alpha = c["ac_arcsec"].astype(float) - sumbeta - U
+    terms_fn = model.predict_terms if hasattr(model, "predict_terms") else model
+    direction = None
+    if "direction" in c:
+        d = c["direction"]
+        direction = np.where(np.char.startswith(d.astype(str), "b"), -1, 1) if d.dtype.kind in "US" else d.astype(float)
+    sc = None
+    if selfcal_theta_deg is not None:
+        tsc = np.asarray(selfcal_theta_deg, dtype=float)
+        sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float),
+                     0.01 if selfcal_u_arcsec is None else selfcal_u_arcsec, int(n_heads or 1), dict(terms_fn(tsc)))
+    return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=u_arcsec, model_terms=dict(terms_fn(th)),
+                    t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, start_face=j, shift_deg=S, step=i,
+                    n_faces=N, radial=radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc, **bench)
+
+
+def _replace_alpha(ev: Evidence, alpha: np.ndarray) -> Evidence:
+    import copy
+    e2 = copy.copy(ev)
+    e2.alpha_arcsec = np.asarray(alpha, dtype=float)
+    return e2

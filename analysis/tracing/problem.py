@@ -1,0 +1,268 @@
+"""The weighted least-squares problem every test and fit of the tracing solves.
+
+Closure groups (Hsieh et al. 2022 eq. 2: Σα = 0 per run leaves α known up to one constant per
+mounting): the weighted mean per group is removed from the residual and from every column; the
+self-calibration rows (Hsieh eqs. 8–9) join the polygon's; the model's parameter uncertainties
+(Jia et al. 2019 eq. 5: e, θ0, the probes' Fourier coefficients) enter as nuisance columns with a
+unit Gaussian prior (covariance diag(u²) + S·Sᵀ); leave-one-group-out cross-validation folds; BIC
+(Schwarz 1978) and AICc (Hurvich & Tsai 1989).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from ..effects._base import ARCSEC_PER_RAD
+from .evidence import Evidence
+from .thresholds import MAX_CV_FOLDS
+
+
+# ----------------------------------------------------------------------------------------------
+# the weighted least-squares problem (closure groups, self-calibration rows, model nuisance)
+# ----------------------------------------------------------------------------------------------
+
+def _z_from_chi2(d: float, k: int) -> float:
+    """Two-sided normal z equivalent of a χ²_k statistic d (Δχ² of k parameters)."""
+    d = max(float(d), 0.0)
+    k = max(int(k), 1)
+    if k == 1:
+        return math.sqrt(d)
+    lp = float(stats.chi2.logsf(d, k))
+    if lp > -700:
+        return float(stats.norm.isf(math.exp(lp) / 2.0))
+    return math.sqrt(-2.0 * lp)
+
+
+def _center(x: np.ndarray, groups: np.ndarray, w2: np.ndarray) -> np.ndarray:
+    """Remove the w²-weighted mean of each group from each column of x."""
+    x2 = x if x.ndim == 2 else x[:, None]
+    ng = int(groups.max()) + 1
+    sw = np.bincount(groups, weights=w2, minlength=ng)
+    out = np.empty_like(x2, dtype=float)
+    for c in range(x2.shape[1]):
+        m = np.bincount(groups, weights=w2 * x2[:, c], minlength=ng) / np.where(sw > 0, sw, 1.0)
+        out[:, c] = x2[:, c] - m[groups]
+    return out if x.ndim == 2 else out[:, 0]
+
+
+class _Problem:
+    """Rows: the polygon readings (closure-centred) and, optionally, the self-calibration curve
+    (centred, harmonics that are multiples of the head count projected out)."""
+
+    def __init__(self, ev: Evidence, use_selfcal: bool = True):
+        self.ev = ev
+        n = ev.n
+        self.view = ev.selfcal_view() if use_selfcal else None
+        w_a = 1.0 / ev.u_arcsec
+        self.n_alpha = n
+        y_a = _center(ev.residual_arcsec, ev.closure_group, w_a ** 2)
+        self.n_groups = int(ev.closure_group.max()) + 1
+        sens_keys = sorted(ev.model_sensitivity) if ev.model_sensitivity else []
+        S_a = (np.column_stack([ev.model_sensitivity[k] for k in sens_keys]) if sens_keys else np.zeros((n, 0)))
+        S_a = np.hstack([S_a, self._radial_nuisance(ev)])
+        S_a = _center(S_a, ev.closure_group, w_a ** 2) if S_a.shape[1] else S_a
+        if self.view is not None:
+            sc = ev.selfcal
+            m = self.view.theta_deg.size
+            w_s = np.broadcast_to(1.0 / np.asarray(sc.u_arcsec, dtype=float), (m,)).astype(float)
+            th = np.deg2rad(self.view.theta_deg)
+            blind = [np.ones(m)]
+            k = int(sc.n_heads)
+            while k > 0 and k <= (m - 1) // 2 and k <= 60:
+                blind += [np.sin(k * th), np.cos(k * th)]
+                k += int(sc.n_heads)
+            self._Q = np.linalg.qr(np.column_stack(blind))[0]
+            y_s = self._filt(self.view.alpha_arcsec - sum(self.view.model_terms.values()))
+            if sens_keys:
+                if not sc.model_sensitivity or set(sc.model_sensitivity) != set(sens_keys):
+                    raise ValueError("selfcal.model_sensitivity must have the same keys as evidence.model_sensitivity")
+                S_s = np.column_stack([sc.model_sensitivity[k] for k in sens_keys])
+            else:
+                S_s = np.zeros((m, 0))
+            S_s = self._filt(np.hstack([S_s, self._radial_nuisance(self.view)]))
+            self.y = np.concatenate([y_a, y_s])
+            self.w = np.concatenate([w_a, w_s])
+            self.S = np.vstack([S_a, S_s])
+            self.n_groups += 1
+        else:
+            self.y, self.w, self.S = y_a, w_a, S_a
+        self.n_rows = self.y.size
+        self.alpha_rows = np.zeros(self.n_rows, bool)
+        self.alpha_rows[:n] = True
+        self.folds = self._folds()
+        self.null = self.fit(np.zeros((self.n_rows, 0)))
+
+    def _radial_nuisance(self, e) -> np.ndarray:
+        ev = self.ev
+        if ev.radial is None or not ev.radial_term or ev.radial_term not in ev.model_terms:
+            return np.zeros((len(e.theta_deg), 0))
+        k = ARCSEC_PER_RAD / (ev.optical_radius_mm * 1000.0)
+        cols = [ev.radial.perturbations(e.theta_deg, "dY_um", "integral") * k]
+        if ev.sphere_form_um:
+            cols.append(ev.radial.form_perturbations(e.theta_deg, "dY_um", ev.sphere_form_um / math.sqrt(3.0)) * k)
+        if e is ev:
+            cols.append(self._async_nuisance(ev) * k)
+        else:
+            cols.append(np.zeros((len(e.theta_deg), self._async_nuisance(ev).shape[1])))
+        return np.hstack(cols)
+
+    def _async_nuisance(self, ev) -> np.ndarray:
+        """−δX_async/r at the polygon readings (before the factor ARC/r): the non-repeating motion
+        of the polygon's revolution is unmeasured along X; its size along Y (``RadialMotion.async_rms``,
+        isotropic) sets one random offset per stop position and polygon rep (the stops sample it
+        at their angles; its spectrum reaches far beyond the polygon's harmonics and aliases)."""
+        if getattr(self, "_async_cache", None) is not None:
+            return self._async_cache
+        a = ev.radial.async_rms("dY_um") if ev.radial is not None else {}
+        self.async_info = a
+        sg = float(a.get("sigma_um", 0.0)) if a else 0.0
+        cols = []
+        if sg > 0:
+            for r in np.unique(ev.rep):
+                m = ev.rep == r
+                for b in np.unique(ev.theta_bin[m]):
+                    cols.append(sg * (m & (ev.theta_bin == b)).astype(float))
+        self._async_cache = np.column_stack(cols) if cols else np.zeros((ev.n, 0))
+        return self._async_cache
+
+    def regressor_nuisance(self, modules, params_by_member, ctx) -> np.ndarray:
+        """Nuisance columns for the uncertainty of measured regressors (radial motion), scaled by the
+        fitted parameters: errors in variables, linearised."""
+        cols = []
+        for mod, P in zip(modules, params_by_member):
+            fn = getattr(mod, "regressor_perturbations", None)
+            if fn is None:
+                continue
+            R_a = np.asarray(fn(self.ev, P, ctx), dtype=float)
+            if R_a.shape[1] == 0:
+                continue
+            R_a = _center(R_a, self.ev.closure_group, self.w[: self.ev.n] ** 2)
+            if self.view is not None:
+                R_s = self._filt(np.asarray(fn(self.view, P, ctx), dtype=float)) if mod.SEEN_BY_SELFCAL else \
+                    np.zeros((self.n_rows - self.ev.n, R_a.shape[1]))
+                R_a = np.vstack([R_a, R_s])
+            cols.append(R_a)
+        return np.hstack(cols) if cols else np.zeros((self.n_rows, 0))
+
+    def _filt(self, x):
+        x2 = x if x.ndim == 2 else x[:, None]
+        out = x2 - self._Q @ (self._Q.T @ x2)
+        return out if x.ndim == 2 else out[:, 0]
+
+    def _folds(self):
+        """Cross-validation folds over the polygon rows (self-calibration rows always train).
+
+        Every training set must still identify what the candidates fit, whatever the design:
+        - leave-one-repetition-out when there are ≥ 3 repetitions: a repetition is the same design
+          again (all shifts, start faces and directions stay in every training set);
+        - else leave-one-start-face-out with ≥ 3 start faces (the other faces keep the face pattern
+          determined; a shift set with one face per shift loses one θ set per fold);
+        - else leave-one-shift-out with ≥ 3 shifts (shift sets: SelfA-like 0…14° in 1° steps);
+        - else interleaved stop positions: every MAX_CV_FOLDS-th position of θ held out (one rep,
+          one start face, one shift, one or both directions; or keys whose largest group holds more
+          than a third of the readings): the held-out stops are between trained ones, so the
+          harmonics a candidate fits are still determined.
+        Groups are merged cyclically into ≤ MAX_CV_FOLDS folds. None with fewer than 3 groups."""
+        ev = self.ev
+        f = np.full(self.n_rows, -1)
+        for key in (ev.rep, ev.start_face, ev.shift_deg):
+            u, inv = np.unique(np.round(np.asarray(key, dtype=float), 6), return_inverse=True)
+            # balanced only: no group may hold more than a third of the readings (all start faces
+            # at S = 0 but one face at the other shifts put every shifted reading into one fold)
+            if u.size >= 3 and np.bincount(inv).max() <= ev.n / 3.0 + 1e-9:
+                f[: ev.n] = inv % MAX_CV_FOLDS
+                return f
+        u, inv = np.unique(ev.theta_bin, return_inverse=True)
+        k = min(MAX_CV_FOLDS, u.size // 4)   # ≥ 4 positions per fold's complement share
+        if k >= 3:
+            f[: ev.n] = inv % k
+            return f
+        return None
+
+    # -- columns -----------------------------------------------------------------------------
+    def columns(self, module, ctx) -> tuple[np.ndarray, list[str]]:
+        ev = self.ev
+        X_a, names = module.design(ev, ctx)
+        X_a = np.asarray(X_a, dtype=float).reshape(ev.n, -1)
+        X_a = _center(X_a, ev.closure_group, self.w[: ev.n] ** 2) if X_a.shape[1] else X_a
+        if self.view is None:
+            return X_a, list(names)
+        m = self.view.theta_deg.size
+        if module.SEEN_BY_SELFCAL and X_a.shape[1]:
+            X_s, names_s = module.design(self.view, ctx)
+            X_s = np.asarray(X_s, dtype=float).reshape(m, -1)
+            if list(names_s) != list(names):
+                raise RuntimeError(f"{module.NAME}: self-calibration design has other parameters")
+            X_s = self._filt(X_s)
+        else:
+            X_s = np.zeros((m, X_a.shape[1]))
+        return np.vstack([X_a, X_s]), list(names)
+
+    # -- fits --------------------------------------------------------------------------------
+    def fit(self, X: np.ndarray, train: np.ndarray | None = None, extra: np.ndarray | None = None) -> dict:
+        w = self.w
+        rows = np.ones(self.n_rows, bool) if train is None else train
+        S = self.S if extra is None or extra.shape[1] == 0 else np.hstack([self.S, extra])
+        p, q = X.shape[1], S.shape[1]
+        A = np.hstack([X, S])[rows] * w[rows, None]
+        b = self.y[rows] * w[rows]
+        if q:
+            prior = np.hstack([np.zeros((q, p)), np.eye(q)])
+            A = np.vstack([A, prior])
+            b = np.concatenate([b, np.zeros(q)])
+        if A.shape[1]:
+            scale = np.linalg.norm(A, axis=0)
+            scale[scale == 0] = 1.0
+            As = A / scale
+            sol, _, rank, sv = np.linalg.lstsq(As, b, rcond=None)
+            beta_all = sol / scale
+            covs = np.linalg.pinv(As.T @ As, rcond=1e-10, hermitian=True)
+            cov_all = covs / np.outer(scale, scale)
+            rank_x = int(np.linalg.matrix_rank(X[rows] * w[rows, None] / np.where(scale[:p] > 0, scale[:p], 1), tol=1e-8)) if p else 0
+            chi2 = float(np.sum((b - A @ beta_all) ** 2))
+        else:
+            beta_all, cov_all, rank_x = np.zeros(0), np.zeros((0, 0)), 0
+            chi2 = float(np.sum(b ** 2))
+        n_fit = int(rows.sum())
+        dof = max(n_fit - self.n_groups - rank_x, 1)
+        return {"beta": beta_all[:p], "cov": cov_all[:p, :p], "nuis": beta_all[p:], "chi2": chi2, "dof": dof,
+                "k": rank_x, "n": n_fit, "S": S}
+
+    def predict_rows(self, X, fit, rows=None, nuisance=True):
+        rows = np.ones(self.n_rows, bool) if rows is None else rows
+        out = X[rows] @ fit["beta"] if X.shape[1] else np.zeros(int(rows.sum()))
+        if nuisance and fit["S"].shape[1]:
+            out = out + fit["S"][rows] @ fit["nuis"]
+        return out
+
+    def cv(self, X, extra=None) -> float | None:
+        """Held-out weighted χ² summed over leave-one-group-out folds (None without folds)."""
+        if self.folds is None:
+            return None
+        tot = 0.0
+        for f in np.unique(self.folds[self.folds >= 0]):
+            test = self.folds == f
+            fit = self.fit(X, train=~test, extra=extra)
+            r = (self.y[test] - self.predict_rows(X, fit, test)) * self.w[test]
+            tot += float(np.sum(r ** 2))
+        return tot
+
+    def ic(self, fit) -> tuple[float, float]:
+        n, k, chi2 = fit["n"], fit["k"], fit["chi2"]
+        bic = chi2 + k * math.log(n)
+        aicc = chi2 + 2 * k + (2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else math.inf)
+        return bic, aicc
+
+
+def noise_floor(ev: Evidence) -> float:
+    """The per-reading noise floor (arcsec): ``u_floor_arcsec`` if given (GUM u_c of one α, type A
+    and B), else the RMS of the readings' u."""
+    u = float(np.sqrt(np.mean(np.square(ev.u_arcsec))))
+    return max(u, float(ev.u_floor_arcsec)) if ev.u_floor_arcsec else u
+
+
+def _rms(x):
+    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0

@@ -1,0 +1,202 @@
+"""The residual's signature: harmonic spectrum, drift with time, repetition (synchronous or not),
+start face and shift (polygon-related or not: Hsieh et al. 2022 eq. 3), direction (hysteresis),
+the self-calibration (Hsieh eqs. 8–9: sees the encoder's own errors, not the reference chain's),
+correlation with the radial motion and with each of the Jia et al. 2019 model's own terms.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from ..effects._base import fourier_eval, fourier_fit
+from ._blas import _one_blas_thread
+from .evidence import Evidence
+from .problem import _Problem, _center, _rms, _z_from_chi2
+from .significance import _nested, _one_column, harmonic_test
+from .thresholds import DBIC_GATE, P_SIG, SIZE_GATE, Z_GATE
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. signature
+# ----------------------------------------------------------------------------------------------
+
+def _free_of_theta(pb: _Problem, col: np.ndarray) -> np.ndarray:
+    """The closure-centred column with every function of the stop position θ removed (weighted)."""
+    ev = pb.ev
+    w2 = pb.w[: ev.n] ** 2
+    x = _center(col, ev.closure_group, w2)
+    D = _center(_dummies(ev.theta_bin), ev.closure_group, w2)
+    sw = np.sqrt(w2)
+    beta, *_ = np.linalg.lstsq(D * sw[:, None], x * sw, rcond=None)
+    out = x - D @ beta
+    return np.where(np.abs(out) > 1e-9 * (np.max(np.abs(x)) + 1e-300), out, 0.0)
+
+
+def _dummies(keys: np.ndarray) -> np.ndarray:
+    inv = np.unique(keys, return_inverse=True)[1]
+    X = np.zeros((keys.size, inv.max() + 1))
+    X[np.arange(keys.size), inv] = 1.0
+    return X
+
+
+def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
+    """Is the θ pattern stationary? Harmonics ``ks`` of θ times (t − t̄)/T, nested over the same
+    harmonics: a significant change of amplitude or phase during the session (thermal growth,
+    wear) is not an effect fixed to the disk, the motion or the reference."""
+    ev = pb.ev
+    ks = [int(k) for k in ks if 1 <= int(k) <= ev.kmax]
+    if not ks:
+        return {"available": False, "reason": "no harmonic to follow in time"}
+    t = np.asarray(ev.t_s, dtype=float)
+    T = float(np.ptp(t))
+    if not np.all(np.isfinite(t)) or T <= 0:
+        return {"available": False, "reason": "no reading times"}
+    th = np.deg2rad(ev.theta_deg)
+    tt = (t - t.mean()) / T
+    H = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
+    X0 = _center(H, ev.closure_group, pb.w ** 2)
+    X1 = _center(H * tt[:, None], ev.closure_group, pb.w ** 2)
+    f0, f1 = pb.fit(X0), pb.fit(np.hstack([X0, X1]))
+    d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
+    if k <= 0:
+        return {"available": False, "reason": "the harmonics do not change inside the sampling"}
+    scale = max(1.0, f1["chi2"] / f1["dof"])
+    z = _z_from_chi2(d / scale, k)
+    beta = f1["beta"]
+    amp0 = [float(math.hypot(beta[2 * i], beta[2 * i + 1])) for i in range(len(ks))]
+    slope = [float(math.hypot(beta[2 * len(ks) + 2 * i], beta[2 * len(ks) + 2 * i + 1])) for i in range(len(ks))]
+    return {"available": True, "test": "harmonics × (t − t̄)/T, nested over the harmonics", "harmonics": ks,
+            "amplitude_arcsec": amp0, "change_over_session_arcsec": slope, "delta_chi2": float(d), "dof": int(k),
+            "z": z, "p_value": float(stats.chi2.sf(d / scale, k)), "significant": bool(z >= Z_GATE)}
+
+
+@_one_blas_thread
+def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[int] | None = None) -> dict:
+    """The residual's signature (JSON-ready): see the module docstring, step 2. ``time_ks``: the
+    harmonics whose stationarity is tested (default: this residual's significant harmonics)."""
+    pb = _Problem(ev, use_selfcal=False)
+    harmonics = harmonics if harmonics is not None else harmonic_test(ev, pb)
+    sig: dict[str, Any] = {"harmonics": harmonics,
+                           "significant_harmonics": [h["k"] for h in harmonics if h["significant"]]}
+    sig["time_pattern"] = _time_pattern(pb, sig["significant_harmonics"] if time_ks is None else time_ks)
+    # drift: only the part of the reading time that is not a function of θ can show it (a forward
+    # sweep's time is a θ sawtooth that any encoder error of that shape fits as well)
+    d = _one_column(pb, _free_of_theta(pb, np.asarray(ev.t_s, dtype=float)), "t_s (beyond any θ pattern)")
+    sig["drift"] = {"slope_arcsec_per_s": d.get("gain"), "u": d.get("u"), "z": d.get("z"),
+                    "significant": d.get("significant", False), "available": d["available"],
+                    "test": "reading time beyond any function of θ"}
+    if not d["available"]:
+        sig["drift"]["reason"] = "the reading order follows θ in every run: a drift cannot be told from a θ pattern"
+    # repetition: synchronous (same at the same θ in every rep) or not
+    if np.unique(ev.rep).size >= 2:
+        cell = ev.theta_bin * 10 + ev.direction
+        inv = np.unique(cell, return_inverse=True)[1]
+        w2 = pb.w ** 2
+        m = np.bincount(inv, weights=w2 * pb.y) / np.bincount(inv, weights=w2)
+        dev = pb.y - m[inv]
+        chi2 = float(np.sum(w2 * dev ** 2))
+        dof = max(ev.n - inv.max() - 1, 1)
+        p = float(stats.chi2.sf(chi2, dof))
+        sig["repetition"] = {"available": True, "n_reps": int(np.unique(ev.rep).size), "synchronous_rms_arcsec": _rms(m[inv]),
+                             "asynchronous_rms_arcsec": _rms(dev), "chi2_async": chi2, "dof": int(dof), "p_value": p,
+                             "synchronous": bool(p >= P_SIG)}
+    else:
+        sig["repetition"] = {"available": False, "reason": "one repetition"}
+    # polygon-related: a pattern fixed to the face (moves with the start face)?
+    base = _center(_dummies(ev.theta_bin * 10 + ev.direction), ev.closure_group, pb.w ** 2)
+    if np.unique(ev.start_face).size >= 2:
+        fx = _center(_dummies(ev.face), ev.closure_group, pb.w ** 2)
+        sig["start_face"] = {"test": "face pattern beyond the θ pattern", **_nested(pb, base, fx)}
+    else:
+        sig["start_face"] = {"available": False, "reason": "one start face: face ≡ θ"}
+    # shift: does the θ pattern depend on the shift angle (beyond a function of θ)?
+    shifts = np.unique(np.round(ev.shift_deg, 6))
+    if shifts.size >= 2:
+        kk = range(1, max(1, (int(ev.n_faces) - 1) // 2) + 1)
+        th = np.deg2rad(ev.theta_deg)
+        H = np.column_stack([f(k * th) for k in kk for f in (np.sin, np.cos)])
+        Hs = np.column_stack([H * (np.round(ev.shift_deg, 6) == s)[:, None] for s in shifts[1:]])
+        sig["shift"] = {"test": "harmonics 1…(N−1)/2 differing between shifts",
+                        **_nested(pb, _center(H, ev.closure_group, pb.w ** 2), _center(Hs, ev.closure_group, pb.w ** 2))}
+    else:
+        sig["shift"] = {"available": False, "reason": "one shift angle"}
+    # direction of rotation
+    dd = _one_column(pb, ev.direction.astype(float), "direction")
+    sig["direction"] = {"half_difference_arcsec": dd.get("gain"), "u": dd.get("u"), "z": dd.get("z"),
+                        "significant": dd.get("significant", False), "available": dd["available"]}
+    # self-calibration
+    sig["selfcal"] = _selfcal_signature(ev, pb)
+    # correlation with the radial motion and with the model's own terms
+    cor = {}
+    for name, v in ev.model_terms.items():
+        cor[f"term:{name}"] = _one_column(pb, v, name)
+    ecc = ev.model_terms.get(ev.eccentricity_term)
+    if ecc is not None and np.any(ecc != 0):
+        c1 = fourier_fit(ev.theta_deg, ecc, [1])
+        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, fourier_eval(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
+    if ev.radial is not None:
+        for c in ev.radial.channels:
+            cor[f"radial:{c}"] = _one_column(pb, ev.radial.at(ev.theta_deg, c), c)
+            cor[f"radial:integral_{c}"] = _one_column(pb, ev.radial.integral_at(ev.theta_deg, c), c)
+    sig["correlations"] = cor
+    if ev.ccd is not None:
+        cc = fourier_fit(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
+        c1, d1 = cc[1]
+        higher = fourier_eval(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
+        sig["ccd"] = {"e_um": math.hypot(c1, d1), "theta0_deg": math.degrees(math.atan2(c1, d1)) % 360,
+                      "rms_orders_2_10_um": _rms(higher)}
+    return sig
+
+
+def _selfcal_signature(ev: Evidence, pb: _Problem) -> dict:
+    if ev.selfcal is None:
+        return {"available": False, "reason": "no self-calibration curve"}
+    full = _Problem(ev, use_selfcal=True)
+    m = full.n_rows - ev.n
+    r_s = full.y[ev.n:]
+    th_s = np.asarray(ev.selfcal.theta_deg, dtype=float) % 360
+    o = np.argsort(th_s)
+    interp = np.interp(ev.theta_deg % 360, th_s[o], r_s[o], period=360.0)
+    one = _one_column(pb, interp, "selfcal")
+    return {"available": True, "rms_selfcal_residual_arcsec": _rms(r_s), "n_points": int(m),
+            "gain_polygon_on_selfcal": one.get("gain"), "u": one.get("u"),
+            "consistent": bool(one.get("available") and one["u"] > 0 and abs(one["gain"] - 1) < 3 * max(one["u"], 0.05)),
+            "note": "a residual absent from the self-calibration belongs to the reference chain (polygon, autocollimator, drive)"}
+
+
+def _significant_parts(sig: dict, n: int, u_rms: float = 0.0) -> list[str]:
+    """The parts of a signature that would pass as an effect themselves: a harmonic whose χ²₂ clears
+    both candidate gates (z ≥ Z_GATE and ΔBIC = χ² − 2 ln n ≥ DBIC_GATE), a drift or direction
+    offset with z ≥ Z_GATE, a significant face pattern. (The Bonferroni flags of the signature are
+    laxer: a harmonic can be flagged yet too small for any two-parameter effect to earn its BIC.)"""
+    out = []
+    hk = [h["k"] for h in sig["harmonics"]
+          if h["significant"] and h["z"] >= Z_GATE and h["chi2"] - 2 * math.log(n) >= DBIC_GATE
+          and h["amplitude_arcsec"] / math.sqrt(2.0) >= SIZE_GATE * u_rms]
+    if hk:
+        out.append(f"harmonics {hk}")
+    if sig["drift"].get("significant"):
+        out.append("drift with time")
+    if sig["direction"].get("significant"):
+        out.append("direction of rotation")
+    if sig["start_face"].get("significant"):
+        out.append("pattern fixed to the polygon face")
+    tp = sig.get("time_pattern") or {}
+    if tp.get("significant"):
+        out.append(f"the θ pattern changes with time (harmonics {tp['harmonics']}, z = {tp['z']:.1f}): not stationary")
+    return out
+
+
+def _short_signature(sig: dict) -> dict:
+    return {"significant_harmonics": sig["significant_harmonics"],
+            "top_harmonics": sorted(({"k": h["k"], "amplitude_arcsec": h["amplitude_arcsec"], "z": h["z"]} for h in sig["harmonics"]),
+                                    key=lambda h: -h["z"])[:5],
+            "drift": sig["drift"], "direction": sig["direction"],
+            "repetition_synchronous": sig["repetition"].get("synchronous"),
+            "face_pattern": sig["start_face"].get("significant"), "shift_dependent": sig["shift"].get("significant"),
+            "time_pattern": sig.get("time_pattern"),
+            "selfcal_consistent": sig["selfcal"].get("consistent")}

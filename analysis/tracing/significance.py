@@ -1,0 +1,84 @@
+"""Is there anything to explain? χ² of the residual (α − Jia et al. 2019 eq. 5 model) against the
+combined uncertainty of measurement and model, and a harmonic-by-harmonic test (Bonferroni-corrected
+at ``P_SIG``); the nested-model tests the signature uses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from ._blas import _one_blas_thread
+from .evidence import Evidence
+from .problem import _Problem, _center, _rms, _z_from_chi2
+from .thresholds import P_SIG, Z_GATE
+
+
+# ----------------------------------------------------------------------------------------------
+# 1. anything to explain?
+# ----------------------------------------------------------------------------------------------
+
+@_one_blas_thread
+def residual_test(ev: Evidence) -> dict:
+    """χ² of the (closure-centred) residual against the combined uncertainty, and its summary."""
+    pb = _Problem(ev, use_selfcal=False)
+    r = pb.y[: ev.n]
+    chi2, dof = pb.null["chi2"], pb.null["dof"]
+    return {"rms_arcsec": _rms(r), "pv_arcsec": float(np.ptp(r)) if r.size else 0.0,
+            "fraction_of_error": _rms(r) / max(_rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2)), 1e-300),
+            "chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof))}
+
+
+@_one_blas_thread
+def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
+    """Each harmonic 1…kmax of θ fitted jointly; amplitude, its u and a χ²_2 test (Bonferroni over
+    the harmonics tested; u scaled by √(χ²/dof) when that exceeds 1)."""
+    pb = pb or _Problem(ev, use_selfcal=False)
+    ks = list(range(1, ev.kmax + 1))
+    th = np.deg2rad(ev.theta_deg)
+    X = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
+    X = _center(X, ev.closure_group, pb.w ** 2)
+    fit = pb.fit(X)
+    scale = max(1.0, fit["chi2"] / fit["dof"])
+    out = []
+    for i, k in enumerate(ks):
+        a, b = fit["beta"][2 * i], fit["beta"][2 * i + 1]
+        C = fit["cov"][2 * i:2 * i + 2, 2 * i:2 * i + 2] * scale
+        amp = math.hypot(a, b)
+        try:
+            q = float(np.array([a, b]) @ np.linalg.solve(C, np.array([a, b])))
+        except np.linalg.LinAlgError:
+            q = 0.0
+        g = np.array([a, b]) / amp if amp > 0 else np.array([1.0, 0.0])
+        u_amp = float(math.sqrt(max(g @ C @ g, 0.0)))
+        p = float(stats.chi2.sf(q, 2))
+        out.append({"k": k, "amplitude_arcsec": amp, "u_arcsec": u_amp, "phase_deg": math.degrees(math.atan2(a, b)),
+                    "a_arcsec": float(a), "b_arcsec": float(b), "chi2": q, "z": _z_from_chi2(q, 2), "p_value": p,
+                    "significant": bool(p * len(ks) < P_SIG)})
+    return out
+
+
+def _one_column(pb: _Problem, col: np.ndarray, name: str) -> dict:
+    ev = pb.ev
+    X = _center(np.asarray(col, dtype=float)[:, None], ev.closure_group, pb.w ** 2)
+    if not np.any(np.abs(X) > 1e-12 * (np.max(np.abs(col)) + 1e-300)):
+        return {"available": False, "reason": f"{name}: no variation inside the closure groups"}
+    fit = pb.fit(X)
+    scale = max(1.0, fit["chi2"] / fit["dof"])
+    g = float(fit["beta"][0])
+    u = float(math.sqrt(fit["cov"][0, 0] * scale))
+    xw, yw = X[:, 0] * pb.w, pb.y * pb.w
+    corr = float(xw @ yw / math.sqrt((xw @ xw) * (yw @ yw))) if (xw @ xw) > 0 and (yw @ yw) > 0 else 0.0
+    return {"available": True, "gain": g, "u": u, "z": abs(g) / u if u > 0 else math.inf, "corr": corr,
+            "significant": bool(u > 0 and abs(g) / u > Z_GATE)}
+
+
+def _nested(pb: _Problem, X0: np.ndarray, X1: np.ndarray) -> dict:
+    f0, f1 = pb.fit(X0), pb.fit(np.hstack([X0, X1]))
+    d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
+    if k <= 0:
+        return {"available": False}
+    p = float(stats.chi2.sf(d, k))
+    return {"available": True, "delta_chi2": float(d), "dof": int(k), "p_value": p, "significant": bool(p < P_SIG)}
