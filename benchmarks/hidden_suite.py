@@ -136,6 +136,24 @@ not an effect: its X part at the polygon's stops (~0.5″ per stop) is in the mo
 sized from the probes' rep-to-rep scatter, and it is the floor this bench cannot go below with one
 polygon rep.
 
+**The encoder's display at the stop (issue 16).** The twin's servo holds the encoder count
+nearest to each commanded stop, so the display differs from the stop by up to half the 0.39″
+resolution; Hsieh eq. 3 takes it to be the nominal angle. Left in, that offset is a θ-fixed pattern
+of ≈ 0.11″ RMS (0.12″ at k = 9 on 23 stops, the same in every seed: `truth/polygon.csv`,
+`theta_deg − target_deg`), which on the richer benches (2 reps × 2 directions, 15 shifts) was read
+as a division error: `null_y_probes` named {graduation_error, tangential_motion} in 2 of 5 seeds,
+`ac_nonlinearity` paired ac_scale with a k = 9 "division error" (blind to 3 heads) in 2 of 5, and
+`selfa_graduation` ended "unexplained" (χ² after p = 1e-55, "the θ pattern changes with time":
+each shift has its own offsets) in 5 of 5. The analysis now adds the recorded display offset back
+(`pipeline.polygon_table`, docs/effects.md). The other 3 `null_y_probes` seeds were "unexplained"
+on a direction half-difference of 0.01″ and a drift of 0.01″ RMS, resolved at z ≈ 5 by 1058
+readings: the size gate of every candidate (½ u_c) now applies to them too.
+
+**The corrected curve.** Where an effect is identified, `encoder_error_corrected_arcsec` (the
+measured curve minus the identified reference-chain artefacts, with their u) is compared with the
+twin's true encoder error (truth/encoder_error.csv at the curve's angles, the one constant a
+polygon calibration cannot know removed): correct when ≥ 95 % of the angles lie within 2u.
+
 **Other expected outcomes.** `graduation_error` has X probes (they rule out a tangential motion);
 `tangential_motion_no_x` is the same hidden motion without them: the set {graduation_error,
 tangential_motion}. `sphere_form` has no X probes: a form and a motion without tangential component

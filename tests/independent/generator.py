@@ -148,6 +148,9 @@ class Design:
     radial_positions: int = 120
     selfcal_step_deg: float = 2.0       # head differences every this many degrees (≥ 3 heads)
     setup_error_arcsec: float = 3.0     # spread (1 σ) of the setup errors U_j
+    #: the encoder's display step: the servo holds the count nearest to each stop, the display
+    #: (polygon.csv ``theta_read_deg``) differs from the stop by up to half of it (0: exact display)
+    encoder_resolution_arcsec: float = 0.0
     polygon_pitch_rms_arcsec: float = 0.8
 
 
@@ -331,7 +334,11 @@ def generate(path: Path, phys: Physics, design: Design, seed: int, *, ccd: bool 
                 for d in design.directions:
                     steps = list(range(1, N + 1)) if d == "forward" else list(range(N, 0, -1))
                     thi = np.array([((i - 1) * 360.0 / N + S) % 360.0 for i in steps])
-                    alpha = encoder_error_arcsec(phys, thi)
+                    res = design.encoder_resolution_arcsec
+                    shown = np.round(thi * 3600.0 / res) * res / 3600.0 if res > 0 else thi
+                    # the polygon stands at the true angle of the displayed count, φ = θ_read − α(θ_read);
+                    # its face angle from the nominal stop θ_i is θ_i − φ = α + (θ_i − θ_read)
+                    alpha = encoder_error_arcsec(phys, shown) + (thi - shown) * 3600.0
                     for n, i in enumerate(steps):
                         bsum = sum(beta[(j - 1 + m) % N] for m in range(i))
                         x = alpha[n] + bsum + U
@@ -341,6 +348,8 @@ def generate(path: Path, phys: Physics, design: Design, seed: int, *, ccd: bool 
                                        ("theta_deg", float(thi[n])), ("ac_arcsec", round(float(eps), 4)),
                                        ("t_s", t), ("rep", rep), ("direction", d)):
                             pc[key].append(v)
+                        if res > 0:
+                            pc.setdefault("theta_read_deg", []).append(float(shown[n]))
                         t += STOP_S
     write_csv(path / "polygon.csv", pc)
     # multi-head differences (Hsieh eq. 8) with ≥ 3 heads
@@ -360,6 +369,8 @@ def generate(path: Path, phys: Physics, design: Design, seed: int, *, ccd: bool 
     bench: dict[str, Any] = {"optical_radius_mm": R_MM, "L1_mm": L1_MM, "L2_mm": L2_MM,
                              "grating_period_um": PERIOD_UM, "polygon_faces": N, "scale_edge_radius_mm": R_EDGE_MM,
                              "autocollimator_resolution_arcsec": AC_RES, "autocollimator_accuracy_arcsec": AC_ACC}
+    if design.encoder_resolution_arcsec > 0:
+        bench["encoder_resolution_arcsec"] = design.encoder_resolution_arcsec
     if len(design.heads_deg) >= 3:
         bench["heads_deg"] = [float(x) for x in design.heads_deg]
     manifest: dict[str, Any] = {"format": "bench-dataset", "version": 1, "source": "external", "bench": bench,
@@ -416,8 +427,9 @@ def _graduation_small(rng):
 CASES: dict[str, Case] = {c.name: c for c in [
     Case("null_xy", "nothing hidden; X and Y probes, one head", lambda r: Physics(), Design(x_probes=True),
          why="no effect named"),
-    Case("null_y", "nothing hidden; Y probes only, 3 heads, both directions, 2 reps", lambda r: Physics(),
-         Design(x_probes=False, heads_deg=(0.0, 120.0, 240.0), directions=("forward", "backward"), reps=2),
+    Case("null_y", "nothing hidden; Y probes only, 3 heads, both directions, 2 reps; 0.39″ display", lambda r: Physics(),
+         Design(x_probes=False, heads_deg=(0.0, 120.0, 240.0), directions=("forward", "backward"), reps=2,
+                encoder_resolution_arcsec=0.39),
          why="no effect named (no sphere form is present)"),
     Case("graduation", "division error k = 2, 3, 5 (0.5, 0.3, 0.2″); X probes",
          lambda r: Physics(graduation=((2, 0.5, float(r.uniform(0, 360))), (3, 0.3, float(r.uniform(0, 360))),
@@ -440,9 +452,9 @@ CASES: dict[str, Case] = {c.name: c for c in [
          lambda r: Physics(form=(("top", 2, 0.15, float(r.uniform(0, 360))), ("top", 3, 0.10, float(r.uniform(0, 360))))),
          Design(x_probes=False), must=_fs("sphere_form"), may=_fs("graduation_error", "tangential_motion"),
          why="sphere_form, or in a set with graduation_error / tangential_motion (a Donaldson reversal separates)"),
-    Case("ac_nonlinearity", "autocollimator reading += q·x², q drawn in 2…4·10⁻⁴/″ (1–2″ at ±70″); 3 heads",
+    Case("ac_nonlinearity", "autocollimator reading += q·x², q drawn in 2…4·10⁻⁴/″ (1–2″ at ±70″); 3 heads; 0.39″ display",
          lambda r: Physics(ac_quad_per_arcsec=float(r.uniform(2e-4, 4e-4))),
-         Design(x_probes=False, heads_deg=(0.0, 120.0, 240.0)), must=_fs("ac_scale"),
+         Design(x_probes=False, heads_deg=(0.0, 120.0, 240.0), encoder_resolution_arcsec=0.39), must=_fs("ac_scale"),
          why="named (the self-calibration rules out encoder causes)", corrected=True),
     Case("jia_like", "Jia's bench: 2/3/5-lobed whirls 0.15/0.10/0.05 µm of the top bearing, Y probes only",
          lambda r: Physics(whirls=((2, 0.15, float(r.uniform(0, 360)), 1.0, 0.3),
@@ -451,10 +463,10 @@ CASES: dict[str, Case] = {c.name: c for c in [
          Design(x_probes=False), must=_fs("tangential_motion"), may=_fs("graduation_error", "sphere_form", "tilt_abbe"),
          why="{tangential_motion, graduation_error, sphere_form} (no X probes: an X motion reads like a division "
              "error, and a form read as motion leaves ∫f/r, per lobe the same cos(kθ − ψ) as (1 − 1/k)·δX/r)"),
-    Case("selfa_like", "SelfA-like: 12 heads, shifts 0…14°, k = 2 division error 1″ + k = 3…8 of 0.04–0.15″",
+    Case("selfa_like", "SelfA-like: 12 heads, shifts 0…14°, k = 2 division error 1″ + k = 3…8 of 0.04–0.15″; 0.39″ display",
          lambda r: Physics(graduation=((2, 1.0, float(r.uniform(0, 360))),) + _graduation_small(r)),
          Design(x_probes=True, heads_deg=tuple(30.0 * h for h in range(12)),
-                shifts_deg=tuple(float(s) for s in range(15))),
+                shifts_deg=tuple(float(s) for s in range(15)), encoder_resolution_arcsec=0.39),
          must=_fs("graduation_error"), why="named (12-head self-calibration, X probes)"),
 ]}
 
