@@ -292,7 +292,19 @@ def is_correct(name: str, outcome: str) -> bool:
     return outcome in EXPECTED.get(name, ("?", "", set()))[2]
 
 
-def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float) -> None:
+def previous_rows(old_doc: Path, skip: set[str]) -> list[str]:
+    """The table rows of an earlier docs/hidden-suite.md for the scenarios not in ``skip``."""
+    out = []
+    for line in old_doc.read_text(encoding="utf-8").splitlines():
+        if line.startswith("| `"):
+            name = line.split("`")[1]
+            if name not in skip:
+                out.append(line)
+    return out
+
+
+def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float,
+              previous: list[str] | None = None, previous_note: str = "") -> None:
     by: dict[str, dict[int, dict]] = {}
     for r in records:
         by.setdefault(r["scenario"], {})[r["seed"]] = r
@@ -401,6 +413,12 @@ def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float
     if rej:
         lines += ["CCD frames rejected and dropped by the analysis (the others fitted, `ccd_rejected_frames`): "
                   + "; ".join(f"`{n}` seed {s}: {', '.join(f)}" for n, s, f in sorted(rej)) + ".", ""]
+    if previous:
+        lines += ["## Scenarios not re-run with this analysis", "", previous_note, "",
+                  "| scenario | hidden (truth) | expected | " + " | ".join(f"seed {s}" for s in seeds)
+                  + " | correct | RMS before ″ | RMS after ″ | after/floor (worst) |",
+                  "| --- | --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- | --- |"]
+        lines += previous + [""]
     lines += [NOTES, "## Identified effects and their parameters (first seed; value ± u)", ""]
     for name in sorted(by):
         r = by[name].get(seeds[0]) or {}
@@ -419,12 +437,18 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="*", default=None)
     ap.add_argument("--work", default="/tmp/hidden_suite")
     ap.add_argument("--doc", default=str(ROOT / "docs" / "hidden-suite.md"))
-    ap.add_argument("--from-json", default=None, help="rewrite the document from a previous outcomes.json")
+    ap.add_argument("--from-json", nargs="*", default=None,
+                    help="rewrite the document from previous outcomes.json files (merged)")
+    ap.add_argument("--keep-rows-from", default=None,
+                    help="an earlier hidden-suite.md: its rows of the scenarios not run are kept, labelled as such")
+    ap.add_argument("--keep-note", default="Rows copied from the previous document (an earlier analysis): not re-run.")
     a = ap.parse_args(argv)
     seeds = list(SEEDS[: a.seeds])
     if a.from_json:
-        records = json.loads(Path(a.from_json).read_text())
-        write_doc(Path(a.doc), records, sorted({r["seed"] for r in records}), float("nan"))
+        records = [r for f in a.from_json for r in json.loads(Path(f).read_text())]
+        prev = (previous_rows(Path(a.keep_rows_from), {r["scenario"] for r in records})
+                if a.keep_rows_from else None)
+        write_doc(Path(a.doc), records, sorted({r["seed"] for r in records}), float("nan"), prev, a.keep_note)
         print(f"wrote {a.doc}")
         return 0
     paths = sorted(HIDDEN_DIR.glob("*.toml"))
