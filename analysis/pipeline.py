@@ -196,6 +196,25 @@ def autocollimator_declared(bench: dict[str, Any]) -> tuple[float, float, str | 
             float(HSIEH_AC_ACCURACY_ARCSEC if acc is None else acc), note)
 
 
+def polygon_table(ds: Dataset) -> dict[str, Any]:
+    """polygon.csv with each autocollimator reading referred to its commanded stop.
+
+    Hsieh eq. 3 takes the encoder to display the nominal angle (i−1)·360°/N + S at every stop. A
+    servo holds the encoder's count nearest to it instead: the display ``theta_read_deg`` differs
+    from the stop ``theta_deg`` by q (up to half the encoder's resolution, 0.2″ for 0.39″), and the
+    polygon then stands at θ_read − α, so ε = α + Σβ + U − q. Where the reading is recorded, q is
+    added back (ε + q: the reading the autocollimator would show at the nominal display; α changes by
+    < 1e-4″ over q). q is fixed to θ (the same stop → the same count in every run), so left in, it is
+    a θ pattern of resolution/√12 ≈ 0.11″ RMS at the stops, read as a division error (issue 16:
+    a 0.12″ 9th harmonic on the hidden nulls, 23 faces)."""
+    t = dict(ds.table("polygon"))
+    if "theta_read_deg" in t:
+        th = np.asarray(t["theta_deg"], dtype=float)
+        q_arcsec = ((np.asarray(t["theta_read_deg"], dtype=float) - th + 180.0) % 360.0 - 180.0) * 3600.0
+        t["ac_arcsec"] = np.asarray(t["ac_arcsec"], dtype=float) + q_arcsec
+    return t
+
+
 def step_polygon(ds: Dataset) -> dict[str, Any]:
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
@@ -206,7 +225,7 @@ def step_polygon(ds: Dataset) -> dict[str, Any]:
     ac_res, ac_acc, note = autocollimator_declared(b)
     try:
         out = analyze_polygon(
-            ds.table("polygon"), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
+            polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
             np.asarray(cert, dtype=float) if cert is not None else None,
             encoder_resolution_arcsec=b.get("encoder_resolution_arcsec", 0.0),
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
@@ -476,7 +495,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         s_rep = rep.get("pooled_sd_eps_arcsec") or 0.0
         u_eps = math.sqrt((res_ / (2 * math.sqrt(3.0))) ** 2 + (acc_ / math.sqrt(3.0)) ** 2 + float(s_rep) ** 2)
     u_read = rep.get("pooled_sd_eps_arcsec") or rep.get("closure_sd_arcsec") or u_eps
-    poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in ds.table("polygon").items()}
+    poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in polygon_table(ds).items()}
     ev = evidence_from_polygon(
         poly, pol["polygon_pitch_deviation_arcsec"], _setup_error_lookup(pol), model,
         n_faces=b["polygon_faces"], u_arcsec=float(u_read), radial=radial,

@@ -71,8 +71,10 @@ def _one_column(pb: _Problem, col: np.ndarray, name: str) -> dict:
     u = float(math.sqrt(fit["cov"][0, 0] * scale))
     xw, yw = X[:, 0] * pb.w, pb.y * pb.w
     corr = float(xw @ yw / math.sqrt((xw @ xw) * (yw @ yw))) if (xw @ xw) > 0 and (yw @ yw) > 0 else 0.0
+    # its size: the RMS the column changes the (closure-centred) readings by, for the size gate
+    size = abs(g) * float(np.sqrt(np.mean(X[:, 0] ** 2)))
     return {"available": True, "gain": g, "u": u, "z": abs(g) / u if u > 0 else math.inf, "corr": corr,
-            "significant": bool(u > 0 and abs(g) / u > Z_GATE)}
+            "rms_arcsec": size, "significant": bool(u > 0 and abs(g) / u > Z_GATE)}
 
 
 def _nested(pb: _Problem, X0: np.ndarray, X1: np.ndarray) -> dict:
