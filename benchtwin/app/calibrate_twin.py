@@ -46,10 +46,9 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.radial_motion import disk_weights
+from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["CalibrationInputError", "calibrate_twin", "learn", "dump_toml"]
-
-ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
 
 
 class CalibrationInputError(ValueError):
@@ -368,7 +367,7 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
             comments[("bearings", k)] = "replaced by [motion_table]"
         am = (res.get("residual_test") or {}).get("async_motion") or {}
         if am.get("sigma_um") is not None:
-            s_disk = float(am["sigma_um"])   # band 1…10, the probes' noise removed (F test; analysis/tracing.py)
+            s_disk = float(am["sigma_um"])   # band 1…10, the probes' noise removed (F test; analysis/tracing/)
             bench = raw.get("bench", {})
             from benchtwin.units import parse_quantity
 
