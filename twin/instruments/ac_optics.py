@@ -52,7 +52,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-ARCSEC = math.pi / 648000.0
+from benchtwin.units import ARCSEC
+
 #: objective focal length of the papers' autocollimators (TriAngle US 300-57, ELCOMAT 3000), m
 FOCAL_LENGTH_M = 0.3
 
