@@ -11,7 +11,7 @@ Guarantees, so the parallel path is the serial path, only faster:
   bit-identical to a serial loop (tests/analysis/test_parallel_frames.py checks results.json);
 - at most ``window`` items are in flight: a long sweep of large frames is not all held in memory
   (the serial loop held one frame at a time);
-- ``workers <= 1`` (or one item) runs in this process, no pool;
+- ``workers <= 1`` (or one item) runs in this process, no pool; so does a daemonic process;
 - an exception raised by ``fn`` is re-raised here, in order, like the serial loop would.
 
 The pool starts its workers with ``spawn`` (a fresh interpreter that imports ``fn``'s module,
@@ -46,7 +46,9 @@ MAX_DEFAULT_WORKERS = 2
 
 
 def default_workers() -> int:
-    """Worker processes for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else min(cores, 2)."""
+    """Worker processes for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else min(cores, 2),
+    and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
+    its parent already spreads the work over the cores, and a daemonic process may not have children."""
     env = os.environ.get("BENCHTWIN_WORKERS", "").strip()
     if env:
         try:
@@ -54,6 +56,8 @@ def default_workers() -> int:
         except ValueError:
             raise ValueError(f"BENCHTWIN_WORKERS={env!r}: expected a whole number of worker processes") from None
         return max(1, n)
+    if mp.parent_process() is not None or mp.current_process().daemon:
+        return 1
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
@@ -79,6 +83,8 @@ def ordered_map(fn: Callable[..., R], items: Iterable[tuple[Any, ...]], workers:
     results picklable.
     """
     n = default_workers() if workers is None else max(1, int(workers))
+    if mp.current_process().daemon:
+        n = 1  # a daemonic process (e.g. a Dask worker) may not start children
     it = iter(items)
     if n <= 1:
         for args in it:

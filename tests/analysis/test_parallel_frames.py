@@ -49,6 +49,20 @@ def test_ordered_map_keeps_order_and_raises_in_order():
     assert got == [0, 1, 2]
 
 
+def _workers_in_child() -> int:
+    return default_workers()
+
+
+def test_pool_workers_analyse_serially(monkeypatch):
+    """A process multiprocessing started (a study's pool worker) does not start a pool of its own."""
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    monkeypatch.delenv("BENCHTWIN_WORKERS", raising=False)
+    with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+        assert pool.submit(_workers_in_child).result() == 1
+
+
 def test_default_workers_env(monkeypatch):
     monkeypatch.setenv("BENCHTWIN_WORKERS", "1")
     assert default_workers() == 1
