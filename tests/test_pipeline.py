@@ -205,3 +205,13 @@ def test_undeclared_autocollimator_is_assumed_and_said(jia_small, tmp_path):
     res = analyze(ds, tmp_path / "out", progress=False, close_loop=False)["results"]
     assert res["autocollimator_declared"]["source"].startswith("assumed")
     assert any("ELCOMAT 3000 values assumed" in n for n in res["notes"])
+
+
+def test_results_json_follows_the_documented_format(analysed):
+    """results.json as written passes the validator of docs/results-format.md (analysis/results.py),
+    and reading it back and writing it again gives the same bytes."""
+    from benchtwin.analysis.results import read_results
+
+    p = Path(analysed["paths"]["results"])
+    res = read_results(p)
+    assert json.dumps(res, indent=1, sort_keys=True) + "\n" == p.read_text(encoding="utf-8")
