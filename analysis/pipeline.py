@@ -183,6 +183,48 @@ def autocollimator_declared(bench: dict[str, Any]) -> tuple[float, float, str | 
             float(HSIEH_AC_ACCURACY_ARCSEC if acc is None else acc), note)
 
 
+#: The other type B inputs of Hsieh's budget (sec. 3.3), each read from the manifest's bench block
+#: when declared, else these, named in results.json (``budget_inputs``) with their source:
+#: - (3) the autocollimator's calibration (traceability): expanded uncertainty U = 0.01″ with k = 2,
+#:   Hsieh sec. 3.3 (3) (ELCOMAT 3000 calibration certificate);
+#: - (8) the polygon's setup (misalignment of the polygon axis to the encoder axis): 0.05″, rectangular,
+#:   Hsieh sec. 3.3 (8);
+#: - (5) the encoder's resolution: the manifest's ``encoder_resolution_arcsec``; undeclared, no term
+#:   (0″) and a note, since no paper value applies to an unknown encoder.
+HSIEH_AC_TRACEABILITY_U_ARCSEC = 0.01
+HSIEH_AC_TRACEABILITY_K = 2.0
+HSIEH_SETUP_MISALIGNMENT_ARCSEC = 0.05
+ENCODER_RESOLUTION_UNDECLARED_ARCSEC = 0.0
+
+#: (key in results.json's budget_inputs, manifest bench key, default, source of the default)
+_BUDGET_INPUTS: tuple[tuple[str, str, float, str], ...] = (
+    ("ac_traceability_U_arcsec", "autocollimator_traceability_U_arcsec", HSIEH_AC_TRACEABILITY_U_ARCSEC,
+     "assumed (Hsieh 2022 sec. 3.3 (3), ELCOMAT 3000 calibration)"),
+    ("ac_traceability_k", "autocollimator_traceability_k", HSIEH_AC_TRACEABILITY_K,
+     "assumed (Hsieh 2022 sec. 3.3 (3))"),
+    ("setup_misalignment_arcsec", "polygon_setup_misalignment_arcsec", HSIEH_SETUP_MISALIGNMENT_ARCSEC,
+     "assumed (Hsieh 2022 sec. 3.3 (8))"),
+    ("encoder_resolution_arcsec", "encoder_resolution_arcsec", ENCODER_RESOLUTION_UNDECLARED_ARCSEC,
+     "not declared: no resolution term"),
+)
+
+
+def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """The type B inputs of Hsieh's budget besides the autocollimator's resolution and accuracy
+    (:func:`autocollimator_declared`): {name: {value, source}} and a note for each one not declared."""
+    out: dict[str, dict[str, Any]] = {}
+    assumed = []
+    for name, key, default, source in _BUDGET_INPUTS:
+        v = bench.get(key)
+        if v is None:
+            out[name] = {"value": float(default), "source": source}
+            assumed.append(f"bench.{key} = {default:g} ({source.removeprefix('assumed (').removesuffix(')')})")
+        else:
+            out[name] = {"value": float(v), "source": "manifest"}
+    notes = [f"budget inputs not declared in the manifest, assumed: {'; '.join(assumed)}"] if assumed else []
+    return out, notes
+
+
 def step_polygon(ds: Dataset) -> dict[str, Any]:
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
@@ -191,17 +233,23 @@ def step_polygon(ds: Dataset) -> dict[str, Any]:
     heads = ds.table("heads") if ds.has("heads") else None
     cert = b.get("polygon_certificate_arcsec")
     ac_res, ac_acc, note = autocollimator_declared(b)
+    inputs, input_notes = budget_inputs(b)
     try:
         out = analyze_polygon(
             ds.table("polygon"), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
             np.asarray(cert, dtype=float) if cert is not None else None,
-            encoder_resolution_arcsec=b.get("encoder_resolution_arcsec", 0.0),
+            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
+            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
+            ac_traceability_k=inputs["ac_traceability_k"]["value"],
+            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
         )
         out["autocollimator_declared"] = {"resolution_arcsec": ac_res, "accuracy_arcsec": ac_acc,
                                           "source": "manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)"}
+        out["budget_inputs"] = inputs
         if note:
             out.setdefault("notes", []).append(note)
+        out.setdefault("notes", []).extend(input_notes)
         return out
     except PolygonDataError as exc:
         # The Hsieh analysis names rows by array index; the file counts the header as row 1.
@@ -268,6 +316,8 @@ def _polygon_results(pol: dict[str, Any]) -> PolygonResults:
         out["repeatability"] = pol["repeatability"]
     if "autocollimator_declared" in pol:
         out["autocollimator_declared"] = pol["autocollimator_declared"]
+    if "budget_inputs" in pol:
+        out["budget_inputs"] = pol["budget_inputs"]
     return out
 
 

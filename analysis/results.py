@@ -232,6 +232,11 @@ class AutocollimatorDeclared(TypedDict):
     source: Annotated[str, Key("", "\"manifest\" or the assumed instrument")]
 
 
+class BudgetInput(TypedDict):
+    value: Annotated[float, Key("", "the input (arcsec; the coverage factor k: 1), unit in its name")]
+    source: Annotated[str, Key("", "\"manifest\" or the assumption and its reference")]
+
+
 class BudgetRow(TypedDict, total=False):
     """One line of the GUM budget (Hsieh Table 3; analysis/uncertainty.py)."""
 
@@ -329,6 +334,10 @@ class PolygonResults(TypedDict, total=False):
     repeatability: Annotated[dict[str, Any], Key("arcsec", "the readings' scatter: pooled_sd_eps_arcsec, "
                                                            "closure_residual_sd_arcsec (″), dof, n_reps, ...")]
     autocollimator_declared: Annotated[AutocollimatorDeclared, Key("", "the budget's autocollimator inputs")]
+    budget_inputs: Annotated[dict[str, BudgetInput], Key("", "the budget's other type B inputs (Hsieh sec. 3.3 "
+                                                             "(3), (5), (8)): ac_traceability_U_arcsec, "
+                                                             "ac_traceability_k, setup_misalignment_arcsec, "
+                                                             "encoder_resolution_arcsec")]
 
 
 class BenchResults(_Common, PolygonResults, total=False):
@@ -426,12 +435,32 @@ def _describe(tp: Any) -> str:
     if origin in (Union, types.UnionType):
         return " or ".join(_describe(a) for a in args if a is not np.ndarray)  # an array is the list in memory
     if origin is list:
-        return f"a list of {_describe(args[0]).removeprefix('a ').removeprefix('an ')}s" if args else "a list"
+        return f"a list of {_plural(args[0])}" if args else "a list"
     if origin is dict or tp is dict:
-        return f"an object of {_describe(args[1]).removeprefix('a ').removeprefix('an ')}s" if args else "an object"
+        return f"an object of {_plural(args[1])}" if args else "an object"
     if _is_typeddict(tp):
         return f"an object ({tp.__name__})"
     return str(tp)
+
+
+def _plural(tp: Any) -> str:
+    """The elements' type in the plural: "numbers (or null)", "BudgetRow objects", "lists of strings"."""
+    t_, _ = _strip(tp)
+    origin, args = typing.get_origin(t_), typing.get_args(t_)
+    if _is_typeddict(t_):
+        return f"{t_.__name__} objects"
+    if origin in (Union, types.UnionType):
+        parts = [a for a in args if a is not type(None) and a is not np.ndarray]
+        base = " or ".join(_plural(a) for a in parts)
+        return base + " (or null)" if type(None) in args else base
+    simple = {Any: "values", float: "numbers", int: "integers", str: "strings", bool: "booleans"}
+    if t_ in simple:
+        return simple[t_]
+    if origin is list:
+        return f"lists of {_plural(args[0])}" if args else "lists"
+    if origin is dict or t_ is dict:
+        return f"objects of {_plural(args[1])}" if args else "objects"
+    return _describe(t_)
 
 
 def _is_number(v: Any) -> bool:
@@ -563,6 +592,8 @@ def _rows(td: Any, prefix: str, out: list[str], seen: set[str]) -> None:
         inner = t_
         if typing.get_origin(inner) is list and _is_typeddict(typing.get_args(inner)[0]):
             inner, name = typing.get_args(inner)[0], name + "[]"
+        elif typing.get_origin(inner) is dict and _is_typeddict(typing.get_args(inner)[1]):
+            inner, name = typing.get_args(inner)[1], name + ".<name>"
         if _is_typeddict(inner) and name not in seen:
             seen.add(name)
             _rows(inner, name + ".", out, seen)
@@ -576,7 +607,8 @@ def results_format_markdown() -> str:
            "Generated from `analysis/results.py` (`results_format_markdown()`); do not edit by hand. "
            "Check a file with `benchtwin validate RESULTS.json` (exit 2 names the key and what was expected).",
            "", head, "",
-           "Columns: the key (dotted below its section; `[]` = each element of a list), the JSON type, the unit "
+           "Columns: the key (dotted below its section; `[]` = each element of a list, `<name>` = each entry of "
+           "an object), the JSON type, the unit "
            "(– none; 1 = dimensionless; ″ = arcsec), whether the key is always present, and its meaning.", ""]
     for title, td in (("Bench datasets (twin, emulator, bench)", BenchResults),
                       ("Error-curve datasets (`benchtwin import`)", ErrorCurveResults)):
