@@ -152,6 +152,12 @@ BENCH_KEYS: dict[str, tuple[type, bool]] = {
     # budget, sec. 3.3 (2) and (4)); without them the analysis assumes Hsieh's ELCOMAT 3000 and says so
     "autocollimator_resolution_arcsec": (float, False),
     "autocollimator_accuracy_arcsec": (float, False),
+    # the other type B inputs of Hsieh's budget (sec. 3.3 (3), (8)): the autocollimator's calibration
+    # (expanded uncertainty and its k) and the polygon's setup misalignment; without them the analysis
+    # uses Hsieh's values, names them in results.json (budget_inputs) and says so
+    "autocollimator_traceability_U_arcsec": (float, False),
+    "autocollimator_traceability_k": (float, False),
+    "polygon_setup_misalignment_arcsec": (float, False),
     # {name: order per revolution} of the bearings (cage, ball pass): marks in the continuous run's spectrum
     "bearing_kinematic_orders": (dict, False),
 }
@@ -251,6 +257,9 @@ BENCH_RANGES: dict[str, tuple[float, float]] = {
     "encoder_resolution_arcsec": (0.0, 3600.0),
     "autocollimator_resolution_arcsec": (0.0, 3600.0),
     "autocollimator_accuracy_arcsec": (0.0, 3600.0),
+    "autocollimator_traceability_U_arcsec": (0.0, 3600.0),
+    "autocollimator_traceability_k": (1.0, 10.0),
+    "polygon_setup_misalignment_arcsec": (0.0, 3600.0),
 }
 
 

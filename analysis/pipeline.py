@@ -20,11 +20,16 @@ import functools
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
+from benchtwin.analysis.results import (BenchResults, Bench, CCDSection, CloseLoop, Comparison, CorrectedCurve,
+                                        CorrectionApplied, Curve,
+                                        ErrorCurveResults, ModelPrediction, PolygonResults, RadialErrorMotion,
+                                        RadialMotionSection,
+                                        ResidualSummary)
 from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
 
@@ -61,10 +66,10 @@ def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]
     return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm, order=order)
 
 
-def _iso_summary(iso: dict[str, Any]) -> dict[str, Any]:
+def _iso_summary(iso: dict[str, Any]) -> RadialErrorMotion:
     from benchtwin.analysis.iso230_7 import summary
 
-    return summary(iso)
+    return cast(RadialErrorMotion, summary(iso))  # the section iso230_7.summary builds (analysis/results.py)
 
 
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
@@ -215,6 +220,48 @@ def polygon_table(ds: Dataset) -> dict[str, Any]:
     return t
 
 
+#: The other type B inputs of Hsieh's budget (sec. 3.3), each read from the manifest's bench block
+#: when declared, else these, named in results.json (``budget_inputs``) with their source:
+#: - (3) the autocollimator's calibration (traceability): expanded uncertainty U = 0.01″ with k = 2,
+#:   Hsieh sec. 3.3 (3) (ELCOMAT 3000 calibration certificate);
+#: - (8) the polygon's setup (misalignment of the polygon axis to the encoder axis): 0.05″, rectangular,
+#:   Hsieh sec. 3.3 (8);
+#: - (5) the encoder's resolution: the manifest's ``encoder_resolution_arcsec``; undeclared, no term
+#:   (0″) and a note, since no paper value applies to an unknown encoder.
+HSIEH_AC_TRACEABILITY_U_ARCSEC = 0.01
+HSIEH_AC_TRACEABILITY_K = 2.0
+HSIEH_SETUP_MISALIGNMENT_ARCSEC = 0.05
+ENCODER_RESOLUTION_UNDECLARED_ARCSEC = 0.0
+
+#: (key in results.json's budget_inputs, manifest bench key, default, source of the default)
+_BUDGET_INPUTS: tuple[tuple[str, str, float, str], ...] = (
+    ("ac_traceability_U_arcsec", "autocollimator_traceability_U_arcsec", HSIEH_AC_TRACEABILITY_U_ARCSEC,
+     "assumed (Hsieh 2022 sec. 3.3 (3), ELCOMAT 3000 calibration)"),
+    ("ac_traceability_k", "autocollimator_traceability_k", HSIEH_AC_TRACEABILITY_K,
+     "assumed (Hsieh 2022 sec. 3.3 (3))"),
+    ("setup_misalignment_arcsec", "polygon_setup_misalignment_arcsec", HSIEH_SETUP_MISALIGNMENT_ARCSEC,
+     "assumed (Hsieh 2022 sec. 3.3 (8))"),
+    ("encoder_resolution_arcsec", "encoder_resolution_arcsec", ENCODER_RESOLUTION_UNDECLARED_ARCSEC,
+     "not declared: no resolution term"),
+)
+
+
+def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """The type B inputs of Hsieh's budget besides the autocollimator's resolution and accuracy
+    (:func:`autocollimator_declared`): {name: {value, source}} and a note for each one not declared."""
+    out: dict[str, dict[str, Any]] = {}
+    assumed = []
+    for name, key, default, source in _BUDGET_INPUTS:
+        v = bench.get(key)
+        if v is None:
+            out[name] = {"value": float(default), "source": source}
+            assumed.append(f"bench.{key} = {default:g} ({source.removeprefix('assumed (').removesuffix(')')})")
+        else:
+            out[name] = {"value": float(v), "source": "manifest"}
+    notes = [f"budget inputs not declared in the manifest, assumed: {'; '.join(assumed)}"] if assumed else []
+    return out, notes
+
+
 def step_polygon(ds: Dataset) -> dict[str, Any]:
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
@@ -223,17 +270,23 @@ def step_polygon(ds: Dataset) -> dict[str, Any]:
     heads = ds.table("heads") if ds.has("heads") else None
     cert = b.get("polygon_certificate_arcsec")
     ac_res, ac_acc, note = autocollimator_declared(b)
+    inputs, input_notes = budget_inputs(b)
     try:
         out = analyze_polygon(
             polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
             np.asarray(cert, dtype=float) if cert is not None else None,
-            encoder_resolution_arcsec=b.get("encoder_resolution_arcsec", 0.0),
+            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
+            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
+            ac_traceability_k=inputs["ac_traceability_k"]["value"],
+            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
         )
         out["autocollimator_declared"] = {"resolution_arcsec": ac_res, "accuracy_arcsec": ac_acc,
                                           "source": "manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)"}
+        out["budget_inputs"] = inputs
         if note:
             out.setdefault("notes", []).append(note)
+        out.setdefault("notes", []).extend(input_notes)
         return out
     except PolygonDataError as exc:
         # The Hsieh analysis names rows by array index; the file counts the header as row 1.
@@ -259,14 +312,67 @@ def _setup_error_lookup(pol: dict[str, Any]):
     return lookup
 
 
-def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> dict[str, Any]:
-    out = {"rms_arcsec": cmp["residual_rms_arcsec"], "pv_arcsec": cmp["residual_pv_arcsec"],
-           "max_abs_arcsec": cmp["residual_max_abs_arcsec"], "fraction_of_error": cmp["fraction_of_error"],
-           "pv_ratio": cmp["pv_ratio"], "measured_pv_arcsec": cmp["measured_pv_arcsec"],
-           "measured_rms_arcsec": cmp["measured_rms_arcsec"], "n_points": int(len(cmp["theta_deg"])),
-           "note": cmp["note"]}
+def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> ResidualSummary:
+    out = ResidualSummary(rms_arcsec=cmp["residual_rms_arcsec"], pv_arcsec=cmp["residual_pv_arcsec"],
+                          max_abs_arcsec=cmp["residual_max_abs_arcsec"], fraction_of_error=cmp["fraction_of_error"],
+                          pv_ratio=cmp["pv_ratio"], measured_pv_arcsec=cmp["measured_pv_arcsec"],
+                          measured_rms_arcsec=cmp["measured_rms_arcsec"], n_points=int(len(cmp["theta_deg"])),
+                          note=cmp["note"])
     if u_arcsec is not None:
         out["u_rms_arcsec"] = u_arcsec
+    return out
+
+
+def _bench(bench: dict[str, Any]) -> Bench:
+    """The manifest's bench block as read (validated by analysis.dataset, docs/dataset-format.md)."""
+    return cast(Bench, dict(bench))
+
+
+def _polygon_results(pol: dict[str, Any]) -> PolygonResults:
+    """The shift-angle and self-calibration results (analysis.hsieh_pipeline) that results.json carries."""
+    out = PolygonResults()
+    if "polygon_pitch_deviation_arcsec" in pol:
+        out["polygon_pitch_deviation_arcsec"] = pol["polygon_pitch_deviation_arcsec"]
+    if "polygon_pitch_deviation_u_arcsec" in pol:
+        out["polygon_pitch_deviation_u_arcsec"] = pol["polygon_pitch_deviation_u_arcsec"]
+    if "setup_error_arcsec" in pol:
+        out["setup_error_arcsec"] = pol["setup_error_arcsec"]
+    if "encoder_error_arcsec" in pol:
+        out["encoder_error_arcsec"] = pol["encoder_error_arcsec"]
+    if "selfcal_error_arcsec" in pol:
+        out["selfcal_error_arcsec"] = pol["selfcal_error_arcsec"]
+    if "en_max" in pol:
+        out["en_max"] = pol["en_max"]
+    if "budget" in pol:
+        out["budget"] = pol["budget"]
+    if "budget_summary" in pol:
+        out["budget_summary"] = pol["budget_summary"]
+    if "difference_arcsec" in pol:
+        out["difference_arcsec"] = pol["difference_arcsec"]
+    if "repeatability" in pol:
+        out["repeatability"] = pol["repeatability"]
+    if "autocollimator_declared" in pol:
+        out["autocollimator_declared"] = pol["autocollimator_declared"]
+    if "budget_inputs" in pol:
+        out["budget_inputs"] = pol["budget_inputs"]
+    return out
+
+
+def _close_loop_section(tr: dict[str, Any]) -> CloseLoop:
+    """The tracing's verdict as results.json carries it (analysis.tracing.trace; docs/effects.md)."""
+    out = CloseLoop(status=tr["status"])
+    if "signature" in tr:
+        out["signature"] = tr["signature"]
+    if "selection" in tr:
+        out["selection"] = tr["selection"]
+    if "skipped" in tr:
+        out["skipped"] = tr["skipped"]
+    if "thresholds" in tr:
+        out["thresholds"] = tr["thresholds"]
+    if "partial_effects" in tr:
+        out["partial_effects"] = tr["partial_effects"]
+    if "unexplained_signature" in tr:
+        out["unexplained_signature"] = tr["unexplained_signature"]
     return out
 
 
@@ -309,21 +415,21 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         return analyze_error_curve_dataset(ds, out, close_loop=close_loop)
     b = ds.bench
     r_um = b["optical_radius_mm"] * 1000.0
-    results: dict[str, Any] = {
+    results: BenchResults = {
         "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
-        "bench": dict(b), "notes": [],
+        "bench": _bench(b), "notes": [],
     }
 
     rm = ecc = pol = None
     if ds.has("radial_motion"):
         rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
-        results["radial_motion"] = {
-            "summary": rm["summary"], "u_dY_range_um": rm["u_dY_range_um"], "u_dY_gum_um": rm.get("u_dY_gum_um"),
-            "d_n": rm["d_n"], "n_reps": rm["n_reps"], "theta_deg": rm["theta_deg"], "dY_um": rm["dY_um"],
-            "tilt_x_urad": rm["tilt_x_urad"],
+        results["radial_motion"] = RadialMotionSection(
+            summary=rm["summary"], u_dY_range_um=rm["u_dY_range_um"], u_dY_gum_um=rm.get("u_dY_gum_um"),
+            d_n=rm["d_n"], n_reps=rm["n_reps"], theta_deg=rm["theta_deg"], dY_um=rm["dY_um"],
+            tilt_x_urad=rm["tilt_x_urad"],
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
-            "u_dY_um": rm["u_dY_um"], "u_dY_theta_um": rm["u_dY_theta_um"], "u_h1_async_um": rm["u_h1_async_um"],
-        }
+            u_dY_um=rm["u_dY_um"], u_dY_theta_um=rm["u_dY_theta_um"], u_h1_async_um=rm["u_h1_async_um"],
+        )
         rm["iso230_7"] = step_iso230_7(ds, rm, order)  # ISO 230-7 values and polar plots (issue 20)
         results["radial_error_motion"] = _iso_summary(rm["iso230_7"])
     if ds.has("ccd/index"):
@@ -332,17 +438,18 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
             from benchtwin.analysis.eccentricity import with_async_motion
 
             ecc = with_async_motion(ecc, rm["u_h1_async_um"], rm["u_h1_async_dof"])
-        results.update({
-            "eccentricity_um": ecc["e_um"], "eccentricity_u_um": ecc["e_u_um"],
-            "eccentricity_phase_deg": ecc["theta0_deg"], "eccentricity_phase_u_deg": ecc["theta0_u_deg"],
-            "eccentricity_u_fit_um": ecc.get("e_u_fit_um", ecc["e_u_um"]),
-            "eccentricity_phase_u_fit_deg": ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"]),
-            "eccentricity_u_async_um": ecc.get("u_async_h1_um"),
-            "ccd": {"pixel_um": ecc["pixel_um"], "n_images": len(ecc["files"]), "n_frames": ecc["n_frames"],
-                    "theta_deg": ecc["theta_deg"], "d_ref_um": ecc["d_ref_um"],
-                    "residual_rms_um": ecc.get("residual_rms_um"), "min_frames": ecc["frame_limits"]["min_frames"]},
-            "ccd_rejected_frames": ecc["rejected_frames"],
-        })
+        results["eccentricity_um"] = ecc["e_um"]
+        results["eccentricity_u_um"] = ecc["e_u_um"]
+        results["eccentricity_phase_deg"] = ecc["theta0_deg"]
+        results["eccentricity_phase_u_deg"] = ecc["theta0_u_deg"]
+        results["eccentricity_u_fit_um"] = ecc.get("e_u_fit_um", ecc["e_u_um"])
+        results["eccentricity_phase_u_fit_deg"] = ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"])
+        results["eccentricity_u_async_um"] = ecc.get("u_async_h1_um")
+        results["ccd"] = CCDSection(pixel_um=ecc["pixel_um"], n_images=len(ecc["files"]), n_frames=ecc["n_frames"],
+                                    theta_deg=ecc["theta_deg"], d_ref_um=ecc["d_ref_um"],
+                                    residual_rms_um=ecc.get("residual_rms_um"),
+                                    min_frames=ecc["frame_limits"]["min_frames"])
+        results["ccd_rejected_frames"] = ecc["rejected_frames"]
         if ecc["rejected_frames"]:
             results["notes"].append(
                 f"CCD: {len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected and dropped "
@@ -350,11 +457,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
                 f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
     if ds.has("polygon"):
         pol = _step(ds, "polygon.csv", step_polygon, ds)
-        for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
-                    "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget", "budget_summary",
-                    "difference_arcsec", "repeatability", "autocollimator_declared"):
-            if key in pol:
-                results[key] = pol[key]
+        results.update(_polygon_results(pol))
         results["notes"] += list(pol.get("notes", []))
 
     # Jia eq. 5: the error model from the measured eccentricity and radial motion.
@@ -367,9 +470,9 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
             added = add_to_error_model(model, model_payload)
             results["model_file_terms"] = added
         grid = np.arange(0.0, 360.0, 1.0)
-        results["model_prediction_arcsec"] = {"theta_deg": grid, "value": model.predict(grid),
-                                              "u": model.uncertainty(grid),
-                                              "terms": {k: v for k, v in model.predict_terms(grid).items()}}
+        results["model_prediction_arcsec"] = ModelPrediction(theta_deg=grid, value=model.predict(grid),
+                                                             u=model.uncertainty(grid),
+                                                             terms=dict(model.predict_terms(grid).items()))
     else:
         results["notes"].append("no CCD images: the Jia error model (eq. 5) needs the eccentricity; no prediction")
 
@@ -379,7 +482,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         cmp = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model)
         u_meas = float(np.sqrt(np.mean(np.square(np.asarray(enc["u"], dtype=float)))))
         results["residual_before"] = _residual_summary(cmp, u_meas)
-        results["comparison"] = {k: cmp[k] for k in ("theta_deg", "measured_arcsec", "model_arcsec", "residual_arcsec")}
+        results["comparison"] = Comparison(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
+                                           model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"])
 
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     ev = tr = None
@@ -394,7 +498,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     return {"results": results, "paths": paths}
 
 
-def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, dict[str, Any]]) -> CorrectedCurve:
     """The encoder's error after removing the identified artefacts of the reference chain.
 
     ``enc``: the measured curve {theta_deg, value, u} (Hsieh's combined α); ``corrections``: per
@@ -408,7 +512,7 @@ def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, 
     th = np.asarray(enc["theta_deg"], dtype=float)
     val = np.asarray(enc["value"], dtype=float).copy()
     u2 = np.asarray(enc["u"], dtype=float) ** 2
-    applied = []
+    applied: list[CorrectionApplied] = []
     if corrections and theta_read_deg is not None:
         tr_ = np.mod(np.asarray(theta_read_deg, dtype=float), 360.0)
         d = np.abs(((tr_[None, :] - np.mod(th, 360.0)[:, None]) + 180.0) % 360.0 - 180.0)
@@ -421,13 +525,13 @@ def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, 
             ucorr = np.where(cnt > 0, (near @ uc) / np.maximum(cnt, 1), 0.0)
             val = val - corr
             u2 = u2 + ucorr ** 2
-            applied.append({"effect": name, "rms_arcsec": float(np.sqrt(np.mean(corr ** 2))),
-                            "u_rms_arcsec": float(np.sqrt(np.mean(ucorr ** 2))), "params": c.get("params"),
-                            "angles_without_readings": int(np.sum(cnt == 0))})
-    return {"theta_deg": th, "value": val, "u": np.sqrt(u2), "corrections_applied": applied,
-            "note": "the measured encoder error minus the identified artefacts of the reference chain "
-                    "(autocollimator scale, non-linearity and drift, polygon pitch, disk-to-polygon twist); "
-                    "the raw curve when none is identified"}
+            applied.append(CorrectionApplied(effect=name, rms_arcsec=float(np.sqrt(np.mean(corr ** 2))),
+                                             u_rms_arcsec=float(np.sqrt(np.mean(ucorr ** 2))), params=c.get("params"),
+                                             angles_without_readings=int(np.sum(cnt == 0))))
+    return CorrectedCurve(theta_deg=th, value=val, u=np.sqrt(u2), corrections_applied=applied,
+                          note="the measured encoder error minus the identified artefacts of the reference chain "
+                               "(autocollimator scale, non-linearity and drift, polygon pitch, disk-to-polygon "
+                               "twist); the raw curve when none is identified")
 
 
 def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n_faces: int) -> np.ndarray | None:
@@ -464,7 +568,7 @@ def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n
     return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
-def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
+def _close_loop(ds, results: BenchResults, rm, ecc, pol, model, paths, out):
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
@@ -512,8 +616,7 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
                                                 b["polygon_faces"])
     ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
     tr = trace(ev)
-    results["close_loop"] = {k: tr[k] for k in ("status", "signature", "selection", "skipped", "thresholds",
-                                               "partial_effects", "unexplained_signature") if k in tr}
+    results["close_loop"] = _close_loop_section(tr)
     results["identified_effects"] = tr["identified_effects"]
     results["ambiguous"] = tr["ambiguous"]
     results["unexplained"] = tr["unexplained"]
@@ -531,14 +634,15 @@ def _close_loop(ds, results, rm, ecc, pol, model, paths, out):
         cmp2 = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model2)
         results["residual_after"] = _residual_summary(cmp2)
         results["residual_after"]["added_terms"] = added
-        results["comparison_after"] = {k: cmp2[k] for k in ("theta_deg", "model_arcsec", "residual_arcsec")}
+        results["comparison_after"] = Comparison(theta_deg=cmp2["theta_deg"], model_arcsec=cmp2["model_arcsec"],
+                                                 residual_arcsec=cmp2["residual_arcsec"])
     else:
-        results["residual_after"] = dict(results["residual_before"])
+        results["residual_after"] = results["residual_before"].copy()
         results["residual_after"]["added_terms"] = []
     return ev, tr
 
 
-def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=None) -> None:
+def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, tr, preface=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -648,7 +752,7 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=No
         for e in tr["identified_effects"]:
             rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
                       [f"{e['name']}: parameter", "value"])
-        cc = results.get("encoder_error_corrected_arcsec") or {}
+        cc: CorrectedCurve | dict[str, Any] = results.get("encoder_error_corrected_arcsec") or {}
         if cc.get("corrections_applied"):
             rep.paragraph("Corrected calibration curve (encoder_error_corrected_arcsec, the curve a certificate states): "
                           "the measured encoder error minus " + "; ".join(
@@ -661,10 +765,11 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=No
             rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
         if tr["unexplained"]:
             rep.paragraph("Unexplained: the residual is significant but no effect of the library explains it; see the signature.", note=True)
-        rb, ra = results.get("residual_before", {}), results.get("residual_after", {})
-        if rb and ra:
-            rep.table([["before", rb["rms_arcsec"], rb["pv_arcsec"], rb["fraction_of_error"]],
-                       ["after", ra["rms_arcsec"], ra["pv_arcsec"], ra["fraction_of_error"]]],
+        res_b = results.get("residual_before")
+        res_a = results.get("residual_after")
+        if res_b and res_a:
+            rep.table([["before", res_b["rms_arcsec"], res_b["pv_arcsec"], res_b["fraction_of_error"]],
+                       ["after", res_a["rms_arcsec"], res_a["pv_arcsec"], res_a["fraction_of_error"]]],
                       ["residual", "RMS ″", "P-V ″", "share of the error"])
         rep.figure(fl.plot_residual_before_after(ev, tr), "Residual before and after adding the traced effect")
         rep.figure(fl.plot_harmonic_spectrum(tr), "Harmonic spectrum of the residual with uncertainties")
@@ -675,7 +780,7 @@ def _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface=No
 # ----------------------------------------------------------------------------- error curves
 
 
-def _write_results(out: Path, results: dict[str, Any]) -> None:
+def _write_results(out: Path, results: ErrorCurveResults) -> None:
     tmp = out / "results.json.tmp"
     tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
     tmp.replace(out / "results.json")
@@ -694,21 +799,23 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
     except ValueError as exc:
         raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
     mc = ec["mean_curve"]
-    results: dict[str, Any] = {
-        "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
-        "kind": "error-curve", "bench": dict(ds.bench), "notes": list(ec["notes"]),
-        "imported_from": ds.manifest.get("import"),
-        "coverage_deg": ec["coverage_deg"], "coverage": ec["coverage"], "closure": ec["closure"],
-        "hysteresis": ec["hysteresis"], "u_point": ec["u_point"], "harmonics": ec["harmonics"],
-        "error_curve": {k: v for k, v in ec.items() if k not in ("notes",)},
-        "encoder_error_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"], "u": mc["u_arcsec"]},
+    results = ErrorCurveResults(
+        format="bench-results", version=1, dataset=str(ds.path), source=ds.manifest["source"],
+        kind="error-curve", bench=_bench(ds.bench), notes=list(ec["notes"]),
+        imported_from=ds.manifest.get("import"),
+        coverage_deg=ec["coverage_deg"], coverage=ec["coverage"], closure=ec["closure"],
+        hysteresis=ec["hysteresis"], u_point=ec["u_point"], harmonics=ec["harmonics"],
+        error_curve={k: v for k, v in ec.items() if k not in ("notes",)},
+        encoder_error_arcsec=Curve(theta_deg=mc["theta_deg"], value=mc["value_arcsec"], u=mc["u_arcsec"]),
         # nothing of the reference chain is identified on a lone curve: the corrected curve is the raw one
-        "encoder_error_corrected_arcsec": {"theta_deg": mc["theta_deg"], "value": mc["value_arcsec"],
-                                           "u": mc["u_arcsec"], "corrections_applied": []},
-    }
+        encoder_error_corrected_arcsec=CorrectedCurve(theta_deg=mc["theta_deg"], value=mc["value_arcsec"],
+                                                      u=mc["u_arcsec"], corrections_applied=[]),
+    )
     if close_loop:
-        results.update(identified_effects=[], ambiguous=ec["ambiguous"], unexplained=ec["unexplained"],
-                       close_loop={"status": ec["status"], "left": ec.get("left", [])})
+        results["identified_effects"] = []
+        results["ambiguous"] = ec["ambiguous"]
+        results["unexplained"] = ec["unexplained"]
+        results["close_loop"] = CloseLoop(status=ec["status"], left=ec.get("left", []))
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     _write_error_curve_report(out, ds, ec, close_loop)
     _write_results(out, results)

@@ -81,12 +81,35 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
             "message": f"{path}: valid scenario {sc.name!r} (seed {sc.seed}, {len(hidden)} hidden effects)"}
 
 
+def _is_results_file(path: Path) -> bool:
+    """results.json of analyze / close-loop: by its name, or a JSON object of format bench-results."""
+    if path.name == "results.json":
+        return True
+    try:
+        with path.open("rb") as f:
+            head = f.read(1 << 20)
+        return b'"bench-results"' in head
+    except OSError:
+        return False
+
+
 def _validate_other_file(path: Path) -> dict[str, Any] | None:
-    """A study file ([study]), a bench file ([instruments]) or a fault plan ([[faults]] / .json),
+    """results.json (analysis/results.py), a study file ([study]), a bench file ([instruments]) or a
+    fault plan ([[faults]] / .json),
     checked by the reader of the command that uses it (study, acquire, emulate --faults), so that
     what validate accepts, that command reads; None for anything else (a scenario)."""
     from benchtwin.schema import SchemaError, load_toml_file
 
+    if path.suffix == ".json" and path.is_file() and _is_results_file(path):
+        from benchtwin.analysis.results import ResultsError, read_results
+
+        try:
+            res = read_results(path)
+        except ResultsError as exc:
+            raise InputError(str(exc)) from None
+        return {"ok": True, "kind": "results", "path": str(path), "keys": len(res),
+                "message": f"{path}: valid results ({res['format']} v{res['version']}, {len(res)} keys; "
+                           "docs/results-format.md)"}
     if path.suffix == ".json" and path.is_file():
         from benchtwin.twin.emulators.pty import load_fault_plan
 
@@ -139,6 +162,7 @@ DOMAIN_ERRORS: tuple[tuple[str, str], ...] = (
     ("benchtwin.analysis.shift_angle", "PolygonDataError"),
     ("benchtwin.analysis.eccentricity", "ImageAnalysisError"),
     ("benchtwin.analysis.model_file", "ModelFileError"),
+    ("benchtwin.analysis.results", "ResultsError"),
     ("benchtwin.schema", "SchemaError"),
     ("benchtwin.twin.scenario", "ScenarioError"),
     ("benchtwin.app.study.spec", "StudyError"),

@@ -58,3 +58,15 @@ def test_analysis_never_mentions_truth_paths():
 
     offenders = [p for p in (ROOT / "analysis").rglob("*.py") if re.search(r"truth(/|\.json|_dir|\[)", p.read_text())]
     assert not offenders, offenders
+
+
+def test_the_package_never_imports_the_test_generators():
+    """The synthetic-data generators are test-only (tests/synthetic/, issue 16): no module of the package
+    (benchtwin/, twin/, analysis/, hw/, models/, scenarios/) imports them or anything else of tests/."""
+    import re
+
+    pat = re.compile(r"^\s*(from|import)\s+tests(\.|\s|$)|synthesize_readings|effects\.synthetic", re.M)
+    offenders = [str(p.relative_to(ROOT)) for d in ("benchtwin", "twin", "analysis", "hw", "models", "scenarios")
+                 for p in (ROOT / d).rglob("*.py") if pat.search(p.read_text(encoding="utf-8"))]
+    assert not offenders, offenders
+    assert not (ROOT / "analysis" / "effects" / "synthetic.py").exists()

@@ -205,3 +205,49 @@ def test_undeclared_autocollimator_is_assumed_and_said(jia_small, tmp_path):
     res = analyze(ds, tmp_path / "out", progress=False, close_loop=False)["results"]
     assert res["autocollimator_declared"]["source"].startswith("assumed")
     assert any("ELCOMAT 3000 values assumed" in n for n in res["notes"])
+
+
+def test_results_json_follows_the_documented_format(analysed):
+    """results.json as written passes the validator of docs/results-format.md (analysis/results.py),
+    and reading it back and writing it again gives the same bytes."""
+    from benchtwin.analysis.results import read_results
+
+    p = Path(analysed["paths"]["results"])
+    res = read_results(p)
+    assert json.dumps(res, indent=1, sort_keys=True) + "\n" == p.read_text(encoding="utf-8")
+
+
+def test_every_budget_input_comes_from_the_manifest_or_a_named_default(jia_small, tmp_path):
+    """Hsieh sec. 3.3's other type B inputs (traceability U and k, polygon setup misalignment, encoder
+    resolution) are read from the manifest when declared, else the named defaults of analysis/pipeline.py
+    (Hsieh's values) are used, recorded in results.json's budget_inputs with their source, and said."""
+    import math
+
+    from benchtwin.analysis import pipeline as pl
+
+    ds = tmp_path / "ds"
+    shutil.copytree(jia_small, ds, ignore=shutil.ignore_patterns("truth", "ccd"))
+    m = json.loads((ds / "manifest.json").read_text())
+    m.pop("ccd", None)
+    (ds / "manifest.json").write_text(json.dumps(m))
+    res = analyze(ds, tmp_path / "out0", progress=False, close_loop=False)["results"]
+    bi = res["budget_inputs"]
+    assert bi["ac_traceability_U_arcsec"] == {"value": pl.HSIEH_AC_TRACEABILITY_U_ARCSEC,
+                                              "source": "assumed (Hsieh 2022 sec. 3.3 (3), ELCOMAT 3000 calibration)"}
+    assert bi["setup_misalignment_arcsec"]["source"].startswith("assumed (Hsieh 2022")
+    assert bi["encoder_resolution_arcsec"] == {"value": 0.39, "source": "manifest"}  # jia2019: Mercury 3000
+    assert any("budget inputs not declared in the manifest" in n and "autocollimator_traceability_U_arcsec" in n
+               for n in res["notes"])
+    rows = {r["name"]: r for r in res["budget"]}
+    assert rows["Traceability of the autocollimator"]["u"] == pytest.approx(0.01 / 2.0)
+    assert rows["setup error uncertainty"]["u"] == pytest.approx(0.05 / (2 * math.sqrt(3)))
+
+    m["bench"].update(autocollimator_traceability_U_arcsec=0.03, autocollimator_traceability_k=3.0,
+                      polygon_setup_misalignment_arcsec=0.2)
+    (ds / "manifest.json").write_text(json.dumps(m))
+    res = analyze(ds, tmp_path / "out1", progress=False, close_loop=False)["results"]
+    assert all(v["source"] == "manifest" for v in res["budget_inputs"].values())
+    assert not any("budget inputs not declared" in n for n in res["notes"])
+    rows = {r["name"]: r for r in res["budget"]}
+    assert rows["Traceability of the autocollimator"]["u"] == pytest.approx(0.03 / 3.0)
+    assert rows["setup error uncertainty"]["u"] == pytest.approx(0.2 / (2 * math.sqrt(3)))

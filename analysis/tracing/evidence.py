@@ -213,8 +213,14 @@ class _View:
         raise AttributeError(name)
 
 
+#: The standard uncertainty of one α when the caller gives none: Hsieh et al. 2022 Table 3's combined
+#: standard uncertainty of the shift-angle α, u_c = 0.069″ ≈ 0.07″ (the pipeline always passes the
+#: dataset's own, from its readings' repeatability and its budget).
+U_ALPHA_HSIEH2022_ARCSEC = 0.07
+
+
 def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model, *, n_faces: int,
-                          u_arcsec=0.07, radial: RadialMotion | None = None, selfcal_theta_deg=None,
+                          u_arcsec=U_ALPHA_HSIEH2022_ARCSEC, radial: RadialMotion | None = None, selfcal_theta_deg=None,
                           selfcal_value_arcsec=None, selfcal_u_arcsec=None, n_heads: int | None = None,
                           **bench) -> Evidence:
     """Evidence from the polygon table (dataset ``polygon.csv`` columns) and the shift-angle results.
@@ -247,8 +253,10 @@ def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model,
     sc = None
     if selfcal_theta_deg is not None:
         tsc = np.asarray(selfcal_theta_deg, dtype=float)
-        sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float),
-                     0.01 if selfcal_u_arcsec is None else selfcal_u_arcsec, int(n_heads or 1), dict(terms_fn(tsc)))
+        if selfcal_u_arcsec is None:  # no assumed value: a self-calibration without u cannot be weighted
+            raise ValueError("evidence_from_polygon: selfcal_u_arcsec is required with selfcal_value_arcsec")
+        sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float), selfcal_u_arcsec, int(n_heads or 1),
+                     dict(terms_fn(tsc)))
     return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=u_arcsec, model_terms=dict(terms_fn(th)),
                     t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, start_face=j, shift_deg=S, step=i,
                     n_faces=N, radial=radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc, **bench)

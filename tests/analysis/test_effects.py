@@ -14,7 +14,7 @@ import pytest
 from scipy import stats
 
 from benchtwin.analysis.effects import ALL
-from benchtwin.analysis.effects.synthetic import make_evidence
+from tests.synthetic.evidence import make_evidence
 from benchtwin.analysis.tracing import trace
 
 NOISE = 0.07

@@ -1,7 +1,7 @@
 """Hsieh 2022 end to end (benchtwin.analysis.hsieh_pipeline.analyze_polygon): the data budget, the
 comparison of the shift-angle method with self-calibration, and the twin's hsieh2022 dataset (issue 6).
 
-Synthetic readings come from eq. 3 (analysis.shift_angle.synthesize_readings) and eq. 8; the twin tests
+Synthetic readings come from eq. 3 (tests.synthetic.polygon.synthesize_readings) and eq. 8; the twin tests
 simulate the hsieh2022 scenario (small CCD images, few radial stops) and compare with its truth/.
 """
 
@@ -18,6 +18,7 @@ import pytest
 from benchtwin.analysis import selfcal as sc
 from benchtwin.analysis import shift_angle as sa
 from benchtwin.analysis.hsieh_pipeline import _drop_harmonics, analyze_polygon
+from tests.synthetic.polygon import synthesize_readings
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -78,7 +79,7 @@ ALPHA = series({1: (0.3, 0.2), 2: (1.0314, -2.4233), 3: (0.4, 1.0), 7: (0.2, 0.5
 def fb_result():
     """The twin's procedure with one run: all faces at S = 0, face 1 at 1…14°, forward and backward."""
     rng = np.random.default_rng(7)
-    cols = sa.synthesize_readings(ALPHA, make_beta(24, 8), setup_fn(9), np.arange(15.0))
+    cols = synthesize_readings(ALPHA, make_beta(24, 8), setup_fn(9), np.arange(15.0))
     return analyze_polygon(fwd_bwd(cols, 0.05, rng, h=0.2), 24, encoder_resolution_arcsec=0.04)
 
 
@@ -117,7 +118,7 @@ def test_monte_carlo_check_of_the_data_budget(fb_result):
 
 def test_results_keys_have_values_and_uncertainties():
     rng = np.random.default_rng(11)
-    cols = sa.synthesize_readings(ALPHA, make_beta(24, 12), setup_fn(13), np.arange(15.0), n_rep=2,
+    cols = synthesize_readings(ALPHA, make_beta(24, 12), setup_fn(13), np.arange(15.0), n_rep=2,
                                   noise_arcsec=0.02, rng=rng)
     heads = heads_columns(ALPHA, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.01, rng)
     r = analyze_polygon(cols, 24, heads, sc.SELFA_HEADS_DEG, encoder_resolution_arcsec=0.04)
@@ -140,7 +141,7 @@ def test_comparison_on_the_harmonics_both_methods_see():
     """α with harmonics 24 (lost by the shift-angle method into U, eq. 2) and 84 (no SelfA set sees it):
     each method lacks one, so they differ by both unless the comparison drops both — which it does."""
     a = series({2: (1.0, 0.3), 5: (0.2, 0.1), 24: (0.3, 0.7), 84: (0.2, -0.4)})
-    cols = sa.synthesize_readings(a, make_beta(24, 14), setup_fn(15), np.arange(15.0))
+    cols = synthesize_readings(a, make_beta(24, 14), setup_fn(15), np.arange(15.0))
     heads = heads_columns(a, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.0, None, n_rep=1)
     r = analyze_polygon(cols, 24, heads, sc.SELFA_HEADS_DEG, u_eps_arcsec=0.01)
     d = r["difference_arcsec"]
@@ -156,7 +157,7 @@ def test_comparison_on_the_harmonics_both_methods_see():
 
 def test_polygon_errors_name_the_rows():
     """Missing or duplicated readings, a wrong face count, a start face outside 1…N (analysis level)."""
-    cols = sa.synthesize_readings(ALPHA, make_beta(8, 16), setup_fn(17), [0.0, 10.0])
+    cols = synthesize_readings(ALPHA, make_beta(8, 16), setup_fn(17), [0.0, 10.0])
     with pytest.raises(sa.PolygonDataError, match=r"row 3, column 'start_face': expected an integer in 1…8"):
         bad = {k: v.copy() for k, v in cols.items()}
         bad["start_face"][3] = 9

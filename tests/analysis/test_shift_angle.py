@@ -17,6 +17,7 @@ from scipy import stats
 from benchtwin.analysis import selfcal as sc
 from benchtwin.analysis import shift_angle as sa
 from benchtwin.analysis.hsieh_pipeline import analyze_polygon, fourier_resample_arcsec
+from tests.synthetic.polygon import synthesize_readings
 
 
 def make_alpha(harm: dict[int, tuple[float, float]]):
@@ -64,7 +65,7 @@ def test_noise_free_roundtrip_beta_alpha_U(N):
     beta = make_beta(N, 10 + N)
     U = setup_fn(20 + N)
     shifts = [0.0, 5.0, 10.0]
-    cols = sa.synthesize_readings(ALPHA, beta, U, shifts, start_faces_at={5.0: [1], 10.0: [3, N]})
+    cols = synthesize_readings(ALPHA, beta, U, shifts, start_faces_at={5.0: [1], 10.0: [3, N]})
     tab, res = analyse(cols, N)
     assert res.beta_source == "closure"
     np.testing.assert_allclose(res.beta_arcsec, beta, atol=1e-9)
@@ -81,7 +82,7 @@ def test_noise_free_roundtrip_beta_alpha_U(N):
 def test_table1_eq3_cells_and_table2_eq6_entries():
     N = 24
     beta = make_beta(N, 1)
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(2), [0.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(2), [0.0])
     tab, _ = analyse(cols, N)
     t = tab.eps_arcsec[0.0]
     B = sa.cumulative_pitch_sum_arcsec(beta)
@@ -107,7 +108,7 @@ def test_shifts_0_to_14_combine_into_1_degree_curve():
     N = 24
     beta = make_beta(N, 3)
     U = setup_fn(4)
-    cols = sa.synthesize_readings(ALPHA, beta, U, np.arange(15.0))
+    cols = synthesize_readings(ALPHA, beta, U, np.arange(15.0))
     _, res = analyse(cols, N)
     th, a, u = sa.combined_curve(res)
     np.testing.assert_array_equal(th, np.arange(360.0))
@@ -120,7 +121,7 @@ def test_any_N_23_faces_shifts_fill_the_pitch():
     beta = make_beta(N, 5)
     pitch = 360.0 / N
     shifts = np.arange(0, 4) * pitch / 4
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(6), shifts)
+    cols = synthesize_readings(ALPHA, beta, setup_fn(6), shifts)
     _, res = analyse(cols, N)
     th, a, _ = sa.combined_curve(res)
     assert th.size == 4 * N
@@ -133,7 +134,7 @@ def test_harmonics_multiple_of_N_are_lost_into_setup_error():
     beta = make_beta(N, 7)
     alpha = make_alpha({2: (1.0, 0.1), 12: (0.3, 0.4), 24: (0.1, 0.0)})
     visible = make_alpha({2: (1.0, 0.1)})
-    cols = sa.synthesize_readings(alpha, beta, setup_fn(8), [0.0, 7.5])
+    cols = synthesize_readings(alpha, beta, setup_fn(8), [0.0, 7.5])
     _, res = analyse(cols, N)
     for s in res.shifts:
         np.testing.assert_allclose(s.alpha_arcsec, visible(s.theta_deg), atol=1e-9)
@@ -143,7 +144,7 @@ def test_curve_fit_setup_error_agrees_with_eq7():
     N = 24
     beta = make_beta(N, 9)
     alpha = make_alpha({2: (1.0314, -2.4233)})
-    cols = sa.synthesize_readings(alpha, beta, setup_fn(10), [0.0, 5.0, 10.0])
+    cols = synthesize_readings(alpha, beta, setup_fn(10), [0.0, 5.0, 10.0])
     _, res = analyse(cols, N)
     rows = sa.setup_error_by_curve_fit(res)
     assert len(rows) == N + 2
@@ -155,7 +156,7 @@ def test_curve_fit_setup_error_agrees_with_eq7():
     f = sa.fit_sine2_offset(np.arange(N) * 15.0 + 5.0, y5, A_arcsec=1.0314, B_rad=-2.4233)
     assert f["U_arcsec"] == pytest.approx(1.234, abs=1e-12)
     # general K-harmonic version on the richer α
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(11), [0.0, 5.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(11), [0.0, 5.0])
     _, res = analyse(cols, N)
     rows = sa.setup_error_by_curve_fit(res, harmonics=(1, 2, 3, 7, 11))
     assert max(abs(r["diff_arcsec"]) for r in rows) < 1e-9
@@ -183,7 +184,7 @@ def test_fit_fails_to_match_when_shape_is_wrong():
 def test_cross_calibration_with_certificate_one_start_face():
     N = 24
     beta = make_beta(N, 12)
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(13), [0.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(13), [0.0])
     tab, _ = analyse(cols, N)
     row = tab.eps_arcsec[0.0][4]  # start face 5 only
     r = sa.cross_calibrate_with_certificate(row, beta + 0.01, start_face=5, u_eps_arcsec=0.02,
@@ -198,7 +199,7 @@ def test_cross_calibration_with_certificate_one_start_face():
 def test_certificate_used_when_S0_table_incomplete_and_closure_compared_when_full():
     N = 12
     beta = make_beta(N, 14)
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(15), [0.0, 10.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(15), [0.0, 10.0])
     keep = (cols["shift_deg"] != 0.0) | (cols["start_face"] == 1)
     part = {k: v[keep] for k, v in cols.items()}
     _, res = analyse(part, N, certificate_beta_arcsec=beta)
@@ -214,7 +215,7 @@ def test_certificate_used_when_S0_table_incomplete_and_closure_compared_when_ful
 def test_closure_cross_calibration_is_the_S0_part():
     N = 10
     beta = make_beta(N, 16)
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(17), [0.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(17), [0.0])
     tab, res = analyse(cols, N)
     r = sa.cross_calibrate_closure(tab.eps_arcsec[0.0])
     np.testing.assert_allclose(r["beta"], res.beta_arcsec, atol=1e-12)
@@ -231,7 +232,7 @@ def test_noisy_recovery_within_propagated_uncertainty():
     rng = np.random.default_rng(2024)
     beta = make_beta(N, 18)
     sigma = 0.05
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(19), np.arange(15.0), n_rep=3, noise_arcsec=sigma, rng=rng)
+    cols = synthesize_readings(ALPHA, beta, setup_fn(19), np.arange(15.0), n_rep=3, noise_arcsec=sigma, rng=rng)
     tab, res = analyse(cols, N)
     # repetitions averaged, repeatability reported
     assert tab.n_rep[0.0].min() == 3 and tab.n_rep[5.0][0].min() == 3
@@ -255,7 +256,7 @@ def test_propagated_u_matches_monte_carlo_scatter():
     N, sigma, M = 8, 0.1, 400
     beta = make_beta(N, 21)
     U = setup_fn(22)
-    clean = sa.synthesize_readings(ALPHA, beta, U, [0.0, 20.0])
+    clean = synthesize_readings(ALPHA, beta, U, [0.0, 20.0])
     rng = np.random.default_rng(23)
     b_hat, a0, a20 = [], [], []
     for _ in range(M):
@@ -276,7 +277,7 @@ def test_propagated_u_matches_monte_carlo_scatter():
 
 
 def full_cols(N=6, shifts=(0.0, 5.0)):
-    return sa.synthesize_readings(ALPHA, make_beta(N, 30), setup_fn(31), list(shifts))
+    return synthesize_readings(ALPHA, make_beta(N, 30), setup_fn(31), list(shifts))
 
 
 def tab_of(cols, N=6, **kw):
@@ -377,7 +378,7 @@ def test_property_roundtrip_random_beta_alpha_U(N, seed, shift):
     beta = rng.normal(0.0, 1.0, N)
     beta -= beta.mean()
     Us = rng.normal(0.0, 3.0, N + 1)
-    cols = sa.synthesize_readings(alpha, beta, lambda S, j: Us[j] if S == 0 else Us[0], [0.0, shift])
+    cols = synthesize_readings(alpha, beta, lambda S, j: Us[j] if S == 0 else Us[0], [0.0, shift])
     _, res = analyse(cols, N)
     np.testing.assert_allclose(res.beta_arcsec, beta, atol=1e-9)
     for s in res.shifts:
@@ -406,7 +407,7 @@ def test_analyze_polygon_end_to_end_json_ready():
     rng = np.random.default_rng(99)
     beta = make_beta(N, 40)
     alpha = make_alpha({2: (1.0314, -2.4233), 3: (0.3, 0.5), 5: (0.1, 0.1), 24: (0.02, 0.3)})
-    cols = sa.synthesize_readings(alpha, beta, setup_fn(41), np.arange(15.0), n_rep=3, noise_arcsec=0.02, rng=rng)
+    cols = synthesize_readings(alpha, beta, setup_fn(41), np.arange(15.0), n_rep=3, noise_arcsec=0.02, rng=rng)
     heads = _heads_columns(alpha, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.005, rng, n_rep=2)
     r = analyze_polygon(cols, N, heads, sc.SELFA_HEADS_DEG, selfcal_sets=sc.SELFA_SETS, encoder_resolution_arcsec=0.04)
     json.dumps(r, allow_nan=False)
@@ -436,7 +437,7 @@ def test_analyze_polygon_detects_disagreement():
     beta = make_beta(N, 42)
     alpha = make_alpha({2: (1.0, 0.0)})
     other = make_alpha({2: (1.5, 0.0)})
-    cols = sa.synthesize_readings(alpha, beta, setup_fn(43), [0.0, 5.0, 10.0], n_rep=3, noise_arcsec=0.01, rng=rng)
+    cols = synthesize_readings(alpha, beta, setup_fn(43), [0.0, 5.0, 10.0], n_rep=3, noise_arcsec=0.01, rng=rng)
     heads = _heads_columns(other, np.arange(360.0), [0.0, 120.0, 240.0], 0.005, rng, n_rep=3)
     r = analyze_polygon(cols, N, heads, [0.0, 120.0, 240.0])
     assert r["en_max"] > 1.0
@@ -460,7 +461,7 @@ def test_figures_render(tmp_path):
     N = 12
     rng = np.random.default_rng(7)
     alpha = make_alpha({2: (1.0, 0.2), 3: (0.2, 0.0)})
-    cols = sa.synthesize_readings(alpha, make_beta(N, 44), setup_fn(45), [0.0, 10.0, 20.0])
+    cols = synthesize_readings(alpha, make_beta(N, 44), setup_fn(45), [0.0, 10.0, 20.0])
     heads = _heads_columns(alpha, np.arange(0, 360.0, 2.0), [0.0, 90.0, 180.0, 270.0], 0.005, rng)
     r = analyze_polygon(cols, N, heads, [0.0, 90.0, 180.0, 270.0])
     for fn in (fh.figure_pitch_deviation, fh.figure_alpha_at_shifts, fh.figure_curve_fits,
@@ -473,7 +474,7 @@ def test_figures_render(tmp_path):
 def test_closure_at_a_nonzero_reference_shift():
     N = 9
     beta = make_beta(N, 50)
-    cols = sa.synthesize_readings(ALPHA, beta, setup_fn(51), [0.0])
+    cols = synthesize_readings(ALPHA, beta, setup_fn(51), [0.0])
     cols["shift_deg"] = cols["shift_deg"] + 4.0  # the full table measured at S = 4°
     cols["theta_deg"] = np.mod(cols["theta_deg"] + 4.0, 360.0)
     cols["ac_arcsec"] = cols["ac_arcsec"] - ALPHA(cols["theta_deg"] - 4.0) + ALPHA(cols["theta_deg"])
@@ -489,7 +490,7 @@ def test_pipeline_forward_backward_directions_and_theta_jitter():
     N, h = 12, 0.3
     rng = np.random.default_rng(60)
     beta = make_beta(N, 61)
-    base = sa.synthesize_readings(ALPHA, beta, setup_fn(62), [0.0, 10.0])
+    base = synthesize_readings(ALPHA, beta, setup_fn(62), [0.0, 10.0])
     n = base["ac_arcsec"].size
     cols = {k: np.concatenate([v, v]) for k, v in base.items()}
     cols["direction"] = np.array(["forward"] * n + ["backward"] * n, dtype=object)
@@ -514,7 +515,7 @@ def _runs(N, shifts, reps, sigma, h_fn, seed, alpha=ALPHA):
     beta = make_beta(N, seed + 1)
     parts = []
     for r in range(reps):
-        base = sa.synthesize_readings(alpha, beta, setup_fn(seed + 10 + r), shifts)
+        base = synthesize_readings(alpha, beta, setup_fn(seed + 10 + r), shifts)
         n = base["ac_arcsec"].size
         for d, sgn in (("forward", 1.0), ("backward", -1.0)):
             c = {k: v.copy() for k, v in base.items()}

@@ -1,5 +1,5 @@
 """trace(): is there anything to explain, the signature, nulls, the unexplained case, the model
-file, the figures. Synthetic evidence from ``benchtwin.analysis.effects.synthetic`` with explicit
+file, the figures. Synthetic evidence from ``tests.synthetic.evidence`` with explicit
 seeds."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.effects import ALL
-from benchtwin.analysis.effects.synthetic import make_evidence
+from tests.synthetic.evidence import make_evidence
 from benchtwin.analysis.tracing import (Evidence, add_to_error_model, harmonic_test, load_model,
                                         model_terms_from_payload, residual_test, save_model, signature, trace)
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.effects import ALL
-from benchtwin.analysis.effects.synthetic import make_evidence
+from tests.synthetic.evidence import make_evidence
 from benchtwin.analysis.tracing import _replace_alpha, trace
 
 #: (seed, make_evidence keywords): the exact tie of the round-trip test, a null, a reference-chain
@@ -83,7 +83,7 @@ def test_same_decision_with_the_readings_permuted_and_candidates_reordered(refer
     res = trace(ev, candidates=dict(reversed(list(ALL.items()))))
     assert _decision(res) == reference["tie_graduation_sphere_form"]
     # the readings in another order: every sum is taken in another order
-    from benchtwin.analysis.effects.synthetic import make_evidence as mk
+    from tests.synthetic.evidence import make_evidence as mk
     seed, kw = CASES["tie_graduation_sphere_form"]
     _, truth = mk(np.random.default_rng(seed), **kw)
     p = np.random.default_rng(5).permutation(ev.n)

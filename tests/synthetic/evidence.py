@@ -1,6 +1,5 @@
-"""Synthetic evidence with known, injected effects (for the tests, the docs and the figures).
-
-Not an effect (not in ``ALL``). A polygon sweep as in Hsieh et al. 2022 (eq. 3: N faces, start
+"""Synthetic evidence with known, injected effects (test-only: nothing in benchtwin/, twin/ or analysis/
+imports it; it was analysis/effects/synthetic.py). A polygon sweep as in Hsieh et al. 2022 (eq. 3: N faces, start
 faces j, shift angles S, repetitions, forward/backward), a Jia-like encoder (eq. 5 with
 e = 7.1 µm, θ0 = 192.08°, r = 22 mm; L1 = 6.81 mm, L2 = 122.96 mm, Jia sec. 5), sphere motions
 with 2–5 lobes of ~0.1 µm, and the effects of the library injected by their *physics* (true
@@ -15,9 +14,35 @@ import math
 
 import numpy as np
 
-from ._base import ARCSEC_PER_RAD, fourier_eval, fourier_integral, quadrature
+from benchtwin.analysis.tracing import Evidence, RadialMotion, SelfCal
+from benchtwin.units import ARCSEC_PER_RAD
 
 E_UM, THETA0_DEG, R_MM, L1_MM, L2_MM = 7.1, 192.08, 22.0, 6.81, 122.96
+
+
+# The generator's own series (it shares no code with the analysis's Fourier engine, analysis/fourier.py,
+# so that the tests compare the analysis against the physics and not against itself).
+def fourier_eval(theta_deg, coefs):
+    """Σ a_k sin kθ + b_k cos kθ (θ in degrees)."""
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+    out = np.zeros_like(th)
+    for k, (a, b) in coefs.items():
+        out += a * np.sin(int(k) * th) + b * np.cos(int(k) * th)
+    return out
+
+
+def fourier_integral(theta_deg, coefs):
+    """∫ (a sin kθ + b cos kθ) dθ over θ in radians, without constant: (−a cos kθ + b sin kθ)/k."""
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+    out = np.zeros_like(th)
+    for k, (a, b) in coefs.items():
+        out += (-a * np.cos(int(k) * th) + b * np.sin(int(k) * th)) / int(k)
+    return out
+
+
+def quadrature(coefs):
+    """A quarter period later in each harmonic: a sin + b cos → b sin − a cos."""
+    return {k: (b, -a) for k, (a, b) in coefs.items()}
 
 
 def _lobes(rng, ks, amp_um):
@@ -47,8 +72,6 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
     ``extra``: optional callable(theta_deg, t_s) -> arcsec added to the measured α (an effect
     outside the library).
     """
-    from ..tracing import CCDData, Evidence, RadialMotion, SelfCal  # noqa: F401  (late: tracing imports effects)
-
     inj = dict(inject or {})
     N = int(n_faces)
     start_faces = list(range(1, N + 1)) if start_faces is None else list(start_faces)
