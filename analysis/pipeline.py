@@ -201,6 +201,10 @@ def autocollimator_declared(bench: dict[str, Any]) -> tuple[float, float, str | 
             float(HSIEH_AC_ACCURACY_ARCSEC if acc is None else acc), note)
 
 
+#: decimals of a degree an encoder display transmits (Heidenhain ND: 6, i.e. 3.6 mas)
+DISPLAY_DECIMALS_DEG = 6
+
+
 def polygon_table(ds: Dataset) -> dict[str, Any]:
     """polygon.csv with each autocollimator reading referred to its commanded stop.
 
@@ -215,7 +219,10 @@ def polygon_table(ds: Dataset) -> dict[str, Any]:
     t = dict(ds.table("polygon"))
     if "theta_read_deg" in t:
         th = np.asarray(t["theta_deg"], dtype=float)
-        q_arcsec = ((np.asarray(t["theta_read_deg"], dtype=float) - th + 180.0) % 360.0 - 180.0) * 3600.0
+        # the display is known to what a display transmits: 6 decimals of a degree (Heidenhain ND,
+        # hw/drivers/heidenhain.py), so the twin's exact reading and an emulated one give one q
+        shown = np.round(np.asarray(t["theta_read_deg"], dtype=float), DISPLAY_DECIMALS_DEG)
+        q_arcsec = ((shown - th + 180.0) % 360.0 - 180.0) * 3600.0
         t["ac_arcsec"] = np.asarray(t["ac_arcsec"], dtype=float) + q_arcsec
     return t
 
