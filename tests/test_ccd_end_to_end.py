@@ -85,13 +85,18 @@ def test_noise_free_frames_d_ref_within_0p02_px():
     # the pixel scale on the same frames: the period is at the edge radius (twin: N = round(2πR/p)
     # lines, true period at the edge 2πR/N = p·(1 − 5.9e-5)); a period taken at the optical radius
     # (22 mm) would be 2.2 % off
-    tr = frames[0][2]
-    sc_ = ecc.pixel_scale_um(frames[0][1], PERIOD_UM)
+    # (each frame's scale scatters by ±5e-6 with the lines in view, i.e. with where the servo holds
+    # the count: 1.0e-5 … 2.2e-5 low on jia2019's 15 frames; the mean over the sweep is the claim)
     n_lines = round(2 * math.pi * 22500.0 / PERIOD_UM)
     p_edge_true = 2 * math.pi * 22500.0 / n_lines
-    assert sc_["pixel_um"] == pytest.approx(tr["pixel_um"] * PERIOD_UM / p_edge_true, rel=2e-5)
-    assert sc_["pixel_um"] == pytest.approx(tr["pixel_um"], rel=1e-4)
-    assert len(sc_["rejected_spacing_px"]) == 0
+    rel = []
+    for _, image, tr in frames:
+        sc_ = ecc.pixel_scale_um(image, PERIOD_UM)
+        assert len(sc_["rejected_spacing_px"]) == 0
+        assert sc_["pixel_um"] == pytest.approx(tr["pixel_um"], rel=1e-4)
+        rel.append(sc_["pixel_um"] / (tr["pixel_um"] * PERIOD_UM / p_edge_true) - 1.0)
+    assert max(abs(r) for r in rel) < 3e-5
+    assert abs(float(np.mean(rel))) < 2e-5
 
 
 # --------------------------------------------------------------------------- realistic sensor: e, θ0
