@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchtwin.analysis.effects.synthetic import make_evidence
+from tests.synthetic.evidence import make_evidence
 from benchtwin.analysis.tracing import trace
 
 
