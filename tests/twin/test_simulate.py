@@ -217,9 +217,11 @@ def test_jia2019_full_run(tmp_path):
     ds = Dataset(out)
     assert len(ds.table("radial_motion")["rep"]) == 1080
     assert len(ds.table("polygon")["step"]) == 529 and not ds.has("heads")
-    # Jia fig. 15: eccentricity 7.1 µm at r = 22 mm -> α peak ≈ 66.6″
+    # Jia fig. 15: eccentricity 7.1 µm at r = 22 mm -> α peak ≈ 66.6″, plus the disk's division error
+    # (graduation_error_rms = 3″, a line map: its peak over 3600 angles is up to ≈ 3σ = 9″) and the
+    # radial motion (< 1″): 60 … 77″
     a = np.array(read_csv(out / "truth" / "encoder_error.csv")["alpha_arcsec"], dtype=float)
-    assert 60 < np.max(np.abs(a)) < 73
+    assert 60 < np.max(np.abs(a)) < 77
 
 
 def test_physics_bench_eccentricity_alone_gives_the_exact_law():
