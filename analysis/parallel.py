@@ -22,8 +22,8 @@ hangs for ever (seen in the test suite after a simulate in the same process). No
 vanish from the caller's accounting (benchmarks/run_bench.py reports CPU time). Each worker sets
 OpenCV to one thread: the pool already uses every core.
 
-``BENCHTWIN_WORKERS`` (environment) overrides the default worker count ``min(os.cpu_count(), 2)``
-in :func:`default_workers` (e.g. ``BENCHTWIN_WORKERS=1`` for the serial path).
+``BENCHTWIN_WORKERS`` (environment) overrides the default worker count in :func:`default_workers`
+(1, i.e. serial, as measured: see ``MAX_DEFAULT_WORKERS``; ``BENCHTWIN_WORKERS=2`` for the pool).
 """
 
 from __future__ import annotations
@@ -40,13 +40,17 @@ __all__ = ["default_workers", "ordered_map"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-#: default upper bound on the worker count: the target machine has 2 cores (issue #17), and frames
-#: are ~0.1 s of work each, so more processes than cores only add start-up and memory
-MAX_DEFAULT_WORKERS = 2
+#: default upper bound on the worker count. Measured (benchmarks/ecc_bench.py, default jia2019
+#: dataset, 60 frames of 2048×1536, 2 cores): at load ≈ 2 the pool of 2 took 6.9 s wall / 8.4 s CPU
+#: against 6.2 s / 6.4 s serial (two spawned interpreters' imports and the frames' pickling outweigh
+#: the second core for ~0.1 s of work a frame); at load ≈ 20, 55.9 s against 61.0 s wall. So the
+#: default is serial; BENCHTWIN_WORKERS=2 turns the pool on (larger or more frames)
+MAX_DEFAULT_WORKERS = 1
 
 
 def default_workers() -> int:
-    """Worker processes for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else min(cores, 2),
+    """Worker processes for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else
+    min(cores, MAX_DEFAULT_WORKERS),
     and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
     its parent already spreads the work over the cores, and a daemonic process may not have children."""
     env = os.environ.get("BENCHTWIN_WORKERS", "").strip()

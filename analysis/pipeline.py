@@ -110,7 +110,7 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     # parallel processes (analysis/parallel.py: in order, bit-identical to the serial loop, at most a
     # few frames in flight); only the edges (a few hundred numbers per frame) are kept for the d_ref
     # stage, so memory stays flat for long sweeps of large frames. ``workers``: processes (default:
-    # BENCHTWIN_WORKERS or min(cores, 2); 1 = serial, in this process).
+    # BENCHTWIN_WORKERS, else serial as measured, see analysis/parallel.py; 1 = serial, in this process).
     # A frame the image analysis rejects is dropped from that stage on and recorded (module constants).
     n_frames = len(ds.table("ccd/index")["k"])
     limits = ccd_frame_limits(n_frames, order)
