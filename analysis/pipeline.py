@@ -551,7 +551,9 @@ def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, 
     return CorrectedCurve(theta_deg=th, value=val, u=np.sqrt(u2), corrections_applied=applied,
                           note="the measured encoder error minus the identified artefacts of the reference chain "
                                "(autocollimator scale, non-linearity and drift, polygon pitch, disk-to-polygon "
-                               "twist); the raw curve when none is identified")
+                               "twist); the raw curve when none is identified. Stated at the calibration points "
+                               "(theta_deg) only: no value between them (periods shorter than twice the step, "
+                               "e.g. the sub-division error, are not sampled)")
 
 
 def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n_faces: int) -> np.ndarray | None:
