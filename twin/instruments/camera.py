@@ -73,20 +73,37 @@ class SimCamera:
                 "pixel_um": c.pixel_pitch_m * 1e6, "position_deg": float(np.degrees(c.azimuth_rad)),
                 "tangential": c.tangential, "reference_px": list(c.reference_px), "bit_depth": self.sensor.bit_depth}
 
+    def disk_seen(self, pose: Any = None) -> Any:
+        """The disk's pose relative to the microscope: the posed disk, displaced by the stand's
+        thermal drift (twin/thermal.py ``microscope_stand_drift_m``: the stand growing outward
+        along the camera's radial line moves the edge inward in the image). The identical object
+        when the bench has no such drift (datasets without it are unchanged)."""
+        from benchtwin.twin.pose import BodyPose
+
+        p = self.state.pose if pose is None else pose
+        th = getattr(self.state.bench, "thermal", None)
+        d = th.microscope_stand_drift_m(p.t_s) if th is not None else 0.0
+        if not d:
+            return p.disk
+        u = self.camera.axes_lab()[0]
+        return BodyPose(pos=p.disk.pos - d * u, R=p.disk.R)
+
     def sim_frame_truth(self, pose: Any = None) -> dict[str, Any]:
         """The geometric truth of a frame taken at ``pose`` (default: the bench's current pose),
-        without rendering it: what the renderer draws from (``build_scene``)."""
+        without rendering it: what the renderer draws from (``build_scene``), the disk as the
+        microscope sees it (``disk_seen``)."""
         from benchtwin.twin.render.grating import build_scene
 
         p = self.state.pose if pose is None else pose
-        scene = build_scene(p.disk, self.grating, self.camera)
+        scene = build_scene(self.disk_seen(p), self.grating, self.camera)
         return {"centre_px": [float(v) for v in scene.centre_px], "edge_radius_px": float(scene.edge_radius_px),
                 "pixel_um": float(self.camera.true_pixel_m * 1e6),
                 "reference_px": [float(v) for v in self.camera.reference_px]}
 
     def capture(self) -> CameraFrame:
         st = self.state
-        frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
+        frame = self.renderer.render(self.disk_seen(st.pose), self.grating, self.camera, self.sensor,
+                                     st.rng("ccd", self.key))
         tr = frame.truth
         self.last_truth = {"centre_px": [float(v) for v in tr["centre_px"]],
                            "edge_radius_px": float(tr["edge_radius_px"]), "pixel_um": float(tr["pixel_um"]),
