@@ -190,7 +190,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         sig["drift"]["reason"] = "the reading order follows θ in every run: a drift cannot be told from a θ pattern"
     # repetition: synchronous (same at the same θ in every rep) or not
     if np.unique(ev.rep).size >= 2:
-        cell = ev.theta_bin * 10 + ev.direction
+        cell = ev.theta_bin * 10 + ev.approach
         inv = np.unique(cell, return_inverse=True)[1]
         w2 = pb.w ** 2
         m = np.bincount(inv, weights=w2 * pb.y) / np.bincount(inv, weights=w2)
@@ -204,7 +204,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
     else:
         sig["repetition"] = {"available": False, "reason": "one repetition"}
     # polygon-related: a pattern fixed to the face (moves with the start face)?
-    base = _center(_dummies(ev.theta_bin * 10 + ev.direction), ev.closure_group, pb.w ** 2)
+    base = _center(_dummies(ev.theta_bin * 10 + ev.approach), ev.closure_group, pb.w ** 2)
     if np.unique(ev.start_face).size >= 2:
         fx = _center(_dummies(ev.face), ev.closure_group, pb.w ** 2)
         sig["start_face"] = {"test": "face pattern beyond the θ pattern", **_nested(pb, base, fx)}
@@ -221,8 +221,8 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
                         **_nested(pb, _center(H, ev.closure_group, pb.w ** 2), _center(Hs, ev.closure_group, pb.w ** 2))}
     else:
         sig["shift"] = {"available": False, "reason": "one shift angle"}
-    # direction of rotation
-    dd = _one_column(pb, ev.direction.astype(float), "direction")
+    # direction of rotation: of the approach to each stop (a hysteresis follows the last move)
+    dd = _one_column(pb, ev.approach.astype(float), "direction")
     sig["direction"] = {"half_difference_arcsec": dd.get("gain"), "u": dd.get("u"), "z": dd.get("z"),
                         "rms_arcsec": dd.get("rms_arcsec"),
                         "significant": dd.get("significant", False), "available": dd["available"]}
