@@ -99,8 +99,9 @@ TABLES: dict[str, TableSpec] = {
         {"probe_top_x_um": float, "probe_bottom_x_um": float},
         ("t_s",),
     ),
-    "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str}, {"theta_read_deg": float, "t_s": float},
-                           ("k",), ranges={"k": (0, 10**6)}),
+    "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str},
+                           {"theta_read_deg": float, "t_s": float, "sweep": int},
+                           ("k",), ranges={"k": (0, 10**6), "sweep": (0, 1000)}),
     "polygon": TableSpec(
         {"shift_deg": float, "start_face": int, "step": int, "theta_deg": float, "ac_arcsec": float, "t_s": float},
         {"rep": int, "direction": str, "theta_read_deg": float, "ac_y_arcsec": float},
@@ -667,18 +668,26 @@ class Dataset:
                 raise DatasetError(f"{p}: rows {seen[key] + 2} and {i + 2}: the same image file {key!r} twice")
             seen[key] = i
         th = np.asarray(cols["theta_deg"], dtype=float)
-        wrapped = np.mod(th, 360.0)
-        order = np.argsort(wrapped, kind="stable")
-        same = np.flatnonzero(np.diff(wrapped[order]) == 0.0)
-        if same.size:
-            a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
-            raise DatasetError(f"{p}: rows {a + 2} and {b + 2}: two frames at the same angle theta_deg = {th[a]:g}")
+        # repeated sweeps (optional column ``sweep``): each angle once per sweep
+        sweeps = np.asarray(cols["sweep"], dtype=int) if "sweep" in cols else np.zeros(n, dtype=int)
+        min_gap = 360.0
+        for sw in np.unique(sweeps):
+            rows = np.flatnonzero(sweeps == sw)
+            wrapped = np.sort(np.mod(th[rows], 360.0), kind="stable")
+            order = np.argsort(np.mod(th[rows], 360.0), kind="stable")
+            same = np.flatnonzero(np.diff(wrapped) == 0.0)
+            if same.size:
+                a, b = sorted((int(rows[order[same[0]]]), int(rows[order[same[0] + 1]])))
+                in_sweep = f" of sweep {int(sw)}" if "sweep" in cols else ""
+                raise DatasetError(f"{p}: rows {a + 2} and {b + 2}: two frames{in_sweep} at the same angle "
+                                   f"theta_deg = {th[a]:g}")
+            if rows.size > 1:
+                min_gap = min(min_gap, float(np.min(np.diff(np.concatenate([wrapped, wrapped[:1] + 360.0])))))
         if "theta_read_deg" in cols and n >= 1:
-            gaps = np.diff(np.concatenate([wrapped[order], wrapped[order][:1] + 360.0])) if n > 1 else np.array([360.0])
             # a reading belongs to its own commanded angle: within half the closest spacing of two
             # frames (else it is nearer another frame's angle: swapped rows) and within 1° (the
             # encoder's error is arcseconds; Jia eq. 5 with e/r ≤ 5 % stays well below)
-            tol = min(1.0, 0.5 * float(np.min(gaps)))
+            tol = min(1.0, 0.5 * min_gap)
             d = np.abs((np.asarray(cols["theta_read_deg"], dtype=float) - th + 180.0) % 360.0 - 180.0)
             bad = np.flatnonzero(d >= tol)
             if bad.size:

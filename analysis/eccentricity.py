@@ -90,6 +90,7 @@ __all__ = [
     "with_async_motion",
     "eccentricity_monte_carlo",
     "eccentricity_range_method",
+    "eccentricity_from_sweeps",
     "eccentricity_from_images",
     "frame_edges_and_scale",
 ]
@@ -843,6 +844,9 @@ def with_async_motion(ecc: dict, u_h1_um: float, dof: float | None = None) -> di
     if u_h1_um < 0:
         raise ValueError(f"u_h1_um must be >= 0, got {u_h1_um}")
     e = ecc["e_um"]
+    out["u_source"] = (f"one sweep: the eq. 10 fit (u = {ecc['e_u_um']:.3g} µm) ⊕ the radial run's asynchronous "
+                       f"1st harmonic (type B from the probes' repetitions, u = {u_h1_um:.3g} µm"
+                       + (f", {dof:g} dof" if dof else "") + ")")
     out["e_u_um"] = math.hypot(ecc["e_u_um"], u_h1_um)
     out["theta0_u_deg"] = math.hypot(ecc["theta0_u_deg"], math.degrees(u_h1_um / e)) if e > 0 else float("nan")
     out["u_async_h1_um"], out["u_async_h1_dof"] = float(u_h1_um), dof
@@ -902,6 +906,75 @@ def eccentricity_range_method(e_um: Sequence[float], theta0_deg: Sequence[float]
     rng_t = 360.0 - float(gaps.max())
     return {"e_range_um": float(np.ptp(e)), "theta0_range_deg": rng_t, "e_u_um": float(np.ptp(e)) / d_n,
             "theta0_u_deg": rng_t / d_n, "d_n": d_n, "n": n}
+
+
+def eccentricity_from_sweeps(sweeps: Sequence[dict]) -> dict:
+    """e and θ0 of n ≥ 2 repeated CCD sweeps, u(e) and u(θ0) type A from their scatter (GUM 4.2).
+
+    ``sweeps``: one :func:`eccentricity_from_dref` result per sweep (each a revolution of its own:
+    its first harmonic carries that revolution's asynchronous motion, the per-frame noise of d_ref and
+    whatever else changes from sweep to sweep). The estimate is the mean first-harmonic vector
+    (c̄1, d̄1) of the sweeps (eqs. 11, 12 on it), so a mean over sweeps and the phase are consistent.
+
+    Its uncertainty, and why:
+
+    - ``s_e``, ``s_θ0``: the experimental standard deviation (n − 1 dof) of the sweeps' e and θ0
+      (θ0 about its circular mean). This is σ of ONE sweep, the quantity Jia quotes (u_e = σ_e,
+      sec. 5) — the range method (range/d_n, Jia's) is reported beside it (``*_range_u_*``); s is the
+      estimator used, since it is unbiased in variance and uses every value, where the range of n = 3
+      is equivalent to s with 1.8 dof.
+    - u(e) of the stated e is that of the MEAN of the n sweeps, s/√n (GUM 4.2.3), because the
+      stated e is the mean. With n = 3, s has 2 dof (its relative sd is ≈ 50 %); it is floored by the
+      fits' own pooled u (``e_u_fit_um``, √(mean u_fit,i²)/√n, from ~40 residual dof per sweep), which
+      the sweeps' scatter cannot be smaller than in expectation: a chance-small s does not make u(e)
+      smaller than the frames' measured noise. Likewise u(θ0) = max(s_θ0, u_fit(θ0))/√n.
+    - The probes' asynchronous first harmonic (:func:`with_async_motion`) is NOT added: each sweep's
+      revolution already carries its own, so the sweeps' scatter contains it.
+
+    Keys: e_um, e_u_um, theta0_deg, theta0_u_deg, n_sweeps, dof, e_sweeps_um, theta0_sweeps_deg,
+    e_sweep_sd_um, theta0_sweep_sd_deg (s of one sweep), e_range_u_um, theta0_range_u_deg (range/d_n of
+    one sweep), e_u_fit_um, theta0_u_fit_deg (the pooled fit u of the mean), c1_um, d1_um,
+    camera_azimuth_deg, u_source (a sentence)."""
+    n = len(sweeps)
+    if n < 2:
+        raise ValueError(f"need ≥ 2 sweeps for a type-A u(e) from their scatter, got {n}")
+    c1 = np.array([float(r["c1_um"]) for r in sweeps])
+    d1 = np.array([float(r["d1_um"]) for r in sweeps])
+    az = {float(r["camera_azimuth_deg"]) for r in sweeps}
+    if len(az) != 1:
+        raise ValueError(f"the sweeps were taken at different camera azimuths {sorted(az)}")
+    camera = az.pop()
+    e_i = np.hypot(c1, d1)
+    t_i = np.array([float(r["theta0_deg"]) for r in sweeps]) % 360.0
+    cm, dm = float(c1.mean()), float(d1.mean())
+    e = math.hypot(cm, dm)
+    theta0 = (math.degrees(math.atan2(cm, dm)) - (camera - 180.0)) % 360.0
+    dev = (t_i - theta0 + 180.0) % 360.0 - 180.0       # θ0 of each sweep about the mean's
+    s_e = float(np.std(e_i, ddof=1))
+    s_t = float(np.sqrt(np.sum((dev - dev.mean()) ** 2) / (n - 1)))
+    uf_e = math.sqrt(float(np.mean([float(r["e_u_um"]) ** 2 for r in sweeps])))
+    uf_t = math.sqrt(float(np.mean([float(r["theta0_u_deg"]) ** 2 for r in sweeps])))
+    rm = eccentricity_range_method(e_i.tolist(), t_i.tolist()) if n in _d_n_table() else {"e_u_um": float("nan"),
+                                                                         "theta0_u_deg": float("nan")}
+    floor_e = s_e < uf_e
+    src = (f"type A from {n} repeated CCD sweeps: u = s/√n of the mean (s = {s_e:.3g} µm, {n - 1} dof"
+           + (f"; floored by the fits' pooled u = {uf_e:.3g} µm" if floor_e else "") + ")")
+    return {
+        "e_um": e, "e_u_um": max(s_e, uf_e) / math.sqrt(n),
+        "theta0_deg": theta0, "theta0_u_deg": max(s_t, uf_t) / math.sqrt(n),
+        "n_sweeps": n, "dof": n - 1,
+        "e_sweeps_um": e_i.tolist(), "theta0_sweeps_deg": t_i.tolist(),
+        "e_sweep_sd_um": s_e, "theta0_sweep_sd_deg": s_t,
+        "e_range_u_um": float(rm["e_u_um"]), "theta0_range_u_deg": float(rm["theta0_u_deg"]),
+        "e_u_fit_um": uf_e / math.sqrt(n), "theta0_u_fit_deg": uf_t / math.sqrt(n),
+        "c1_um": cm, "d1_um": dm, "camera_azimuth_deg": camera, "u_source": src,
+    }
+
+
+def _d_n_table() -> dict[int, float]:
+    from benchtwin.analysis.radial_motion import D_N
+
+    return D_N
 
 
 def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], period_um: float | None = None,

@@ -186,7 +186,7 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
         files.append(f)
     check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
     dref_um = np.asarray(drefs_px) * scale
-    res = ecc.eccentricity_from_dref(np.asarray(thetas), dref_um, camera_azimuth_deg=ccd["position_deg"], order=order)
+    res = _fit_sweeps(ds, ecc, np.asarray(thetas), dref_um, files, ccd["position_deg"], order)
     res["pixel_um"] = scale
     res["radius_fixed_px"] = radius_px
     res["theta_deg"] = thetas
@@ -196,6 +196,39 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     res["rejected_frames"] = list(rejected.values())
     res["frame_limits"] = limits
     return EccentricityResult.from_eccentricity(res)
+
+
+def _fit_sweeps(ds: Dataset, ecc: Any, thetas: np.ndarray, dref_um: np.ndarray, files: list[str], camera_deg: float,
+                order: int) -> dict[str, Any]:
+    """Jia eqs. 10-12 on the frames of each sweep (``ccd/index.csv`` column ``sweep``; one sweep
+    without it) and, with ≥ 2 sweeps, e ± u(e) type A from their scatter
+    (:func:`benchtwin.analysis.eccentricity.eccentricity_from_sweeps`). One sweep: the fit's result
+    (its u is the fit's; ``run`` adds the probes' asynchronous part, ``with_async_motion``)."""
+    idx = ds.table("ccd/index")
+    if "sweep" not in idx or len(np.unique(idx["sweep"])) < 2:
+        return ecc.eccentricity_from_dref(thetas, dref_um, camera_azimuth_deg=camera_deg, order=order)
+    sweep_of = {str(f).strip(): int(sw) for f, sw in zip(idx["file"], idx["sweep"])}
+    sw = np.array([sweep_of[f] for f in files])
+    fits = []
+    for k in np.unique(np.asarray(idx["sweep"], dtype=int)):
+        m = sw == k
+        # each sweep is a fit of its own: the frame limits hold per sweep
+        lim = ccd_frame_limits(int(np.sum(np.asarray(idx["sweep"]) == k)), order)
+        if int(m.sum()) < lim["min_frames"]:
+            raise DatasetError(f"{ds.path / 'ccd'}: sweep {int(k)}: only {int(m.sum())} usable CCD frames for its "
+                               f"eccentricity fit (Jia eqs. 10-12); need ≥ {lim['min_frames']} (see ccd_frame_limits)")
+        fits.append(ecc.eccentricity_from_dref(thetas[m], dref_um[m], camera_azimuth_deg=camera_deg, order=order))
+    comb = ecc.eccentricity_from_sweeps(fits)
+    # the figures and the CCD section show sweep 0's fit with every sweep's points; the numbers are the sweeps'
+    res = dict(fits[0])
+    res.update(comb)
+    n = len(fits)
+    e_i, t_i = np.asarray(comb["e_sweeps_um"]), np.asarray(comb["theta0_sweeps_deg"])
+    dt = (t_i - comb["theta0_deg"] + 180.0) % 360.0 - 180.0
+    res["cov_e_theta0"] = float(np.cov(e_i, dt, ddof=1)[0, 1] / n)   # µm·deg, of the means
+    res["residual_rms_um"] = float(np.sqrt(np.mean([f["residual_rms_um"] ** 2 for f in fits])))
+    res["sweep_of_frame"] = sw.tolist()
+    return res
 
 
 #: The autocollimator Hsieh et al. 2022 used (MÖLLER-WEDEL ELCOMAT 3000, sec. 3.3 (2) and (4)):
@@ -401,7 +434,9 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         results["radial_error_motion"] = _iso_summary(rm.iso230_7)
     if ds.has("ccd/index"):
         ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
-        if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
+        if rm is not None and ecc.sweeps is None:
+            # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12): a type B
+            # term from the radial run's repetitions; repeated sweeps hold it in their own scatter
             ecc = ecc.with_async_motion(rm.u_h1_async_um, rm.u_h1_async_dof)
         results.update(cast(BenchResults, ecc.to_json()))
         if ecc.rejected_frames:

@@ -352,6 +352,11 @@ class BenchResults(_Common, PolygonResults, total=False):
     eccentricity_u_fit_um: Annotated[Num, Key("µm", "u(e) from the eq. 10 fit alone")]
     eccentricity_phase_u_fit_deg: Annotated[Num, Key("deg", "u(θ0) from the fit alone")]
     eccentricity_u_async_um: Annotated[float | None, Key("µm", "the async motion's part of u(e), null without probes")]
+    eccentricity_u_source: Annotated[str, Key("", "where u(e) comes from: one sweep's fit ⊕ the probes' async part "
+                                                 "(type B), or type A from repeated sweeps")]
+    eccentricity_sweeps: Annotated[dict[str, Any], Key("µm", "repeated CCD sweeps: n_sweeps, dof, e_sweeps_um, "
+                                                             "theta0_sweeps_deg, e_sweep_sd_um (s of one sweep), "
+                                                             "e_range_u_um (Jia's range/d_n), ...")]
     ccd: Annotated[CCDSection, Key("", "the CCD sweep")]
     ccd_rejected_frames: Annotated[list[RejectedFrame], Key("", "frames the image analysis dropped")]
     model_file_terms: Annotated[list[str], Key("", "analyze --model: terms added from the model file")]

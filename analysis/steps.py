@@ -79,6 +79,13 @@ class RadialMotionResult:
             u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um)
 
 
+#: eccentricity_u_source of a one-sweep fit before the asynchronous motion is added
+ONE_SWEEP_U_SOURCE = "the eq. 10 fit of one sweep (its residuals) alone"
+#: the keys of results.json eccentricity_sweeps (analysis.eccentricity.eccentricity_from_sweeps)
+SWEEP_KEYS = ("n_sweeps", "dof", "e_sweeps_um", "theta0_sweeps_deg", "e_sweep_sd_um", "theta0_sweep_sd_deg",
+              "e_range_u_um", "theta0_range_u_deg")
+
+
 @dataclass(frozen=True, eq=False)
 class EccentricityResult:
     """Installation eccentricity e (Jia eq. 11) and its phase θ0 (eq. 12) from the CCD sweep."""
@@ -105,6 +112,10 @@ class EccentricityResult:
     #: the fewest usable frames accepted (pipeline.ccd_frame_limits)
     min_frames: int
     residual_rms_um: float | None
+    #: where u(e) comes from (results.json eccentricity_u_source)
+    u_source: str
+    #: repeated CCD sweeps (n_sweeps, dof, per-sweep e and θ0, their sd, Jia's range/d_n); None for one sweep
+    sweeps: dict[str, Any] | None
     #: the step's whole dict (the d_ref Fourier fit, cov(e, θ0), ...) for the error model and the figures
     detail: dict[str, Any]
 
@@ -117,6 +128,8 @@ class EccentricityResult:
                    radius_fixed_px=ecc["radius_fixed_px"], theta_deg=ecc["theta_deg"], d_ref_um=ecc["d_ref_um"],
                    files=ecc["files"], n_frames=ecc["n_frames"], rejected_frames=ecc["rejected_frames"],
                    min_frames=ecc["frame_limits"]["min_frames"], residual_rms_um=ecc.get("residual_rms_um"),
+                   u_source=ecc.get("u_source", ONE_SWEEP_U_SOURCE),
+                   sweeps={k: ecc[k] for k in SWEEP_KEYS} if "n_sweeps" in ecc else None,
                    detail=ecc)
 
     def with_async_motion(self, u_h1_um: float, dof: float | None) -> EccentricityResult:
@@ -132,11 +145,16 @@ class EccentricityResult:
 
     def to_json(self) -> dict[str, Any]:
         """The eccentricity keys of results.json (BenchResults: eccentricity_*, ccd, ccd_rejected_frames)."""
-        return {"eccentricity_um": self.e_um, "eccentricity_u_um": self.u_e_um,
-                "eccentricity_phase_deg": self.theta0_deg, "eccentricity_phase_u_deg": self.u_theta0_deg,
-                "eccentricity_u_fit_um": self.u_e_fit_um, "eccentricity_phase_u_fit_deg": self.u_theta0_fit_deg,
-                "eccentricity_u_async_um": self.u_e_async_um, "ccd": self.ccd_section(),
-                "ccd_rejected_frames": self.rejected_frames}
+        out: dict[str, Any] = {
+            "eccentricity_um": self.e_um, "eccentricity_u_um": self.u_e_um,
+            "eccentricity_phase_deg": self.theta0_deg, "eccentricity_phase_u_deg": self.u_theta0_deg,
+            "eccentricity_u_fit_um": self.u_e_fit_um, "eccentricity_phase_u_fit_deg": self.u_theta0_fit_deg,
+            "eccentricity_u_async_um": self.u_e_async_um, "eccentricity_u_source": self.u_source}
+        if self.sweeps is not None:
+            out["eccentricity_sweeps"] = self.sweeps
+        out["ccd"] = self.ccd_section()
+        out["ccd_rejected_frames"] = self.rejected_frames
+        return out
 
 
 @dataclass(frozen=True, eq=False)

@@ -184,3 +184,25 @@ def test_truth_and_extra_columns_are_allowed(tmp_path):
     root = make_dataset(tmp_path / "ds")
     _rewrite(root, "heads.csv", lambda t: t.replace("delta_arcsec", "delta_arcsec,note").replace("\n", ",x\n").replace("note,x", "note"))
     assert open_dataset(root).table("heads")["note"][0] == "x"
+
+
+def test_repeated_ccd_sweeps_share_angles_not_within_a_sweep(tmp_path):
+    """ccd/index.csv's optional ``sweep`` column (procedure.ccd_reps): the same angle once per sweep."""
+    root = make_dataset(tmp_path / "ds")
+    img = np.full((12, 16), 200, np.uint8)
+    img[:, 3:] = 30
+    import cv2
+
+    (root / "ccd" / "img_002.png").write_bytes(cv2.imencode(".png", img)[1].tobytes())
+    idx = {"k": [0, 1, 2], "theta_deg": [0.0, 6.0, 0.0], "file": ["img_000.png", "img_001.png", "img_002.png"],
+           "theta_read_deg": [0.0001, 6.0001, 0.0002]}
+    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[0, 0, 1])))
+    ds = open_dataset(root)
+    assert "3 CCD images" in ds.validate()
+    assert list(ds.table("ccd/index")["sweep"]) == [0, 0, 1]
+    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[0, 0, 0])))
+    with pytest.raises(DatasetError, match="rows 2 and 4: two frames of sweep 0 at the same angle"):
+        open_dataset(root).validate()
+    (root / "ccd" / "index.csv").write_bytes(table_to_csv(idx))   # no sweep column: one sweep
+    with pytest.raises(DatasetError, match="rows 2 and 4: two frames at the same angle"):
+        open_dataset(root).validate()

@@ -106,6 +106,7 @@ _STREAM = {
     "cage_start": 10,
     "thermal_phase": 11,
     "thermal_axis_azimuth": 12,
+    "thermal_cycle_phase": 13,
 }
 
 # Joints of the model in the order of the solve vector q (names in models/bench.xml).
@@ -390,6 +391,9 @@ class Bench:
             phase = _rng(self.seed, "thermal_phase").uniform(0, TWO_PI)
         if th["axis_drift_azimuth"] is None:
             th["axis_drift_azimuth"] = _rng(self.seed, "thermal_axis_azimuth").uniform(0, TWO_PI)
+        if th["hvac_phase"] is None:   # drawn only when the cycle is on: other benches draw nothing new
+            th["hvac_phase"] = (_rng(self.seed, "thermal_cycle_phase").uniform(0, TWO_PI)
+                                if th["hvac_amplitude"] > 0 else 0.0)
         return Thermal(th, float(phase))
 
     def _set_motion_table(self, table, b) -> None:

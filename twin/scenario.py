@@ -316,6 +316,11 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         dup = next(s for s in shifts if shifts.count(s) > 1)
         raise ScenarioError(f"{where}: procedure.polygon_shifts: the shift {dup / DEG_RAD:g} deg is listed twice; "
                             "expected distinct shift angles")
+    n_frames = round(2 * 3.141592653589793 / pr["ccd_step"]) * pr["ccd_reps"]
+    if n_frames > 720:
+        # the dataset's limit (analysis/dataset.py MAX_CCD_FRAMES: one frame every 0.5°)
+        raise ScenarioError(f"{where}: procedure.ccd_reps × frames per sweep = {n_frames} CCD frames; at most 720 "
+                            "are allowed in a dataset (fewer reps or a larger ccd_step)")
     if len(set(pr["directions"])) != len(pr["directions"]):
         raise ScenarioError(f"{where}: procedure.directions: a direction is listed twice")
     e = data["errors"]["eccentricity"]  # noqa: E501

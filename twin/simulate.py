@@ -80,7 +80,10 @@ def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = Tr
                                     "positions": int(pr["radial_positions"]), "dwell": dwell,
                                     "probes": list(probes)}]
     if ccd:
-        specs.append({"type": "ccd_sweep", "step": _deg(pr["ccd_step"]), "dwell": dwell, "camera": "ccd"})
+        ccd_spec: dict[str, Any] = {"type": "ccd_sweep", "step": _deg(pr["ccd_step"]), "dwell": dwell, "camera": "ccd"}
+        if int(pr["ccd_reps"]) > 1:   # one sweep: the spec (and the emulated bench file) as before
+            ccd_spec["reps"] = int(pr["ccd_reps"])
+        specs.append(ccd_spec)
     specs.append({"type": "polygon_shift_angle", "shifts": [_deg(s) for s in pr["polygon_shifts"]],
                   "reps": int(pr["polygon_reps"]), "directions": dirs, "dwell": dwell,
                   "faces": int(b["polygon_faces"])})

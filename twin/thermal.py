@@ -12,8 +12,14 @@ stood in the lab before the run) and the motor is switched on at t = 0 (cold sta
   holding current) raises it by dT_m at steady state;
 - structure (shaft, housings)  T_s = lag_{tau_s}(T_a + share·(T_m - lag(T_a))): fed by the lab and
   a share of the motor's rise through the shaft (two lags in series for the motor's step);
-- probe stand and autocollimator: lags of the lab air with their own time constants (they stand
-  away from the motor).
+- probe stand, microscope stand and autocollimator: lags of the lab air with their own time
+  constants (they stand away from the motor);
+- the room control's cycling (``hvac_amplitude``, ``hvac_period``): an air-conditioned room holds
+  its set point by cycling, the air swinging ±A with a period of minutes (Bryan 1990, CIRP Annals
+  39/2, "International status of thermal error research": the short-period environmental
+  variation; ISO 230-3:2020 sec. 5, the environmental temperature variation error ETVE, measures
+  exactly this drift). A second sinusoid of the air, phase from the seed; every node lags it with
+  its own time constant (closed form as the daily one). Off by default.
 
 Effects (each applied where it physically acts, with its own coefficient):
 - axis drift: the housings' uneven growth translates the bearing seats by
@@ -21,6 +27,9 @@ Effects (each applied where it physically acts, with its own coefficient):
   physics moves the housings (twin/physics.py), the shaft follows under its ball/spring forces;
 - probe-stand drift: the stand grows along the probe axis by ``probe_stand_growth``·(T_p - T_p(0))
   (an uncompensated aluminium length: 23 ppm/K × 10 mm ≈ 0.2 µm/K); the probes read it as motion;
+- microscope-stand drift: the CCD microscope's stand grows along the camera's radial line by
+  ``microscope_stand_growth``·(T_c − T_c(0)); the camera sees the disk edge move by it
+  (twin/instruments/camera.py renders the disk displaced relative to the microscope);
 - autocollimator drift: its zero moves by ``ac_drift``·(T_ac - T_ac(0)) (both axes);
 - disk and polygon expansion (``disk_cte``, ``polygon_cte``): a UNIFORM expansion changes no
   angle — the graduation lines and the faces keep their angular positions; it scales radii only
@@ -77,6 +86,7 @@ class ThermalState:
     structure_degC: float
     probe_stand_degC: float
     autocollimator_degC: float
+    microscope_stand_degC: float = 0.0
 
 
 class Thermal:
@@ -100,25 +110,37 @@ class Thermal:
         self.ac_rad_K = float(th["ac_drift"])
         self.disk_cte = float(th["disk_cte"])
         self.polygon_cte = float(th["polygon_cte"])
+        # the room control's cycling (absent keys: none; older callers pass only the keys above)
+        self.Ac = float(th.get("hvac_amplitude") or 0.0)
+        self.wc = TWO_PI / float(th.get("hvac_period") or 1200.0)
+        self.phic = float(th.get("hvac_phase") or 0.0)
+        self.mic_m_K = float(th.get("microscope_stand_growth") or 0.0)
+        self.tau_c = float(th.get("microscope_stand_time_constant") or 600.0)
         self._s0 = self.state(0.0)
 
     @property
     def active(self) -> bool:
         """False when nothing can change with time (all drifts or all variations zero)."""
-        varies = self.A > 0 or self.dTm > 0
-        acts = self.axis_drift_m_K or self.probe_stand_m_K or self.ac_rad_K
+        varies = self.A > 0 or self.dTm > 0 or self.Ac > 0
+        acts = self.axis_drift_m_K or self.probe_stand_m_K or self.ac_rad_K or self.mic_m_K
         return bool(varies and acts)
 
     def state(self, t_s: float) -> ThermalState:
         t = float(t_s)
         T0, A, w, phi = self.T0, self.A, self.w, self.phi
-        amb = T0 + A * math.sin(w * t + phi)
-        motor = T0 + _lag_sine(A, w, phi, self.tau_m, t) + self.dTm * _lag_step(self.tau_m, t)
-        struct = (T0 + _lag_sine(A, w, phi, self.tau_s, t)
+        Ac, wc, phic = self.Ac, self.wc, self.phic
+
+        def air(tau: float) -> float:   # the lab air's daily and cycling parts through one lag
+            return _lag_sine(A, w, phi, tau, t) + _lag_sine(Ac, wc, phic, tau, t)
+
+        amb = T0 + A * math.sin(w * t + phi) + Ac * math.sin(wc * t + phic)
+        motor = T0 + air(self.tau_m) + self.dTm * _lag_step(self.tau_m, t)
+        struct = (T0 + air(self.tau_s)
                   + self.share * self.dTm * _lag2_step(self.tau_m, self.tau_s, t))
-        probe = T0 + _lag_sine(A, w, phi, self.tau_p, t)
-        ac = T0 + _lag_sine(A, w, phi, self.tau_ac, t)
-        return ThermalState(t, amb, motor, struct, probe, ac)
+        probe = T0 + air(self.tau_p)
+        ac = T0 + air(self.tau_ac)
+        mic = T0 + air(self.tau_c)
+        return ThermalState(t, amb, motor, struct, probe, ac, mic)
 
     # ------------------------------------------------------------------ effects
     def axis_drift_m(self, t_s: float) -> np.ndarray:
@@ -134,6 +156,13 @@ class Thermal:
     def probe_stand_drift_m(self, t_s: float) -> float:
         """Growth of the probe stand along the probe axis since t = 0 (m), read as motion."""
         return self.probe_stand_m_K * (self.state(t_s).probe_stand_degC - self._s0.probe_stand_degC)
+
+    def microscope_stand_drift_m(self, t_s: float) -> float:
+        """Growth of the CCD microscope's stand along the camera's radial line since t = 0 (m):
+        positive moves the microscope outward, so the edge appears that much further in."""
+        if not self.mic_m_K:
+            return 0.0
+        return self.mic_m_K * (self.state(t_s).microscope_stand_degC - self._s0.microscope_stand_degC)
 
     def ac_drift_rad(self, t_s: float) -> float:
         """Autocollimator zero drift since t = 0 (rad, both axes)."""
@@ -153,6 +182,10 @@ class Thermal:
             "probe_stand_growth_m_per_K": self.probe_stand_m_K, "ac_drift_rad_per_K": self.ac_rad_K,
             "disk_cte_per_K": self.disk_cte, "polygon_cte_per_K": self.polygon_cte,
         }
+        if self.Ac > 0 or self.mic_m_K:   # only when on: the truth of other benches is unchanged
+            out.update({"hvac_amplitude_K": self.Ac, "hvac_period_s": TWO_PI / self.wc, "hvac_phase_rad": self.phic,
+                        "microscope_stand_growth_m_per_K": self.mic_m_K,
+                        "microscope_stand_time_constant_s": self.tau_c})
         if t_end_s is not None:
             e = self.state(t_end_s)
             out["at_end"] = {"t_s": float(t_end_s), **{k: getattr(e, k) for k in
@@ -161,6 +194,9 @@ class Thermal:
                              "axis_drift_m": self.axis_drift_m(t_end_s).tolist(),
                              "probe_stand_drift_m": self.probe_stand_drift_m(t_end_s),
                              "ac_drift_rad": self.ac_drift_rad(t_end_s)}
+            if self.Ac > 0 or self.mic_m_K:
+                out["at_end"]["microscope_stand_degC"] = e.microscope_stand_degC
+                out["at_end"]["microscope_stand_drift_m"] = self.microscope_stand_drift_m(t_end_s)
         return out
 
 

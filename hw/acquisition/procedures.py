@@ -125,18 +125,30 @@ def radial_motion_run(reps: int = 3, positions: int = 360, dwell_s: float = 0.5,
 
 
 def ccd_sweep(step_deg: float = 6.0, dwell_s: float = 0.5, camera: str = "ccd", encoder: str = "encoder",
-              rep: int = 0) -> Iterator[Step]:
-    """Jia 2019 sec. 4.2: one image every ``step_deg`` over a revolution (60 images at 6°)."""
+              rep: int = 0, reps: int = 1) -> Iterator[Step]:
+    """Jia 2019 sec. 4.2: one image every ``step_deg`` over a revolution (60 images at 6°).
+
+    ``reps`` > 1: the sweep repeated (Jia sec. 5 gives the range of e over repeated sweeps): the
+    shaft returns to 0° between sweeps; frames are numbered on (``k`` = sweep·n + j, unique in the
+    dataset) and their tags carry ``sweep`` (0…reps−1), which ``ccd/index.csv`` keeps. One sweep
+    (the default) has no ``sweep`` tag: its rows are those of the single-sweep format."""
     n = int(round(360.0 / step_deg))
     if n < 1 or abs(n * step_deg - 360.0) > 1e-9:
         raise ValueError(f"ccd step {step_deg}° must divide 360°")
-    yield Mark("ccd sweep", {"procedure": "ccd", "rep": rep, "direction": "forward"})
-    for k in range(n):
-        th = k * step_deg
-        yield Move(th)
-        yield Wait(dwell_s)
-        yield Read(encoder, {"k": k, "target_deg": th})
-        yield Capture(camera, {"k": k, "target_deg": th})
+    if reps < 1:
+        raise ValueError(f"ccd sweep reps must be >= 1, got {reps}")
+    for s in range(reps):
+        yield Mark("ccd sweep", {"procedure": "ccd", "rep": rep + s, "direction": "forward"})
+        for j in range(n):
+            th = j * step_deg
+            k = s * n + j
+            tag: dict[str, Any] = {"k": k, "target_deg": th}
+            if reps > 1:
+                tag["sweep"] = s
+            yield Move(th)
+            yield Wait(dwell_s)
+            yield Read(encoder, dict(tag))
+            yield Capture(camera, tag)
 
 
 def polygon_traditional(N: int, start_face: int = 1, shift_deg: float = 0.0, rep: int = 0,
@@ -217,7 +229,7 @@ PROCEDURE_PARAMS: dict[str, dict[str, Any]] = {
     "polygon_traditional": {"faces": int, "start_face": int, "shift": "angle", "rep": int, "directions": list,
                             "dwell": "time", "encoder": str, "autocollimator": str},
     "selfcal": {"step": "angle", "directions": list, "dwell": "time", "encoder": str, "heads": "angles"},
-    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str},
+    "ccd_sweep": {"step": "angle", "dwell": "time", "encoder": str, "camera": str, "reps": int},
 }
 
 
@@ -243,7 +255,7 @@ def steps_from_specs(specs: Iterable[Mapping[str, Any]]) -> Iterator[Step]:
                                            p.get("rep", 0), dirs, dwell, enc,
                                            p.get("autocollimator", "autocollimator"))
         elif typ == "ccd_sweep":
-            yield from ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc)
+            yield from ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc, reps=p.get("reps", 1))
         elif typ == "selfcal":
             yield from selfcal_sweep(p["heads"], p.get("step", 1.0), p.get("directions", ["forward", "backward"]),
                                      dwell, enc)

@@ -91,6 +91,10 @@ class TableSink:
             raise RunnerError(f"capture k={k}: no encoder reading at the same stop before it (ccd_sweep reads the "
                               f"encoder, then captures)")
         h1 = self._ccd_read[1]
+        if "sweep" in r["tag"]:   # repeated sweeps (ccd_sweep reps > 1): the sweep index is kept
+            self._table("ccd/index", ["k", "theta_deg", "file", "theta_read_deg", "t_s", "sweep"]).append(
+                [k, self._theta(r, h1), f, h1, r["t_s"], int(r["tag"]["sweep"])])
+            return
         self._table("ccd/index", ["k", "theta_deg", "file", "theta_read_deg", "t_s"]).append(
             [k, self._theta(r, h1), f, h1, r["t_s"]])
 

@@ -375,3 +375,63 @@ def test_lab_centre_helper_follows_conventions(lab_centre):
     # camera at 90° (on −X): u = −X, image +y = ẑ × u = −Y; a centre on lab +Y (θ0 = 0) is above
     x, y = lab_centre(0.0, 6.67, 0.0, R_UM, UM_PER_PX, ref, camera_azimuth_deg=90.0)
     assert x == pytest.approx(ref[0] - R_PX) and y == pytest.approx(ref[1] - 10.0)
+
+
+def _sweep_fits(e_um: float, theta0_deg: float, noise_um: float, n_sweeps: int, whirl_um: float, seed: int):
+    """n sweeps of 60 frames: d_ref = e·cos(θ − θ0') + a whirl of the sweep's own (the asynchronous
+    first harmonic, different per sweep) + per-frame noise, fitted by eccentricity_from_dref."""
+    from benchtwin.analysis.eccentricity import eccentricity_from_dref
+
+    rng = np.random.default_rng(seed)
+    th = np.arange(60) * 6.0
+    fits = []
+    for _ in range(n_sweeps):
+        a, b = rng.normal(0.0, whirl_um, 2)
+        d = (e_um * np.cos(np.radians(th - theta0_deg)) + a * np.sin(np.radians(th)) + b * np.cos(np.radians(th))
+             + rng.normal(0.0, noise_um, th.size) + 3.0)
+        fits.append(eccentricity_from_dref(th, d, camera_azimuth_deg=180.0))
+    return fits
+
+
+def test_repeated_sweeps_type_a_u_of_the_mean():
+    """eccentricity_from_sweeps: e is the mean first-harmonic vector; u(e) = s/√n of the mean; s is
+    σ of one sweep (Jia's σ_e), and it carries the asynchronous whirl that each sweep's own fit
+    cannot see (the fit's u stays the noise's)."""
+    from benchtwin.analysis.eccentricity import eccentricity_from_sweeps
+
+    whirl = 0.2
+    s_all, e_all, u_all, ufit = [], [], [], []
+    for seed in range(400):
+        r = eccentricity_from_sweeps(_sweep_fits(7.1, 192.08, 0.02, 3, whirl, seed))
+        s_all.append(r["e_sweep_sd_um"])
+        e_all.append(r["e_um"])
+        u_all.append(r["e_u_um"])
+        ufit.append(r["e_u_fit_um"])
+        assert r["n_sweeps"] == 3 and r["dof"] == 2 and len(r["e_sweeps_um"]) == 3
+        assert r["e_u_um"] >= r["e_u_fit_um"]
+    # σ of one sweep: s² is unbiased for the whirl's variance along e (+ the fit noise)
+    sig1 = math.hypot(whirl, 0.02 * math.sqrt(2 / 60))
+    assert np.sqrt(np.mean(np.square(s_all))) == pytest.approx(sig1, rel=0.06)
+    # the mean of 3 sweeps scatters by σ/√3, which u(e) states on average (floored s: slightly above)
+    assert np.std(e_all) == pytest.approx(sig1 / math.sqrt(3), rel=0.1)
+    assert np.sqrt(np.mean(np.square(u_all))) == pytest.approx(sig1 / math.sqrt(3), rel=0.1)
+    assert np.mean(ufit) < 0.05 * sig1       # the per-sweep fit alone would miss the whirl
+    assert np.mean(e_all) == pytest.approx(7.1, abs=0.01)
+
+
+def test_repeated_sweeps_phase_floor_and_errors():
+    from benchtwin.analysis.eccentricity import eccentricity_from_sweeps
+
+    # no whirl: the scatter of 3 sweeps is the noise's; u never falls below the fits' pooled u
+    fits = _sweep_fits(7.1, 359.9, 0.05, 3, 0.0, 1)
+    r = eccentricity_from_sweeps(fits)
+    assert r["e_u_um"] >= r["e_u_fit_um"] and r["theta0_u_deg"] >= r["theta0_u_fit_deg"]
+    assert min(abs(r["theta0_deg"] - 359.9), abs(r["theta0_deg"] + 0.1)) < 0.1   # θ0 across 0°: circular
+    assert r["theta0_sweep_sd_deg"] < 0.2
+    assert r["e_range_u_um"] == pytest.approx(np.ptp(r["e_sweeps_um"]) / 1.693)
+    assert "type A" in r["u_source"]
+    with pytest.raises(ValueError, match="≥ 2 sweeps"):
+        eccentricity_from_sweeps(fits[:1])
+    bad = [dict(fits[0]), dict(fits[1], camera_azimuth_deg=90.0)]
+    with pytest.raises(ValueError, match="camera azimuths"):
+        eccentricity_from_sweeps(bad)

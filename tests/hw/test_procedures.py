@@ -300,3 +300,16 @@ def test_torn_tail_that_parses_is_still_re_executed(tmp_path):
     clock, inst = _bench()
     rows = Runner(inst, clock, journal=j).run(proc(), resume=True)
     assert len(rows) == 6 and j.read_text() == full
+
+
+def test_repeated_ccd_sweeps_number_frames_on_and_carry_the_sweep():
+    one = list(ccd_sweep(60.0))
+    assert all("sweep" not in s.tag for s in one if isinstance(s, (Read, Capture)))   # one sweep: as before
+    three = list(ccd_sweep(60.0, reps=3))
+    caps = [s for s in three if isinstance(s, Capture)]
+    assert [c.tag["k"] for c in caps] == list(range(18))
+    assert [c.tag["sweep"] for c in caps] == [0] * 6 + [1] * 6 + [2] * 6
+    assert [c.tag["target_deg"] for c in caps[6:12]] == [c.tag["target_deg"] for c in caps[:6]]
+    assert sum(isinstance(s, Mark) for s in three) == 3
+    with pytest.raises(ValueError, match="reps"):
+        list(ccd_sweep(60.0, reps=0))

@@ -288,3 +288,34 @@ def test_no_true_value_outside_truth(small_ds):
     assert {"journal.jsonl", "manifest.json"} <= files_seen and len(written) > 100
     leaks = [(name, f"{v:.9g}", written[f"{v:.9g}"]) for name, v in vals.items() if f"{v:.9g}" in written]
     assert not leaks, leaks[:10]
+
+
+def test_repeated_ccd_sweeps_and_the_microscope_stand_drift(tmp_path):
+    """procedure.ccd_reps: the sweeps numbered on with their ``sweep`` in ccd/index.csv; the
+    microscope stand's thermal drift (twin/thermal.py, room control cycling) moves the disk as the
+    camera sees it, radially (image +x outward), by the stand's growth at each frame's time; nothing
+    else of the dataset changes."""
+    over = {"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False, "procedure.ccd_reps": 2,
+            "thermal.hvac_amplitude": "0.5 K", "thermal.hvac_period": "15 min", "thermal.hvac_phase": "30 deg",
+            "thermal.microscope_stand_time_constant": "5 min"}
+    a = simulate(small_scenario(**over, **{"thermal.microscope_stand_growth": "0 um/K"}), tmp_path / "a",
+                 progress=False, backend="analytic")
+    b = simulate(small_scenario(**over, **{"thermal.microscope_stand_growth": "2.3 um/K"}), tmp_path / "b",
+                 progress=False, backend="analytic")
+    idx = read_csv(b / "ccd" / "index.csv")
+    assert idx["sweep"] == ["0"] * 4 + ["1"] * 4 and idx["k"] == [str(k) for k in range(8)]
+    assert Dataset(b).validate()
+    fa, fb = files(a), files(b)
+    changed = sorted(k for k in fa if fa[k] != fb[k])
+    assert all(k.startswith("ccd/img_") or k.startswith("truth/") for k in changed), changed
+    ta, tb = read_csv(a / "truth" / "ccd.csv"), read_csv(b / "truth" / "ccd.csv")
+    px = float(tb["pixel_um"][0]) * 1e-6
+    from benchtwin.twin.physics import Bench
+
+    th = Bench(small_scenario(**over, **{"thermal.microscope_stand_growth": "2.3 um/K"})).thermal
+    for i, t in enumerate(float(v) for v in idx["t_s"]):
+        dx = float(tb["centre_x_px"][i]) - float(ta["centre_x_px"][i])
+        # the pose's time is the stop's, the frame's t_s up to the dwell (0.5 s) later: 2 %
+        assert dx == pytest.approx(-th.microscope_stand_drift_m(t) / px, rel=0.02, abs=2e-3)
+        assert float(tb["centre_y_px"][i]) == pytest.approx(float(ta["centre_y_px"][i]), abs=1e-9)
+    assert max(abs(th.microscope_stand_drift_m(float(t))) for t in idx["t_s"]) > 0.05e-6   # the test sees a drift

@@ -96,3 +96,44 @@ def test_hsieh2022_thermal_drift_over_the_run():
     drift = np.hypot(*(p1 - p0))
     assert drift == pytest.approx(abs(th.axis_drift_m_K * (th.state(t_end).structure_degC
                                                            - th.state(1.0).structure_degC)), rel=0.02)
+
+
+def test_room_control_cycling_and_microscope_stand_closed_form():
+    """The room control's cycling (hvac_*) is a second sinusoid of the air that every node lags
+    with its own τ; the closed form matches an integration of the probe- and microscope-stand
+    nodes to 1e-6 K, and their drifts are growth × ΔT of their node since t = 0."""
+    th = params(hvac_amplitude=0.5, hvac_period=900.0, hvac_phase=0.4, probe_stand_time_constant=730.0,
+                probe_stand_growth=1.8e-6, microscope_stand_growth=2.3e-6, microscope_stand_time_constant=1520.0)
+    m = Thermal(th, phase_rad=0.7)
+    assert m.active
+    T0, A, w, Ac, wc = m.T0, m.A, m.w, 0.5, 2 * math.pi / 900.0
+    amb = lambda t: T0 + A * math.sin(w * t + 0.7) + Ac * math.sin(wc * t + 0.4)  # noqa: E731
+    s0 = m.state(0.0)
+    assert s0.ambient_degC == pytest.approx(amb(0.0), abs=1e-12)
+
+    def rhs(t, y):
+        return [(amb(t) - y[0]) / m.tau_p, (amb(t) - y[1]) / m.tau_c]
+
+    ts = np.linspace(0, 3 * 3600.0, 25)
+    sol = solve_ivp(rhs, (0, ts[-1]), [s0.probe_stand_degC, s0.microscope_stand_degC], t_eval=ts, rtol=1e-10,
+                    atol=1e-12, max_step=30.0)
+    for i, t in enumerate(ts):
+        s = m.state(t)
+        np.testing.assert_allclose([s.probe_stand_degC, s.microscope_stand_degC], sol.y[:, i], atol=1e-6)
+        assert m.microscope_stand_drift_m(t) == pytest.approx(2.3e-6 * (s.microscope_stand_degC - s0.microscope_stand_degC))
+        assert m.probe_stand_drift_m(t) == pytest.approx(1.8e-6 * (s.probe_stand_degC - s0.probe_stand_degC))
+    # the arm (τ = 730 s) follows the 15-min cycling at 1/√(1 + (ωτ)²) of its amplitude
+    m2 = Thermal(dict(th, ambient_amplitude=0.0, motor_rise=0.0), phase_rad=0.7)
+    assert np.ptp([m2.state(t).probe_stand_degC for t in np.linspace(7200, 7200 + 900, 400)]) == pytest.approx(
+        2 * Ac / math.sqrt(1 + (wc * 730.0) ** 2), rel=1e-3)
+
+
+def test_cycling_off_changes_nothing():
+    """hvac_amplitude = 0 (the default) and no microscope stand: the state is bit-identical to the
+    model without them (datasets of scenarios that do not state them are unchanged)."""
+    base = Thermal(params(), 0.7)
+    off = Thermal(params(hvac_amplitude=0.0, hvac_period=600.0, hvac_phase=1.0), 0.7)
+    for t in (0.0, 100.0, 5000.0, 1e5):
+        assert base.state(t) == off.state(t)
+    assert off.microscope_stand_drift_m(5000.0) == 0.0
+    assert "hvac_amplitude_K" not in off.truth()

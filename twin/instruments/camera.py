@@ -79,13 +79,29 @@ class SimCamera:
                 "pixel_um": c.pixel_pitch_m * 1e6, "position_deg": float(np.degrees(c.azimuth_rad)),
                 "tangential": c.tangential, "reference_px": list(c.reference_px), "bit_depth": self.sensor.bit_depth}
 
+    def disk_seen(self, pose: Any = None) -> Any:
+        """The disk's pose relative to the microscope: the posed disk, displaced by the stand's
+        thermal drift (twin/thermal.py ``microscope_stand_drift_m``: the stand growing outward
+        along the camera's radial line moves the edge inward in the image). The identical object
+        when the bench has no such drift (datasets without it are unchanged)."""
+        from benchtwin.twin.pose import BodyPose
+
+        p = self.state.pose if pose is None else pose
+        th = getattr(self.state.bench, "thermal", None)
+        d = th.microscope_stand_drift_m(p.t_s) if th is not None else 0.0
+        if not d:
+            return p.disk
+        u = self.camera.axes_lab()[0]
+        return BodyPose(pos=p.disk.pos - d * u, R=p.disk.R)
+
     def sim_frame_truth(self, pose: Any = None) -> dict[str, Any]:
         """The geometric truth of a frame taken at ``pose`` (default: the bench's current pose),
-        without rendering it: what the renderer draws from (``build_scene``)."""
+        without rendering it: what the renderer draws from (``build_scene``), the disk as the
+        microscope sees it (``disk_seen``)."""
         from benchtwin.twin.render.grating import build_scene
 
         p = self.state.pose if pose is None else pose
-        scene = build_scene(p.disk, self.grating, self.camera)
+        scene = build_scene(self.disk_seen(p), self.grating, self.camera)
         return {"centre_px": [float(v) for v in scene.centre_px], "edge_radius_px": float(scene.edge_radius_px),
                 "pixel_um": float(self.camera.true_pixel_m * 1e6),
                 "reference_px": [float(v) for v in self.camera.reference_px]}
@@ -97,7 +113,7 @@ class SimCamera:
             # stream, drawn exactly as below — are kept for the caller to hand to the worker with
             # the frame's file name (``take_job``); the image is not returned. The reading carries
             # what the rendered one would: the backend, the image's shape and dtype.
-            disk = st.pose.disk
+            disk = self.disk_seen(st.pose)   # relative to the microscope (its stand's drift)
             self.pending_job = (disk, st.rng("ccd", self.key))
             backend = self.pipeline.backend()
             self.last_truth = {**self.sim_frame_truth(), "backend": backend}
@@ -105,7 +121,8 @@ class SimCamera:
             return {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
                     "image_shape": [int(c.height_px), int(c.width_px)],
                     "image_dtype": str(np.dtype(self.sensor.dtype))}
-        frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
+        frame = self.renderer.render(self.disk_seen(st.pose), self.grating, self.camera, self.sensor,
+                                     st.rng("ccd", self.key))
         tr = frame.truth
         self.last_truth = {"centre_px": [float(v) for v in tr["centre_px"]],
                            "edge_radius_px": float(tr["edge_radius_px"]), "pixel_um": float(tr["pixel_um"]),
