@@ -109,3 +109,29 @@ def test_pool_that_cannot_start_falls_back_to_serial(tmp_path, monkeypatch, seri
     out = simulate(small_scenario(**OVR), tmp_path / "fallback", progress=False, backend="analytic")
     fr, fo = files(serial_ref), files(out)
     assert [k for k in fr if fr[k] != fo.get(k)] == []
+
+
+def test_auto_is_serial_for_a_script_without_the_main_guard(tmp_path, monkeypatch):
+    """spawn re-imports the caller's script in the worker: without the guard it would run a second
+    simulation there, so auto stays serial for it (an explicit ``pipeline`` is the caller's choice)."""
+    import sys
+    import types
+
+    from benchtwin.twin.render.pipeline import main_is_spawn_safe
+
+    bare, guarded = tmp_path / "bare.py", tmp_path / "guarded.py"
+    bare.write_text("from benchtwin.twin.simulate import simulate\nsimulate(...)\n")
+    guarded.write_text("def main():\n    pass\n\n\nif __name__ == '__main__':\n    main()\n")
+    monkeypatch.setenv(FRAMES_ENV, "auto")
+    for path, safe in ((bare, False), (guarded, True)):
+        mod = types.ModuleType("__main__")
+        mod.__file__ = str(path)
+        mod.__spec__ = None
+        monkeypatch.setitem(sys.modules, "__main__", mod)
+        assert main_is_spawn_safe() is safe
+        if not safe:
+            assert frame_mode(60, 2048, 1536) == "serial"
+    mod = types.ModuleType("__main__")
+    mod.__spec__ = types.SimpleNamespace(name="pytest.__main__", origin=str(bare))
+    monkeypatch.setitem(sys.modules, "__main__", mod)
+    assert main_is_spawn_safe()      # a package's __main__ is not re-imported by spawn

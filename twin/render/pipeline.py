@@ -28,7 +28,8 @@ the serial path's (``Renderer.render`` + ``DatasetWriter.write_image`` in the ca
 - ``frame_mode()`` decides serial or pipelined: ``BENCHTWIN_SIM_FRAMES`` = ``serial`` | ``pipeline``
   | ``auto`` (default). ``auto`` pipelines a sweep of at least ``AUTO_MIN_MPX`` megapixels on a
   machine with ≥ 2 cores, outside a process multiprocessing started (a design study's worker: its
-  parent already spreads work over the cores). A pool that cannot start falls back to serial
+  parent already spreads work over the cores), when the caller's main module is safe to spawn
+  from (``main_is_spawn_safe``). A pool that cannot start falls back to serial
   with a warning (``FramePipeline.start`` returns None).
 """
 
@@ -44,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FramePipeline", "frame_mode", "render_and_write", "FRAMES_ENV", "AUTO_MIN_MPX"]
+__all__ = ["FramePipeline", "frame_mode", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV", "AUTO_MIN_MPX"]
 
 #: environment variable choosing the frame path of ``simulate``: serial | pipeline | auto
 FRAMES_ENV = "BENCHTWIN_SIM_FRAMES"
@@ -68,7 +69,7 @@ def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False)
         return "serial"
     if env != "auto":
         return env
-    if mp.parent_process() is not None or mp.current_process().daemon:
+    if mp.parent_process() is not None or mp.current_process().daemon or not main_is_spawn_safe():
         return "serial"
     try:
         cores = len(os.sched_getaffinity(0))
@@ -77,6 +78,32 @@ def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False)
     if cores < 2:
         return "serial"
     return "pipeline" if n_frames * width_px * height_px >= AUTO_MIN_MPX * 1e6 else "serial"
+
+
+def main_is_spawn_safe() -> bool:
+    """Whether a ``spawn``ed child can start without running the caller's script again.
+    ``multiprocessing``'s spawn imports the parent's ``__main__`` in the child (as ``__mp_main__``),
+    except a package's ``__main__`` (``python -m pytest``) and an interactive session; a script
+    without the ``if __name__ == "__main__":`` guard would run its whole body — a second
+    simulation — in the frame worker. So ``auto`` pipelines only when the main module is not
+    imported in the child or its source has that guard (the ``benchtwin`` console script has it)."""
+    import sys
+
+    main = sys.modules.get("__main__")
+    if main is None:
+        return True
+    spec = getattr(main, "__spec__", None)
+    name = getattr(spec, "name", None)
+    if name is not None and (name == "__main__" or name.endswith(".__main__")):
+        return True
+    path = getattr(spec, "origin", None) if name is not None else getattr(main, "__file__", None)
+    if not path:
+        return True     # interactive: nothing to re-import
+    try:
+        src = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return "__name__" in src and "__main__" in src
 
 
 # ------------------------------------------------------------------------------ worker side
