@@ -4,6 +4,20 @@ Hsieh et al. 2022, eq. 3 assumes the setup error U_j is the same whatever the di
 rotation. A drive torque that twists the shaft between the grating disk and the polygon clamp
 (friction reverses with direction) adds +h forward and −h backward. Observable when forward and
 backward readings share one setup error (one closure group); then the residual is h·direction.
+
+The direction is that of the APPROACH to the stop (``Evidence.approach``: the sign of the last
+move, from the readings' time order), not the run's label: the friction that the servo holds at
+rest, hence the twist, is set by the last motion. A run's first stop is read where the previous run
+left the stage (after a backward sweep ending at 0°, a forward run's 0° is approached backward;
+after a forward run, the return 344° → 0° is a backward move). Labelled by run, those stops carry
+the opposite twist, 2h off at the two ends of the curve (the physical twin, hidden suite: 0.48″ at
+0° and 344°, 2 of 23 angles outside 2u).
+
+What h is: the mean twist of the stops approached in one direction. A servo holds at rest the
+torque its settling leaves (stick-slip: between −T_s and +T_s, twin/instruments/drive.py is one such
+drive), so the twist also scatters from stop to stop around ±h; that scatter repeats nowhere (no
+column of θ, time or face describes it) and is part of the readings' repeatability (type A,
+``pooled_sd_eps``), not of this effect.
 """
 
 from __future__ import annotations
@@ -21,7 +35,7 @@ MEANING = (
 )
 PARAMS = {"half_hysteresis_arcsec": "arcsec"}
 CHANNELS = {
-    "alpha": "h·direction (+1 forward, −1 backward)",
+    "alpha": "h·approach direction (+1 forward, −1 backward: the last move before the stop)",
     "selfcal": "none",
     "radial": "none (a pure rotation about the axis)", "ccd": "none", "heads": "none",
 }
@@ -32,14 +46,19 @@ SEPARATES_FROM = {
 }
 
 
+def _approach(ev):
+    a = getattr(ev, "approach", None)
+    return ev.direction if a is None else a
+
+
 def available(ev, ctx=None):
-    d = np.asarray(ev.direction, dtype=float)
+    d = np.asarray(_approach(ev), dtype=float)
     ok = bool(np.any(d > 0) and np.any(d < 0))
     return ok, "" if ok else "one direction of rotation only"
 
 
 def design(ev, ctx=None):
-    return np.asarray(ev.direction, dtype=float)[:, None], ["half_hysteresis_arcsec"]
+    return np.asarray(_approach(ev), dtype=float)[:, None], ["half_hysteresis_arcsec"]
 
 
 #: plausible half-hysteresis: 20″ (1e-4 rad) of wind-up between disk and polygon would need a

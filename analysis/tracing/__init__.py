@@ -55,7 +55,7 @@ from .thresholds import (AMBIG_DBIC, ASYNC_BAND, ASYNC_NOISE_ORDER, ASYNC_P, COL
                          F_SIG, MAX_CV_FOLDS, P_SIG, SIZE_GATE, SPHERE_FORM_UM, THETA_BIN_DEG, TIE_REL, Z_GATE,
                          Z_PAIR)
 from ._blas import _one_blas_thread, _openblas
-from .evidence import CCDData, Evidence, evidence_from_polygon, RadialMotion, _replace_alpha, SelfCal, _View
+from .evidence import approach_direction, CCDData, Evidence, evidence_from_polygon, RadialMotion, _replace_alpha, SelfCal, _View
 from .problem import _center, noise_floor, _Problem, _rms, _z_from_chi2
 from .significance import harmonic_test, _nested, _one_column, residual_test
 from .signature import (_dummies, _free_of_theta, _selfcal_signature, _short_signature, signature, _significant_parts,
@@ -69,5 +69,6 @@ from .traced_model import (add_to_error_model, _jsonable, load_model, model_term
 __all__ = [
     "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
     "save_model", "load_model", "model_terms_from_payload", "add_to_error_model", "evidence_from_polygon",
+    "approach_direction",
     "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR", "TIE_REL",
 ]

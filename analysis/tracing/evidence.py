@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effects._base import ARCSEC_PER_RAD
+from benchtwin.units import ARCSEC_PER_RAD
 from ..radial_motion import RadialMotion
 from .thresholds import SPHERE_FORM_UM, THETA_BIN_DEG
 
@@ -93,6 +93,7 @@ class Evidence:
     direction: np.ndarray | None = None
     start_face: np.ndarray | None = None
     shift_deg: np.ndarray | None = None
+    approach: np.ndarray | None = None
     step: np.ndarray | None = None
     face: np.ndarray | None = None
     n_faces: int = 23
@@ -129,6 +130,7 @@ class Evidence:
         self.t_s = np.arange(n, dtype=float) if self.t_s is None else np.asarray(self.t_s, dtype=float)
         self.rep = np.zeros(n, int) if self.rep is None else np.asarray(self.rep).astype(int)
         self.direction = np.ones(n, int) if self.direction is None else np.sign(np.asarray(self.direction, dtype=float)).astype(int)
+        self.approach = self.direction.copy() if self.approach is None else np.sign(np.asarray(self.approach, dtype=float)).astype(int)
         self.start_face = np.ones(n, int) if self.start_face is None else np.asarray(self.start_face).astype(int)
         self.shift_deg = np.zeros(n) if self.shift_deg is None else np.broadcast_to(np.asarray(self.shift_deg, dtype=float), (n,)).copy()
         N = int(self.n_faces)
@@ -219,6 +221,36 @@ class _View:
 U_ALPHA_HSIEH2022_ARCSEC = 0.07
 
 
+def approach_direction(theta_deg, t_s, direction) -> np.ndarray:
+    """The direction (+1/−1) in which the stage approached each stop: the sign of the last move
+    before the reading, the readings taken in time order (``t_s``) at the commanded angles
+    ``theta_deg``.
+
+    Why: a direction hysteresis (friction twisting the shaft between disk and polygon, backlash)
+    follows the last motion, not the run's label. A polygon run's first stop is where the previous
+    run ended or was sent back to (Hsieh's runs all start at θ = S): after a backward sweep that
+    ends at 0° the next forward run reads 0° without moving, approached backward; a forward-only
+    series returns from 344° to 0° (a backward move) before each run. Angles are the stage's
+    absolute targets (a move from 344° to 0° is −344°, as a rotary stage without wrap-around
+    commands it); a move shorter than ``THETA_BIN_DEG`` is no move (the approach is inherited).
+    The first reading has no move before it in the table: its run's ``direction``."""
+    th = np.asarray(theta_deg, dtype=float)
+    d = np.sign(np.asarray(direction, dtype=float)).astype(int)
+    out = d.copy()
+    if th.size == 0:
+        return out
+    order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
+    last = int(d[order[0]])
+    prev = th[order[0]]
+    for idx in order:
+        step = th[idx] - prev
+        if abs(step) > THETA_BIN_DEG:
+            last = 1 if step > 0 else -1
+        out[idx] = last
+        prev = th[idx]
+    return out
+
+
 def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model, *, n_faces: int,
                           u_arcsec=U_ALPHA_HSIEH2022_ARCSEC, radial: RadialMotion | None = None, selfcal_theta_deg=None,
                           selfcal_value_arcsec=None, selfcal_u_arcsec=None, n_heads: int | None = None,
@@ -250,6 +282,9 @@ def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model,
     if "direction" in c:
         d = c["direction"]
         direction = np.where(np.char.startswith(d.astype(str), "b"), -1, 1) if d.dtype.kind in "US" else d.astype(float)
+    # the approach of each stop from the readings' time order (a hysteresis follows the last move)
+    approach = (approach_direction(th, c["t_s"], direction if direction is not None else np.ones(th.size))
+                if "t_s" in c else None)
     sc = None
     if selfcal_theta_deg is not None:
         tsc = np.asarray(selfcal_theta_deg, dtype=float)
@@ -258,7 +293,7 @@ def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model,
         sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float), selfcal_u_arcsec, int(n_heads or 1),
                      dict(terms_fn(tsc)))
     return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=u_arcsec, model_terms=dict(terms_fn(th)),
-                    t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, start_face=j, shift_deg=S, step=i,
+                    t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, approach=approach, start_face=j, shift_deg=S, step=i,
                     n_faces=N, radial=radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc, **bench)
 
 

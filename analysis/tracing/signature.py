@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..effects._base import fourier_eval, fourier_fit
+from ..fourier import evaluate_harmonics, fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence
 from .problem import _Problem, _center, _rms, _z_from_chi2
@@ -190,7 +190,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         sig["drift"]["reason"] = "the reading order follows θ in every run: a drift cannot be told from a θ pattern"
     # repetition: synchronous (same at the same θ in every rep) or not
     if np.unique(ev.rep).size >= 2:
-        cell = ev.theta_bin * 10 + ev.direction
+        cell = ev.theta_bin * 10 + ev.approach
         inv = np.unique(cell, return_inverse=True)[1]
         w2 = pb.w ** 2
         m = np.bincount(inv, weights=w2 * pb.y) / np.bincount(inv, weights=w2)
@@ -204,7 +204,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
     else:
         sig["repetition"] = {"available": False, "reason": "one repetition"}
     # polygon-related: a pattern fixed to the face (moves with the start face)?
-    base = _center(_dummies(ev.theta_bin * 10 + ev.direction), ev.closure_group, pb.w ** 2)
+    base = _center(_dummies(ev.theta_bin * 10 + ev.approach), ev.closure_group, pb.w ** 2)
     if np.unique(ev.start_face).size >= 2:
         fx = _center(_dummies(ev.face), ev.closure_group, pb.w ** 2)
         sig["start_face"] = {"test": "face pattern beyond the θ pattern", **_nested(pb, base, fx)}
@@ -221,8 +221,8 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
                         **_nested(pb, _center(H, ev.closure_group, pb.w ** 2), _center(Hs, ev.closure_group, pb.w ** 2))}
     else:
         sig["shift"] = {"available": False, "reason": "one shift angle"}
-    # direction of rotation
-    dd = _one_column(pb, ev.direction.astype(float), "direction")
+    # direction of rotation: of the approach to each stop (a hysteresis follows the last move)
+    dd = _one_column(pb, ev.approach.astype(float), "direction")
     sig["direction"] = {"half_difference_arcsec": dd.get("gain"), "u": dd.get("u"), "z": dd.get("z"),
                         "rms_arcsec": dd.get("rms_arcsec"),
                         "significant": dd.get("significant", False), "available": dd["available"]}
@@ -234,17 +234,17 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         cor[f"term:{name}"] = _one_column(pb, v, name)
     ecc = ev.model_terms.get(ev.eccentricity_term)
     if ecc is not None and np.any(ecc != 0):
-        c1 = fourier_fit(ev.theta_deg, ecc, [1])
-        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, fourier_eval(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
+        c1 = fit_harmonics(ev.theta_deg, ecc, [1])
+        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, evaluate_harmonics(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
     if ev.radial is not None:
         for c in ev.radial.channels:
             cor[f"radial:{c}"] = _one_column(pb, ev.radial.at(ev.theta_deg, c), c)
             cor[f"radial:integral_{c}"] = _one_column(pb, ev.radial.integral_at(ev.theta_deg, c), c)
     sig["correlations"] = cor
     if ev.ccd is not None:
-        cc = fourier_fit(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
+        cc = fit_harmonics(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
         c1, d1 = cc[1]
-        higher = fourier_eval(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
+        higher = evaluate_harmonics(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
         sig["ccd"] = {"e_um": math.hypot(c1, d1), "theta0_deg": math.degrees(math.atan2(c1, d1)) % 360,
                       "rms_orders_2_10_um": _rms(higher)}
     return sig

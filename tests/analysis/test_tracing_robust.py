@@ -28,6 +28,10 @@ CASES = {
     "tie_graduation_sphere_form": (31, dict(inject={"graduation_error": {2: (0.4, 0.3), 5: (0.2, 1.0)}})),
     "null_shifts": (3, dict(start_faces=range(1, 24, 5), shifts=(0.0, 5.0, 10.0))),
     "ac_scale": (12, dict(inject={"ac_scale": {"gain_pct": 0.3}})),
+    # both directions in one mounting, the hysteresis following the approach to each stop (a run's
+    # first stop is read where the previous run left the stage: tests/analysis/test_approach.py)
+    "torsion_on_approach": (7, dict(start_faces=range(1, 24, 2), directions=(1, -1),
+                                    inject={"torsion_hysteresis": {"half_hysteresis_arcsec": 0.4}})),
 }
 
 
@@ -44,7 +48,15 @@ def _decision(res: dict) -> dict:
 
 def _case(name):
     seed, kw = CASES[name]
-    return make_evidence(np.random.default_rng(seed), **kw)[0]
+    ev = make_evidence(np.random.default_rng(seed), **kw)[0]
+    if name == "torsion_on_approach":
+        from benchtwin.analysis.tracing import approach_direction
+
+        appr = approach_direction(ev.theta_deg, ev.t_s, ev.direction)
+        ev.alpha_arcsec = ev.alpha_arcsec + kw["inject"]["torsion_hysteresis"]["half_hysteresis_arcsec"] * (
+            appr - ev.direction)
+        ev.approach = appr
+    return ev
 
 
 def _perturbed(ev, rel, seed):
@@ -69,6 +81,7 @@ def test_exact_tie_is_decided_by_the_stated_preference(reference):
     # one start face, no self-calibration: a gain on α (ac_scale) is a gain on the model's terms
     # (optical_radius: the same columns, an exact tie) and nearly one on the eccentricity
     assert reference["ac_scale"]["ambiguous"] == [["ac_scale", "ccd_pixel_scale", "optical_radius"]]
+    assert reference["torsion_on_approach"]["identified"] == ["torsion_hysteresis"]
 
 
 @pytest.mark.parametrize("name", list(CASES))
