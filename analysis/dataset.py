@@ -310,6 +310,21 @@ def table_to_csv(columns: Mapping[str, Sequence[Any]]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
+def encode_png(where: str, image: np.ndarray) -> bytes:
+    """A dataset image's PNG bytes (2-D uint8/uint16 greyscale, OpenCV's default level): the one
+    encoder of ``DatasetWriter.write_image`` and of the twin's frame pipeline
+    (twin/render/pipeline.py), so both write the same bytes. ``where`` names the image in errors."""
+    import cv2
+
+    arr = np.asarray(image)
+    if arr.ndim != 2 or arr.dtype not in (np.uint8, np.uint16):
+        raise DatasetError(f"{where}: expected a 2-D uint8/uint16 greyscale image, got {arr.shape} {arr.dtype}")
+    ok, png = cv2.imencode(".png", arr)
+    if not ok:
+        raise DatasetError(f"{where}: PNG encoding failed")
+    return png.tobytes()
+
+
 class TableAppender:
     """One table written row by row (flat memory for long acquisitions), finished atomically.
 
@@ -404,16 +419,8 @@ class DatasetWriter:
         return TableAppender(self.path / f"{name}.csv", columns)
 
     def write_image(self, relpath: str, image: np.ndarray) -> Path:
-        import cv2
-
-        arr = np.asarray(image)
-        if arr.ndim != 2 or arr.dtype not in (np.uint8, np.uint16):
-            raise DatasetError(f"{relpath}: expected a 2-D uint8/uint16 greyscale image, got {arr.shape} {arr.dtype}")
-        ok, png = cv2.imencode(".png", arr)
-        if not ok:
-            raise DatasetError(f"{relpath}: PNG encoding failed")
         p = self.path / relpath
-        _atomic_write(p, png.tobytes())
+        _atomic_write(p, encode_png(relpath, image))
         return p
 
     def write_truth_json(self, name: str, obj: Any) -> Path:

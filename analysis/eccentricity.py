@@ -201,21 +201,52 @@ class Segmentation:
     removed_border: int
 
 
-def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac: float = 0.3,
-                  min_area_px: int = 20) -> Segmentation:
-    """Threshold (Otsu), choose the polarity, label parts, drop dust and border-cut parts."""
+POLARITIES = ("dark", "bright")
+
+
+def _big_parts(binary: np.ndarray, min_area_px: int) -> int:
+    """Number of 8-connected parts of ≥ ``min_area_px`` pixels: labels only (``connectedComponents``
+    + a histogram of the labels, ~half the cost of ``connectedComponentsWithStats``); the parts, and
+    so the count, are those the stats would give (a partition into connected parts is unique)."""
     import cv2
 
+    n, lab = cv2.connectedComponents(binary, connectivity=8)
+    return int(np.count_nonzero(np.bincount(lab.ravel(), minlength=n)[1:] >= min_area_px))
+
+
+def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac: float = 0.3,
+                  min_area_px: int = 20, expect_polarity: str | None = None) -> Segmentation:
+    """Threshold (Otsu), choose the polarity, label parts, drop dust and border-cut parts.
+
+    The lines are the class with more parts of ≥ ``min_area_px`` (dark on a tie; module docstring),
+    decided in every frame. Only the chosen class needs its parts' statistics: the expected class
+    (``expect_polarity``, the sweep's so far; default dark) is labelled with statistics and the
+    other one only counted (:func:`_big_parts`); the other is labelled with statistics only when it
+    wins. The choice is the same whatever is expected — the hint only orders the work (one full
+    labelling pass and a count per frame instead of two full passes)."""
+    import cv2
+
+    if expect_polarity is not None and expect_polarity not in POLARITIES:
+        raise ValueError(f"expect_polarity must be one of {POLARITIES} or None, got {expect_polarity!r}")
     t = otsu_threshold(grey)
-    best = None
-    for pol, binary in (("dark", grey < t), ("bright", grey > t)):
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(binary.astype(np.uint8), connectivity=8)
-        areas = stats[1:, cv2.CC_STAT_AREA]
-        big = int(np.count_nonzero(areas >= min_area_px))
-        if best is None or big > best[0]:
-            best = (big, pol, labels, stats)
-    assert best is not None
-    _, pol, labels, stats = best
+
+    def binary(pol: str) -> np.ndarray:
+        return (grey < t if pol == "dark" else grey > t).astype(np.uint8)
+
+    def labelled(pol: str) -> tuple[np.ndarray, np.ndarray]:
+        _n, lab, st, _ = cv2.connectedComponentsWithStats(binary(pol), connectivity=8)
+        return lab, st
+
+    first = expect_polarity or "dark"
+    other = "bright" if first == "dark" else "dark"
+    labels, stats = labelled(first)
+    big_first = int(np.count_nonzero(stats[1:, cv2.CC_STAT_AREA] >= min_area_px))
+    big_other = _big_parts(binary(other), min_area_px)
+    # dark wins a tie (the rule's order: dark, then bright only if it has more parts)
+    take_other = big_other > big_first if first == "dark" else big_other >= big_first
+    pol = other if take_other else first
+    if take_other:
+        labels, stats = labelled(other)
     H, W = grey.shape
     ids = np.arange(1, stats.shape[0])
     areas = stats[1:, cv2.CC_STAT_AREA]
@@ -265,19 +296,21 @@ class LineEdges:
 
 def edge_details(image: np.ndarray, name: str | int | None = None, half_window_px: int = 6,
                  edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES,
-                 reject_outliers: bool = True) -> LineEdges:
+                 reject_outliers: bool = True, expect_polarity: str | None = None) -> LineEdges:
     """Sub-pixel middle points of the outer edge of each graduation line, with details.
 
     See the module docstring for the method. With ``reject_outliers`` line ends whose height (rows
     reaching the end) is outside 0.5…1.5 × the median are rejected as contaminated
     (``rejected_ends_px``). Raises ImageAnalysisError for blank, saturated or black frames, frames
     without a grating, and frames with fewer than ``min_lines`` usable line ends.
+    ``expect_polarity``: the polarity the lines probably have (the sweep's so far), which orders the
+    labelling work only (:func:`segment_lines`: the choice is the frame's own either way).
     """
     if edge_method not in ("area", "crossing"):
         raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
     grey, full = to_grey(image, name)
     check_frame(grey, full, name)
-    seg = segment_lines(grey, name, min_area_frac)
+    seg = segment_lines(grey, name, min_area_frac, expect_polarity=expect_polarity)
     H, W = grey.shape
     hw = int(half_window_px)
     lev = 6  # pixels used for each level, beyond the edge window
@@ -695,6 +728,7 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
 
 
 def frame_edges_and_scale(image: np.ndarray, period_um: float, name: str | int | None = None,
+                          expect_polarity: str | None = None,
                           ) -> tuple[LineEdges | None, float | None, ImageAnalysisError | None]:
     """One frame of a sweep, its image work done once: (edges, pixel scale µm/px, None), or
     (None, None, error) for a frame the analysis rejects.
@@ -704,9 +738,11 @@ def frame_edges_and_scale(image: np.ndarray, period_um: float, name: str | int |
     the later d_ref with the sweep's fixed radius (:func:`d_ref_px` with ``edges=``), which needs the
     median scale of all frames first. Pure (an array in, small results out), so frames can be
     analysed in parallel processes (analysis/parallel.py) with the serial path's results.
+    ``expect_polarity``: the sweep's line polarity (from its first usable frame), which only orders
+    the labelling work (:func:`segment_lines`); every frame still decides its own.
     """
     try:
-        ed = edge_details(image, name)
+        ed = edge_details(image, name, expect_polarity=expect_polarity)
         scale = float(pixel_scale_um(image, period_um, name=name, edges=ed)["pixel_um"])
     except ImageAnalysisError as exc:
         return None, None, exc

@@ -17,6 +17,7 @@ Steps, each from its paper:
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 import math
 from pathlib import Path
@@ -142,7 +143,19 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     scales: list[float] = []
     edges: list[Any] = []  # per frame: its LineEdges, or None if rejected
     bar = _progress(progress, n_frames, "CCD images")
-    for i, (ed, scale_i, exc) in enumerate(ordered_map(ecc.frame_edges_and_scale, frames(), workers)):
+    # The first frame that can be analysed is done here (before any pool starts): its lines' polarity
+    # is the one the other frames are expected to have, which orders their labelling work only
+    # (ecc.segment_lines: each frame decides its own polarity, the same whatever is expected)
+    sweep = frames()
+    head: list[Any] = []
+    polarity = None
+    for args in sweep:
+        head.append(ecc.frame_edges_and_scale(*args))
+        if head[-1][0] is not None:
+            polarity = head[-1][0].polarity
+            break
+    rest = ordered_map(ecc.frame_edges_and_scale, ((*args, polarity) for args in sweep), workers)
+    for i, (ed, scale_i, exc) in enumerate(itertools.chain(head, rest)):
         bar.update()
         theta, f = meta[i]
         if exc is not None or scale_i is None:

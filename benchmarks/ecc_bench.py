@@ -6,11 +6,15 @@ hits them alike; medians printed), wall and CPU (this process + its reaped child
 
 - ``two-pass (before)``: what step_eccentricity did until this change: every frame read and its
   edges found twice (``pixel_scale_um`` per frame, then ``d_ref_px`` with the fixed radius);
-- ``edges once, serial``: ``step_eccentricity(..., workers=1)``;
+- ``edges once, polarity per frame``: the step as it was before the sweep's polarity (both classes
+  labelled in every frame: two connected-components passes per frame), serial;
+- ``edges once, serial``: ``step_eccentricity(..., workers=1)`` (the polarity decided on the first
+  usable frame, one labelling pass for the others);
 - ``edges once, pool of N``: ``step_eccentricity(..., workers=N)`` (default N = 2);
 - floor: decode + Otsu + label of each frame once (bare OpenCV, as benchmarks/io_floor.py).
 
-The d_ref values of all cases are checked equal (bit for bit) before anything is printed.
+The d_ref values of all cases (and so the frames they keep) are checked equal (bit for bit) before
+anything is printed.
 Usage: ``.venv/bin/python benchmarks/ecc_bench.py DATASET [--repeat 3] [--workers 2]``
 """
 
@@ -53,6 +57,24 @@ def two_pass(ds) -> np.ndarray:
     return np.asarray(d) * scale
 
 
+def per_frame_polarity(ds) -> np.ndarray:
+    """step_eccentricity's image work before the sweep's polarity: every frame decides its own."""
+    period = ds.bench["grating_period_um"]
+    ref = tuple(ds.manifest["ccd"]["reference_px"])
+    found = [ecc.frame_edges_and_scale(image, period, f) for _k, _t, image, f in ds.ccd_frames()]
+    scale = float(np.median([s for _e, s, _x in found if s is not None]))
+    radius_px = ds.bench["scale_edge_radius_mm"] * 1000.0 / scale
+    d = []
+    for ed, _s, _x in found:
+        if ed is None:
+            continue
+        try:
+            d.append(ecc.d_ref_px(None, ref, radius_px=radius_px, edges=ed)["d_ref_px"])
+        except ecc.ImageAnalysisError:
+            pass
+    return np.asarray(d) * scale
+
+
 def floor(ds) -> None:
     import cv2
 
@@ -77,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
 
     cases = {
         "two-pass (before)": lambda: two_pass(ds),
+        "edges once, polarity per frame": lambda: per_frame_polarity(ds),
         "edges once, serial": lambda: np.asarray(step_eccentricity(ds, 10, False, workers=1)["d_ref_um"]),
         f"edges once, pool of {args.workers}": lambda: np.asarray(
             step_eccentricity(ds, 10, False, workers=args.workers)["d_ref_um"]),

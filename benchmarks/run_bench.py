@@ -19,7 +19,9 @@ Floors, measured in the same run by the scripts beside this one:
 
 Ratios printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
 twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
-encode), tracing against its 1 s target. Wall AND CPU time (user + system of the process and its
+encode), tracing against its 1 s target (as close-loop − analyze of two processes, and measured
+inside one close-loop process by benchmarks/report_bench.py, which also gives the report's and the
+bench picture's own times in that process). Wall AND CPU time (user + system of the process and its
 children, e.g. a process pool) are printed for every stage: the machine is shared, so wall figures
 are taken under load (the load average is printed) and CPU time is the steadier figure.
 
@@ -80,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     stages: dict[str, list[tuple[float, float]]] = {k: [] for k in ("simulate", "analyze", "close-loop", "run")}
     io: list[dict] = []
+    parts: list[dict] = []
     try:
         for i in range(args.repeat):
             ds, truth = work / f"ds{i}", work / f"truth{i}"
@@ -92,6 +95,9 @@ def main(argv: list[str] | None = None) -> int:
                                                    "--quiet"])[:2])
             stages["run"].append(timed_run([bt, "run", *sc, "-o", str(work / f"run{i}"), "--quiet"])[:2])
             io.append(last_json(timed_run([py, str(HERE / "io_floor.py"), str(ds), "--json"], capture=True)[2]))
+            # inside one close-loop process: the tracing, the report and the bench picture on their own
+            parts.append(last_json(timed_run([py, str(HERE / "report_bench.py"), str(ds), "-o", str(work / f"rb{i}"),
+                                              "--close-loop", "--json"], capture=True)[2])["parts"])
         rf = last_json(timed_run([py, str(HERE / "render_floor.py"), "--json"], capture=True)[2])
     finally:
         if args.keep is None:
@@ -113,11 +119,22 @@ def main(argv: list[str] | None = None) -> int:
     floor_sim_c = n * (rf["floor_render_cpu_s"] + rf["floor_sensor_cpu_s"]) + io_c["encode"]
     tr_w, tr_c = wall["close-loop"] - wall["analyze"], cpu["close-loop"] - cpu["analyze"]
 
+    def part(name: str) -> tuple[float, float]:
+        got = [d[name] for d in parts if name in d]
+        return (med([g["wall_s"] for g in got]), med([g["cpu_s"] for g in got])) if got else (float("nan"),) * 2
+
+    tin_w, tin_c = part("close the loop (tracing + model after)")
+    rep_w, rep_c = part("report (all figures + HTML)")
+    pic_w, pic_c = part("bench picture (figure built)")
+
     rows = [
         ("simulate", wall["simulate"], cpu["simulate"], "frames×(render+sensor)+encode", floor_sim_w, floor_sim_c),
         ("analyze", wall["analyze"], cpu["analyze"], "decode+Otsu+label", floor_an_w, floor_an_c),
         ("close-loop", wall["close-loop"], cpu["close-loop"], "decode+Otsu+label", floor_an_w, floor_an_c),
         ("  tracing (close-loop − analyze)", tr_w, tr_c, "target 1 s", 1.0, 1.0),
+        ("  tracing, inside one process", tin_w, tin_c, "target 1 s", 1.0, 1.0),
+        ("  report (figures + HTML), same", rep_w, rep_c, "decode+Otsu+label", floor_an_w, floor_an_c),
+        ("  bench picture, same", pic_w, pic_c, "decode+Otsu+label", floor_an_w, floor_an_c),
         ("run", wall["run"], cpu["run"], "I/O floor", floor_io_w, floor_io_c),
         ("render of a frame", rf["twin_render_s"], rf["twin_render_cpu_s"], f"cv2 fillPoly {rf['k']}×{rf['k']}",
          rf["floor_render_s"], rf["floor_render_cpu_s"]),
@@ -140,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Goal (issue #17): run ≤ 3× I/O floor: {wall['run'] / floor_io_w:.2f}× wall, "
           f"{cpu['run'] / floor_io_c:.2f}× CPU")
     if args.json:
-        print(json.dumps({"wall_s": wall, "cpu_s": cpu, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
+        print(json.dumps({"wall_s": wall, "cpu_s": cpu, "in_process": parts, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
                           "render_floor": rf, "load_average": [load0[0], load1[0]], "frames": n}))
     return 0
 

@@ -29,6 +29,12 @@ the instruments read (``_reading_truth``, O(1) per reading: the stop's pose at i
 waits (not the readings) so its state and truth are bit for bit those of an uninterrupted run.
 
 Same scenario and seed -> byte-identical dataset (no wall time, no host names are written).
+
+Both cores: the CCD frames (render, sensor model, PNG encode, atomic write) are made by a spawned
+worker process while the physics goes on here (``twin/render/pipeline.py``; ``BENCHTWIN_SIM_FRAMES``
+= serial | pipeline | auto; auto pipelines large sweeps, e.g. jia2019's 60 frames of 3 Mpx). The
+dataset is byte-identical either way; a capture's journal line, and the lines after it, are written
+once its frame is on disk (``_FrameGatedRunner``), so a killed run journals no incomplete frame.
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
 from .physics import Bench
+from .render.pipeline import FramePipeline, frame_mode
 
 ALPHA_GRID_STEP_DEG = 0.1
 
@@ -193,6 +200,13 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume)
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
+    pipe = None
+    if cam is not None:
+        n_frames = sum(isinstance(s, P.Capture) for s in steps)
+        if frame_mode(n_frames, cam.camera.width_px, cam.camera.height_px, live=live is not None) == "pipeline":
+            pipe = FramePipeline.start(backend, cam.grating, cam.camera, cam.sensor)
+            cam.pipeline = pipe
+
     stage: SimRotaryStage = inst["stage"]
     ac: SimAutocollimator = inst["autocollimator"]
     truth_rows: dict[int, tuple] = {}
@@ -223,31 +237,82 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
 
     def on_row(row, result):
         if row["type"] == "capture":
-            writer.write_image(f"ccd/img_{int(row['tag']['k']):03d}.png", result["image"])
+            rel = f"ccd/img_{int(row['tag']['k']):03d}.png"
+            if result.get("image") is None and cam is not None and cam.pending_job is not None:
+                pipe.submit(writer.path / rel, *cam.take_job())   # journaled once it is written
+            else:
+                writer.write_image(rel, result["image"])
         if live is not None:
             live.on_row(row, result)
 
     if live is not None:
         live.start(len(steps))
+    runner_cls = Runner if pipe is None else _FrameGatedRunner
+    runner = runner_cls(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row, fsync=False)
+    if pipe is not None:
+        runner.frames = pipe
+    ok = False
     try:
-        rows = Runner(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row,
-                      fsync=False).run(steps, resume=resume)
+        try:
+            rows = runner.run(steps, resume=resume)
+        finally:
+            bar.close()
+            if cam is not None:
+                cam.close()
+        pr = sc["procedure"]
+        n_rev = int(pr.get("continuous_revolutions", 0) or 0) if hasattr(pr, "get") else 0
+        if n_rev > 0:   # ISO 230-7 continuous run, after the stop-and-go procedures (twin/continuous.py)
+            from .continuous import continuous_run
+
+            writer.write_table("radial_continuous", continuous_run(
+                bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
+        # the truth (its α grid is ~1/4 of the CPU) while the frame worker finishes its backlog
+        _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
+        if pipe is not None:
+            runner.drain()    # the last frames written, then the journal lines held behind them
+        ok = True
     finally:
-        bar.close()
-        if cam is not None:
-            cam.close()
-
-    _write_tables(writer, rows, enc)
-    pr = sc["procedure"]
-    n_rev = int(pr.get("continuous_revolutions", 0) or 0) if hasattr(pr, "get") else 0
-    if n_rev > 0:   # ISO 230-7 continuous run, after the stop-and-go procedures (twin/continuous.py)
-        from .continuous import continuous_run
-
-        writer.write_table("radial_continuous", continuous_run(
-            bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-    _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
+        if pipe is not None:
+            pipe.close(wait=ok)
+    _write_tables(writer, rows, enc)    # checks every capture's image is there
     writer.close()
     return out
+
+
+class _FrameGatedRunner(Runner):
+    """The runner with frames written by ``FramePipeline``: a capture's journal line, and every
+    line after it, is held until its frame is on disk (the journal keeps its order and never names
+    a frame that is not complete; a run killed meanwhile loses the held steps, which a resume
+    re-does bit for bit: the noise is keyed by step). ``drain()`` after the run: wait for the
+    remaining frames and append the held lines."""
+
+    frames: FramePipeline
+
+    def __init__(self, *args: Any, **kw: Any):
+        super().__init__(*args, **kw)
+        self._held: list[tuple[dict, int]] = []
+
+    def _append(self, fh, rec: dict) -> None:
+        if fh is None:
+            return
+        self._held.append((rec, self.frames.submitted))
+        self._release(fh, self.frames.completed())
+
+    def _release(self, fh, done: int) -> None:
+        n = 0
+        for rec, need in self._held:
+            if need > done:
+                break
+            Runner._append(self, fh, rec)
+            n += 1
+        if n:
+            del self._held[:n]
+
+    def drain(self) -> None:
+        done = self.frames.completed(wait=True)
+        if self._held and self.journal is not None:
+            with open(self.journal, "a", encoding="utf-8") as fh:
+                self._release(fh, done)
 
 
 # --------------------------------------------------------------------------- tables

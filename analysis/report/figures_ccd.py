@@ -14,19 +14,44 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 
+#: the frame is shown at most this many pixels wide (the figure's width at the report's dpi is
+#: ~1000 px): reduced once by pixel-area averaging instead of resampled by matplotlib at draw time
+SHOW_WIDTH_PX = 1024
+
+
 def _grey8(image: np.ndarray) -> np.ndarray:
-    g = np.asarray(image, dtype=float)
+    """The frame for display: reduced to ≤ SHOW_WIDTH_PX columns (pixel-area mean, cv2.INTER_AREA)
+    and stretched between its 0.5 and 99.5 percentiles. Drawn with ``imshow(..., extent=_extent)``
+    so that plotted points stay in the full frame's pixel coordinates."""
+    import cv2
+
+    g: np.ndarray = np.asarray(image, dtype=np.float32)
+    if g.ndim == 3:
+        g = g.mean(axis=2, dtype=np.float32)
+    H, W = g.shape
+    if W > SHOW_WIDTH_PX:
+        f = SHOW_WIDTH_PX / W
+        g = np.asarray(cv2.resize(g, (SHOW_WIDTH_PX, max(1, round(H * f))), interpolation=cv2.INTER_AREA))
     lo, hi = np.percentile(g, [0.5, 99.5])
-    return np.clip((g - lo) / max(hi - lo, 1e-9), 0, 1)
+    return np.clip((g - lo) / max(float(hi - lo), 1e-9), 0, 1)
+
+
+def _extent(image: np.ndarray) -> tuple[float, float, float, float]:
+    """imshow extent of the whole frame in its own pixel coordinates (pixel centres at integers)."""
+    H, W = image.shape[:2]
+    return (-0.5, W - 0.5, H - 0.5, -0.5)
 
 
 def fig_ccd_overlay(image: np.ndarray, fit: Mapping, name: str, theta_deg: float):
     """The frame with line ends (points), rejected ends (crosses), the fitted circle and R."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     H, W = image.shape[:2]
-    fig, ax = plt.subplots(figsize=(9, 9 * H / W))
-    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest")
+    fig = Figure(figsize=(9, 9 * H / W))
+    ax = fig.subplots()
+    # fixed layout (no layout engine): room for the title above and the axis labels left and below
+    fig.subplots_adjust(left=0.075, right=0.99, bottom=0.075, top=0.95)
+    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest", extent=_extent(image))
     P = np.asarray(fit["points_px"])
     ax.plot(P[:, 0], P[:, 1], "o", ms=3.5, mfc="none", mec="#00c0ff", mew=1.0, label=f"line ends ({P.shape[0]})")
     rej = np.asarray(fit.get("rejected_points_px", np.empty((0, 2)))).reshape(-1, 2)
@@ -51,21 +76,21 @@ def fig_ccd_overlay(image: np.ndarray, fit: Mapping, name: str, theta_deg: float
     ax.set_title(f"{name} at θ = {theta_deg:.1f}°: d_ref = l − r = {fit['d_ref_px']:.2f} px "
                  f"(residual {fit['residual_rms_px']:.3f} px RMS)", fontsize=10)
     ax.legend(loc="lower left", fontsize=8, framealpha=0.8)
-    fig.tight_layout()
     return fig
 
 
 def fig_rejected(image: np.ndarray, info: Mapping):
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     H, W = image.shape[:2]
-    fig, ax = plt.subplots(figsize=(7, 7 * H / W))
-    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest")
+    fig = Figure(figsize=(7, 7 * H / W + 0.35))
+    ax = fig.subplots()
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=1.0 - 0.35 / (7 * H / W + 0.35))  # the title's 0.35 in
+    ax.imshow(_grey8(image), cmap="gray", interpolation="nearest", extent=_extent(image))
     ax.set_title(f"rejected: {info['file']} at θ = {info['theta_deg']:.1f}° ({info['stage']})", fontsize=10)
     ax.text(0.01, 0.01, _wrap(str(info["reason"]), 90), transform=ax.transAxes, fontsize=8, color="#ff3030",
             va="bottom", bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none"})
     ax.set_axis_off()
-    fig.tight_layout()
     return fig
 
 

@@ -22,12 +22,50 @@ def _closed(th_deg: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.append(t, t[0] + 2 * np.pi), np.concatenate([v, v[..., :1]], axis=-1)
 
 
+def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, colour: str, lw: float,
+                 title: str) -> None:
+    """One polar plot drawn on a Cartesian axes (equal aspect): r(θ) = R0 + δ(θ) as x = r cos θ,
+    y = r sin θ, θ counter-clockwise from +x (matplotlib's polar default). The grid a polar axes
+    would draw is drawn with it — the rings at R0 − amax, R0, R0 + amax labelled in µm of δ at 22.5°,
+    spokes every 45° labelled in degrees, the outer circle at R0 + 1.05·amax — because a polar
+    projection costs ~10× as much to lay out and draw (its transforms, tick machinery and the
+    extents of every tick label), for the same picture."""
+    rmax = R0 + 1.05 * amax
+    c, s_ = np.cos(t), np.sin(t)
+    ring = np.linspace(0.0, 2 * np.pi, 361)
+    cr, sr = np.cos(ring), np.sin(ring)
+    ax.plot(rmax * cr, rmax * sr, color="k", lw=0.8)  # the outer circle (a polar axes' spine)
+    for dv in (-amax, 0.0, amax):
+        ax.plot((R0 + dv) * cr, (R0 + dv) * sr, color="#b0b0b0", lw=0.6)
+        a = np.deg2rad(22.5)
+        ax.text((R0 + dv) * np.cos(a), (R0 + dv) * np.sin(a), f"{dv:+.2f}", fontsize=7, ha="left", va="bottom")
+    for deg in range(0, 360, 45):
+        a = np.deg2rad(deg)
+        ax.plot([0.0, rmax * np.cos(a)], [0.0, rmax * np.sin(a)], color="#b0b0b0", lw=0.6)
+        ax.text(1.13 * rmax * np.cos(a), 1.13 * rmax * np.sin(a), f"{deg}°", fontsize=7, ha="center", va="center")
+    for cur in curves:
+        r = R0 + cur
+        ax.plot(r * c, r * s_, color=colour, lw=lw)
+    ax.plot(R0 * cr, R0 * sr, color="k", lw=0.5, ls=":")
+    lim = 1.22 * rmax
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=8.5)
+
+
 def fig_polar(locations: Sequence[Mapping], title: str = "Radial error motion, ISO 230-7 (fixed sensitive direction, LSC)"):
-    """One row per location, columns total / synchronous / asynchronous."""
-    import matplotlib.pyplot as plt
+    """One row per location, columns total / synchronous / asynchronous (fixed layout: no layout
+    engine, nothing measured before the one draw)."""
+    from matplotlib.figure import Figure
 
     n = len(locations)
-    fig, axes = plt.subplots(n, 3, subplot_kw={"projection": "polar"}, figsize=(10.5, 3.3 * n + 0.6), squeeze=False)
+    H = 3.3 * n + 0.6
+    fig = Figure(figsize=(10.5, H))
+    axes = fig.subplots(n, 3, squeeze=False)
+    # a fixed layout: the suptitle and the first row's two-line panel titles in the top 0.95 in
+    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.15 / H, top=1.0 - 0.95 / H, wspace=0.12, hspace=0.3)
     for row, loc in zip(axes, locations):
         th = np.asarray(loc["theta_deg"], dtype=float)
         tot = np.atleast_2d(loc["total_plot_um"])
@@ -40,26 +78,17 @@ def fig_polar(locations: Sequence[Mapping], title: str = "Radial error motion, I
                   (asy, "asynchronous", loc["asynchronous_um"], "#b5401a", 0.8))
         for ax, (curves, kind, value, colour, lw) in zip(row, panels):
             t, c = _closed(th, curves)
-            for cur in c:
-                ax.plot(t, R0 + cur, color=colour, lw=lw)
-            ax.plot(np.linspace(0, 2 * np.pi, 361), np.full(361, R0), color="k", lw=0.5, ls=":")
-            ax.set_ylim(0, R0 + 1.05 * amax)
-            ticks = np.array([-amax, 0.0, amax])
-            ax.set_yticks(R0 + ticks)
-            ax.set_yticklabels([f"{x:+.2f}" for x in ticks], fontsize=7)
-            ax.set_xticks(np.deg2rad(np.arange(0, 360, 45)))
-            ax.tick_params(axis="x", labelsize=7)
-            ax.set_title(f"{loc['label']}\n{kind}: {value:.3f} µm", fontsize=8.5)
+            _polar_panel(ax, t, c, R0, amax, colour, lw, f"{loc['label']}\n{kind}: {value:.3f} µm")
     fig.suptitle(title + "; rings: δ in µm about the base circle", fontsize=10)
-    fig.tight_layout()
     return fig
 
 
 def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, label: str):
     """Amplitude per order (cycles/rev) with the bearing's kinematic orders as vertical lines."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig, ax = plt.subplots(figsize=(9, 3.4))
+    fig = Figure(figsize=(9, 3.4), layout="constrained")
+    ax = fig.subplots()
     o, a = np.asarray(spec["order"]), np.asarray(spec["amplitude_um"])
     ax.vlines(o, 0, a, color="#1f4e9a", lw=0.8)
     top = float(np.max(a[1:])) if a.size > 1 else 1.0
@@ -74,7 +103,6 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
     ax.set_title(f"Spectrum of the continuous rotation: {label} ({spec['n_revolutions']} revolutions)", fontsize=10)
     if kinematic_orders:
         ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
     return fig
 
 

@@ -9,12 +9,28 @@ docs/conventions.md gives them — reading heads on the disk at the optical radi
 further heads at ``heads_deg`` counter-clockwise), the probes along +Y (and +X) of each sphere,
 the autocollimator on +X at the polygon's height, the CCD microscope above the scale edge at
 ``ccd_position`` — and labelled by projecting those points with the renderer's camera.
+
+The render (image + label points) is cached per bench geometry (``render_bench_cached``): building
+the twin's ``Bench`` (importing MuJoCo, the static solve) and the offscreen render cost ~2 s of a
+``benchtwin analyze`` that otherwise never touches the twin, for a picture that depends only on
+the scenario and the code. The cache lives in ``$BENCHTWIN_CACHE/bench_view`` (default
+``~/.cache/benchtwin/bench_view``, the folder benchtwin's other caches use), one ``<key>.npz`` per
+geometry (the ``CACHE_MAX_ENTRIES`` most recently used are kept), the key a SHA-256 of the scenario's full content, the picture size, the MuJoCo version
+and the sources the picture is made of (this module, twin/*.py, models/*). A file is written under
+a unique temporary name and renamed into place (``os.replace``, atomic on POSIX), so concurrent
+runs never read a half-written picture; an unreadable or foreign file is re-rendered and replaced.
+``BENCHTWIN_CACHE=none`` turns the cache off; a cache folder that cannot be written only costs the
+re-render.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -155,13 +171,107 @@ def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.
     return img, labels
 
 
-def fig_bench(sc: Any, what: str | None = None) -> Any:
-    """The rendered bench with labels (a matplotlib figure for the report)."""
-    import matplotlib.pyplot as plt
+#: bump when the cached file's layout changes (part of the key)
+_CACHE_FORMAT = 1
+#: pictures kept (≈ 40 kB each, compressed): the most recently used
+CACHE_MAX_ENTRIES = 64
 
-    img, labels = render_bench(sc)
+
+def bench_view_cache_dir() -> Path | None:
+    """Where rendered bench views are kept: $BENCHTWIN_CACHE/bench_view (default
+    ~/.cache/benchtwin/bench_view); None when BENCHTWIN_CACHE is ``none`` (cache off)."""
+    root = os.environ.get("BENCHTWIN_CACHE")
+    if root is not None and root.strip().lower() in ("none", "off", "0"):
+        return None
+    return Path(root or Path.home() / ".cache" / "benchtwin") / "bench_view"
+
+
+def bench_view_key(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> str:
+    """SHA-256 (hex) of everything the picture depends on: the scenario's full validated content, the
+    size, the MuJoCo version and the sources of the model and of this picture (a few ms)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    import benchtwin.models
+    import benchtwin.twin
+
+    h = hashlib.sha256()
+    try:
+        mj = version("mujoco")
+    except PackageNotFoundError:  # pragma: no cover - the twin needs MuJoCo
+        mj = "?"
+    h.update(json.dumps({"format": _CACHE_FORMAT, "size": [int(width), int(height)], "mujoco": mj,
+                         "scenario": sc.to_dict()}, sort_keys=True, default=repr).encode())
+    h.update(Path(__file__).read_bytes())
+    for pkg, pattern in ((benchtwin.twin, "*.py"), (benchtwin.models, "*")):
+        root = Path(list(pkg.__path__)[0])
+        for f in sorted(root.rglob(pattern)):
+            if f.is_file() and "__pycache__" not in f.parts:
+                h.update(f.relative_to(root).as_posix().encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def render_bench_cached(sc: Any, width: int = WIDTH, height: int = HEIGHT
+                        ) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
+    """:func:`render_bench`, read from the cache when this geometry was rendered before (module
+    docstring: where, key, atomic writes)."""
+    folder = bench_view_cache_dir()
+    if folder is None:
+        return render_bench(sc, width, height)
+    key = bench_view_key(sc, width, height)
+    path = folder / f"{key}.npz"
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["key"]) == key:
+                img = np.array(z["image"])
+                labels = {str(k): (float(u), float(v)) for k, (u, v) in json.loads(str(z["labels"])).items()}
+                if img.shape == (height, width, 3) and img.dtype == np.uint8:
+                    os.utime(path)  # recently used: the last to be evicted
+                    return img, labels
+    except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
+        pass  # absent, half-foreign or damaged: rendered afresh and replaced
+    img, labels = render_bench(sc, width, height)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}-", suffix=".npz.part", dir=folder)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(fh, key=np.array(key), image=img,
+                         labels=np.array(json.dumps({k: [float(u), float(v)] for k, (u, v) in labels.items()})))
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        _evict(folder, CACHE_MAX_ENTRIES)
+    except OSError:
+        pass  # a read-only or full cache folder costs the re-render next time, nothing else
+    return img, labels
+
+
+def _evict(folder: Path, keep: int) -> None:
+    """Remove all but the ``keep`` most recently used pictures (a design study draws one geometry per
+    point; the folder must not grow with every study). A file another process removes or reads
+    meanwhile is harmless: a reader holding it open still reads it, a missing one is re-rendered."""
+    files = []
+    for f in folder.glob("*.npz"):
+        try:
+            files.append((f.stat().st_mtime, f))
+        except OSError:
+            continue
+    for _, f in sorted(files, reverse=True)[keep:]:
+        f.unlink(missing_ok=True)
+
+
+def fig_bench(sc: Any, what: str | None = None) -> Any:
+    """The rendered bench with labels (a matplotlib figure for the report; the render from the
+    cache when this geometry was drawn before)."""
+    from matplotlib.figure import Figure
+
+    img, labels = render_bench_cached(sc)
     H, W = img.shape[:2]
-    fig, ax = plt.subplots(figsize=(10, 10 * H / W))
+    fig = Figure(figsize=(10, 10 * H / W + 0.35))
+    ax = fig.subplots()
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=1.0 - 0.35 / (10 * H / W + 0.35))  # the title's 0.35 in
     ax.imshow(img)
     left = sorted((n for n in labels if n.startswith("@")), key=lambda n: labels[n][1])
     right = sorted((n for n in labels if not n.startswith("@")), key=lambda n: labels[n][1])
@@ -178,7 +288,6 @@ def fig_bench(sc: Any, what: str | None = None) -> Any:
     ax.set_axis_off()
     ax.set_title(f"The bench model of {what or 'scenario ' + sc.name} (MuJoCo offscreen render, θ = 0); instruments marked",
                  fontsize=10)
-    fig.tight_layout()
     return fig
 
 

@@ -129,3 +129,44 @@ def test_edges_once_equals_the_two_pass_path(small_ds):
     assert np.array_equal(np.asarray(new["d_ref_um"]), np.asarray(d_old) * scale)
     assert [(r["file"], r["stage"]) for r in new["rejected_frames"]] == rejected
     assert rejected[0] == ("img_000.png", "pixel scale (eq. 13)")
+
+
+def _two_pass_polarity(grey, min_area_px=20):
+    """The per-frame rule as it was written before: both classes labelled with statistics."""
+    import cv2
+
+    t = ecc.otsu_threshold(grey)
+    best = None
+    for pol, b in (("dark", grey < t), ("bright", grey > t)):
+        _n, _lab, st, _ = cv2.connectedComponentsWithStats(b.astype(np.uint8), connectivity=8)
+        big = int(np.count_nonzero(st[1:, cv2.CC_STAT_AREA] >= min_area_px))
+        if best is None or big > best[0]:
+            best = (big, pol)
+    return best[1]
+
+
+def test_expected_polarity_orders_the_work_only(grating_renderer):
+    """Whatever polarity is expected (the sweep's), each frame's choice, labels and edges are those
+    of the per-frame rule with both classes labelled; the expected class losing is handled."""
+    R_px = 22.5e3 / 0.667
+    W, H = 400, 300
+    centre = (W / 2.0 - (R_px + 2.0), H / 2.0 + 10.0)
+    period_px = 20.0 / 0.667
+    dark = grating_renderer(W, H, centre, R_px, period_px, to_uint8=True)
+    bright = grating_renderer(W, H, centre, R_px, period_px, glass=25.0, chrome=210.0, to_uint8=True)
+    for img, pol in ((dark, "dark"), (bright, "bright")):
+        grey, _ = ecc.to_grey(img)
+        assert _two_pass_polarity(grey) == pol
+        free = ecc.segment_lines(grey)
+        ref = ecc.frame_edges_and_scale(img, 20.0, "f")
+        assert ref[0] is not None and ref[0].polarity == pol
+        for hint in ("dark", "bright"):
+            known = ecc.segment_lines(grey, expect_polarity=hint)
+            assert free.polarity == known.polarity == pol
+            assert np.array_equal(free.labels, known.labels) and np.array_equal(free.lines, known.lines)
+            assert np.array_equal(free.stats, known.stats)
+            ed, scale, exc = ecc.frame_edges_and_scale(img, 20.0, "f", hint)
+            assert exc is None and ed is not None and ed.polarity == pol and scale == ref[1]
+            assert np.array_equal(ed.points_px, ref[0].points_px)
+    with pytest.raises(ValueError, match="polarity"):
+        ecc.segment_lines(ecc.to_grey(dark)[0], expect_polarity="grey")

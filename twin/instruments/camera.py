@@ -10,7 +10,10 @@ pixels (``centre_px``), the edge radius in true pixels (``edge_radius_px``), the
 the reference point — is ``sim_frame_truth()``, computed from the posed geometry alone (no
 rendering; ``simulate`` takes it for every frame, live or replayed on resume, and writes it to
 truth/ccd.csv); ``last_truth`` is the last captured frame's. The sensor noise stream is keyed by the
-runner's step, so a resumed run renders identical frames.
+runner's step, so a resumed run renders identical frames. With ``pipeline`` set (``simulate``'s
+frame pipeline, twin/render/pipeline.py) ``capture()`` renders nothing: it draws the frame's noise
+stream as the serial path does and keeps (disk pose, stream) for ``take_job()``; its reading
+states the image's shape, dtype and backend, and ``image`` is None (the worker writes the file).
 """
 
 from __future__ import annotations
@@ -41,6 +44,9 @@ class SimCamera:
         self.renderer = Renderer(backend) if renderer is None else renderer
         self.key = int(key)
         self.last_truth: dict | None = None
+        # twin/render/pipeline.py: frames rendered in a worker process (simulate sets it)
+        self.pipeline: Any = None
+        self.pending_job: tuple | None = None
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "ccd", backend: str = "auto",
@@ -86,6 +92,19 @@ class SimCamera:
 
     def capture(self) -> CameraFrame:
         st = self.state
+        if self.pipeline is not None and self.pipeline.backend() is not None:
+            # Pipelined (twin/render/pipeline.py): the frame's inputs — the posed disk and its noise
+            # stream, drawn exactly as below — are kept for the caller to hand to the worker with
+            # the frame's file name (``take_job``); the image is not returned. The reading carries
+            # what the rendered one would: the backend, the image's shape and dtype.
+            disk = st.pose.disk
+            self.pending_job = (disk, st.rng("ccd", self.key))
+            backend = self.pipeline.backend()
+            self.last_truth = {**self.sim_frame_truth(), "backend": backend}
+            c = self.camera
+            return {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
+                    "image_shape": [int(c.height_px), int(c.width_px)],
+                    "image_dtype": str(np.dtype(self.sensor.dtype))}
         frame = self.renderer.render(st.pose.disk, self.grating, self.camera, self.sensor, st.rng("ccd", self.key))
         tr = frame.truth
         self.last_truth = {"centre_px": [float(v) for v in tr["centre_px"]],
@@ -93,6 +112,13 @@ class SimCamera:
                            "reference_px": [float(v) for v in tr["reference_px"]], "backend": tr["backend"]}
         # no true value in the reading: it is journaled outside truth/
         return {"image": frame.image, "t_s": float(st.clock.now()), "status": "ok", "backend": tr["backend"]}
+
+    def take_job(self) -> tuple:
+        """The last pipelined capture's (disk pose, noise stream), once."""
+        job, self.pending_job = self.pending_job, None
+        if job is None:
+            raise RuntimeError(f"{self.name}: no pipelined capture to hand over")
+        return job
 
     def close(self) -> None:
         if self._own:

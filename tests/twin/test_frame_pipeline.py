@@ -1,0 +1,111 @@
+"""simulate's pipelined frame path (twin/render/pipeline.py): the CCD frames rendered, sensed, encoded
+and written by a spawned worker while the physics runs give the serial path's dataset byte for byte,
+and a run killed while frames are in flight journals no frame that is not on disk and resumes to
+the same dataset."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchtwin.twin.render.pipeline import FRAMES_ENV, FramePipeline, frame_mode
+from benchtwin.twin.simulate import simulate
+
+from tests.twin.test_simulate import files, small_scenario
+
+# ball bearings (the path-dependent cage state must survive the resume), 8 frames of 128×96
+OVR = {"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"], "procedure.ccd_step": "45 deg",
+       "procedure.radial_reps": 1, "procedure.radial_positions": 12, "procedure.selfcal": False,
+       "bearings.type": "ball"}
+
+
+@pytest.fixture(scope="module")
+def serial_ref(tmp_path_factory):
+    mp = pytest.MonkeyPatch()
+    mp.setenv(FRAMES_ENV, "serial")
+    try:
+        return simulate(small_scenario(**OVR), tmp_path_factory.mktemp("serial") / "ds", progress=False,
+                        backend="analytic")
+    finally:
+        mp.undo()
+
+
+def test_frame_mode_choice(monkeypatch):
+    monkeypatch.setenv(FRAMES_ENV, "serial")
+    assert frame_mode(60, 2048, 1536) == "serial"
+    monkeypatch.setenv(FRAMES_ENV, "pipeline")
+    assert frame_mode(4, 128, 96) == "pipeline"
+    assert frame_mode(60, 2048, 1536, live=True) == "serial"   # the live view watches this process
+    assert frame_mode(0, 2048, 1536) == "serial"
+    monkeypatch.setenv(FRAMES_ENV, "auto")
+    assert frame_mode(4, 128, 96) == "serial"                   # not worth a process
+    monkeypatch.setenv(FRAMES_ENV, "sometimes")
+    with pytest.raises(ValueError, match=FRAMES_ENV):
+        frame_mode(60, 2048, 1536)
+
+
+@pytest.mark.slow   # the default suite's pipelined frames: the resumed run of the next test
+def test_pipelined_dataset_is_the_serial_one(tmp_path, monkeypatch, serial_ref):
+    monkeypatch.setenv(FRAMES_ENV, "pipeline")
+    started = []
+    orig = FramePipeline.start.__func__
+
+    def start(cls, *a, **kw):
+        p = orig(cls, *a, **kw)
+        started.append(p)
+        return p
+
+    monkeypatch.setattr(FramePipeline, "start", classmethod(start))
+    out = simulate(small_scenario(**OVR), tmp_path / "pipe", progress=False, backend="analytic")
+    assert len(started) == 1 and started[0] is not None and started[0].submitted == 8
+    fr, fo = files(serial_ref), files(out)
+    assert fr.keys() == fo.keys()
+    assert [k for k in fr if fr[k] != fo[k]] == []
+
+
+def test_killed_while_frames_are_in_flight_resumes_to_the_same_dataset(tmp_path, monkeypatch, serial_ref):
+    """The worker's completions are hidden from the run (as if it were slow): every journal line from
+    the first capture on is held; a kill at the 5th capture leaves a journal that ends before the
+    first capture (no frame named that may not be complete), and the resumed run (pipelined again)
+    is byte-identical to the serial run (all of its frames made by the worker)."""
+    from benchtwin.twin.instruments.camera import SimCamera
+
+    monkeypatch.setenv(FRAMES_ENV, "pipeline")
+    orig_completed = FramePipeline.completed
+    monkeypatch.setattr(FramePipeline, "completed",
+                        lambda self, wait=False: orig_completed(self, True) if wait else self.done)
+    orig_capture = SimCamera.capture
+    calls = {"n": 0}
+
+    def flaky(self):
+        calls["n"] += 1
+        if calls["n"] == 5:
+            raise KeyboardInterrupt("power cut")
+        return orig_capture(self)
+
+    monkeypatch.setattr(SimCamera, "capture", flaky)
+    sc = small_scenario(**OVR)
+    run = tmp_path / "run"
+    with pytest.raises(KeyboardInterrupt):
+        simulate(sc, run, progress=False, backend="analytic")
+    assert not (run / "manifest.json").exists()
+    recs = [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
+    steps = [r for r in recs if "i" in r]
+    assert steps and not any(r.get("row", {}).get("type") == "capture" for r in steps)
+    assert steps[-1]["step"]["type"] == "read" and steps[-1]["row"]["tag"]["procedure"] == "ccd"
+    monkeypatch.setattr(SimCamera, "capture", orig_capture)
+    monkeypatch.setattr(FramePipeline, "completed", orig_completed)
+    out = simulate(sc, run, progress=False, backend="analytic", resume=True)
+    fr, fo = files(serial_ref), files(out)
+    assert fr.keys() == fo.keys()
+    assert [k for k in fr if fr[k] != fo[k]] == []
+
+
+@pytest.mark.slow
+def test_pool_that_cannot_start_falls_back_to_serial(tmp_path, monkeypatch, serial_ref):
+    monkeypatch.setenv(FRAMES_ENV, "pipeline")
+    monkeypatch.setattr(FramePipeline, "start", classmethod(lambda cls, *a, **kw: None))
+    out = simulate(small_scenario(**OVR), tmp_path / "fallback", progress=False, backend="analytic")
+    fr, fo = files(serial_ref), files(out)
+    assert [k for k in fr if fr[k] != fo.get(k)] == []

@@ -1,0 +1,200 @@
+"""CCD frames rendered, sensed, encoded and written in a second process while the physics runs (issue 17).
+
+Why: a frame of the jia2019 sweep costs ≈ 0.2 s of CPU (GL coverage 0.13 s, sensor model
+0.05 s, PNG encode 0.03 s; docs/benchmarks.md) and is a pure function of
+
+- the posed disk (``BodyPose``, from the physics at the capture's stop),
+- the instrument (``GratingSpec``, ``CcdCamera``, ``SensorParams``: fixed for the run),
+- the frame's noise stream (a ``numpy.random.Generator`` keyed by the runner's step,
+  ``SimBenchState.rng("ccd", key)``; pickled with its exact bit-generator state),
+
+so it can be made anywhere. ``FramePipeline`` hands those to ONE spawned worker process that holds
+the GL context for the whole sweep and writes each frame's PNG atomically (temporary sibling,
+fsync, rename: ``benchtwin.fsio.atomic_write_bytes``), while the caller's process goes on stepping
+the servo and solving the bearings. Same code, same arguments: the files are byte-identical to
+the serial path's (``Renderer.render`` + ``DatasetWriter.write_image`` in the caller).
+
+- One worker, FIFO: frames finish in submission order (``completed()`` counts the finished
+  prefix). The caller (twin/simulate.py) journals a capture, and every step after it, only once
+  its frame is on disk, so the journal never names a frame that is not complete.
+- ``spawn``, not ``fork``: the caller may hold threads (EGL, OpenBLAS, OpenCV, a progress bar) and
+  a forked child of a process holding a lock hangs (analysis/parallel.py); and each process
+  creates its own EGL/OSMesa context (GL contexts do not survive a fork). The child inherits
+  ``MUJOCO_GL``/``PYOPENGL_PLATFORM`` from the environment (twin/render/gl.py).
+- The backend is settled before the first frame: the worker creates its GL context at start
+  (``probe``) and reports "pyrender", or "analytic" when ``backend="auto"`` and GL is unavailable
+  — what the serial ``Renderer`` would have fallen back to. A later GL failure in the worker is
+  an error (never a silent switch of backend behind rows already journaled as "pyrender").
+- ``frame_mode()`` decides serial or pipelined: ``BENCHTWIN_SIM_FRAMES`` = ``serial`` | ``pipeline``
+  | ``auto`` (default). ``auto`` pipelines a sweep of at least ``AUTO_MIN_MPX`` megapixels on a
+  machine with ≥ 2 cores, outside a process multiprocessing started (a design study's worker: its
+  parent already spreads work over the cores). A pool that cannot start falls back to serial
+  with a warning (``FramePipeline.start`` returns None).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import warnings
+from collections import deque
+from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["FramePipeline", "frame_mode", "render_and_write", "FRAMES_ENV", "AUTO_MIN_MPX"]
+
+#: environment variable choosing the frame path of ``simulate``: serial | pipeline | auto
+FRAMES_ENV = "BENCHTWIN_SIM_FRAMES"
+#: ``auto`` pipelines sweeps of at least this many megapixels: a spawned worker costs ≈ 1.5 s of
+#: CPU (interpreter, NumPy, OpenCV, pyrender and its GL context), ≈ 7 full 2048×1536 frames' work
+#: (0.2 s each); smaller sweeps (the test suite's 128×96 frames) stay in the caller's process.
+AUTO_MIN_MPX = 30.0
+#: seconds to wait for the worker to start and report its backend before falling back to serial
+START_TIMEOUT_S = 120.0
+
+_worker: dict[str, Any] = {}
+
+
+def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False) -> str:
+    """``"serial"`` or ``"pipeline"`` for a sweep of ``n_frames`` frames (see the module docstring).
+    ``live``: a live view watches the run (it is served from this process; frames stay serial)."""
+    env = os.environ.get(FRAMES_ENV, "auto").strip().lower() or "auto"
+    if env not in ("serial", "pipeline", "auto"):
+        raise ValueError(f"{FRAMES_ENV}={env!r}: expected serial, pipeline or auto")
+    if n_frames <= 0 or live:
+        return "serial"
+    if env != "auto":
+        return env
+    if mp.parent_process() is not None or mp.current_process().daemon:
+        return "serial"
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    if cores < 2:
+        return "serial"
+    return "pipeline" if n_frames * width_px * height_px >= AUTO_MIN_MPX * 1e6 else "serial"
+
+
+# ------------------------------------------------------------------------------ worker side
+
+def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)   # one frame at a time; the caller's physics has the other core
+    except ImportError:  # pragma: no cover - OpenCV is a dependency
+        pass
+    _worker.clear()
+    _worker.update(backend=backend, grating=grating, camera=camera, sensor=sensor, renderer=None)
+
+
+def probe() -> str:
+    """Worker: create the renderer (and its GL context) and return the backend frames will use."""
+    from benchtwin.twin.render import Renderer
+
+    backend, cam = _worker["backend"], _worker["camera"]
+    used = "analytic"
+    if backend in ("auto", "pyrender"):
+        r = Renderer("pyrender")
+        try:
+            r._gl_renderer(cam.width_px, cam.height_px)
+            used = "pyrender"
+        except Exception:
+            r.close()
+            if backend == "pyrender":
+                raise
+            r = Renderer("analytic")
+    else:
+        r = Renderer("analytic")
+    _worker["renderer"] = r
+    return used
+
+
+def render_and_write(path: str, disk: Any, rng: np.random.Generator) -> str:
+    """Worker: one frame from the posed disk and its noise stream, written atomically to ``path``."""
+    from benchtwin.analysis.dataset import encode_png
+    from benchtwin.fsio import atomic_write_bytes
+
+    w = _worker
+    frame = w["renderer"].render(disk, w["grating"], w["camera"], w["sensor"], rng)
+    atomic_write_bytes(path, encode_png(path, frame.image))
+    return str(frame.truth["backend"])
+
+
+def _shutdown_worker() -> None:   # pragma: no cover - runs in the worker
+    r = _worker.get("renderer")
+    if r is not None:
+        r.close()
+
+
+# ------------------------------------------------------------------------------ caller side
+
+class FramePipeline:
+    """One worker process rendering and writing frames in submission order (see module docstring)."""
+
+    def __init__(self, pool: ProcessPoolExecutor, started: Future):
+        self._pool: ProcessPoolExecutor | None = pool
+        self._started: Future | None = started
+        self._backend: str | None = None
+        self._pending: deque[Future] = deque()
+        self.submitted = 0
+        self.done = 0
+
+    @classmethod
+    def start(cls, backend: str, grating: Any, camera: Any, sensor: Any) -> "FramePipeline | None":
+        """Spawn the worker (it starts in the background); None if the pool cannot be created."""
+        try:
+            pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(backend, grating, camera, sensor))
+            return cls(pool, pool.submit(probe))
+        except Exception as exc:  # pragma: no cover - depends on the host (no /dev/shm, no fork/spawn)
+            warnings.warn(f"frame pipeline unavailable ({type(exc).__name__}: {exc}); rendering frames serially",
+                          RuntimeWarning, stacklevel=2)
+            return None
+
+    def backend(self) -> str | None:
+        """The worker's backend (waits for its start); None if it could not start (fall back to
+        serial: nothing has been submitted yet)."""
+        if self._backend is None and self._started is not None:
+            try:
+                self._backend = self._started.result(timeout=START_TIMEOUT_S)
+            except Exception as exc:
+                warnings.warn(f"frame pipeline did not start ({type(exc).__name__}: {exc}); "
+                              "rendering frames serially", RuntimeWarning, stacklevel=2)
+                self._started = None
+                self.close(wait=False)
+        return self._backend
+
+    def submit(self, path: str | Path, disk: Any, rng: np.random.Generator) -> None:
+        if self._backend is None:
+            raise RuntimeError("FramePipeline.submit before the worker reported its backend")
+        if self._pool is None:
+            raise RuntimeError("FramePipeline.submit after close")
+        self._pending.append(self._pool.submit(render_and_write, str(path), disk, rng))
+        self.submitted += 1
+
+    def completed(self, wait: bool = False) -> int:
+        """Frames finished (the finished prefix, in submission order); ``wait``: all of them.
+        Re-raises a frame's error."""
+        while self._pending and (wait or self._pending[0].done()):
+            used = self._pending.popleft().result()
+            if used != self._backend:   # cannot happen: the worker's renderer has one backend
+                raise RuntimeError(f"frame rendered by {used!r}, journaled as {self._backend!r}")
+            self.done += 1
+        return self.done
+
+    def close(self, wait: bool = True) -> None:
+        """Stop the worker: ``wait`` for the submitted frames (else cancel those not started)."""
+        if self._pool is None:
+            return
+        if wait:
+            try:
+                self._pool.submit(_shutdown_worker).result()
+            except Exception:
+                pass
+        self._pool.shutdown(wait=wait, cancel_futures=not wait)
+        self._pool = None
