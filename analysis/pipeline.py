@@ -20,17 +20,17 @@ import functools
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
-from benchtwin.analysis.results import (BenchResults, Bench, CCDSection, CloseLoop, Comparison, CorrectedCurve,
-                                        CorrectionApplied, Curve,
-                                        ErrorCurveResults, ModelPrediction, PolygonResults, RadialErrorMotion,
-                                        RadialMotionSection,
-                                        ResidualSummary)
+from benchtwin.analysis.results import (AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
+                                        Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
+                                        ModelPrediction, RadialErrorMotion, ResidualSummary)
+from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
 from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
 
@@ -47,15 +47,18 @@ def _progress(enabled: bool, total: int, desc: str):
 # ----------------------------------------------------------------------------- steps
 
 
-def step_radial_motion(ds: Dataset, order: int) -> dict[str, Any]:
+def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
+    """Radial error motion from the two test spheres (Jia eqs. 6-9), with its ISO 230-7 values."""
     from benchtwin.analysis.radial_motion import radial_motion
 
     t = ds.table("radial_motion")
     b = ds.bench
-    return radial_motion(
+    rm = radial_motion(
         t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
         probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"), order=order,
     )
+    # with the ISO 230-7 values and polar plots (issue 20)
+    return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order))
 
 
 def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]:
@@ -64,10 +67,11 @@ def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]
 
     t = ds.table("radial_motion")
     probes = {k: t.get(k) for k in ("probe_top_um", "probe_bottom_um", "probe_top_x_um", "probe_bottom_x_um")}
-    return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm, order=order)
+    return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm,
+                               order=order)
 
 
-def _iso_summary(iso: dict[str, Any]) -> RadialErrorMotion:
+def _iso_summary(iso: Mapping[str, Any]) -> RadialErrorMotion:
     from benchtwin.analysis.iso230_7 import summary
 
     return cast(RadialErrorMotion, summary(iso))  # the section iso230_7.summary builds (analysis/results.py)
@@ -93,7 +97,7 @@ def ccd_frame_limits(n_frames: int, order: int) -> dict[str, int]:
     return {"min_frames": max(by_fit, by_fraction), "by_fit": by_fit, "by_fraction": by_fraction}
 
 
-def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | None = None) -> dict[str, Any]:
+def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | None = None) -> EccentricityResult:
     from benchtwin.analysis import eccentricity as ecc
     from collections.abc import Iterator
 
@@ -191,7 +195,7 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     res["n_frames"] = n_frames
     res["rejected_frames"] = list(rejected.values())
     res["frame_limits"] = limits
-    return res
+    return EccentricityResult.from_eccentricity(res)
 
 
 #: The autocollimator Hsieh et al. 2022 used (MÖLLER-WEDEL ELCOMAT 3000, sec. 3.3 (2) and (4)):
@@ -266,23 +270,23 @@ _BUDGET_INPUTS: tuple[tuple[str, str, float, str], ...] = (
 )
 
 
-def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, dict[str, Any]], list[str]]:
+def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, BudgetInput], list[str]]:
     """The type B inputs of Hsieh's budget besides the autocollimator's resolution and accuracy
     (:func:`autocollimator_declared`): {name: {value, source}} and a note for each one not declared."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, BudgetInput] = {}
     assumed = []
     for name, key, default, source in _BUDGET_INPUTS:
         v = bench.get(key)
         if v is None:
-            out[name] = {"value": float(default), "source": source}
+            out[name] = BudgetInput(value=float(default), source=source)
             assumed.append(f"bench.{key} = {default:g} ({source.removeprefix('assumed (').removesuffix(')')})")
         else:
-            out[name] = {"value": float(v), "source": "manifest"}
+            out[name] = BudgetInput(value=float(v), source="manifest")
     notes = [f"budget inputs not declared in the manifest, assumed: {'; '.join(assumed)}"] if assumed else []
     return out, notes
 
 
-def step_polygon(ds: Dataset) -> dict[str, Any]:
+def step_polygon(ds: Dataset) -> PolygonAnalysis:
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
 
@@ -301,22 +305,18 @@ def step_polygon(ds: Dataset) -> dict[str, Any]:
             ac_traceability_k=inputs["ac_traceability_k"]["value"],
             setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
         )
-        out["autocollimator_declared"] = {"resolution_arcsec": ac_res, "accuracy_arcsec": ac_acc,
-                                          "source": "manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)"}
-        out["budget_inputs"] = inputs
-        if note:
-            out.setdefault("notes", []).append(note)
-        out.setdefault("notes", []).extend(input_notes)
-        return out
+        declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
+                                          source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")
+        return PolygonAnalysis.from_analysis(out, declared, inputs, ([note] if note else []) + input_notes)
     except PolygonDataError as exc:
         # The Hsieh analysis names rows by array index; the file counts the header as row 1.
         raise DatasetError(f"{ds.path / 'polygon.csv'}: {exc} (array index i is file row i + 2)") from None
 
 
-def _setup_error_lookup(pol: dict[str, Any]):
+def _setup_error_lookup(pol: PolygonAnalysis):
     table = {}
-    for s, values in pol["setup_error_arcsec"].items():
-        faces = pol["setup_error_start_faces"][s]
+    for s, values in pol.setup_error_arcsec.items():
+        faces = pol.setup_error_start_faces[s]
         for f, u in zip(faces, values):
             table[(float(s), int(f))] = float(u)
 
@@ -346,54 +346,6 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> Res
 def _bench(bench: dict[str, Any]) -> Bench:
     """The manifest's bench block as read (validated by analysis.dataset, docs/dataset-format.md)."""
     return cast(Bench, dict(bench))
-
-
-def _polygon_results(pol: dict[str, Any]) -> PolygonResults:
-    """The shift-angle and self-calibration results (analysis.hsieh_pipeline) that results.json carries."""
-    out = PolygonResults()
-    if "polygon_pitch_deviation_arcsec" in pol:
-        out["polygon_pitch_deviation_arcsec"] = pol["polygon_pitch_deviation_arcsec"]
-    if "polygon_pitch_deviation_u_arcsec" in pol:
-        out["polygon_pitch_deviation_u_arcsec"] = pol["polygon_pitch_deviation_u_arcsec"]
-    if "setup_error_arcsec" in pol:
-        out["setup_error_arcsec"] = pol["setup_error_arcsec"]
-    if "encoder_error_arcsec" in pol:
-        out["encoder_error_arcsec"] = pol["encoder_error_arcsec"]
-    if "selfcal_error_arcsec" in pol:
-        out["selfcal_error_arcsec"] = pol["selfcal_error_arcsec"]
-    if "en_max" in pol:
-        out["en_max"] = pol["en_max"]
-    if "budget" in pol:
-        out["budget"] = pol["budget"]
-    if "budget_summary" in pol:
-        out["budget_summary"] = pol["budget_summary"]
-    if "difference_arcsec" in pol:
-        out["difference_arcsec"] = pol["difference_arcsec"]
-    if "repeatability" in pol:
-        out["repeatability"] = pol["repeatability"]
-    if "autocollimator_declared" in pol:
-        out["autocollimator_declared"] = pol["autocollimator_declared"]
-    if "budget_inputs" in pol:
-        out["budget_inputs"] = pol["budget_inputs"]
-    return out
-
-
-def _close_loop_section(tr: dict[str, Any]) -> CloseLoop:
-    """The tracing's verdict as results.json carries it (analysis.tracing.trace; docs/effects.md)."""
-    out = CloseLoop(status=tr["status"])
-    if "signature" in tr:
-        out["signature"] = tr["signature"]
-    if "selection" in tr:
-        out["selection"] = tr["selection"]
-    if "skipped" in tr:
-        out["skipped"] = tr["skipped"]
-    if "thresholds" in tr:
-        out["thresholds"] = tr["thresholds"]
-    if "partial_effects" in tr:
-        out["partial_effects"] = tr["partial_effects"]
-    if "unexplained_signature" in tr:
-        out["unexplained_signature"] = tr["unexplained_signature"]
-    return out
 
 
 def _step(ds: Dataset, table: str, fn, *args):
@@ -440,50 +392,32 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         "bench": _bench(b), "notes": [],
     }
 
-    rm = ecc = pol = None
+    rm: RadialMotionResult | None = None
+    ecc: EccentricityResult | None = None
+    pol: PolygonAnalysis | None = None
     if ds.has("radial_motion"):
         rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
-        results["radial_motion"] = RadialMotionSection(
-            summary=rm["summary"], u_dY_range_um=rm["u_dY_range_um"], u_dY_gum_um=rm.get("u_dY_gum_um"),
-            d_n=rm["d_n"], n_reps=rm["n_reps"], theta_deg=rm["theta_deg"], dY_um=rm["dY_um"],
-            tilt_x_urad=rm["tilt_x_urad"],
-            # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
-            u_dY_um=rm["u_dY_um"], u_dY_theta_um=rm["u_dY_theta_um"], u_h1_async_um=rm["u_h1_async_um"],
-        )
-        rm["iso230_7"] = step_iso230_7(ds, rm, order)  # ISO 230-7 values and polar plots (issue 20)
-        results["radial_error_motion"] = _iso_summary(rm["iso230_7"])
+        results["radial_motion"] = rm.to_json()
+        results["radial_error_motion"] = _iso_summary(rm.iso230_7)
     if ds.has("ccd/index"):
         ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None:  # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12)
-            from benchtwin.analysis.eccentricity import with_async_motion
-
-            ecc = with_async_motion(ecc, rm["u_h1_async_um"], rm["u_h1_async_dof"])
-        results["eccentricity_um"] = ecc["e_um"]
-        results["eccentricity_u_um"] = ecc["e_u_um"]
-        results["eccentricity_phase_deg"] = ecc["theta0_deg"]
-        results["eccentricity_phase_u_deg"] = ecc["theta0_u_deg"]
-        results["eccentricity_u_fit_um"] = ecc.get("e_u_fit_um", ecc["e_u_um"])
-        results["eccentricity_phase_u_fit_deg"] = ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"])
-        results["eccentricity_u_async_um"] = ecc.get("u_async_h1_um")
-        results["ccd"] = CCDSection(pixel_um=ecc["pixel_um"], n_images=len(ecc["files"]), n_frames=ecc["n_frames"],
-                                    theta_deg=ecc["theta_deg"], d_ref_um=ecc["d_ref_um"],
-                                    residual_rms_um=ecc.get("residual_rms_um"),
-                                    min_frames=ecc["frame_limits"]["min_frames"])
-        results["ccd_rejected_frames"] = ecc["rejected_frames"]
-        if ecc["rejected_frames"]:
+            ecc = ecc.with_async_motion(rm.u_h1_async_um, rm.u_h1_async_dof)
+        results.update(cast(BenchResults, ecc.to_json()))
+        if ecc.rejected_frames:
             results["notes"].append(
-                f"CCD: {len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected and dropped "
-                f"({', '.join(r['file'] for r in ecc['rejected_frames'])}); e and θ0 fitted on the "
-                f"{len(ecc['files'])} remaining angles (≥ {ecc['frame_limits']['min_frames']} required)")
+                f"CCD: {len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected and dropped "
+                f"({', '.join(r['file'] for r in ecc.rejected_frames)}); e and θ0 fitted on the "
+                f"{len(ecc.files)} remaining angles (≥ {ecc.min_frames} required)")
     if ds.has("polygon"):
         pol = _step(ds, "polygon.csv", step_polygon, ds)
-        results.update(_polygon_results(pol))
-        results["notes"] += list(pol.get("notes", []))
+        results.update(pol.to_json())
+        results["notes"] += pol.notes
 
     # Jia eq. 5: the error model from the measured eccentricity and radial motion.
     model = None
     if ecc is not None:
-        model = error_model_from_results(ecc, rm, r_um)
+        model = error_model_from_results(ecc.detail, rm.detail if rm is not None else None, r_um)
         if model_payload is not None:
             from benchtwin.analysis.tracing import add_to_error_model
 
@@ -498,7 +432,7 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
 
     cmp = None
     if model is not None and pol is not None:
-        enc = pol["encoder_error_arcsec"]
+        enc = pol.encoder_error_arcsec
         cmp = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model)
         u_meas = float(np.sqrt(np.mean(np.square(np.asarray(enc["u"], dtype=float)))))
         results["residual_before"] = _residual_summary(cmp, u_meas)
@@ -508,8 +442,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     ev = tr = None
     if pol is not None:  # the raw curve until the loop identifies an artefact of the reference chain
-        results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], None, {})
-    if close_loop and cmp is not None:
+        results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, None, {})
+    if close_loop and cmp is not None and ecc is not None and pol is not None and model is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
@@ -518,7 +452,8 @@ def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
     return {"results": results, "paths": paths}
 
 
-def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, dict[str, Any]]) -> CorrectedCurve:
+def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
+                    corrections: Mapping[str, Mapping[str, Any]]) -> CorrectedCurve:
     """The encoder's error after removing the identified artefacts of the reference chain.
 
     ``enc``: the measured curve {theta_deg, value, u} (Hsieh's combined α); ``corrections``: per
@@ -556,7 +491,7 @@ def corrected_curve(enc: dict[str, Any], theta_read_deg, corrections: dict[str, 
                                "e.g. the sub-division error, are not sampled)")
 
 
-def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n_faces: int) -> np.ndarray | None:
+def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, n_faces: int) -> np.ndarray | None:
     """The α per reading that a perturbation ``d`` of every autocollimator reading produces after the
     shift-angle analysis (Hsieh eqs. 5-7: β from the closure of the reference shift's full table, or
     the certificate, which does not move; U_j per start face; α = ε − Σβ − U, eq. 3). The analysis is
@@ -569,7 +504,7 @@ def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n
     try:
         t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
                                 theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
-        src = pol.get("beta_source", "auto")
+        src = pol.beta_source
         res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
                                       beta_source=src)
     except (sa.PolygonDataError, ValueError):
@@ -590,7 +525,8 @@ def reading_response(poly: dict[str, Any], pol: dict[str, Any], d: np.ndarray, n
     return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
-def _close_loop(ds, results: BenchResults, rm, ecc, pol, model, paths, out):
+def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | None, ecc: EccentricityResult,
+                pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
@@ -602,28 +538,27 @@ def _close_loop(ds, results: BenchResults, rm, ecc, pol, model, paths, out):
         t = ds.table("radial_motion")
         radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
                               top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"), rep=t["rep"])
-    sc_cal = pol.get("selfcal_error_arcsec")
+    sc_cal = pol.selfcal_error_arcsec
     if sc_cal and not np.all(np.isfinite(np.asarray(sc_cal["u"], dtype=float))):
         # 2 heads: δ = α(θ) − α(θ+180°) fixes every odd harmonic with no redundancy, so no u; evidence
         # without an uncertainty cannot be weighted (issue #13: the close loop's SVD did not converge)
         results["notes"].append("close loop: the self-calibration has no uncertainty (no redundancy between the "
                                 "heads), so it is not used as evidence")
         sc_cal = None
-    rep = pol.get("repeatability") or {}
-    if pol.get("budget_summary"):
-        u_eps = float(pol["budget_summary"]["u_c"])
+    rep = pol.repeatability
+    if pol.budget_summary:
+        u_eps = float(pol.budget_summary["u_c"])
     else:
         # no budget: the declared autocollimator's type B parts (resolution r/(2√3), max error a/√3,
         # Hsieh sec. 3.3 (2), (4)) with the readings' repeatability where the data give one
-        ac = pol.get("autocollimator_declared") or {}
-        res_, acc_, _ = autocollimator_declared(ds.bench)
-        res_, acc_ = ac.get("resolution_arcsec", res_), ac.get("accuracy_arcsec", acc_)
+        ac = pol.autocollimator_declared
+        res_, acc_ = ac["resolution_arcsec"], ac["accuracy_arcsec"]
         s_rep = rep.get("pooled_sd_eps_arcsec") or 0.0
         u_eps = math.sqrt((res_ / (2 * math.sqrt(3.0))) ** 2 + (acc_ / math.sqrt(3.0)) ** 2 + float(s_rep) ** 2)
     u_read = rep.get("pooled_sd_eps_arcsec") or rep.get("closure_sd_arcsec") or u_eps
     poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in polygon_table(ds).items()}
     ev = evidence_from_polygon(
-        poly, pol["polygon_pitch_deviation_arcsec"], _setup_error_lookup(pol), model,
+        poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), model,
         n_faces=b["polygon_faces"], u_arcsec=float(u_read), radial=radial,
         selfcal_theta_deg=sc_cal["theta_deg"] if sc_cal else None,
         selfcal_value_arcsec=sc_cal["value"] if sc_cal else None,
@@ -636,23 +571,24 @@ def _close_loop(ds, results: BenchResults, rm, ecc, pol, model, paths, out):
     )
     ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(poly["ac_arcsec"], dtype=float) ** 2,
                                                 b["polygon_faces"])
-    ev.add_eccentricity_uncertainty(ecc["e_um"], ecc["theta0_deg"], ecc["e_u_um"], ecc["theta0_u_deg"])
-    tr = trace(ev)
-    results["close_loop"] = _close_loop_section(tr)
-    results["identified_effects"] = tr["identified_effects"]
-    results["ambiguous"] = tr["ambiguous"]
-    results["unexplained"] = tr["unexplained"]
-    results["residual_test"] = tr["residual_before"]
-    results["residual_after_trace"] = tr["residual_after"]
-    results["encoder_error_corrected_arcsec"] = corrected_curve(pol["encoder_error_arcsec"], ev.theta_deg,
-                                                                tr.get("reference_corrections") or {})
-    if tr["identified_effects"]:
+    ev.add_eccentricity_uncertainty(ecc.e_um, ecc.theta0_deg, ecc.u_e_um, ecc.u_theta0_deg)
+    tr = TraceOutcome.from_trace(trace(ev))
+    results["close_loop"] = tr.to_json()
+    results["identified_effects"] = tr.identified_effects
+    results["ambiguous"] = tr.ambiguous
+    results["unexplained"] = tr.unexplained
+    results["residual_test"] = tr.residual_before
+    results["residual_after_trace"] = tr.residual_after
+    results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, ev.theta_deg,
+                                                                tr.reference_corrections)
+    if tr.identified_effects:
         mpath = out / "model.json"
-        save_model(mpath, tr["model_file"])
+        save_model(mpath, tr.model_file)
         paths["model"] = str(mpath)
-        model2 = error_model_from_results(ecc, rm, b["optical_radius_mm"] * 1000.0)
-        added = add_to_error_model(model2, tr["model_file"])
-        enc = pol["encoder_error_arcsec"]
+        model2 = error_model_from_results(ecc.detail, rm.detail if rm is not None else None,
+                                          b["optical_radius_mm"] * 1000.0)
+        added = add_to_error_model(model2, tr.model_file)
+        enc = pol.encoder_error_arcsec
         cmp2 = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model2)
         results["residual_after"] = _residual_summary(cmp2)
         results["residual_after"]["added_terms"] = added
@@ -664,7 +600,9 @@ def _close_loop(ds, results: BenchResults, rm, ecc, pol, model, paths, out):
     return ev, tr
 
 
-def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, tr, preface=None) -> None:
+def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotionResult | None,
+                  ecc: EccentricityResult | None, pol: PolygonAnalysis | None, model: Any, cmp: Any, ev: Any,
+                  tr: TraceOutcome | None, preface: list | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -678,19 +616,19 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
         rep.figure(fig, caption)
     rows = []
     if ecc is not None:
-        rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc["e_um"], ecc["e_u_um"], "µm")])
-        rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc["theta0_deg"], ecc["theta0_u_deg"], "°")])
-        rows.append(["pixel scale (from the grating)", f"{ecc['pixel_um']:.5f} µm/px"])
+        rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc.e_um, ecc.u_e_um, "µm")])
+        rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc.theta0_deg, ecc.u_theta0_deg, "°")])
+        rows.append(["pixel scale (from the grating)", f"{ecc.pixel_um:.5f} µm/px"])
     if rm is not None:
-        s = rm["summary"]["disk"]
+        s = rm.summary["disk"]
         rows.append(["disk radial motion δY, synchronous P-V (eq. 9)", f"{s['synchronous_um']:.3f} µm"])
         rows.append(["δY asynchronous (ISO 230-7)", f"{s['asynchronous_um']:.3f} µm"])
-        rows.append(["u(δY), range method (d_n)", f"{rm['u_dY_range_um']:.3f} µm"])
-    if pol is not None and pol.get("budget_summary"):
-        bs = pol["budget_summary"]
+        rows.append(["u(δY), range method (d_n)", f"{rm.u_dY_range_um:.3f} µm"])
+    if pol is not None and pol.budget_summary:
+        bs = pol.budget_summary
         rows.append(["shift-angle α: u_c, ν_eff, k, U", f"{bs['u_c']:.3f}″, {bs['nu_eff']:.0f}, {bs['k']:.2f}, {bs['U']:.3f}″"])
-        if pol.get("en_max") is not None:
-            rows.append(["E_n max (shift-angle vs self-calibration)", f"{pol['en_max']:.2f}"])
+        if pol.en_max is not None:
+            rows.append(["E_n max (shift-angle vs self-calibration)", f"{pol.en_max:.2f}"])
     if "residual_before" in results:
         rb = results["residual_before"]
         rows.append(["residual after the Jia model: RMS / P-V / share", f"{rb['rms_arcsec']:.3f}″ / {rb['pv_arcsec']:.3f}″ / {100 * rb['fraction_of_error']:.1f} %"])
@@ -707,22 +645,22 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
 
     if rm is not None:
         rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
-        rep.figure(fj.fig_radial_motion(rm), "Radial error motion of the test spheres and of the grating disk along the head direction")
+        rep.figure(fj.fig_radial_motion(rm.detail), "Radial error motion of the test spheres and of the grating disk along the head direction")
         from benchtwin.analysis.report.figures_iso import add_iso230_7_section
 
-        add_iso230_7_section(rep, rm["iso230_7"], ds, filtered=rm["summary"])
+        add_iso230_7_section(rep, rm.iso230_7, ds, filtered=rm.summary)
     if ecc is not None:
         rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
         from benchtwin.analysis.report.figures_ccd import add_ccd_pictures
 
-        add_ccd_pictures(rep, ds, ecc)  # the pictures of the image analysis (issue 20)
-        rep.figure(fj.fig_dref(ecc, np.asarray(ecc["theta_deg"]), np.asarray(ecc["d_ref_um"])), "d_ref over the sweep and its first harmonic")
-        if ecc.get("rejected_frames"):
-            rep.paragraph(f"{len(ecc['rejected_frames'])} of {ecc['n_frames']} frames rejected by the image analysis "
-                          f"and dropped; e and θ0 are fitted on the {len(ecc['files'])} remaining angles (the "
-                          f"least-squares fit of eq. 10 does not need equal spacing; ≥ {ecc['frame_limits']['min_frames']} "
+        add_ccd_pictures(rep, ds, ecc.detail)  # the pictures of the image analysis (issue 20)
+        rep.figure(fj.fig_dref(ecc.detail, np.asarray(ecc.theta_deg), np.asarray(ecc.d_ref_um)), "d_ref over the sweep and its first harmonic")
+        if ecc.rejected_frames:
+            rep.paragraph(f"{len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected by the image analysis "
+                          f"and dropped; e and θ0 are fitted on the {len(ecc.files)} remaining angles (the "
+                          f"least-squares fit of eq. 10 does not need equal spacing; ≥ {ecc.min_frames} "
                           "frames are required).", note=True)
-            rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in ecc["rejected_frames"]],
+            rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in ecc.rejected_frames],
                       ["rejected frame", "θ", "step", "reason"])
     if model is not None:
         rep.heading("Predicted angle error (Jia eq. 5, fig. 15)")
@@ -734,26 +672,26 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
         from benchtwin.analysis.report import figures_hsieh as fh
 
         rep.heading("Polygon cross-calibration and shift-angle method (Hsieh 2022)")
-        rep.figure(fh.figure_pitch_deviation(pol), "Pitch deviations β of the polygon (Hsieh fig. 6)")
-        rep.figure(fh.figure_alpha_at_shifts(pol), "Encoder error at the shift angles (Hsieh fig. 7)")
-        if pol.get("selfcal_error_arcsec"):
-            rep.figure(fh.figure_selfcal_vs_shift_angle(pol), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
-            rep.figure(fh.figure_difference(pol), "Difference between the two methods (Hsieh fig. 12)")
-        if pol.get("budget"):
+        rep.figure(fh.figure_pitch_deviation(pol.detail), "Pitch deviations β of the polygon (Hsieh fig. 6)")
+        rep.figure(fh.figure_alpha_at_shifts(pol.detail), "Encoder error at the shift angles (Hsieh fig. 7)")
+        if pol.selfcal_error_arcsec:
+            rep.figure(fh.figure_selfcal_vs_shift_angle(pol.detail), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
+            rep.figure(fh.figure_difference(pol.detail), "Difference between the two methods (Hsieh fig. 12)")
+        if pol.budget:
             rep.heading("Uncertainty budget (GUM, Hsieh Table 3)", level=3)
             rep.table([[r.get("name"), r.get("u"), r.get("sensitivity"), r.get("contribution"), r.get("dof")]
-                       for r in pol["budget"]], ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
+                       for r in pol.budget], ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
     if tr is not None:
         from benchtwin.analysis.report import figures_loop as fl
 
         rep.heading("Closing the loop: what the model lacks")
-        status = tr["status"]
-        names = ", ".join(e["name"] for e in tr["identified_effects"]) or "none"
+        status = tr.status
+        names = ", ".join(e["name"] for e in tr.identified_effects) or "none"
         rep.paragraph(f"Status: {status}. Identified: {names}.")
-        rb_t, ra_t = tr["residual_before"], tr["residual_after"]
-        if tr["identified_effects"]:
+        rb_t, ra_t = tr.residual_before, tr.residual_after
+        if tr.identified_effects:
             pars = "; ".join(f"{e['name']}: " + ", ".join(f"{k} = {value_with_u(v, e['u'].get(k, float('nan')), '')}"
-                                                         for k, v in e["params"].items()) for e in tr["identified_effects"])
+                                                         for k, v in e["params"].items()) for e in tr.identified_effects)
             rep.paragraph(
                 f"The model lacked {names} ({pars}). Adding it brings the residual per polygon reading from "
                 f"{rb_t['rms_arcsec']:.3f}″ RMS ({rb_t['pv_arcsec']:.2f}″ P-V, {100 * rb_t['fraction_of_error']:.1f} % "
@@ -767,11 +705,11 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
                     f"{am['sigma_um']:.3f} µm RMS (orders 1…{am.get('band_orders', 10)}), i.e. about "
                     f"{am['per_stop_arcsec']:.2f}″ per polygon stop along X, unmeasured at the polygon's revolution; it "
                     "is part of the model's uncertainty, not an effect (more polygon reps would average it).", note=True)
-        elif tr.get("partial_effects"):
+        elif tr.partial_effects:
             rep.paragraph("Best candidate (not accepted, the residual after it is still significant): "
-                          + ", ".join(e["name"] for e in tr["partial_effects"])
+                          + ", ".join(e["name"] for e in tr.partial_effects)
                           + f"; left: {', '.join(ra_t.get('signature_left') or [])}.", note=True)
-        for e in tr["identified_effects"]:
+        for e in tr.identified_effects:
             rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
                       [f"{e['name']}: parameter", "value"])
         cc: CorrectedCurve | dict[str, Any] = results.get("encoder_error_corrected_arcsec") or {}
@@ -783,9 +721,9 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
         else:
             rep.paragraph("Corrected calibration curve: no artefact of the reference chain identified; the "
                           "measured encoder error is stated unchanged.", note=True)
-        for a in tr["ambiguous"]:
+        for a in tr.ambiguous:
             rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
-        if tr["unexplained"]:
+        if tr.unexplained:
             rep.paragraph("Unexplained: the residual is significant but no effect of the library explains it; see the signature.", note=True)
         res_b = results.get("residual_before")
         res_a = results.get("residual_after")
@@ -793,9 +731,9 @@ def _write_report(out, ds, results: BenchResults, rm, ecc, pol, model, cmp, ev, 
             rep.table([["before", res_b["rms_arcsec"], res_b["pv_arcsec"], res_b["fraction_of_error"]],
                        ["after", res_a["rms_arcsec"], res_a["pv_arcsec"], res_a["fraction_of_error"]]],
                       ["residual", "RMS ″", "P-V ″", "share of the error"])
-        rep.figure(fl.plot_residual_before_after(ev, tr), "Residual before and after adding the traced effect")
-        rep.figure(fl.plot_harmonic_spectrum(tr), "Harmonic spectrum of the residual with uncertainties")
-        rep.figure(fl.plot_signature(ev, tr), "Signature of the residual: time, start face, direction")
+        rep.figure(fl.plot_residual_before_after(ev, tr.detail), "Residual before and after adding the traced effect")
+        rep.figure(fl.plot_harmonic_spectrum(tr.detail), "Harmonic spectrum of the residual with uncertainties")
+        rep.figure(fl.plot_signature(ev, tr.detail), "Signature of the residual: time, start face, direction")
     rep.write(out / "report.html")
 
 

@@ -100,9 +100,9 @@ def main(argv: list[str] | None = None) -> int:
     cases = {
         "two-pass (before)": lambda: two_pass(ds),
         "edges once, polarity per frame": lambda: per_frame_polarity(ds),
-        "edges once, serial": lambda: np.asarray(step_eccentricity(ds, 10, False, workers=1)["d_ref_um"]),
+        "edges once, serial": lambda: np.asarray(step_eccentricity(ds, 10, False, workers=1).d_ref_um),
         f"edges once, pool of {args.workers}": lambda: np.asarray(
-            step_eccentricity(ds, 10, False, workers=args.workers)["d_ref_um"]),
+            step_eccentricity(ds, 10, False, workers=args.workers).d_ref_um),
         "floor: decode+Otsu+label once": lambda: floor(ds),
     }
     times: dict[str, list[tuple[float, float]]] = {k: [] for k in cases}

@@ -70,3 +70,16 @@ def test_the_package_never_imports_the_test_generators():
                  for p in (ROOT / d).rglob("*.py") if pat.search(p.read_text(encoding="utf-8"))]
     assert not offenders, offenders
     assert not (ROOT / "analysis" / "effects" / "synthetic.py").exists()
+
+
+def test_tracing_uses_the_one_fourier_engine_directly():
+    """One implementation per concern (issue 16, item 5): the tracing package fits and evaluates its
+    series with analysis/fourier.py and takes unit constants from benchtwin.units, not through the
+    effect modules' helper names (analysis/effects/_base.py's fourier_fit / fourier_eval aliases)."""
+    import re
+
+    pat = re.compile(r"effects\._base|effects\s+import\s+_base|\bfourier_(fit|eval|integral)\b")
+    offenders = [p.name for p in (ROOT / "analysis" / "tracing").glob("*.py") if pat.search(p.read_text(encoding="utf-8"))]
+    assert not offenders, offenders
+    uses = "".join(p.read_text(encoding="utf-8") for p in (ROOT / "analysis" / "tracing").glob("*.py"))
+    assert "from ..fourier import" in uses

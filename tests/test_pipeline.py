@@ -121,7 +121,7 @@ def test_disk_radial_motion_matches_truth_noise_free(tmp_path):
     th, dy = t["theta_deg"].astype(float), t["axis_dy_um"].astype(float)
     reps = t["rep"].astype(float).astype(int)
     truth_sync = np.mean([remove_harmonics(th[reps == r], dy[reps == r], order=10)[0] for r in np.unique(reps)], axis=0)
-    err = np.asarray(rm["dY_um"]) - truth_sync
+    err = np.asarray(rm.dY_um) - truth_sync
     assert np.sqrt(np.mean(err**2)) < 0.005, np.sqrt(np.mean(err**2))
 
 

@@ -635,3 +635,35 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
     (other / "notes.txt").write_text("a user's file")
     assert main(["run", "-o", str(other), "--quiet"]) == 2        # someone else's folder: refused
     assert (other / "notes.txt").read_text() == "a user's file"
+
+
+def test_run_moves_the_truth_out_before_the_analysis_sees_the_dataset(tmp_path, monkeypatch):
+    """`benchtwin run`: the analysis runs with truth/ absent from the dataset (principle 3), and the
+    run's output keeps it beside the dataset as OUT/truth (for `benchtwin score --truth`)."""
+    from benchtwin.analysis import pipeline
+    from benchtwin.app import bench_view
+    from benchtwin.twin import simulate
+
+    seen: list[bool] = []
+
+    def fake_simulate(sc, out, **kw):
+        (Path(out) / "truth").mkdir(parents=True)
+        (Path(out) / "truth" / "encoder_error.csv").write_text("theta_deg,alpha_arcsec\n0,1\n")
+        (Path(out) / "manifest.json").write_text("{}")
+        return Path(out)
+
+    def fake_analyze(ds, out, **kw):
+        seen.append((Path(ds) / "truth").exists())
+        (Path(out) / "results.json").write_text(json.dumps({"dataset": str(ds)}))
+        (Path(out) / "report.html").write_text("<html></html>")
+        return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
+                                         "report": str(Path(out) / "report.html")}}
+
+    monkeypatch.setattr(simulate, "simulate", fake_simulate)
+    monkeypatch.setattr(pipeline, "analyze", fake_analyze)
+    monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
+    out = tmp_path / "out"
+    assert main(["run", "-o", str(out), "--quiet"]) == 0
+    assert seen == [False]
+    assert not (out / "dataset" / "truth").exists()
+    assert (out / "truth" / "encoder_error.csv").read_text().startswith("theta_deg")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effects._base import ARCSEC_PER_RAD
+from benchtwin.units import ARCSEC_PER_RAD
 from ..radial_motion import RadialMotion
 from .thresholds import SPHERE_FORM_UM, THETA_BIN_DEG
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..effects._base import ARCSEC_PER_RAD
+from benchtwin.units import ARCSEC_PER_RAD
 from .evidence import Evidence
 from .thresholds import MAX_CV_FOLDS
 

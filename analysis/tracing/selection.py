@@ -17,8 +17,10 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from benchtwin.units import ARCSEC_PER_RAD
+
 from ..effects import ALL
-from ..effects._base import ARCSEC_PER_RAD, fourier_fit
+from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence, _replace_alpha
 from .problem import _Problem, _center, _rms, _z_from_chi2, noise_floor
@@ -520,5 +522,5 @@ def _harmonic_coefs(theta_deg, values, kmax: int) -> dict[str, list[float]] | No
     ks = list(range(1, min(10, int(kmax)) + 1))
     if not ks:
         return None
-    c = fourier_fit(np.asarray(theta_deg, dtype=float), np.asarray(values, dtype=float), ks)
+    c = fit_harmonics(np.asarray(theta_deg, dtype=float), np.asarray(values, dtype=float), ks)
     return {str(k): [float(a), float(b)] for k, (a, b) in c.items()}

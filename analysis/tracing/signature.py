@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..effects._base import fourier_eval, fourier_fit
+from ..fourier import evaluate_harmonics, fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence
 from .problem import _Problem, _center, _rms, _z_from_chi2
@@ -234,17 +234,17 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         cor[f"term:{name}"] = _one_column(pb, v, name)
     ecc = ev.model_terms.get(ev.eccentricity_term)
     if ecc is not None and np.any(ecc != 0):
-        c1 = fourier_fit(ev.theta_deg, ecc, [1])
-        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, fourier_eval(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
+        c1 = fit_harmonics(ev.theta_deg, ecc, [1])
+        cor["term:eccentricity_quadrature (θ0 error)"] = _one_column(pb, evaluate_harmonics(ev.theta_deg, {1: (c1[1][1], -c1[1][0])}), "q")
     if ev.radial is not None:
         for c in ev.radial.channels:
             cor[f"radial:{c}"] = _one_column(pb, ev.radial.at(ev.theta_deg, c), c)
             cor[f"radial:integral_{c}"] = _one_column(pb, ev.radial.integral_at(ev.theta_deg, c), c)
     sig["correlations"] = cor
     if ev.ccd is not None:
-        cc = fourier_fit(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
+        cc = fit_harmonics(ev.ccd.theta_deg, ev.ccd.d_ref_um, range(1, 11))
         c1, d1 = cc[1]
-        higher = fourier_eval(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
+        higher = evaluate_harmonics(ev.ccd.theta_deg, {k: v for k, v in cc.items() if k >= 2})
         sig["ccd"] = {"e_um": math.hypot(c1, d1), "theta0_deg": math.degrees(math.atan2(c1, d1)) % 360,
                       "rms_orders_2_10_um": _rms(higher)}
     return sig

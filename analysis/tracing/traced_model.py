@@ -15,7 +15,7 @@ import numpy as np
 from benchtwin.jsonable import to_json
 
 from ..effects import ALL
-from ..effects._base import fourier_eval
+from ..fourier import evaluate_harmonics
 from .evidence import Evidence
 
 
@@ -77,7 +77,7 @@ def model_terms_from_payload(path_or_payload, base_terms: dict | None = None) ->
             if adj:
                 coefs = {int(k): (float(v[0]), float(v[1])) for k, v in adj.items()}
                 fn = (lambda f, cc: (lambda th: np.asarray(f(th), dtype=float)
-                                     + fourier_eval(np.rad2deg(np.asarray(th, dtype=float)), cc)))(fn, coefs)
+                                     + evaluate_harmonics(np.rad2deg(np.asarray(th, dtype=float)), cc)))(fn, coefs)
             out[f"traced:{e['name']}"] = fn
     return out
 

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.radial_motion import disk_weights
+from benchtwin.analysis.results import ResultsError, read_results
 from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["CalibrationInputError", "calibrate_twin", "learn", "dump_toml"]
@@ -57,14 +58,13 @@ class CalibrationInputError(ValueError):
 
 # ----------------------------------------------------------------------------- inputs
 
-def _read_json(path: Path) -> dict[str, Any]:
+def _read_results(path: Path) -> dict[str, Any]:
+    """results.json read and checked by the format's reader (analysis.results.read_results): its
+    error names the file and the key (exit 2)."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise CalibrationInputError(f"{path}: cannot read a results file ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != "bench-results":
-        raise CalibrationInputError(f"{path}: not a results.json (expected key format = 'bench-results')")
-    return data
+        return read_results(path)
+    except ResultsError as exc:
+        raise CalibrationInputError(str(exc)) from None
 
 
 def _need(res: dict[str, Any], key: str, where: Path) -> Any:
@@ -88,14 +88,14 @@ def locate(path: Path, results: Path | None = None) -> tuple[Path, Path | None]:
         for cand in (path / "results.json", path.parent / "results.json"):
             if cand.is_file():
                 try:
-                    ds = json.loads(cand.read_text(encoding="utf-8")).get("dataset")
-                except (OSError, ValueError):
-                    continue
+                    ds = read_results(cand).get("dataset")
+                except ResultsError:
+                    continue  # not a results file of this dataset's: look further, or analyse it afresh
                 if ds and Path(ds).resolve() == path.resolve():
                     return path, cand
         return path, None
     if (path / "results.json").is_file():
-        res = _read_json(path / "results.json")
+        res = _read_results(path / "results.json")
         ds = res.get("dataset")
         if not ds or not (Path(ds) / "manifest.json").is_file():
             raise CalibrationInputError(f"{path / 'results.json'}: key 'dataset' = {ds!r} is not a dataset folder")
@@ -106,7 +106,7 @@ def locate(path: Path, results: Path | None = None) -> tuple[Path, Path | None]:
 def analysed(dataset: Path, results: Path | None, workdir: Path, progress: bool = False) -> dict[str, Any]:
     """results.json of the dataset: the given one, or close-loop run into ``workdir``."""
     if results is not None:
-        return _read_json(results)
+        return _read_results(results)
     from benchtwin.analysis.pipeline import analyze
 
     return analyze(dataset, workdir / "analysis", progress=progress, close_loop=True)["results"]

@@ -154,12 +154,17 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     # complete, so a killed re-run keeps the earlier one. Any other non-empty folder needs --force.
     with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder") as tmp:
         ds = simulate(sc, tmp / "dataset", progress=not quiet, backend=ns.backend)
+        # the truth leaves the dataset before the analysis sees it (principle 3): OUT/truth
+        from benchtwin.app.run import move_truth_out
+
+        truth = move_truth_out(ds, tmp / "truth")
         res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
         from benchtwin.fsio import atomic_write_text
 
         atomic_write_text(tmp / RUN_MARKER, json.dumps({"command": "benchtwin run", "scenario": sc.name,
                                                         "seed": int(sc.seed)}) + "\n")
-    paths = _remap({"dataset": str(ds), **res["paths"]}, tmp, out)
+    extra = {"truth": str(truth)} if truth is not None else {}
+    paths = _remap({"dataset": str(ds), **extra, **res["paths"]}, tmp, out)
     return {"ok": True, **paths, "message": f"report: {paths['report']}"}
 
 

@@ -17,13 +17,14 @@ measures on each, never through truth/ (principle 3), so the comparison works fo
 
 from __future__ import annotations
 
-import json
 import math
 import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from benchtwin.analysis.results import ResultsError, read_results
 
 __all__ = ["CompareInputError", "compare", "compare_results", "format_comparison"]
 
@@ -45,12 +46,9 @@ def _results_of(path: Path, workdir: Path) -> dict[str, Any]:
     else:
         raise CompareInputError(f"{path}: neither a dataset (manifest.json) nor a results folder (results.json)")
     try:
-        res = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise CompareInputError(f"{f}: cannot read ({exc})") from None
-    if not isinstance(res, dict) or res.get("format") != "bench-results":
-        raise CompareInputError(f"{f}: not a results.json (expected key format = 'bench-results')")
-    return res
+        return read_results(f)  # the format's reader: its error names the file and the key (exit 2)
+    except ResultsError as exc:
+        raise CompareInputError(str(exc)) from None
 
 
 def _curve_diff(tha: Any, va: Any, thb: Any, vb: Any, remove_mean: bool) -> dict[str, float] | None:

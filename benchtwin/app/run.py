@@ -107,6 +107,19 @@ def needs_close_loop(name: str) -> bool:
     return False
 
 
+def move_truth_out(dataset: Path, dest: Path) -> Path | None:
+    """Move a simulated dataset's ``truth/`` to ``dest`` before any analysis reads the dataset.
+
+    Why: the analysis must run with the truth absent from the dataset (principle 3), not merely
+    unread; a run's output keeps it beside the dataset for `benchtwin score --truth`. Returns
+    ``dest`` or ``None`` when the dataset has no truth (a measured bench)."""
+    src = Path(dataset) / "truth"
+    if not src.is_dir():
+        return None
+    shutil.move(str(src), str(dest))
+    return Path(dest)
+
+
 def simulate_and_analyze(scenario: Any, out_dir: str | Path, rep_seed: int | None = None, progress: bool = False,
                          *, order: int = 10, close_loop: bool = True, backend: str = "auto") -> dict[str, Any]:
     """Simulate ``scenario`` (with ``scenario.seed = rep_seed``) into ``out_dir/dataset``, move its
@@ -131,8 +144,7 @@ def simulate_and_analyze(scenario: Any, out_dir: str | Path, rep_seed: int | Non
         if d.exists():
             shutil.rmtree(d)
     simulate(sc, ds, progress=progress, backend=backend)
-    if (ds / "truth").is_dir():
-        shutil.move(str(ds / "truth"), str(out / "truth"))
+    move_truth_out(ds, out / "truth")
     analyze(ds, out / "analysis", order=order, progress=progress, close_loop=close_loop)
     return json.loads((out / "analysis" / "results.json").read_text(encoding="utf-8"))
 

@@ -98,7 +98,20 @@ def test_bad_input_exit_2(tmp_path, round_trip, capsys):
     assert "nope" in capsys.readouterr().err
     bad = tmp_path / "res"
     bad.mkdir()
+    # not a results.json: the format's reader (analysis.results.read_results) names the file and the key
     res = {"format": "bench-results", "version": 1, "dataset": str(round_trip["measured"])}
+    (bad / "results.json").write_text(json.dumps(res), encoding="utf-8")
+    for cmd in (["calibrate-twin", str(bad), "-o", str(tmp_path / "x.toml")], ["compare", str(bad), str(bad)]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err
+        assert str(bad / "results.json") in err and "key 'bench' is missing" in err, err
+    res.update(source="twin", bench={}, notes=[], eccentricity_um="7 um")  # a number expected
+    (bad / "results.json").write_text(json.dumps(res), encoding="utf-8")
+    assert main(["calibrate-twin", str(bad), "-o", str(tmp_path / "x.toml")]) == 2
+    err = capsys.readouterr().err
+    assert str(bad / "results.json") in err and "key 'eccentricity_um': expected a number" in err, err
+    # a valid results.json without the CCD analysis: calibrate-twin names the key it needs
+    del res["eccentricity_um"]
     (bad / "results.json").write_text(json.dumps(res), encoding="utf-8")
     assert main(["calibrate-twin", str(bad), "-o", str(tmp_path / "x.toml")]) == 2
     assert "eccentricity_um" in capsys.readouterr().err

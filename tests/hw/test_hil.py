@@ -159,25 +159,27 @@ def _agree(x, y, what: str) -> None:
 
 def test_analysis_of_emulated_and_simulated_datasets_agree(run):
     sim, emu = _analyse(run["sim"]), _analyse(run["emu"]["path"])
-    _agree(sim["radial"]["dY_um"], emu["radial"]["dY_um"], "radial motion dY (um)")
-    for k in ("e_um", "theta0_deg", "e_u_um", "theta0_u_deg"):
-        _agree(sim["ccd"][k], emu["ccd"][k], f"CCD {k}")
+    _agree(sim["radial"].dY_um, emu["radial"].dY_um, "radial motion dY (um)")
+    for k in ("e_um", "theta0_deg", "u_e_um", "u_theta0_deg"):
+        _agree(getattr(sim["ccd"], k), getattr(emu["ccd"], k), f"CCD {k}")
     ps, pe = sim["polygon"], emu["polygon"]
-    for k in ("encoder_error_arcsec", "selfcal_error_arcsec"):
-        _agree(ps[k]["value"], pe[k]["value"], f"{k} value")
-        _agree(ps[k]["u"], pe[k]["u"], f"{k} u")
-    _agree(ps["polygon_pitch_deviation_arcsec"], pe["polygon_pitch_deviation_arcsec"], "beta (arcsec)")
+    for cs, ce, k in ((ps.encoder_error_arcsec, pe.encoder_error_arcsec, "encoder_error_arcsec"),
+                      (ps.selfcal_error_arcsec, pe.selfcal_error_arcsec, "selfcal_error_arcsec")):
+        assert cs is not None and ce is not None, k
+        _agree(cs["value"], ce["value"], f"{k} value")
+        _agree(cs["u"], ce["u"], f"{k} u")
+    _agree(ps.pitch_deviation_arcsec, pe.pitch_deviation_arcsec, "beta (arcsec)")
     # the agreement bound is far inside the noise: every standard uncertainty is > 1e3 x AGREE (the
     # self-calibration of jia2019's two heads has no redundancy: the analysis gives no u for it)
-    us = [u for u in (emu["ccd"]["e_u_um"], emu["ccd"]["theta0_u_deg"], *pe["encoder_error_arcsec"]["u"],
-                      *pe["selfcal_error_arcsec"]["u"], *pe["polygon_pitch_deviation_u_arcsec"])
+    us = [u for u in (emu["ccd"].u_e_um, emu["ccd"].u_theta0_deg, *pe.encoder_error_arcsec["u"],
+                      *(pe.selfcal_error_arcsec or {})["u"], *pe.pitch_deviation_u_arcsec)
           if u is not None and math.isfinite(u)]
-    assert len(us) > 2 * len(pe["polygon_pitch_deviation_u_arcsec"])
+    assert len(us) > 2 * len(pe.pitch_deviation_u_arcsec)
     assert min(us) > 1e3 * AGREE
     # and the analysis sees the bench: e ≈ the scenario's eccentricity, α of the size it implies
     e_true = run["scenario"]["errors"]["eccentricity"] * 1e6
-    assert abs(emu["ccd"]["e_um"] - e_true) < 0.1 * e_true + 3 * emu["ccd"]["e_u_um"]
-    alpha = np.asarray(pe["encoder_error_arcsec"]["value"], dtype=float)
+    assert abs(emu["ccd"].e_um - e_true) < 0.1 * e_true + 3 * emu["ccd"].u_e_um
+    alpha = np.asarray(pe.encoder_error_arcsec["value"], dtype=float)
     r_um = run["scenario"]["bench"]["optical_radius"] * 1e6
     assert 0.5 * e_true / r_um * 206265 < np.nanmax(np.abs(alpha)) < 3 * e_true / r_um * 206265
 
