@@ -92,8 +92,11 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     beta = f1["beta"]
     amp0 = [float(math.hypot(beta[2 * i], beta[2 * i + 1])) for i in range(len(ks))]
     slope = [float(math.hypot(beta[2 * len(ks) + 2 * i], beta[2 * len(ks) + 2 * i + 1])) for i in range(len(ks))]
+    # the size of the pattern's change: RMS over the readings of the fitted harmonics × (t − t̄)/T part
+    rms = float(np.sqrt(np.mean((X1 @ np.asarray(beta[2 * len(ks):4 * len(ks)])) ** 2)))
     return {"available": True, "test": "harmonics × (t − t̄)/T, nested over the harmonics", "harmonics": ks,
-            "amplitude_arcsec": amp0, "change_over_session_arcsec": slope, "delta_chi2": float(d), "dof": int(k),
+            "amplitude_arcsec": amp0, "change_over_session_arcsec": slope, "rms_arcsec": rms,
+            "delta_chi2": float(d), "dof": int(k),
             "z": z, "p_value": float(stats.chi2.sf(d / scale, k)), "significant": bool(z >= Z_GATE)}
 
 
@@ -161,11 +164,14 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
     amp0 = [float(math.hypot(mean[2 * i], mean[2 * i + 1])) for i in range(len(ks))]
     change = [float(math.hypot(slope[2 * i], slope[2 * i + 1])) for i in range(len(ks))]
     scatter = [float(math.sqrt((s2[2 * i] + s2[2 * i + 1]) / 2.0)) for i in range(len(ks))]
+    # the size of the pattern's change: RMS over the sweeps of slope·(t − t̄)/T, the sin/cos pairs
+    # orthogonal on a sweep's grid (½ per coefficient²)
+    rms = float(math.sqrt(float(np.mean(tg ** 2)) * float(np.sum(np.asarray(slope) ** 2)) / 2.0))
     return {"available": True,
             "test": "each sweep's harmonics regressed on its time, against their scatter between sweeps",
             "harmonics": ks, "n_sweeps": G, "dof_per_coefficient": nu,
             "serial_correlation": r1, "random_walk": serial,
-            "amplitude_arcsec": amp0, "change_over_session_arcsec": change,
+            "amplitude_arcsec": amp0, "change_over_session_arcsec": change, "rms_arcsec": rms,
             "between_sweep_sd_arcsec": scatter, "chi2_equivalent": q, "dof": k2,
             "z": z, "p_value": float(stats.chi2.sf(q, k2)), "significant": bool(z >= Z_GATE)}
 
@@ -271,7 +277,8 @@ def _significant_parts(sig: dict, n: int, u_rms: float = 0.0) -> list[str]:
     both candidate gates (z ≥ Z_GATE and ΔBIC = χ² − 2 ln n ≥ DBIC_GATE), a drift or direction
     offset with z ≥ Z_GATE, a significant face pattern. (The Bonferroni flags of the signature are
     laxer: a harmonic can be flagged yet too small for any two-parameter effect to earn its BIC.)
-    A harmonic, a drift or a direction offset must also be of practical size, as every candidate
+    A harmonic, a drift, a direction offset or a change of the θ pattern with time must also be of
+    practical size, as every candidate
     (``SIZE_GATE`` × the noise floor ``u_rms``, RMS over the readings): 1000 readings of a null resolve
     a 0.01″ direction offset at z = 5 (issue 16, hidden null_y_probes) that no calibration states."""
     out = []
@@ -290,7 +297,7 @@ def _significant_parts(sig: dict, n: int, u_rms: float = 0.0) -> list[str]:
     if sig["start_face"].get("significant"):
         out.append("pattern fixed to the polygon face")
     tp = sig.get("time_pattern") or {}
-    if tp.get("significant"):
+    if big(tp):
         out.append(f"the θ pattern changes with time (harmonics {tp['harmonics']}, z = {tp['z']:.1f}): not stationary")
     return out
 

@@ -52,3 +52,32 @@ def test_independent_sweeps_keep_the_level_test():
     ev, _ = make_evidence(np.random.default_rng(153), inject={"graduation_error": {3: (0.5, 0.7)}})
     tp = trace(ev)["signature"]["time_pattern"]
     assert tp["n_sweeps"] == 23 and not tp["random_walk"] and not tp["significant"], tp
+
+
+
+def test_a_change_below_practical_size_is_not_left_unexplained():
+    """A 7th harmonic that changes sign during the session (0.05″ at the ends, RMS of the change
+    ≈ 0.02″) on 552 readings of 0.02″ noise: the stationarity test resolves it (z ≥ 4), but it is
+    below ``SIZE_GATE`` × a 0.07″ noise floor, so it changes no calibrated value beyond its
+    uncertainty and is not a part "left" to explain — the same practical gate as a drift or a
+    direction offset (the hsieh2022 default's 0.015″ change at z = 7 is such a case). Ten times
+    larger, it is left."""
+    from benchtwin.analysis.tracing.selection import noise_floor
+    from benchtwin.analysis.tracing.signature import _significant_parts, signature
+    from benchtwin.analysis.tracing.thresholds import SIZE_GATE
+
+    def flip(amplitude):
+        def extra(th, t):
+            tt = (t - t.mean()) / np.ptp(t)
+            return amplitude * 2.0 * tt * np.sin(7 * np.deg2rad(th) + 0.3)
+        return extra
+
+    for amplitude, left_expected in ((0.05, False), (0.5, True)):
+        ev, _ = make_evidence(np.random.default_rng(161), extra=flip(amplitude), noise_arcsec=0.02)
+        ev.u_arcsec = np.full(ev.n, 0.07)     # the floor: 0.07″ per reading
+        sig = signature(ev, time_ks=[7])
+        tp = sig["time_pattern"]
+        assert tp["significant"] and tp["z"] >= 4, tp
+        assert (tp["rms_arcsec"] >= SIZE_GATE * noise_floor(ev)) == left_expected, (tp["rms_arcsec"], noise_floor(ev))
+        parts = _significant_parts(sig, ev.n, noise_floor(ev))
+        assert any("changes with time" in x for x in parts) == left_expected, parts
