@@ -599,12 +599,27 @@ def test_a_parsed_model_payload_is_checked_like_a_file():
     assert read_model_file({"format": "benchtwin-traced-effects", "version": 1, "effects": []})["effects"] == []
 
 
-def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypatch):
-    """`benchtwin run` twice (the README's first command, repeated) replaces the earlier run's own
-    complete output; any other non-empty folder stays refused without --force (exit 2)."""
+def _fake_run(monkeypatch, fake_simulate, results_of) -> None:
+    """`benchtwin run` with the twin and the analysis replaced: ``fake_simulate(sc, out)`` writes the
+    dataset, the analysis writes ``results_of(dataset)`` and a report naming the dataset."""
     import benchtwin.analysis.pipeline as pipeline
     import benchtwin.app.bench_view as bench_view
     import benchtwin.twin.simulate as simulate
+
+    def fake_analyze(ds, out, **kw):
+        (Path(out) / "results.json").write_text(json.dumps(results_of(ds)))
+        (Path(out) / "report.html").write_text(f"<html>Dataset {ds}</html>")
+        return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
+                                         "report": str(Path(out) / "report.html")}}
+
+    monkeypatch.setattr(simulate, "simulate", fake_simulate)
+    monkeypatch.setattr(pipeline, "analyze", fake_analyze)
+    monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
+
+
+def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypatch):
+    """`benchtwin run` twice (the README's first command, repeated) replaces the earlier run's own
+    complete output; any other non-empty folder stays refused without --force (exit 2)."""
     from benchtwin.cli import main
 
     calls = []
@@ -615,15 +630,7 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
         calls.append("simulate")
         return Path(out)
 
-    def fake_analyze(ds, out, **kw):
-        (Path(out) / "results.json").write_text(json.dumps({"n": len(calls), "dataset": str(ds)}))
-        (Path(out) / "report.html").write_text(f"<html>Dataset {ds}</html>")
-        return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
-                                         "report": str(Path(out) / "report.html")}}
-
-    monkeypatch.setattr(simulate, "simulate", fake_simulate)
-    monkeypatch.setattr(pipeline, "analyze", fake_analyze)
-    monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
+    _fake_run(monkeypatch, fake_simulate, lambda ds: {"n": len(calls), "dataset": str(ds)})
     out = tmp_path / "out"
     assert main(["run", "-o", str(out), "--quiet"]) == 0
     assert main(["run", "-o", str(out), "--quiet"]) == 0          # its own output: replaced
@@ -640,10 +647,6 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
 def test_run_moves_the_truth_out_before_the_analysis_sees_the_dataset(tmp_path, monkeypatch):
     """`benchtwin run`: the analysis runs with truth/ absent from the dataset (principle 3), and the
     run's output keeps it beside the dataset as OUT/truth (for `benchtwin score --truth`)."""
-    from benchtwin.analysis import pipeline
-    from benchtwin.app import bench_view
-    from benchtwin.twin import simulate
-
     seen: list[bool] = []
 
     def fake_simulate(sc, out, **kw):
@@ -652,16 +655,11 @@ def test_run_moves_the_truth_out_before_the_analysis_sees_the_dataset(tmp_path, 
         (Path(out) / "manifest.json").write_text("{}")
         return Path(out)
 
-    def fake_analyze(ds, out, **kw):
+    def results_of(ds):
         seen.append((Path(ds) / "truth").exists())
-        (Path(out) / "results.json").write_text(json.dumps({"dataset": str(ds)}))
-        (Path(out) / "report.html").write_text("<html></html>")
-        return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
-                                         "report": str(Path(out) / "report.html")}}
+        return {"dataset": str(ds)}
 
-    monkeypatch.setattr(simulate, "simulate", fake_simulate)
-    monkeypatch.setattr(pipeline, "analyze", fake_analyze)
-    monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
+    _fake_run(monkeypatch, fake_simulate, results_of)
     out = tmp_path / "out"
     assert main(["run", "-o", str(out), "--quiet"]) == 0
     assert seen == [False]
