@@ -288,6 +288,12 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         raise ScenarioError(f"{where}: bench.scale_edge_radius must be at least bench.optical_radius")
     if b["grating_line_length"] >= b["scale_edge_radius"]:
         raise ScenarioError(f"{where}: bench.grating_line_length must be shorter than bench.scale_edge_radius")
+    if "vibration" in data:
+        v = data["vibration"]
+        if not v["floor_low_frequency"] <= v["floor_corner_frequency"] <= v["floor_high_frequency"]:
+            raise ScenarioError(f"{where}: vibration: expected floor_low_frequency ≤ floor_corner_frequency ≤ "
+                                f"floor_high_frequency, got {v['floor_low_frequency']:g}, "
+                                f"{v['floor_corner_frequency']:g}, {v['floor_high_frequency']:g} Hz")
     if "motion_table" in data:
         mt = data["motion_table"]
         n = len(mt["theta"])

@@ -218,6 +218,23 @@ SCHEMA: dict[str, dict[str, Field]] = {
 
 # Optional sections: validated only when present (absent: no such data at all).
 OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
+    # The CCD microscope's vibration relative to the disk (twin/vibration.py; docs/physics.md,
+    # "Non-repeatability of the jia2019 bench"): the table's floor-borne vibration at a generic
+    # criterion (Gordon 1991; Amick et al. 2005) through the microscope stand's mode, averaged over
+    # the exposure. Optional, so a scenario that does not state it keeps its dataset's bytes.
+    "vibration": {
+        "floor_velocity": Field("speed", 0.0, lo=0.0, hi=0.01,
+                                doc="one-third-octave band RMS velocity of the table, each axis (VC-A: 50 um/s); 0: still"),
+        "floor_corner_frequency": Field("frequency", 8.0, lo=0.1, hi=1000.0,
+                                        doc="below it the criterion is constant acceleration"),
+        "floor_low_frequency": Field("frequency", 4.0, lo=0.1, hi=1000.0, doc="lower end of the criterion's band"),
+        "floor_high_frequency": Field("frequency", 80.0, lo=0.1, hi=10000.0, doc="upper end of the criterion's band"),
+        "microscope_stand_frequency": Field("frequency", 100.0, lo=1.0, hi=10000.0,
+                                            doc="the stand's in-plane sway mode (both image axes)"),
+        "microscope_stand_damping": Field("dimensionless", 0.03, lo=1e-4, hi=0.99, doc="its damping ratio ζ"),
+        "exposure_time": Field("time", 0.0, lo=0.0, hi=10.0,
+                               doc="the CCD's exposure: the frame shows the motion's mean over it"),
+    },
     # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
     # a real spindle). Equal-length lists; missing motion columns count as 0.
     "motion_table": {

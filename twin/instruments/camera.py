@@ -26,6 +26,9 @@ from benchtwin.hw.interfaces import CameraFrame
 
 from .stage import SimBenchState
 
+#: the stand's vibration draws: a sub-stream of the camera's "ccd" stream (``SimCamera.vibration_m``)
+VIBRATION_SUBSTREAM = 1
+
 
 class SimCamera:
     """``Camera`` of the twin. Use as a context manager (or call ``close``) to release GL."""
@@ -47,6 +50,8 @@ class SimCamera:
         # twin/render/pipeline.py: frames rendered in a worker process (simulate sets it)
         self.pipeline: Any = None
         self.pending_job: tuple | None = None
+        # the microscope stand's floor-borne vibration (twin/vibration.py ``StandVibration``); None: still
+        self.vibration: Any = None
 
     @classmethod
     def sim_from_scenario(cls, sc: Any, state: SimBenchState, name: str = "ccd", backend: str = "auto",
@@ -70,7 +75,11 @@ class SimCamera:
             grating = dataclasses.replace(grating, period_m=grating.period_m * s,
                                           edge_radius_m=grating.edge_radius_m * s)
         camera = sensor.camera(float(b["ccd_position"]), tangential=tangential)
-        return cls(name, state, grating, camera, sensor, backend=backend)
+        cam = cls(name, state, grating, camera, sensor, backend=backend)
+        from benchtwin.twin.vibration import StandVibration
+
+        cam.vibration = StandVibration.from_section(sc.get("vibration") if hasattr(sc, "get") else None)
+        return cam
 
     def describe(self) -> dict[str, Any]:
         c = self.camera
@@ -79,20 +88,44 @@ class SimCamera:
                 "pixel_um": c.pixel_pitch_m * 1e6, "position_deg": float(np.degrees(c.azimuth_rad)),
                 "tangential": c.tangential, "reference_px": list(c.reference_px), "bit_depth": self.sensor.bit_depth}
 
+    def vibration_m(self) -> tuple[float, float]:
+        """The microscope's (radial, tangential) displacement relative to the table during the
+        current step's exposure (m; twin/vibration.py): an independent draw per frame (frames are
+        many correlation times apart) from the stream keyed by the runner's step, so the truth taken
+        in ``on_step`` and the frame rendered by ``capture`` see the same value, and a resumed run
+        the same as an uninterrupted one. (0, 0) without vibration. The draw is a sub-stream of the
+        camera's own stream "ccd" — keys (key, step + 1, 0, VIBRATION_SUBSTREAM), where the sensor
+        noise uses (key, step + 1, n): independent of it, and no new stream id (truth/seeds.json,
+        which lists the stream ids, keeps its bytes for benches without vibration)."""
+        if self.vibration is None:
+            return 0.0, 0.0
+        from .stage import sim_rng
+
+        st = self.state
+        step = -1 if st.step_index is None else st.step_index
+        return self.vibration.sample(sim_rng(st.seed, "ccd", self.key, step + 1, 0, VIBRATION_SUBSTREAM))
+
     def disk_seen(self, pose: Any = None) -> Any:
         """The disk's pose relative to the microscope: the posed disk, displaced by the stand's
         thermal drift (twin/thermal.py ``microscope_stand_drift_m``: the stand growing outward
-        along the camera's radial line moves the edge inward in the image). The identical object
-        when the bench has no such drift (datasets without it are unchanged)."""
+        along the camera's radial line moves the edge inward in the image) and by the stand's
+        vibration during this frame's exposure (``vibration_m``: the microscope moving by
+        (δr, δt) shows the disk moved by −(δr, δt), radial u and tangential ẑ × u in the disk
+        plane). The identical object when the bench has neither (datasets without them are
+        unchanged)."""
         from benchtwin.twin.pose import BodyPose
 
         p = self.state.pose if pose is None else pose
         th = getattr(self.state.bench, "thermal", None)
         d = th.microscope_stand_drift_m(p.t_s) if th is not None else 0.0
-        if not d:
+        vr, vt = self.vibration_m()
+        if not d and not vr and not vt:
             return p.disk
         u = self.camera.axes_lab()[0]
-        return BodyPose(pos=p.disk.pos - d * u, R=p.disk.R)
+        if not vr and not vt:
+            return BodyPose(pos=p.disk.pos - d * u, R=p.disk.R)
+        t = np.array([-u[1], u[0], 0.0])   # ẑ × u: tangential in the disk plane
+        return BodyPose(pos=p.disk.pos - (d + vr) * u - vt * t, R=p.disk.R)
 
     def sim_frame_truth(self, pose: Any = None) -> dict[str, Any]:
         """The geometric truth of a frame taken at ``pose`` (default: the bench's current pose),
