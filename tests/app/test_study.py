@@ -322,7 +322,9 @@ def test_full_fidelity_simulates_and_analyses_against_the_truth(tmp_path, fixed_
     assert row["fidelity"] == "full"
     # eccentricity from the CCD images: the scenario's 5 µm within its stated uncertainty (k = 3)
     assert row["eccentricity_um"] == pytest.approx(5.0, abs=3 * row["eccentricity_u_um"] + 0.02)
-    assert 0 < row["eccentricity_u_um"] < 0.2
+    # 12 frames (30° steps), each moved by the microscope stand's vibration (twin/vibration.py,
+    # 1.21 µm per frame and axis): u(e) ≈ 1.21·√(2/12) ≈ 0.5 µm (measured 0.49)
+    assert 0 < row["eccentricity_u_um"] < 1.0
     # the measured α (polygon) agrees with the twin's true α within its stated uncertainty
     assert 0 < row["measured_angle_error_u_arcsec"] < 0.5
     # ... plus what the analysis' budget does not hold: the drive servo rests where the bearing
