@@ -49,6 +49,7 @@ __all__ = [
     "jia_error_model",
     "error_model_from_results",
     "compare_with_measured",
+    "refine_eccentricity",
 ]
 
 TermFn = Callable[[np.ndarray], np.ndarray]  # θ [rad] → arcsec
@@ -121,6 +122,12 @@ class ErrorModel:
         return f"ErrorModel(r_um={self.r_um}, terms={list(self.terms)})"
 
 
+def eccentricity_sensitivities(theta_rad: np.ndarray, e_um: float, theta0_rad: float,
+                                r_um: float) -> tuple[np.ndarray, np.ndarray]:
+    """∂Δθ/∂e [rad/µm] and ∂Δθ/∂θ0 [rad/rad] of Jia eq. 3, Δθ = (e/r)·sin(θ − θ0)."""
+    return np.sin(theta_rad - theta0_rad) / r_um, -e_um / r_um * np.cos(theta_rad - theta0_rad)
+
+
 def eccentricity_term(e_um: float, theta0_deg: float, r_um: float, u_e_um: float = 0.0,
                       u_theta0_deg: float = 0.0, cov_e_theta0: float = 0.0) -> Term:
     """Jia eq. 3: (e/r)·sin(θ − θ0) in arcsec. ``cov_e_theta0`` in µm·deg (from the Fourier fit)."""
@@ -132,8 +139,7 @@ def eccentricity_term(e_um: float, theta0_deg: float, r_um: float, u_e_um: float
         return e / r * np.sin(theta_rad - th0) / ARCSEC
 
     def u_fn(theta_rad: np.ndarray) -> np.ndarray:
-        de = np.sin(theta_rad - th0) / r
-        dt = -e / r * np.cos(theta_rad - th0)
+        de, dt = eccentricity_sensitivities(theta_rad, e, th0, r)
         var = (de * u_e_um) ** 2 + (dt * ut0) ** 2 + 2 * de * dt * c
         return np.sqrt(np.clip(var, 0, None)) / ARCSEC
 
@@ -366,3 +372,79 @@ def compare_with_measured(theta_deg: np.ndarray, measured_arcsec: np.ndarray,
         "model_mean_arcsec": pm,
         "note": "mean of measured and model removed before comparison (α known up to a constant)",
     }
+
+
+def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_arcsec: np.ndarray | float,
+                        e_um: float, theta0_deg: float, u_e_um: float, u_theta0_deg: float, r_um: float,
+                        cov_e_theta0: float = 0.0) -> dict:
+    """(e, θ0) from the CCD (Jia eqs. 11-12) combined with the first harmonic that a comparison with
+    a measured α (polygon + autocollimator) still shows after the model.
+
+    Two measurements of one measurand: the CCD's (e, θ0) with its covariance P, and the comparison,
+    whose residual r_i = α_i − model_i (mean-free) is linear in the corrections x = (δe, δθ0):
+    r = J·x + c + noise, J the eq. 3 sensitivities at the model's (e, θ0), c the unknown constant of
+    α (removed by centring J and r), noise independent with the points' standard uncertainties u_i.
+    The generalised least-squares estimate with the CCD as prior information (minimum of
+    Σ w_i (α_i − model_i(x))² + (x − x_ccd)ᵀ P⁻¹ (x − x_ccd), Gauss-Newton; at the linear limit
+    x̂ = (JᵀWJ + P⁻¹)⁻¹ JᵀW r, cov(x̂) = (JᵀWJ + P⁻¹)⁻¹, W = diag 1/u_i²) is the weighted
+    combination of the two (JCGM 102:2011 sec. 8 / the GLS combination of correlated estimates;
+    Cox 2002, Metrologia 39, 589, for the consistency check). The two are compared by
+    χ² = x_cᵀ (P + C_c)⁻¹ x_c with 2 dof, x_c = (JᵀWJ)⁻¹JᵀW r the comparison's own estimate and C_c its
+    covariance: p < 0.05 says the CCD's e disagrees with the comparison beyond both u (a first-harmonic
+    effect, which the tracing tests separately). The u_i are taken as independent: the shift-angle
+    α of neighbouring stops share parts of their budget (the autocollimator's calibration, a
+    constant that centring removes), so this is the usual approximation of a diagonal W.
+
+    Returns e_um, theta0_deg, u_e_um, u_theta0_deg, cov_e_theta0 (µm·deg), the comparison's own
+    e/θ0 estimate and u (``comparison``), chi2, dof, p_value, n_points.
+    """
+    from scipy import stats
+
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
+    res = np.asarray(residual_arcsec, dtype=float).ravel() * ARCSEC        # rad
+    u = np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape) * ARCSEC
+    if th.size < 4 or res.size != th.size or not np.all(np.isfinite(u)) or not np.all(u > 0):
+        raise ValueError("refine_eccentricity: need ≥ 4 points with finite residuals and positive u")
+    m0 = np.array([float(e_um), math.radians(theta0_deg)])
+    w = 1.0 / u ** 2
+
+    def f_c(x):   # the eq. 3 term at x [rad], centred (α is known up to a constant)
+        v = eccentricity_term(x[0], math.degrees(x[1]), float(r_um))(th) * ARCSEC
+        return v - v.mean()
+
+    def J_c(x):
+        de, dt = eccentricity_sensitivities(th, x[0], x[1], float(r_um))
+        return np.column_stack([de - de.mean(), dt - dt.mean()])
+
+    y = res - res.mean() + f_c(m0)          # the comparison's once-per-revolution content, centred
+    c = math.radians(cov_e_theta0)
+    P = np.array([[u_e_um ** 2, c], [c, math.radians(u_theta0_deg) ** 2]])
+    Pinv = np.linalg.inv(P)
+
+    def gauss_newton(prior: bool):
+        # the model is non-linear in θ0 (and e·θ0): Gauss-Newton from the CCD's values, to
+        # convergence (a δθ0 of degrees leaves e·δθ0² ≈ 0.01 µm in one linear step)
+        x = m0.copy()
+        for _ in range(50):
+            J = J_c(x)
+            A = J.T @ (J * w[:, None]) + (Pinv if prior else 0.0)
+            g = J.T @ (w * (y - f_c(x))) - (Pinv @ (x - m0) if prior else 0.0)
+            step = np.linalg.solve(A, g)
+            x = x + step
+            if abs(step[0]) <= 1e-12 * max(1.0, abs(x[0])) and abs(step[1]) <= 1e-14:
+                break
+        J = J_c(x)
+        return x, np.linalg.inv(J.T @ (J * w[:, None]) + (Pinv if prior else 0.0))
+
+    x, cov = gauss_newton(True)
+    xc, Cc = gauss_newton(False)
+    d = xc - m0
+    chi2 = float(d @ np.linalg.solve(P + Cc, d))
+    return {"e_um": float(x[0]), "theta0_deg": float(math.degrees(x[1])),
+            "u_e_um": float(math.sqrt(cov[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(cov[1, 1]))),
+            "cov_e_theta0": float(math.degrees(cov[0, 1])),
+            "comparison": {"e_um": float(xc[0]), "theta0_deg": float(math.degrees(xc[1])),
+                           "u_e_um": float(math.sqrt(Cc[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(Cc[1, 1])))},
+            "ccd": {"e_um": float(e_um), "theta0_deg": float(theta0_deg), "u_e_um": float(u_e_um),
+                    "u_theta0_deg": float(u_theta0_deg)},
+            "chi2": chi2, "dof": 2, "p_value": float(stats.chi2.sf(chi2, 2)), "n_points": int(th.size)}

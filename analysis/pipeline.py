@@ -564,7 +564,7 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
                 pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
-    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
+    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results, refine_eccentricity
     from benchtwin.analysis.tracing import RadialMotion, add_to_error_model, evidence_from_polygon, save_model, trace
 
     b = ds.bench
@@ -620,11 +620,31 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
         mpath = out / "model.json"
         save_model(mpath, tr.model_file)
         paths["model"] = str(mpath)
-        model2 = error_model_from_results(ecc.detail, rm.detail if rm is not None else None,
-                                          b["optical_radius_mm"] * 1000.0)
+        r_um = b["optical_radius_mm"] * 1000.0
+        rm_detail = rm.detail if rm is not None else None
+        model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
         added = add_to_error_model(model2, tr.model_file)
         enc = pol.encoder_error_arcsec
-        cmp2 = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model2)
+        th_c, a_c = np.asarray(enc["theta_deg"]), np.asarray(enc["value"])
+        cmp2 = compare_with_measured(th_c, a_c, model2)
+        # The model after the loop takes (e, θ0) from the CCD combined with the first harmonic the
+        # comparison still shows (error_model.refine_eccentricity): one CCD sweep states e to u(e)
+        # of tenths of a µm (Jia: 0.24 µm, ≈ 2.3″ of first harmonic at r = 22 mm), the comparison
+        # measures that harmonic to hundredths of an arcsecond; no traced effect may take it
+        # (graduation_error starts at order 2). The tracing's decisions are made before, on the
+        # CCD's values with their u (ev.add_eccentricity_uncertainty); this changes no decision.
+        u_c = np.asarray(enc.get("u") if enc.get("u") is not None else np.full(th_c.shape, u_eps), dtype=float)
+        d = ecc.detail
+        ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], np.where(u_c > 0, u_c, u_eps), d["e_um"],
+                                  d["theta0_deg"], d["e_u_um"], d["theta0_u_deg"], r_um,
+                                  d.get("cov_e_theta0", 0.0))
+        ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # the same, CCD's (e, θ0)
+        results["eccentricity_refined"] = ref
+        model2 = error_model_from_results({**d, "e_um": ref["e_um"], "theta0_deg": ref["theta0_deg"],
+                                           "e_u_um": ref["u_e_um"], "theta0_u_deg": ref["u_theta0_deg"],
+                                           "cov_e_theta0": ref["cov_e_theta0"]}, rm_detail, r_um)
+        added = add_to_error_model(model2, tr.model_file) + ["refined:eccentricity (CCD ⊕ comparison)"]
+        cmp2 = compare_with_measured(th_c, a_c, model2)
         results["residual_after"] = _residual_summary(cmp2)
         results["residual_after"]["added_terms"] = added
         results["comparison_after"] = Comparison(theta_deg=cmp2["theta_deg"], model_arcsec=cmp2["model_arcsec"],

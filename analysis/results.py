@@ -365,7 +365,15 @@ class BenchResults(_Common, PolygonResults, total=False):
     comparison: Annotated[Comparison, Key("", "measured and model at the polygon angles")]
     residual_test: Annotated[TraceResidual, Key("", "close-loop: is there anything to explain?")]
     residual_after_trace: Annotated[TraceResidual, Key("", "close-loop: after the traced effects")]
-    residual_after: Annotated[ResidualSummary, Key("", "close-loop: measured − (model + traced effects)")]
+    eccentricity_refined: Annotated[dict[str, Any], Key("µm", "close-loop: (e, θ0) of the model after the loop, "
+                                                              "the CCD's combined with the comparison's first "
+                                                              "harmonic (GLS): e_um, u_e_um, theta0_deg (deg), "
+                                                              "u_theta0_deg, cov_e_theta0 (µm·deg), comparison, "
+                                                              "ccd, chi2, dof, p_value (their consistency), "
+                                                              "residual_after_ccd_e_pv_arcsec (the P-V after "
+                                                              "with the CCD's own e, θ0)")]
+    residual_after: Annotated[ResidualSummary, Key("", "close-loop: measured − (model + traced effects), (e, θ0) "
+                                                       "refined (eccentricity_refined)")]
     comparison_after: Annotated[Comparison, Key("", "close-loop: the same after the traced effects")]
 
 

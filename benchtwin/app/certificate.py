@@ -554,6 +554,11 @@ def effects_statement(res: Mapping[str, Any]) -> str:
     if rb.get("rms_arcsec") is not None and ra.get("rms_arcsec") is not None:
         s += (f" With it the residual of the error model went from {rb['rms_arcsec']:.3f} arcsec RMS to "
               f"{ra['rms_arcsec']:.3f} arcsec RMS.")
+        ref = res.get("eccentricity_refined")
+        if isinstance(ref, Mapping) and ref.get("e_um") is not None:
+            s += (f" The model after the loop takes the eccentricity from the CCD combined with the first harmonic "
+                  f"of the comparison: e = {ref['e_um']:.3f} ± {ref['u_e_um']:.2g} µm (CCD alone "
+                  f"{ref['ccd']['e_um']:.3f} ± {ref['ccd']['u_e_um']:.2g} µm; consistency p = {ref['p_value']:.2g}).")
     amb = res.get("ambiguous") or []
     if amb:
         s += " Ambiguous: " + "; ".join(", ".join(a.get("names", [])) for a in amb) + "."

@@ -228,3 +228,62 @@ def test_integral_design_matrix_and_gum_u_of_the_integral():
     u = radial_motion_u_gum({"order": 10, "dY_cov_sync": C}, R_UM)(np.radians(q))
     t = np.radians(q)
     np.testing.assert_allclose(u, 0.02 * np.sqrt(2 - 2 * np.cos(3 * t)) / 3 / R_UM / ARCSEC, atol=1e-15)
+
+
+# --- refine_eccentricity: the CCD's (e, θ0) combined with the comparison's first harmonic ---------
+
+def _refine_case(rng, de_um=0.3, dt_deg=2.0, u_pt=0.05, n=23, e=7.1, t0=192.0, r=22000.0):
+    from benchtwin.analysis.error_model import eccentricity_term
+
+    th = np.arange(n) * 360.0 / n
+    true = eccentricity_term(e + de_um, t0 + dt_deg, r)(np.radians(th))
+    model = eccentricity_term(e, t0, r)(np.radians(th))
+    res = true - model + 5.0 + rng.normal(0.0, u_pt, n)     # α known up to a constant
+    return th, res
+
+
+def test_refine_eccentricity_recovers_a_known_error_and_weights_by_u():
+    from benchtwin.analysis.error_model import refine_eccentricity
+
+    th, res = _refine_case(np.random.default_rng(1), u_pt=1e-4)
+    # a vague CCD prior: the comparison decides (the linearisation in δθ0 costs ~e·δθ0² ≈ 0.01 µm)
+    ref = refine_eccentricity(th, res, 1e-4, 7.1, 192.0, 10.0, 30.0, 22000.0)
+    assert ref["e_um"] == pytest.approx(7.4, abs=0.01) and ref["theta0_deg"] == pytest.approx(194.0, abs=0.01)
+    assert ref["comparison"]["e_um"] == pytest.approx(ref["e_um"], abs=1e-3)
+    # a CCD far more precise than the comparison: the CCD's values stay
+    ref2 = refine_eccentricity(th, res, 10.0, 7.1, 192.0, 1e-4, 1e-4, 22000.0)
+    assert ref2["e_um"] == pytest.approx(7.1, abs=1e-5) and ref2["theta0_deg"] == pytest.approx(192.0, abs=1e-5)
+    assert ref2["u_e_um"] == pytest.approx(1e-4, rel=1e-3)
+    # equal weights: halfway, with u/√2
+    u_cmp = ref["comparison"]["u_e_um"]
+    ref3 = refine_eccentricity(th, res, 1e-4, 7.1, 192.0, u_cmp, ref["comparison"]["u_theta0_deg"], 22000.0)
+    assert ref3["u_e_um"] == pytest.approx(u_cmp / math.sqrt(2), rel=0.02)
+    assert ref3["e_um"] == pytest.approx(7.1 + 0.5 * (ref["comparison"]["e_um"] - 7.1), abs=0.3 * u_cmp + 0.01)
+
+
+def test_refine_eccentricity_consistency_chi2_against_monte_carlo():
+    """GUM against Monte Carlo: CCD values drawn with their stated u around the truth, comparisons
+    drawn with theirs: the χ² of the two is χ²(2) (mean 2, p uniform), and the combined e covers
+    the truth at the stated u."""
+    from benchtwin.analysis.error_model import refine_eccentricity
+
+    rng = np.random.default_rng(20191)
+    u_e, u_t = 0.24, 2.0
+    chi2, z = [], []
+    for _ in range(400):
+        de, dt = rng.normal(0, u_e), rng.normal(0, u_t)     # the CCD's error
+        th, res = _refine_case(rng, de_um=-de, dt_deg=-dt, u_pt=0.1, e=7.1 + de, t0=192.0 + dt)
+        ref = refine_eccentricity(th, res, 0.1, 7.1 + de, 192.0 + dt, u_e, u_t, 22000.0)
+        chi2.append(ref["chi2"])
+        z.append((ref["e_um"] - 7.1) / ref["u_e_um"])
+    assert np.mean(chi2) == pytest.approx(2.0, rel=0.2)
+    assert np.std(z) == pytest.approx(1.0, abs=0.15) and abs(np.mean(z)) < 0.2
+
+
+def test_refine_eccentricity_rejects_bad_input():
+    from benchtwin.analysis.error_model import refine_eccentricity
+
+    with pytest.raises(ValueError, match="positive u"):
+        refine_eccentricity([0, 90, 180, 270], [0, 1, 0, -1], 0.0, 7.1, 0.0, 0.2, 1.0, 22000.0)
+    with pytest.raises(ValueError, match="≥ 4 points"):
+        refine_eccentricity([0, 180], [0, 1], 0.1, 7.1, 0.0, 0.2, 1.0, 22000.0)
