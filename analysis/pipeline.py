@@ -635,16 +635,19 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
         # CCD's values with their u (ev.add_eccentricity_uncertainty); this changes no decision.
         u_c = np.asarray(enc.get("u") if enc.get("u") is not None else np.full(th_c.shape, u_eps), dtype=float)
         d = ecc.detail
-        ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], np.where(u_c > 0, u_c, u_eps), d["e_um"],
-                                  d["theta0_deg"], d["e_u_um"], d["theta0_u_deg"], r_um,
-                                  d.get("cov_e_theta0", 0.0))
-        ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # the same, CCD's (e, θ0)
-        results["eccentricity_refined"] = ref
-        model2 = error_model_from_results({**d, "e_um": ref["e_um"], "theta0_deg": ref["theta0_deg"],
-                                           "e_u_um": ref["u_e_um"], "theta0_u_deg": ref["u_theta0_deg"],
-                                           "cov_e_theta0": ref["cov_e_theta0"]}, rm_detail, r_um)
-        added = add_to_error_model(model2, tr.model_file) + ["refined:eccentricity (CCD ⊕ comparison)"]
-        cmp2 = compare_with_measured(th_c, a_c, model2)
+        if th_c.size >= 4:
+            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], np.where(u_c > 0, u_c, u_eps), d["e_um"],
+                                      d["theta0_deg"], d["e_u_um"], d["theta0_u_deg"], r_um,
+                                      d.get("cov_e_theta0", 0.0))
+            ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # with the CCD's (e, θ0)
+            results["eccentricity_refined"] = ref
+            model2 = error_model_from_results({**d, "e_um": ref["e_um"], "theta0_deg": ref["theta0_deg"],
+                                               "e_u_um": ref["u_e_um"], "theta0_u_deg": ref["u_theta0_deg"],
+                                               "cov_e_theta0": ref["cov_e_theta0"]}, rm_detail, r_um)
+            added = add_to_error_model(model2, tr.model_file) + ["refined:eccentricity (CCD ⊕ comparison)"]
+            cmp2 = compare_with_measured(th_c, a_c, model2)
+        else:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
+            results["notes"].append(f"(e, θ0) not refined by the comparison: {th_c.size} points, at least 4 needed")
         results["residual_after"] = _residual_summary(cmp2)
         results["residual_after"]["added_terms"] = added
         results["comparison_after"] = Comparison(theta_deg=cmp2["theta_deg"], model_arcsec=cmp2["model_arcsec"],
