@@ -564,7 +564,8 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
                 pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
-    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results, refine_eccentricity
+    from benchtwin.analysis.error_model import (compare_with_measured, eccentricity_term, error_model_from_results,
+                                                refine_eccentricity)
     from benchtwin.analysis.tracing import RadialMotion, add_to_error_model, evidence_from_polygon, save_model, trace
 
     b = ds.bench
@@ -641,10 +642,10 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
                                       d.get("cov_e_theta0", 0.0))
             ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # with the CCD's (e, θ0)
             results["eccentricity_refined"] = ref
-            model2 = error_model_from_results({**d, "e_um": ref["e_um"], "theta0_deg": ref["theta0_deg"],
-                                               "e_u_um": ref["u_e_um"], "theta0_u_deg": ref["u_theta0_deg"],
-                                               "cov_e_theta0": ref["cov_e_theta0"]}, rm_detail, r_um)
-            added = add_to_error_model(model2, tr.model_file) + ["refined:eccentricity (CCD ⊕ comparison)"]
+            # the same model with its eq. 3 term replaced (add_term replaces by name)
+            model2.add_term("eccentricity", eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um, ref["u_e_um"],
+                                                              ref["u_theta0_deg"], ref["cov_e_theta0"]))
+            added = added + ["refined:eccentricity (CCD ⊕ comparison)"]
             cmp2 = compare_with_measured(th_c, a_c, model2)
         else:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
             results["notes"].append(f"(e, θ0) not refined by the comparison: {th_c.size} points, at least 4 needed")

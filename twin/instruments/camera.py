@@ -122,9 +122,7 @@ class SimCamera:
         if not d and not vr and not vt:
             return p.disk
         u = self.camera.axes_lab()[0]
-        if not vr and not vt:
-            return BodyPose(pos=p.disk.pos - d * u, R=p.disk.R)
-        t = np.array([-u[1], u[0], 0.0])   # ẑ × u: tangential in the disk plane
+        t = np.array([-u[1], u[0], 0.0])   # ẑ × u: tangential in the disk plane (vr = vt = 0: the bytes of −d·u)
         return BodyPose(pos=p.disk.pos - (d + vr) * u - vt * t, R=p.disk.R)
 
     def sim_frame_truth(self, pose: Any = None) -> dict[str, Any]:
