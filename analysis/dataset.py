@@ -388,8 +388,11 @@ class DatasetWriter:
     caller has already checked the folder with ``benchtwin.fsio.check_output_dir``."""
 
     def __init__(self, path: str | Path, manifest: Mapping[str, Any], *, force: bool = False,
-                 resume: bool = False, prepared: bool = False):
+                 resume: bool = False, prepared: bool = False, truth_dir: str | Path | None = None):
         self.path = Path(path)
+        # where write_truth_* go: the dataset's truth/ by default; `benchtwin run` puts the truth
+        # beside the dataset, never in it (principle 3), written while the analysis runs
+        self.truth_path = Path(truth_dir) if truth_dir is not None else self.path / TRUTH_DIR
         self.manifest = validate_manifest(dict(manifest), f"{self.path}/manifest.json")
         if not prepared:
             try:
@@ -425,12 +428,12 @@ class DatasetWriter:
         return p
 
     def write_truth_json(self, name: str, obj: Any) -> Path:
-        p = self.path / TRUTH_DIR / name
+        p = self.truth_path / name
         _atomic_write(p, (json.dumps(obj, indent=1, sort_keys=True, default=_json_default) + "\n").encode())
         return p
 
     def write_truth_table(self, name: str, columns: Mapping[str, Sequence[Any]]) -> Path:
-        p = self.path / TRUTH_DIR / f"{name}.csv"
+        p = self.truth_path / f"{name}.csv"
         _atomic_write(p, table_to_csv(columns))
         return p
 

@@ -600,11 +600,18 @@ def test_a_parsed_model_payload_is_checked_like_a_file():
 
 
 def _fake_run(monkeypatch, fake_simulate, results_of) -> None:
-    """`benchtwin run` with the twin and the analysis replaced: ``fake_simulate(sc, out)`` writes the
-    dataset, the analysis writes ``results_of(dataset)`` and a report naming the dataset."""
+    """`benchtwin run` with the twin and the analysis replaced: ``fake_simulate(sc, out, truth_dir)``
+    writes the dataset and returns the function that writes the truth (run in a forked child, as
+    ``simulate_apart`` does) or None; the analysis writes ``results_of(dataset)`` and a report
+    naming the dataset."""
     import benchtwin.analysis.pipeline as pipeline
     import benchtwin.app.bench_view as bench_view
     import benchtwin.twin.simulate as simulate
+    from benchtwin.forkcall import ForkCall
+
+    def fake_apart(sc, out, truth_dir, **kw):
+        write_truth = fake_simulate(sc, Path(out), Path(truth_dir))
+        return Path(out), ForkCall(write_truth or (lambda: None))
 
     def fake_analyze(ds, out, **kw):
         (Path(out) / "results.json").write_text(json.dumps(results_of(ds)))
@@ -612,7 +619,7 @@ def _fake_run(monkeypatch, fake_simulate, results_of) -> None:
         return {"results": {}, "paths": {"results": str(Path(out) / "results.json"),
                                          "report": str(Path(out) / "report.html")}}
 
-    monkeypatch.setattr(simulate, "simulate", fake_simulate)
+    monkeypatch.setattr(simulate, "simulate_apart", fake_apart)
     monkeypatch.setattr(pipeline, "analyze", fake_analyze)
     monkeypatch.setattr(bench_view, "bench_preface", lambda sc: [])
 
@@ -624,11 +631,10 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
 
     calls = []
 
-    def fake_simulate(sc, out, **kw):
+    def fake_simulate(sc, out, truth_dir):
         Path(out).mkdir(parents=True)
         (Path(out) / "manifest.json").write_text("{}")
         calls.append("simulate")
-        return Path(out)
 
     _fake_run(monkeypatch, fake_simulate, lambda ds: {"n": len(calls), "dataset": str(ds)})
     out = tmp_path / "out"
@@ -646,14 +652,20 @@ def test_run_replaces_its_own_earlier_output_but_nothing_else(tmp_path, monkeypa
 
 def test_run_moves_the_truth_out_before_the_analysis_sees_the_dataset(tmp_path, monkeypatch):
     """`benchtwin run`: the analysis runs with truth/ absent from the dataset (principle 3), and the
-    run's output keeps it beside the dataset as OUT/truth (for `benchtwin score --truth`)."""
+    run's output keeps it beside the dataset as OUT/truth (for `benchtwin score --truth`), written
+    by a forked child while the analysis runs and complete before the run is."""
     seen: list[bool] = []
 
-    def fake_simulate(sc, out, **kw):
-        (Path(out) / "truth").mkdir(parents=True)
-        (Path(out) / "truth" / "encoder_error.csv").write_text("theta_deg,alpha_arcsec\n0,1\n")
+    def fake_simulate(sc, out, truth_dir):
+        Path(out).mkdir(parents=True)
         (Path(out) / "manifest.json").write_text("{}")
-        return Path(out)
+
+        def write_truth():
+            import time
+            time.sleep(0.3)      # still writing while the analysis runs
+            truth_dir.mkdir(parents=True)
+            (truth_dir / "encoder_error.csv").write_text("theta_deg,alpha_arcsec\n0,1\n")
+        return write_truth
 
     def results_of(ds):
         seen.append((Path(ds) / "truth").exists())
@@ -665,3 +677,23 @@ def test_run_moves_the_truth_out_before_the_analysis_sees_the_dataset(tmp_path, 
     assert seen == [False]
     assert not (out / "dataset" / "truth").exists()
     assert (out / "truth" / "encoder_error.csv").read_text().startswith("theta_deg")
+
+
+def test_run_fails_whole_when_its_truth_fails(tmp_path, monkeypatch, capsys):
+    """The truth is part of a run's output: a truth child that fails (here with a dataset error)
+    ends `benchtwin run` with exit 2 and its message, and no output folder is left as complete."""
+    from benchtwin.analysis.dataset import DatasetError
+
+    def fake_simulate(sc, out, truth_dir):
+        Path(out).mkdir(parents=True)
+        (Path(out) / "manifest.json").write_text("{}")
+
+        def write_truth():
+            raise DatasetError(f"{truth_dir}/encoder_error.csv: no space left on the device")
+        return write_truth
+
+    _fake_run(monkeypatch, fake_simulate, lambda ds: {"dataset": str(ds)})
+    out = tmp_path / "out"
+    assert main(["run", "-o", str(out), "--quiet"]) == 2
+    assert "no space left on the device" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())

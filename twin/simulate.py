@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.dataset import JOURNAL, DatasetError, DatasetWriter
+from benchtwin.forkcall import ForkCall
 from benchtwin.fsio import DirLock, OutputError, check_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
@@ -187,12 +188,39 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
         raise DatasetError(str(exc)) from None
     try:
         with DirLock(out, "simulate"):
-            return _simulate(sc, out, progress, backend, resume, live)
+            return _simulate(sc, out, progress, backend, resume, live)[0]
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
 
 
-def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None) -> Path:
+def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress: bool = True,
+                   backend: str = "auto") -> tuple[Path, ForkCall]:
+    """``simulate`` with the truth written to ``truth_dir``, never into the dataset, by a forked
+    child (``benchtwin.forkcall``) that starts when the run's last step is done: the call returns
+    once the *measured* dataset is complete (manifest written), and the caller analyses it while
+    the truth is computed on the other core. ``job.wait()`` returns when ``truth_dir`` is complete
+    (or raises the child's error); ``job.cancel()`` when the caller gives up. The truth's bytes
+    are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it.
+
+    Why (issue #17): the truth's α grid is ~10 s of CPU after the run, on the critical path of
+    ``benchtwin run``; the analysis never needs it (principle 3), so the two can overlap."""
+    out = Path(out_dir)
+    try:
+        check_output_dir(out, what="dataset folder")
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+    try:
+        with DirLock(out, "simulate"):
+            _, job = _simulate(sc, out, progress, backend, False, None, truth_dir=Path(truth_dir))
+    except OutputError as exc:
+        raise DatasetError(str(exc)) from None
+    assert job is not None
+    return out, job
+
+
+def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None,
+              truth_dir: Path | None = None) -> tuple[Path, ForkCall | None]:
+    """The run; ``truth_dir`` (``simulate_apart``): the truth goes there, from a forked child."""
     from tqdm import tqdm
 
     steps = sim_procedure(sc)
@@ -200,7 +228,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume)
+    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume, truth_dir=truth_dir)
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
     pipe = None
@@ -250,6 +278,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
 
     if live is not None:
         live.start(len(steps))
+    job: ForkCall | None = None
     runner_cls = Runner if pipe is None else _FrameGatedRunner
     runner = runner_cls(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row, fsync=False)
     if pipe is not None:
@@ -269,17 +298,29 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
 
             writer.write_table("radial_continuous", continuous_run(
                 bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-        # the truth (its α grid is ~1/4 of the CPU) while the frame worker finishes its backlog
-        _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
+        # the truth (its α grid is ~1/4 of the CPU) while the frame worker finishes its backlog;
+        # apart (simulate_apart): in a forked child, while the caller goes on to its analysis
+        if truth_dir is None:
+            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
+        else:
+            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth),
+                           what=f"the truth of {sc.name} (written to {truth_dir})")
         if pipe is not None:
             runner.drain()    # the last frames written, then the journal lines held behind them
         ok = True
     finally:
         if pipe is not None:
             pipe.close(wait=ok)
-    _write_tables(writer, rows, enc)    # checks every capture's image is there
-    writer.close()
-    return out
+        if not ok and job is not None:
+            job.cancel()
+    try:
+        _write_tables(writer, rows, enc)    # checks every capture's image is there
+        writer.close()
+    except BaseException:
+        if job is not None:
+            job.cancel()
+        raise
+    return out, job
 
 
 class _FrameGatedRunner(Runner):
@@ -538,4 +579,4 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                       "note": "every random quantity is drawn from SeedSequence([seed, stream, keys…])"})
 
 
-__all__ = ["simulate", "sim_procedure", "sim_build"]
+__all__ = ["simulate", "simulate_apart", "sim_procedure", "sim_build"]

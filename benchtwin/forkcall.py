@@ -1,0 +1,132 @@
+"""A function called in a forked child while the caller goes on (POSIX ``fork``, one level).
+
+Why a fork and not a spawned process: the child must see the caller's objects bit for bit as they
+are at the call, without pickling them (a MuJoCo model and data, a bench's warm starts and cached
+paths). ``benchtwin run`` computes the twin's truth (its α grid is about a quarter of
+``simulate``'s CPU) in such a child while the analysis reads the measured dataset (issue #17), and
+the truth it writes is the same bytes as an in-process call's (tests/twin/test_truth_apart.py).
+
+Fork safety, and why it holds for what is called here: the child is a copy of the caller with
+only the calling thread. A lock another thread held at the fork stays held in the child, so the
+function must not need one: it must not print, log, use a progress bar, OpenGL or OpenCV's pool
+(analysis/parallel.py and twin/render/pipeline.py spawn for that reason). NumPy's OpenBLAS pool
+is re-made by its own ``pthread_atfork`` handlers. The child leaves by ``os._exit``: no ``atexit``
+handler, no multiprocessing finaliser (which would try to join the caller's workers), no flush of
+the caller's buffered output (which would print it twice).
+
+Errors: an exception in the child is pickled back through a pipe and raised again by ``wait()``
+(its type kept, so a ``DatasetError`` still ends the command with exit 2); a child killed by a
+signal is a ``ForkCallError`` naming the signal. Where ``os.fork`` does not exist, or with
+``BENCHTWIN_FORK=0``, the function is called at once in the caller (same result, no overlap).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+ENV = "BENCHTWIN_FORK"
+
+
+class ForkCallError(RuntimeError):
+    """The forked child died without reporting (killed by a signal, or its report was unreadable)."""
+
+
+def fork_enabled() -> bool:
+    return hasattr(os, "fork") and os.environ.get(ENV, "1").strip().lower() not in ("0", "no", "off", "false")
+
+
+class ForkCall:
+    """``fn()`` running in a forked child; ``wait()`` returns when it is done (or raises its error)."""
+
+    def __init__(self, fn: Callable[[], Any], what: str = "child"):
+        self.what = what
+        self._pid: int | None = None
+        self._fd: int | None = None
+        self._done = False
+        if not fork_enabled():
+            fn()            # in the caller: the same work, no overlap
+            self._done = True
+            return
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:        # the child: run, report, leave without the caller's exit handlers
+            os.close(r)
+            code = 0
+            try:
+                fn()
+            except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
+                code = 1
+                _report(w, exc)
+            finally:
+                os._exit(code)
+        os.close(w)
+        self._pid, self._fd = pid, r
+
+    @property
+    def forked(self) -> bool:
+        return self._pid is not None
+
+    def wait(self) -> None:
+        """Block until the child is done; raise its exception (or ``ForkCallError``) if it failed."""
+        if self._done:
+            return
+        assert self._pid is not None and self._fd is not None
+        chunks = []
+        with os.fdopen(self._fd, "rb") as fh:   # to EOF: the child's report, if any (before reaping)
+            self._fd = None
+            while True:
+                b = fh.read(65536)
+                if not b:
+                    break
+                chunks.append(b)
+        _, status = os.waitpid(self._pid, 0)
+        self._done = True
+        report = b"".join(chunks)
+        if os.WIFSIGNALED(status):
+            sig = os.WTERMSIG(status)
+            raise ForkCallError(f"{self.what}: killed by signal {signal.Signals(sig).name}")
+        code = os.WEXITSTATUS(status)
+        if code == 0 and not report:
+            return
+        try:
+            exc, tb = pickle.loads(report)
+        except Exception:  # noqa: BLE001 - an unreadable report is still a failure
+            raise ForkCallError(f"{self.what}: exited with status {code}") from None
+        if isinstance(exc, BaseException):
+            raise exc from ForkCallError(f"{self.what} failed:\n{tb}")
+        raise ForkCallError(f"{self.what} failed:\n{tb}")
+
+    def cancel(self) -> None:
+        """Stop the child (the caller failed and will not use its result) and reap it."""
+        if self._done or self._pid is None:
+            return
+        try:
+            os.kill(self._pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        os.waitpid(self._pid, 0)
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+        self._done = True
+
+
+def _report(fd: int, exc: BaseException) -> None:
+    tb = "".join(traceback.format_exception(exc))
+    try:
+        data = pickle.dumps((exc, tb))
+        pickle.loads(data)          # an exception that pickles but cannot be rebuilt is sent as text
+    except Exception:  # noqa: BLE001
+        data = pickle.dumps((None, tb))
+    view = memoryview(data)
+    while view:
+        n = os.write(fd, view)
+        view = view[n:]
+
+
+__all__ = ["ForkCall", "ForkCallError", "fork_enabled"]

@@ -1,0 +1,78 @@
+"""simulate_apart: the measured dataset first, the truth written beside it by a forked child
+(benchtwin/forkcall.py), the same bytes as simulate's truth/ (issue #17: `benchtwin run` overlaps
+the truth with the analysis)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from benchtwin.analysis.dataset import DatasetError
+from benchtwin.forkcall import ForkCall, ForkCallError
+from benchtwin.twin import simulate as S
+
+from tests.twin.test_simulate import files, small_scenario
+
+
+@pytest.mark.parametrize("bearings", ["path", "ball"])
+def test_truth_apart_is_the_same_bytes_as_simulates_truth(tmp_path, bearings):
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
+                           "bearings.type": bearings})
+    ref = S.simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
+    ds, job = S.simulate_apart(sc, tmp_path / "ds", tmp_path / "truth", progress=False, backend="analytic")
+    assert (ds / "manifest.json").is_file()          # the measured dataset is complete at once
+    job.wait()
+    assert job.forked
+    fr = files(ref)
+    truth = {k[len("truth/"):]: v for k, v in fr.items() if k.startswith("truth/")}
+    measured = {k: v for k, v in fr.items() if not k.startswith("truth/")}
+    assert truth and files(tmp_path / "truth") == truth
+    assert files(ds) == measured                     # no truth/ in the dataset, the rest identical
+
+
+def test_a_failing_truth_child_fails_the_call_with_its_own_error(tmp_path, monkeypatch):
+    def broken(*a, **kw):
+        raise DatasetError("truth/encoder_error.csv: the disk fell off")
+
+    monkeypatch.setattr(S, "_write_truth", broken)
+    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
+                           "procedure.selfcal": False})
+    ds, job = S.simulate_apart(sc, tmp_path / "ds", tmp_path / "truth", progress=False, backend="analytic")
+    with pytest.raises(DatasetError, match="the disk fell off"):
+        job.wait()
+
+
+def test_forkcall_reports_signals_and_unpicklable_errors():
+    def killed():
+        os.kill(os.getpid(), 9)
+
+    with pytest.raises(ForkCallError, match="SIGKILL"):
+        ForkCall(killed, what="the victim").wait()
+
+    class Local(Exception):   # not picklable by reference: sent back as text
+        pass
+
+    def local():
+        raise Local("spelled out")
+
+    with pytest.raises(ForkCallError, match="spelled out"):
+        ForkCall(local).wait()
+
+
+def test_forkcall_off_runs_in_the_caller(monkeypatch):
+    monkeypatch.setenv("BENCHTWIN_FORK", "0")
+    seen = []
+    job = ForkCall(lambda: seen.append(os.getpid()))
+    assert seen == [os.getpid()] and not job.forked
+    job.wait()
+
+
+def test_forkcall_cancel_stops_a_running_child():
+    import time
+
+    job = ForkCall(lambda: time.sleep(60))
+    t0 = time.monotonic()
+    job.cancel()
+    job.wait()                                         # cancelled: nothing left to wait for
+    assert time.monotonic() - t0 < 10
