@@ -41,15 +41,17 @@ def fork_enabled() -> bool:
 
 
 class ForkCall:
-    """``fn()`` running in a forked child; ``wait()`` returns when it is done (or raises its error)."""
+    """``fn()`` running in a forked child; ``wait()`` returns its (pickled) value when it is done,
+    or raises its error."""
 
     def __init__(self, fn: Callable[[], Any], what: str = "child"):
         self.what = what
         self._pid: int | None = None
         self._fd: int | None = None
         self._done = False
+        self._value: Any = None
         if not fork_enabled():
-            fn()            # in the caller: the same work, no overlap
+            self._value = fn()      # in the caller: the same work, no overlap
             self._done = True
             return
         r, w = os.pipe()
@@ -58,7 +60,7 @@ class ForkCall:
             os.close(r)
             code = 0
             try:
-                fn()
+                _send(w, pickle.dumps(("ok", fn())))
             except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
                 code = 1
                 _report(w, exc)
@@ -71,10 +73,11 @@ class ForkCall:
     def forked(self) -> bool:
         return self._pid is not None
 
-    def wait(self) -> None:
-        """Block until the child is done; raise its exception (or ``ForkCallError``) if it failed."""
+    def wait(self) -> Any:
+        """Block until the child is done and return ``fn()``'s value; raise its exception (or
+        ``ForkCallError``) if it failed."""
         if self._done:
-            return
+            return self._value
         assert self._pid is not None and self._fd is not None
         chunks = []
         with os.fdopen(self._fd, "rb") as fh:   # to EOF: the child's report, if any (before reaping)
@@ -91,12 +94,14 @@ class ForkCall:
             sig = os.WTERMSIG(status)
             raise ForkCallError(f"{self.what}: killed by signal {signal.Signals(sig).name}")
         code = os.WEXITSTATUS(status)
-        if code == 0 and not report:
-            return
         try:
-            exc, tb = pickle.loads(report)
+            kind, *rest = pickle.loads(report)
         except Exception:  # noqa: BLE001 - an unreadable report is still a failure
             raise ForkCallError(f"{self.what}: exited with status {code}") from None
+        if code == 0 and kind == "ok":
+            self._value = rest[0]
+            return self._value
+        exc, tb = rest if len(rest) == 2 else (None, f"exit status {code}")
         if isinstance(exc, BaseException):
             raise exc from ForkCallError(f"{self.what} failed:\n{tb}")
         raise ForkCallError(f"{self.what} failed:\n{tb}")
@@ -119,10 +124,14 @@ class ForkCall:
 def _report(fd: int, exc: BaseException) -> None:
     tb = "".join(traceback.format_exception(exc))
     try:
-        data = pickle.dumps((exc, tb))
+        data = pickle.dumps(("err", exc, tb))
         pickle.loads(data)          # an exception that pickles but cannot be rebuilt is sent as text
     except Exception:  # noqa: BLE001
-        data = pickle.dumps((None, tb))
+        data = pickle.dumps(("err", None, tb))
+    _send(fd, data)
+
+
+def _send(fd: int, data: bytes) -> None:
     view = memoryview(data)
     while view:
         n = os.write(fd, view)

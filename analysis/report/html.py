@@ -6,6 +6,11 @@ figures) and ``write(path)`` renders them. Figures are matplotlib Figures render
 backend (no screen needed), drawn once at their own size (each figure lays itself out: constrained
 or fixed layout, no ``bbox_inches="tight"`` second draw), and closed after rendering (pyplot ones)
 to keep memory flat over long studies.
+
+Both cores (issue #17): the figures are kept as they are added and drawn when the report is
+rendered, half of them in a forked child (``benchtwin.forkcall``: it sees the figures as they are,
+nothing is pickled but the PNG bytes it sends back). Agg draws the same bytes in either process,
+so the report is the same file; with one figure, or ``BENCHTWIN_FORK=0``, all are drawn here.
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ figure{margin:1em 0} figcaption{font-size:.9em;color:#555} img{max-width:100%}
 class Report:
     title: str
     blocks: list[str] = field(default_factory=list)
+    #: figures not drawn yet: (index of their block, Figure, caption)
+    _pending: list[tuple[int, Any, str]] = field(default_factory=list, repr=False)
 
     def heading(self, text: str, level: int = 2) -> None:
         self.blocks.append(f"<h{level}>{html.escape(text)}</h{level}>")
@@ -56,19 +63,36 @@ class Report:
         self.blocks.append("".join(out))
 
     def figure(self, fig: Any, caption: str) -> None:
-        import sys
+        """Add a figure; it is drawn when the report is rendered (``render``/``write``)."""
+        self._pending.append((len(self.blocks), fig, caption))
+        self.blocks.append("")
 
-        buf = io.BytesIO()
-        # drawn once, at the figure's own size: the figures lay themselves out (constrained or fixed
-        # layout), so bbox_inches="tight" (a second full draw to measure the extent) is not needed
-        fig.savefig(buf, format="png", dpi=FIGURE_DPI, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
-        if "matplotlib.pyplot" in sys.modules:  # a pyplot figure must be released; a bare Figure is not registered
-            sys.modules["matplotlib.pyplot"].close(fig)
-        data = base64.b64encode(buf.getvalue()).decode()
-        self.blocks.append(f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
-                           f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    def _draw_pending(self) -> None:
+        from benchtwin.forkcall import ForkCall
+
+        todo, self._pending = self._pending, []
+        figs = [f for _, f, _ in todo]
+        # the child draws every other figure (the costly polar plots come in pairs), the caller the rest
+        child = ForkCall(lambda: [_png(f) for f in figs[1::2]], what="the report's figures") if len(figs) > 1 else None
+        pngs: list[bytes | None] = [None] * len(figs)
+        try:
+            for i in range(0, len(figs), 2 if child is not None else 1):
+                pngs[i] = _png(figs[i])
+            if child is not None:
+                pngs[1::2] = child.wait()
+        except BaseException:
+            if child is not None:
+                child.cancel()
+            raise
+        for (at, fig, caption), png in zip(todo, pngs):
+            _release(fig)
+            data = base64.b64encode(png or b"").decode()
+            self.blocks[at] = (f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
+                               f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
     def render(self) -> str:
+        if self._pending:
+            self._draw_pending()
         body = "\n".join(self.blocks)
         return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
                 f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>\n{body}\n</body></html>\n")
@@ -77,6 +101,21 @@ class Report:
         from benchtwin.fsio import atomic_write_text
 
         return atomic_write_text(path, self.render())
+
+
+def _png(fig: Any) -> bytes:
+    buf = io.BytesIO()
+    # drawn once, at the figure's own size: the figures lay themselves out (constrained or fixed
+    # layout), so bbox_inches="tight" (a second full draw to measure the extent) is not needed
+    fig.savefig(buf, format="png", dpi=FIGURE_DPI, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+    return buf.getvalue()
+
+
+def _release(fig: Any) -> None:
+    import sys
+
+    if "matplotlib.pyplot" in sys.modules:  # a pyplot figure must be released; a bare Figure is not registered
+        sys.modules["matplotlib.pyplot"].close(fig)
 
 
 def _td(v: Any) -> str:
