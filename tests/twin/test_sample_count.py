@@ -72,3 +72,36 @@ def test_sample_masks_give_the_resolved_bytes(size, k, n, poses):
         # glass (0), chrome (1) and edges in view
         assert float(a.min()) == 0.0 and float(a.max()) == 1.0 and np.count_nonzero((a > 0) & (a < 1)) > 100
         np.testing.assert_array_equal(a, b)
+
+
+def _fan_reference(polygons, offset_px, flip_y=True, z=0.0):
+    """to_trimesh's arrays assembled one polygon at a time (its former implementation)."""
+    verts, faces, base = [], [], 0
+    for poly in polygons:
+        n = len(poly)
+        v = np.asarray(poly, dtype=np.float64) + np.asarray(offset_px)
+        if flip_y:
+            v = v * np.array([1.0, -1.0])
+        verts.append(np.column_stack([v, np.full(n, z)]))
+        tri = np.column_stack([np.zeros(n - 2, int), np.arange(1, n - 1), np.arange(2, n)]) + base
+        area = 0.5 * np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
+        faces.append(tri if area > 0 else tri[:, ::-1])
+        base += n
+    return np.concatenate(verts).astype(np.float32), np.concatenate(faces)
+
+
+def test_fan_arrays_are_the_per_polygon_mesh():
+    from benchtwin.twin.render.grating import fan_arrays
+
+    cam = CcdCamera(azimuth_rad=math.pi, width_px=2048, height_px=1536)
+    polys = build_scene(_pose(0.777, (7.1, -3.0, 0.2), 2e-4), GRATING, cam).polygons
+    assert len(polys) > 40
+    # both windings and other vertex counts, between runs of the scene's 7-vertex polygons
+    extra = [np.array([[0.1, 0.2], [10.0, 0.0], [10.0, 5.3]]), np.array([[0.0, 0.0], [0.0, 5.0], [10.0, 5.0], [10.0, 0.0]])]
+    for pp in (polys, polys[:5] + extra + polys[5:]):
+        V, F = fan_arrays(pp, (0.5, 0.5))
+        Vr, Fr = _fan_reference(pp, (0.5, 0.5))
+        assert V.dtype == np.float32 and V.tobytes() == Vr.tobytes()
+        np.testing.assert_array_equal(F, Fr)
+    V, F = fan_arrays([], (0.5, 0.5))
+    assert V.shape == (0, 3) and F.shape == (0, 3)

@@ -119,6 +119,16 @@ def _lean_delete_framebuffer(self):
     self._main_fb_dims = (None, None)
 
 
+def _scaled(acc: np.ndarray, samples: int) -> np.ndarray:
+    """Coverage 1 − acc/(255·samples) in float32 (8-bit passes averaged need no more, and it halves
+    the memory traffic per frame), in place on one copy: 3 Mpx temporaries cost ms. Applied to a
+    whole sum image or to a table of its values: the same float32 operations, the same bits."""
+    cov = acc.astype(np.float32)
+    cov *= np.float32(-1.0 / (255.0 * samples))
+    cov += np.float32(1.0)
+    return cov
+
+
 class GlCoverageRenderer:
     """Persistent off-screen GL context rendering line coverage images of W×H px.
 
@@ -199,15 +209,22 @@ class GlCoverageRenderer:
         c0 = min(max(lo - (wb - need) // 2, 0), W - wb)
         return c0, wb
 
+    def _render_passes(self, xmag: float, x_centre: float, shifts_x: np.ndarray, shifts_y: np.ndarray) -> None:
+        """The passes into the sample counter's mask image (read with ``read``/``planes``)."""
+        assert self._counter is not None
+        pr = self._pr
+        self._cam.xmag = xmag
+        self._counter.begin()
+        for j, (sx, sy) in enumerate(zip(shifts_x, shifts_y)):
+            self._counter.select(j)
+            self._scene.set_pose(self._cam_node, self._cam_pose(float(sx), float(sy), x_centre))
+            self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
+
     def _accumulate(self, xmag: float, x_centre: float, shifts_x: np.ndarray, shifts_y: np.ndarray) -> np.ndarray:
         pr = self._pr
         self._cam.xmag = xmag
         if self._counter is not None:
-            self._counter.begin()
-            for j, (sx, sy) in enumerate(zip(shifts_x, shifts_y)):
-                self._counter.select(j)
-                self._scene.set_pose(self._cam_node, self._cam_pose(float(sx), float(sy), x_centre))
-                self._r.render(self._scene, flags=pr.RenderFlags.FLAT)
+            self._render_passes(xmag, x_centre, shifts_x, shifts_y)
             return self._counter.read(len(shifts_x))
         acc = np.zeros((self.height_px * self.k, self.width_px * self.k), np.uint16)
         for sx, sy in zip(shifts_x, shifts_y):
@@ -238,13 +255,19 @@ class GlCoverageRenderer:
             tm.visual.vertex_colors = np.tile(np.array([0, 0, 0, 255], np.uint8), (len(tm.vertices), 1))
             self._mesh_node = self._scene.add(pr.Mesh.from_trimesh(tm, smooth=False))
         shifts = self.shifts()
-        acc = self._accumulate(W / 2.0, 0.0, shifts, shifts)  # diagonal: stratified in x and y
-        if k > 1:
-            acc = acc.reshape(H, k, W, k).sum(axis=(1, 3), dtype=np.uint32)
-        # float32: 8-bit passes averaged need no more, and it halves the memory traffic per frame
-        cov = acc[::-1].astype(np.float32)
-        cov *= np.float32(-1.0 / (255.0 * len(shifts) * k * k))  # in place: 3 Mpx temporaries cost ms
-        cov += np.float32(1.0)
+        if self._counter is not None and k == 1 and len(shifts) <= 2:
+            # one byte of masks per pixel: the sum of the passes AND its scaling below become one
+            # float32 table (the same float32 operations on each of its 256 values), ≈ 5 ms less
+            self._render_passes(W / 2.0, 0.0, shifts, shifts)
+            import cv2
+
+            table = _scaled(self._counter.table(len(shifts)), len(shifts) * k * k)
+            cov = cv2.LUT(cv2.flip(self._counter.planes(len(shifts))[0], 0), table)
+        else:
+            acc = self._accumulate(W / 2.0, 0.0, shifts, shifts)  # diagonal: stratified in x and y
+            if k > 1:
+                acc = acc.reshape(H, k, W, k).sum(axis=(1, 3), dtype=np.uint32)
+            cov = _scaled(acc[::-1], len(shifts) * k * k)
         band = self._band_columns(end_x_px)
         if band is not None:
             c0, wb = band

@@ -190,10 +190,26 @@ class SampleCounter:
             raise ValueError(f"pass {j} beyond the {2 * self.max_planes} the mask image holds")
         self._pass = j
 
+    def table(self, passes: int) -> np.ndarray:
+        """uint16[256]: a plane's byte → the sum of its ``passes`` (1 or 2) passes' resolved bytes."""
+        return self._tables[passes]
+
     def read(self, passes: int) -> np.ndarray:
         """uint16 H×W (bottom row first): per pixel the sum over ``passes`` passes of the byte the
         4× MSAA resolve would have given (black lines on white)."""
         import cv2
+
+        acc = None
+        for p, plane in enumerate(self.planes(passes)):
+            part = cv2.LUT(plane, self._tables[min(2, passes - 2 * p)])
+            acc = part if acc is None else acc + part
+        assert acc is not None
+        return acc
+
+    def planes(self, passes: int) -> list[np.ndarray]:
+        """The mask planes of ``passes`` passes: uint8 H×W (bottom row first), contiguous, a byte
+        holding the masks of passes 2p (low nibble) and 2p + 1; they may share the counter's buffer:
+        valid until the next read."""
         from OpenGL.GL import (GL_PACK_ALIGNMENT, GL_RED_INTEGER, GL_TEXTURE_2D,
                                GL_TEXTURE_UPDATE_BARRIER_BIT, GL_UNSIGNED_INT, glBindTexture,
                                glGetTexImage, glMemoryBarrier, glPixelStorei)
@@ -205,12 +221,7 @@ class SampleCounter:
         glBindTexture(GL_TEXTURE_2D, 0)
         H, W = self.height_px, self.width_px
         planes = self._buf.view(np.uint8).reshape(self.max_planes, H, 4 * self.words)[:, :, :W]
-        acc = None
-        for p in range(-(-passes // 2)):
-            part = cv2.LUT(np.ascontiguousarray(planes[p]), self._tables[min(2, passes - 2 * p)])
-            acc = part if acc is None else acc + part
-        assert acc is not None
-        return acc
+        return [np.ascontiguousarray(planes[p]) for p in range(-(-passes // 2))]
 
     def close(self) -> None:
         from OpenGL.GL import glDeleteTextures
