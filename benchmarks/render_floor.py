@@ -10,8 +10,8 @@ median of ``--repeat`` (wall and process CPU, which includes llvmpipe's threads)
 
 - THE FLOOR (``floor_render_*``): ``area_floor.area_coverage``, the exact coverage of every pixel
   by signed-area accumulation (Green's theorem per edge and pixel column, deposits and a prefix
-  sum down the columns; benchmarks/area_floor.py): work in proportion to the edges' length plus
-  one pass over the frame, nothing else; line ends exact (≤ 1e-6 px: float32), so at least the
+  sum down the columns; benchmarks/area_floor.py), its accumulation buffer kept from frame to
+  frame: work in proportion to the edges' length plus one pass over the frame, nothing else; line ends exact (≤ 1e-6 px: float32), so at least the
   twin's quality (GL default ≤ 0.005 px at the ends, ≤ 1/16 px on the sides);
 - for reference, the former floor (``fillpoly_*``): ``cv2.fillPoly`` on a k×-supersampled uint8
   canvas (``shift=8``) and ``cv2.resize(INTER_AREA)``, ``--k`` (default 4): 16 samples a pixel,
@@ -20,7 +20,9 @@ median of ``--repeat`` (wall and process CPU, which includes llvmpipe's threads)
   Gaussian noise field (``cv2.randn``) + the cast to the sensor's dtype (the operations the sensor
   model needs, nothing more);
 - the twin: ``Renderer.coverage`` (default backend, GL if a context exists) and ``apply_sensor``
-  (twin/render/sensor.py) on the same frame.
+  (twin/render/sensor.py) on the same frame;
+- all of it with the frame worker's heap (``twin.render.heap.keep_freed_memory``: freed frame-size
+  arrays reused instead of fresh pages from the kernel), ``--fresh-pages`` for glibc's default.
 
 Prints one line per case, and with ``--json`` one JSON object on the last line (benchmarks/run_bench.py).
 Usage: ``.venv/bin/python benchmarks/render_floor.py [--repeat 5] [--k 4] [--json]``
@@ -41,7 +43,7 @@ from benchtwin.twin.render import gl
 
 gl.configure()
 
-from area_floor import area_coverage  # noqa: E402  (benchmarks/, beside this script)
+from area_floor import area_coverage, workspace  # noqa: E402  (benchmarks/, beside this script)
 
 from benchtwin.twin.pose import BodyPose  # noqa: E402
 from benchtwin.twin.render import GratingSpec, Renderer, SensorParams  # noqa: E402
@@ -135,10 +137,21 @@ def end_error(cov: np.ndarray, ref: np.ndarray, ends: np.ndarray) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fresh-pages", action="store_true",
+                    help="glibc's default heap (freed arrays come back as fresh pages) instead of the frame worker's")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--k", type=int, default=4, help="supersampling of the floor rasteriser")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    if not args.fresh_pages:
+        # as simulate's frame worker: freed frame-size arrays reused, not faulted in again
+        # (twin/render/heap.py); otherwise page faults are ≈ half the floor's CPU
+        try:
+            from benchtwin.twin.render.heap import keep_freed_memory
+        except ImportError:   # an older package (A/B against main): say so, run on the default heap
+            print("(no twin.render.heap in this package: glibc's default heap)")
+        else:
+            keep_freed_memory()
 
     sc = load_scenario()
     grating = GratingSpec.from_bench(sc["bench"])
@@ -154,9 +167,10 @@ def main(argv: list[str] | None = None) -> int:
     exact = coverage_image(scene.polygons, W, H, camera.reference_px)
     out: dict[str, object] = {"frame_px": [W, H], "lines": len(scene.polygons), "k": args.k}
 
-    floor_cov = area_coverage(scene.polygons, W, H, ref_xy)
+    work = workspace(W, H)   # kept from frame to frame, as the GL context keeps its buffers
+    floor_cov = area_coverage(scene.polygons, W, H, ref_xy, work)
     out["floor_render_s"], out["floor_render_cpu_s"] = timed(
-        lambda: area_coverage(scene.polygons, W, H, ref_xy), args.repeat)
+        lambda: area_coverage(scene.polygons, W, H, ref_xy, work), args.repeat)
     out["floor_end_error_px"] = end_error(floor_cov, exact, scene.end_mid_px)
     out["floor_max_pixel_error"] = float(np.max(np.abs(floor_cov - exact)))
     fp_cov = cv_coverage(scene.polygons, W, H, ref_xy, args.k)
