@@ -1,10 +1,10 @@
 """Coverage passes of the GL renderer as sample masks: no MSAA colour buffer, no resolve (issue 17).
 
-Why: a coverage pass of ``pyrender_backend`` on llvmpipe costs ≈ 35 ms at 2048×1536, of which the
-MSAA resolve (``glBlitFramebuffer`` of the 4-sample R8 buffer: a texel fetch per sample of every
-pixel, in llvmpipe's shader JIT) is ≈ 2/3 and the clear of the 12 MB sample buffer much of the
-rest; the rasterisation of the ~55 lines is a small part. What the frame needs from a pass is
-only, per pixel, which of its 4 samples a line covers.
+Why: a coverage pass of ``pyrender_backend`` on llvmpipe cost ≈ 45–57 ms at 2048×1536 (measured,
+load 3), of which the MSAA resolve (``glBlitFramebuffer`` of the 4-sample R8 buffer: a texel
+fetch per sample of every pixel, in llvmpipe's shader JIT) ≈ 33 ms, the clear and raster of the
+12 MB sample buffer 8–20 ms, the read 4 ms. What the frame needs from a pass is only, per pixel,
+which of its 4 samples a line covers.
 
 Theory (OpenGL 4.6 core §14.3.1 multisampling, §15.2.2 shader inputs; GLSL 4.50 §7.1):
 
@@ -26,8 +26,8 @@ Theory (OpenGL 4.6 core §14.3.1 multisampling, §15.2.2 shader inputs; GLSL 4.5
 
 Layout: an R32UI image of ⌈W/4⌉ words × (H · planes): pixel x of pass j lands in word x // 4,
 bits 8·(x mod 4) + 4·(j mod 2) … +3, row y + H·(j // 2). Read back as bytes (little-endian),
-plane p is then an H×W uint8 image whose byte holds the masks of passes 2p and 2p + 1: one
-quarter of the resolve's read, and a 256-entry table turns it into the passes' sum.
+plane p is then an H×W uint8 image whose byte holds the masks of passes 2p and 2p + 1: half the
+resolves' reads, and a 256-entry table turns it into the passes' sum.
 """
 
 from __future__ import annotations
