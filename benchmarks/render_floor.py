@@ -1,23 +1,28 @@
-"""Render floor of a CCD frame: a bare OpenCV/numpy rasteriser of the same frame, and the twin's own.
+"""Render floor of a CCD frame: a bare NumPy/OpenCV rasteriser of the same frame, and the twin's own.
 
 Issue #17: "the render of a frame ≤ 2× a bare OpenCV/numpy rasteriser of the same frame at the same
 quality". The frame is the default scenario's (jia2019, 2048×1536 px) at θ = 37°, with its
 eccentricity; its line polygons come from ``twin.render.grating.build_scene`` (the polygons every
-backend rasterises). Timed here, median of ``--repeat``:
+backend rasterises). Quality is the line-end error against the exact coverage
+(twin/render/analytic.py): the largest per-row difference of the area-method end position over
+the lines in view, rows ±3 around each end (``end_error``), printed for every case. Timed here,
+median of ``--repeat`` (wall and process CPU, which includes llvmpipe's threads):
 
-- floor: ``cv2.fillPoly`` of the polygons on a k×-supersampled uint8 canvas (8-bit sub-pixel vertex
-  precision, ``shift=8``), then ``cv2.resize(INTER_AREA)`` to the sensor's size: the coverage of
-  each pixel on a k×k grid, the way a GPU rasterises with k² samples; ``--k`` (default 4, as 4×
-  MSAA is 4 samples: 16 samples per pixel, a row's edge to ≤ 1/(2k) px). The line-end error of
-  both against the exact analytic coverage (twin/render/analytic.py) is printed, so the quality of
-  each is shown, not assumed: the twin's GL default (k = 1, jitter 2, end band) is ~25× more
-  accurate than this floor, so the ratio is against a floor of *lower* quality (a bare
-  supersampler at the twin's 0.005 px would need k ≈ 25, i.e. a 51 200 × 38 400 canvas);
+- THE FLOOR (``floor_render_*``): ``area_floor.area_coverage``, the exact coverage of every pixel
+  by signed-area accumulation (Green's theorem per edge and pixel column, deposits and a prefix
+  sum down the columns; benchmarks/area_floor.py), its accumulation buffer kept from frame to
+  frame: work in proportion to the edges' length plus one pass over the frame, nothing else; line ends exact (≤ 1e-6 px: float32), so at least the
+  twin's quality (GL default ≤ 0.005 px at the ends, ≤ 1/16 px on the sides);
+- for reference, the former floor (``fillpoly_*``): ``cv2.fillPoly`` on a k×-supersampled uint8
+  canvas (``shift=8``) and ``cv2.resize(INTER_AREA)``, ``--k`` (default 4): 16 samples a pixel,
+  ~30× worse at the line ends (≈ 0.15 px), NOT the same quality (it would need k ≈ 25);
 - the floor's sensor: ``cv2.GaussianBlur`` + ``cv2.multiply`` by a vignetting map + a float32
   Gaussian noise field (``cv2.randn``) + the cast to the sensor's dtype (the operations the sensor
   model needs, nothing more);
 - the twin: ``Renderer.coverage`` (default backend, GL if a context exists) and ``apply_sensor``
-  (twin/render/sensor.py) on the same frame.
+  (twin/render/sensor.py) on the same frame;
+- all of it with the frame worker's heap (``twin.render.heap.keep_freed_memory``: freed frame-size
+  arrays reused instead of fresh pages from the kernel), ``--fresh-pages`` for glibc's default.
 
 Prints one line per case, and with ``--json`` one JSON object on the last line (benchmarks/run_bench.py).
 Usage: ``.venv/bin/python benchmarks/render_floor.py [--repeat 5] [--k 4] [--json]``
@@ -37,6 +42,8 @@ import numpy as np
 from benchtwin.twin.render import gl
 
 gl.configure()
+
+from area_floor import area_coverage, workspace  # noqa: E402  (benchmarks/, beside this script)
 
 from benchtwin.twin.pose import BodyPose  # noqa: E402
 from benchtwin.twin.render import GratingSpec, Renderer, SensorParams  # noqa: E402
@@ -130,10 +137,21 @@ def end_error(cov: np.ndarray, ref: np.ndarray, ends: np.ndarray) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fresh-pages", action="store_true",
+                    help="glibc's default heap (freed arrays come back as fresh pages) instead of the frame worker's")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--k", type=int, default=4, help="supersampling of the floor rasteriser")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    if not args.fresh_pages:
+        # as simulate's frame worker: freed frame-size arrays reused, not faulted in again
+        # (twin/render/heap.py); otherwise page faults are ≈ half the floor's CPU
+        try:
+            from benchtwin.twin.render.heap import keep_freed_memory
+        except ImportError:   # an older package (A/B against main): say so, run on the default heap
+            print("(no twin.render.heap in this package: glibc's default heap)")
+        else:
+            keep_freed_memory()
 
     sc = load_scenario()
     grating = GratingSpec.from_bench(sc["bench"])
@@ -149,10 +167,16 @@ def main(argv: list[str] | None = None) -> int:
     exact = coverage_image(scene.polygons, W, H, camera.reference_px)
     out: dict[str, object] = {"frame_px": [W, H], "lines": len(scene.polygons), "k": args.k}
 
-    floor_cov = cv_coverage(scene.polygons, W, H, ref_xy, args.k)
+    work = workspace(W, H)   # kept from frame to frame, as the GL context keeps its buffers
+    floor_cov = area_coverage(scene.polygons, W, H, ref_xy, work)
     out["floor_render_s"], out["floor_render_cpu_s"] = timed(
-        lambda: cv_coverage(scene.polygons, W, H, ref_xy, args.k), args.repeat)
+        lambda: area_coverage(scene.polygons, W, H, ref_xy, work), args.repeat)
     out["floor_end_error_px"] = end_error(floor_cov, exact, scene.end_mid_px)
+    out["floor_max_pixel_error"] = float(np.max(np.abs(floor_cov - exact)))
+    fp_cov = cv_coverage(scene.polygons, W, H, ref_xy, args.k)
+    out["fillpoly_render_s"], out["fillpoly_render_cpu_s"] = timed(
+        lambda: cv_coverage(scene.polygons, W, H, ref_xy, args.k), args.repeat)
+    out["fillpoly_end_error_px"] = end_error(fp_cov, exact, scene.end_mid_px)
 
     vign = np.ones((H, W), np.float32)
     max_dn = int(sensor.max_dn)
@@ -169,14 +193,20 @@ def main(argv: list[str] | None = None) -> int:
         lambda: apply_sensor(irr.copy(), sensor, np.random.default_rng(0), pixel_m=camera.true_pixel_m), args.repeat)
 
     fr, tr = float(out["floor_render_s"]), float(out["twin_render_s"])  # type: ignore[arg-type]
+    frc, trc = float(out["floor_render_cpu_s"]), float(out["twin_render_cpu_s"])  # type: ignore[arg-type]
+    fpr, fpc = float(out["fillpoly_render_s"]), float(out["fillpoly_render_cpu_s"])  # type: ignore[arg-type]
     fs, ts = float(out["floor_sensor_s"]), float(out["twin_sensor_s"])  # type: ignore[arg-type]
-    print(f"frame {W}×{H} px, {len(scene.polygons)} lines in view")
-    print(f"floor render  (cv2.fillPoly {args.k}×{args.k} + INTER_AREA) {fr * 1e3:7.1f} ms  "
-          f"line-end error ≤ {out['floor_end_error_px']:.4f} px")
-    print(f"twin render   ({used:9s})                     {tr * 1e3:7.1f} ms  ×{tr / fr:4.1f}  "
-          f"line-end error ≤ {out['twin_end_error_px']:.4f} px")
-    print(f"floor sensor  (GaussianBlur, multiply, noise, cast)    {fs * 1e3:7.1f} ms")
-    print(f"twin sensor   (twin/render/sensor.py apply_sensor)     {ts * 1e3:7.1f} ms  ×{ts / fs:4.1f}")
+    fsc, tsc = float(out["floor_sensor_cpu_s"]), float(out["twin_sensor_cpu_s"])  # type: ignore[arg-type]
+    print(f"frame {W}×{H} px, {len(scene.polygons)} lines in view; wall / CPU ms, ratio to the floor wall / CPU")
+    print(f"floor render  (exact area accumulation, numpy)     {fr * 1e3:6.1f} / {frc * 1e3:6.1f}            "
+          f"line-end error ≤ {out['floor_end_error_px']:.2g} px")
+    print(f"twin render   ({used:9s})                         {tr * 1e3:6.1f} / {trc * 1e3:6.1f}  "
+          f"×{tr / fr:4.1f} / ×{trc / frc:4.1f}  line-end error ≤ {out['twin_end_error_px']:.4f} px")
+    print(f"(fillPoly {args.k}×{args.k} + INTER_AREA, lower quality) {fpr * 1e3:6.1f} / {fpc * 1e3:6.1f}            "
+          f"line-end error ≤ {out['fillpoly_end_error_px']:.4f} px")
+    print(f"floor sensor  (GaussianBlur, multiply, noise, cast) {fs * 1e3:6.1f} / {fsc * 1e3:6.1f}")
+    print(f"twin sensor   (twin/render/sensor.py apply_sensor)  {ts * 1e3:6.1f} / {tsc * 1e3:6.1f}  "
+          f"×{ts / fs:4.1f} / ×{tsc / fsc:4.1f}")
     if args.json:
         print(json.dumps(out))
     return 0

@@ -11,9 +11,9 @@ Floors, measured in the same run by the scripts beside this one:
 
 - I/O floor (benchmarks/io_floor.py): decode, Otsu, label and PNG-encode each of the dataset's
   frames once, in one process (the work, without interpreter start and imports);
-- render floor (benchmarks/render_floor.py): a bare OpenCV rasteriser (supersampled ``fillPoly``)
-  and bare OpenCV sensor operations on one frame of the same scenario, next to the twin's renderer
-  and sensor model on the same frame;
+- render floor (benchmarks/render_floor.py): a bare NumPy rasteriser of the exact coverage (the
+  twin's line-end quality or better: benchmarks/area_floor.py) and bare OpenCV sensor operations on
+  one frame of the same scenario, next to the twin's renderer and sensor model on the same frame;
 - physics floor: not measured here (the closed-form solve of the poses is not written yet);
   benchmarks/physics_bench.py and servo_bench.py give the physics' own rates.
 
@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         ("  report (figures + HTML), same", rep_w, rep_c, "decode+Otsu+label", floor_an_w, floor_an_c),
         ("  bench picture, same", pic_w, pic_c, "decode+Otsu+label", floor_an_w, floor_an_c),
         ("run", wall["run"], cpu["run"], "I/O floor", floor_io_w, floor_io_c),
-        ("render of a frame", rf["twin_render_s"], rf["twin_render_cpu_s"], f"cv2 fillPoly {rf['k']}×{rf['k']}",
+        ("render of a frame", rf["twin_render_s"], rf["twin_render_cpu_s"], "exact-area numpy (same quality)",
          rf["floor_render_s"], rf["floor_render_cpu_s"]),
         ("sensor model of a frame", rf["twin_sensor_s"], rf["twin_sensor_cpu_s"], "cv2 blur+noise+vignetting",
          rf["floor_sensor_s"], rf["floor_sensor_cpu_s"]),
