@@ -83,6 +83,7 @@ from scipy.interpolate import CubicSpline
 
 from benchtwin.units import ARCSEC
 
+from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import Hidden, TrueScenario
@@ -117,6 +118,7 @@ _LINEAR = np.array([True, True, False, False, False, False])
 # hinges). 1e-14 m = 1e-5 nm and 1e-14 rad = 2e-9″: the pose noise is then the float64 rounding.
 SETTLE_ATOL = 1e-14
 SETTLE_MAX_ITER = 60
+_EPS = float(np.finfo(float).eps)
 
 # Cage lobing (rolling-element set) and random non-repeating motion: model constants.
 CAGE_ORDERS = (1, 2, 3)              # low orders: ball diameter variation around the set
@@ -231,6 +233,9 @@ class Bench:
         self._generate(sc)
         self.thermal = self._thermal(sc)
         self._drift4 = np.zeros(4)           # thermal translation of the bearing seats now
+        self._drift_t = math.nan             # the time of _drift4_t (pose_at's cache)
+        self._drift4_t = self._drift4
+        self._drift_src: Thermal | None = None
         place = Placement(
             disk_offset_m=self.disk_offset_m,
             disk_tilt_rad=float(er["disk_tilt"]),
@@ -284,12 +289,29 @@ class Bench:
         # Journal displacement at the bearings = T·q (the fixed tendons are linear in q).
         self._T = self._tendon_matrix()
         self.reset_path()
+        self._Tt = np.ascontiguousarray(self._T.T)
         if self.ball_sets is not None:
             bs, self.ball_sets = self.ball_sets, None      # MuJoCo's part alone
             self._K_mj = self._stiffness_matrix()
             self.ball_sets = bs
+            self._kernel = BallSets([bs["top"], bs["bottom"]])
+            # MuJoCo's load along the spin is not linear: gravity on the bodies turning with the
+            # shaft (unbalance, centred masses' tilt moments) is A + B·cos θ + C·sin θ. K_mj holds
+            # its derivative at θ = 0 (−C); the Newton matrix takes it at the pose's θ.
+            B, C = self._gravity_harmonics()
+            self._K_mj[:, 4] += C
+            self._assembly = self._assembly_matrix(B, C)
+        # ∂(residual)/∂(drive command): the position actuator's kp along its moment arms (linear:
+        # one difference is exact); with the Newton matrix it gives the tangent dq/dcmd that
+        # predicts the next pose (_solve's warm start).
+        self._dr_dcmd = self._command_sensitivity()
         self._K = self._stiffness_matrix()
         self._Kinv = np.linalg.inv(self._K)
+        self._tangent = self._Kinv @ self._dr_dcmd
+        # Newton's right-hand sides: the residual (column 0, per iteration) and ∂r/∂cmd (column 1)
+        # in one solve, which gives the step and the tangent of the same matrix.
+        self._rhs = np.zeros((6, 2))
+        self._rhs[:, 1] = self._dr_dcmd
         self._center_axis_average_line()
         self.reset_path()
 
@@ -510,13 +532,92 @@ class Bench:
 
     def _residual_and_K(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual and the Newton matrix of a ball bench: MuJoCo's part of K (constant: its forces
-        are linear in the small radial/tilt coordinates) plus Tᵀ·K_balls·T of the ball sets at this
-        configuration (analytic), so Newton converges quadratically."""
+        are linear in the small radial/tilt coordinates) plus the ball sets' Jacobian at this
+        configuration (analytic, twin/ballsets.py): Tᵀ·K_balls·T for the journal displacements and,
+        in the spin column, −Tᵀ·∂F/∂θ (the balls roll on with the shaft: cage angle and races'
+        waviness at the balls), so Newton converges quadratically in all six coordinates."""
         d = self.data
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
-        F, Kb = self._ball_forces(q, with_stiffness=True)
-        return d.qfrc_smooth + self._T.T @ F, self._K_mj + self._T.T @ Kb @ self._T
+        F, K, g = self._fused().evaluate(*self._kernel_inputs(q))
+        # one product assembles both: (K blocks, F, g) @ _assembly = (J − K_mj flattened, Tᵀ·F)
+        th = float(q[4])
+        out = np.array(K[0] + K[1] + tuple(F) + tuple(g) + (math.cos(th), math.sin(th))) @ self._assembly
+        return d.qfrc_smooth + out[36:], self._K_mj + out[:36].reshape(6, 6)
+
+    def _fused(self) -> BallSets:
+        """The fused kernel of the current ball sets (rebuilt if a set was replaced, as the
+        bearing tests and design studies do on a built bench)."""
+        k, bs = self._kernel, self.ball_sets
+        if k.sets[0] is not bs["top"] or k.sets[1] is not bs["bottom"]:
+            k = self._kernel = BallSets([bs["top"], bs["bottom"]])
+        return k
+
+    def _kernel_inputs(self, q: np.ndarray) -> tuple[list, float, list, list]:
+        """(u, θ, cage angles, d(cage)/dθ) of the ball sets at q, as Python floats."""
+        housing = self._housing_m if self._solve_housing is None else self._solve_housing
+        u = (self._T @ q - housing).tolist()
+        th = float(q[4])
+        if self.hidden:
+            dx = self.hidden.race_x_offset_m(th)     # hidden tangential motion: X only
+            u[0] -= dx
+            u[2] -= dx
+        # cage_angles_rad on floats: ref + rho·(θ − θ_ref)·(1 + slip); its rate rho·(1 + slip)
+        slip = self._path_slip.tolist()
+        rho = self._kernel.rho
+        dth = th - self._path_theta_ref
+        cages = [c + r * dth * (1.0 + s) for c, r, s in zip(self._path_cage_ref.tolist(), rho, slip)]
+        rates = [r * (1.0 + s) for r, s in zip(rho, slip)]
+        return u, th, cages, rates
+
+    def _ball_kernel(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fused kernel's forces F (4,), block-diagonal stiffness −dF/du (4, 4) and explicit
+        shaft-angle rate g = ∂F/∂θ at fixed u (4,): the quantities of ``_ball_forces`` (which keeps
+        the per-set reference formulas of twin/bearing.py) plus g (tests compare them)."""
+        F, K, g = self._fused().evaluate(*self._kernel_inputs(q))
+        (a, b, c), (e, f, h) = K
+        Kb = np.array([[a, b, 0.0, 0.0], [b, c, 0.0, 0.0], [0.0, 0.0, e, f], [0.0, 0.0, f, h]])
+        return np.array(F), Kb, np.array(g)
+
+    def _gravity_harmonics(self) -> tuple[np.ndarray, np.ndarray]:
+        """B, C of MuJoCo's generalized force at q = (0, 0, 0, 0, θ, 0) with the drive at θ (no
+        actuator force), springs at zero rest offset, no applied loads: A + B·cos θ + C·sin θ
+        (gravity on rigid bodies turning about the spin axis; benchmarks/physics_floor.py checks the
+        form to 1e-20)."""
+        d = self.data
+        self._set_springs(np.zeros(4))
+        d.qvel[:] = 0.0
+        d.qfrc_applied[:] = 0.0
+        d.xfrc_applied[:] = 0.0
+        g = []
+        for th in (0.0, 0.5 * math.pi, math.pi):
+            d.qpos[:] = 0.0
+            d.qpos[4] = th
+            d.ctrl[self._act] = th
+            mujoco.mj_forward(self.model, d)
+            g.append(d.qfrc_smooth.copy())
+        d.qpos[:] = 0.0
+        d.ctrl[self._act] = 0.0
+        return 0.5 * (g[0] - g[2]), g[1] - 0.5 * (g[0] + g[2])
+
+    def _assembly_matrix(self, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """(16, 42) map from the kernel's (kxx, kxy, kyy per set, F, g) and (cos θ, sin θ) to the
+        flattened θ-dependent part of the Newton matrix (36): Tᵀ·K_b·T − Tᵀ·g·e_θᵀ, and MuJoCo's
+        gravity rate in the spin column, B·sin θ − C·cos θ (−∂/∂θ of A + B·cos θ + C·sin θ; its value
+        at θ = 0 is already in K_mj); and to Tᵀ·F (6)."""
+        T = self._T
+        P = np.zeros((16, 42))
+        P[14, 4:36:6] = -C
+        P[15, 4:36:6] = B
+        for s in range(2):
+            tx, ty = T[2 * s], T[2 * s + 1]
+            P[3 * s] = np.concatenate([np.outer(tx, tx).ravel(), np.zeros(6)])
+            P[3 * s + 1] = np.concatenate([(np.outer(tx, ty) + np.outer(ty, tx)).ravel(), np.zeros(6)])
+            P[3 * s + 2] = np.concatenate([np.outer(ty, ty).ravel(), np.zeros(6)])
+        for i in range(4):
+            P[6 + i, 36:] = T[i]                 # Tᵀ·F
+            P[10 + i, 4:36:6] = -T[i]            # spin column: −Tᵀ·g
+        return P
 
     def _tendon_matrix(self) -> np.ndarray:
         """(4, 6) T with journal displacements (top x, top y, bottom x, bottom y) = T·q."""
@@ -663,6 +764,21 @@ class Bench:
         self._solve_housing = None
         return K
 
+    def _command_sensitivity(self) -> np.ndarray:
+        """∂(generalized force)/∂(drive command) at rest: MuJoCo's forces at commands 1 and 0 (the
+        position actuator is linear in its control, so the difference is its kp along the
+        actuator's moment arms, exactly)."""
+        d = self.data
+        d.qpos[:] = 0.0
+        d.qvel[:] = 0.0
+        d.qfrc_applied[:] = 0.0
+        f = []
+        for c in (1.0, 0.0):
+            d.ctrl[self._act] = c
+            mujoco.mj_forward(self.model, d)
+            f.append(d.qfrc_smooth.copy())
+        return f[0] - f[1]
+
     def _solve(self, cmd_rad: float, direction: int, rep: int, include_async: bool = True,
                housing_m: np.ndarray | None = None) -> int:
         """Static equilibrium for drive command ``cmd_rad``; leaves ``self.data`` posed there.
@@ -670,20 +786,33 @@ class Bench:
         housing = self._housing_m + self._drift4 if housing_m is None else housing_m
         self._solve_housing = housing
         self._set_loads(cmd_rad, direction)
-        q = self._q_last.copy()
-        q[4] += cmd_rad - self._cmd_last          # warm start: keep the previous lag
+        # Warm start: the previous pose moved along its tangent dq/dcmd = J⁻¹·∂r/∂cmd (first order
+        # in the command change; "keep the previous lag" was its spin component alone). The
+        # servo's refinements of one stop change the command by < 1e-6 rad: the prediction is
+        # then within the settle criterion and one Newton step confirms it.
+        q = self._q_last + self._tangent * (cmd_rad - self._cmd_last)
         d = self.data
+        ball = self.ball_sets is not None
+        tol4 = 4 * _EPS
         for it in range(1, SETTLE_MAX_ITER + 1):
-            self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
-            self._set_centrifugal(q[4])
-            if self.ball_sets is not None:
+            if ball:
+                # the ball sets carry the shaft: the tendon springs are off, their rest positions
+                # (set below for the final pose) do not enter the residual
+                self._set_centrifugal(q[4])
                 r, Kq = self._residual_and_K(q)
-                dq = np.linalg.solve(Kq, r)
+                rhs = self._rhs
+                rhs[:, 0] = r
+                x = np.linalg.solve(Kq, rhs)
+                dq = x[:, 0]
+                self._tangent = x[:, 1]
             else:
+                self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+                self._set_centrifugal(q[4])
                 r = self._residual(q)
                 dq = self._Kinv @ r
             q = q + dq
-            if np.all(np.abs(dq) <= SETTLE_ATOL + 4 * np.finfo(float).eps * np.abs(q)):
+            # the settle criterion on Python floats (six values: cheaper than four NumPy calls)
+            if all(abs(a) <= SETTLE_ATOL + tol4 * abs(b) for a, b in zip(dq.tolist(), q.tolist())):
                 break
         else:
             raise RuntimeError(f"static solve did not converge at command {cmd_rad} rad: |dq| = {np.abs(dq).max():g}")
@@ -768,8 +897,13 @@ class Bench:
             raise ValueError("direction must be +1 or -1")
         self._advance_path(t_s, rolling)
         if self.thermal.active:   # the housings' thermal drift at this time (twin/thermal.py)
-            d = self.thermal.axis_drift_m(t_s)
-            self._drift4 = np.array([d[0], d[1], d[0], d[1]])
+            # a function of t_s alone: the servo's refinements of a stop (same t_s) reuse it
+            t = float(t_s)
+            if t != self._drift_t or self.thermal is not self._drift_src:
+                d = self.thermal.axis_drift_m(t)
+                self._drift4_t = np.array([d[0], d[1], d[0], d[1]])
+                self._drift_t, self._drift_src = t, self.thermal
+            self._drift4 = self._drift4_t
         self._held_torque_Nm = None if bearing_torque_Nm is None else float(bearing_torque_Nm)
         try:
             it = self._solve(float(shaft_angle_rad), direction, int(rep))
