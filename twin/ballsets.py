@@ -51,7 +51,10 @@ class BallSets:
         self.rho = [float(bs.rho) for bs in self.sets]      # cage ratios (Harris ch. 7)
         # Race terms of all sets in one vector: race r of set s contributes columns with orders
         # k, coefficients c_k = a_k·e^(-i p_k), and its rows in the block-diagonal W.
-        ks, cs, blocks, which = [], [], [], []
+        ks: list[np.ndarray] = []
+        cs: list[np.ndarray] = []
+        blocks: list[tuple[int, np.ndarray]] = []
+        which: list[int] = []
         rows = 0
         for s, bs in enumerate(self.sets):
             for inner, (c, k, W) in ((True, (bs._ci, bs._ki, bs._Wi)), (False, (bs._co, bs._ko, bs._Wo))):
@@ -62,16 +65,20 @@ class BallSets:
                     which.extend([2 * s + (0 if inner else 1)] * k.size)
             rows += bs.Z
         self._n_rows = rows
-        self._k = np.concatenate(ks) if ks else np.zeros(0)
+        k = np.concatenate(ks) if ks else np.zeros(0)
         self._c = np.concatenate(cs) if cs else np.zeros(0, dtype=complex)
-        self._which = np.array(which, dtype=int)
-        W = np.zeros((rows, self._k.size), dtype=complex)
+        self._ik = 1j * k
+        # Each column's angle x_0 and its rate d(x_0)/dθ, gathered from the eight values
+        # (φ_top − θ, φ_top, φ_bottom − θ, φ_bottom, and their rates) in one indexing.
+        col_race = np.array(which, dtype=int)
+        self._gather = np.stack([col_race, col_race + 4]) if ks else np.zeros((2, 0), dtype=int)
+        W = np.zeros((rows, k.size), dtype=complex)
         col = 0
         for r0, Wb in blocks:
             W[r0:r0 + Wb.shape[0], col:col + Wb.shape[1]] = Wb
             col += Wb.shape[1]
-        self._W = W
-        self._buf = np.empty((self._k.size, 2), dtype=complex)
+        self._WT = np.ascontiguousarray(W.T)
+        self._V = np.empty((2, k.size), dtype=complex)
         # Per-set constants as Python floats, and each ball's fixed slot angle.
         self._const = [(bs.Z, bs.delta0_m, bs.cos_a, bs.Kn, [float(v) for v in bs._slots],
                         [float(v) for v in bs._dd]) for bs in self.sets]
@@ -79,17 +86,17 @@ class BallSets:
     def interference(self, theta: float, cages: Sequence[float], rates: Sequence[float]) -> tuple[list, list]:
         """w_i(psi_j − theta) + w_o(psi_j) of every ball (sets concatenated; without cos(a) and
         dD_j), and its derivative along theta (cage angle moving at ``rates``)."""
-        if not self._k.size:
+        if not self._ik.size:
             z = [0.0] * self._n_rows
             return z, list(z)
-        x0 = np.array([cages[0] - theta, cages[0], cages[1] - theta, cages[1]])[self._which]
-        r0 = np.array([rates[0] - 1.0, rates[0], rates[1] - 1.0, rates[1]])[self._which]
-        E = self._c * np.exp(1j * (self._k * x0))
-        buf = self._buf
-        buf[:, 0] = E
-        buf[:, 1] = E * (1j * (self._k * r0))
-        w = (self._W @ buf).real
-        return w[:, 0].tolist(), w[:, 1].tolist()
+        c0, c1 = cages
+        r0, r1 = rates
+        x = np.array([c0 - theta, c0, c1 - theta, c1, r0 - 1.0, r0, r1 - 1.0, r1])[self._gather]
+        V = self._V
+        np.multiply(self._c, np.exp(self._ik * x[0]), out=V[0])       # c_k·e^(i·k·x_0)
+        np.multiply(V[0], self._ik * x[1], out=V[1])                  # its rate along θ
+        w = (V @ self._WT).real.tolist()
+        return w[0], w[1]
 
     def evaluate(self, u: Sequence[float], theta: float, cages: Sequence[float],
                  rates: Sequence[float]) -> tuple[list, list, list]:

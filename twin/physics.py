@@ -821,7 +821,7 @@ class Bench:
         self._set_centrifugal(q[4])
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
-        if np.any(d.warning.number):
+        if d.warning.number.any():
             raise RuntimeError(f"MuJoCo warnings during the static solve: {d.warning.number}")
         self._solve_housing = None
         self._q_last = q
@@ -876,9 +876,13 @@ class Bench:
         self.n_poses = 0
 
     # ----------------------------------------------------------------------------- API -------
-    def _body(self, name: str) -> BodyPose:
+    def _body(self, name: str, frames: tuple[np.ndarray, np.ndarray] | None = None) -> BodyPose:
+        """The posed body ``name``; ``frames``: one copy of (xpos, xmat as (nbody, 3, 3)) shared by
+        the bodies of a pose (two copies per pose instead of two per body)."""
         i = self._bid[name]
-        return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
+        if frames is None:
+            return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
+        return BodyPose(pos=frames[0][i], R=frames[1][i])
 
     def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1,
                 rolling: bool = False, bearing_torque_Nm: float | None = None) -> BenchPose:
@@ -916,9 +920,10 @@ class Bench:
         d = self.data
         q = d.qpos
         axis_p, _ = self._axis_line()
+        frames = (d.xpos.copy(), d.xmat.reshape(-1, 3, 3).copy())
         extra = {
-            "shaft": self._body("shaft"),
-            "polygon_section": self._body("polygon_section"),
+            "shaft": self._body("shaft", frames),
+            "polygon_section": self._body("polygon_section", frames),
             "drive_angle_rad": float(shaft_angle_rad),
             "twist_disk_to_polygon_rad": float(q[5]),
             "drive_torque_Nm": float(d.actuator_force[self._act]),
@@ -931,10 +936,10 @@ class Bench:
         return BenchPose(
             t_s=float(t_s),
             shaft_angle_rad=float(q[4]),
-            disk=self._body("disk"),
-            polygon=self._body("polygon"),
-            sphere_top=self._body("sphere_top"),
-            sphere_bottom=self._body("sphere_bottom"),
+            disk=self._body("disk", frames),
+            polygon=self._body("polygon", frames),
+            sphere_top=self._body("sphere_top", frames),
+            sphere_bottom=self._body("sphere_bottom", frames),
             extra=extra,
         )
 

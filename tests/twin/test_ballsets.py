@@ -79,7 +79,7 @@ def test_shaft_angle_rate_is_the_derivative_of_the_forces():
         _F, _K, g = kern.evaluate(u, th, c0, rates)
         h = 1e-6
 
-        def F_at(t):
+        def F_at(t, u=u, th=th, c0=c0, rates=rates):
             return _reference(sets, u, t, c0 + rates * (t - th))[0]
 
         fd = (F_at(th + h) - F_at(th - h)) / (2 * h)
