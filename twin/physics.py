@@ -272,6 +272,9 @@ class Bench:
         if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dadr, np.arange(6))):
             raise RuntimeError("bench.xml: expected the six compliant joints in solve order")
         self._ten = np.array([m.tendon(n).id for n in BEARING_TENDONS])
+        t0 = int(self._ten[0])
+        consecutive = np.array_equal(self._ten, np.arange(t0, t0 + self._ten.size))
+        self._ten_rows: slice | np.ndarray = slice(t0, t0 + self._ten.size) if consecutive else self._ten
         self._act = m.actuator("drive").id
         self._bid = {n: m.body(n).id for n in
                      ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom", "unbalance")}
@@ -502,16 +505,22 @@ class Bench:
         """Rolling-path offsets (top_x, top_y, bottom_x, bottom_y) at shaft angle θ, without the
         constant housing position: the rest positions of the four bearing springs."""
         th = float(theta_rad)
-        if self.motion_table is not None:
-            out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
-        else:
-            out = np.zeros(4)
         # ball bearings: the races' shapes act through the ball forces (_ball_forces), not here
         t = self._race_terms(rep, include_async) if self.ball_sets is None else None
+        if self.motion_table is not None:
+            out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
+        elif t is not None:
+            out = None           # the first sum is the array (0 + x is x: one NumPy call less)
+        else:
+            out = np.zeros(4)
         if t is not None:
             f, ph, Cm, Sm = t
             arg = f * th + ph
-            out += Cm @ np.cos(arg)
+            c = Cm @ np.cos(arg)
+            if out is None:
+                out = c
+            else:
+                out += c
             if Sm is not None:
                 out += Sm @ np.sin(arg)
         if self.hidden:
@@ -744,9 +753,10 @@ class Bench:
         self.data.xfrc_applied[self._bid["unbalance"], :3] = self._centrifugal_N * np.array([math.cos(a), math.sin(a), 0.0])
 
     def _set_springs(self, offsets: np.ndarray) -> None:
+        # both ends of the dead band at the offset (a slice when the tendons are consecutive: the
+        # static solve sets them at every Newton iteration of a rolling-path bench)
         ls = self.model.tendon_lengthspring
-        ls[self._ten, 0] = offsets
-        ls[self._ten, 1] = offsets
+        ls[self._ten_rows] = np.asarray(offsets, dtype=float)[:, None]
 
     def _stiffness_matrix(self, housing_m: np.ndarray | None = None, q0: np.ndarray | None = None) -> np.ndarray:
         """K = −∂(generalized force)/∂q by central differences at q0 (default: the unposed
