@@ -64,10 +64,14 @@ squares axis over one revolution of the synchronous motion) is the lab z axis th
 in the disk plane.
 
 Statics instead of stepping: a pose is the equilibrium qfrc_smooth(q) = 0 of the 6 DOFs (radial
-x/y, tilt x/y, spin, twist) for the commanded drive angle. It is found by Newton iterations with a
-constant stiffness matrix (finite differences of MuJoCo's generalized forces, once per bench):
-each iteration is one ``mj_forward``; a pose converges in 3–4 iterations to |Δq| < 1e-14 m /
-1e-14 rad (+ 4 ulp of q), far below 1 nm / 0.001″ (4.8e-9 rad). MuJoCo warnings are checked
+x/y, tilt x/y, spin, twist) for the commanded drive angle. It is found by Newton iterations to
+|Δq| < 1e-14 m / 1e-14 rad (+ 4 ulp of q) on the last step, far below 1 nm / 0.001″ (4.8e-9 rad);
+each iteration is one ``mj_forward``. Rolling-path bearings: a constant stiffness matrix (finite
+differences of MuJoCo's generalized forces, once per bench). Ball sets: the full Jacobian, MuJoCo's
+constant part plus the ball sets' stiffness and their rate along the spin (twin/ballsets.py) and
+gravity's rate on the turning bodies at the pose's angle, so Newton converges quadratically; the
+warm start moves the previous pose along its tangent dq/dcmd, and the servo's refinements of a
+stop (command changes ≤ 1e-6 rad) settle in one step. MuJoCo warnings are checked
 after each pose. Nothing here computes an encoder or probe reading: that is the instruments' job,
 from the poses returned here.
 """
@@ -119,6 +123,10 @@ _LINEAR = np.array([True, True, False, False, False, False])
 SETTLE_ATOL = 1e-14
 SETTLE_MAX_ITER = 60
 _EPS = float(np.finfo(float).eps)
+# Largest command change predicted along the tangent dq/dcmd (_solve's warm start). Newton
+# iterations per pose on jia2019 (tangent / previous lag kept): 0.1° moves 2.01 / 2.86, 1° 2.92 /
+# 3.00, 6° 3.02 / 3.00, 15.65° 3.33 / 3.03, random angles 4.12 / 3.40.
+TANGENT_MAX_STEP_RAD = 0.05
 
 # Cage lobing (rolling-element set) and random non-repeating motion: model constants.
 CAGE_ORDERS = (1, 2, 3)              # low orders: ball diameter variation around the set
@@ -800,7 +808,14 @@ class Bench:
         # in the command change; "keep the previous lag" was its spin component alone). The
         # servo's refinements of one stop change the command by < 1e-6 rad: the prediction is
         # then within the settle criterion and one Newton step confirms it.
-        q = self._q_last + self._tangent * (cmd_rad - self._cmd_last)
+        dc = cmd_rad - self._cmd_last
+        if abs(dc) <= TANGENT_MAX_STEP_RAD:
+            q = self._q_last + self._tangent * dc
+        else:
+            # a long move: the tangent would extrapolate the ball configuration's response far
+            # beyond its validity (measured: more iterations from 6° on); keep the previous lag
+            q = self._q_last.copy()
+            q[4] += dc
         d = self.data
         ball = self.ball_sets is not None
         tol4 = 4 * _EPS
