@@ -5,8 +5,8 @@ Run: .venv/bin/python benchmarks/physics_floor.py [scenario.toml] [--stops N] [-
 What is compared, on the same poses:
 
 - **twin**: ``Bench.pose_at`` (twin/physics.py) as ``simulate``'s truth α grid calls it: an ideal
-  positioner (``SimRotaryStage`` without servo) stopping where head 1 reads each of ``N`` readings
-  of a 0.1° grid (rep 0, forward), ≈ 3.4 poses per stop. Each pose: the cage path, the thermal
+  positioner (``SimRotaryStage`` without servo, the secant on head 1's reading) stopping where
+  head 1 reads each of ``N`` readings of a 0.1° grid (rep 0, forward), ≈ 3.0 poses per stop. Each pose: the cage path, the thermal
   drift, Newton on the six compliant DOFs (one ``mj_forward`` per iteration for MuJoCo's part, the
   2 × Z Hertzian ball forces and their stiffness, twin/bearing.py), and the posed bodies.
 - **closed form**: every recorded pose's equilibrium solved again from its inputs (command,
@@ -50,7 +50,7 @@ def record_twin_poses(sc, n_stops: int):
     bench.reset_path()
     st = SimBenchState(bench, SimClock())
     enc = SimEncoder.sim_from_scenario(sc, st, hidden=bench.hidden)
-    stage = SimRotaryStage("floor_stage", st, enc)
+    stage = SimRotaryStage("floor_stage", st, enc, secant=True)   # as simulate's truth grid
     rec: list[tuple] = []
     solve = bench._solve
 

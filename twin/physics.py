@@ -64,10 +64,14 @@ squares axis over one revolution of the synchronous motion) is the lab z axis th
 in the disk plane.
 
 Statics instead of stepping: a pose is the equilibrium qfrc_smooth(q) = 0 of the 6 DOFs (radial
-x/y, tilt x/y, spin, twist) for the commanded drive angle. It is found by Newton iterations with a
-constant stiffness matrix (finite differences of MuJoCo's generalized forces, once per bench):
-each iteration is one ``mj_forward``; a pose converges in 3–4 iterations to |Δq| < 1e-14 m /
-1e-14 rad (+ 4 ulp of q), far below 1 nm / 0.001″ (4.8e-9 rad). MuJoCo warnings are checked
+x/y, tilt x/y, spin, twist) for the commanded drive angle. It is found by Newton iterations to
+|Δq| < 1e-14 m / 1e-14 rad (+ 4 ulp of q) on the last step, far below 1 nm / 0.001″ (4.8e-9 rad);
+each iteration is one ``mj_forward``. Rolling-path bearings: a constant stiffness matrix (finite
+differences of MuJoCo's generalized forces, once per bench). Ball sets: the full Jacobian, MuJoCo's
+constant part plus the ball sets' stiffness and their rate along the spin (twin/ballsets.py) and
+gravity's rate on the turning bodies at the pose's angle, so Newton converges quadratically; the
+warm start moves the previous pose along its tangent dq/dcmd, and the servo's refinements of a
+stop (command changes ≤ 1e-6 rad) settle in one step. MuJoCo warnings are checked
 after each pose. Nothing here computes an encoder or probe reading: that is the instruments' job,
 from the poses returned here.
 """
@@ -83,6 +87,7 @@ from scipy.interpolate import CubicSpline
 
 from benchtwin.units import ARCSEC
 
+from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import Hidden, TrueScenario
@@ -117,6 +122,11 @@ _LINEAR = np.array([True, True, False, False, False, False])
 # hinges). 1e-14 m = 1e-5 nm and 1e-14 rad = 2e-9″: the pose noise is then the float64 rounding.
 SETTLE_ATOL = 1e-14
 SETTLE_MAX_ITER = 60
+_EPS = float(np.finfo(float).eps)
+# Largest command change predicted along the tangent dq/dcmd (_solve's warm start). Newton
+# iterations per pose on jia2019 (tangent / previous lag kept): 0.1° moves 2.01 / 2.86, 1° 2.92 /
+# 3.00, 6° 3.02 / 3.00, 15.65° 3.33 / 3.03, random angles 4.12 / 3.40.
+TANGENT_MAX_STEP_RAD = 0.05
 
 # Cage lobing (rolling-element set) and random non-repeating motion: model constants.
 CAGE_ORDERS = (1, 2, 3)              # low orders: ball diameter variation around the set
@@ -231,6 +241,9 @@ class Bench:
         self._generate(sc)
         self.thermal = self._thermal(sc)
         self._drift4 = np.zeros(4)           # thermal translation of the bearing seats now
+        self._drift_t = math.nan             # the time of _drift4_t (pose_at's cache)
+        self._drift4_t = self._drift4
+        self._drift_src: Thermal | None = None
         place = Placement(
             disk_offset_m=self.disk_offset_m,
             disk_tilt_rad=float(er["disk_tilt"]),
@@ -267,6 +280,9 @@ class Bench:
         if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dadr, np.arange(6))):
             raise RuntimeError("bench.xml: expected the six compliant joints in solve order")
         self._ten = np.array([m.tendon(n).id for n in BEARING_TENDONS])
+        t0 = int(self._ten[0])
+        consecutive = np.array_equal(self._ten, np.arange(t0, t0 + self._ten.size))
+        self._ten_rows: slice | np.ndarray = slice(t0, t0 + self._ten.size) if consecutive else self._ten
         self._act = m.actuator("drive").id
         self._bid = {n: m.body(n).id for n in
                      ("shaft", "disk", "polygon", "polygon_section", "sphere_top", "sphere_bottom", "unbalance")}
@@ -284,12 +300,29 @@ class Bench:
         # Journal displacement at the bearings = T·q (the fixed tendons are linear in q).
         self._T = self._tendon_matrix()
         self.reset_path()
+        self._Tt = np.ascontiguousarray(self._T.T)
         if self.ball_sets is not None:
             bs, self.ball_sets = self.ball_sets, None      # MuJoCo's part alone
             self._K_mj = self._stiffness_matrix()
             self.ball_sets = bs
+            self._kernel = BallSets([bs["top"], bs["bottom"]])
+            # MuJoCo's load along the spin is not linear: gravity on the bodies turning with the
+            # shaft (unbalance, centred masses' tilt moments) is A + B·cos θ + C·sin θ. K_mj holds
+            # its derivative at θ = 0 (−C); the Newton matrix takes it at the pose's θ.
+            B, C = self._gravity_harmonics()
+            self._K_mj[:, 4] += C
+            self._assembly = self._assembly_matrix(B, C)
+        # ∂(residual)/∂(drive command): the position actuator's kp along its moment arms (linear:
+        # one difference is exact); with the Newton matrix it gives the tangent dq/dcmd that
+        # predicts the next pose (_solve's warm start).
+        self._dr_dcmd = self._command_sensitivity()
         self._K = self._stiffness_matrix()
         self._Kinv = np.linalg.inv(self._K)
+        self._tangent = self._Kinv @ self._dr_dcmd
+        # Newton's right-hand sides: the residual (column 0, per iteration) and ∂r/∂cmd (column 1)
+        # in one solve, which gives the step and the tangent of the same matrix.
+        self._rhs = np.zeros((6, 2))
+        self._rhs[:, 1] = self._dr_dcmd
         self._center_axis_average_line()
         self.reset_path()
 
@@ -480,16 +513,22 @@ class Bench:
         """Rolling-path offsets (top_x, top_y, bottom_x, bottom_y) at shaft angle θ, without the
         constant housing position: the rest positions of the four bearing springs."""
         th = float(theta_rad)
-        if self.motion_table is not None:
-            out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
-        else:
-            out = np.zeros(4)
         # ball bearings: the races' shapes act through the ball forces (_ball_forces), not here
         t = self._race_terms(rep, include_async) if self.ball_sets is None else None
+        if self.motion_table is not None:
+            out = np.asarray(self._table_spline(math.fmod(th, TWO_PI) % TWO_PI), dtype=float).copy()
+        elif t is not None:
+            out = None           # the first sum is the array (0 + x is x: one NumPy call less)
+        else:
+            out = np.zeros(4)
         if t is not None:
             f, ph, Cm, Sm = t
             arg = f * th + ph
-            out += Cm @ np.cos(arg)
+            c = Cm @ np.cos(arg)
+            if out is None:
+                out = c
+            else:
+                out += c
             if Sm is not None:
                 out += Sm @ np.sin(arg)
         if self.hidden:
@@ -510,13 +549,92 @@ class Bench:
 
     def _residual_and_K(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual and the Newton matrix of a ball bench: MuJoCo's part of K (constant: its forces
-        are linear in the small radial/tilt coordinates) plus Tᵀ·K_balls·T of the ball sets at this
-        configuration (analytic), so Newton converges quadratically."""
+        are linear in the small radial/tilt coordinates) plus the ball sets' Jacobian at this
+        configuration (analytic, twin/ballsets.py): Tᵀ·K_balls·T for the journal displacements and,
+        in the spin column, −Tᵀ·∂F/∂θ (the balls roll on with the shaft: cage angle and races'
+        waviness at the balls), so Newton converges quadratically in all six coordinates."""
         d = self.data
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
-        F, Kb = self._ball_forces(q, with_stiffness=True)
-        return d.qfrc_smooth + self._T.T @ F, self._K_mj + self._T.T @ Kb @ self._T
+        F, K, g = self._fused().evaluate(*self._kernel_inputs(q))
+        # one product assembles both: (K blocks, F, g) @ _assembly = (J − K_mj flattened, Tᵀ·F)
+        th = float(q[4])
+        out = np.array(K[0] + K[1] + tuple(F) + tuple(g) + (math.cos(th), math.sin(th))) @ self._assembly
+        return d.qfrc_smooth + out[36:], self._K_mj + out[:36].reshape(6, 6)
+
+    def _fused(self) -> BallSets:
+        """The fused kernel of the current ball sets (rebuilt if a set was replaced, as the
+        bearing tests and design studies do on a built bench)."""
+        k, bs = self._kernel, self.ball_sets
+        if k.sets[0] is not bs["top"] or k.sets[1] is not bs["bottom"]:
+            k = self._kernel = BallSets([bs["top"], bs["bottom"]])
+        return k
+
+    def _kernel_inputs(self, q: np.ndarray) -> tuple[list, float, list, list]:
+        """(u, θ, cage angles, d(cage)/dθ) of the ball sets at q, as Python floats."""
+        housing = self._housing_m if self._solve_housing is None else self._solve_housing
+        u = (self._T @ q - housing).tolist()
+        th = float(q[4])
+        if self.hidden:
+            dx = self.hidden.race_x_offset_m(th)     # hidden tangential motion: X only
+            u[0] -= dx
+            u[2] -= dx
+        # cage_angles_rad on floats: ref + rho·(θ − θ_ref)·(1 + slip); its rate rho·(1 + slip)
+        slip = self._path_slip.tolist()
+        rho = self._kernel.rho
+        dth = th - self._path_theta_ref
+        cages = [c + r * dth * (1.0 + s) for c, r, s in zip(self._path_cage_ref.tolist(), rho, slip)]
+        rates = [r * (1.0 + s) for r, s in zip(rho, slip)]
+        return u, th, cages, rates
+
+    def _ball_kernel(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fused kernel's forces F (4,), block-diagonal stiffness −dF/du (4, 4) and explicit
+        shaft-angle rate g = ∂F/∂θ at fixed u (4,): the quantities of ``_ball_forces`` (which keeps
+        the per-set reference formulas of twin/bearing.py) plus g (tests compare them)."""
+        F, K, g = self._fused().evaluate(*self._kernel_inputs(q))
+        (a, b, c), (e, f, h) = K
+        Kb = np.array([[a, b, 0.0, 0.0], [b, c, 0.0, 0.0], [0.0, 0.0, e, f], [0.0, 0.0, f, h]])
+        return np.array(F), Kb, np.array(g)
+
+    def _gravity_harmonics(self) -> tuple[np.ndarray, np.ndarray]:
+        """B, C of MuJoCo's generalized force at q = (0, 0, 0, 0, θ, 0) with the drive at θ (no
+        actuator force), springs at zero rest offset, no applied loads: A + B·cos θ + C·sin θ
+        (gravity on rigid bodies turning about the spin axis; benchmarks/physics_floor.py checks the
+        form to 1e-20)."""
+        d = self.data
+        self._set_springs(np.zeros(4))
+        d.qvel[:] = 0.0
+        d.qfrc_applied[:] = 0.0
+        d.xfrc_applied[:] = 0.0
+        g = []
+        for th in (0.0, 0.5 * math.pi, math.pi):
+            d.qpos[:] = 0.0
+            d.qpos[4] = th
+            d.ctrl[self._act] = th
+            mujoco.mj_forward(self.model, d)
+            g.append(d.qfrc_smooth.copy())
+        d.qpos[:] = 0.0
+        d.ctrl[self._act] = 0.0
+        return 0.5 * (g[0] - g[2]), g[1] - 0.5 * (g[0] + g[2])
+
+    def _assembly_matrix(self, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """(16, 42) map from the kernel's (kxx, kxy, kyy per set, F, g) and (cos θ, sin θ) to the
+        flattened θ-dependent part of the Newton matrix (36): Tᵀ·K_b·T − Tᵀ·g·e_θᵀ, and MuJoCo's
+        gravity rate in the spin column, B·sin θ − C·cos θ (−∂/∂θ of A + B·cos θ + C·sin θ; its value
+        at θ = 0 is already in K_mj); and to Tᵀ·F (6)."""
+        T = self._T
+        P = np.zeros((16, 42))
+        P[14, 4:36:6] = -C
+        P[15, 4:36:6] = B
+        for s in range(2):
+            tx, ty = T[2 * s], T[2 * s + 1]
+            P[3 * s] = np.concatenate([np.outer(tx, tx).ravel(), np.zeros(6)])
+            P[3 * s + 1] = np.concatenate([(np.outer(tx, ty) + np.outer(ty, tx)).ravel(), np.zeros(6)])
+            P[3 * s + 2] = np.concatenate([np.outer(ty, ty).ravel(), np.zeros(6)])
+        for i in range(4):
+            P[6 + i, 36:] = T[i]                 # Tᵀ·F
+            P[10 + i, 4:36:6] = -T[i]            # spin column: −Tᵀ·g
+        return P
 
     def _tendon_matrix(self) -> np.ndarray:
         """(4, 6) T with journal displacements (top x, top y, bottom x, bottom y) = T·q."""
@@ -643,9 +761,10 @@ class Bench:
         self.data.xfrc_applied[self._bid["unbalance"], :3] = self._centrifugal_N * np.array([math.cos(a), math.sin(a), 0.0])
 
     def _set_springs(self, offsets: np.ndarray) -> None:
+        # both ends of the dead band at the offset (a slice when the tendons are consecutive: the
+        # static solve sets them at every Newton iteration of a rolling-path bench)
         ls = self.model.tendon_lengthspring
-        ls[self._ten, 0] = offsets
-        ls[self._ten, 1] = offsets
+        ls[self._ten_rows] = np.asarray(offsets, dtype=float)[:, None]
 
     def _stiffness_matrix(self, housing_m: np.ndarray | None = None, q0: np.ndarray | None = None) -> np.ndarray:
         """K = −∂(generalized force)/∂q by central differences at q0 (default: the unposed
@@ -663,6 +782,21 @@ class Bench:
         self._solve_housing = None
         return K
 
+    def _command_sensitivity(self) -> np.ndarray:
+        """∂(generalized force)/∂(drive command) at rest: MuJoCo's forces at commands 1 and 0 (the
+        position actuator is linear in its control, so the difference is its kp along the
+        actuator's moment arms, exactly)."""
+        d = self.data
+        d.qpos[:] = 0.0
+        d.qvel[:] = 0.0
+        d.qfrc_applied[:] = 0.0
+        f = []
+        for c in (1.0, 0.0):
+            d.ctrl[self._act] = c
+            mujoco.mj_forward(self.model, d)
+            f.append(d.qfrc_smooth.copy())
+        return f[0] - f[1]
+
     def _solve(self, cmd_rad: float, direction: int, rep: int, include_async: bool = True,
                housing_m: np.ndarray | None = None) -> int:
         """Static equilibrium for drive command ``cmd_rad``; leaves ``self.data`` posed there.
@@ -670,20 +804,40 @@ class Bench:
         housing = self._housing_m + self._drift4 if housing_m is None else housing_m
         self._solve_housing = housing
         self._set_loads(cmd_rad, direction)
-        q = self._q_last.copy()
-        q[4] += cmd_rad - self._cmd_last          # warm start: keep the previous lag
+        # Warm start: the previous pose moved along its tangent dq/dcmd = J⁻¹·∂r/∂cmd (first order
+        # in the command change; "keep the previous lag" was its spin component alone). The
+        # servo's refinements of one stop change the command by < 1e-6 rad: the prediction is
+        # then within the settle criterion and one Newton step confirms it.
+        dc = cmd_rad - self._cmd_last
+        if abs(dc) <= TANGENT_MAX_STEP_RAD:
+            q = self._q_last + self._tangent * dc
+        else:
+            # a long move: the tangent would extrapolate the ball configuration's response far
+            # beyond its validity (measured: more iterations from 6° on); keep the previous lag
+            q = self._q_last.copy()
+            q[4] += dc
         d = self.data
+        ball = self.ball_sets is not None
+        tol4 = 4 * _EPS
         for it in range(1, SETTLE_MAX_ITER + 1):
-            self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
-            self._set_centrifugal(q[4])
-            if self.ball_sets is not None:
+            if ball:
+                # the ball sets carry the shaft: the tendon springs are off, their rest positions
+                # (set below for the final pose) do not enter the residual
+                self._set_centrifugal(q[4])
                 r, Kq = self._residual_and_K(q)
-                dq = np.linalg.solve(Kq, r)
+                rhs = self._rhs
+                rhs[:, 0] = r
+                x = np.linalg.solve(Kq, rhs)
+                dq = x[:, 0]
+                self._tangent = x[:, 1]
             else:
+                self._set_springs(housing + self.race_offsets_m(q[4], rep, include_async))
+                self._set_centrifugal(q[4])
                 r = self._residual(q)
                 dq = self._Kinv @ r
             q = q + dq
-            if np.all(np.abs(dq) <= SETTLE_ATOL + 4 * np.finfo(float).eps * np.abs(q)):
+            # the settle criterion on Python floats (six values: cheaper than four NumPy calls)
+            if all(abs(a) <= SETTLE_ATOL + tol4 * abs(b) for a, b in zip(dq.tolist(), q.tolist())):
                 break
         else:
             raise RuntimeError(f"static solve did not converge at command {cmd_rad} rad: |dq| = {np.abs(dq).max():g}")
@@ -692,7 +846,7 @@ class Bench:
         self._set_centrifugal(q[4])
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
-        if np.any(d.warning.number):
+        if d.warning.number.any():
             raise RuntimeError(f"MuJoCo warnings during the static solve: {d.warning.number}")
         self._solve_housing = None
         self._q_last = q
@@ -747,9 +901,13 @@ class Bench:
         self.n_poses = 0
 
     # ----------------------------------------------------------------------------- API -------
-    def _body(self, name: str) -> BodyPose:
+    def _body(self, name: str, frames: tuple[np.ndarray, np.ndarray] | None = None) -> BodyPose:
+        """The posed body ``name``; ``frames``: one copy of (xpos, xmat as (nbody, 3, 3)) shared by
+        the bodies of a pose (two copies per pose instead of two per body)."""
         i = self._bid[name]
-        return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
+        if frames is None:
+            return BodyPose(pos=self.data.xpos[i].copy(), R=self.data.xmat[i].reshape(3, 3).copy())
+        return BodyPose(pos=frames[0][i], R=frames[1][i])
 
     def pose_at(self, shaft_angle_rad: float, rep: int = 0, t_s: float = 0.0, direction: int = +1,
                 rolling: bool = False, bearing_torque_Nm: float | None = None) -> BenchPose:
@@ -768,8 +926,13 @@ class Bench:
             raise ValueError("direction must be +1 or -1")
         self._advance_path(t_s, rolling)
         if self.thermal.active:   # the housings' thermal drift at this time (twin/thermal.py)
-            d = self.thermal.axis_drift_m(t_s)
-            self._drift4 = np.array([d[0], d[1], d[0], d[1]])
+            # a function of t_s alone: the servo's refinements of a stop (same t_s) reuse it
+            t = float(t_s)
+            if t != self._drift_t or self.thermal is not self._drift_src:
+                d = self.thermal.axis_drift_m(t)
+                self._drift4_t = np.array([d[0], d[1], d[0], d[1]])
+                self._drift_t, self._drift_src = t, self.thermal
+            self._drift4 = self._drift4_t
         self._held_torque_Nm = None if bearing_torque_Nm is None else float(bearing_torque_Nm)
         try:
             it = self._solve(float(shaft_angle_rad), direction, int(rep))
@@ -782,9 +945,10 @@ class Bench:
         d = self.data
         q = d.qpos
         axis_p, _ = self._axis_line()
+        frames = (d.xpos.copy(), d.xmat.reshape(-1, 3, 3).copy())
         extra = {
-            "shaft": self._body("shaft"),
-            "polygon_section": self._body("polygon_section"),
+            "shaft": self._body("shaft", frames),
+            "polygon_section": self._body("polygon_section", frames),
             "drive_angle_rad": float(shaft_angle_rad),
             "twist_disk_to_polygon_rad": float(q[5]),
             "drive_torque_Nm": float(d.actuator_force[self._act]),
@@ -797,10 +961,10 @@ class Bench:
         return BenchPose(
             t_s=float(t_s),
             shaft_angle_rad=float(q[4]),
-            disk=self._body("disk"),
-            polygon=self._body("polygon"),
-            sphere_top=self._body("sphere_top"),
-            sphere_bottom=self._body("sphere_bottom"),
+            disk=self._body("disk", frames),
+            polygon=self._body("polygon", frames),
+            sphere_top=self._body("sphere_top", frames),
+            sphere_bottom=self._body("sphere_bottom", frames),
             extra=extra,
         )
 

@@ -466,7 +466,8 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
     bench.reset_path()
     st = SimBenchState(bench, SimClock())
     enc = SimEncoder.sim_from_scenario(sc, st, hidden=bench.hidden)
-    stage = SimRotaryStage("truth_stage", st, enc)
+    # the secant on head 1's reading: the same stops to the same tolerance in fewer poses
+    stage = SimRotaryStage("truth_stage", st, enc, secant=True)
 
     def stop(tag, t_s: float = 0.0) -> tuple:
         # the clock at the reading's time (time-dependent hidden physics); the move adds its own
