@@ -196,6 +196,7 @@ def main() -> None:
     ap.add_argument("scenario", nargs="?", default=None)
     ap.add_argument("--stops", type=int, default=3600, help="grid readings (default 3600: the 0.1° α grid)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", action="store_true", help="print a JSON summary as the last line (run_bench.py)")
     a = ap.parse_args()
     sc = load_scenario(a.scenario)
     if sc.get("hidden") if hasattr(sc, "get") else None:
@@ -224,6 +225,12 @@ def main() -> None:
     print(f"agreement: radial/tilt coordinates max {dlin[:, :2].max():.2e} m / {dlin[:, 2:].max():.2e} rad, "
           f"spin {dang[:, 0].max():.2e}″, twist {dang[:, 1].max():.2e}″ "
           f"(gravity harmonics check {g_check:.1e})")
+    if a.json:
+        import json
+
+        print(json.dumps({"scenario": sc.name, "stops": a.stops, "poses": n, "twin_us_per_pose": us_twin,
+                          "floor_us_per_pose": us_floor, "ratio": us_twin / us_floor,
+                          "newton_twin": float(its_twin), "agreement_m": float(dlin[:, :2].max())}))
 
 
 if __name__ == "__main__":

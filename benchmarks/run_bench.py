@@ -14,8 +14,10 @@ Floors, measured in the same run by the scripts beside this one:
 - render floor (benchmarks/render_floor.py): a bare NumPy rasteriser of the exact coverage (the
   twin's line-end quality or better: benchmarks/area_floor.py) and bare OpenCV sensor operations on
   one frame of the same scenario, next to the twin's renderer and sensor model on the same frame;
-- physics floor: not measured here (the closed-form solve of the poses is not written yet);
-  benchmarks/physics_bench.py and servo_bench.py give the physics' own rates.
+- physics floor (benchmarks/physics_floor.py): the twin's static poses (``Bench.pose_at``, as the
+  truth's α grid calls it) against the closed-form solve of the same poses, all at once in NumPy;
+- servo floor (benchmarks/servo_bench.py): the drive servo's physics steps against raw ``mj_step``
+  on the same model (the servo's dynamics have no closed form: raw MuJoCo is their floor).
 
 Ratios printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
 twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
@@ -62,6 +64,14 @@ def timed_run(cmd: list[str], capture: bool = False) -> tuple[float, float, str]
     return wall, cpu, p.stdout or ""
 
 
+def _servo(sc: list[str]) -> dict:
+    """The servo's steps/s against raw mj_step (benchmarks/servo_bench.py, in this process: CPU time)."""
+    sys.path.insert(0, str(HERE))
+    from servo_bench import bench_one
+
+    return bench_one(Path(sc[0]) if sc else None)
+
+
 def last_json(text: str) -> dict:
     return json.loads(text.strip().splitlines()[-1])
 
@@ -99,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
             parts.append(last_json(timed_run([py, str(HERE / "report_bench.py"), str(ds), "-o", str(work / f"rb{i}"),
                                               "--close-loop", "--json"], capture=True)[2])["parts"])
         rf = last_json(timed_run([py, str(HERE / "render_floor.py"), "--json"], capture=True)[2])
+        pf = last_json(timed_run([py, str(HERE / "physics_floor.py"), *sc, "--json"], capture=True)[2])
+        sv = _servo(sc)
     finally:
         if args.keep is None:
             shutil.rmtree(work, ignore_errors=True)
@@ -153,12 +165,16 @@ def main(argv: list[str] | None = None) -> int:
           + f"; whole process incl. start and imports {med([d['process_wall_s'] for d in io]):.2f} s wall")
     print(f"render: twin backend {rf['twin_backend']}, line-end error ≤ {rf['twin_end_error_px']:.4f} px; "
           f"floor ≤ {rf['floor_end_error_px']:.4f} px (against the exact analytic coverage)")
-    print("physics floor: not measured (closed-form solve not written); see physics_bench.py, servo_bench.py")
+    print(f"physics: {pf['poses']} poses of the α grid ({pf['stops']} stops), twin {pf['twin_us_per_pose']:.1f} µs/pose "
+          f"(Newton {pf['newton_twin']:.2f} iterations), closed form {pf['floor_us_per_pose']:.1f} µs/pose: "
+          f"{pf['ratio']:.2f}× (target ≤ 2), CPU; servo: {sv['servo_steps_s']:,.0f} steps/s against raw mj_step "
+          f"{sv['raw_steps_s']:,.0f}: {sv['ratio']:.2f}× (target ≤ 2)")
     print(f"Goal (issue #17): run ≤ 3× I/O floor: {wall['run'] / floor_io_w:.2f}× wall, "
           f"{cpu['run'] / floor_io_c:.2f}× CPU")
     if args.json:
         print(json.dumps({"wall_s": wall, "cpu_s": cpu, "in_process": parts, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
-                          "render_floor": rf, "load_average": [load0[0], load1[0]], "frames": n}))
+                          "render_floor": rf, "physics_floor": pf, "servo": sv,
+                          "load_average": [load0[0], load1[0]], "frames": n}))
     return 0
 
 
