@@ -10,12 +10,14 @@ unit Gaussian prior (covariance diag(u²) + S·Sᵀ); leave-one-group-out cross-
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
 from scipy import stats
 
 from benchtwin.units import ARCSEC_PER_RAD
+from .blockfit import NuisanceFactor, RangeBasis, block_fit
 from .evidence import Evidence
 from .thresholds import MAX_CV_FOLDS
 
@@ -34,6 +36,14 @@ def _z_from_chi2(d: float, k: int) -> float:
     if lp > -700:
         return float(stats.norm.isf(math.exp(lp) / 2.0))
     return math.sqrt(-2.0 * lp)
+
+
+def _digest(a: np.ndarray | None) -> tuple | None:
+    """A key for the exact bytes of ``a`` (shape, dtype and a 256-bit BLAKE2b digest of its C-order
+    bytes): equal keys for equal arrays, different keys for any other bytes (a collision is ~2⁻¹²⁸)."""
+    if a is None:
+        return None
+    return a.shape, a.dtype.str, hashlib.blake2b(np.ascontiguousarray(a).tobytes(), digest_size=32).digest()
 
 
 def _center(x: np.ndarray, groups: np.ndarray, w2: np.ndarray) -> np.ndarray:
@@ -90,6 +100,17 @@ class _Problem:
         else:
             self.y, self.w, self.S = y_a, w_a, S_a
         self.n_rows = self.y.size
+        # fits are memoised (keyed on the exact bytes of X, the training rows, E and y): S and w are
+        # fixed for the problem's life, read-only so that nothing changes them under the memo
+        self.S.flags.writeable = False
+        self.w.flags.writeable = False
+        # the block solver (analysis.tracing.blockfit) where its bound allows, else the reference:
+        # trace's screening sets it (decisions, whose thresholds and ties are far above its ~1e-13
+        # difference from the reference); the reported numbers are the reference's
+        self.fast = False
+        self._memo: dict = {}
+        self._factors: dict = {}
+        self._basis = RangeBasis(self.n_rows)
         self.alpha_rows = np.zeros(self.n_rows, bool)
         self.alpha_rows[:n] = True
         self.folds = self._folds()
@@ -203,6 +224,35 @@ class _Problem:
 
     # -- fits --------------------------------------------------------------------------------
     def fit(self, X: np.ndarray, train: np.ndarray | None = None, extra: np.ndarray | None = None) -> dict:
+        """The weighted fit of X (and E = ``extra``) with the model nuisance, on ``train`` rows (all
+        rows by default): beta, cov, nuis, chi2, dof, k (rank of X), n, S. Memoised on the exact
+        bytes of its inputs and y; the block solver when ``fast`` is set, else the reference."""
+        if extra is not None and extra.shape[1] == 0:
+            extra = None
+        key = (self.fast, _digest(X), _digest(train), _digest(extra), _digest(self.y))
+        out = self._memo.get(key)
+        if out is None:
+            out = (self._fit_block(X, train, extra) if self.fast else None) or self._fit_reference(X, train, extra)
+            self._memo[key] = out
+        return out
+
+    def _fit_block(self, X, train, extra) -> dict | None:
+        rows = np.ones(self.n_rows, bool) if train is None else train
+        fkey = (_digest(train), _digest(self.y))
+        F = self._factors.get(fkey)
+        if F is None:
+            F = self._factors[fkey] = NuisanceFactor(self.S, self.w, self.y, rows)
+        out = block_fit(F, self._basis, X, extra)
+        if out is None:
+            return None
+        n_fit = int(rows.sum())
+        out.update(dof=max(n_fit - self.n_groups - out["k"], 1), n=n_fit,
+                   S=self.S if extra is None else np.hstack([self.S, extra]))
+        return out
+
+    def _fit_reference(self, X, train, extra) -> dict:
+        """The reference solver: SVD least squares (lstsq) of the column-scaled stacked matrix,
+        covariance from its pseudo-inverse, small singular values truncated."""
         w = self.w
         rows = np.ones(self.n_rows, bool) if train is None else train
         S = self.S if extra is None or extra.shape[1] == 0 else np.hstack([self.S, extra])
