@@ -184,6 +184,13 @@ class RadialMotion:
         (the noise from each rep's residual about a series of order ``ASYNC_NOISE_ORDER``: white
         noise, smooth motion). ``sigma_um`` = 0 unless the scatter exceeds the noise at
         significance ``p`` (F test). Needs ``rep`` with ≥ 3 reps; {} otherwise."""
+        # computed once per (channel, p): the tracing asks for it with every problem it builds
+        cache = self.__dict__.setdefault("_async_cache", {})
+        if (name, p) not in cache:
+            cache[(name, p)] = self._async_rms(name, p)
+        return dict(cache[(name, p)])
+
+    def _async_rms(self, name: str, p: float) -> dict:
         if self.rep is None:
             return {}
         rep = np.asarray(self.rep).astype(int)

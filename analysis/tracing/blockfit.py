@@ -106,25 +106,30 @@ class NuisanceFactor:
         else:
             self.Q, self.a = np.zeros((self.m, 0)), 0.0
         self.bt = _project(self.Q, b[:, None])[0][:, 0]
-        self._U: tuple[int, np.ndarray, float] | None = None
+        self._U: tuple[int, np.ndarray, np.ndarray, float] | None = None
 
     def pad(self, Z: np.ndarray) -> np.ndarray:
         """Data rows (weighted) and zero prior rows."""
         return np.vstack([Z, np.zeros((self.q, Z.shape[1]))])
 
-    def projected_basis(self, basis: RangeBasis) -> np.ndarray:
-        """(I − P_S)·[U_w; 0], cached per version of the basis."""
-        return self._basis_parts(basis)[0]
-
-    def basis_gain(self, basis: RangeBasis) -> float:
-        """‖Q_Sᵀ·[U_w; 0]‖₂."""
-        return self._basis_parts(basis)[1]
-
-    def _basis_parts(self, basis: RangeBasis) -> tuple[np.ndarray, float]:
+    def basis(self, basis: RangeBasis) -> tuple[np.ndarray, np.ndarray, float]:
+        """U_w (the basis on these rows, weighted), (I − P_S)·[U_w; 0] and ‖Q_Sᵀ·[U_w; 0]‖₂, cached
+        per version of the basis."""
         if self._U is None or self._U[0] != basis.version:
-            Ut, C = _project(self.Q, self.pad(basis.U[self.rows] * self.w[:, None]))
-            self._U = (basis.version, Ut, float(np.linalg.norm(C, 2)) if C.size else 0.0)
-        return self._U[1], self._U[2]
+            Uw = basis.U[self.rows] * self.w[:, None]
+            Ut, C = _project(self.Q, self.pad(Uw))
+            self._U = (basis.version, Uw, Ut, float(np.linalg.norm(C, 2)) if C.size else 0.0)
+        return self._U[1], self._U[2], self._U[3]
+
+
+def _kappa(ncols: int, p: int, a_S: float, a_E: float, c_E: float, d: float, c_X: float | None = None) -> float:
+    """Upper bound on the condition number of the reference's column-scaled matrix [X, S, E] (with
+    the prior rows): σ₁ ≤ √ncols (unit columns); ‖R⁻¹‖ of a block upper-triangular R ≤ a + d + a·c·d
+    (the norms of its blocks' inverses a, d and of the coupling block c), applied to [S | E] (a_S,
+    a_E, c_E) and then to [N | X] (c = ‖Q_Nᵀ·X_s‖₂ ≤ ‖X_s‖₂ = c_X ≤ √p)."""
+    a_N = a_S + a_E + a_S * c_E * a_E
+    c = math.sqrt(p) if c_X is None else c_X
+    return math.sqrt(max(ncols, 1)) * (a_N + d + a_N * c * d)
 
 
 def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.ndarray | None) -> dict | None:
@@ -137,21 +142,22 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     if p and not np.all(sx > 0):
         return None
     Xt = _project(F.Q, F.pad(Xw / sx))[0] if p else np.zeros((F.m + F.q, 0))
-    a_N, c_E, Ew = F.a, 0.0, None
+    a_E, c_E, K, Ks, Uw, gain = 0.0, 0.0, None, None, None, 0.0
     if mE:
         K = basis.coefficients(extra)
         if K is None:
             return None
-        Ew = extra[F.rows] * F.w[:, None]
+        Uw, Ut, gain = F.basis(basis)
         # the reference's E columns are scaled to unit norm over data and prior rows (prior entries
-        # 1/se_j): projected on the complement of S their σ_min ≥ min 1/se_j (the prior rows are
-        # S's zeros), and Q_Sᵀ·E_s = (Q_Sᵀ·U_w)·K·diag(1/se)
-        se = np.sqrt(np.sum(Ew * Ew, axis=0) + 1.0)
+        # 1/se_j, ‖E_w,j‖ = ‖U_w·K_j‖): projected on the complement of S their σ_min ≥ min 1/se_j
+        # (the prior rows are S's zeros), and Q_Sᵀ·E_s = (Q_Sᵀ·U_w)·K·diag(1/se)
+        UK = Uw @ K if K.size else np.zeros((F.m, mE))
+        se = np.sqrt(np.sum(UK * UK, axis=0) + 1.0)
         a_E = float(se.max())
-        c_E = F.basis_gain(basis) * float(np.linalg.norm(K / se))      # ‖·‖₂ ≤ ‖·‖_F
-        a_N = F.a + a_E + F.a * c_E * a_E
+        Ks = K / se
+        c_E = gain * float(np.linalg.norm(Ks))      # ‖·‖₂ ≤ ‖·‖_F
         L = np.linalg.qr(K.T, mode="r").T if K.size else np.zeros((K.shape[0], 0))     # L·Lᵀ = K·Kᵀ
-        Et = F.projected_basis(basis) @ L
+        Et = Ut @ L
         r = Et.shape[1]
         Z = np.vstack([np.hstack([Et, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
         bt = np.concatenate([F.bt, np.zeros(r)])
@@ -175,12 +181,16 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
         Rx = R2[r:, r:]
         Gx = np.linalg.inv(Rx)     # R_X⁻¹: cov(β) = R_X⁻¹·R_X⁻ᵀ (scaled columns)
         d = float(np.linalg.norm(Gx))       # ‖R_X⁻¹‖₂ ≤ ‖R_X⁻¹‖_F
-        kappa = math.sqrt(ncols) * (a_N + d + a_N * math.sqrt(p) * d)
-        if not kappa <= KAPPA_MAX:
-            return None
+        if not _kappa(ncols, p, F.a, a_E, c_E, d) <= KAPPA_MAX:
+            # the Frobenius norms may overstate by up to √(rank): the 2-norms (small SVDs) decide
+            c_E = gain * float(np.linalg.norm(Ks, 2)) if mE else 0.0
+            Xs = Xw / sx
+            c_X = math.sqrt(float(np.linalg.eigvalsh(Xs.T @ Xs)[-1]))      # ‖X_s‖₂ ≤ √p
+            if not _kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX:
+                return None
         cov = (Gx @ Gx.T) / np.outer(sx, sx)
-    elif not math.sqrt(max(ncols, 1)) * a_N <= KAPPA_MAX:
+    elif not _kappa(ncols, 0, F.a, a_E, c_E, 0.0) <= KAPPA_MAX:
         return None
     rd = res[: F.m]     # the weighted data residual: ν = S_wᵀ·r, μ = E_wᵀ·r (prior stationarity)
-    nuis = F.Sw.T @ rd if Ew is None else np.concatenate([F.Sw.T @ rd, Ew.T @ rd])
+    nuis = F.Sw.T @ rd if K is None else np.concatenate([F.Sw.T @ rd, K.T @ (Uw.T @ rd)])
     return {"beta": gam[r:] / sx if p else np.zeros(0), "cov": cov, "nuis": nuis, "chi2": float(res @ res), "k": p}
