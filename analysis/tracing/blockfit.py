@@ -107,6 +107,24 @@ class NuisanceFactor:
             self.Q, self.a = np.zeros((self.m, 0)), 0.0
         self.bt = _project(self.Q, b[:, None])[0][:, 0]
         self._U: tuple[int, np.ndarray, np.ndarray, float] | None = None
+        self._cols: dict[bytes, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    def columns(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X's columns weighted on these rows, their norms s_x, the scaled columns X_s and their
+        projections (I − P_S)·[X_s; 0]: computed once per column (keyed on its exact bytes), since
+        the candidates' designs are made of the same columns again (singles, pairs, z fits)."""
+        keys = [X[:, j].tobytes() for j in range(X.shape[1])]
+        new = [j for j, k in enumerate(keys) if k not in self._cols]
+        if new:
+            Xw = X[:, new][self.rows] * self.w[:, None]
+            sx = np.linalg.norm(Xw, axis=0)
+            Xs = Xw / np.where(sx > 0, sx, 1.0)
+            Xt = _project(self.Q, self.pad(Xs))[0]
+            for i, j in enumerate(new):
+                self._cols[keys[j]] = (float(sx[i]), Xs[:, i], Xt[:, i])
+        got = [self._cols[k] for k in keys]
+        return (np.array([g[0] for g in got]), np.column_stack([g[1] for g in got]),
+                np.column_stack([g[2] for g in got]))
 
     def pad(self, Z: np.ndarray) -> np.ndarray:
         """Data rows (weighted) and zero prior rows."""
@@ -137,11 +155,12 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     bound on the reference's condition number cannot rule out its truncations (use the reference)."""
     p = X.shape[1]
     mE = 0 if extra is None else extra.shape[1]
-    Xw = X[F.rows] * F.w[:, None]
-    sx = np.linalg.norm(Xw, axis=0)
-    if p and not np.all(sx > 0):
-        return None
-    Xt = _project(F.Q, F.pad(Xw / sx))[0] if p else np.zeros((F.m + F.q, 0))
+    if p:
+        sx, Xs, Xt = F.columns(X)
+        if not np.all(sx > 0):
+            return None
+    else:
+        sx, Xs, Xt = np.zeros(0), np.zeros((F.m, 0)), np.zeros((F.m + F.q, 0))
     a_E, c_E, K, Ks, Uw, gain = 0.0, 0.0, None, None, None, 0.0
     if mE:
         K = basis.coefficients(extra)
@@ -184,7 +203,6 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
         if not _kappa(ncols, p, F.a, a_E, c_E, d) <= KAPPA_MAX:
             # the Frobenius norms may overstate by up to √(rank): the 2-norms (small SVDs) decide
             c_E = gain * float(np.linalg.norm(Ks, 2)) if mE else 0.0
-            Xs = Xw / sx
             c_X = math.sqrt(float(np.linalg.eigvalsh(Xs.T @ Xs)[-1]))      # ‖X_s‖₂ ≤ √p
             if not _kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX:
                 return None

@@ -46,19 +46,24 @@ def _digest(a: np.ndarray | None) -> tuple | None:
     return a.shape, a.dtype.str, hashlib.blake2b(np.ascontiguousarray(a).tobytes(), digest_size=32).digest()
 
 
-class _FitWithExtra(dict):
-    """A fit's dict whose "S" (the nuisance columns with the regressor block, [S, E]) is stacked
-    when first read: only the cross-validation's predictions read it."""
+class _Fit(dict):
+    """A fit's dict with some entries computed when first read (``lazy``: key → function returning
+    the entries it computes): the cross-validation reads only beta, nuis and S, the rest reads
+    everything; each entry is computed once, by the same expression as if it had been at once."""
 
-    def __init__(self, d: dict, parts: tuple):
+    def __init__(self, d: dict, lazy: dict):
         super().__init__(d)
-        self._parts = parts
+        self._lazy = lazy
 
     def __missing__(self, key):
-        if key != "S":
+        fn = self._lazy.get(key)
+        if fn is None:
             raise KeyError(key)
-        self["S"] = np.hstack(self._parts)
-        return self["S"]
+        self.update(fn())
+        for k in list(self._lazy):
+            if k in self:
+                del self._lazy[k]
+        return self[key]
 
 
 def _center(x: np.ndarray, groups: np.ndarray, w2: np.ndarray) -> np.ndarray:
@@ -278,7 +283,7 @@ class _Problem:
         if extra is None:
             out["S"] = self.S
             return out
-        return _FitWithExtra(out, parts=(self.S, extra))
+        return _Fit(out, {"S": lambda: {"S": np.hstack([self.S, extra])}})
 
     def _fit_reference(self, X, train, extra) -> dict:
         """The reference solver: SVD least squares (lstsq) of the column-scaled stacked matrix,
@@ -299,17 +304,24 @@ class _Problem:
             As = A / scale
             sol, _, rank, sv = np.linalg.lstsq(As, b, rcond=None)
             beta_all = sol / scale
-            covs = np.linalg.pinv(As.T @ As, rcond=1e-10, hermitian=True)
-            cov_all = covs / np.outer(scale, scale)
-            rank_x = int(np.linalg.matrix_rank(X[rows] * w[rows, None] / np.where(scale[:p] > 0, scale[:p], 1), tol=1e-8)) if p else 0
-            chi2 = float(np.sum((b - A @ beta_all) ** 2))
         else:
-            beta_all, cov_all, rank_x = np.zeros(0), np.zeros((0, 0)), 0
-            chi2 = float(np.sum(b ** 2))
+            beta_all = np.zeros(0)
         n_fit = int(rows.sum())
-        dof = max(n_fit - self.n_groups - rank_x, 1)
-        return {"beta": beta_all[:p], "cov": cov_all[:p, :p], "nuis": beta_all[p:], "chi2": chi2, "dof": dof,
-                "k": rank_x, "n": n_fit, "S": S}
+
+        def cov() -> dict:
+            # the pseudo-inverse and the rank: not read by the cross-validation (only beta, nuis)
+            if not A.shape[1]:
+                return {"cov": np.zeros((0, 0))}
+            covs = np.linalg.pinv(As.T @ As, rcond=1e-10, hermitian=True)
+            return {"cov": (covs / np.outer(scale, scale))[:p, :p]}
+
+        def rank() -> dict:
+            rank_x = int(np.linalg.matrix_rank(X[rows] * w[rows, None] / np.where(scale[:p] > 0, scale[:p], 1), tol=1e-8)) if p else 0
+            return {"k": rank_x, "dof": max(n_fit - self.n_groups - rank_x, 1)}
+
+        chi2 = float(np.sum((b - A @ beta_all) ** 2)) if A.shape[1] else float(np.sum(b ** 2))
+        return _Fit({"beta": beta_all[:p], "nuis": beta_all[p:], "chi2": chi2, "n": n_fit, "S": S},
+                    {"cov": cov, "k": rank, "dof": rank})
 
     def predict_rows(self, X, fit, rows=None, nuisance=True):
         rows = np.ones(self.n_rows, bool) if rows is None else rows
