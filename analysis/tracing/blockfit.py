@@ -70,8 +70,10 @@ class RangeBasis:
         nE = float(np.linalg.norm(E))
         if nE == 0.0:
             return np.zeros((self.U.shape[1], E.shape[1]))
-        R, K = _project(self.U, E)
+        K = self.U.T @ E
+        R = E - self.U @ K      # one pass: U is orthonormal, only the size of R is asked
         if float(np.linalg.norm(R)) > RANGE_TOL * nE:
+            R = _project(self.U, R)[0]
             u, s, _ = np.linalg.svd(R, full_matrices=False)
             new = u[:, s > RANGE_TOL * nE]
             new, _ = _project(self.U, new)
@@ -80,8 +82,8 @@ class RangeBasis:
                 return None
             self.U = np.hstack([self.U, new])
             self.version += 1
-            R, K = _project(self.U, E)
-            if float(np.linalg.norm(R)) > RANGE_TOL * nE:
+            K = self.U.T @ E
+            if float(np.linalg.norm(E - self.U @ K)) > RANGE_TOL * nE:
                 return None
         return K
 
