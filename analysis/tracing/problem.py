@@ -180,13 +180,25 @@ class _Problem:
             R_a = np.asarray(fn(self.ev, P, ctx), dtype=float)
             if R_a.shape[1] == 0:
                 continue
-            R_a = _center(R_a, self.ev.closure_group, self.w[: self.ev.n] ** 2)
+            R_a = self._center_screening(R_a) if self.fast else _center(R_a, self.ev.closure_group, self.w[: self.ev.n] ** 2)
             if self.view is not None:
                 R_s = self._filt(np.asarray(fn(self.view, P, ctx), dtype=float)) if mod.SEEN_BY_SELFCAL else \
                     np.zeros((self.n_rows - self.ev.n, R_a.shape[1]))
                 R_a = np.vstack([R_a, R_s])
             cols.append(R_a)
         return np.hstack(cols) if cols else np.zeros((self.n_rows, 0))
+
+    def _center_screening(self, x: np.ndarray) -> np.ndarray:
+        """:func:`_center` as one product with the (groups × readings) weighted-mean matrix: the
+        same columns to rounding (not the same bits), for the screening's regressor blocks, which
+        are centred per candidate; the reported fits centre them with :func:`_center`."""
+        if getattr(self, "_mean_op", None) is None:
+            g, w2 = self.ev.closure_group, self.w[: self.ev.n] ** 2
+            M = np.zeros((int(g.max()) + 1, g.size))
+            M[g, np.arange(g.size)] = w2
+            sw = M.sum(axis=1)
+            self._mean_op = M / np.where(sw > 0, sw, 1.0)[:, None]
+        return x - (self._mean_op @ x)[self.ev.closure_group]
 
     def _filt(self, x):
         x2 = x if x.ndim == 2 else x[:, None]
