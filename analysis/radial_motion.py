@@ -147,8 +147,24 @@ class RadialMotion:
         """(n × m) change of channel ``name`` (value, integral or quadrature) at θ for a 1-u change of
         each raw Fourier coefficient it is made of (the probe data's own uncertainty); ``orders``:
         only those harmonics."""
+        key = ("p", name, kind, None if orders is None else tuple(orders))
+        return self._cached(key, theta_deg, lambda: self._perturbations(theta_deg, name, kind, orders))
+
+    def _perturbations(self, theta_deg, name, kind, orders) -> np.ndarray:
         sel = (lambda u: u) if orders is None else (lambda u: {k: v for k, v in u.items() if k in orders})
         return np.hstack([perturbation_columns(theta_deg, sel(self._u[c]), w, kind) for c, w in self.combos[name].items()])
+
+    def _cached(self, key, theta_deg, make):
+        """The columns for ``key`` at these θ, computed once (the tracing asks for the same ones for
+        every candidate that scales them by its parameters); read-only, the same bytes every time."""
+        th = np.ascontiguousarray(theta_deg, dtype=float)
+        cache = self.__dict__.setdefault("_columns_cache", {})
+        k = (key, th.shape, th.tobytes())
+        if k not in cache:
+            out = np.asarray(make())
+            out.flags.writeable = False
+            cache[k] = out
+        return cache[k]
 
     def form_perturbations(self, theta_deg, name: str, u_um: float, kind: str = "integral", orders=None) -> np.ndarray:
         """(n × m) change of channel ``name`` at θ for a change of u_um (µm) in each Fourier coefficient
@@ -157,7 +173,8 @@ class RadialMotion:
         if not u_um or u_um <= 0:
             return np.zeros((np.size(theta_deg), 0))
         u = {k: (float(u_um), float(u_um)) for k in (self.orders if orders is None else orders)}
-        return np.hstack([perturbation_columns(theta_deg, u, w, kind) for c, w in self.combos[name].items()])
+        return self._cached(("f", name, kind, float(u_um), tuple(u)), theta_deg,
+                            lambda: np.hstack([perturbation_columns(theta_deg, u, w, kind) for c, w in self.combos[name].items()]))
 
     def async_rms(self, name: str = "dY_um", p: float = ASYNC_P) -> dict:
         """The non-repeating (asynchronous) motion of channel ``name`` (µm RMS over θ), in the band of
@@ -167,6 +184,13 @@ class RadialMotion:
         (the noise from each rep's residual about a series of order ``ASYNC_NOISE_ORDER``: white
         noise, smooth motion). ``sigma_um`` = 0 unless the scatter exceeds the noise at
         significance ``p`` (F test). Needs ``rep`` with ≥ 3 reps; {} otherwise."""
+        # computed once per (channel, p): the tracing asks for it with every problem it builds
+        cache = self.__dict__.setdefault("_async_cache", {})
+        if (name, p) not in cache:
+            cache[(name, p)] = self._async_rms(name, p)
+        return dict(cache[(name, p)])
+
+    def _async_rms(self, name: str, p: float) -> dict:
         if self.rep is None:
             return {}
         rep = np.asarray(self.rep).astype(int)

@@ -82,6 +82,9 @@ def main(argv: list[str] | None = None) -> int:
     t.wrap(bench_view, "render_bench", "  bench render (MuJoCo, cache miss)")
     t.wrap(pipeline, "_step", "analysis steps (radial, CCD, polygon)")
     t.wrap(pipeline, "_close_loop", "close the loop (tracing + model after)")
+    # the tracing alone (issue #17's "≤ 1 s"): _close_loop imports trace from the package when called
+    import benchtwin.analysis.tracing as tracing
+    t.wrap(tracing, "trace", "tracing alone (trace, inside close the loop)")
 
     out = args.out or Path(tempfile.mkdtemp(prefix="benchtwin-report-bench-")) / "an"
     ns = _ap.Namespace(dataset=args.dataset, out=out, order=10, model=None, force=True, quiet=True, json=False)

@@ -52,6 +52,7 @@ class _Cand:
     extras: dict = field(default_factory=dict)
     f_p: float | None = None
     equivalent: bool = False
+    member_bics: list[float] | None = None    # a pair's members' BIC (its gate compares with them)
 
     @property
     def key(self):
@@ -233,10 +234,15 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         if not cs:
             skipped[name] = why
         singles += cs
+    # Screening: every candidate's fits by the block solver (pb.fast, analysis.tracing.blockfit;
+    # ~1e-13 from the reference, far below every threshold and tie tolerance). The candidates whose
+    # numbers are reported are refitted with the reference afterwards (``report``), so that the
+    # results are the reference's to the last bit.
+    pb.fast = True
     for c in singles:
         _evaluate(pb, c, cands_mod, ctx)
     variants = list(singles)
-    bic0, aicc0 = pb.ic(pb.null)
+    bic0, aicc0 = pb.ic(pb.null)      # pb.null: the reference's (fitted before the screening)
     cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
     order = list(ALL) + [n for n in cands_mod if n not in ALL]  # the stated preference (ALL), whatever the call order
     tol = TIE_REL * max(float(pb.null["chi2"]), float(pb.n_rows))
@@ -331,7 +337,8 @@ def trace(evidence: Evidence, candidates=None) -> dict:
             continue
         c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
         _evaluate(pb, c, cands_mod, ctx)
-        gate(c, [a.bic, b.bic])
+        c.member_bics = [a.bic, b.bic]
+        gate(c, c.member_bics)
         pairs.append(c)
     # one entry per effect pair: the best-BIC variant combination among those that pass, else the best
     best_pair: dict[tuple, _Cand] = {}
@@ -343,6 +350,24 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     pairs = list(best_pair.values())
     passed = _ordered([c for c in singles + pairs if c.passed], lambda c: c.bic, tol, order)
     equivalents = [c for c in pairs if c.equivalent]
+    pb.fast = False
+    chosen = passed[0] if passed else None
+    reported: set[int] = set()
+
+    def report(c: _Cand) -> _Cand:
+        """c with its fits, gates and CV redone by the reference solver (the decisions stay the
+        screening's): the numbers results.json and the model file report."""
+        nonlocal cv0
+        if not reported:
+            cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
+        if id(c) not in reported:
+            reported.add(id(c))
+            _evaluate(pb, c, cands_mod, ctx)
+            gate(c, c.member_bics)
+        return c
+
+    if chosen is not None:
+        report(chosen)
 
     def cand_json(c: _Cand) -> dict:
         scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
@@ -363,7 +388,6 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                                              "tie_tolerance_chi2": tol},
                               "candidates": [cand_json(c) for c in _ordered(singles + pairs, lambda c: c.bic, tol, order)][:30]}
     total_err = _rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2))
-    chosen = passed[0] if passed else None
     # the three criteria side by side (the choice is BIC among candidates that pass all gates, CV
     # included; AICc, which penalises less, is reported so that a disagreement is visible)
     result["selection"] = {
@@ -423,7 +447,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
             pc = pb.predict_rows(c.X, c.fit, nuisance=False)
             if _cos2(pb, pc, pred) > COLLINEAR:
                 amb_cands.append(set(c.names))
-                amb_fits[c.key] = cand_json(c)
+                amb_fits[c.key] = cand_json(report(c))
     # sets forced by design: those of the chosen candidate and of every alternative tied with it
     # (an exact tie is a choice by stated preference only: the design's ambiguities of the other
     # candidate hold as much)
@@ -438,7 +462,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         amb_cands.append({other})
         for c in singles:
             if c.names == (other,):
-                amb_fits[c.key] = cand_json(c)
+                amb_fits[c.key] = cand_json(report(c))
     # members shared by every alternative are identified whatever the choice: not part of the set,
     # unless the alternatives differ only by one optional member (then the set names both)
     common = set.intersection(*amb_cands)

@@ -1,0 +1,128 @@
+"""The tracing's block solver (analysis/tracing/blockfit.py) against the reference solver, and the
+fit memo (analysis/tracing/problem.py).
+
+The block solver answers the screening's fits (trace's decisions); the reference answers every number
+that is reported. So: (1) both answer the same least-squares problem to rounding wherever the block
+solver answers; (2) where the reference truncates (rank-deficient designs), the block solver declines
+and the reference answers; (3) the memo never answers for other bytes; (4) trace decides and reports
+the same with the screening as with the reference alone.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from benchtwin.analysis.effects import ALL
+from benchtwin.analysis.tracing import _Problem, trace
+from benchtwin.analysis.tracing.problem import _center
+from tests.synthetic.evidence import make_evidence
+
+
+@pytest.fixture(scope="module")
+def pb():
+    ev = make_evidence(np.random.default_rng(5), start_faces=range(1, 24, 4), shifts=(0.0, 5.0, 10.0), x_probes=True,
+                       inject={"graduation_error": {3: (0.5, 0.2)}, "tangential_motion": {"gain": 0.4}})[0]
+    return _Problem(ev, use_selfcal=True)
+
+
+def _harmonics(pb, ks):
+    th = np.deg2rad(pb.ev.theta_deg)
+    X = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
+    X = _center(X, pb.ev.closure_group, pb.w[: pb.ev.n] ** 2)
+    return np.vstack([X, np.zeros((pb.n_rows - pb.ev.n, X.shape[1]))])
+
+
+def _extra(pb, gain):
+    mod = ALL["tangential_motion"]
+    return pb.regressor_nuisance([mod], [{"gain": gain}], {"harmonics": []})
+
+
+def _close(a, b, rtol):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape
+    scale = max(float(np.max(np.abs(b))) if b.size else 0.0, 1e-300)
+    assert float(np.max(np.abs(a - b))) <= rtol * scale if a.size else True
+
+
+@pytest.mark.parametrize("ks, gain, fold", [((2, 3), None, None), ((3,), 0.7, None), ((2, 4, 5, 7), None, 1),
+                                            ((2, 3), 0.4, 2), ((), None, None), ((), 0.5, 0)])
+def test_block_solver_answers_the_reference_problem(pb, ks, gain, fold):
+    X = _harmonics(pb, ks) if ks else np.zeros((pb.n_rows, 0))
+    extra = _extra(pb, gain) if gain is not None else None
+    assert extra is None or extra.shape[1] > 0
+    train = None if fold is None else pb.folds != fold
+    fast = pb._fit_block(X, train, extra)
+    ref = pb._fit_reference(X, train, extra)
+    assert fast is not None, "a well-conditioned design must be answered by the block solver"
+    assert fast["k"] == ref["k"] and fast["dof"] == ref["dof"] and fast["n"] == ref["n"]
+    assert abs(fast["chi2"] - ref["chi2"]) <= 1e-11 * ref["chi2"]
+    _close(fast["beta"], ref["beta"], 1e-9)
+    _close(fast["cov"], ref["cov"], 1e-9)
+    # the nuisance (S and the regressor block E): the same fitted contribution on every row
+    _close(fast["S"] @ fast["nuis"], ref["S"] @ ref["nuis"], 1e-9)
+    _close(fast["nuis"], ref["nuis"], 1e-8)
+
+
+def test_block_solver_declines_where_the_reference_truncates(pb):
+    X = _harmonics(pb, (2, 3))
+    X = np.hstack([X, X[:, :1] * 2.0])        # a repeated column: rank 4 of 5, the reference truncates
+    assert pb._fit_block(X, None, None) is None
+    pb.fast = True
+    try:
+        f = pb.fit(X)
+    finally:
+        pb.fast = False
+    ref = pb._fit_reference(X, None, None)
+    assert f["k"] == ref["k"] == 4
+    assert np.array_equal(f["beta"], ref["beta"]) and np.array_equal(f["cov"], ref["cov"]) and f["chi2"] == ref["chi2"]
+
+
+def test_memo_answers_only_for_the_same_bytes(pb):
+    X = _harmonics(pb, (2,))
+    f1 = pb.fit(X)
+    assert pb.fit(X.copy()) is f1                      # the same bytes: the memo's answer
+    X2 = X.copy()
+    X2[3, 0] = np.nextafter(X2[3, 0], np.inf)           # one ulp of one element
+    f2 = pb.fit(X2)
+    assert f2 is not f1
+    ref2 = pb._fit_reference(X2, None, None)
+    assert np.array_equal(f2["beta"], ref2["beta"]) and f2["chi2"] == ref2["chi2"]
+    # another y (trace swaps in the residual after): not the memo's answer for the old y
+    y0 = pb.y
+    pb.y = y0 * 0.5
+    try:
+        f3 = pb.fit(X)
+        assert f3 is not f1 and np.array_equal(f3["beta"], pb._fit_reference(X, None, None)["beta"])
+        assert not pb.y.flags.writeable
+    finally:
+        pb.y = y0
+    assert pb.fit(X) is f1
+    # the block solver's answers are kept apart from the reference's
+    pb.fast = True
+    try:
+        assert pb.fit(X) is not f1
+    finally:
+        pb.fast = False
+
+
+def _without_candidates(res: dict) -> str:
+    return json.dumps({k: v for k, v in res.items() if k != "candidates"}, sort_keys=True, default=str)
+
+
+@pytest.mark.parametrize("seed, kw", [
+    (12, dict(inject={"ac_scale": {"gain_pct": 0.3}})),
+    (4, dict(start_faces=range(1, 24, 4), shifts=(0.0, 5.0), x_probes=True,
+             inject={"tangential_motion": {"gain": 0.5}, "graduation_error": {4: (0.3, 1.0)}})),
+])
+def test_screening_changes_no_decision_and_no_reported_number(seed, kw, monkeypatch):
+    """trace with the block solver's screening and with the reference alone: the same dict to the last
+    bit, but for the report's list of candidates (screening numbers, ~1e-13 from the reference's)."""
+    ev = make_evidence(np.random.default_rng(seed), **kw)[0]
+    fast = trace(ev)
+    monkeypatch.setattr(_Problem, "_fit_block", lambda self, X, train, extra: None)
+    ref = trace(ev)
+    assert _without_candidates(fast) == _without_candidates(ref)
+    assert [c["names"] for c in fast["candidates"]] == [c["names"] for c in ref["candidates"]]
