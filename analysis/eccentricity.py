@@ -309,8 +309,8 @@ def _labelled(binary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         st[1:, 4] = np.bincount(lab.ravel(), minlength=n)[1:]
     bg_area = H * W - int(st[1:, 4].sum())
     if n < 2 or bg_area == 0:
-        _n, lab, st, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
-        return lab, st
+        _n, lab_cv, st_cv, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+        return lab_cv, st_cv
     # the background's box: the rows and columns holding a background pixel
     x, y, w, h = cv2.boundingRect((binary == 0).view(np.uint8))
     st[0] = (x, y, w, h, bg_area)
