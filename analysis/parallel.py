@@ -40,10 +40,13 @@ __all__ = ["default_workers", "ordered_map"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-#: default upper bound on the worker count: the cores that help, measured (benchmarks/ecc_bench.py,
-#: docs/benchmarks.md, default jia2019 dataset, 60 frames of 2048×1536 on 2 cores): 2 threads take
-#: the eccentricity step's wall time well below the serial loop's for the same CPU time. A third
-#: thread has no core to run on here, and beyond two the GIL-held Python of each frame bounds the gain
+#: default upper bound on the worker count. Measured (benchmarks/ecc_bench.py, default jia2019
+#: dataset, 60 frames of 2048×1536, 2 cores, load 3–10 from other sessions): 2 threads cost ≈ 5 %
+#: more CPU than the serial loop (5.8 vs 5.5 s) and gave no steady wall gain at that load (the
+#: scheduler shares the cores between sessions, not threads); a serial profile puts ≈ 40 % of the
+#: step in calls that release the GIL (PNG decode, labelling, thresholds, hashing), so on a free
+#: second core 2 threads can bring the step's wall down to ≈ 0.6 of serial, and a third thread has no
+#: core here. So 2; BENCHTWIN_WORKERS=1 gives the serial loop (re-measure on a quiet machine)
 MAX_DEFAULT_WORKERS = 2
 
 
