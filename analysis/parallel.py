@@ -40,13 +40,13 @@ __all__ = ["default_workers", "ordered_map"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-#: default upper bound on the worker count. Measured (benchmarks/ecc_bench.py, default jia2019
-#: dataset, 60 frames of 2048×1536, 2 cores, load 3–10 from other sessions): 2 threads cost ≈ 5 %
-#: more CPU than the serial loop (5.8 vs 5.5 s) and gave no steady wall gain at that load (the
-#: scheduler shares the cores between sessions, not threads); a serial profile puts ≈ 40 % of the
-#: step in calls that release the GIL (PNG decode, labelling, thresholds, hashing), so on a free
-#: second core 2 threads can bring the step's wall down to ≈ 0.6 of serial, and a third thread has no
-#: core here. So 2; BENCHTWIN_WORKERS=1 gives the serial loop (re-measure on a quiet machine)
+#: default upper bound on the worker count. Measured (the step on the default jia2019 dataset, 60
+#: frames of 2048×1536, 2 cores shared with other sessions at load 3–5; 7 fresh processes
+#: alternating with main's): 2 threads took the step's wall to a median 0.81 of the serial loop's
+#: (0.65–1.14: the scheduler shares the cores between sessions, so a busy machine leaves little to
+#: gain) for about the same CPU (5.9 s both). A serial profile puts ≈ 40 % of the step in calls that
+#: release the GIL (PNG decode, labelling, thresholds, hashing): ≈ 0.6 of serial is the most 2 threads
+#: can give, and a third has no core here. So 2; BENCHTWIN_WORKERS=1 gives the serial loop
 MAX_DEFAULT_WORKERS = 2
 
 
