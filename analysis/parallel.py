@@ -41,10 +41,11 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 #: default upper bound on the worker count. Measured (the step on the default jia2019 dataset, 60
-#: frames of 2048×1536, 2 cores shared with other sessions at load 3–5; 7 fresh processes
-#: alternating with main's): 2 threads took the step's wall to a median 0.81 of the serial loop's
-#: (0.65–1.14: the scheduler shares the cores between sessions, so a busy machine leaves little to
-#: gain) for about the same CPU (5.9 s both). A serial profile puts ≈ 40 % of the step in calls that
+#: frames of 2048×1536, 2 cores shared with other sessions at load 2.4–5.1; 9 fresh processes
+#: alternating with main's): 2 threads took the step's wall to a median 0.94 of the serial loop's
+#: (0.65–1.18) for the same CPU (5.90 vs 5.93 s). The scheduler shares the cores between sessions:
+#: only 2 of the 9 processes got more than one core (1.35, 1.48), and there 2 threads took 0.77 and
+#: 0.76 of the serial wall. A serial profile puts ≈ 40 % of the step in calls that
 #: release the GIL (PNG decode, labelling, thresholds, hashing): ≈ 0.6 of serial is the most 2 threads
 #: can give, and a third has no core here. So 2; BENCHTWIN_WORKERS=1 gives the serial loop
 MAX_DEFAULT_WORKERS = 2
