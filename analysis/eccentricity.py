@@ -72,6 +72,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchtwin.analysis.fourier import FourierFit, amplitude_phase, fit_fourier
+from benchtwin.analysis.frame_levels import (binary_above, binary_below, integer_frame, level_counts,
+                                             percentiles_from_counts)
 
 __all__ = [
     "ImageAnalysisError",
@@ -121,15 +123,12 @@ def to_grey(image: np.ndarray, name: str | int | None = None) -> tuple[np.ndarra
     weights. Raises ImageAnalysisError for anything that is not a 2-D image.
     """
     img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] in (3, 4):
+    _check_shape(img, name)
+    if img.ndim == 3:
         b, g, r = (img[..., i].astype(float) for i in range(3))
         grey = 0.114 * b + 0.587 * g + 0.299 * r
-    elif img.ndim == 2:
-        grey = img.astype(float)
     else:
-        raise ImageAnalysisError(f"{_where(name)}: expected a 2-D greyscale or H×W×3 colour image, got shape {img.shape}")
-    if grey.shape[0] < 20 or grey.shape[1] < 20:
-        raise ImageAnalysisError(f"{_where(name)}: image {grey.shape[1]}×{grey.shape[0]} px is too small (need ≥ 20×20)")
+        grey = img.astype(float)
     if np.issubdtype(img.dtype, np.integer):
         full = float(np.iinfo(img.dtype).max)
     else:
@@ -141,6 +140,24 @@ def to_grey(image: np.ndarray, name: str | int | None = None) -> tuple[np.ndarra
     return grey, full
 
 
+def _check_shape(img: np.ndarray, name: str | int | None) -> None:
+    """ImageAnalysisError unless ``img`` is a 2-D or H×W×3/4 image of at least 20×20 px."""
+    if not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (3, 4))):
+        raise ImageAnalysisError(f"{_where(name)}: expected a 2-D greyscale or H×W×3 colour image, got shape {img.shape}")
+    if img.shape[0] < 20 or img.shape[1] < 20:
+        raise ImageAnalysisError(f"{_where(name)}: image {img.shape[1]}×{img.shape[0]} px is too small (need ≥ 20×20)")
+
+
+def to_grey_column(image: np.ndarray, col: int) -> np.ndarray:
+    """Column ``col`` of :func:`to_grey` of ``image`` (the same per-pixel formula), without
+    converting the rest of the frame."""
+    img = np.asarray(image)
+    if img.ndim == 3:
+        b, g, r = (img[:, col, i].astype(float) for i in range(3))
+        return 0.114 * b + 0.587 * g + 0.299 * r
+    return img[:, col].astype(float)
+
+
 def check_frame(grey: np.ndarray, full_scale: float, name: str | int | None = None,
                 min_contrast: float = 0.08, max_saturated: float = 0.5) -> None:
     """Blank / saturated frame check. Raises ImageAnalysisError when the 1-99 % percentile spread is
@@ -149,13 +166,33 @@ def check_frame(grey: np.ndarray, full_scale: float, name: str | int | None = No
     n = grey.size
     sat = np.count_nonzero(grey >= full_scale - 0.5) / n
     black = np.count_nonzero(grey <= 0.5) / n if full_scale > 1.5 else 0.0
+    _judge_frame(sat, black, lambda: np.percentile(_sample(grey), [1, 99]), full_scale, name, min_contrast,
+                 max_saturated)
+
+
+def _check_integer_frame(levels: np.ndarray, full_scale: int, sample_counts: np.ndarray,
+                         name: str | int | None = None, min_contrast: float = 0.08, max_saturated: float = 0.5) -> None:
+    """:func:`check_frame` of an 8/16-bit frame from its levels (analysis/frame_levels.py: the same
+    fractions and percentiles, bit for bit, without a float copy). ``sample_counts``: the level
+    histogram of :func:`_sample` of the frame."""
+    n = levels.size
+    sat = np.count_nonzero(levels == full_scale) / n
+    black = np.count_nonzero(levels == 0) / n
+    _judge_frame(sat, black, lambda: percentiles_from_counts(sample_counts, (1, 99)), float(full_scale), name,
+                 min_contrast, max_saturated)
+
+
+def _judge_frame(sat: float, black: float, p1_p99, full_scale: float, name: str | int | None,
+                 min_contrast: float, max_saturated: float) -> None:
+    """The verdict of :func:`check_frame` from the saturated and black fractions and the 1/99 %
+    percentiles of the sample (``p1_p99()``, computed only when the fractions pass)."""
     if sat > max_saturated:
         raise ImageAnalysisError(f"{_where(name)}: saturated frame ({sat:.0%} of the pixels at full scale "
                                  f"{full_scale:g}); expected grating lines on glass below saturation")
     if black > max_saturated:
         raise ImageAnalysisError(f"{_where(name)}: black frame ({black:.0%} of the pixels at 0); "
                                  "expected an exposed image of the grating")
-    p1, p99 = np.percentile(_sample(grey), [1, 99])
+    p1, p99 = p1_p99()
     if p99 - p1 < min_contrast * full_scale:
         raise ImageAnalysisError(f"{_where(name)}: blank frame, no grating visible (grey levels {p1:.1f}…{p99:.1f}, spread < "
                                  f"{min_contrast:.0%} of full scale {full_scale:g}); expected grating lines")
@@ -169,12 +206,33 @@ def _sample(grey: np.ndarray) -> np.ndarray:
 
 def otsu_threshold(grey: np.ndarray, bins: int = 256) -> float:
     """Otsu's threshold (maximum between-class variance) on a ``bins``-bin histogram (of every
-    second row and column above 1 Mpx)."""
+    second row and column above 1 Mpx). An 8/16-bit frame is taken in its levels
+    (:func:`_otsu_from_counts`, the same threshold)."""
+    levels = integer_frame(grey)
+    if levels is not None:
+        return _otsu_from_counts(level_counts(_sample(levels), int(np.iinfo(levels.dtype).max)), bins)
     grey = _sample(grey)
     lo, hi = float(grey.min()), float(grey.max())
     if hi <= lo:
         return lo
     hist, edges = np.histogram(grey, bins=bins, range=(lo, hi))
+    return _otsu_from_hist(hist, edges)
+
+
+def _otsu_from_counts(counts: np.ndarray, bins: int = 256) -> float:
+    """:func:`otsu_threshold` from the level histogram of the sample: numpy's histogram of the
+    distinct levels weighted by their counts is that of the values (each value is binned on its own;
+    analysis/frame_levels.py), the same histogram, so the same threshold."""
+    lv = np.flatnonzero(counts)
+    lo, hi = float(lv[0]), float(lv[-1])
+    if hi <= lo:
+        return lo
+    hist, edges = np.histogram(lv.astype(float), bins=bins, range=(lo, hi), weights=counts[lv])
+    return _otsu_from_hist(hist, edges)
+
+
+def _otsu_from_hist(hist: np.ndarray, edges: np.ndarray) -> float:
+    """The threshold (an upper bin edge) maximising Otsu's between-class variance of ``hist``."""
     p = hist.astype(float) / hist.sum()
     centres = 0.5 * (edges[:-1] + edges[1:])
     w0 = np.cumsum(p)
@@ -205,18 +263,63 @@ class Segmentation:
 POLARITIES = ("dark", "bright")
 
 
-def _big_parts(binary: np.ndarray, min_area_px: int) -> int:
+def _big_parts(binary: np.ndarray, min_area_px: int, at_most: int | None = None) -> int:
     """Number of 8-connected parts of ≥ ``min_area_px`` pixels: labels only (``connectedComponents``
     + a histogram of the labels, ~half the cost of ``connectedComponentsWithStats``); the parts, and
-    so the count, are those the stats would give (a partition into connected parts is unique)."""
+    so the count, are those the stats would give (a partition into connected parts is unique).
+
+    ``at_most``: the caller only needs to know whether the count exceeds it; when the number of
+    parts of any size does not (the glass class of a frame is a handful of parts), that number is
+    returned without the histogram: it bounds the count from above, so the comparison is the same."""
     import cv2
 
     n, lab = cv2.connectedComponents(binary, connectivity=8)
+    if at_most is not None and n - 1 <= at_most:
+        return n - 1
     return int(np.count_nonzero(np.bincount(lab.ravel(), minlength=n)[1:] >= min_area_px))
 
 
+#: above this many parts their areas come from one histogram of the label image, below from a
+#: count inside each part's bounding box (cheaper while the boxes are few)
+_BOX_COUNT_MAX_PARTS = 1000
+
+
+def _labelled(binary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """8-connected labels of ``binary`` and their statistics (rows as cv2's CC_STAT_LEFT, TOP, WIDTH,
+    HEIGHT, AREA; row 0 the background), as ``cv2.connectedComponentsWithStats`` gives them.
+
+    Why not that call: its statistics cost ~4× the labelling itself (it also sums every pixel's
+    coordinates for the centroids, which are not used here). The same labels (the same
+    ``connectedComponents`` algorithm: label images equal) and the bounding boxes of
+    ``scipy.ndimage.find_objects`` (one pass), the areas counted inside each box, give the same
+    table; the degenerate case of no background pixels, or no parts, is left to cv2."""
+    import cv2
+    from scipy import ndimage
+
+    n, lab = cv2.connectedComponents(binary, connectivity=8)
+    boxes = ndimage.find_objects(lab)
+    H, W = binary.shape
+    st = np.empty((n, 5), np.int32)
+    for i, (sy, sx) in enumerate(boxes, start=1):
+        st[i, :4] = (sx.start, sy.start, sx.stop - sx.start, sy.stop - sy.start)
+    if n - 1 <= _BOX_COUNT_MAX_PARTS:
+        for i, (sy, sx) in enumerate(boxes, start=1):
+            st[i, 4] = np.count_nonzero(lab[sy, sx] == i)
+    else:
+        st[1:, 4] = np.bincount(lab.ravel(), minlength=n)[1:]
+    bg_area = H * W - int(st[1:, 4].sum())
+    if n < 2 or bg_area == 0:
+        _n, lab_cv, st_cv, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+        return lab_cv, st_cv
+    # the background's box: the rows and columns holding a background pixel
+    x, y, w, h = cv2.boundingRect((binary == 0).view(np.uint8))
+    st[0] = (x, y, w, h, bg_area)
+    return lab, st
+
+
 def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac: float = 0.3,
-                  min_area_px: int = 20, expect_polarity: str | None = None) -> Segmentation:
+                  min_area_px: int = 20, expect_polarity: str | None = None,
+                  threshold: float | None = None) -> Segmentation:
     """Threshold (Otsu), choose the polarity, label parts, drop dust and border-cut parts.
 
     The lines are the class with more parts of ≥ ``min_area_px`` (dark on a tie; module docstring),
@@ -224,25 +327,33 @@ def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac
     (``expect_polarity``, the sweep's so far; default dark) is labelled with statistics and the
     other one only counted (:func:`_big_parts`); the other is labelled with statistics only when it
     wins. The choice is the same whatever is expected — the hint only orders the work (one full
-    labelling pass and a count per frame instead of two full passes)."""
+    labelling pass and a count per frame instead of two full passes).
+
+    ``grey``: a float greyscale image, or an 8/16-bit frame itself (compared in its integer levels,
+    analysis/frame_levels.py: the same binary images). ``threshold``: Otsu's threshold of ``grey``
+    when the caller already has it (:func:`edge_details` takes it from the frame check's histogram)."""
     import cv2
 
     if expect_polarity is not None and expect_polarity not in POLARITIES:
         raise ValueError(f"expect_polarity must be one of {POLARITIES} or None, got {expect_polarity!r}")
-    t = otsu_threshold(grey)
+    t = otsu_threshold(grey) if threshold is None else float(threshold)
+    levels = integer_frame(grey)
 
     def binary(pol: str) -> np.ndarray:
+        if levels is not None:
+            return binary_below(levels, t) if pol == "dark" else binary_above(levels, t)
         return (grey < t if pol == "dark" else grey > t).astype(np.uint8)
 
     def labelled(pol: str) -> tuple[np.ndarray, np.ndarray]:
-        _n, lab, st, _ = cv2.connectedComponentsWithStats(binary(pol), connectivity=8)
-        return lab, st
+        return _labelled(binary(pol))
 
     first = expect_polarity or "dark"
     other = "bright" if first == "dark" else "dark"
     labels, stats = labelled(first)
     big_first = int(np.count_nonzero(stats[1:, cv2.CC_STAT_AREA] >= min_area_px))
-    big_other = _big_parts(binary(other), min_area_px)
+    # the other class wins with more big parts (dark first) or as many (bright first, dark wins ties):
+    # beyond big_first (resp. big_first − 1) big parts its exact count does not matter
+    big_other = _big_parts(binary(other), min_area_px, at_most=big_first if first == "dark" else big_first - 1)
     # dark wins a tie (the rule's order: dark, then bright only if it has more parts)
     take_other = big_other > big_first if first == "dark" else big_other >= big_first
     pol = other if take_other else first
@@ -271,6 +382,21 @@ def segment_lines(grey: np.ndarray, name: str | int | None = None, min_area_frac
 
 
 # --------------------------------------------------------------------------- edge points
+
+
+def _median(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, axis=-1)`` of a small float array, bit for bit, at a tenth of its cost (its
+    dispatch costs ~40 µs a call, and a frame's line ends take ~350 medians): the middle of the sorted
+    values, or the two middle ones added and halved, which is np.median's mean of them. With a NaN in
+    ``a`` (sorted last) np.median itself decides."""
+    s = np.sort(a, axis=-1)
+    n = s.shape[-1]
+    if n == 0 or np.isnan(s[..., -1]).any():
+        return np.median(a, axis=-1)
+    h = n // 2
+    # np.median's mean starts its sum at +0.0 (so a −0.0 median comes out +0.0)
+    out = 0.0 + s[..., h] if n % 2 else (0.0 + s[..., h - 1] + s[..., h]) / 2
+    return out[()]  # a 1-D array's median as a numpy scalar, as np.median gives it
 
 
 @dataclass(frozen=True)
@@ -309,10 +435,27 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
     """
     if edge_method not in ("area", "crossing"):
         raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
-    grey, full = to_grey(image, name)
-    check_frame(grey, full, name)
-    seg = segment_lines(grey, name, min_area_frac, expect_polarity=expect_polarity)
+    levels = integer_frame(image)
+    t: float | None = None
+    if levels is not None:
+        # an 8/16-bit frame is analysed in its own levels: no float copy of the whole frame; its
+        # check and Otsu's threshold from one histogram of the sample (analysis/frame_levels.py), and
+        # only the few pixels around each line end are taken as float below
+        _check_shape(levels, name)
+        full = int(np.iinfo(levels.dtype).max)
+        counts = level_counts(_sample(levels), full)
+        _check_integer_frame(levels, full, counts, name)
+        t = _otsu_from_counts(counts)
+        grey: np.ndarray = levels
+    else:
+        grey, full_f = to_grey(image, name)
+        check_frame(grey, full_f, name)
+    seg = segment_lines(grey, name, min_area_frac, expect_polarity=expect_polarity, threshold=t)
     H, W = grey.shape
+
+    def px(rows, cols) -> np.ndarray:
+        """grey[rows, cols] as float (the frame may be integer levels)."""
+        return np.asarray(grey[rows, cols], dtype=float)
     hw = int(half_window_px)
     lev = 6  # pixels used for each level, beyond the edge window
     pts, cols, nrows, scat, glv, lnv = [], [], [], [], [], []
@@ -353,9 +496,9 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
         ys, xb = ys[ok], xb[ok]
         g_idx = xb[:, None] + hw + 1 + np.arange(lev)[None, :]
         c_idx = xb[:, None] - hw - 1 - np.arange(lev)[None, :]
-        G_rows = np.median(grey[ys[:, None], g_idx], axis=1)
-        C_rows = np.median(grey[ys[:, None], c_idx], axis=1)
-        G = float(np.median(G_rows))
+        G_rows = _median(px(ys[:, None], g_idx))
+        C_rows = _median(px(ys[:, None], c_idx))
+        G = float(_median(G_rows))
         contrast = G - C_rows
         cmax = np.max(np.abs(contrast))
         if cmax <= 0:
@@ -370,7 +513,7 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
             continue
         ys_f, xb_f, C_f = ys[full_rows], xb[full_rows], C_rows[full_rows]
         win = xb_f[:, None] + np.arange(-hw, hw + 1)[None, :]
-        prof = grey[ys_f[:, None], win]
+        prof = px(ys_f[:, None], win)
         f = (G - prof) / (G - C_f)[:, None]  # chrome fraction, 1 on the line, 0 on glass
         if edge_method == "area":
             xe = (xb_f - hw - 0.5) + f.sum(axis=1)
@@ -389,15 +532,15 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
             if ys_f.size < 2:
                 continue
         # centre row: centroid of the chrome fraction across the line, in columns just inside the end
-        C = float(np.median(C_f))
-        xe_med = float(np.median(xe))
+        C = float(_median(C_f))
+        xe_med = float(_median(xe))
         cs = np.arange(int(round(xe_med)) - hw - lev, int(round(xe_med)) - hw)
         cs = cs[(cs >= 0) & (cs < W)]
         if cs.size == 0:
             continue
         ya, yb = max(y_lo - 4, 0), min(y_hi + 5, H)
         yy = np.arange(ya, yb)
-        fc = (G - grey[ya:yb][:, cs]) / (G - C)
+        fc = (G - px(slice(ya, yb), cs)) / (G - C)
         wsum = fc.sum(axis=0)
         if np.any(wsum <= 0):
             continue
@@ -407,7 +550,7 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
             pf = np.polyfit(ys_f.astype(float), xe, 1)
             # rows spoilt by dust or a scratch at the line end: robust rejection, then refit
             rr = xe - np.polyval(pf, ys_f)
-            sig = 1.4826 * float(np.median(np.abs(rr - np.median(rr))))
+            sig = 1.4826 * float(_median(np.abs(rr - _median(rr))))
             good = np.abs(rr) <= max(4.0 * sig, 0.25)
             if 3 <= np.count_nonzero(good) < good.size:
                 ys_f, xe = ys_f[good], xe[good]
@@ -708,10 +851,12 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     um_per_px = p_edge / pitch_px
     u_um = um_per_px * u_slope / pitch_px
     # the paper's count along one column, a little inside the line ends
-    grey, _ = to_grey(image, name)
+    img = np.asarray(image)
+    _check_shape(img, name)
     col = int(round(float(np.median(ed.points_px[:, 0])) - 10))
-    col = min(max(col, 0), grey.shape[1] - 1)
-    prof = grey[:, col]
+    col = min(max(col, 0), img.shape[1] - 1)
+    # one column of the greyscale image (to_grey of that column alone: the same values, per pixel)
+    prof = to_grey_column(img, col)
     is_line = prof < ed.threshold if ed.polarity == "dark" else prof > ed.threshold
     starts = np.flatnonzero(~is_line[:-1] & is_line[1:]) + 1
     if starts.size > periods:

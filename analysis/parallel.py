@@ -1,29 +1,29 @@
-"""Ordered, bounded map over a process pool: per-frame image analysis on every core (issue #17).
+"""Ordered, bounded map over a thread pool: per-frame image analysis on both cores (issue #17).
 
-Why: the CCD sweep's frames are independent (Jia 2019 sec. 4.2: one d_ref per image), and the
-per-frame work (threshold, connected parts, sub-pixel edges, circle fits) is single-threaded
-Python/NumPy, so a pool of processes uses the machine's cores where threads would not (the GIL).
+Why: the CCD sweep's frames are independent (Jia 2019 sec. 4.2: one d_ref per image). Threads,
+not processes: a frame's heavy parts are OpenCV calls (PNG decoding, thresholding, connected
+parts), which release the GIL, so two threads keep two cores busy; the Python between them
+(sub-pixel edges, circle fits, ~20 ms of a frame's ~55) is what the threads share. The former
+``spawn`` process pool was slower than the serial loop (docs/benchmarks.md: two interpreters'
+imports, ~0.5 s CPU each, and every frame pickled to a worker outweighed the second core), and it
+needed every argument picklable; a thread shares the frame in memory.
 
 Guarantees, so the parallel path is the serial path, only faster:
 
 - results come back in input order (the caller's loop, its progress bar and its error order are
-  unchanged), and each call is the same pure function on the same arguments, so the results are
-  bit-identical to a serial loop (tests/analysis/test_parallel_frames.py checks results.json);
+  unchanged), and each call is the same pure function on the same arguments (no shared mutable
+  state: each call builds its own arrays), so the results are bit-identical to a serial loop
+  whatever the threads' scheduling (tests/analysis/test_parallel_frames.py checks results.json and
+  the per-frame results);
 - at most ``window`` items are in flight: a long sweep of large frames is not all held in memory
   (the serial loop held one frame at a time);
-- ``workers <= 1`` (or one item) runs in this process, no pool; so does a daemonic process;
-- an exception raised by ``fn`` is re-raised here, in order, like the serial loop would.
-
-The pool starts its workers with ``spawn`` (a fresh interpreter that imports ``fn``'s module,
-~0.5 s of CPU per worker). Not ``fork``: the caller may hold threads (OpenGL/EGL, OpenCV's and
-OpenBLAS's pools, a progress bar's monitor), and a child forked while one of them held a lock
-hangs for ever (seen in the test suite after a simulate in the same process). Not
-``forkserver``: its server is never reaped by the caller, so the CPU time of the workers would
-vanish from the caller's accounting (benchmarks/run_bench.py reports CPU time). Each worker sets
-OpenCV to one thread: the pool already uses every core.
+- ``workers <= 1`` (or one item) runs in the calling thread, no pool;
+- an exception raised by ``fn`` is re-raised here, in order, like the serial loop would; so is one
+  raised by ``items`` itself (a dataset error on reading frame k): only after the results of the
+  items before it, as the serial loop would meet it.
 
 ``BENCHTWIN_WORKERS`` (environment) overrides the default worker count in :func:`default_workers`
-(1, i.e. serial, as measured: see ``MAX_DEFAULT_WORKERS``; ``BENCHTWIN_WORKERS=2`` for the pool).
+(1 = serial in the calling thread).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ import multiprocessing as mp
 import os
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 __all__ = ["default_workers", "ordered_map"]
@@ -40,25 +40,28 @@ __all__ = ["default_workers", "ordered_map"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-#: default upper bound on the worker count. Measured (benchmarks/ecc_bench.py, default jia2019
-#: dataset, 60 frames of 2048×1536, 2 cores): at load ≈ 2 the pool of 2 took 6.9 s wall / 8.4 s CPU
-#: against 6.2 s / 6.4 s serial (two spawned interpreters' imports and the frames' pickling outweigh
-#: the second core for ~0.1 s of work a frame); at load ≈ 20, 55.9 s against 61.0 s wall. So the
-#: default is serial; BENCHTWIN_WORKERS=2 turns the pool on (larger or more frames)
-MAX_DEFAULT_WORKERS = 1
+#: default upper bound on the worker count. Measured (the step on the default jia2019 dataset, 60
+#: frames of 2048×1536, 2 cores shared with other sessions at load 2.4–5.1; 9 fresh processes
+#: alternating with main's): 2 threads took the step's wall to a median 0.94 of the serial loop's
+#: (0.65–1.18) for the same CPU (5.90 vs 5.93 s). The scheduler shares the cores between sessions:
+#: only 2 of the 9 processes got more than one core (1.35, 1.48), and there 2 threads took 0.77 and
+#: 0.76 of the serial wall. A serial profile puts ≈ 40 % of the step in calls that
+#: release the GIL (PNG decode, labelling, thresholds, hashing): ≈ 0.6 of serial is the most 2 threads
+#: can give, and a third has no core here. So 2; BENCHTWIN_WORKERS=1 gives the serial loop
+MAX_DEFAULT_WORKERS = 2
 
 
 def default_workers() -> int:
-    """Worker processes for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else
+    """Worker threads for per-frame analysis: ``BENCHTWIN_WORKERS`` if set, else
     min(cores, MAX_DEFAULT_WORKERS),
     and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
-    its parent already spreads the work over the cores, and a daemonic process may not have children."""
+    its parent already spreads the work over the cores."""
     env = os.environ.get("BENCHTWIN_WORKERS", "").strip()
     if env:
         try:
             n = int(env)
         except ValueError:
-            raise ValueError(f"BENCHTWIN_WORKERS={env!r}: expected a whole number of worker processes") from None
+            raise ValueError(f"BENCHTWIN_WORKERS={env!r}: expected a whole number of worker threads") from None
         return max(1, n)
     if mp.parent_process() is not None or mp.current_process().daemon:
         return 1
@@ -69,26 +72,15 @@ def default_workers() -> int:
     return max(1, min(cores, MAX_DEFAULT_WORKERS))
 
 
-def _init_worker() -> None:
-    try:
-        import cv2
-
-        cv2.setNumThreads(1)
-    except ImportError:  # pragma: no cover - OpenCV is a dependency; a worker without it still works
-        pass
-
-
 def ordered_map(fn: Callable[..., R], items: Iterable[tuple[Any, ...]], workers: int | None = None,
                 window: int | None = None) -> Iterator[R]:
     """``fn(*args)`` for each ``args`` tuple of ``items``, yielded in order.
 
-    ``workers``: processes (default :func:`default_workers`); ``window``: items in flight at most
-    (default 2 × workers). ``fn`` must be a module-level function (picklable), its arguments and
-    results picklable.
+    ``workers``: threads (default :func:`default_workers`); ``window``: items in flight at most
+    (default 2 × workers). ``fn`` must not change shared state (it runs in several threads at once);
+    ``items`` is iterated in the calling thread only.
     """
     n = default_workers() if workers is None else max(1, int(workers))
-    if mp.current_process().daemon:
-        n = 1  # a daemonic process (e.g. a Dask worker) may not start children
     it = iter(items)
     if n <= 1:
         for args in it:
@@ -101,14 +93,23 @@ def ordered_map(fn: Callable[..., R], items: Iterable[tuple[Any, ...]], workers:
     if second is None:  # one item: not worth a pool
         yield fn(*first)
         return
-    ctx = mp.get_context("spawn")
     win = max(n, int(window) if window else 2 * n)
     pending: deque[Future[R]] = deque()
-    with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker) as pool:
+    with ThreadPoolExecutor(max_workers=n, thread_name_prefix="benchtwin-frames") as pool:
         try:
             pending.append(pool.submit(fn, *first))
             pending.append(pool.submit(fn, *second))
-            for args in it:
+            while True:
+                try:
+                    args = next(it)
+                except StopIteration:
+                    break
+                except BaseException:
+                    # the serial loop would have finished the items before this one first (and
+                    # raised their errors first): so do we, then raise this one
+                    while pending:
+                        yield pending.popleft().result()
+                    raise
                 while len(pending) >= win:
                     yield pending.popleft().result()
                 pending.append(pool.submit(fn, *args))

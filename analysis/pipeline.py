@@ -112,10 +112,11 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     # edge radius fixed where the manifest knows it (Jia: "r_fitting is already known") — a short arc
     # of a 22 mm circle does not determine its radius well.
     # Each frame is decoded once and its line edges found once (ecc.frame_edges_and_scale), frames in
-    # parallel processes (analysis/parallel.py: in order, bit-identical to the serial loop, at most a
-    # few frames in flight); only the edges (a few hundred numbers per frame) are kept for the d_ref
-    # stage, so memory stays flat for long sweeps of large frames. ``workers``: processes (default:
-    # BENCHTWIN_WORKERS, else serial as measured, see analysis/parallel.py; 1 = serial, in this process).
+    # worker threads (analysis/parallel.py: in order, bit-identical to the serial loop, at most a
+    # few frames in flight; frames are read and checked in this thread); only the edges (a few
+    # hundred numbers per frame) are kept for the d_ref stage, so memory stays flat for long sweeps of
+    # large frames. ``workers``: threads (default: BENCHTWIN_WORKERS, else the cores that help, as
+    # measured, see analysis/parallel.py; 1 = serial, in this thread).
     # A frame the image analysis rejects is dropped from that stage on and recorded (module constants).
     n_frames = len(ds.table("ccd/index")["k"])
     limits = ccd_frame_limits(n_frames, order)
@@ -174,14 +175,18 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     edge_mm = ds.bench.get("scale_edge_radius_mm")
     radius_px = edge_mm * 1000.0 / scale if edge_mm else None
     thetas, drefs_px, files = [], [], []
+    first_fit: dict[str, Any] | None = None
     for (theta, f), ed in zip(meta, edges):
         if ed is None:
             continue  # its line ends were not found for the pixel scale: not trusted for d_ref either
         try:
-            drefs_px.append(ecc.d_ref_px(None, ref, radius_px=radius_px, name=f, edges=ed)["d_ref_px"])
+            fit = ecc.d_ref_px(None, ref, radius_px=radius_px, name=f, edges=ed)
         except ecc.ImageAnalysisError as exc:
             reject(f, theta, "d_ref (eqs. 10-12)", exc)
             continue
+        drefs_px.append(fit["d_ref_px"])
+        if first_fit is None:  # the report draws the first used frame's fit (figures_ccd.add_ccd_pictures)
+            first_fit = {"file": f, "fit": fit}
         thetas.append(theta)
         files.append(f)
     check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
@@ -195,6 +200,7 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     res["n_frames"] = n_frames
     res["rejected_frames"] = list(rejected.values())
     res["frame_limits"] = limits
+    res["first_frame_fit"] = first_fit
     return EccentricityResult.from_eccentricity(res)
 
 

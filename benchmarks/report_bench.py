@@ -6,8 +6,8 @@ Issue #17 (docs/benchmarks.md, "What the rest of the time is"). Runs the same co
 around its parts, so the figures are the command's own; nothing is changed in what it computes
 (``results.json`` is written as usual and can be compared with ``cmp``). Each part's time is
 *inclusive* of what it calls: "analysis steps" excludes the report and the bench picture, which
-are listed separately. CPU = ``time.process_time`` of this process (a pool's children are not in
-it: run with the default serial eccentricity step, or BENCHTWIN_WORKERS=1).
+are listed separately. CPU = ``time.process_time`` of this process, all its threads (the
+eccentricity step's worker threads, analysis/parallel.py, included).
 
 Usage: ``.venv/bin/python benchmarks/report_bench.py DATASET [-o OUT] [--close-loop] [--json]``
 (``--close-loop``: the tracing's own time, measured inside the one process, issue 17's "tracing the

@@ -2,9 +2,11 @@
 the detected line ends, the fitted edge circle and the reference point R drawn on it, and a frame
 the analysis rejected with the reason.
 
-The overlay is recomputed with the same function and arguments the pipeline used for d_ref
-(``analysis.eccentricity.d_ref_px`` with the reference point of the manifest and the edge radius
-fixed from the pixel scale), so what is drawn is what was fitted.
+The overlay is the pipeline's own fit of that frame (``first_frame_fit`` of the eccentricity
+step: ``analysis.eccentricity.d_ref_px`` with the reference point of the manifest and the edge radius
+fixed from the pixel scale), so what is drawn is what was fitted, and the frame's edges are not
+found a second time (issue #17); without it (a step result from elsewhere) the fit is recomputed
+with the same function and arguments.
 """
 
 from __future__ import annotations
@@ -113,7 +115,11 @@ def add_ccd_pictures(rep, ds, ecc: Mapping) -> None:
     f0 = files[0]
     img = ds.read_image(f0, row=row.get(f0, 0) + 2)
     ref = tuple(ds.manifest["ccd"]["reference_px"])
-    fit = E.d_ref_px(img, ref, radius_px=ecc.get("radius_fixed_px"), name=f0)
+    own = ecc.get("first_frame_fit")
+    if own is not None and own.get("file") == f0:
+        fit = own["fit"]
+    else:
+        fit = E.d_ref_px(img, ref, radius_px=ecc.get("radius_fixed_px"), name=f0)
     rep.figure(fig_ccd_overlay(img, fit, f0, float(thetas[0])),
                "A raw CCD frame with the detected line ends, the fitted edge circle and the reference point R (Jia fig. 12)")
     rej = ecc.get("rejected_frames") or []

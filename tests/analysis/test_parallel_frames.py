@@ -1,6 +1,6 @@
 """The CCD sweep's frames analysed once each and in parallel give the serial path's results, bit for bit.
 
-analysis/parallel.py (ordered, bounded process-pool map) and the eccentricity step's decode-once /
+analysis/parallel.py (ordered, bounded thread-pool map) and the eccentricity step's decode-once /
 edges-once path (analysis/pipeline.py step_eccentricity with analysis/eccentricity.py
 frame_edges_and_scale): the pool and the serial loop must give byte-identical results.json, the
 same rejected frames in the same order, and the same d_ref as the former two-pass path (edges found
@@ -9,6 +9,7 @@ separately for the pixel scale and for d_ref). Issue #17.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -47,6 +48,26 @@ def test_ordered_map_keeps_order_and_raises_in_order():
         for r in ordered_map(_fail_on_three, [(i,) for i in range(8)], workers=2):
             got.append(r)
     assert got == [0, 1, 2]
+
+
+def _items_failing_at(k: int, n: int):
+    for i in range(n):
+        if i == k:
+            raise KeyError(f"item {k}")
+        yield (i,)
+
+
+def test_ordered_map_items_error_comes_after_the_items_before_it():
+    """An error reading item k (a dataset error) is raised after the results of items < k, and after
+    an error of fn on one of them, as the serial loop meets them."""
+    for w in (1, 2):
+        got = []
+        with pytest.raises(KeyError, match="item 5"):
+            for r in ordered_map(_square, _items_failing_at(5, 9), workers=w, window=4):
+                got.append(r)
+        assert got == [0, 1, 4, 9, 16]
+        with pytest.raises(ValueError, match="three"):
+            list(ordered_map(_fail_on_three, _items_failing_at(5, 9), workers=w, window=4))
 
 
 def _workers_in_child() -> int:
@@ -99,6 +120,41 @@ def test_pool_and_serial_results_json_byte_identical(small_ds, tmp_path, monkeyp
     rej = res["ccd_rejected_frames"]
     assert rej and rej[0]["file"] == "img_000.png"  # the fogged frame, first in index order
     assert res["ccd"]["n_images"] == 30 - len(rej)
+
+
+def test_threads_give_the_serial_per_frame_results(small_ds):
+    """Each frame's edges, scale and rejection, in 2 threads, equal the serial loop's, field for field
+    (in order whatever the scheduling: the window is small, the frames many)."""
+    ds = open_dataset(small_ds)
+    args = [(img, ds.bench["grating_period_um"], f, "dark") for _k, _t, img, f in ds.ccd_frames()]
+    serial = list(ordered_map(ecc.frame_edges_and_scale, args, workers=1))
+    for _ in range(2):
+        threaded = list(ordered_map(ecc.frame_edges_and_scale, args, workers=2, window=3))
+        assert len(threaded) == len(serial) == 30
+        for (e1, s1, x1), (e2, s2, x2) in zip(serial, threaded):
+            assert s1 == s2 and str(x1) == str(x2)
+            assert (e1 is None) == (e2 is None)
+            if e1 is not None:
+                for fld in dataclasses.fields(e1):
+                    a, b = getattr(e1, fld.name), getattr(e2, fld.name)
+                    assert np.array_equal(a, b, equal_nan=isinstance(a, np.ndarray) and a.dtype.kind == "f")
+    assert serial[0][0] is None  # the fogged frame
+
+
+def test_report_overlay_is_the_steps_own_fit(small_ds):
+    """The report draws the first used frame's fit from the step (not found again); it is the fit
+    the figure code would recompute from the frame."""
+    ds = open_dataset(small_ds)
+    res = step_eccentricity(ds, 10, False, workers=2)
+    own = res.detail["first_frame_fit"]
+    assert own["file"] == res.files[0] == "img_001.png"  # img_000 is fogged
+    img = ds.read_image(own["file"])
+    again = ecc.d_ref_px(img, tuple(ds.manifest["ccd"]["reference_px"]), radius_px=res.radius_fixed_px,
+                         name=own["file"])
+    for k in ("d_ref_px", "residual_rms_px", "centre_px", "radius_px", "reference_px", "points_px",
+              "rejected_points_px"):
+        assert np.array_equal(np.asarray(own["fit"][k]), np.asarray(again[k])), k
+    assert own["fit"]["d_ref_px"] * res.pixel_um == res.d_ref_um[0]
 
 
 def test_edges_once_equals_the_two_pass_path(small_ds):
