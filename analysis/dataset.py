@@ -388,11 +388,11 @@ class DatasetWriter:
     caller has already checked the folder with ``benchtwin.fsio.check_output_dir``."""
 
     def __init__(self, path: str | Path, manifest: Mapping[str, Any], *, force: bool = False,
-                 resume: bool = False, prepared: bool = False, truth_dir: str | Path | None = None):
+                 resume: bool = False, prepared: bool = False, truth_to: str | Path | None = None):
         self.path = Path(path)
-        # where write_truth_* go: the dataset's truth/ by default; `benchtwin run` puts the truth
-        # beside the dataset, never in it (principle 3), written while the analysis runs
-        self.truth_path = Path(truth_dir) if truth_dir is not None else self.path / TRUTH_DIR
+        # where write_truth_* go: the dataset's TRUTH_DIR by default; `benchtwin run` puts the
+        # truth beside the dataset, never in it (principle 3), written while the analysis runs
+        self.truth_path = Path(truth_to) if truth_to is not None else self.path / TRUTH_DIR
         self.manifest = validate_manifest(dict(manifest), f"{self.path}/manifest.json")
         if not prepared:
             try:

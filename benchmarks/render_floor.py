@@ -21,7 +21,7 @@ median of ``--repeat`` (wall and process CPU, which includes llvmpipe's threads)
   model needs, nothing more);
 - the twin: ``Renderer.coverage`` (default backend, GL if a context exists) and ``apply_sensor``
   (twin/render/sensor.py) on the same frame;
-- all of it with the frame worker's heap (``twin.render.heap.keep_freed_memory``: freed frame-size
+- all of it with the frame worker's heap (``benchtwin.heap.keep_freed_memory``: freed frame-size
   arrays reused instead of fresh pages from the kernel), ``--fresh-pages`` for glibc's default.
 
 Prints one line per case, and with ``--json`` one JSON object on the last line (benchmarks/run_bench.py).
@@ -145,11 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.fresh_pages:
         # as simulate's frame worker: freed frame-size arrays reused, not faulted in again
-        # (twin/render/heap.py); otherwise page faults are ≈ half the floor's CPU
+        # (benchtwin/heap.py); otherwise page faults are ≈ half the floor's CPU
         try:
-            from benchtwin.twin.render.heap import keep_freed_memory
+            from benchtwin.heap import keep_freed_memory
         except ImportError:   # an older package (A/B against main): say so, run on the default heap
-            print("(no twin.render.heap in this package: glibc's default heap)")
+            print("(no benchtwin.heap in this package: glibc's default heap)")
         else:
             keep_freed_memory()
 

@@ -228,7 +228,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume, truth_dir=truth_dir)
+    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume, truth_to=truth_dir)
     bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
     pipe = None

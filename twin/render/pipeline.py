@@ -109,10 +109,10 @@ def main_is_spawn_safe() -> bool:
 # ------------------------------------------------------------------------------ worker side
 
 def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
-    from benchtwin.twin.render.heap import keep_freed_memory
+    from benchtwin.heap import keep_freed_memory
 
     # a frame's 12 MB temporaries reused from frame to frame instead of fresh pages from the
-    # kernel (≈ 3000 page faults, 15 ms of kernel CPU a frame; heap.py): this process only makes frames
+    # kernel (≈ 3000 page faults, 15 ms of kernel CPU a frame; benchtwin/heap.py): this process only makes frames
     keep_freed_memory()
     try:
         import cv2

@@ -1,4 +1,4 @@
-"""twin/render/heap.py: with glibc's thresholds fixed, a frame's freed 12 MB arrays are reused
+"""benchtwin/heap.py: with glibc's thresholds fixed, a frame's freed 12 MB arrays are reused
 without page faults (the frame worker's ≈ 3000 minor faults and 15 ms of kernel CPU a frame).
 Counts page faults (getrusage), never time; each case in a fresh interpreter (mallopt is
 process-wide and the test process's own allocations would blur the count)."""
@@ -13,7 +13,7 @@ import pytest
 _CASE = """
 import resource, sys
 import numpy as np
-from benchtwin.twin.render.heap import keep_freed_memory
+from benchtwin.heap import keep_freed_memory
 kept = keep_freed_memory() if sys.argv[1] == "keep" else None
 def frame():   # a frame's temporaries, of several sizes, all touched and freed
     a = np.ones((1536, 2048), np.float32)
