@@ -24,6 +24,11 @@ interpolation error (periodic in the grating pitch: first order of amplitude
 noise (``instruments.encoder.noise``, rms, independent per head), resolution quantisation
 (``bench.encoder_resolution``).
 
+Without hidden effects the graduation fixed point and the reading's tail run per head on Python
+floats (1-3 heads: NumPy's call overhead was most of a reading's cost); the same IEEE operations
+in the same order, the sines and atan2 NumPy's on the same arrays, so the readings are the array
+expression's doubles (tests/twin/test_instruments.py, tests/twin/test_graduation.py).
+
 Eccentricity alone gives, exactly (law of sines in the triangle axis–centre–head):
 sin α = (e/r)·sin(θ − θ0) with θ the reading; tests/twin/test_instruments.py checks it.
 """
