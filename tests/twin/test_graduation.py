@@ -123,3 +123,18 @@ def test_encoder_reads_declared_plus_hidden_map_with_its_own_streams():
                                   .sim_graduation_map().head, b.sim_graduation_map().head)
     other = Hidden({"graduation_error": {"ruling_walk_rms": 0.5 * ARCSEC}}, seed=12)
     assert not np.allclose(enc(other).sim_graduation_map().head, b.sim_graduation_map().head)
+
+
+def test_error_at_is_error_rad_bit_for_bit():
+    """The scalar path of the encoder's fixed point (``HeadMap.error_at``) is ``error_rad`` to the
+    last bit: random values over several turns both signs, exact multiples of the pitch and of 2π,
+    their neighbours, and ±0."""
+    m = HeadMap(harmonics(N, [3, 4], [1e-5, 2e-6], [0.3, 1.1]) + np.random.default_rng(2).normal(0, 1e-7, N))
+    rng = np.random.default_rng(5)
+    k = np.arange(-2 * N, 2 * N + 1, 97)
+    edges = np.concatenate([k * m.pitch_rad, np.arange(-3, 4) * 2 * np.pi, [0.0, -0.0, -1e-300, 1e-300]])
+    g = np.concatenate([rng.uniform(-4 * np.pi, 4 * np.pi, 20000), edges, np.nextafter(edges, np.inf),
+                        np.nextafter(edges, -np.inf)])
+    ref = m.error_rad(g)
+    fast = np.array([m.error_at(x) for x in g.tolist()])
+    assert np.array_equal(fast.view(np.int64), ref.view(np.int64))

@@ -24,6 +24,11 @@ interpolation error (periodic in the grating pitch: first order of amplitude
 noise (``instruments.encoder.noise``, rms, independent per head), resolution quantisation
 (``bench.encoder_resolution``).
 
+Without hidden effects the graduation fixed point and the reading's tail run per head on Python
+floats (1-3 heads: NumPy's call overhead was most of a reading's cost); the same IEEE operations
+in the same order, the sines and atan2 NumPy's on the same arrays, so the readings are the array
+expression's doubles (tests/twin/test_instruments.py, tests/twin/test_graduation.py).
+
 Eccentricity alone gives, exactly (law of sines in the triangle axis–centre–head):
 sin α = (e/r)·sin(θ − θ0) with θ the reading; tests/twin/test_instruments.py checks it.
 """
@@ -92,6 +97,8 @@ class SimEncoder:
         ri = sim_rng(seed, "encoder_interpolation")
         self.interpolation = {"amplitude_rad": np.array([1.0, 1.0 / 3.0]) * float(interpolation_error_rad),
                               "phase_rad": ri.uniform(0, TWO_PI, 2)}
+        self._interpolation_terms = [(m * self.n_lines, float(p), float(a)) for m, (a, p) in enumerate(
+            zip(self.interpolation["amplitude_rad"], self.interpolation["phase_rad"]), start=1) if a]
         # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
         self.hidden = None
         self._head_points = None
@@ -161,6 +168,10 @@ class SimEncoder:
         gamma = np.asarray(gamma, dtype=float)
         if self.graduation_error_rms_rad == 0 and not self._hidden_graduation():
             return gamma
+        if self.hidden is None:
+            m = self.sim_graduation_map()
+            if m is not None:
+                return self._graduation_value_static(gamma, m)
         g = gamma - self.sim_graduation_error(gamma, t_s)
         # Contraction factor |E'| ≲ 1e-4: the step shrinks ~1e4-fold per iteration, so a step of
         # a few ulp of γ (|γ| ≤ π) leaves g within float rounding of the fixed point (≪ 1e-9″;
@@ -174,26 +185,49 @@ class SimEncoder:
                 break
         return g
 
+    @staticmethod
+    def _graduation_value_static(gamma: np.ndarray, m: HeadMap) -> np.ndarray:
+        """``sim_graduation_value`` of a disk with a time-independent map (no hidden effects), bit
+        for bit: the same iteration and joint stopping rule on Python floats (``HeadMap.error_at``
+        is ``error_rad`` of one value); NumPy's per-call overhead on 1-12 heads was most of a
+        reading's cost (tests/twin/test_instruments.py checks the identity)."""
+        err = m.error_at
+        gam = gamma.tolist()
+        g = [c - err(c) for c in gam]
+        tol = GRADUATION_FIXED_POINT_TOL_RAD
+        for _ in range(8):
+            g_new = [c - err(x) for c, x in zip(gam, g)]
+            done = max([abs(a - b) for a, b in zip(g_new, g)]) <= tol
+            g = g_new
+            if done:
+                break
+        return np.array(g)
+
     def sim_interpolation_error(self, g) -> np.ndarray:
         g = np.asarray(g, dtype=float)
-        ip = self.interpolation
         out = np.zeros_like(g)
-        for m, (a, p) in enumerate(zip(ip["amplitude_rad"], ip["phase_rad"]), start=1):
-            if a:
-                out = out + a * np.sin(m * self.n_lines * g + p)
+        # (m·L, phase, amplitude) of the non-zero orders, built once: the same floats as iterating
+        # ``self.interpolation`` (which is not changed after __init__)
+        for k, p, a in self._interpolation_terms:
+            out = out + a * np.sin(k * g + p)
         if self.hidden is not None:
             out = out + self.hidden.interpolation_error_rad(self.n_lines * g)
         return out
 
     # ------------------------------------------------------------------ geometry
-    def sim_head_body_angles(self, pose: BenchPose) -> np.ndarray:
-        """Body polar angle γ_j (about the disk's geometric centre) of each head's line of sight."""
+    def _head_geometry(self) -> tuple[np.ndarray, list[float]]:
+        """Lab points P_j of the heads' lines of sight at z = 0, and their azimuths 90° + h_j as
+        floats; rebuilt when the radius or the heads change."""
         hp = self._head_points
         if hp is None or hp[0] != self.radius_m or hp[1] is not self.heads_rad:
             az = 0.5 * math.pi + self.heads_rad
             P = np.stack([self.radius_m * np.cos(az), self.radius_m * np.sin(az), np.zeros_like(az)], axis=1)
-            hp = self._head_points = (self.radius_m, self.heads_rad, P)
-        P = hp[2]
+            hp = self._head_points = (self.radius_m, self.heads_rad, P, az.tolist())
+        return hp[2], hp[3]
+
+    def sim_head_body_angles(self, pose: BenchPose) -> np.ndarray:
+        """Body polar angle γ_j (about the disk's geometric centre) of each head's line of sight."""
+        P = self._head_geometry()[0]
         n = pose.disk.R[:, 2]
         c = pose.disk.pos
         t = ((c - P) @ n) / n[2]  # along lab z onto the disk plane
@@ -207,9 +241,21 @@ class SimEncoder:
         errors included; no noise, no quantisation."""
         pose = self.state.pose if pose is None else pose
         g = self.sim_graduation_value(self.sim_head_body_angles(pose), pose.t_s)
-        raw = 0.5 * math.pi + self.heads_rad - g + self.sim_interpolation_error(g)
         phi = pose.shaft_angle_rad
-        return phi + _wrap_pi(raw - phi)
+        if self.hidden is not None:
+            raw = 0.5 * math.pi + self.heads_rad - g + self.sim_interpolation_error(g)
+            return phi + _wrap_pi(raw - phi)
+        # Without hidden effects, the same expression per head on Python floats (the sines stay
+        # NumPy's, on the same arrays: libm's may differ in the last bit): +, −, × and Python's
+        # float % are the IEEE operations NumPy applies element-wise, in the same order, and 1-12
+        # heads cost mostly NumPy call overhead (tests/twin/test_instruments.py checks the identity).
+        az = self._head_geometry()[1]
+        out = [0.0] * len(az)       # the interpolation error: np.zeros_like(g) + each term
+        for k, p, a in self._interpolation_terms:
+            out = [o + a * s for o, s in zip(out, np.sin(k * g + p).tolist())]
+        pi = math.pi
+        return np.array([phi + ((((z - x) + o) - phi + pi) % TWO_PI - pi)
+                         for z, x, o in zip(az, g.tolist(), out)])
 
     def read(self) -> EncoderReading:
         st = self.state

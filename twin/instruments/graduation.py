@@ -138,6 +138,7 @@ class HeadMap:
         self.window_lines = int(window_lines)
         self.head = scanning_average(self.lines, self.window_lines)
         self._ext = np.append(self.head, self.head[0])   # the line after the last is line 0
+        self._ext_list = self._ext.tolist()               # the same doubles, for error_at
 
     def error_rad(self, g) -> np.ndarray:
         """E(g) (rad): body angle of the graduation value g read by a head, minus g."""
@@ -147,6 +148,18 @@ class HeadMap:
         f = x - fl
         i0 = fl.astype(np.intp) % self.n_lines
         return (1.0 - f) * self._ext[i0] + f * self._ext[i0 + 1]
+
+    def error_at(self, g: float) -> float:
+        """``error_rad`` of one float, bit for bit: the same IEEE operations in the same order
+        (Python's float % and NumPy's float mod are both fmod plus the same sign fix-up, floor
+        and the products are exact or correctly rounded), without NumPy's per-call overhead on
+        the 1-12 values of a reading (tests/twin/test_graduation.py checks the identity)."""
+        x = (g % TWO_PI) / self.pitch_rad
+        fl = math.floor(x)
+        f = x - fl
+        i0 = fl % self.n_lines
+        ext = self._ext_list
+        return (1.0 - f) * ext[i0] + f * ext[i0 + 1]
 
     @property
     def rms_rad(self) -> float:
