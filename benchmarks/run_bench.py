@@ -20,7 +20,9 @@ Floors, measured in the same run by the scripts beside this one:
   on the same model (the servo's dynamics have no closed form: raw MuJoCo is their floor).
 
 Ratios printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
-twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
+eccentricity step alone (serial and in threads; benchmarks/ecc_bench.py) / decode + Otsu + label in
+the same process (target ≤ 2), the twin's poses / their closed-form solve (target ≤ 2), the servo /
+raw mj_step, the twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
 encode), tracing against its 1 s target (as close-loop − analyze of two processes, and measured
 inside one close-loop process by benchmarks/report_bench.py, which also gives the report's and the
 bench picture's own times in that process). Wall AND CPU time (user + system of the process and its
@@ -92,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     stages: dict[str, list[tuple[float, float]]] = {k: [] for k in ("simulate", "analyze", "close-loop", "run")}
     io: list[dict] = []
+    ecc: list[dict] = []
     parts: list[dict] = []
     try:
         for i in range(args.repeat):
@@ -105,6 +108,9 @@ def main(argv: list[str] | None = None) -> int:
                                                    "--quiet"])[:2])
             stages["run"].append(timed_run([bt, "run", *sc, "-o", str(work / f"run{i}"), "--quiet"])[:2])
             io.append(last_json(timed_run([py, str(HERE / "io_floor.py"), str(ds), "--json"], capture=True)[2]))
+            # the eccentricity step alone (serial and in threads) against decode + Otsu + label, one process
+            ecc.append(last_json(timed_run([py, str(HERE / "ecc_bench.py"), str(ds), "--repeat", "2", "--json"],
+                                           capture=True)[2])["cases"])
             # inside one close-loop process: the tracing, the report and the bench picture on their own
             parts.append(last_json(timed_run([py, str(HERE / "report_bench.py"), str(ds), "-o", str(work / f"rb{i}"),
                                               "--close-loop", "--json"], capture=True)[2])["parts"])
@@ -139,9 +145,19 @@ def main(argv: list[str] | None = None) -> int:
     rep_w, rep_c = part("report (all figures + HTML)")
     pic_w, pic_c = part("bench picture (figure built)")
 
+    def ecc_case(pick) -> tuple[float, float]:
+        got = [next(v for k, v in d.items() if pick(k)) for d in ecc]
+        return med([g["wall_s"] for g in got]), med([g["cpu_s"] for g in got])
+
+    es_w, es_c = ecc_case(lambda k: k == "step, serial")
+    et_w, et_c = ecc_case(lambda k: k.startswith("step, ") and k != "step, serial")
+    ef_w, ef_c = ecc_case(lambda k: k.startswith("floor"))
+
     rows = [
         ("simulate", wall["simulate"], cpu["simulate"], "frames×(render+sensor)+encode", floor_sim_w, floor_sim_c),
         ("analyze", wall["analyze"], cpu["analyze"], "decode+Otsu+label", floor_an_w, floor_an_c),
+        ("  eccentricity step, serial", es_w, es_c, "decode+Otsu+label (same process)", ef_w, ef_c),
+        ("  eccentricity step, threads", et_w, et_c, "decode+Otsu+label (same process)", ef_w, ef_c),
         ("close-loop", wall["close-loop"], cpu["close-loop"], "decode+Otsu+label", floor_an_w, floor_an_c),
         ("  tracing (close-loop − analyze)", tr_w, tr_c, "target 1 s", 1.0, 1.0),
         ("  tracing, inside one process", tin_w, tin_c, "target 1 s", 1.0, 1.0),
@@ -173,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{cpu['run'] / floor_io_c:.2f}× CPU")
     if args.json:
         print(json.dumps({"wall_s": wall, "cpu_s": cpu, "in_process": parts, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
-                          "render_floor": rf, "physics_floor": pf, "servo": sv,
+                          "render_floor": rf, "physics_floor": pf, "servo": sv, "eccentricity_step": ecc,
                           "load_average": [load0[0], load1[0]], "frames": n}))
     return 0
 

@@ -8,9 +8,10 @@ or fixed layout, no ``bbox_inches="tight"`` second draw), and closed after rende
 to keep memory flat over long studies.
 
 Both cores (issue #17): the figures are kept as they are added and drawn when the report is
-rendered, half of them in a forked child (``benchtwin.forkcall``: it sees the figures as they are,
-nothing is pickled but the PNG bytes it sends back). Agg draws the same bytes in either process,
-so the report is the same file; with one figure, or ``BENCHTWIN_FORK=0``, all are drawn here.
+rendered, by this process and a forked child taking them in turn as each is free
+(``benchtwin.forkcall``: the child sees the figures as they are, nothing is pickled but the PNG
+bytes it sends back). Agg draws the same bytes in either process, so the report is the same file;
+with one figure, or ``BENCHTWIN_FORK=0``, all are drawn here.
 """
 
 from __future__ import annotations
@@ -68,25 +69,43 @@ class Report:
         self.blocks.append("")
 
     def _draw_pending(self) -> None:
+        import os
+
         from benchtwin.forkcall import ForkCall
 
         todo, self._pending = self._pending, []
         figs = [f for _, f, _ in todo]
-        # the child draws every other figure (the costly polar plots come in pairs), the caller the rest
-        child = ForkCall(lambda: [_png(f) for f in figs[1::2]], what="the report's figures") if len(figs) > 1 else None
-        pngs: list[bytes | None] = [None] * len(figs)
-        try:
-            for i in range(0, len(figs), 2 if child is not None else 1):
-                pngs[i] = _png(figs[i])
-            if child is not None:
-                pngs[1::2] = child.wait()
-        except BaseException:
-            if child is not None:
+        pngs: dict[int, bytes] = {}
+        if len(figs) < 2:
+            pngs = {i: _png(f) for i, f in enumerate(figs)}
+        else:
+            # The figures' indices wait in a pipe; this process and a forked child each take the
+            # next one as they finish the last (a read of 2 bytes takes one index whole: a pipe's
+            # reads are serialised), so the costly polar plots spread over both cores whatever
+            # their order. Who draws which figure never changes its bytes.
+            r, w = os.pipe()
+            os.write(w, b"".join(i.to_bytes(2, "little") for i in range(len(figs))))
+            os.close(w)
+
+            def draw_taken() -> dict[int, bytes]:
+                out = {}
+                while (b := os.read(r, 2)):
+                    i = int.from_bytes(b, "little")
+                    out[i] = _png(figs[i])
+                return out
+
+            child = ForkCall(draw_taken, what="the report's figures")
+            try:
+                pngs = draw_taken()
+                pngs.update(child.wait())
+            except BaseException:
                 child.cancel()
-            raise
-        for (at, fig, caption), png in zip(todo, pngs):
+                raise
+            finally:
+                os.close(r)
+        for i, (at, fig, caption) in enumerate(todo):
             _release(fig)
-            data = base64.b64encode(png or b"").decode()
+            data = base64.b64encode(pngs[i]).decode()
             self.blocks[at] = (f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
                                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
