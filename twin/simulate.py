@@ -202,8 +202,9 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     (or raises the child's error); ``job.cancel()`` when the caller gives up. The truth's bytes
     are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it.
 
-    Why (issue #17): the truth's α grid is ~10 s of CPU after the run, on the critical path of
-    ``benchtwin run``; the analysis never needs it (principle 3), so the two can overlap."""
+    Why (issue #17): the truth's α grid (3600 stops: ≈ 9 s of CPU before the round's physics work,
+    ≈ 4 s after, docs/benchmarks.md) came after the run, on the critical path of ``benchtwin run``;
+    the analysis never needs it (principle 3), so the two can overlap."""
     out = Path(out_dir)
     try:
         check_output_dir(out, what="dataset folder")

@@ -107,13 +107,12 @@ def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, A
     """analyze/close-loop into a temporary sibling of OUT, renamed onto OUT when complete: a killed
     analysis leaves neither a half report nor the previous results.json under OUT (issue #13)."""
     from benchtwin.analysis.pipeline import analyze
-    from benchtwin.heap import keep_freed_memory
-
-    keep_freed_memory()   # the frames' 3–12 MB temporaries reused, not page-faulted anew (benchtwin/heap.py)
     from benchtwin.fsio import AtomicDir
+    from benchtwin.heap import keep_freed_memory
 
     from benchtwin.app.bench_view import bench_preface_for_dataset
 
+    keep_freed_memory()   # the frames' 3–12 MB temporaries reused, not page-faulted anew (benchtwin/heap.py)
     with AtomicDir(ns.out, force=ns.force, what="analysis output folder") as tmp:
         res = analyze(ns.dataset, tmp, order=ns.order, model_file=ns.model,
                       progress=not (ns.quiet or ns.json), close_loop=close_loop,
@@ -161,7 +160,7 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder") as tmp:
         # The truth never enters the dataset (principle 3): it is written to OUT/truth by a forked
         # child while the analysis reads the measured dataset on the other core (issue #17: the
-        # truth's α grid was ~10 s on the run's critical path); the run is complete only with it.
+        # truth's α grid was 4–9 s on the run's critical path); the run is complete only with it.
         truth = tmp / "truth"
         ds, truth_job = simulate_apart(sc, tmp / "dataset", truth, progress=not quiet, backend=ns.backend)
         try:
