@@ -12,12 +12,12 @@ computed, the kernel's time only.
 ``keep_freed_memory()`` fixes both thresholds (fixing them also turns the dynamic adjustment off):
 blocks up to 32 MB (glibc's largest mmap threshold on 64-bit) come from the heap, and the heap is
 not trimmed below 1 GB free, so a process keeps about its peak frame's memory. Meant for a
-process that makes or reads frames and then ends: the frame worker of ``twin/render/pipeline.py``,
-the ``benchtwin`` commands that analyse a dataset's frames (``analyze``, ``close-loop``, ``run``:
-each frame's decode, labels and binary images are 3–12 MB; measured on the default dataset's
-``analyze``: 211 k → 83 k minor page faults, 1.9 → 0.7 s of kernel CPU, same results), and the
-benchmarks; not a library call's side effect on its caller's process. Elsewhere (not glibc) it
-does nothing.
+process that makes frames and nothing else (the frame worker of ``twin/render/pipeline.py``, the
+benchmarks), not for the caller's process. It was also tried in the commands that analyse frames
+(``analyze``: 211 k → 83 k minor page faults, 1.9 → 0.7 s of kernel CPU) and withdrawn: in a
+long-lived process that also forks and uses EGL (the test suite calling the commands in-process),
+the bench picture's EGL context then failed to initialise (EGL_NOT_INITIALIZED) in 10 tests; not
+explained, gone with either the fork or the thresholds off. Elsewhere (not glibc) it does nothing.
 """
 
 from __future__ import annotations

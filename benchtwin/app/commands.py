@@ -108,11 +108,9 @@ def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, A
     analysis leaves neither a half report nor the previous results.json under OUT (issue #13)."""
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.fsio import AtomicDir
-    from benchtwin.heap import keep_freed_memory
 
     from benchtwin.app.bench_view import bench_preface_for_dataset
 
-    keep_freed_memory()   # the frames' 3–12 MB temporaries reused, not page-faulted anew (benchtwin/heap.py)
     with AtomicDir(ns.out, force=ns.force, what="analysis output folder") as tmp:
         res = analyze(ns.dataset, tmp, order=ns.order, model_file=ns.model,
                       progress=not (ns.quiet or ns.json), close_loop=close_loop,
@@ -143,10 +141,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.fsio import AtomicDir
-    from benchtwin.heap import keep_freed_memory
     from benchtwin.twin.simulate import simulate_apart
-
-    keep_freed_memory()   # the analysis's frame-size temporaries reused (benchtwin/heap.py)
 
     sc = _scenario(ns.scenario)
     out = ns.out or Path("out") / sc.name
