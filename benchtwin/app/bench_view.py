@@ -87,6 +87,25 @@ def instrument_points(sc: Any, bench: Any) -> dict[str, tuple[np.ndarray, np.nda
     return out
 
 
+def _egl_display_initialised() -> None:
+    """Re-initialise MuJoCo's EGL display if a pyrender renderer of this process terminated it.
+
+    EGL gives every caller in a process the same display for a device; ``mujoco.egl`` initialises
+    it once and keeps it (``EGL_DISPLAY``), while pyrender, when its renderer is deleted, calls
+    ``eglTerminate`` on it (pyrender/platforms/egl.py ``delete_context``). A bench view drawn after
+    a CCD renderer of the same process was closed (the serial frame path, a test session) then
+    failed with EGL_NOT_INITIALIZED. ``eglInitialize`` on an initialised display changes nothing
+    (EGL 1.5 sec. 3.2), and re-initialises a terminated one."""
+    if os.environ.get("MUJOCO_GL", "").strip().lower() != "egl":
+        return
+    import sys
+
+    egl = sys.modules.get("mujoco.egl")      # imported by MuJoCo's first EGL context, if any
+    display = getattr(egl, "EGL_DISPLAY", None)
+    if egl is not None and display is not None:
+        egl.EGL.eglInitialize(display, None, None)
+
+
 def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
     """(RGB image, {label: (u, v) px}) of the bench of scenario ``sc`` posed at θ = 0."""
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -112,6 +131,7 @@ def render_bench(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> tuple[np.
     opt = mujoco.MjvOption()
     for gi in range(len(opt.geomgroup)):
         opt.geomgroup[gi] = 1
+    _egl_display_initialised()
     with mujoco.Renderer(m, height=height, width=width) as renderer:
         renderer.update_scene(d, camera=cam, scene_option=opt)
         scene = renderer.scene

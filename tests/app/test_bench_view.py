@@ -63,3 +63,24 @@ def test_bench_render_cache_hit_miss_and_damaged_file(tmp_path, monkeypatch):
     assert bv.bench_view_cache_dir() is None
     bv.render_bench_cached(sc, 200, 150)
     assert len(calls) == 4
+
+
+def test_bench_view_after_a_ccd_renderer_of_the_same_process_was_closed():
+    """pyrender terminates the EGL display when its renderer is closed, and EGL hands MuJoCo the
+    same display: a bench view drawn after the serial frame path's renderer was closed failed
+    (EGL_NOT_INITIALIZED) until bench_view re-initialised it (the full suite's 10 warnings)."""
+    from benchtwin.app.bench_view import render_bench
+    from benchtwin.twin.render import Renderer
+    from benchtwin.twin.scenario import load_scenario
+
+    from tests.twin.test_render import needs_gl
+
+    if needs_gl.args[0]:
+        pytest.skip(needs_gl.kwargs["reason"])
+    sc = load_scenario()
+    first, _ = render_bench(sc, width=200, height=150)
+    r = Renderer("pyrender")
+    r._gl_renderer(64, 48)      # its GL context on this process's EGL display
+    r.close()                   # pyrender: eglTerminate on that display
+    again, _ = render_bench(sc, width=200, height=150)
+    assert np.array_equal(first, again)
