@@ -56,13 +56,11 @@ def default_workers() -> int:
     min(cores, MAX_DEFAULT_WORKERS),
     and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
     its parent already spreads the work over the cores."""
-    env = os.environ.get("BENCHTWIN_WORKERS", "").strip()
-    if env:
-        try:
-            n = int(env)
-        except ValueError:
-            raise ValueError(f"BENCHTWIN_WORKERS={env!r}: expected a whole number of worker threads") from None
-        return max(1, n)
+    from benchtwin.envvars import env_whole_number
+
+    n = env_whole_number("BENCHTWIN_WORKERS", "worker threads")
+    if n is not None:
+        return n
     if mp.parent_process() is not None or mp.current_process().daemon:
         return 1
     try:

@@ -38,3 +38,32 @@ def test_console_script_installed():
     exe = Path(sys.executable).with_name("benchtwin")
     r = subprocess.run([str(exe), "--version"], capture_output=True, text=True, check=True)
     assert r.stdout.startswith("benchtwin ")
+
+
+def test_a_bad_tuning_variable_is_exit_2_naming_it(tmp_path, monkeypatch, capsys):
+    """The environment variables that tune a run are inputs like options: a bad value is exit 2
+    with the variable and what it expects (benchtwin/envvars.py), not an internal error."""
+    import pytest
+
+    from benchtwin.envvars import EnvVarError, env_choice, env_whole_number
+
+    for name, value, words in (("BENCHTWIN_SIM_FRAMES", "sometimes", ["serial, pipeline or auto"]),
+                               ("BENCHTWIN_SIM_FRAME_WORKERS", "two", ["whole number of frame workers"]),
+                               ("BENCHTWIN_SIM_FRAME_WORKERS", "0", ["≥ 1"])):
+        monkeypatch.setenv(name, value)
+        out = tmp_path / f"{name}-{value}"
+        assert main(["simulate", "--quiet", "--json", "-o", str(out)]) == 2
+        res = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert res["kind"] == "EnvVarError" and name in res["error"], res
+        assert all(w in res["error"] for w in words), res
+        assert not (out / "manifest.json").exists()
+        monkeypatch.delenv(name)
+    monkeypatch.setenv("X_BT", " 3 ")
+    assert env_whole_number("X_BT", "things") == 3
+    monkeypatch.setenv("X_BT", "")
+    assert env_whole_number("X_BT", "things") is None and env_choice("X_BT", ("a", "b"), "b") == "b"
+    monkeypatch.setenv("X_BT", "A")
+    assert env_choice("X_BT", ("a", "b"), "b") == "a"
+    monkeypatch.setenv("X_BT", "1.5")
+    with pytest.raises(EnvVarError, match="X_BT='1.5'"):
+        env_whole_number("X_BT", "things")
