@@ -9,7 +9,8 @@ import json
 
 import pytest
 
-from benchtwin.twin.render.pipeline import FRAMES_ENV, FramePipeline, frame_mode
+from benchtwin.twin.render.pipeline import (FRAME_WORKERS, FRAMES_ENV, WORKERS_ENV, FramePipeline, frame_mode,
+                                             frame_workers)
 from benchtwin.twin.simulate import simulate
 
 from tests.twin.test_simulate import files, small_scenario
@@ -45,9 +46,26 @@ def test_frame_mode_choice(monkeypatch):
         frame_mode(60, 2048, 1536)
 
 
+def test_frame_workers(monkeypatch):
+    import os
+
+    from benchtwin.envvars import EnvVarError
+
+    monkeypatch.delenv(WORKERS_ENV, raising=False)
+    assert frame_workers() == max(1, min(len(os.sched_getaffinity(0)), FRAME_WORKERS))
+    monkeypatch.setenv(WORKERS_ENV, "3")
+    assert frame_workers() == 3
+    for bad in ("0", "-1", "two", "1.5"):
+        monkeypatch.setenv(WORKERS_ENV, bad)
+        with pytest.raises(EnvVarError, match=WORKERS_ENV):
+            frame_workers()
+
+
 @pytest.mark.slow   # the default suite's pipelined frames: the resumed run of the next test
-def test_pipelined_dataset_is_the_serial_one(tmp_path, monkeypatch, serial_ref):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_pipelined_dataset_is_the_serial_one(tmp_path, monkeypatch, serial_ref, workers):
     monkeypatch.setenv(FRAMES_ENV, "pipeline")
+    monkeypatch.setenv(WORKERS_ENV, workers)
     started = []
     orig = FramePipeline.start.__func__
 

@@ -8,23 +8,31 @@ Why: a frame of the jia2019 sweep costs ≈ 0.2 s of CPU (GL coverage 0.13 s, se
 - the frame's noise stream (a ``numpy.random.Generator`` keyed by the runner's step,
   ``SimBenchState.rng("ccd", key)``; pickled with its exact bit-generator state),
 
-so it can be made anywhere. ``FramePipeline`` hands those to ONE spawned worker process that holds
-the GL context for the whole sweep and writes each frame's PNG atomically (temporary sibling,
-fsync, rename: ``benchtwin.fsio.atomic_write_bytes``), while the caller's process goes on stepping
-the servo and solving the bearings. Same code, same arguments: the files are byte-identical to
-the serial path's (``Renderer.render`` + ``DatasetWriter.write_image`` in the caller).
+so it can be made anywhere. ``FramePipeline`` hands those to spawned worker processes (two:
+``frame_workers()``), each holding its GL context for the whole sweep and writing each frame's PNG
+atomically (temporary sibling, fsync, rename: ``benchtwin.fsio.atomic_write_bytes``), while the
+caller's process goes on stepping the servo and solving the bearings. Same code, same arguments:
+the files are byte-identical to the serial path's (``Renderer.render`` + ``DatasetWriter.write_image``
+in the caller), whichever worker made them.
 
-- One worker, FIFO: frames finish in submission order (``completed()`` counts the finished
-  prefix). The caller (twin/simulate.py) journals a capture, and every step after it, only once
-  its frame is on disk, so the journal never names a frame that is not complete.
+- Why two workers on two cores: the CCD sweep's captures come in a burst (jia2019: all 60 within
+  0.4 s, 8 s into the run), and one worker then took ≈ 10 s for them (≈ 165 ms a frame, its sensor
+  model and PNG encode on one thread), ≈ 6 s of it after the physics had ended, with a core idle.
+  Two workers render the backlog on both cores (docs/benchmarks.md); while the physics runs the
+  three processes share the cores.
+- Frames may finish out of order across workers; ``completed()`` counts the finished prefix in
+  submission order. The caller (twin/simulate.py) journals a capture, and every step after it,
+  only once its frame — and every frame before it — is on disk, so the journal never names a
+  frame that is not complete.
 - ``spawn``, not ``fork``: the caller may hold threads (EGL, OpenBLAS, OpenCV, a progress bar) and
   a forked child of a process holding a lock hangs (analysis/parallel.py); and each process
   creates its own EGL/OSMesa context (GL contexts do not survive a fork). The child inherits
   ``MUJOCO_GL``/``PYOPENGL_PLATFORM`` from the environment (twin/render/gl.py).
-- The backend is settled before the first frame: the worker creates its GL context at start
-  (``probe``) and reports "pyrender", or "analytic" when ``backend="auto"`` and GL is unavailable
-  — what the serial ``Renderer`` would have fallen back to. A later GL failure in the worker is
-  an error (never a silent switch of backend behind rows already journaled as "pyrender").
+- The backend is settled before the first frame: each worker creates its GL context when it
+  starts and reports "pyrender", or "analytic" when ``backend="auto"`` and GL is unavailable —
+  what the serial ``Renderer`` would have fallen back to. Workers that disagree fall back to the
+  serial path (with a warning); a later GL failure in a worker is an error (never a silent switch
+  of backend behind rows already journaled as "pyrender").
 - ``frame_mode()`` decides serial or pipelined: ``BENCHTWIN_SIM_FRAMES`` = ``serial`` | ``pipeline``
   | ``auto`` (default). ``auto`` pipelines a sweep of at least ``AUTO_MIN_MPX`` megapixels on a
   machine with ≥ 2 cores, outside a process multiprocessing started (a design study's worker: its
@@ -45,10 +53,20 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FramePipeline", "frame_mode", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV", "AUTO_MIN_MPX"]
+from benchtwin.envvars import env_choice, env_whole_number
+
+__all__ = ["FramePipeline", "frame_mode", "frame_workers", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV",
+           "WORKERS_ENV", "AUTO_MIN_MPX", "FRAME_WORKERS"]
 
 #: environment variable choosing the frame path of ``simulate``: serial | pipeline | auto
 FRAMES_ENV = "BENCHTWIN_SIM_FRAMES"
+#: environment variable overriding the number of frame workers (a whole number ≥ 1)
+WORKERS_ENV = "BENCHTWIN_SIM_FRAME_WORKERS"
+#: frame workers at most (fewer on fewer cores): two fill a 2-core machine once the physics ends;
+#: each holds its own GL context and a frame's ≈ 100 MB of working memory
+FRAME_WORKERS = 2
+#: niceness of the frame workers (POSIX nice): the caller's physics is the run's critical path
+WORKER_NICE = 10
 #: ``auto`` pipelines sweeps of at least this many megapixels: a spawned worker costs ≈ 1.5 s of
 #: CPU (interpreter, NumPy, OpenCV, pyrender and its GL context), ≈ 7 full 2048×1536 frames' work
 #: (0.2 s each); smaller sweeps (the test suite's 128×96 frames) stay in the caller's process.
@@ -62,9 +80,7 @@ _worker: dict[str, Any] = {}
 def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False) -> str:
     """``"serial"`` or ``"pipeline"`` for a sweep of ``n_frames`` frames (see the module docstring).
     ``live``: a live view watches the run (it is served from this process; frames stay serial)."""
-    env = os.environ.get(FRAMES_ENV, "auto").strip().lower() or "auto"
-    if env not in ("serial", "pipeline", "auto"):
-        raise ValueError(f"{FRAMES_ENV}={env!r}: expected serial, pipeline or auto")
+    env = env_choice(FRAMES_ENV, ("serial", "pipeline", "auto"), "auto")
     if n_frames <= 0 or live:
         return "serial"
     if env != "auto":
@@ -78,6 +94,19 @@ def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False)
     if cores < 2:
         return "serial"
     return "pipeline" if n_frames * width_px * height_px >= AUTO_MIN_MPX * 1e6 else "serial"
+
+
+def frame_workers() -> int:
+    """Worker processes of a pipelined sweep: ``BENCHTWIN_SIM_FRAME_WORKERS`` if set, else
+    min(cores, ``FRAME_WORKERS``)."""
+    n = env_whole_number(WORKERS_ENV, "frame workers")
+    if n is not None:
+        return n
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, FRAME_WORKERS))
 
 
 def main_is_spawn_safe() -> bool:
@@ -114,6 +143,9 @@ def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
     # a frame's 12 MB temporaries reused from frame to frame instead of fresh pages from the
     # kernel (≈ 3000 page faults, 15 ms of kernel CPU a frame; benchtwin/heap.py): this process only makes frames
     keep_freed_memory()
+    # the caller's physics first: the frames fill the cores around it (each capture's frame is
+    # wanted only when the run has ended, docs/benchmarks.md); once the physics ends they have both
+    os.nice(WORKER_NICE)
     try:
         import cv2
 
@@ -121,11 +153,26 @@ def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
     except ImportError:  # pragma: no cover - OpenCV is a dependency
         pass
     _worker.clear()
-    _worker.update(backend=backend, grating=grating, camera=camera, sensor=sensor, renderer=None)
+    _worker.update(backend=backend, grating=grating, camera=camera, sensor=sensor, renderer=None, used=None,
+                   error=None)
+    # the renderer and its GL context now, while the caller's run has not reached its captures
+    # (every worker starts at once: FramePipeline.start); a failure is reported by ``probe``
+    try:
+        _worker["used"] = _make_renderer()
+    except Exception as exc:  # noqa: BLE001 - handed to the caller through probe()
+        _worker["error"] = exc
 
 
 def probe() -> str:
-    """Worker: create the renderer (and its GL context) and return the backend frames will use."""
+    """Worker: the backend frames will use (its renderer was made when the worker started); the
+    error if it could not be made."""
+    if _worker["error"] is not None:
+        raise _worker["error"]
+    return str(_worker["used"])
+
+
+def _make_renderer() -> str:
+    """Worker: create the renderer (and its GL context); the backend frames will use."""
     from benchtwin.twin.render import Renderer
 
     backend, cam = _worker["backend"], _worker["camera"]
@@ -166,11 +213,12 @@ def _shutdown_worker() -> None:   # pragma: no cover - runs in the worker
 # ------------------------------------------------------------------------------ caller side
 
 class FramePipeline:
-    """One worker process rendering and writing frames in submission order (see module docstring)."""
+    """Worker processes rendering and writing frames, completed in submission order (see module
+    docstring)."""
 
-    def __init__(self, pool: ProcessPoolExecutor, started: Future):
+    def __init__(self, pool: ProcessPoolExecutor, started: list[Future]):
         self._pool: ProcessPoolExecutor | None = pool
-        self._started: Future | None = started
+        self._started: list[Future] | None = started
         self._backend: str | None = None
         self._pending: deque[Future] = deque()
         self.submitted = 0
@@ -178,22 +226,28 @@ class FramePipeline:
 
     @classmethod
     def start(cls, backend: str, grating: Any, camera: Any, sensor: Any) -> "FramePipeline | None":
-        """Spawn the worker (it starts in the background); None if the pool cannot be created."""
+        """Spawn the workers (they start in the background); None if the pool cannot be created."""
+        n = frame_workers()     # a bad BENCHTWIN_SIM_FRAME_WORKERS is the user's error (exit 2), not the host's
         try:
-            pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
+            pool = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"),
                                        initializer=_init_worker, initargs=(backend, grating, camera, sensor))
-            return cls(pool, pool.submit(probe))
+            # one probe per worker: each submit finds no idle worker and spawns the next, so all
+            # start now (their imports and GL contexts while the caller's physics runs)
+            return cls(pool, [pool.submit(probe) for _ in range(n)])
         except Exception as exc:  # pragma: no cover - depends on the host (no /dev/shm, no fork/spawn)
             warnings.warn(f"frame pipeline unavailable ({type(exc).__name__}: {exc}); rendering frames serially",
                           RuntimeWarning, stacklevel=2)
             return None
 
     def backend(self) -> str | None:
-        """The worker's backend (waits for its start); None if it could not start (fall back to
-        serial: nothing has been submitted yet)."""
+        """The workers' backend (waits for their start); None if they could not start or found
+        different backends (fall back to serial: nothing has been submitted yet)."""
         if self._backend is None and self._started is not None:
             try:
-                self._backend = self._started.result(timeout=START_TIMEOUT_S)
+                used = {f.result(timeout=START_TIMEOUT_S) for f in self._started}
+                if len(used) != 1:
+                    raise RuntimeError(f"workers found different backends {sorted(used)}")
+                self._backend = used.pop()
             except Exception as exc:
                 warnings.warn(f"frame pipeline did not start ({type(exc).__name__}: {exc}); "
                               "rendering frames serially", RuntimeWarning, stacklevel=2)
@@ -214,13 +268,13 @@ class FramePipeline:
         Re-raises a frame's error."""
         while self._pending and (wait or self._pending[0].done()):
             used = self._pending.popleft().result()
-            if used != self._backend:   # cannot happen: the worker's renderer has one backend
+            if used != self._backend:   # a worker whose probe was not asked (another took both) and whose GL failed
                 raise RuntimeError(f"frame rendered by {used!r}, journaled as {self._backend!r}")
             self.done += 1
         return self.done
 
     def close(self, wait: bool = True) -> None:
-        """Stop the worker: ``wait`` for the submitted frames (else cancel those not started)."""
+        """Stop the workers: ``wait`` for the submitted frames (else cancel those not started)."""
         if self._pool is None:
             return
         if wait:
