@@ -2,9 +2,10 @@
 
 Why a fork and not a spawned process: the child must see the caller's objects bit for bit as they
 are at the call, without pickling them (a MuJoCo model and data, a bench's warm starts and cached
-paths). ``benchtwin run`` computes the twin's truth (its α grid is about a quarter of
-``simulate``'s CPU) in such a child while the analysis reads the measured dataset (issue #17), and
-the truth it writes is the same bytes as an in-process call's (tests/twin/test_truth_apart.py).
+paths). ``simulate`` computes the truth's α grid (about a quarter of its CPU) in such a child
+while the run steps, and ``benchtwin run`` writes the rest of the truth in another while the
+analysis reads the measured dataset (issue #17); the truth is the same bytes as an in-process
+call's (tests/twin/test_truth_apart.py).
 
 Fork safety, and why it holds for what is called here: the child is a copy of the caller with
 only the calling thread. A lock another thread held at the fork stays held in the child, so the

@@ -39,7 +39,9 @@ once its frame is on disk (``_FrameGatedRunner``), so a killed run journals no i
 
 from __future__ import annotations
 
+import copy
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -200,11 +202,12 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     once the *measured* dataset is complete (manifest written), and the caller analyses it while
     the truth is computed on the other core. ``job.wait()`` returns when ``truth_dir`` is complete
     (or raises the child's error); ``job.cancel()`` when the caller gives up. The truth's bytes
-    are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it.
+    are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it, and
+    the α grid comes from its own child, forked when the run started (``_simulate``).
 
-    Why (issue #17): the truth's α grid (3600 stops: ≈ 9 s of CPU before the round's physics work,
-    ≈ 4 s after, docs/benchmarks.md) came after the run, on the critical path of ``benchtwin run``;
-    the analysis never needs it (principle 3), so the two can overlap."""
+    Why (issue #17): the truth (then with its α grid: 3600 stops, ≈ 9 s of CPU before the round's
+    physics work, ≈ 4 s after, docs/benchmarks.md) came after the run, on the critical path of
+    ``benchtwin run``; the analysis never needs it (principle 3), so the two can overlap."""
     out = Path(out_dir)
     try:
         check_output_dir(out, what="dataset folder")
@@ -222,11 +225,25 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
 def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None,
               truth_dir: Path | None = None) -> tuple[Path, ForkCall | None]:
     """The run; ``truth_dir`` (``simulate_apart``): the truth goes there, from a forked child."""
-    from tqdm import tqdm
-
     steps = sim_procedure(sc)
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
+    # The truth's α grid is a property of the bench as built (``_alpha_grid``): a forked child
+    # computes it from a copy while the run steps, on the core the frame worker leaves idle until
+    # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
+    # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
+    grid = ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}")
+    try:
+        return _simulate_built(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
+    finally:
+        grid.cancel()     # a no-op once waited for; else the run failed: stop the child
+
+
+def _simulate_built(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None,
+                    truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
+                    grid: ForkCall) -> tuple[Path, ForkCall | None]:
+    from tqdm import tqdm
+
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
     writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume, truth_to=truth_dir)
@@ -299,12 +316,14 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
 
             writer.write_table("radial_continuous", continuous_run(
                 bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-        # the truth (its α grid is ~1/4 of the CPU) while the frame worker finishes its backlog;
-        # apart (simulate_apart): in a forked child, while the caller goes on to its analysis
+        # the truth (its α grid from its own child, started with the run) while the frame worker
+        # finishes its backlog; apart (simulate_apart): in a forked child, while the caller goes
+        # on to its analysis
+        alpha = grid.wait()
         if truth_dir is None:
-            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth)
+            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha)
         else:
-            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth),
+            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha),
                            what=f"the truth of {sc.name} (written to {truth_dir})")
         if pipe is not None:
             runner.drain()    # the last frames written, then the journal lines held behind them
@@ -452,15 +471,15 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
     return out
 
 
-def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None,
-                 ccd_truth: dict[int, dict] | None = None) -> None:
-    held = held or {}
-    ccd_truth = ccd_truth or {}
-    N = bench.n_faces
-    w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
-                                         "file": getattr(sc, "raw", None),
-                                         "path": str(sc.path) if getattr(sc, "path", None) else None})
+def _alpha_grid(sc: Any, bench: Bench) -> dict[str, list]:
+    """The truth's α grid: every head's error α = reading − true angle at readings 0.1° apart (rep 0,
+    forward), ``encoder_error.csv``'s columns. ``bench``: a bench as built, before the run (this
+    function resets its path and leaves warm starts on it: pass a copy).
+
+    The grid is a property of the bench, not of the run: a fresh state and clock (t = 0), a fresh
+    encoder and an ideal stage, and the bench's path started afresh. So it is computed from the
+    bench as built, in a forked child while the run steps (``_simulate``): ≈ 3.5 s of CPU
+    (jia2019) on the core the frame worker leaves idle until the CCD sweep (issue #17)."""
     # An independent state + stage for the α grid (the run's clock is not touched). The grid is
     # one continuous sweep of a bench whose path starts afresh (ball bearings: cages at their
     # initial angles, rolling with the shaft along the grid, no start/stop slip: one time).
@@ -494,7 +513,23 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
         for j in range(nh):
             cols[f"alpha_h{j + 1}_arcsec"].append((x[j] - p.shaft_angle_rad) / ARCSEC)
     cols["alpha_arcsec"] = cols["alpha_h1_arcsec"]
-    w.write_truth_table("encoder_error", cols)
+    return cols
+
+
+def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
+                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None,
+                 ccd_truth: dict[int, dict] | None = None, alpha: dict[str, list] | None = None) -> None:
+    """The run's truth into ``w``'s truth folder; ``alpha``: the α grid's columns
+    (``_alpha_grid``; computed here when not given)."""
+    held = held or {}
+    ccd_truth = ccd_truth or {}
+    N = bench.n_faces
+    w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
+                                         "file": getattr(sc, "raw", None),
+                                         "path": str(sc.path) if getattr(sc, "path", None) else None})
+    if alpha is None:
+        alpha = _alpha_grid(sc, copy.deepcopy(bench))
+    w.write_truth_table("encoder_error", alpha)
 
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
     if radial:
