@@ -206,3 +206,52 @@ def test_repeated_ccd_sweeps_share_angles_not_within_a_sweep(tmp_path):
     (root / "ccd" / "index.csv").write_bytes(table_to_csv(idx))   # no sweep column: one sweep
     with pytest.raises(DatasetError, match="rows 2 and 4: two frames at the same angle"):
         open_dataset(root).validate()
+
+
+def _four_frames(root: Path, damage: str | None) -> Path:
+    """A dataset of four frames (the reader's threads read ahead of the checks), one damaged."""
+    import cv2
+
+    make_dataset(root)
+    for k in (2, 3):
+        img = np.full((12, 16), 200, np.uint8)
+        img[:, 2 + k:] = 30
+        cv2.imwrite(str(root / "ccd" / f"img_{k:03d}.png"), img)
+    idx = {"k": [0, 1, 2, 3], "theta_deg": [0.0, 6.0, 12.0, 18.0],
+           "file": [f"img_{k:03d}.png" for k in range(4)]}
+    (root / "ccd" / "index.csv").write_text(
+        "k,theta_deg,file\n" + "".join(f"{k},{t},{f}\n" for k, t, f in zip(*idx.values())))
+    if damage == "duplicate":       # frame 3 a copy of frame 1
+        (root / "ccd" / "img_003.png").write_bytes((root / "ccd" / "img_001.png").read_bytes())
+    elif damage == "size":          # frame 2 another size
+        cv2.imwrite(str(root / "ccd" / "img_002.png"), np.zeros((10, 16), np.uint8))
+    elif damage == "garbage+size":  # frame 3 unreadable AND frame 2 another size: row 4's error first
+        cv2.imwrite(str(root / "ccd" / "img_002.png"), np.zeros((10, 16), np.uint8))
+        (root / "ccd" / "img_003.png").write_bytes(b"not a png")
+    return root
+
+
+@pytest.mark.parametrize("damage", [None, "duplicate", "size", "garbage+size"])
+def test_frames_read_ahead_in_threads_are_the_serial_loops(tmp_path, damage):
+    """ccd_frames(workers=2) reads, decodes and hashes frames in threads: the same frames in row
+    order, and the same error at the same row as the serial loop (row order, not finishing order)."""
+    def read(workers: int):
+        ds = open_dataset(_four_frames(tmp_path / f"w{workers}", damage))
+        got = []
+        try:
+            for k, theta, img, f in ds.ccd_frames(workers=workers):
+                got.append((k, theta, img.tobytes(), f))
+        except DatasetError as exc:
+            return got, str(exc).replace(str(tmp_path / f"w{workers}"), "DS")
+        return got, None
+
+    serial, threaded = read(1), read(2)
+    assert threaded == serial
+    frames, err = serial
+    if damage is None:
+        assert err is None and [f[0] for f in frames] == [0, 1, 2, 3]
+    else:
+        expect = {"duplicate": ("row 5", "identical to the frame of row 3"),
+                  "size": ("row 4", "expected one frame size"),
+                  "garbage+size": ("row 4", "expected one frame size")}[damage]
+        assert err is not None and all(w in err for w in expect), err
