@@ -17,7 +17,8 @@ the caller's buffered output (which would print it twice).
 
 Errors: an exception in the child is pickled back through a pipe and raised again by ``wait()``
 (its type kept, so a ``DatasetError`` still ends the command with exit 2); a child killed by a
-signal is a ``ForkCallError`` naming the signal. Where ``os.fork`` does not exist, or with
+signal is a ``ForkCallError`` naming the signal. A child dies with its parent (Linux: a killed
+command leaves nothing computing). Where ``os.fork`` does not exist, or with
 ``BENCHTWIN_FORK=0``, the function is called at once in the caller (same result, no overlap).
 """
 
@@ -56,11 +57,13 @@ class ForkCall:
             self._done = True
             return
         r, w = os.pipe()
+        parent = os.getpid()
         pid = os.fork()
         if pid == 0:        # the child: run, report, leave without the caller's exit handlers
             os.close(r)
             code = 0
             try:
+                _die_with(parent)
                 _send(w, pickle.dumps(("ok", fn())))
             except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
                 code = 1
@@ -120,6 +123,24 @@ class ForkCall:
             os.close(self._fd)
             self._fd = None
         self._done = True
+
+
+def _die_with(parent: int) -> None:
+    """Linux: this child is killed when its parent dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``), so
+    a killed command leaves no child computing for nobody; elsewhere nothing."""
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)     # 1 = PR_SET_PDEATHSIG (linux/prctl.h)
+    except (OSError, AttributeError):  # pragma: no cover - not glibc/musl: the child just finishes
+        return
+    if os.getppid() != parent:      # the parent died before prctl took effect
+        os._exit(1)
 
 
 def _report(fd: int, exc: BaseException) -> None:

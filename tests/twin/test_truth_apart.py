@@ -133,3 +133,34 @@ def test_the_alpha_grid_is_the_benchs_not_the_runs(tmp_path, monkeypatch, bearin
         # α in arcsec, axis offsets in µm, angles in degrees: 1e-9 of each is far below any
         # uncertainty the analysis states (the statics settle to 1e-14 m / 1e-14 rad)
         np.testing.assert_allclose(written, values, rtol=0, atol=1e-9, err_msg=col)
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_a_forked_child_dies_with_its_killed_parent():
+    """A command killed while a ForkCall child computes (the α grid, the truth) leaves nothing
+    computing for nobody: the child gets SIGKILL when its parent dies."""
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    script = ("import os, signal, time\n"
+              "from benchtwin.forkcall import ForkCall\n"
+              "job = ForkCall(lambda: time.sleep(60))\n"
+              "print(job._pid, flush=True)\n"
+              "time.sleep(0.3)\n"
+              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert p.returncode == -9, p.stderr
+    child = Path(f"/proc/{int(p.stdout.strip())}/stat")
+
+    def running() -> bool:
+        try:
+            return child.read_text().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+        except (FileNotFoundError, ProcessLookupError):
+            return False
+
+    deadline = time.monotonic() + 10
+    while running() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not running()
