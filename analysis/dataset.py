@@ -699,25 +699,19 @@ class Dataset:
                     f"{p}: row {i + 2}: theta_deg = {th[i]:g} but the encoder read theta_read_deg = "
                     f"{float(cols['theta_read_deg'][i]):g} (expected within {tol:g}°: swapped or wrong angles?)")
 
-    def ccd_frames(self, workers: int | None = 1) -> Iterator[tuple[int, float, np.ndarray, str]]:
+    def ccd_frames(self) -> Iterator[tuple[int, float, np.ndarray, str]]:
         """Yield (k, theta_deg, image, file) for every row of ccd/index.csv, checking each image:
-        all frames one size, with ``ccd.reference_px`` inside it, and no two identical frames.
-
-        ``workers``: threads reading ahead (``analysis/parallel.py``; None: its default; 1: this
-        thread only). Each frame is read, decoded and hashed in a thread (PNG decoding and hashing
-        release the GIL; they were the eccentricity step's serial part once its edges went to
-        threads, issue #17); the checks across frames, and every error, come in row order, as in
-        the serial loop."""
-        from benchtwin.analysis.parallel import ordered_map
+        all frames one size, with ``ccd.reference_px`` inside it, and no two identical frames."""
+        import hashlib
 
         idx = self.table("ccd/index")
         ref = self.manifest["ccd"]["reference_px"]
         shape: tuple[int, ...] | None = None
         first_row = 0
         digests: dict[bytes, int] = {}
-        read = ordered_map(self._read_frame, ((str(f), i + 2) for i, f in enumerate(idx["file"])), workers)
-        for i, (k, theta, f, (img, uniform, dg)) in enumerate(zip(idx["k"], idx["theta_deg"], idx["file"], read)):
+        for i, (k, theta, f) in enumerate(zip(idx["k"], idx["theta_deg"], idx["file"])):
             row = i + 2
+            img = self.read_image(str(f), row=row)
             where = f"{self.path / 'ccd' / 'index.csv'}: row {row}: image {str(f)!r}"
             if shape is None:
                 shape, first_row = img.shape, row
@@ -727,21 +721,15 @@ class Dataset:
             elif img.shape != shape:
                 raise DatasetError(f"{where}: {img.shape[1]}×{img.shape[0]} px, but the frame of row {first_row} is "
                                    f"{shape[1]}×{shape[0]} px (expected one frame size for the whole sweep)")
+            # a uniform frame (fogged, dark, saturated) carries no image: two of them are alike by
+            # nature, and the image analysis rejects them with its own note; any other frame is unique
+            uniform = img.size == 0 or int(img.min()) == int(img.max())
+            dg = hashlib.blake2b(img.tobytes(), digest_size=16).digest()
             if not uniform and dg in digests:
                 raise DatasetError(f"{where}: identical to the frame of row {digests[dg]}; a frame at another angle "
                                    "cannot be pixel-for-pixel the same (a duplicated file?)")
             digests[dg] = row
             yield int(k), float(theta), img, str(f)
-
-    def _read_frame(self, relpath: str, row: int) -> tuple[np.ndarray, bool, bytes]:
-        """One frame of ``ccd_frames``: (image, uniform, digest of its pixels)."""
-        import hashlib
-
-        img = self.read_image(relpath, row=row)
-        # a uniform frame (fogged, dark, saturated) carries no image: two of them are alike by
-        # nature, and the image analysis rejects them with its own note; any other frame is unique
-        uniform = img.size == 0 or int(img.min()) == int(img.max())
-        return img, uniform, hashlib.blake2b(img.tobytes(), digest_size=16).digest()
 
     def read_image(self, relpath: str, row: int | None = None) -> np.ndarray:
         import cv2

@@ -141,7 +141,7 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
     meta: list[tuple[float, str]] = []  # (theta, file) per frame, in index order
 
     def frames() -> Iterator[tuple[np.ndarray, float, str]]:
-        for _k, theta, image, f in ds.ccd_frames(workers):
+        for _k, theta, image, f in ds.ccd_frames():
             meta.append((float(theta), f))
             yield image, period_um, f
 
