@@ -46,7 +46,9 @@ class ForkCall:
     """``fn()`` running in a forked child; ``wait()`` returns its (pickled) value when it is done,
     or raises its error."""
 
-    def __init__(self, fn: Callable[[], Any], what: str = "child"):
+    def __init__(self, fn: Callable[[], Any], what: str = "child", nice: int = 0):
+        """``nice``: added to the child's niceness (POSIX ``nice``), for a child whose result is
+        wanted only later: the caller's work on the critical path keeps its core."""
         self.what = what
         self._pid: int | None = None
         self._fd: int | None = None
@@ -64,6 +66,8 @@ class ForkCall:
             code = 0
             try:
                 _die_with(parent)
+                if nice:
+                    os.nice(nice)
                 _send(w, pickle.dumps(("ok", fn())))
             except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
                 code = 1

@@ -63,6 +63,9 @@ from .physics import Bench
 from .render.pipeline import FramePipeline, frame_mode
 
 ALPHA_GRID_STEP_DEG = 0.1
+#: niceness of the α grid's child: it is wanted at the run's end, while the run's own steps (the
+#: servo, the statics) are its critical path and keep their core (issue #17)
+GRID_NICE = 10
 
 
 def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = True) -> list[dict[str, Any]]:
@@ -232,7 +235,8 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     # computes it from a copy while the run steps, on the core the frame worker leaves idle until
     # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
     # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
-    grid = ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}")
+    grid = ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
+                    nice=GRID_NICE)
     try:
         return _simulate_built(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
     finally:

@@ -164,3 +164,11 @@ def test_a_forked_child_dies_with_its_killed_parent():
     while running() and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not running()
+
+
+def test_a_forked_child_can_yield_the_cores():
+    """``nice``: the α grid's child runs at a lower priority than the run it overlaps."""
+    base = os.nice(0)
+    assert ForkCall(lambda: os.nice(0), nice=5).wait() == min(base + 5, 19)
+    assert ForkCall(lambda: os.nice(0)).wait() == base
+    assert S.GRID_NICE > 0
