@@ -29,6 +29,9 @@ bench picture's own times in that process). Wall AND CPU time (user + system of 
 children, e.g. a process pool) are printed for every stage: the machine is shared, so wall figures
 are taken under load (the load average is printed) and CPU time is the steadier figure.
 
+Where the time goes inside one ``run`` (its critical path: the run's steps, the CCD frames'
+backlog, each analysis step): ``benchmarks/run_timeline.py``.
+
 Usage: ``.venv/bin/python benchmarks/run_bench.py [scenario.toml] [--repeat 1] [--keep DIR] [--json]``
 """
 

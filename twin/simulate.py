@@ -232,7 +232,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
     # The truth's α grid is a property of the bench as built (``_alpha_grid``): a forked child
-    # computes it from a copy while the run steps, on the core the frame worker leaves idle until
+    # computes it from a copy while the run steps, on the core the frame workers leave idle until
     # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
     # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
     grid = ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
@@ -482,8 +482,8 @@ def _alpha_grid(sc: Any, bench: Bench) -> dict[str, list]:
 
     The grid is a property of the bench, not of the run: a fresh state and clock (t = 0), a fresh
     encoder and an ideal stage, and the bench's path started afresh. So it is computed from the
-    bench as built, in a forked child while the run steps (``_simulate``): ≈ 3.5 s of CPU
-    (jia2019) on the core the frame worker leaves idle until the CCD sweep (issue #17)."""
+    bench as built, in a forked child while the run steps (``_simulate``): ≈ 4 s of CPU
+    (jia2019) on the core the frame workers leave idle until the CCD sweep (issue #17)."""
     # An independent state + stage for the α grid (the run's clock is not touched). The grid is
     # one continuous sweep of a bench whose path starts afresh (ball bearings: cages at their
     # initial angles, rolling with the shaft along the grid, no start/stop slip: one time).

@@ -63,13 +63,14 @@ FRAMES_ENV = "BENCHTWIN_SIM_FRAMES"
 #: environment variable overriding the number of frame workers (a whole number ≥ 1)
 WORKERS_ENV = "BENCHTWIN_SIM_FRAME_WORKERS"
 #: frame workers at most (fewer on fewer cores): two fill a 2-core machine once the physics ends;
-#: each holds its own GL context and a frame's ≈ 100 MB of working memory
+#: each is a process of its own (interpreter, GL context, a frame's working memory)
 FRAME_WORKERS = 2
 #: niceness of the frame workers (POSIX nice): the caller's physics is the run's critical path
 WORKER_NICE = 10
 #: ``auto`` pipelines sweeps of at least this many megapixels: a spawned worker costs ≈ 1.5 s of
 #: CPU (interpreter, NumPy, OpenCV, pyrender and its GL context), ≈ 7 full 2048×1536 frames' work
-#: (0.2 s each); smaller sweeps (the test suite's 128×96 frames) stay in the caller's process.
+#: (0.2 s each; two workers: twice that, spent before the sweep's captures in a long run); smaller
+#: sweeps (the test suite's 128×96 frames) stay in the caller's process.
 AUTO_MIN_MPX = 30.0
 #: seconds to wait for the worker to start and report its backend before falling back to serial
 START_TIMEOUT_S = 120.0
