@@ -131,7 +131,9 @@ class ForkCall:
 
 def _die_with(parent: int) -> None:
     """Linux: this child is killed when its parent dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``), so
-    a killed command leaves no child computing for nobody; elsewhere nothing."""
+    a killed command leaves no child computing for nobody; elsewhere nothing. Linux sends the
+    signal when the *thread* that forked the child ends: every ForkCall here is waited for (or
+    cancelled) by the call that made it, on that thread, so that thread outlives its child."""
     import sys
 
     if not sys.platform.startswith("linux"):
