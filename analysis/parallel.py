@@ -29,7 +29,6 @@ Guarantees, so the parallel path is the serial path, only faster:
 from __future__ import annotations
 
 import multiprocessing as mp
-import os
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -56,18 +55,14 @@ def default_workers() -> int:
     min(cores, MAX_DEFAULT_WORKERS),
     and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
     its parent already spreads the work over the cores."""
-    from benchtwin.envvars import env_whole_number
+    from benchtwin.runtime import env_whole_number, usable_cores
 
     n = env_whole_number("BENCHTWIN_WORKERS", "worker threads")
     if n is not None:
         return n
     if mp.parent_process() is not None or mp.current_process().daemon:
         return 1
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, MAX_DEFAULT_WORKERS))
+    return max(1, min(usable_cores(), MAX_DEFAULT_WORKERS))
 
 
 def ordered_map(fn: Callable[..., R], items: Iterable[tuple[Any, ...]], workers: int | None = None,

@@ -158,7 +158,7 @@ def _validate_other_file(path: Path) -> dict[str, Any] | None:
 DOMAIN_ERRORS: tuple[tuple[str, str], ...] = (
     ("benchtwin.fsio", "OutputError"),
     ("benchtwin.units", "UnitError"),
-    ("benchtwin.envvars", "EnvVarError"),
+    ("benchtwin.runtime", "EnvVarError"),
     ("benchtwin.analysis.dataset", "DatasetError"),
     ("benchtwin.analysis.shift_angle", "PolygonDataError"),
     ("benchtwin.analysis.eccentricity", "ImageAnalysisError"),

@@ -17,7 +17,8 @@ the caller's buffered output (which would print it twice).
 
 Errors: an exception in the child is pickled back through a pipe and raised again by ``wait()``
 (its type kept, so a ``DatasetError`` still ends the command with exit 2); a child killed by a
-signal is a ``ForkCallError`` naming the signal. A child dies with its parent (Linux: a killed
+signal is a ``ForkCallError`` naming the signal. Used as a context manager, a child not waited
+for by the end of the block is cancelled (the caller failed). A child dies with its parent (Linux: a killed
 command leaves nothing computing). Where ``os.fork`` does not exist, or with
 ``BENCHTWIN_FORK=0``, the function is called at once in the caller (same result, no overlap).
 """
@@ -76,6 +77,13 @@ class ForkCall:
                 os._exit(code)
         os.close(w)
         self._pid, self._fd = pid, r
+
+    def __enter__(self) -> "ForkCall":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        # leaving the block without having waited (the caller failed): stop the child
+        self.cancel()
 
     @property
     def forked(self) -> bool:

@@ -42,10 +42,10 @@ def test_console_script_installed():
 
 def test_a_bad_tuning_variable_is_exit_2_naming_it(tmp_path, monkeypatch, capsys):
     """The environment variables that tune a run are inputs like options: a bad value is exit 2
-    with the variable and what it expects (benchtwin/envvars.py), not an internal error."""
+    with the variable and what it expects (benchtwin/runtime.py), not an internal error."""
     import pytest
 
-    from benchtwin.envvars import EnvVarError, env_choice, env_whole_number
+    from benchtwin.runtime import EnvVarError, env_choice, env_whole_number
 
     for name, value, words in (("BENCHTWIN_SIM_FRAMES", "sometimes", ["serial, pipeline or auto"]),
                                ("BENCHTWIN_SIM_FRAME_WORKERS", "two", ["whole number of frame workers"]),

@@ -235,17 +235,15 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     # computes it from a copy while the run steps, on the core the frame workers leave idle until
     # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
     # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
-    grid = ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
-                    nice=GRID_NICE)
-    try:
-        return _simulate_built(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
-    finally:
-        grid.cancel()     # a no-op once waited for; else the run failed: stop the child
+    with ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
+                  nice=GRID_NICE) as grid:     # cancelled if the run fails before it is waited for
+        return _run_and_write(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
 
 
-def _simulate_built(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None,
-                    truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
-                    grid: ForkCall) -> tuple[Path, ForkCall | None]:
+def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None,
+                   truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
+                   grid: ForkCall) -> tuple[Path, ForkCall | None]:
+    """``_simulate``'s run of the built bench: the steps, the frames, the tables, the truth."""
     from tqdm import tqdm
 
     enc: SimEncoder = inst["encoder"]
@@ -521,18 +519,13 @@ def _alpha_grid(sc: Any, bench: Bench) -> dict[str, list]:
 
 
 def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple], held: dict[int, float] | None = None,
-                 ccd_truth: dict[int, dict] | None = None, alpha: dict[str, list] | None = None) -> None:
-    """The run's truth into ``w``'s truth folder; ``alpha``: the α grid's columns
-    (``_alpha_grid``; computed here when not given)."""
-    held = held or {}
-    ccd_truth = ccd_truth or {}
+                 truth_rows: dict[int, tuple], held: dict[int, float],
+                 ccd_truth: dict[int, dict], alpha: dict[str, list]) -> None:
+    """The run's truth into ``w``'s truth folder; ``alpha``: the α grid's columns (``_alpha_grid``)."""
     N = bench.n_faces
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
                                          "path": str(sc.path) if getattr(sc, "path", None) else None})
-    if alpha is None:
-        alpha = _alpha_grid(sc, copy.deepcopy(bench))
     w.write_truth_table("encoder_error", alpha)
 
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]

@@ -94,13 +94,10 @@ class Report:
                     out[i] = _png(figs[i])
                 return out
 
-            child = ForkCall(draw_taken, what="the report's figures")
             try:
-                pngs = draw_taken()
-                pngs.update(child.wait())
-            except BaseException:
-                child.cancel()
-                raise
+                with ForkCall(draw_taken, what="the report's figures") as child:
+                    pngs = draw_taken()
+                    pngs.update(child.wait())
             finally:
                 os.close(r)
         for i, (at, fig, caption) in enumerate(todo):

@@ -159,12 +159,9 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
         # when the run starts, twin/simulate.py); the run is complete only with it.
         truth = tmp / "truth"
         ds, truth_job = simulate_apart(sc, tmp / "dataset", truth, progress=not quiet, backend=ns.backend)
-        try:
+        with truth_job:
             res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
             truth_job.wait()
-        except BaseException:
-            truth_job.cancel()
-            raise
         from benchtwin.fsio import atomic_write_text
 
         atomic_write_text(tmp / RUN_MARKER, json.dumps({"command": "benchtwin run", "scenario": sc.name,

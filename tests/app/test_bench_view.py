@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.twin.test_render import needs_gl
+
 pytestmark = pytest.mark.render
 
 
@@ -65,6 +67,7 @@ def test_bench_render_cache_hit_miss_and_damaged_file(tmp_path, monkeypatch):
     assert len(calls) == 4
 
 
+@needs_gl    # the serial frame path's pyrender renderer needs an OpenGL context, as the render tests
 def test_bench_view_after_a_ccd_renderer_of_the_same_process_was_closed():
     """pyrender terminates the EGL display when its renderer is closed, and EGL hands MuJoCo the
     same display: a bench view drawn after the serial frame path's renderer was closed failed
@@ -73,10 +76,6 @@ def test_bench_view_after_a_ccd_renderer_of_the_same_process_was_closed():
     from benchtwin.twin.render import Renderer
     from benchtwin.twin.scenario import load_scenario
 
-    from tests.twin.test_render import needs_gl
-
-    if needs_gl.args[0]:
-        pytest.skip(needs_gl.kwargs["reason"])
     sc = load_scenario()
     first, _ = render_bench(sc, width=200, height=150)
     r = Renderer("pyrender")

@@ -49,7 +49,7 @@ def test_frame_mode_choice(monkeypatch):
 def test_frame_workers(monkeypatch):
     import os
 
-    from benchtwin.envvars import EnvVarError
+    from benchtwin.runtime import EnvVarError
 
     monkeypatch.delenv(WORKERS_ENV, raising=False)
     assert frame_workers() == max(1, min(len(os.sched_getaffinity(0)), FRAME_WORKERS))

@@ -5,6 +5,7 @@ the truth with the analysis)."""
 from __future__ import annotations
 
 import os
+import sys
 
 import pytest
 
@@ -135,12 +136,13 @@ def test_the_alpha_grid_is_the_benchs_not_the_runs(tmp_path, monkeypatch, bearin
         np.testing.assert_allclose(written, values, rtol=0, atol=1e-9, err_msg=col)
 
 
-@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+@pytest.mark.skipif(not sys.platform.startswith("linux"),
+                    reason="the mechanism under test, prctl(PR_SET_PDEATHSIG), exists only on Linux (forkcall._die_with "
+                           "does nothing elsewhere); /proc is read to see the child gone")
 def test_a_forked_child_dies_with_its_killed_parent():
     """A command killed while a ForkCall child computes (the α grid, the truth) leaves nothing
     computing for nobody: the child gets SIGKILL when its parent dies."""
     import subprocess
-    import sys
     import time
     from pathlib import Path
 
@@ -172,3 +174,17 @@ def test_a_forked_child_can_yield_the_cores():
     assert ForkCall(lambda: os.nice(0), nice=5).wait() == min(base + 5, 19)
     assert ForkCall(lambda: os.nice(0)).wait() == base
     assert S.GRID_NICE > 0
+
+
+def test_a_child_not_waited_for_is_cancelled_at_the_end_of_its_block():
+    """ForkCall as a context manager (the α grid, the truth of `run`, the report's figures): a
+    block left by an error stops and reaps the child; a waited child is left as it is."""
+    import time
+
+    with pytest.raises(RuntimeError, match="the caller failed"):
+        with ForkCall(lambda: time.sleep(60)) as job:
+            raise RuntimeError("the caller failed")
+    assert job._done and not os.path.exists(f"/proc/{job._pid}") or not job.forked
+    with ForkCall(lambda: 42) as done:
+        assert done.wait() == 42
+    assert done.wait() == 42

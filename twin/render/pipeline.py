@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.envvars import env_choice, env_whole_number
+from benchtwin.runtime import env_choice, env_whole_number, usable_cores
 
 __all__ = ["FramePipeline", "frame_mode", "frame_workers", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV",
            "WORKERS_ENV", "AUTO_MIN_MPX", "FRAME_WORKERS"]
@@ -88,11 +88,7 @@ def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False)
         return env
     if mp.parent_process() is not None or mp.current_process().daemon or not main_is_spawn_safe():
         return "serial"
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    if cores < 2:
+    if usable_cores() < 2:
         return "serial"
     return "pipeline" if n_frames * width_px * height_px >= AUTO_MIN_MPX * 1e6 else "serial"
 
@@ -103,11 +99,7 @@ def frame_workers() -> int:
     n = env_whole_number(WORKERS_ENV, "frame workers")
     if n is not None:
         return n
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, FRAME_WORKERS))
+    return max(1, min(usable_cores(), FRAME_WORKERS))
 
 
 def main_is_spawn_safe() -> bool:

@@ -25,7 +25,6 @@ import hashlib
 import json
 import math
 import multiprocessing as mp
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,6 +34,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from benchtwin.fsio import atomic_write_text
+from benchtwin.runtime import usable_cores
 
 from . import points as study_points
 from . import report
@@ -217,7 +217,7 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
                 store(res)
                 bar.update(len(res["reps"]))
         else:
-            _run_pool(workers or _cpu_count(), plan.tasks, store, bar)
+            _run_pool(workers or usable_cores(), plan.tasks, store, bar)
     finally:
         bar.close()
     info = report.RunInfo(
@@ -225,7 +225,7 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
         wall_s=time.perf_counter() - t0,
         where="dask " + str(getattr(scheduler, "scheduler_address", scheduler))
         if scheduler is not None else ("in-process" if workers == 0 else
-                                       f"local pool, {workers or _cpu_count()} workers"))
+                                       f"local pool, {workers or usable_cores()} workers"))
     return _write_results(study, points, plan, seeds, out, info)
 
 
@@ -251,13 +251,6 @@ def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict
         raise
     else:
         pool.shutdown(wait=True)
-
-
-def _cpu_count() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
 
 
 def _progress_bar(enabled: bool, total: int, initial: int, name: str) -> _Bar:

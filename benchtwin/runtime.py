@@ -1,8 +1,9 @@
-"""The environment variables that tune how benchtwin runs (not what it computes), read in one way.
+"""How benchtwin runs (not what it computes): the cores it may use, and the environment variables
+that tune it (``BENCHTWIN_SIM_FRAMES``, ``BENCHTWIN_SIM_FRAME_WORKERS``, ``BENCHTWIN_WORKERS``).
 
-Each is an input like a command-line option: a bad value ends the command with exit 2 and a
-message naming the variable and what it expects (``EnvVarError`` is one of the CLI's domain
-errors, benchtwin/cli.py), never as an internal error.
+A tuning variable is an input like a command-line option: a bad value ends the command with exit
+2 and a message naming the variable and what it expects (``EnvVarError`` is one of the CLI's
+domain errors, benchtwin/cli.py), never as an internal error.
 """
 
 from __future__ import annotations
@@ -34,3 +35,11 @@ def env_choice(name: str, choices: tuple[str, ...], default: str) -> str:
     if raw not in choices:
         raise EnvVarError(f"{name}={raw!r}: expected {', '.join(choices[:-1])} or {choices[-1]}")
     return raw
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the OS has one, else the count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
