@@ -66,7 +66,7 @@ class ForkCall:
             os.close(r)
             code = 0
             try:
-                _die_with(parent)
+                die_with_parent(parent)
                 if nice:
                     os.nice(nice)
                 _send(w, pickle.dumps(("ok", fn())))
@@ -137,7 +137,7 @@ class ForkCall:
         self._done = True
 
 
-def _die_with(parent: int) -> None:
+def die_with_parent(parent: int) -> None:
     """Linux: this child is killed when its parent dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``), so
     a killed command leaves no child computing for nobody; elsewhere nothing. Linux sends the
     signal when the *thread* that forked the child ends: every ForkCall here is waited for (or
@@ -174,4 +174,4 @@ def _send(fd: int, data: bytes) -> None:
         view = view[n:]
 
 
-__all__ = ["ForkCall", "ForkCallError", "fork_enabled"]
+__all__ = ["ForkCall", "ForkCallError", "die_with_parent", "fork_enabled"]

@@ -30,15 +30,18 @@ waits (not the readings) so its state and truth are bit for bit those of an unin
 
 Same scenario and seed -> byte-identical dataset (no wall time, no host names are written).
 
-Both cores: the CCD frames (render, sensor model, PNG encode, atomic write) are made by a spawned
-worker process while the physics goes on here (``twin/render/pipeline.py``; ``BENCHTWIN_SIM_FRAMES``
-= serial | pipeline | auto; auto pipelines large sweeps, e.g. jia2019's 60 frames of 3 Mpx). The
-dataset is byte-identical either way; a capture's journal line, and the lines after it, are written
+Both cores: the drive servo's settles are computed ahead by a forked worker from the procedure's
+plan (``instruments/settle_ahead.py``: the same rests, bit for bit); the CCD frames (render,
+sensor model, PNG encode, atomic write) are made by spawned worker processes while the physics
+goes on here (``twin/render/pipeline.py``; ``BENCHTWIN_SIM_FRAMES`` = serial | pipeline | auto;
+auto pipelines large sweeps, e.g. jia2019's 60 frames of 3 Mpx). The dataset is byte-identical
+either way; a capture's journal line, and the lines after it, are written
 once its frame is on disk (``_FrameGatedRunner``), so a killed run journals no incomplete frame.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 from functools import partial
@@ -56,6 +59,7 @@ from benchtwin.hw.acquisition.runner import Runner, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.drive import DriveServo
+from .instruments.settle_ahead import SettleAhead, settle_plan
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
@@ -231,12 +235,20 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     steps = sim_procedure(sc)
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
     bench, state, inst = sim_build(sc, backend, camera=has_ccd)
+    stage: SimRotaryStage = inst["stage"]
+    # The servo's settles of the whole procedure are known from its steps (settle_ahead.py): a
+    # worker forked now computes them ahead while the run poses and reads; the same rests either way.
+    ahead = SettleAhead.start(stage.servo, settle_plan(steps, stage))
     # The truth's α grid is a property of the bench as built (``_alpha_grid``): a forked child
     # computes it from a copy while the run steps, on the core the frame workers leave idle until
     # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
     # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
-    with ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
-                  nice=GRID_NICE) as grid:     # cancelled if the run fails before it is waited for
+    with ahead or contextlib.nullcontext(), \
+            ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
+                     nice=GRID_NICE) as grid:
+        # (the settles' worker stopped when the run ends, the grid's child cancelled if the run
+        # fails before it is waited for)
+        stage.sim_ahead = ahead
         return _run_and_write(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
 
 

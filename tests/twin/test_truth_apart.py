@@ -137,7 +137,7 @@ def test_the_alpha_grid_is_the_benchs_not_the_runs(tmp_path, monkeypatch, bearin
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"),
-                    reason="the mechanism under test, prctl(PR_SET_PDEATHSIG), exists only on Linux (forkcall._die_with "
+                    reason="the mechanism under test, prctl(PR_SET_PDEATHSIG), exists only on Linux (forkcall.die_with_parent "
                            "does nothing elsewhere); /proc is read to see the child gone")
 def test_a_forked_child_dies_with_its_killed_parent():
     """A command killed while a ForkCall child computes (the α grid, the truth) leaves nothing

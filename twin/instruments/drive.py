@@ -143,6 +143,11 @@ def _section(sc: Any, name: str) -> dict:
     return dict(s or {})
 
 
+#: every input of one settle: (distance rad, speed rad/s, acceleration rad/s², bench time the profile
+#: stops s, entropy of its amplifier-noise stream): the rest is a pure function of it
+SettleKey = tuple[float, float, float, float, tuple[int, ...]]
+
+
 @dataclass(frozen=True)
 class Rest:
     """Where the servo left the shaft."""
@@ -233,6 +238,14 @@ class DriveServo:
         if p.friction_torque == 0.0:
             return 0.0
         return p.friction_torque + (self.f_static - p.friction_torque) * math.exp(-(w / p.stribeck_speed) ** 2)
+
+    def settle_keyed(self, key: SettleKey) -> Rest:
+        """``settle`` of a move given by its key (``SimRotaryStage.settle_key``): the noise stream
+        made from its entropy here, so a worker computes the same rest (settle_ahead.py)."""
+        from .stage import sim_rng_from_key
+
+        distance, speed, accel, t_end, rng_key = key
+        return self.settle(distance, speed, accel, t_end, rng=sim_rng_from_key(rng_key))
 
     def settle(self, distance_rad: float, speed_rad_s: float, accel_rad_s2: float, t_end_s: float,
                rng: np.random.Generator | None = None, friction_scale: float = 1.0) -> Rest:
@@ -334,4 +347,4 @@ class DriveServo:
                     steps=steps, settled=settled)
 
 
-__all__ = ["DriveServo", "DriveParams", "Rest", "drive_template_path", "spin_inertia_kgm2", "DRIVE_TAIL_S"]
+__all__ = ["DriveServo", "DriveParams", "Rest", "SettleKey", "drive_template_path", "spin_inertia_kgm2", "DRIVE_TAIL_S"]

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,9 @@ from benchtwin.hw.acquisition.runner import SimClock
 from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
 from benchtwin.twin.pose import BenchPose, BodyPose
 from benchtwin.units import ARCSEC
+
+if TYPE_CHECKING:
+    from .drive import SettleKey
 
 TWO_PI = 2.0 * math.pi
 #: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
@@ -63,7 +66,17 @@ SIM_STREAMS = {
 
 def sim_rng(seed: int, stream: str, *keys: int) -> np.random.Generator:
     """An independent generator for (seed, stream, keys…)."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), SIM_STREAMS[stream], *map(int, keys)]))
+    return sim_rng_from_key(sim_rng_key(seed, stream, *keys))
+
+
+def sim_rng_key(seed: int, stream: str, *keys: int) -> tuple[int, ...]:
+    """The entropy of ``sim_rng(seed, stream, keys…)``: a plain tuple, for a draw made elsewhere
+    (twin/instruments/settle_ahead.py: the servo's noise of a settle computed in a worker)."""
+    return (int(seed), SIM_STREAMS[stream], *map(int, keys))
+
+
+def sim_rng_from_key(key: tuple[int, ...]) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(list(key)))
 
 
 def sim_rz(a: float) -> np.ndarray:
@@ -126,11 +139,16 @@ class SimBenchState:
 
     def rng(self, stream: str, instrument_key: int = 0) -> np.random.Generator:
         """Noise stream for one draw of an instrument at the current step (keyed, reproducible)."""
+        return sim_rng_from_key(self.rng_key(stream, instrument_key))
+
+    def rng_key(self, stream: str, instrument_key: int = 0) -> tuple[int, ...]:
+        """``rng``'s entropy (the draw is counted): the n-th draw of ``stream`` at step i is keyed
+        (seed, stream, instrument, i + 1, n)."""
         k = f"{stream}:{instrument_key}"
         n = self._draws.get(k, 0)
         self._draws[k] = n + 1
         step = -1 if self.step_index is None else self.step_index
-        return sim_rng(self.seed, stream, instrument_key, step + 1, n)
+        return sim_rng_key(self.seed, stream, instrument_key, step + 1, n)
 
     # ------------------------------------------------------------------ polygon mounting
     def set_polygon_mounting(self, start_face: int, shift_rad: float) -> None:
@@ -193,6 +211,9 @@ class SimRotaryStage:
         # continuous reading on the target (the truth grid of α(θ) uses it).
         self.servo = servo
         self.last_rest = None
+        # The settles computed ahead on another core (settle_ahead.py; set by twin/simulate.py for
+        # one run of a procedure known in advance): None = every settle here.
+        self.sim_ahead: Any = None
         self.state = state
         self.encoder = encoder
         self.speed_deg_s = float(speed_deg_s)
@@ -228,6 +249,26 @@ class SimRotaryStage:
                 "tolerance_arcsec": self.tol_rad / ARCSEC,
                 "soft_limits_deg": None if self.soft_limits_deg is None else [float(v) for v in self.soft_limits_deg]}
 
+    def servo_resolution_rad(self) -> float:
+        """The count the servo closes its loop on (rad); 0: no servo (an ideal positioner)."""
+        return getattr(self.encoder, "resolution_rad", 0.0) if self.servo is not None else 0.0
+
+    def move_duration_s(self, target_deg: float, from_deg: float) -> float:
+        """How long a move takes on the bench clock: the profile, the stage's settle time and, with
+        the servo, the controller's fixed in-position wait (drive.py). The clock never depends on
+        how the servo settled, so a stop passed through without dynamics (``dynamics=False``)
+        leaves every later stop exactly as with them, and every settle of a procedure is known
+        before it runs (twin/instruments/settle_ahead.py)."""
+        duration = move_time_s(target_deg - from_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
+        if self.servo_resolution_rad() > 0:
+            duration += self.servo.p.max_settle_s
+        return duration
+
+    def settle_key(self, target_deg: float, from_deg: float, t_end_s: float, rng_key: tuple[int, ...]) -> SettleKey:
+        """Every input of the servo's settle at the end of a move (``settle_keyed``)."""
+        return (math.radians(target_deg - from_deg), math.radians(self.speed_deg_s), math.radians(self.accel_deg_s2),
+                t_end_s, rng_key)
+
     def move_to(self, target_deg: float, dynamics: bool = True) -> StageMove:
         """Move to ``target_deg`` (an encoder reading). ``dynamics=False``: no servo simulation for
         this move (an ideal landing on the target; the clock advances as with it, by the profile
@@ -250,23 +291,17 @@ class SimRotaryStage:
             # it rests (a re-issued move, e.g. an emulated acquisition resumed at this stop).
             return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
                     "iterations": 0}
-        duration = move_time_s(target_deg - self.position_deg, self.speed_deg_s, self.accel_deg_s2) + self.settle_s
+        duration = self.move_duration_s(target_deg, self.position_deg)
         target = math.radians(target_deg)
         torque = None
-        res = getattr(self.encoder, "resolution_rad", 0.0)
-        if self.servo is not None and res > 0:
-            # The controller reports the move done a fixed settle time after the profile (drive.py):
-            # the clock never depends on how the servo settled, so a stop passed through without
-            # dynamics (dynamics=False) leaves every later stop exactly as with them.
-            duration += self.servo.p.max_settle_s
-        if self.servo is not None and res > 0 and dynamics:
+        res = self.servo_resolution_rad()
+        if res > 0 and dynamics:
             # The servo holds the COUNT nearest the target: simulate the end of the move and the
             # settling (drive.py); the continuous reading at rest is the count's cell centre plus
             # the rest offset, and the bearing holds the rest torque.
             n_cmd = round(target / res)
-            rest = self.servo.settle(math.radians(target_deg - self.position_deg), math.radians(self.speed_deg_s),
-                                     math.radians(self.accel_deg_s2), st.clock.now() + duration,
-                                     rng=st.rng("servo", 0))
+            key = self.settle_key(target_deg, self.position_deg, st.clock.now() + duration, st.rng_key("servo", 0))
+            rest = self.servo.settle_keyed(key) if self.sim_ahead is None else self.sim_ahead.rest(key)
             self.last_rest = rest
             target = n_cmd * res + rest.offset_rad        # the continuous reading to land on
             torque = rest.friction_torque_Nm
