@@ -44,6 +44,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import math
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -70,6 +71,9 @@ ALPHA_GRID_STEP_DEG = 0.1
 #: niceness of the α grid's child: it is wanted at the run's end, while the run's own steps (the
 #: servo, the statics) are its critical path and keep their core (issue #17)
 GRID_NICE = 10
+#: niceness of ``simulate_apart``'s truth child (with its α grid): nothing waits for it before the
+#: caller's analysis has ended, so it takes only the CPU the frames and the analysis leave (issue #17)
+TRUTH_APART_NICE = 19
 
 
 def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = True) -> list[dict[str, Any]]:
@@ -209,8 +213,9 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     once the *measured* dataset is complete (manifest written), and the caller analyses it while
     the truth is computed on the other core. ``job.wait()`` returns when ``truth_dir`` is complete
     (or raises the child's error); ``job.cancel()`` when the caller gives up. The truth's bytes
-    are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it, and
-    the α grid comes from its own child, forked when the run started (``_simulate``).
+    are those ``simulate`` writes to ``truth/``: the child is the bench as the run left it, and it
+    computes the α grid from a copy of the bench as built (``_alpha_grid``), at nice
+    ``TRUTH_APART_NICE``: the frames and the caller's analysis go first.
 
     Why (issue #17): the truth (then with its α grid: 3600 stops, ≈ 9 s of CPU before the round's
     physics work, ≈ 4 s after, docs/benchmarks.md) came after the run, on the critical path of
@@ -239,22 +244,27 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     # The servo's settles of the whole procedure are known from its steps (settle_ahead.py): a
     # worker forked now computes them ahead while the run poses and reads; the same rests either way.
     ahead = SettleAhead.start(stage.servo, settle_plan(steps, stage))
-    # The truth's α grid is a property of the bench as built (``_alpha_grid``): a forked child
-    # computes it from a copy while the run steps, on the core the frame workers leave idle until
-    # the CCD sweep (issue #17; forked before any thread of this run starts: the progress bar, the
-    # frame pool). Its bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
-    with ahead or contextlib.nullcontext(), \
-            ForkCall(partial(_alpha_grid, sc, copy.deepcopy(bench)), what=f"the truth's α grid of {sc.name}",
-                     nice=GRID_NICE) as grid:
-        # (the settles' worker stopped when the run ends, the grid's child cancelled if the run
-        # fails before it is waited for)
+    # The truth's α grid is a property of the bench as built (``_alpha_grid``), computed from a
+    # copy. ``simulate``: by a child forked now, while the run steps (forked before any thread of
+    # this run starts: the progress bar, the frame pool). ``simulate_apart``: by the truth's own
+    # child, after the run (nothing waits for it before the caller's analysis has ended; a grid
+    # child here would share the cores with the frames the analysis waits for, issue #17). Its
+    # bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
+    alpha_grid = partial(_alpha_grid, sc, copy.deepcopy(bench))
+    with contextlib.ExitStack() as stack:
+        if ahead is not None:
+            stack.enter_context(ahead)      # the settles' worker stopped when the run ends
+        if truth_dir is None:               # cancelled if the run fails before it is waited for
+            alpha_grid = stack.enter_context(ForkCall(alpha_grid, what=f"the truth's α grid of {sc.name}",
+                                                      nice=GRID_NICE)).wait
         stage.sim_ahead = ahead
-        return _run_and_write(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst, grid)
+        return _run_and_write(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst,
+                              alpha_grid)
 
 
 def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None,
                    truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
-                   grid: ForkCall) -> tuple[Path, ForkCall | None]:
+                   alpha_grid: Callable[[], dict[str, list]]) -> tuple[Path, ForkCall | None]:
     """``_simulate``'s run of the built bench: the steps, the frames, the tables, the truth."""
     from tqdm import tqdm
 
@@ -330,15 +340,15 @@ def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: boo
 
             writer.write_table("radial_continuous", continuous_run(
                 bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-        # the truth (its α grid from its own child, started with the run) while the frame worker
-        # finishes its backlog; apart (simulate_apart): in a forked child, while the caller goes
-        # on to its analysis
-        alpha = grid.wait()
+        # the truth (its α grid from its own child, started with the run) while the frame workers
+        # finish their backlog; apart (simulate_apart): in a forked child that also computes the
+        # grid, while the caller goes on to its analysis
         if truth_dir is None:
-            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha)
+            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha_grid())
         else:
-            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha),
-                           what=f"the truth of {sc.name} (written to {truth_dir})")
+            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth,
+                                                alpha_grid()),
+                           what=f"the truth of {sc.name} (written to {truth_dir})", nice=TRUTH_APART_NICE)
         if pipe is not None:
             runner.drain()    # the last frames written, then the journal lines held behind them
         ok = True

@@ -154,9 +154,9 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     # complete, so a killed re-run keeps the earlier one. Any other non-empty folder needs --force.
     with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder") as tmp:
         # The truth never enters the dataset (principle 3): it is written to OUT/truth by a forked
-        # child while the analysis reads the measured dataset on the other core (issue #17: the
-        # truth was 4–9 s on the run's critical path; its α grid now comes from a child forked
-        # when the run starts, twin/simulate.py); the run is complete only with it.
+        # child while the analysis reads the measured dataset (issue #17: the truth, with its α
+        # grid, was 4–9 s on the run's critical path; the child computes both at low priority,
+        # on the CPU the analysis leaves, twin/simulate.py); the run is complete only with it.
         truth = tmp / "truth"
         ds, truth_job = simulate_apart(sc, tmp / "dataset", truth, progress=not quiet, backend=ns.backend)
         with truth_job:
