@@ -98,6 +98,10 @@ def test_no_worker_where_it_cannot_help(monkeypatch):
     monkeypatch.setattr(SA, "usable_cores", lambda: 1)
     assert SA.SettleAhead.start(servo, plan) is None
     monkeypatch.setattr(SA, "usable_cores", lambda: 2)
+    monkeypatch.setattr(SA.multiprocessing, "parent_process", lambda: object())   # a study pool's worker
+    assert SA.SettleAhead.start(servo, plan) is None
+    monkeypatch.undo()
+    monkeypatch.setattr(SA, "usable_cores", lambda: 2)
     monkeypatch.setenv("BENCHTWIN_FORK", "0")
     assert SA.SettleAhead.start(servo, plan) is None
     sc = _small()

@@ -74,8 +74,9 @@ class SettleAhead:
     @classmethod
     def start(cls, servo: DriveServo, plan: list[SettleKey]) -> "SettleAhead | None":
         """The worker, or None where it cannot help: one usable core, no fork (``BENCHTWIN_FORK=0``),
-        fewer than two settles."""
-        if len(plan) < 2 or not fork_enabled() or usable_cores() < 2:
+        fewer than two settles, or a run inside a process pool's worker (a study's points: the pool
+        already fills the cores, as the frames stay serial there, twin/render/pipeline.py)."""
+        if len(plan) < 2 or not fork_enabled() or usable_cores() < 2 or multiprocessing.parent_process() is not None:
             return None
         return cls(servo, plan)
 
