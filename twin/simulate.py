@@ -35,8 +35,8 @@ plan (``instruments/settle_ahead.py``: the same rests, bit for bit); the CCD fra
 sensor model, PNG encode, atomic write) are made by spawned worker processes while the physics
 goes on here (``twin/render/pipeline.py``; ``BENCHTWIN_SIM_FRAMES`` = serial | pipeline | auto;
 auto pipelines large sweeps, e.g. jia2019's 60 frames of 3 Mpx). The dataset is byte-identical
-either way; a capture's journal line, and the lines after it, are written
-once its frame is on disk (``_FrameGatedRunner``), so a killed run journals no incomplete frame.
+either way; a capture's journal line, and the lines after it, are written once its frame is on
+disk (``_FrameGatedRunner``), so a killed run journals no incomplete frame.
 """
 
 from __future__ import annotations

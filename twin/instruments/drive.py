@@ -62,6 +62,8 @@ import numpy as np
 
 from benchtwin.units import ARCSEC
 
+from .stage import sim_rng_from_key
+
 #: seconds of the deceleration simulated before the reference stops (the rest is the profile)
 DRIVE_TAIL_S = 0.003
 #: longest physics step (s): 1/10 of the fastest motion the loop controls (its 200 Hz bandwidth ↔ 5 ms)
@@ -242,8 +244,6 @@ class DriveServo:
     def settle_keyed(self, key: SettleKey) -> Rest:
         """``settle`` of a move given by its key (``SimRotaryStage.settle_key``): the noise stream
         made from its entropy here, so a worker computes the same rest (settle_ahead.py)."""
-        from .stage import sim_rng_from_key
-
         distance, speed, accel, t_end, rng_key = key
         return self.settle(distance, speed, accel, t_end, rng=sim_rng_from_key(rng_key))
 
