@@ -11,10 +11,12 @@ A forked worker computes them in the procedure's order while the run poses the b
 its readings: the servo is about 60 % of the run's steps (docs/benchmarks.md).
 
 Sharing the work: the worker and the run claim the plan's settles in order from one shared counter.
-The run, needing settle i, takes the worker's result if the worker has claimed i, and otherwise
-claims i and computes it itself. So neither waits long for the other, and on a busy machine the run
-is simply the old serial run. The run uses a result only when its key, every input of the settle
-bit for bit, is in the plan. A move off the plan is settled in the run: a resumed run's re-issued
+The run, needing settle i, takes the worker's result if the worker has claimed i (waiting at most
+for that one settle), and otherwise claims i and computes it itself, so a slow worker costs nothing
+but its share. While the run waits, its core serves the frame workers and the truth (niced).
+(Settling the next unclaimed stops itself while it waits gained nothing: the cores are saturated,
+docs/benchmarks.md.) The run uses a result only when its key, every input of the settle bit for
+bit, is in the plan. A move off the plan is settled in the run: a resumed run's re-issued
 move, or a procedure that is not the planned one. The worker is a fork of the run's servo (same
 model, same MuJoCo build, same code), so its rests are the bytes the run would compute
 (tests/twin/test_settle_ahead.py: a dataset with and without it). If the worker dies or fails,
