@@ -254,6 +254,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     with contextlib.ExitStack() as stack:
         if ahead is not None:
             stack.enter_context(ahead)      # the settles' worker stopped when the run ends
+            stack.callback(setattr, stage, "sim_ahead", None)    # (and the stage settles itself again)
         if truth_dir is None:               # cancelled if the run fails before it is waited for
             alpha_grid = stack.enter_context(ForkCall(alpha_grid, what=f"the truth's α grid of {sc.name}",
                                                       nice=GRID_NICE)).wait
