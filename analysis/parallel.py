@@ -28,7 +28,6 @@ Guarantees, so the parallel path is the serial path, only faster:
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -55,12 +54,12 @@ def default_workers() -> int:
     min(cores, MAX_DEFAULT_WORKERS),
     and 1 in a process that multiprocessing started (a design study's pool worker, a Dask worker):
     its parent already spreads the work over the cores."""
-    from benchtwin.runtime import env_whole_number, usable_cores
+    from benchtwin.runtime import env_whole_number, in_pool_worker, usable_cores
 
     n = env_whole_number("BENCHTWIN_WORKERS", "worker threads")
     if n is not None:
         return n
-    if mp.parent_process() is not None or mp.current_process().daemon:
+    if in_pool_worker():
         return 1
     return max(1, min(usable_cores(), MAX_DEFAULT_WORKERS))
 

@@ -3,9 +3,10 @@
 Why a fork and not a spawned process: the child must see the caller's objects bit for bit as they
 are at the call, without pickling them (a MuJoCo model and data, a bench's warm starts and cached
 paths). ``simulate`` computes the truth's α grid (about a quarter of its CPU) in such a child
-while the run steps, and ``benchtwin run`` writes the rest of the truth in another while the
+while the run steps, and ``benchtwin run`` computes the grid and writes the truth in one while the
 analysis reads the measured dataset (issue #17); the truth is the same bytes as an in-process
-call's (tests/twin/test_truth_apart.py).
+call's (tests/twin/test_truth_apart.py). (The servo's settle worker, twin/instruments/
+settle_ahead.py, is a fork too, but streams many results: it has its own pipe.)
 
 Fork safety, and why it holds for what is called here: the child is a copy of the caller with
 only the calling thread. A lock another thread held at the fork stays held in the child, so the

@@ -1,5 +1,5 @@
-"""How benchtwin runs (not what it computes): the cores it may use, and the environment variables
-that tune it (``BENCHTWIN_SIM_FRAMES``, ``BENCHTWIN_SIM_FRAME_WORKERS``, ``BENCHTWIN_WORKERS``).
+"""How benchtwin runs (not what it computes): the cores it may use, whether another process
+already spreads its work over them, and the environment variables that tune it (``BENCHTWIN_SIM_FRAMES``, ``BENCHTWIN_SIM_FRAME_WORKERS``, ``BENCHTWIN_WORKERS``).
 
 A tuning variable is an input like a command-line option: a bad value ends the command with exit
 2 and a message naming the variable and what it expects (``EnvVarError`` is one of the CLI's
@@ -35,6 +35,15 @@ def env_choice(name: str, choices: tuple[str, ...], default: str) -> str:
     if raw not in choices:
         raise EnvVarError(f"{name}={raw!r}: expected {', '.join(choices[:-1])} or {choices[-1]}")
     return raw
+
+
+def in_pool_worker() -> bool:
+    """Whether this process was started by multiprocessing (a design study's pool worker, a Dask
+    worker): its parent already spreads the work over the cores, so it keeps to one (no frame
+    workers, no settle worker, one analysis thread)."""
+    import multiprocessing as mp
+
+    return mp.parent_process() is not None or mp.current_process().daemon
 
 
 def usable_cores() -> int:

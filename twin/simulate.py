@@ -60,7 +60,7 @@ from benchtwin.hw.acquisition.runner import Runner, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.drive import DriveServo
-from .instruments.settle_ahead import SettleAhead, settle_plan
+from .instruments.settle_ahead import SettleAhead
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
@@ -243,7 +243,7 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     stage: SimRotaryStage = inst["stage"]
     # The servo's settles of the whole procedure are known from its steps (settle_ahead.py): a
     # worker forked now computes them ahead while the run poses and reads; the same rests either way.
-    ahead = SettleAhead.start(stage.servo, settle_plan(steps, stage))
+    ahead = SettleAhead.start(stage, steps)
     # The truth's α grid is a property of the bench as built (``_alpha_grid``), computed from a
     # copy. ``simulate``: by a child forked now, while the run steps (forked before any thread of
     # this run starts: the progress bar, the frame pool). ``simulate_apart``: by the truth's own
@@ -502,9 +502,10 @@ def _alpha_grid(sc: Any, bench: Bench) -> dict[str, list]:
     function resets its path and leaves warm starts on it: pass a copy).
 
     The grid is a property of the bench, not of the run: a fresh state and clock (t = 0), a fresh
-    encoder and an ideal stage, and the bench's path started afresh. So it is computed from the
-    bench as built, in a forked child while the run steps (``_simulate``): ≈ 4 s of CPU
-    (jia2019) on the core the frame workers leave idle until the CCD sweep (issue #17)."""
+    encoder and an ideal stage, and the bench's path started afresh. So it is computed from a copy
+    of the bench as built, ≈ 4 s of CPU (jia2019), off the run's critical path (``_simulate``:
+    ``simulate``'s own child while the run steps, ``simulate_apart``'s truth child while the
+    caller analyses; issue #17)."""
     # An independent state + stage for the α grid (the run's clock is not touched). The grid is
     # one continuous sweep of a bench whose path starts afresh (ball bearings: cages at their
     # initial angles, rolling with the shaft along the grid, no start/stop slip: one time).

@@ -33,8 +33,8 @@ def test_the_dataset_is_the_same_bytes_with_the_worker_as_without(tmp_path, monk
     seen: list[SA.SettleAhead] = []
     start = SA.SettleAhead.start.__func__
 
-    def spy(cls, servo, plan):
-        a = start(cls, servo, plan)
+    def spy(cls, stage, steps):
+        a = start(cls, stage, steps)
         seen.append(a)
         return a
 
@@ -46,11 +46,15 @@ def test_the_dataset_is_the_same_bytes_with_the_worker_as_without(tmp_path, monk
     assert ahead.from_worker > 0                            # and the worker computed some of them
 
 
-def _servo_and_plan():
+def _stage_and_steps():
     sc = _small()
     bench, state, inst = S.sim_build(sc, backend="analytic", camera=False)
-    stage = inst["stage"]
-    return stage.servo, SA.settle_plan(S.sim_procedure(sc), stage)
+    return inst["stage"], S.sim_procedure(sc)
+
+
+def _servo_and_plan():
+    stage, steps = _stage_and_steps()
+    return stage.servo, SA.settle_plan(steps, stage)
 
 
 def test_the_plan_follows_the_clock_and_the_step_index():
@@ -68,7 +72,6 @@ def test_the_plan_follows_the_clock_and_the_step_index():
 def test_keys_off_the_plan_and_a_killed_worker_leave_the_settles_to_the_run(monkeypatch):
     servo, plan = _servo_and_plan()
     plan = plan[:4]
-    monkeypatch.setattr(SA, "usable_cores", lambda: 2)
     own = DriveServo(servo.p)                            # the reference: a servo nobody shares
     want = [own.settle_keyed(k) for k in plan]
     run, real = os.getpid(), servo.settle_keyed
@@ -79,7 +82,7 @@ def test_keys_off_the_plan_and_a_killed_worker_leave_the_settles_to_the_run(monk
         return real(key)
 
     servo.settle_keyed = stuck_in_the_worker
-    with SA.SettleAhead.start(servo, plan) as ahead:
+    with SA.SettleAhead(servo, plan) as ahead:          # the worker, whatever the machine
         assert ahead is not None
         t0 = time.monotonic()
         while ahead._next.value == 0 and time.monotonic() - t0 < 30:   # the worker claims the first
@@ -94,17 +97,15 @@ def test_keys_off_the_plan_and_a_killed_worker_leave_the_settles_to_the_run(monk
 
 
 def test_no_worker_where_it_cannot_help(monkeypatch):
-    servo, plan = _servo_and_plan()
+    stage, steps = _stage_and_steps()
     monkeypatch.setattr(SA, "usable_cores", lambda: 1)
-    assert SA.SettleAhead.start(servo, plan) is None
+    assert SA.SettleAhead.start(stage, steps) is None
     monkeypatch.setattr(SA, "usable_cores", lambda: 2)
-    monkeypatch.setattr(SA.multiprocessing, "parent_process", lambda: object())   # a study pool's worker
-    assert SA.SettleAhead.start(servo, plan) is None
+    monkeypatch.setattr(SA, "in_pool_worker", lambda: True)   # a study pool's worker
+    assert SA.SettleAhead.start(stage, steps) is None
     monkeypatch.undo()
     monkeypatch.setattr(SA, "usable_cores", lambda: 2)
     monkeypatch.setenv("BENCHTWIN_FORK", "0")
-    assert SA.SettleAhead.start(servo, plan) is None
-    sc = _small()
-    _, _, inst = S.sim_build(sc, backend="analytic", camera=False)
-    inst["stage"].servo = None                            # an ideal positioner settles nothing
-    assert SA.settle_plan(S.sim_procedure(sc), inst["stage"]) == []
+    assert SA.SettleAhead.start(stage, steps) is None
+    stage.servo = None                                    # an ideal positioner settles nothing
+    assert SA.settle_plan(steps, stage) == []

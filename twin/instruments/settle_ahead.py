@@ -34,7 +34,7 @@ from typing import Any
 from benchtwin.forkcall import die_with_parent, fork_enabled
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.runner import SimClock
-from benchtwin.runtime import usable_cores
+from benchtwin.runtime import in_pool_worker, usable_cores
 
 from .drive import DriveServo, Rest, SettleKey
 from .stage import SimRotaryStage, sim_rng_key
@@ -74,13 +74,15 @@ class SettleAhead:
     ``rest(key)`` is the settle of ``key`` (the worker's, or computed here). ``close()`` stops it."""
 
     @classmethod
-    def start(cls, servo: DriveServo, plan: list[SettleKey]) -> "SettleAhead | None":
-        """The worker, or None where it cannot help: one usable core, no fork (``BENCHTWIN_FORK=0``),
-        fewer than two settles, or a run inside a process pool's worker (a study's points: the pool
-        already fills the cores, as the frames stay serial there, twin/render/pipeline.py)."""
-        if len(plan) < 2 or not fork_enabled() or usable_cores() < 2 or multiprocessing.parent_process() is not None:
+    def start(cls, stage: SimRotaryStage, steps: list[Any]) -> "SettleAhead | None":
+        """The worker for the settles of ``steps`` on ``stage`` (``settle_plan``), or None where
+        it cannot help: one usable core, no fork (``BENCHTWIN_FORK=0``), a run inside a process
+        pool's worker (a study's points: the pool already fills the cores, runtime.in_pool_worker),
+        fewer than two settles. The plan is made only when a worker may start."""
+        if not fork_enabled() or usable_cores() < 2 or in_pool_worker():
             return None
-        return cls(servo, plan)
+        plan = settle_plan(steps, stage)
+        return cls(stage.servo, plan) if len(plan) >= 2 else None
 
     def __init__(self, servo: DriveServo, plan: list[SettleKey]):
         self.servo = servo

@@ -18,8 +18,9 @@ in the caller), whichever worker made them.
 - Why two workers on two cores: the CCD sweep's captures come in a burst (jia2019: all 60 within
   0.4 s, 8 s into the run), and one worker then took ≈ 10 s for them (≈ 165 ms a frame, its sensor
   model and PNG encode on one thread), ≈ 6 s of it after the physics had ended, with a core idle.
-  Two workers render the backlog on both cores (docs/benchmarks.md); while the physics runs the
-  three processes share the cores.
+  Two workers render the backlog on both cores (docs/benchmarks.md); while the physics runs they
+  share the cores, at nice ``WORKER_NICE``, with the run and its settle worker
+  (twin/instruments/settle_ahead.py).
 - Frames may finish out of order across workers; ``completed()`` counts the finished prefix in
   submission order. The caller (twin/simulate.py) journals a capture, and every step after it,
   only once its frame — and every frame before it — is on disk, so the journal never names a
@@ -47,14 +48,14 @@ import multiprocessing as mp
 import os
 import warnings
 from collections import deque
-from concurrent import futures
+from concurrent import futures     # futures.wait: ``wait`` is close()'s parameter here
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from benchtwin.runtime import env_choice, env_whole_number, usable_cores
+from benchtwin.runtime import env_choice, env_whole_number, in_pool_worker, usable_cores
 
 __all__ = ["FramePipeline", "frame_mode", "frame_workers", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV",
            "WORKERS_ENV", "AUTO_MIN_MPX", "FRAME_WORKERS"]
@@ -87,7 +88,7 @@ def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False)
         return "serial"
     if env != "auto":
         return env
-    if mp.parent_process() is not None or mp.current_process().daemon or not main_is_spawn_safe():
+    if in_pool_worker() or not main_is_spawn_safe():
         return "serial"
     if usable_cores() < 2:
         return "serial"
