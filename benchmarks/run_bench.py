@@ -25,8 +25,9 @@ the same process (target ≤ 2), the twin's poses / their closed-form solve (tar
 raw mj_step, the twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
 encode), tracing against its 1 s target (as close-loop − analyze of two processes, and measured
 inside one close-loop process by benchmarks/report_bench.py, which also gives the report's and the
-bench picture's own times in that process). Wall AND CPU time (user + system of the process and its
-children, e.g. a process pool) are printed for every stage: the machine is shared, so wall figures
+bench picture's own times in that process). Wall AND CPU time (user + system of the process and all its
+descendants: a process pool, the frame workers' forkserver, which outlives the command by a moment
+and is reaped here) are printed for every stage: the machine is shared, so wall figures
 are taken under load (the load average is printed) and CPU time is the steadier figure.
 
 Where the time goes inside one ``run`` (its critical path: the run's steps, the CCD frames'
@@ -55,13 +56,45 @@ ENV = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
        "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
 
 
+def _become_subreaper() -> bool:
+    """Linux: orphaned descendants of the commands are re-parented to this process
+    (``prctl(PR_SET_CHILD_SUBREAPER)``), so their CPU can be counted: ``simulate``'s frame workers
+    are children of multiprocessing's forkserver (twin/render/pipeline.py), which outlives the
+    command by a moment and is not waited for by it."""
+    try:
+        import ctypes
+
+        return ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0) == 0   # 36 = PR_SET_CHILD_SUBREAPER
+    except (OSError, AttributeError):
+        return False
+
+
+SUBREAPER = _become_subreaper()
+
+
+def _reap_descendants(timeout_s: float = 30.0) -> None:
+    """Wait for every descendant left behind by the last command (see ``_become_subreaper``)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            time.sleep(0.01)
+
+
 def timed_run(cmd: list[str], capture: bool = False) -> tuple[float, float, str]:
-    """(wall s, CPU s of the process and its reaped children, stdout) of one command."""
+    """(wall s, CPU s of the process and all its descendants, stdout) of one command. Wall: until
+    the command exits; CPU: also of descendants that outlive it (the forkserver of the frame
+    workers), reaped here (Linux; elsewhere only the children the command itself waited for)."""
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE if capture else subprocess.DEVNULL,
                        stderr=subprocess.PIPE, text=True)
     wall = time.perf_counter() - t0
+    if SUBREAPER:
+        _reap_descendants()
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)}: exit {p.returncode}\n{p.stderr[-3000:]}")

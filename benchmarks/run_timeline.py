@@ -4,7 +4,8 @@
 inside one ``benchtwin run``: when the run's steps end, when the CCD frames are submitted to the
 frame workers and when they are on disk, each analysis step, the report and the truth's wait. Each
 line: wall seconds since the start, CPU seconds of this process (all its threads) and of its reaped
-children (frame workers, the truth's and the report's forked children are counted when they end).
+children (the truth's and the report's forked children are counted when they end; the frame
+workers, children of the forkserver, at the last line).
 
 It wraps the phases' functions in this process only (nothing is changed in what they compute), so
 it runs the README's command as the console script does, with ``--quiet``.
@@ -75,6 +76,12 @@ def main(argv: list[str]) -> None:
         rc = cli(args)
     finally:
         mark("end")
+    # The frame workers are children of multiprocessing's forkserver (twin/render/pipeline.py), not
+    # of this process: their CPU is counted once the forkserver is stopped and reaped here.
+    from multiprocessing import forkserver
+
+    forkserver._forkserver._stop()
+    mark("the frame workers' forkserver reaped (its workers' CPU now in children)")
     if frames:
         sub = [s for s, _ in frames]
         done = [d for _, d in frames if d is not None]

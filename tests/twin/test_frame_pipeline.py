@@ -153,3 +153,35 @@ def test_auto_is_serial_for_a_script_without_the_main_guard(tmp_path, monkeypatc
     mod.__spec__ = types.SimpleNamespace(name="pytest.__main__", origin=str(bare))
     monkeypatch.setitem(sys.modules, "__main__", mod)
     assert main_is_spawn_safe()      # a package's __main__ is not re-imported by spawn
+
+
+def _render_stack_loaded() -> tuple[bool, bool]:
+    """In a worker: whether the render stack was imported before the worker's first task (the
+    preload module, and pyrender: it is imported by nothing else a worker runs before its
+    initializer)."""
+    import sys
+
+    return "benchtwin.twin.render.worker_preload" in sys.modules, "pyrender" in sys.modules
+
+
+def test_workers_fork_from_a_forkserver_that_imported_the_render_stack(monkeypatch):
+    """The workers start with pyrender imported (by the forkserver, once); a process whose GL
+    platform changed after its forkserver started gets spawned workers, which read the current
+    environment."""
+    import multiprocessing as mp
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from benchtwin.twin.render import pipeline
+
+    ctx = pipeline.worker_context()
+    if ctx.get_start_method() != "forkserver":
+        pytest.skip("no forkserver on this platform: the workers are spawned")
+    with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        assert pool.submit(_render_stack_loaded).result(timeout=120) == (True, True)
+    recorded = dict(pipeline._forkserver_platform)
+    monkeypatch.setitem(pipeline._forkserver_platform, "gl", ("another", "another"))
+    assert pipeline.worker_context() is mp.get_context("spawn")
+    monkeypatch.setitem(pipeline._forkserver_platform, "gl", recorded["gl"])
+    assert pipeline.worker_context().get_start_method() == "forkserver"
+    assert recorded["gl"] == (os.environ["MUJOCO_GL"], os.environ["PYOPENGL_PLATFORM"])

@@ -8,7 +8,7 @@ Why: a frame of the jia2019 sweep costs ≈ 0.2 s of CPU (GL coverage 0.13 s, se
 - the frame's noise stream (a ``numpy.random.Generator`` keyed by the runner's step,
   ``SimBenchState.rng("ccd", key)``; pickled with its exact bit-generator state),
 
-so it can be made anywhere. ``FramePipeline`` hands those to spawned worker processes (two:
+so it can be made anywhere. ``FramePipeline`` hands those to worker processes (two:
 ``frame_workers()``), each holding its GL context for the whole sweep and writing each frame's PNG
 atomically (temporary sibling, fsync, rename: ``benchtwin.fsio.atomic_write_bytes``), while the
 caller's process goes on stepping the servo and solving the bearings. Same code, same arguments:
@@ -25,10 +25,13 @@ in the caller), whichever worker made them.
   submission order. The caller (twin/simulate.py) journals a capture, and every step after it,
   only once its frame — and every frame before it — is on disk, so the journal never names a
   frame that is not complete.
-- ``spawn``, not ``fork``: the caller may hold threads (EGL, OpenBLAS, OpenCV, a progress bar) and
-  a forked child of a process holding a lock hangs (analysis/parallel.py); and each process
-  creates its own EGL/OSMesa context (GL contexts do not survive a fork). The child inherits
-  ``MUJOCO_GL``/``PYOPENGL_PLATFORM`` from the environment (twin/render/gl.py).
+- Not forked from the caller: it may hold threads (EGL, OpenBLAS, OpenCV, a progress bar) and a
+  forked child of a process holding a lock hangs (analysis/parallel.py); and each process creates
+  its own EGL/OSMesa context (GL contexts do not survive a fork). The workers are forked from
+  multiprocessing's forkserver (a fresh, single-threaded process) with the render stack imported
+  once (twin/render/worker_preload.py: ≈ 2.4 s of CPU a worker when each was spawned and imported
+  it itself, issue #17); ``spawn`` where the forkserver cannot serve (``worker_context``). The
+  workers inherit ``MUJOCO_GL``/``PYOPENGL_PLATFORM`` from the environment (twin/render/gl.py).
 - The backend is settled before the first frame: each worker creates its GL context when it
   starts and reports "pyrender", or "analytic" when ``backend="auto"`` and GL is unavailable —
   what the serial ``Renderer`` would have fallen back to. Workers that disagree fall back to the
@@ -57,8 +60,8 @@ import numpy as np
 
 from benchtwin.runtime import env_choice, env_whole_number, in_pool_worker, usable_cores
 
-__all__ = ["FramePipeline", "frame_mode", "frame_workers", "main_is_spawn_safe", "render_and_write", "FRAMES_ENV",
-           "WORKERS_ENV", "AUTO_MIN_MPX", "FRAME_WORKERS"]
+__all__ = ["FramePipeline", "frame_mode", "frame_workers", "main_is_spawn_safe", "render_and_write", "worker_context",
+           "FRAMES_ENV", "WORKERS_ENV", "AUTO_MIN_MPX", "FRAME_WORKERS", "PRELOAD_MODULE"]
 
 #: environment variable choosing the frame path of ``simulate``: serial | pipeline | auto
 FRAMES_ENV = "BENCHTWIN_SIM_FRAMES"
@@ -69,15 +72,21 @@ WORKERS_ENV = "BENCHTWIN_SIM_FRAME_WORKERS"
 FRAME_WORKERS = 2
 #: niceness of the frame workers (POSIX nice): the caller's physics is the run's critical path
 WORKER_NICE = 10
-#: ``auto`` pipelines sweeps of at least this many megapixels: a spawned worker costs ≈ 1.5 s of
-#: CPU (interpreter, NumPy, OpenCV, pyrender and its GL context), ≈ 7 full 2048×1536 frames' work
-#: (0.2 s each; two workers: twice that, spent before the sweep's captures in a long run); smaller
-#: sweeps (the test suite's 128×96 frames) stay in the caller's process.
+#: ``auto`` pipelines sweeps of at least this many megapixels: the workers cost ≈ 2.4 s of CPU to
+#: start (the forkserver's interpreter, NumPy, OpenCV, pyrender; then ≈ 0.1 s a worker for its
+#: fork and GL context; spawned, 2.4 s each), ≈ 12 full 2048×1536 frames' work (0.2 s each, spent
+#: before the sweep's captures in a long run); smaller sweeps (the test suite's 128×96 frames) stay
+#: in the caller's process.
 AUTO_MIN_MPX = 30.0
 #: seconds to wait for the worker to start and report its backend before falling back to serial
 START_TIMEOUT_S = 120.0
 
+#: the module the forkserver imports before it forks the workers (twin/render/worker_preload.py)
+PRELOAD_MODULE = "benchtwin.twin.render.worker_preload"
+
 _worker: dict[str, Any] = {}
+#: the GL platform this process's forkserver was started with (``worker_context``)
+_forkserver_platform: dict[str, tuple[str | None, str | None]] = {}
 
 
 def frame_mode(n_frames: int, width_px: int, height_px: int, live: bool = False) -> str:
@@ -106,7 +115,8 @@ def frame_workers() -> int:
 
 def main_is_spawn_safe() -> bool:
     """Whether a ``spawn``ed child can start without running the caller's script again.
-    ``multiprocessing``'s spawn imports the parent's ``__main__`` in the child (as ``__mp_main__``),
+    ``multiprocessing``'s spawn (and the forkserver's children) import the parent's ``__main__`` in
+    the child (as ``__mp_main__``),
     except a package's ``__main__`` (``python -m pytest``) and an interactive session; a script
     without the ``if __name__ == "__main__":`` guard would run its whole body — a second
     simulation — in the frame worker. So ``auto`` pipelines only when the main module is not
@@ -128,6 +138,29 @@ def main_is_spawn_safe() -> bool:
     except OSError:
         return False
     return "__name__" in src and "__main__" in src
+
+
+def worker_context() -> Any:
+    """The multiprocessing context the frame workers start from: the forkserver with the render
+    stack preloaded (``worker_preload``), else ``spawn``.
+
+    The forkserver is one per process, started by the first pipeline that asks for it, and keeps
+    the environment it started with; PyOpenGL binds its GL platform at import. So it is used only
+    while the GL platform (``MUJOCO_GL``, ``PYOPENGL_PLATFORM`` after ``gl.configure``) is the one
+    it was started with; a process that changes it afterwards (a test) gets spawned workers, which
+    read the current environment. Where there is no forkserver (Windows), spawn."""
+    from benchtwin.twin.render import gl
+
+    gl.configure()
+    platform = (os.environ.get("MUJOCO_GL"), os.environ.get("PYOPENGL_PLATFORM"))
+    try:
+        ctx = mp.get_context("forkserver")
+    except ValueError:  # pragma: no cover - no forkserver on this platform
+        return mp.get_context("spawn")
+    if _forkserver_platform.setdefault("gl", platform) != platform:
+        return mp.get_context("spawn")
+    ctx.set_forkserver_preload([PRELOAD_MODULE])
+    return ctx
 
 
 # ------------------------------------------------------------------------------ worker side
@@ -218,7 +251,7 @@ class FramePipeline:
         """Spawn the workers (they start in the background); None if the pool cannot be created."""
         n = frame_workers()     # a bad BENCHTWIN_SIM_FRAME_WORKERS is the user's error (exit 2), not the host's
         try:
-            pool = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"),
+            pool = ProcessPoolExecutor(max_workers=n, mp_context=worker_context(),
                                        initializer=_init_worker, initargs=(backend, grating, camera, sensor))
             # one probe per worker: each submit finds no idle worker and spawns the next, so all
             # start now (their imports and GL contexts while the caller's physics runs)
