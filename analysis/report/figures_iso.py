@@ -14,6 +14,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .layout import fixed_margins
+
 
 def _closed(th_deg: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     o = np.argsort(th_deg)
@@ -87,7 +89,7 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
     """Amplitude per order (cycles/rev) with the bearing's kinematic orders as vertical lines."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 3.4), layout="constrained")
+    fig = Figure(figsize=(9, 3.4))
     ax = fig.subplots()
     o, a = np.asarray(spec["order"]), np.asarray(spec["amplitude_um"])
     ax.vlines(o, 0, a, color="#1f4e9a", lw=0.8)
@@ -103,7 +105,7 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
     ax.set_title(f"Spectrum of the continuous rotation: {label} ({spec['n_revolutions']} revolutions)", fontsize=10)
     if kinematic_orders:
         ax.legend(fontsize=7, loc="upper right")
-    return fig
+    return fixed_margins(fig)
 
 
 def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = None) -> None:

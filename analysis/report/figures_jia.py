@@ -19,11 +19,13 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from .layout import fixed_margins
+
 __all__ = ["fig_radial_motion", "fig_dref", "fig_predicted_error", "fig_comparison"]
 
 
 def _figure(nrows: int = 1, figsize=(7.0, 4.2)):
-    fig = Figure(figsize=figsize, layout="constrained")
+    fig = Figure(figsize=figsize)     # margins set by fixed_margins when the figure is complete
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, 1, sharex=True, squeeze=False)[:, 0]
     return fig, axes
@@ -56,7 +58,7 @@ def fig_radial_motion(rm: dict, show_reps: bool = True) -> Figure:
     ax.set_ylabel("radial error motion (µm)")
     _deg_axis(ax)
     ax.legend(fontsize=8, loc="upper right")
-    return fig
+    return fixed_margins(fig)
 
 
 def fig_dref(ecc: dict, theta_deg: np.ndarray | None = None, dref_um: np.ndarray | None = None) -> Figure:
@@ -75,7 +77,7 @@ def fig_dref(ecc: dict, theta_deg: np.ndarray | None = None, dref_um: np.ndarray
     ax.set_ylabel("d_ref (µm)")
     _deg_axis(ax)
     ax.legend(fontsize=8, loc="upper right")
-    return fig
+    return fixed_margins(fig)
 
 
 def fig_predicted_error(model, theta_deg: np.ndarray | None = None, band: bool = True) -> Figure:
@@ -95,7 +97,7 @@ def fig_predicted_error(model, theta_deg: np.ndarray | None = None, band: bool =
     ax.set_ylabel("Δθ (arcsec)")
     _deg_axis(ax)
     ax.legend(fontsize=8, loc="upper right")
-    return fig
+    return fixed_margins(fig)
 
 
 def fig_comparison(comparison: dict) -> Figure:
@@ -118,4 +120,4 @@ def fig_comparison(comparison: dict) -> Figure:
     axr.set_ylabel("residual (arcsec)")
     axr.legend(fontsize=8, loc="upper right")
     _deg_axis(axr)
-    return fig
+    return fixed_margins(fig, row_gap_in=0.2)     # shared x: the upper axes has no tick labels

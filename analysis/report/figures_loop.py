@@ -26,19 +26,21 @@ from matplotlib.figure import Figure
 from ..effects import ALL
 from ..effects._base import fourier_eval
 from ..tracing import Z_GATE, Evidence, _center
+from .layout import fixed_margins
 
 __all__ = ["effect_contribution", "plot_residual_before_after", "plot_harmonic_spectrum", "plot_signature",
            "figures_loop"]
 
 
 def _fig(w=8.0, h=4.5, nrows=1, ncols=1):
-    fig = Figure(figsize=(w, h), constrained_layout=True)
+    fig = Figure(figsize=(w, h))     # margins set by _save (fixed_margins) when the figure is complete
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     return fig, axes
 
 
 def _save(fig, path):
+    fixed_margins(fig)
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)

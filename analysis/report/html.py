@@ -3,9 +3,9 @@ mailed or archived with its dataset without losing pictures.
 
 ``Report`` collects sections (headings, paragraphs, key/value tables with units and uncertainties,
 figures) and ``write(path)`` renders them. Figures are matplotlib Figures rendered with the Agg
-backend (no screen needed), drawn once at their own size (each figure lays itself out: constrained
-or fixed layout, no ``bbox_inches="tight"`` second draw), and closed after rendering (pyplot ones)
-to keep memory flat over long studies.
+backend (no screen needed), drawn once at their own size (each figure places its axes with fixed
+margins, analysis/report/layout.py: no layout engine's dry run, no ``bbox_inches="tight"`` second
+draw), and closed after rendering (pyplot ones) to keep memory flat over long studies.
 
 Both cores (issue #17): the figures are kept as they are added and drawn when the report is
 rendered, by this process and a forked child taking them in turn as each is free
@@ -121,8 +121,8 @@ class Report:
 
 def _png(fig: Any) -> bytes:
     buf = io.BytesIO()
-    # drawn once, at the figure's own size: the figures lay themselves out (constrained or fixed
-    # layout), so bbox_inches="tight" (a second full draw to measure the extent) is not needed
+    # drawn once, at the figure's own size: the figures place their axes themselves (fixed margins,
+    # layout.py), so bbox_inches="tight" (a second full draw to measure the extent) is not needed
     fig.savefig(buf, format="png", dpi=FIGURE_DPI, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     return buf.getvalue()
 
