@@ -183,8 +183,8 @@ def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
     _worker.clear()
     _worker.update(backend=backend, grating=grating, camera=camera, sensor=sensor, renderer=None, used=None,
                    error=None)
-    # the renderer and its GL context now, while the caller's run has not reached its captures
-    # (every worker starts at once: FramePipeline.start); a failure is reported by ``probe``
+    # the renderer and its GL context now, before the first frame (every worker starts at once:
+    # FramePipeline._start_workers); a failure is reported by ``probe``
     try:
         _worker["used"] = _make_renderer()
     except Exception as exc:  # noqa: BLE001 - handed to the caller through probe()
@@ -238,9 +238,11 @@ class FramePipeline:
     """Worker processes rendering and writing frames, completed in submission order (see module
     docstring)."""
 
-    def __init__(self, pool: ProcessPoolExecutor, started: list[Future]):
+    def __init__(self, pool: ProcessPoolExecutor, n_workers: int):
         self._pool: ProcessPoolExecutor | None = pool
-        self._started: list[Future] | None = started
+        self._n_workers = n_workers
+        self._started: list[Future] | None = None    # one probe per worker, once they are started
+        self._failed = False
         self._backend: str | None = None
         self._pending: deque[Future] = deque()
         self.submitted = 0
@@ -248,32 +250,52 @@ class FramePipeline:
 
     @classmethod
     def start(cls, backend: str, grating: Any, camera: Any, sensor: Any) -> "FramePipeline | None":
-        """Spawn the workers (they start in the background); None if the pool cannot be created."""
+        """Start the workers in the background; None if the pool cannot be created.
+
+        Spawned workers start now (each imports the render stack itself while the caller's physics
+        runs). From the forkserver, only the server starts now: it imports the render stack in the
+        background, and the workers are forked from it when the first frame is wanted (``backend``:
+        a fork and a GL context, ≈ 0.1 s), because the first worker's start waits for the server's
+        imports (≈ 2 s of the caller's time at the start of its run if the workers started here)."""
         n = frame_workers()     # a bad BENCHTWIN_SIM_FRAME_WORKERS is the user's error (exit 2), not the host's
         try:
-            pool = ProcessPoolExecutor(max_workers=n, mp_context=worker_context(),
+            ctx = worker_context()
+            pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx,
                                        initializer=_init_worker, initargs=(backend, grating, camera, sensor))
-            # one probe per worker: each submit finds no idle worker and spawns the next, so all
-            # start now (their imports and GL contexts while the caller's physics runs)
-            return cls(pool, [pool.submit(probe) for _ in range(n)])
+            pipe = cls(pool, n)
+            if ctx.get_start_method() == "forkserver":
+                from multiprocessing import forkserver
+
+                forkserver.ensure_running()
+            else:
+                pipe._start_workers()
+            return pipe
         except Exception as exc:  # pragma: no cover - depends on the host (no /dev/shm, no fork/spawn)
             warnings.warn(f"frame pipeline unavailable ({type(exc).__name__}: {exc}); rendering frames serially",
                           RuntimeWarning, stacklevel=2)
             return None
 
+    def _start_workers(self) -> None:
+        # one probe per worker: each submit finds no idle worker and starts the next, so all start
+        # now (their imports, if any, and GL contexts)
+        if self._started is None and self._pool is not None:
+            self._started = [self._pool.submit(probe) for _ in range(self._n_workers)]
+
     def backend(self) -> str | None:
-        """The workers' backend (waits for their start); None if they could not start or found
-        different backends (fall back to serial: nothing has been submitted yet)."""
-        if self._backend is None and self._started is not None:
+        """The workers' backend (starts them if they are not yet, and waits for their start); None
+        if they could not start or found different backends (fall back to serial: nothing has been
+        submitted yet)."""
+        if self._backend is None and not self._failed:
             try:
-                used = {f.result(timeout=START_TIMEOUT_S) for f in self._started}
+                self._start_workers()
+                used = {f.result(timeout=START_TIMEOUT_S) for f in self._started or []}
                 if len(used) != 1:
                     raise RuntimeError(f"workers found different backends {sorted(used)}")
                 self._backend = used.pop()
             except Exception as exc:
                 warnings.warn(f"frame pipeline did not start ({type(exc).__name__}: {exc}); "
                               "rendering frames serially", RuntimeWarning, stacklevel=2)
-                self._started = None
+                self._failed = True
                 self.close(wait=False)
         return self._backend
 
