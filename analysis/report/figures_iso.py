@@ -54,7 +54,10 @@ def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, 
     ax.set_ylim(-lim, lim)
     ax.set_aspect("equal")
     ax.set_axis_off()
-    ax.set_title(title, fontsize=8.5)
+    # y given: the title stays where matplotlib puts it by default (1.0, above the axes); without it,
+    # every draw measures the axes' ticks to move the title above them, which an axes drawn off
+    # does not show (a third of the figure's draw; the same pixels)
+    ax.set_title(title, fontsize=8.5, y=1.0)
 
 
 def fig_polar(locations: Sequence[Mapping], title: str = "Radial error motion, ISO 230-7 (fixed sensitive direction, LSC)"):
