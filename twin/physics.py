@@ -83,7 +83,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from benchtwin.units import ARCSEC
 
@@ -449,6 +448,10 @@ class Bench:
         th_p = np.concatenate([th, [th[0] + TWO_PI]])
         off_p = np.concatenate([off, off[:, :1]], axis=1)
         self.motion_table = {"theta_rad": th.tolist(), **{k: cols[k][order].tolist() for k in cols}}
+        # imported here: only a scenario with a motion table needs it, and SciPy's interpolate
+        # package costs ≈ 0.4 s of import in every process that builds a bench (issue #17)
+        from scipy.interpolate import CubicSpline
+
         self._table_spline = CubicSpline(th_p, off_p, axis=1, bc_type="periodic")
 
     # --------------------------------------------------------------- rolling-path offsets ----
