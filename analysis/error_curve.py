@@ -42,8 +42,8 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
+from .distributions import chi2_isf, chi2_sf, norm_sf
 from .fourier import amplitude_phase, fit_fourier
 
 __all__ = ["analyze_error_curve", "coverage", "P_SIG", "FULL_TURN_GAP", "ZERO_TOL_ARCSEC"]
@@ -115,10 +115,10 @@ def _hysteresis(dirs: dict) -> dict[str, Any] | None:
         mean_w = float(np.sum(w * half) / np.sum(w))
         chi2 = float(np.sum(w * (half - mean_w) ** 2))
         out.update(mean_arcsec=mean_w, u_mean_arcsec=float(1.0 / math.sqrt(np.sum(w))),
-                   chi2_about_mean=chi2, dof=n - 1, p_constant=float(stats.chi2.sf(chi2, n - 1)))
+                   chi2_about_mean=chi2, dof=n - 1, p_constant=float(chi2_sf(chi2, n - 1)))
     z = abs(out["mean_arcsec"]) / out["u_mean_arcsec"] if out["u_mean_arcsec"] > 0 else math.inf
     out["z_mean"] = z
-    out["significant"] = bool(2 * stats.norm.sf(z) < P_SIG)
+    out["significant"] = bool(2 * norm_sf(z) < P_SIG)
     return out
 
 
@@ -201,7 +201,7 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
                         "note": "a slope over an arc is a scale error of the encoder or of the reference, or the "
                                 "start of a low harmonic: an arc cannot tell them apart"}
         out["residual"] = {"rms_arcsec": float(np.sqrt(np.mean(r ** 2))), "pv_arcsec": float(np.ptp(mean)),
-                           "chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof))}
+                           "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
         # only against a u from outside the fit (given, or from the two directions) can χ² tell anything
         sig_left = not u_src.startswith("type A from the residual") and out["residual"]["p_value"] < P_SIG
         out["unexplained"] = bool(sig_left)
@@ -228,7 +228,7 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
     resid = y
     if K >= 1:
         fit = fit_fourier(theta_u, y, K, u=u_mean)
-        crit = float(stats.chi2.isf(P_SIG / K, 2))
+        crit = float(chi2_isf(P_SIG / K, 2))
         for k in range(1, K + 1):
             ap = amplitude_phase(fit, k)
             try:
@@ -237,14 +237,14 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
                 q = 0.0
             harm.append({"k": k, "amplitude_arcsec": ap["amplitude"], "u_arcsec": ap["u_amplitude"],
                          "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "a_arcsec": ap["a"],
-                         "b_arcsec": ap["b"], "chi2": q, "p_value": float(stats.chi2.sf(q, 2)),
+                         "b_arcsec": ap["b"], "chi2": q, "p_value": float(chi2_sf(q, 2)),
                          "significant": bool(q > crit)})
         sig_k = [h["k"] for h in harm if h["significant"]]
         if sig_k:
             resid = y - fit(theta_u, sig_k)
         chi2_all = float(np.sum((fit.residual / u_mean) ** 2))
         out["fit"] = {"order": K, "chi2": chi2_all, "dof": int(fit.dof),
-                      "p_value": float(stats.chi2.sf(chi2_all, max(fit.dof, 1)))}
+                      "p_value": float(chi2_sf(chi2_all, max(fit.dof, 1)))}
     else:
         notes.append("too few angles for any harmonic with residual degrees of freedom")
     out["harmonics"] = harm
@@ -272,7 +272,7 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
     # which the direction mean already cancels)
     chi2 = float(np.sum((resid / u_mean) ** 2))
     dof = int(max(uniq.size - 1 - 2 * len(sig_k), 1))
-    p = float(stats.chi2.sf(chi2, dof))
+    p = float(chi2_sf(chi2, dof))
     out["residual"] = {"rms_arcsec": float(np.sqrt(np.mean(resid ** 2))), "pv_arcsec": float(np.ptp(resid)),
                        "chi2": chi2, "dof": dof, "p_value": p,
                        "note": "direction mean minus its constant and its significant harmonics, against u"}

@@ -398,7 +398,7 @@ def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_ar
     Returns e_um, theta0_deg, u_e_um, u_theta0_deg, cov_e_theta0 (µm·deg), the comparison's own
     e/θ0 estimate and u (``comparison``), chi2, dof, p_value, n_points.
     """
-    from scipy import stats
+    from benchtwin.analysis.distributions import chi2_sf
 
     th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
     res = np.asarray(residual_arcsec, dtype=float).ravel() * ARCSEC        # rad
@@ -447,4 +447,4 @@ def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_ar
                            "u_e_um": float(math.sqrt(Cc[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(Cc[1, 1])))},
             "ccd": {"e_um": float(e_um), "theta0_deg": float(theta0_deg), "u_e_um": float(u_e_um),
                     "u_theta0_deg": float(u_theta0_deg)},
-            "chi2": chi2, "dof": 2, "p_value": float(stats.chi2.sf(chi2, 2)), "n_points": int(th.size)}
+            "chi2": chi2, "dof": 2, "p_value": float(chi2_sf(chi2, 2)), "n_points": int(th.size)}

@@ -222,9 +222,9 @@ class RadialMotion:
         dev = C - C.mean(axis=0)
         s2 = float(np.sum(dev ** 2)) / 2.0 / (R - 1)        # band RMS² of a rep's deviation
         noise_band = KB * n2 * float(np.mean(v))             # the noise's share of it
-        from scipy import stats
+        from benchtwin.analysis.distributions import f_isf
 
-        f_crit = float(stats.f.isf(p, 2 * KB * (R - 1), max(nd, 1)))
+        f_crit = float(f_isf(p, 2 * KB * (R - 1), max(nd, 1)))
         sig = s2 > f_crit * noise_band
         return {"sigma_um": math.sqrt(max(s2 - noise_band, 0.0)) if sig else 0.0, "scatter_um": math.sqrt(s2),
                 "noise_in_band_um": math.sqrt(noise_band), "noise_um": math.sqrt(n2), "band_orders": KB,

@@ -831,9 +831,9 @@ def direction_difference(table: PolygonTable, beta_arcsec: np.ndarray, s_reading
     ok = u > 0
     chi2 = float(np.sum((v[ok] / u[ok]) ** 2))
     dof = int(np.count_nonzero(ok))
-    from scipy import stats
+    from benchtwin.analysis.distributions import chi2_sf
 
-    p = float(stats.chi2.sf(chi2, dof)) if dof else float("nan")
+    p = float(chi2_sf(chi2, dof)) if dof else float("nan")
     rms = float(np.sqrt(np.mean(v**2)))
     rms_sys = float(np.sqrt(max(0.0, float(np.mean(v**2) - np.mean(u**2)))))
     return {"directions": [d1, d2], "theta_deg": th_a, "value": v, "u": u, "chi2": chi2, "dof": dof, "p_value": p,

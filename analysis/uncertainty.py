@@ -12,7 +12,7 @@ eq. 13 (E_n). Jia et al., Appl. Sci. 9 (2019) 3415: the range method u = R/d_n (
 
 The budget (:class:`UncertaintyBudget`) builds one GTC ``ureal`` per contribution (value 0, its
 standard uncertainty, its dof, its name as label) and the measurand as Σ c_i·X_i; GTC supplies u_c and
-the Welch–Satterthwaite ν_eff; k = ``scipy.stats.t.ppf((1 + p)/2, ν)`` with ν truncated to an integer
+the Welch–Satterthwaite ν_eff; k = Student's quantile ``t_ppf((1 + p)/2, ν)`` (analysis/distributions.py) with ν truncated to an integer
 (GUM G.4.1; ``truncate_dof=False`` uses the real ν).
 """
 
@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import GTC
 import numpy as np
-from scipy import stats
+
+from .distributions import norm_ppf, t_ppf
 
 __all__ = [
     "Contribution",
@@ -53,11 +54,11 @@ def coverage_factor(dof: float, p: float = 0.95, *, truncate: bool = True) -> fl
     if not 0 < p < 1:
         raise ValueError(f"coverage probability p must be in (0, 1), got {p}")
     if dof is None or not math.isfinite(dof):
-        return float(stats.norm.ppf(0.5 + p / 2))
+        return float(norm_ppf(0.5 + p / 2))
     nu = math.floor(dof) if truncate else float(dof)
     if nu < 1:
         raise ValueError(f"degrees of freedom must be >= 1, got {dof}")
-    return float(stats.t.ppf(0.5 + p / 2, nu))
+    return float(t_ppf(0.5 + p / 2, nu))
 
 
 def dof_from_relative_uncertainty(relative: float) -> float:
@@ -88,6 +89,7 @@ def en_number(x1: np.ndarray | float, U1: np.ndarray | float, x2: np.ndarray | f
 #: d_n of the range method (the mean range of n normal samples in units of σ), n = 2…25: the one
 #: table, in analysis.radial_motion (it was copied here for n ≤ 10).
 from benchtwin.analysis.radial_motion import D_N  # noqa: E402
+
 
 
 def range_uncertainty(values_or_range: Sequence[float] | np.ndarray | float, n: int | None = None, *,

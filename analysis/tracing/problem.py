@@ -14,9 +14,9 @@ import hashlib
 import math
 
 import numpy as np
-from scipy import stats
 
 from benchtwin.units import ARCSEC_PER_RAD
+from ..distributions import chi2_logsf, norm_isf
 from .blockfit import NuisanceFactor, RangeBasis, block_fit
 from .evidence import Evidence
 from .thresholds import MAX_CV_FOLDS
@@ -32,9 +32,9 @@ def _z_from_chi2(d: float, k: int) -> float:
     k = max(int(k), 1)
     if k == 1:
         return math.sqrt(d)
-    lp = float(stats.chi2.logsf(d, k))
+    lp = float(chi2_logsf(d, k))
     if lp > -700:
-        return float(stats.norm.isf(math.exp(lp) / 2.0))
+        return float(norm_isf(math.exp(lp) / 2.0))
     return math.sqrt(-2.0 * lp)
 
 

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from benchtwin.units import ARCSEC_PER_RAD
 
+from ..distributions import chi2_sf, f_sf
 from ..effects import ALL
 from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
@@ -276,7 +276,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         k_c = max(c.fit["k"], 1)
         d_chi2 = pb.null["chi2"] - c.fit["chi2"]
         F = (d_chi2 / k_c) / max(c.fit["chi2"] / c.fit["dof"], 1e-300)
-        c.f_p = float(stats.f.sf(F, k_c, c.fit["dof"])) if d_chi2 > 0 else 1.0
+        c.f_p = float(f_sf(F, k_c, c.fit["dof"])) if d_chi2 > 0 else 1.0
         if c.f_p >= F_SIG:
             c.reasons.append(f"F-test of the improvement: p = {c.f_p:.2g} ≥ {F_SIG}")
         # size: the candidate must bring the residual down, and each member must change the readings,
@@ -425,7 +425,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     pa.y = pa_y
     chi2_a = f_after["chi2"]
     dof_a = max(f_after["dof"] - chosen.fit["k"], 1)
-    p_after = float(stats.chi2.sf(chi2_a, dof_a))
+    p_after = float(chi2_sf(chi2_a, dof_a))
     result["residual_after"] = {"rms_arcsec": _rms(r1), "pv_arcsec": float(np.ptp(r1)),
                                 "fraction_of_error": _rms(r1) / max(total_err, 1e-300), "chi2": chi2_a, "dof": dof_a,
                                 "p_value": p_after}

@@ -10,8 +10,8 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_isf, chi2_sf, norm_isf, t_sf
 from ..fourier import evaluate_harmonics, fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence
@@ -97,7 +97,7 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     return {"available": True, "test": "harmonics × (t − t̄)/T, nested over the harmonics", "harmonics": ks,
             "amplitude_arcsec": amp0, "change_over_session_arcsec": slope, "rms_arcsec": rms,
             "delta_chi2": float(d), "dof": int(k),
-            "z": z, "p_value": float(stats.chi2.sf(d / scale, k)), "significant": bool(z >= Z_GATE)}
+            "z": z, "p_value": float(chi2_sf(d / scale, k)), "significant": bool(z >= Z_GATE)}
 
 
 def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: float) -> dict | None:
@@ -139,7 +139,7 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
     # coefficients, ~N(0, 1/(G·2K)) for independent sweeps; flagged at P_SIG (one-sided).
     den = float(np.sum(res ** 2))
     r1 = float(np.sum(res[1:] * res[:-1]) / den) if den > 0 else 0.0
-    serial = bool(r1 * math.sqrt(res.size) > stats.norm.isf(P_SIG))
+    serial = bool(r1 * math.sqrt(res.size) > norm_isf(P_SIG))
     if serial:
         D, dt = np.diff(C, axis=0), np.diff(tg)
         sdd = float(dt @ dt)
@@ -156,8 +156,8 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
     tstat = np.abs(slope) / u
     # each two-sided t-test as its χ²₁ equivalent; the coefficients of distinct harmonics are
     # orthogonal on the sweep's grid, so their sum is χ² with 2·len(ks) dof under stationarity
-    p = np.clip(2.0 * stats.t.sf(tstat, nu), 1e-300, 1.0)
-    q = float(np.sum(stats.chi2.isf(p, 1)))
+    p = np.clip(2.0 * t_sf(tstat, nu), 1e-300, 1.0)
+    q = float(np.sum(chi2_isf(p, 1)))
     k2 = int(C.shape[1])
     z = _z_from_chi2(q, k2)
     mean = C.mean(axis=0)
@@ -173,7 +173,7 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
             "serial_correlation": r1, "random_walk": serial,
             "amplitude_arcsec": amp0, "change_over_session_arcsec": change, "rms_arcsec": rms,
             "between_sweep_sd_arcsec": scatter, "chi2_equivalent": q, "dof": k2,
-            "z": z, "p_value": float(stats.chi2.sf(q, k2)), "significant": bool(z >= Z_GATE)}
+            "z": z, "p_value": float(chi2_sf(q, k2)), "significant": bool(z >= Z_GATE)}
 
 
 @_one_blas_thread
@@ -203,7 +203,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         dev = pb.y - m[inv]
         chi2 = float(np.sum(w2 * dev ** 2))
         dof = max(ev.n - inv.max() - 1, 1)
-        p = float(stats.chi2.sf(chi2, dof))
+        p = float(chi2_sf(chi2, dof))
         sig["repetition"] = {"available": True, "n_reps": int(np.unique(ev.rep).size), "synchronous_rms_arcsec": _rms(m[inv]),
                              "asynchronous_rms_arcsec": _rms(dev), "chi2_async": chi2, "dof": int(dof), "p_value": p,
                              "synchronous": bool(p >= P_SIG)}

@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ._blas import _one_blas_thread
 from .evidence import Evidence
 from .problem import _Problem, _center, _rms, _z_from_chi2
@@ -28,7 +28,7 @@ def residual_test(ev: Evidence) -> dict:
     chi2, dof = pb.null["chi2"], pb.null["dof"]
     return {"rms_arcsec": _rms(r), "pv_arcsec": float(np.ptp(r)) if r.size else 0.0,
             "fraction_of_error": _rms(r) / max(_rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2)), 1e-300),
-            "chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof))}
+            "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
 
 
 @_one_blas_thread
@@ -53,7 +53,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
             q = 0.0
         g = np.array([a, b]) / amp if amp > 0 else np.array([1.0, 0.0])
         u_amp = float(math.sqrt(max(g @ C @ g, 0.0)))
-        p = float(stats.chi2.sf(q, 2))
+        p = float(chi2_sf(q, 2))
         out.append({"k": k, "amplitude_arcsec": amp, "u_arcsec": u_amp, "phase_deg": math.degrees(math.atan2(a, b)),
                     "a_arcsec": float(a), "b_arcsec": float(b), "chi2": q, "z": _z_from_chi2(q, 2), "p_value": p,
                     "significant": bool(p * len(ks) < P_SIG)})
@@ -82,5 +82,5 @@ def _nested(pb: _Problem, X0: np.ndarray, X1: np.ndarray) -> dict:
     d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
     if k <= 0:
         return {"available": False}
-    p = float(stats.chi2.sf(d, k))
+    p = float(chi2_sf(d, k))
     return {"available": True, "delta_chi2": float(d), "dof": int(k), "p_value": p, "significant": bool(p < P_SIG)}

@@ -207,12 +207,12 @@ SIGNIFICANCE_P = 0.999
 def _significant_series(fa: list, fb: list, wa: float, wb: float, order: int) -> tuple[np.ndarray, list[int]]:
     """Fourier parameters (design_matrix order) of wa·a + wb·b, mean over the revolutions, with
     only the significant harmonics 2…order kept; and the kept orders."""
-    from scipy import stats
+    from benchtwin.analysis.distributions import chi2_isf
 
     n = len(fa)
     p = sum(wa * x.params + wb * y.params for x, y in zip(fa, fb)) / n
     cov = sum(wa ** 2 * x.cov + wb ** 2 * y.cov for x, y in zip(fa, fb)) / n ** 2
-    crit = float(stats.chi2.isf(1.0 - SIGNIFICANCE_P, 2))
+    crit = float(chi2_isf(1.0 - SIGNIFICANCE_P, 2))
     keep = np.zeros_like(p)
     kept: list[int] = []
     for k in range(2, order + 1):
