@@ -177,6 +177,12 @@ def test_workers_fork_from_a_forkserver_that_imported_the_render_stack(monkeypat
     ctx = pipeline.worker_context()
     if ctx.get_start_method() != "forkserver":
         pytest.skip("no forkserver on this platform: the workers are spawned")
+    # this test process's forkserver may have been started already, without the preload, by a
+    # design study's pool (benchtwin/app/study/execution.py): start it afresh (CPython's own
+    # multiprocessing tests stop it the same way)
+    from multiprocessing import forkserver
+
+    forkserver._forkserver._stop()
     with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
         assert pool.submit(_render_stack_loaded).result(timeout=120) == (True, True)
     recorded = dict(pipeline._forkserver_platform)

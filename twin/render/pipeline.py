@@ -148,7 +148,9 @@ def worker_context() -> Any:
     the environment it started with; PyOpenGL binds its GL platform at import. So it is used only
     while the GL platform (``MUJOCO_GL``, ``PYOPENGL_PLATFORM`` after ``gl.configure``) is the one
     it was started with; a process that changes it afterwards (a test) gets spawned workers, which
-    read the current environment. Where there is no forkserver (Windows), spawn."""
+    read the current environment. Where there is no forkserver (Windows), spawn. A forkserver that
+    something else in the process started first (a design study's pool) has not imported the render
+    stack: its workers import it themselves, as spawned ones do (the same frames, later)."""
     from benchtwin.twin.render import gl
 
     gl.configure()
