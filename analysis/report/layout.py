@@ -25,12 +25,13 @@ ROW_GAP_IN, COL_GAP_IN = 0.55, 0.7
 def fixed_margins(fig: Any, *, left_in: float = LEFT_IN, right_in: float = RIGHT_IN, bottom_in: float = BOTTOM_IN,
                   row_gap_in: float = ROW_GAP_IN, col_gap_in: float = COL_GAP_IN) -> Any:
     """Place ``fig``'s grid of axes with these margins (inches); the top margin holds the top row's
-    longest title. Returns ``fig``."""
+    longest title (a title on a lower row must fit in ``row_gap_in``). Returns ``fig``."""
     w, h = (float(v) for v in fig.get_size_inches())
-    axes = fig.get_axes()
-    gs = axes[0].get_subplotspec().get_gridspec() if axes and axes[0].get_subplotspec() else None
+    axes = [ax for ax in fig.get_axes() if ax.get_subplotspec() is not None]
+    gs = axes[0].get_subplotspec().get_gridspec() if axes else None
     nrows, ncols = gs.get_geometry() if gs is not None else (1, 1)
-    lines = max((ax.get_title().count("\n") + 1 for ax in axes if ax.get_title()), default=0)
+    top_row = [ax for ax in axes if ax.get_subplotspec().is_first_row()]
+    lines = max((ax.get_title().count("\n") + 1 for ax in top_row if ax.get_title()), default=0)
     top_in = TOP_BARE_IN + TITLE_LINE_IN * lines
     # subplots_adjust takes the gaps as fractions of the mean axes' height and width
     ax_h = (h - top_in - bottom_in - (nrows - 1) * row_gap_in) / nrows
