@@ -32,9 +32,10 @@ Same scenario and seed -> byte-identical dataset (no wall time, no host names ar
 
 Both cores: the drive servo's settles are computed ahead by a forked worker from the procedure's
 plan (``instruments/settle_ahead.py``: the same rests, bit for bit); the CCD frames (render,
-sensor model, PNG encode, atomic write) are made by spawned worker processes while the physics
-goes on here (``twin/render/pipeline.py``; ``BENCHTWIN_SIM_FRAMES`` = serial | pipeline | auto;
-auto pipelines large sweeps, e.g. jia2019's 60 frames of 3 Mpx). The dataset is byte-identical
+sensor model, PNG encode, atomic write) are made by worker processes, forked from a forkserver
+that has imported the render stack, while the physics goes on here (``twin/render/pipeline.py``;
+``BENCHTWIN_SIM_FRAMES`` = serial | pipeline | auto; auto pipelines large sweeps, e.g. jia2019's
+60 frames of 3 Mpx). The dataset is byte-identical
 either way; a capture's journal line, and the lines after it, are written once its frame is on
 disk (``_FrameGatedRunner``), so a killed run journals no incomplete frame.
 """
@@ -60,9 +61,9 @@ from benchtwin.hw.acquisition.runner import Runner, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.drive import DriveServo
-from .instruments.settle_ahead import SettleAhead
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
+from .instruments.settle_ahead import SettleAhead
 from .instruments.stage import ARCSEC, SIM_STREAMS, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face
 from .physics import Bench
 from .render.pipeline import FramePipeline, frame_mode
