@@ -57,6 +57,13 @@ class StageMove(Stamped):
     corrections: NotRequired[int]  # closed-loop corrections on the encoder (drivers)
     error_deg: NotRequired[float]  # remaining encoder error after them (drivers)
     iterations: NotRequired[int]  # closed-loop iterations of the twin's servo on the encoder
+    held_deg: NotRequired[float]  # status MOVE_NOT_HELD: the reading of the count the servo holds instead
+
+
+#: A move's status when the stage came to rest but its servo holds another count than the commanded
+#: one (outside its in-position window): the stop is where ``held_deg`` says, the move is complete
+#: and the runner keeps it (its readings are valid there); any other status but "ok" stops a strict run.
+MOVE_NOT_HELD = "not_held"
 
 
 class CameraFrame(Stamped):
@@ -105,7 +112,8 @@ class Autocollimator(Instrument, Protocol):
 class RotaryStage(Instrument, Protocol):
     """The drive. ``move_to(target_deg)`` commands a position in encoder degrees (the bench stops at
     commanded encoder readings) and returns ``{"target_deg", "t_s", "status", "duration_s"}`` when
-    settled, without sleeping (``duration_s``: the time the move took). ``position()`` ->
+    settled, without sleeping (``duration_s``: the time the move took); a stage at rest on another
+    count than the commanded one reports ``MOVE_NOT_HELD`` with ``held_deg``. ``position()`` ->
     ``{"angle_deg", "t_s", "status"}``.
 
     Soft limits, one contract for the twin's stage and the drivers alike (checked by

@@ -34,8 +34,9 @@ What is simulated per move: only the tail of the trapezoidal profile (the last
 ``DRIVE_TAIL_S`` of the deceleration, starting on the reference with the steady tracking state:
 friction carried by the integrator, the coupling twisted by it) and the settling after the
 reference has stopped, until the count has equalled the command and the shaft has not moved by a
-count for ``settle_window`` (or the controller's ``settle_time`` has passed: the stage then reports
-the count it holds, which may differ from the command by the hunting's amplitude). The stage
+count for ``settle_window`` (or the controller's ``settle_time`` has passed: the stage then keeps
+the count it holds, which may differ from the command by the hunting's amplitude, and reports it:
+"ok" within the in-position window ``in_position_window_counts``, else "not_held" with the count). The stage
 reports the move done ``settle_time`` after the profile ends, whenever the servo came to rest
 within it (a fixed in-position wait, as motion controllers do): the bench clock advances by the
 profile plus that time, never by a quantity of the simulated dynamics. Everything upstream of the
@@ -102,6 +103,13 @@ class DriveParams:
     settle_window_s: float = 3e-3
     max_settle_s: float = 0.1
     resolution_rad: float = 0.39 * ARCSEC
+    # The controller's in-position window (counts): the move is reported done ("ok") when the count
+    # it holds at rest is within this many counts of the commanded one, else "not_held" with the
+    # count held (SimRotaryStage.move_to). Motion controllers state completion this way (an
+    # "in-position band" on the following error); ±1 count keeps the held reading within 1.5
+    # counts of a target that is not itself a whole count. A controller constant, not a scenario
+    # key: nothing a scenario states changes it.
+    in_position_window_counts: int = 1
 
     @classmethod
     def from_scenario(cls, sc: Any, shaft_inertia: float, friction_torque: float | None = None) -> "DriveParams":

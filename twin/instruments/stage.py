@@ -38,7 +38,7 @@ import numpy as np
 
 from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
-from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
+from benchtwin.hw.interfaces import MOVE_NOT_HELD, SoftLimitError, StageMove, StagePosition
 from benchtwin.twin.pose import BenchPose, BodyPose
 from benchtwin.units import ARCSEC
 
@@ -227,6 +227,7 @@ class SimRotaryStage:
                                                                       float(soft_limits_deg[1]))
         self.command_rad = 0.0
         self.held_deg = 0.0
+        self.held = True              # the last move ended within the servo's in-position window
         self.target_deg: float | None = None
         self.position_deg = 0.0
         self.last_iterations = 0
@@ -283,14 +284,13 @@ class SimRotaryStage:
         if self.sim_hold:
             self.sim_hold = False
             if self.target_deg == target_deg and self.last_pose is not None and st.pose is self.last_pose:
-                return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
-                        "iterations": 0}
+                return self._result(target_deg, 0.0, 0)
         if (self.servo is not None and self.target_deg == target_deg and self.last_pose is not None
                 and st.pose is self.last_pose):
             # Commanding the count the servo already holds moves nothing: the shaft stays stuck where
-            # it rests (a re-issued move, e.g. an emulated acquisition resumed at this stop).
-            return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": 0.0, "status": "ok",
-                    "iterations": 0}
+            # it rests (a re-issued move, e.g. an emulated acquisition resumed at this stop): it still
+            # holds the count it held (and says so).
+            return self._result(target_deg, 0.0, 0)
         duration = self.move_duration_s(target_deg, self.position_deg)
         target = math.radians(target_deg)
         torque = None
@@ -306,8 +306,11 @@ class SimRotaryStage:
             target = n_cmd * res + rest.offset_rad        # the continuous reading to land on
             torque = rest.friction_torque_Nm
             held_deg = math.degrees((n_cmd + rest.held_count) * res)
+            # honest completion: within the controller's in-position window, or "not_held" (below)
+            held = abs(rest.held_count) <= self.servo.p.in_position_window_counts
         else:
             held_deg = target_deg
+            held = True
         st.clock.advance(duration)
         # Warm start: the offset between command and reading found the last time this target was
         # approached in this rep and direction (the polygon runs come back to the same stops for
@@ -347,8 +350,20 @@ class SimRotaryStage:
         self.target_deg = target_deg
         self.position_deg = target_deg
         self.held_deg = held_deg      # the count the encoder shows at rest (the target without a servo)
-        return {"target_deg": target_deg, "t_s": st.clock.now(), "duration_s": duration, "status": "ok",
-                "iterations": it}
+        self.held = held
+        return self._result(target_deg, duration, it)
+
+    def _result(self, target_deg: float, duration_s: float, iterations: int) -> StageMove:
+        """The move's result (``hw.interfaces.StageMove``): "ok" when the servo holds a count within
+        its in-position window of the command (drive.py ``in_position_window_counts``); else
+        "not_held" with ``held_deg``, the reading of the count it holds (the runner keeps such a
+        stop: its readings are valid where the stage stands, and the tables' ``theta_read_deg`` is
+        the encoder's reading there)."""
+        out: StageMove = {"target_deg": target_deg, "t_s": self.state.clock.now(), "duration_s": duration_s,
+                          "status": "ok" if self.held else MOVE_NOT_HELD, "iterations": iterations}
+        if not self.held:
+            out["held_deg"] = self.held_deg
+        return out
 
     def position(self) -> StagePosition:
         return {"angle_deg": self.position_deg, "t_s": self.state.clock.now(), "status": "ok"}
