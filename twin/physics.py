@@ -426,7 +426,8 @@ class Bench:
         if th["hvac_phase"] is None:   # drawn only when the cycle is on: other benches draw nothing new
             th["hvac_phase"] = (_rng(self.seed, "thermal_cycle_phase").uniform(0, TWO_PI)
                                 if th["hvac_amplitude"] > 0 else 0.0)
-        return Thermal(th, float(phase))
+        loop = sc.get("measuring_loop") if hasattr(sc, "get") else None   # optional section
+        return Thermal(th, float(phase), loop)
 
     def _set_motion_table(self, table, b) -> None:
         th = _table_column(table, "theta", "theta_rad")
@@ -1051,7 +1052,7 @@ class Bench:
                                                        + 1 / float(br["shaft_torsional_stiffness"])),
             "settle_atol": SETTLE_ATOL,
         }
-        if self.thermal.active:
+        if self.thermal.active or self.thermal.loop_active:
             truth["thermal"] = self.thermal.truth()
         if self.ball_sets is not None:
             truth["bearing_type"] = self.bearing_type

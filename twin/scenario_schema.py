@@ -235,6 +235,27 @@ OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
         "exposure_time": Field("time", 0.0, lo=0.0, hi=10.0,
                                doc="the CCD's exposure: the frame shows the motion's mean over it"),
     },
+    # The measuring loop's thermal nodes (twin/thermal.py; docs/physics.md, "The measuring loop's
+    # thermal drift"): first-order lags of the room air of [thermal] (its daily cycle and the room
+    # control's cycling), each with its own time constant, whose growth moves an instrument in the
+    # exact geometry. Optional (and zero growth by default), so a scenario that does not state it
+    # keeps its dataset's bytes.
+    "measuring_loop": {
+        "head_mount_growth": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4,
+                                   doc="read-head mount: the head's displacement along the disk's tangent "
+                                       "(counter-clockwise), per K of the mount (CTE × arm: 23 ppm/K × 20 mm = 0.46 um/K)"),
+        "head_mount_radial_growth": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4,
+                                          doc="the same mount's growth radially outward, per K"),
+        "head_mount_time_constant": Field("time", 1000.0, lo=1.0, hi=1e7,
+                                          doc="lumped lag of the mount behind the room air"),
+        "autocollimator_stand_growth": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4,
+                                             doc="differential growth, across the optical axis, of the "
+                                                 "stand's two supports of the autocollimator, per K"),
+        "autocollimator_stand_base": Field("length", 0.1, lo=1 * MM, hi=2.0,
+                                           doc="spacing of those supports along the optical axis"),
+        "autocollimator_stand_time_constant": Field("time", 3600.0, lo=1.0, hi=1e7,
+                                                    doc="lumped lag of the stand behind the room air"),
+    },
     # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
     # a real spindle). Equal-length lists; missing motion columns count as 0.
     "motion_table": {

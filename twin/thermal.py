@@ -31,6 +31,16 @@ Effects (each applied where it physically acts, with its own coefficient):
   ``microscope_stand_growth``·(T_c − T_c(0)); the camera sees the disk edge move by it
   (twin/instruments/camera.py renders the disk displaced relative to the microscope);
 - autocollimator drift: its zero moves by ``ac_drift``·(T_ac - T_ac(0)) (both axes);
+- the measuring loop's nodes (scenario section ``[measuring_loop]``, optional): the read-head mount
+  and the autocollimator stand, each a lag of the room air with its own time constant. The mount
+  moves every reading head by ``head_mount_growth``·ΔT_h along the disk's tangent (and
+  ``head_mount_radial_growth``·ΔT_h outward): twin/instruments/encoder_head.py moves the heads'
+  lines of sight, so the counter reads the graduation the displaced head sees (α drifts by
+  −growth·ΔT_h/r, exactly through the geometry). The stand's two supports grow across the optical
+  axis by different amounts, ``autocollimator_stand_growth``·ΔT over their spacing
+  ``autocollimator_stand_base``: the line of sight turns about the vertical by that ratio
+  (twin/instruments/autocollimator.py turns the instrument's axis). Sizes: CTE × length, aluminium
+  23e-6/K, steel 11.5e-6/K (ASM Handbook vol. 2 / CRC Handbook, 20 °C);
 - disk and polygon expansion (``disk_cte``, ``polygon_cte``): a UNIFORM expansion changes no
   angle — the graduation lines and the faces keep their angular positions; it scales radii only
   (the disk's edge radius grows 0.18 µm/K at 22.5 mm in glass). Recorded in truth (scale factors);
@@ -92,7 +102,9 @@ class ThermalState:
 class Thermal:
     """The thermal model of one bench (scenario section ``[thermal]``, SI / °C values)."""
 
-    def __init__(self, th: dict, phase_rad: float):
+    def __init__(self, th: dict, phase_rad: float, loop: dict | None = None):
+        """``th``: the ``[thermal]`` values (SI); ``loop``: the optional ``[measuring_loop]`` values
+        (None: none, no instrument of the loop moves)."""
         self.T0 = float(th["ambient"])
         self.A = float(th["ambient_amplitude"])
         self.P = float(th["ambient_period"])
@@ -116,7 +128,17 @@ class Thermal:
         self.phic = float(th.get("hvac_phase") or 0.0)
         self.mic_m_K = float(th.get("microscope_stand_growth") or 0.0)
         self.tau_c = float(th.get("microscope_stand_time_constant") or 600.0)
+        # the measuring loop's nodes ([measuring_loop]; absent: no growth)
+        lp = dict(loop or {})
+        self.head_t_m_K = float(lp.get("head_mount_growth") or 0.0)
+        self.head_r_m_K = float(lp.get("head_mount_radial_growth") or 0.0)
+        self.tau_h = float(lp.get("head_mount_time_constant") or 1000.0)
+        self.acs_m_K = float(lp.get("autocollimator_stand_growth") or 0.0)
+        self.acs_base_m = float(lp.get("autocollimator_stand_base") or 0.1)
+        self.tau_acs = float(lp.get("autocollimator_stand_time_constant") or 3600.0)
         self._s0 = self.state(0.0)
+        self._h0 = self.node_degC(self.tau_h, 0.0)
+        self._acs0 = self.node_degC(self.tau_acs, 0.0)
 
     @property
     def active(self) -> bool:
@@ -124,6 +146,17 @@ class Thermal:
         varies = self.A > 0 or self.dTm > 0 or self.Ac > 0
         acts = self.axis_drift_m_K or self.probe_stand_m_K or self.ac_rad_K or self.mic_m_K
         return bool(varies and acts)
+
+    @property
+    def loop_active(self) -> bool:
+        """True when a node of the measuring loop moves an instrument ([measuring_loop] growths)."""
+        return bool(self.head_t_m_K or self.head_r_m_K or self.acs_m_K)
+
+    def node_degC(self, tau_s: float, t_s: float) -> float:
+        """Temperature (°C) at t of a node that lags the lab air (daily cycle and the control's
+        cycling) with time constant ``tau_s``, in the lab's periodic steady state (closed form)."""
+        t = float(t_s)
+        return self.T0 + (_lag_sine(self.A, self.w, self.phi, tau_s, t) + _lag_sine(self.Ac, self.wc, self.phic, tau_s, t))
 
     def state(self, t_s: float) -> ThermalState:
         t = float(t_s)
@@ -168,6 +201,27 @@ class Thermal:
         """Autocollimator zero drift since t = 0 (rad, both axes)."""
         return self.ac_rad_K * (self.state(t_s).autocollimator_degC - self._s0.autocollimator_degC)
 
+    def head_mount_degC(self, t_s: float) -> float:
+        return self.node_degC(self.tau_h, t_s)
+
+    def autocollimator_stand_degC(self, t_s: float) -> float:
+        return self.node_degC(self.tau_acs, t_s)
+
+    def head_mount_drift_m(self, t_s: float) -> tuple[float, float]:
+        """Displacement of every reading head since t = 0 by its mount's growth (m): (along the
+        disk's counter-clockwise tangent at the head, radially outward)."""
+        if not (self.head_t_m_K or self.head_r_m_K):
+            return 0.0, 0.0
+        dT = self.head_mount_degC(t_s) - self._h0
+        return self.head_t_m_K * dT, self.head_r_m_K * dT
+
+    def autocollimator_stand_yaw_rad(self, t_s: float) -> float:
+        """Turn of the autocollimator's line of sight about the lab z axis since t = 0 (rad,
+        counter-clockwise positive): its stand's differential growth over the supports' spacing."""
+        if not self.acs_m_K:
+            return 0.0
+        return self.acs_m_K * (self.autocollimator_stand_degC(t_s) - self._acs0) / self.acs_base_m
+
     def disk_scale(self, t_s: float) -> float:
         """Radius scale of the disk (uniform expansion of the structure's temperature)."""
         return 1.0 + self.disk_cte * (self.state(t_s).structure_degC - self.T0)
@@ -186,6 +240,19 @@ class Thermal:
             out.update({"hvac_amplitude_K": self.Ac, "hvac_period_s": TWO_PI / self.wc, "hvac_phase_rad": self.phic,
                         "microscope_stand_growth_m_per_K": self.mic_m_K,
                         "microscope_stand_time_constant_s": self.tau_c})
+        if self.loop_active:   # only when on: the truth of other benches is unchanged
+            out["measuring_loop"] = {
+                "head_mount_growth_m_per_K": self.head_t_m_K, "head_mount_radial_growth_m_per_K": self.head_r_m_K,
+                "head_mount_time_constant_s": self.tau_h,
+                "autocollimator_stand_growth_m_per_K": self.acs_m_K,
+                "autocollimator_stand_base_m": self.acs_base_m,
+                "autocollimator_stand_time_constant_s": self.tau_acs}
+            if t_end_s is not None:
+                out["measuring_loop"]["at_end"] = {
+                    "t_s": float(t_end_s), "head_mount_degC": self.head_mount_degC(t_end_s),
+                    "head_mount_drift_m": list(self.head_mount_drift_m(t_end_s)),
+                    "autocollimator_stand_degC": self.autocollimator_stand_degC(t_end_s),
+                    "autocollimator_stand_yaw_rad": self.autocollimator_stand_yaw_rad(t_end_s)}
         if t_end_s is not None:
             e = self.state(t_end_s)
             out["at_end"] = {"t_s": float(t_end_s), **{k: getattr(e, k) for k in

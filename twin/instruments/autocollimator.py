@@ -2,7 +2,8 @@
 
 Placement (the scenario is silent; documented choice): the autocollimator sits on the lab +X
 side of the axis at azimuth ψ_AC (default 0 rad), its optical axis a = (cos ψ_AC, sin ψ_AC, 0)
-pointing from the polygon to the instrument, horizontal in the lab x–y plane (the rotation plane).
+pointing from the polygon to the instrument, horizontal in the lab x–y plane (the rotation plane);
+its stand's thermal yaw (twin/thermal.py, [measuring_loop]) turns it about the lab z axis in time.
 With the polygon in its nominal mounting (start face 1, S = 0) face 1's normal points along +X at
 zero shaft angle; re-clamping for start face j and shift S is applied by ``SimBenchState``
 (``polygon_pose``), see ``stage``.
@@ -104,8 +105,15 @@ class SimAutocollimator:
 
     def sim_exact_angles(self, pose=None) -> tuple[float, float, int]:
         """(x, y) face angles in rad from the exact reflection, and the physics face index seen
-        (1…N); no instrument error."""
-        a = np.array([math.cos(self.azimuth_rad), math.sin(self.azimuth_rad), 0.0])
+        (1…N); no instrument error. The optical axis is where the stand holds it at the pose's time
+        (its thermal yaw, twin/thermal.py [measuring_loop]; the polygon's mounting keeps the nominal
+        azimuth it was set up to)."""
+        pose = self.state.pose if pose is None else pose
+        psi = self.azimuth_rad
+        th = getattr(self.state.bench, "thermal", None)
+        if th is not None and getattr(th, "acs_m_K", 0.0):
+            psi = psi + th.autocollimator_stand_yaw_rad(pose.t_s)
+        a = np.array([math.cos(psi), math.sin(psi), 0.0])
         n = self.sim_face_normals_lab(pose)
         k = int(np.argmax(n @ a))
         nk = n[k]

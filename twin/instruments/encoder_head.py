@@ -2,7 +2,8 @@
 
 Geometry (docs/conventions.md, twin/pose.py): head j sits at lab azimuth 90° + h_j (head 1 on +Y,
 h_1 = 0) at the optical radius r. Its line of sight is the lab line through P_j = r·(cos, sin,
-0) parallel to the lab z axis; it meets the posed disk plane (through the disk frame's origin,
+0) parallel to the lab z axis (displaced by its mount's thermal growth, twin/thermal.py
+[measuring_loop], at the pose's time); it meets the posed disk plane (through the disk frame's origin,
 normal = disk body z) at Q_j. Q_j in the disk body frame has the polar angle γ_j about the disk's
 GEOMETRIC centre (the body origin): that is the graduation position under the head, whatever the
 eccentricity, radial motion or tilt of the disk. No small-angle step anywhere.
@@ -225,9 +226,24 @@ class SimEncoder:
             hp = self._head_points = (self.radius_m, self.heads_rad, P, az.tolist())
         return hp[2], hp[3]
 
+    def sim_head_mount_drift_m(self, t_s: float) -> tuple[float, float]:
+        """The heads' displacement by their mount's thermal growth at bench time t (m): (along the
+        disk's counter-clockwise tangent, radially outward); twin/thermal.py, [measuring_loop]."""
+        th = getattr(getattr(self.state, "bench", None), "thermal", None)
+        if th is None or not (getattr(th, "head_t_m_K", 0.0) or getattr(th, "head_r_m_K", 0.0)):
+            return 0.0, 0.0
+        return th.head_mount_drift_m(t_s)
+
     def sim_head_body_angles(self, pose: BenchPose) -> np.ndarray:
-        """Body polar angle γ_j (about the disk's geometric centre) of each head's line of sight."""
+        """Body polar angle γ_j (about the disk's geometric centre) of each head's line of sight;
+        each line of sight where its mount holds it at the pose's time (the counter still adds the
+        head's nominal azimuth: it does not know that the head moved)."""
         P = self._head_geometry()[0]
+        d_t, d_r = self.sim_head_mount_drift_m(pose.t_s)
+        if d_t or d_r:
+            az = 0.5 * math.pi + self.heads_rad
+            c, s = np.cos(az), np.sin(az)
+            P = P + np.stack([d_r * c - d_t * s, d_r * s + d_t * c, np.zeros_like(az)], axis=1)
         n = pose.disk.R[:, 2]
         c = pose.disk.pos
         t = ((c - P) @ n) / n[2]  # along lab z onto the disk plane
