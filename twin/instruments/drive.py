@@ -54,7 +54,7 @@ continuous reading is the rest value, so the reading at rest is exact, not linea
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
@@ -109,7 +109,7 @@ class DriveParams:
     # "in-position band" on the following error); ±1 count keeps the held reading within 1.5
     # counts of a target that is not itself a whole count. A controller constant, not a scenario
     # key: nothing a scenario states changes it.
-    in_position_window_counts: int = 1
+    in_position_window_counts: int = field(default=1, init=False)
 
     @classmethod
     def from_scenario(cls, sc: Any, shaft_inertia: float, friction_torque: float | None = None) -> "DriveParams":
