@@ -399,17 +399,57 @@ def _step(ds: Dataset, table: str, fn, *args):
         raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
 
 
-def analyze(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+def analyze(dataset: str | Path, out_dir: str | Path, *, force: bool = False, order: int = 10,
             model_file: str | Path | None = None,
             progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
-    """Analyse a dataset directory; write ``out_dir/results.json`` and ``out_dir/report.html``.
+    """Analyse a dataset directory into the folder ``out_dir`` (``results.json``, ``report.html``,
+    ``model.json`` when the loop identifies effects), by the writing rule of ``benchtwin analyze``
+    (issue 31, ``benchtwin.fsio``): a non-empty ``out_dir`` is refused unless ``force``; a folder
+    another live run holds, and an ``out_dir`` that is, contains or lies inside the dataset or the
+    model file, are refused whatever ``force`` says; the folder is built beside ``out_dir`` and
+    renamed onto it when complete (a failed run keeps the previous output).
 
     ``preface``: [(matplotlib figure, caption)] the report opens with (the app layer's rendered
     view of the bench; the analysis itself never builds the twin).
 
     Returns ``{"results": dict, "paths": {"results": ..., "report": ..., "model": ...?}}``.
-    Raises :class:`DatasetError` for invalid input (naming file, row, column).
+    Raises :class:`DatasetError` for invalid input (naming file, row, column), and
+    ``benchtwin.fsio.OutputError`` for an output folder the rule refuses.
     """
+    from benchtwin.fsio import AtomicDir
+
+    if model_file is not None:  # a bad model file is named as such before any output rule applies
+        from benchtwin.analysis.model_file import read_model_file
+
+        read_model_file(model_file)
+    out = Path(out_dir)
+    with AtomicDir(out, force=force, what="analysis output folder", owner="analyze",
+                   inputs=[dataset, model_file]) as tmp:
+        res = analyze_into(dataset, tmp, order=order, model_file=model_file, progress=progress,
+                           close_loop=close_loop, preface=preface)
+        res["paths"] = retarget(res["paths"], tmp, out)
+    return res
+
+
+def retarget(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
+    """Paths built under an ``AtomicDir``'s temporary folder ``tmp``, as they are once it is renamed
+    to ``out``. The texts written there (report, results, model file) that name ``tmp`` are
+    rewritten (atomically) to name ``out``, so no report points at a folder that no longer exists."""
+    for name in ("report.html", "results.json", "model.json"):
+        f = tmp / name
+        if f.is_file():
+            text = f.read_text(encoding="utf-8")
+            if str(tmp) in text:
+                atomic_write_text(f, text.replace(str(tmp), str(out)))
+    return {k: str(out / Path(v).relative_to(tmp)) if Path(v).is_relative_to(tmp) else v for k, v in paths.items()}
+
+
+def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+                 model_file: str | Path | None = None,
+                 progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
+    """``analyze`` writing in place into ``out_dir``, a folder the caller has prepared and holds
+    (``benchtwin run`` analyses into its own partial folder, beside the dataset it simulated);
+    the files it writes there are replaced. Everyone else calls ``analyze``."""
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
 
     ds = open_dataset(dataset)

@@ -7,15 +7,30 @@ under the usual umask 022: ``mkstemp`` alone would leave 0600) and are renamed o
 (POSIX ``rename`` is atomic: a reader sees the old file or the new one, never a mixture). A crash
 leaves at most a dot-file beside the target, which no reader takes for data.
 
-Output folders (``simulate``, ``analyze``, ``acquire``, ``study``, ``run``):
+The one writing rule of every command (issue 31, docs/reliability.md), implemented here once:
 
-- ``check_output_dir(path, force=..., resume_marker=...)`` refuses a non-empty target unless
-  ``--force`` (which clears it) or, for a resumable run, a folder holding its journal;
-- ``AtomicDir(target, force=...)`` builds a folder under a temporary sibling name and renames it
-  onto the target when complete (``--force`` replaces a previous one only then), so a killed run
-  never leaves anything under the target's name;
-- ``DirLock(folder)`` is an O_EXCL lock file with the owner's pid: a second run on the same folder
-  stops with an error naming the pid that holds it (a stale lock of a dead pid is taken over).
+- no existing file or folder is replaced without ``--force`` (``force=True`` in the API);
+- ``--force`` never breaks a live lock: a folder is cleared or replaced only by the process that
+  holds its lock, and a lock held by a live process is an error naming its pid, whatever the flags;
+- an input is never an output: an output that is, contains or lies inside one of the command's
+  inputs (compared after resolving symlinks, and by inode for hard links) is an error, even with
+  ``--force`` (``check_not_input``);
+- abandoned partial folders (``.OUT.partial-PID-START-*`` of a killed run) are removed by the next
+  run into the same target, once it holds the target's lock, if their owner no longer runs.
+
+Output files: ``check_output_target(path, force=..., inputs=...)``. Output folders:
+
+- ``locked_output_dir(path, force=..., resume=..., inputs=...)`` (``simulate``, ``acquire``,
+  ``import``, ``study``, ``suite``, ``emulate``): takes the folder's lock, then refuses a non-empty
+  folder unless ``force`` (which clears it, the lock kept) or, for a resumable run, ``resume`` with
+  its journal; ``check_output_dir`` is its check alone, for a caller that writes no lock;
+- ``AtomicDir(target, force=..., inputs=...)`` (``analyze``, ``close-loop``, ``run``) takes the
+  target's lock, builds the folder under a temporary sibling name and renames it onto the target
+  when complete (``force`` replaces a previous one only then), so a killed run never leaves
+  anything under the target's name;
+- ``DirLock(folder)`` is an O_EXCL lock file with the owner's pid and start time: a second run on
+  the same folder stops with an error naming the pid that holds it (a lock whose pid no longer
+  runs, or runs a process started at another time, i.e. a reused pid, is taken over).
 
 This module imports nothing of the project, so the analysis, the twin and the hardware layer can
 all use it (the layering of pyproject.toml's import-linter contracts).
@@ -23,14 +38,18 @@ all use it (the layering of pyproject.toml's import-linter contracts).
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
+import re
 import shutil
 import tempfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 __all__ = ["OutputError", "atomic_write_bytes", "atomic_write_text", "file_mode", "dir_mode", "check_output_dir",
-           "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME"]
+           "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME", "check_not_input", "check_output_target",
+           "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
 
 LOCK_NAME = ".benchtwin.lock"
 
@@ -83,110 +102,7 @@ def atomic_write_text(path: str | Path, text: str, *, fsync: bool = True) -> Pat
     return atomic_write_bytes(path, text.encode("utf-8"), fsync=fsync)
 
 
-def _is_empty_dir(p: Path) -> bool:
-    return p.is_dir() and not any(p.iterdir())
-
-
-def clear_dir(path: str | Path) -> None:
-    """Remove everything inside ``path`` (the folder itself stays); refuses a symlink."""
-    p = Path(path)
-    if p.is_symlink() or not p.is_dir():
-        raise OutputError(f"{p}: expected a folder to clear (not a file or a symlink)")
-    for child in p.iterdir():
-        if child.is_dir() and not child.is_symlink():
-            shutil.rmtree(child)
-        else:
-            child.unlink()
-
-
-def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: str | None = None,
-                     resume: bool = False, what: str = "output folder") -> Path:
-    """Make ``path`` ready as a new output folder, or refuse.
-
-    - missing or empty: created, fine;
-    - a file (or a symlink): always an error;
-    - non-empty: an error unless ``force`` (everything in it is removed first) or ``resume`` with
-      ``resume_marker`` (e.g. ``journal.jsonl``) present: a resumable run continues there.
-    With ``resume_marker`` given and present but neither ``resume`` nor ``force``: an error that
-    says how to resume or restart (nothing already measured is ever deleted unasked)."""
-    p = Path(path)
-    if p.is_symlink():
-        raise OutputError(f"{p}: the {what} is a symlink; give a real folder")
-    if p.exists() and not p.is_dir():
-        raise OutputError(f"{p}: expected a folder for the {what}, found a file")
-    if resume:
-        if resume_marker is None or not (p / resume_marker).is_file():
-            raise OutputError(f"{p}: --resume: no {resume_marker or 'journal'} in it, nothing to resume "
-                              "(run without --resume)")
-        return p
-    if p.is_dir() and not _is_empty_dir(p):
-        if force:
-            clear_dir(p)
-        elif resume_marker is not None and (p / resume_marker).is_file():
-            raise OutputError(f"{p}: holds {resume_marker} of an unfinished run (its readings are kept); "
-                              "continue it with --resume, or start again with --force (deletes them)")
-        else:
-            raise OutputError(f"{p}: the {what} exists and is not empty; choose another, or --force to "
-                              "replace its contents")
-    p.mkdir(parents=True, exist_ok=True)
-    return p
-
-
-class AtomicDir:
-    """Build an output folder under a temporary sibling name; rename it onto ``target`` when done.
-
-    ::
-
-        with AtomicDir(out, force=ns.force) as tmp:
-            write_everything_into(tmp)
-        # here `out` is complete; after an exception or a kill only `.out.partial-PID` may remain
-
-    A non-empty ``target`` is refused at entry unless ``force``; with ``force`` the old folder is
-    replaced only after the new one is complete (it is renamed aside, the new one renamed in, the
-    old one removed), so ``--force`` never loses a good result to a failed run."""
-
-    def __init__(self, target: str | Path, *, force: bool = False, what: str = "output folder"):
-        self.target = Path(target)
-        self.force = force
-        self.what = what
-        self.tmp: Path | None = None
-
-    def __enter__(self) -> Path:
-        t = self.target
-        if t.is_symlink():
-            raise OutputError(f"{t}: the {self.what} is a symlink; give a real folder")
-        if t.exists() and not t.is_dir():
-            raise OutputError(f"{t}: expected a folder for the {self.what}, found a file")
-        if t.is_dir() and not _is_empty_dir(t) and not self.force:
-            raise OutputError(f"{t}: the {self.what} exists and is not empty; choose another, or --force to "
-                              "replace it")
-        t.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(dir=t.parent, prefix=f".{t.name}.partial-{os.getpid()}-"))
-        os.chmod(self.tmp, dir_mode())  # mkdtemp gives 0700; the result is an ordinary folder
-        return self.tmp
-
-    def __exit__(self, exc_type, *_) -> None:
-        assert self.tmp is not None
-        if exc_type is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            return
-        t = self.target
-        old = None
-        if t.exists():
-            if _is_empty_dir(t):
-                t.rmdir()
-            else:
-                old = Path(tempfile.mkdtemp(dir=t.parent, prefix=f".{t.name}.old-{os.getpid()}-"))
-                os.rmdir(old)
-                os.replace(t, old)
-        os.replace(self.tmp, t)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-
-    def final(self, p: str | Path) -> Path:
-        """The path a file built under the temporary folder will have once renamed."""
-        assert self.tmp is not None
-        return self.target / Path(p).relative_to(self.tmp)
+# ----------------------------------------------------------------------------- owners and locks
 
 
 def _pid_alive(pid: int) -> bool:
@@ -199,11 +115,64 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-class DirLock:
-    """``folder/.benchtwin.lock`` created with O_CREAT|O_EXCL, holding the owner's pid.
+def _start_time(pid: int) -> int | None:
+    """The start time of process ``pid`` (clock ticks since boot, field 22 of /proc/PID/stat), or
+    None where /proc does not tell. A pid and its start time name one process: a pid reused by a
+    later process has another start time."""
+    try:
+        with open(f"/proc/{int(pid)}/stat", "rb") as f:
+            stat = f.read()
+        return int(stat[stat.rindex(b")") + 2:].split()[19])  # fields after "pid (comm)" start at field 3
+    except (OSError, ValueError, IndexError):
+        return None
 
-    A second run on the same folder gets ``OutputError`` naming the pid; a lock whose pid no longer
-    runs (the owner was killed -9) is taken over. Released on exit (removed if still ours)."""
+
+def _owner_alive(pid: int, start: int | None) -> bool:
+    """Is the process that wrote ``pid`` (and ``start``, when recorded) still running?"""
+    if pid <= 0 or not _pid_alive(pid):
+        return False
+    if start is None:
+        return True
+    now = _start_time(pid)
+    return now is None or now == start
+
+
+def _owner_token() -> str:
+    """``PID START`` of this process: what a lock file and a partial folder's name record."""
+    return f"{os.getpid()} {_start_time(os.getpid()) or 0}"
+
+
+def _read_owner(lock: Path) -> tuple[int, int | None]:
+    """(pid, start time or None) written in a lock file; (0, None) when unreadable (stale)."""
+    try:
+        parts = lock.read_text(encoding="ascii").split()
+        pid = int(parts[0]) if parts else 0
+        start = int(parts[1]) if len(parts) > 1 and int(parts[1]) > 0 else None
+        return pid, start
+    except (OSError, ValueError, UnicodeDecodeError):
+        return 0, None
+
+
+def lock_owner(folder: str | Path) -> int | None:
+    """The pid of the live process holding ``folder``'s lock, or None (no lock, or a stale one)."""
+    lock = Path(folder) / LOCK_NAME
+    if not lock.is_file() or lock.is_symlink():
+        return None
+    pid, start = _read_owner(lock)
+    return pid if _owner_alive(pid, start) else None
+
+
+def _live_lock_error(folder: Path, pid: int, what: str) -> OutputError:
+    return OutputError(f"{folder}: another {what} (pid {pid}) is writing this folder (lock {folder / LOCK_NAME}); "
+                       "wait for it or stop it (--force never breaks a live lock)")
+
+
+class DirLock:
+    """``folder/.benchtwin.lock`` created with O_CREAT|O_EXCL, holding the owner's pid and start time.
+
+    A second run on the same folder gets ``OutputError`` naming the pid; a lock whose owner no
+    longer runs (killed -9, or its pid reused by a process started later) is taken over. Released
+    on exit (removed if still ours)."""
 
     def __init__(self, folder: str | Path, what: str = "run"):
         self.path = Path(folder) / LOCK_NAME
@@ -216,22 +185,18 @@ class DirLock:
             try:
                 fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, file_mode())
             except FileExistsError:
-                try:
-                    pid = int(self.path.read_text(encoding="ascii").strip() or "0")
-                except (OSError, ValueError, UnicodeDecodeError):
-                    pid = 0
-                if pid > 0 and pid != os.getpid() and _pid_alive(pid):
-                    raise OutputError(f"{self.path.parent}: another {self.what} (pid {pid}) is writing this folder "
-                                      f"(lock {self.path}); wait for it or stop it") from None
+                pid, start = _read_owner(self.path)
                 if pid == os.getpid():
                     raise OutputError(f"{self.path.parent}: this process already holds the lock {self.path}") from None
+                if _owner_alive(pid, start):
+                    raise _live_lock_error(self.path.parent, pid, self.what) from None
                 try:  # stale: its owner is gone
                     self.path.unlink()
                 except FileNotFoundError:
                     pass
                 continue
             with os.fdopen(fd, "w", encoding="ascii") as f:
-                f.write(f"{os.getpid()}\n")
+                f.write(_owner_token() + "\n")
             self._held = True
             return self
         raise OutputError(f"{self.path}: could not take the lock (another run keeps re-creating it)")
@@ -241,7 +206,7 @@ class DirLock:
             return
         self._held = False
         try:
-            if self.path.read_text(encoding="ascii").strip() == str(os.getpid()):
+            if _read_owner(self.path)[0] == os.getpid():
                 self.path.unlink()
         except OSError as exc:
             if exc.errno != errno.ENOENT:
@@ -252,3 +217,266 @@ class DirLock:
 
     def __exit__(self, *_) -> None:
         self.release()
+
+
+# ----------------------------------------------------------------------------- inputs are never outputs
+
+
+def _real(p: Path) -> Path:
+    """``p`` with every symlink resolved (a missing tail is kept as written)."""
+    return Path(os.path.realpath(p))
+
+
+def check_not_input(out: str | Path, inputs: Iterable[str | Path | None], what: str = "output") -> None:
+    """Refuse an output that is one of the command's inputs, contains one, or lies inside one.
+
+    Compared after resolving symlinks (``os.path.realpath``), and by device and inode
+    (``os.path.samefile``: a hard link, or another name of a folder). Always an error, with or
+    without ``--force``: the command would destroy or change what it reads."""
+    o = Path(out)
+    ro = _real(o)
+    for i in inputs:
+        if i is None:
+            continue
+        ip = Path(i)
+        if not (ip.exists() or ip.is_symlink()):
+            continue
+        ri = _real(ip)
+        same = ro == ri
+        if not same and o.exists():
+            try:
+                same = os.path.samefile(o, ip)
+            except OSError:
+                same = False
+        if same:
+            raise OutputError(f"{o}: the {what} is the input {ip}; write it elsewhere (an input is never an "
+                              "output, even with --force)")
+        if ro.is_relative_to(ri):
+            raise OutputError(f"{o}: the {what} lies inside the input {ip}; write it elsewhere (an input is never "
+                              "an output, even with --force)")
+        if ri.is_relative_to(ro):
+            raise OutputError(f"{o}: the {what} contains the input {ip}; write it elsewhere (an input is never an "
+                              "output, even with --force)")
+
+
+def check_output_target(path: str | Path, *, force: bool = False, inputs: Iterable[str | Path | None] = (),
+                        what: str = "output file") -> Path:
+    """The rule for an output file (``certificate -o``, ``calibrate-twin -o``, a live page): never
+    one of the inputs (even with ``force``), never a folder, and an existing file (or symlink) is
+    replaced only with ``force``. Returns the path; the caller writes it with ``atomic_write_*``."""
+    p = Path(path)
+    check_not_input(p, inputs, what)
+    if p.is_dir() and not p.is_symlink():
+        raise OutputError(f"{p}: the {what} is a folder; give a file name")
+    if (p.exists() or p.is_symlink()) and not force:
+        raise OutputError(f"{p}: the {what} exists; choose another, or --force to replace it")
+    return p
+
+
+# ----------------------------------------------------------------------------- output folders
+
+
+def _is_empty_dir(p: Path) -> bool:
+    """A folder holding nothing but (at most) its lock file."""
+    return p.is_dir() and all(c.name == LOCK_NAME for c in p.iterdir())
+
+
+def clear_dir(path: str | Path) -> None:
+    """Remove everything inside ``path`` (the folder itself stays); refuses a symlink, and a folder
+    whose lock a live process other than this one holds. The lock file of this process stays."""
+    p = Path(path)
+    if p.is_symlink() or not p.is_dir():
+        raise OutputError(f"{p}: expected a folder to clear (not a file or a symlink)")
+    owner = lock_owner(p)
+    if owner is not None and owner != os.getpid():
+        raise _live_lock_error(p, owner, "run")
+    for child in p.iterdir():
+        if child.name == LOCK_NAME and owner == os.getpid():
+            continue
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+
+
+def _check_folder_kind(p: Path, what: str) -> None:
+    if p.is_symlink():
+        raise OutputError(f"{p}: the {what} is a symlink; give a real folder")
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"{p}: expected a folder for the {what}, found a file")
+
+
+def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: str | None = None,
+                     resume: bool = False, what: str = "output folder") -> Path:
+    """Make ``path`` ready as a new output folder, or refuse.
+
+    - missing or empty: created, fine;
+    - a file (or a symlink): always an error;
+    - locked by a live process other than this one: always an error naming its pid;
+    - non-empty: an error unless ``force`` (everything in it is removed first, this process's lock
+      file excepted) or ``resume`` with ``resume_marker`` (e.g. ``journal.jsonl``) present: a
+      resumable run continues there.
+    With ``resume_marker`` given and present but neither ``resume`` nor ``force``: an error that
+    says how to resume or restart (nothing already measured is ever deleted unasked).
+    ``locked_output_dir`` takes the lock first, then runs this check."""
+    p = Path(path)
+    _check_folder_kind(p, what)
+    owner = lock_owner(p) if p.is_dir() else None
+    if owner is not None and owner != os.getpid():
+        raise _live_lock_error(p, owner, "run")
+    if resume:
+        if resume_marker is None or not (p / resume_marker).exists():
+            raise OutputError(f"{p}: --resume: no {resume_marker or 'journal'} in it, nothing to resume "
+                              "(run without --resume)")
+        return p
+    if p.is_dir() and not _is_empty_dir(p):
+        if force:
+            clear_dir(p)
+        elif resume_marker is not None and (p / resume_marker).exists():
+            raise OutputError(f"{p}: holds {resume_marker} of an unfinished run (its readings are kept); "
+                              "continue it with --resume, or start again with --force (deletes them)")
+        else:
+            raise OutputError(f"{p}: the {what} exists and is not empty; choose another, or --force to "
+                              "replace its contents")
+    p.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+@contextlib.contextmanager
+def locked_output_dir(path: str | Path, *, force: bool = False, resume: bool = False,
+                      resume_marker: str | None = None, what: str = "output folder", owner: str = "run",
+                      inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
+    """An output folder written in place, held under its lock for the whole block.
+
+    The order is what makes ``--force`` safe: the inputs are checked, the lock is taken (a live
+    owner: an error naming its pid, whatever the flags), and only then is the folder checked and,
+    with ``force``, cleared (``check_output_dir``). A folder this call created is removed again if
+    the block fails before writing anything into it."""
+    p = Path(path)
+    check_not_input(p, inputs, what)
+    _check_folder_kind(p, what)
+    created = not p.exists()
+    p.mkdir(parents=True, exist_ok=True)
+    lock = DirLock(p, owner)
+    try:
+        lock.acquire()
+        try:
+            check_output_dir(p, force=force, resume=resume, resume_marker=resume_marker, what=what)
+            yield p
+        finally:
+            lock.release()
+    finally:
+        if created:
+            with contextlib.suppress(OSError):
+                p.rmdir()  # only if empty: nothing was written
+
+
+#: ``.NAME.partial-PID-START-XXXX`` (AtomicDir's build folder) or ``.NAME.old-PID-START-XXXX`` (the
+#: replaced output being removed); folders of earlier versions lack START
+_PARTIAL = re.compile(r"\.(partial|old)-(\d+)-(?:(\d+)-)?[A-Za-z0-9_]+")
+
+
+def clean_abandoned_partials(target: str | Path) -> list[Path]:
+    """Remove the partial folders a killed run left beside ``target`` (``.T.partial-PID-START-*``,
+    ``.T.old-PID-START-*``) whose owner no longer runs (its pid is gone, or now names a process
+    started at another time); returns those removed. Called by ``AtomicDir`` while it holds
+    ``target``'s lock, so no live run of this version is building any of them."""
+    t = Path(target)
+    removed = []
+    prefix = f".{t.name}"
+    try:
+        siblings = list(t.parent.iterdir())
+    except OSError:
+        return removed
+    for s in siblings:
+        if not s.name.startswith(prefix) or s.is_symlink() or not s.is_dir():
+            continue
+        m = _PARTIAL.fullmatch(s.name[len(prefix):])
+        if m is None:
+            continue
+        pid, start = int(m.group(2)), (int(m.group(3)) if m.group(3) else None)
+        if start == 0:
+            start = None
+        if pid == os.getpid() or _owner_alive(pid, start):
+            continue
+        shutil.rmtree(s, ignore_errors=True)
+        removed.append(s)
+    return removed
+
+
+class AtomicDir:
+    """Build an output folder under a temporary sibling name; rename it onto ``target`` when done.
+
+    ::
+
+        with AtomicDir(out, force=ns.force, inputs=[ns.dataset]) as tmp:
+            write_everything_into(tmp)
+        # here `out` is complete; after an exception or a kill only `.out.partial-PID-START-*`
+        # may remain, which the next run into `out` removes
+
+    ``target``'s lock (``DirLock``) is held from entry to the end: a second run into the same
+    target is refused while the first one lives, whatever ``force`` says. An input the output would
+    be, contain or lie in is refused (``check_not_input``). A non-empty ``target`` is refused at
+    entry unless ``force``; with ``force`` the old folder is replaced only after the new one is
+    complete (it is renamed aside, the new one renamed in, the old one removed), so ``--force``
+    never loses a good result to a failed run."""
+
+    def __init__(self, target: str | Path, *, force: bool = False, what: str = "output folder",
+                 owner: str = "run", inputs: Iterable[str | Path | None] = ()):
+        self.target = Path(target)
+        self.force = force
+        self.what = what
+        self.inputs = list(inputs)
+        self.tmp: Path | None = None
+        self._lock = DirLock(self.target, owner)
+        self._created = False
+
+    def __enter__(self) -> Path:
+        t = self.target
+        check_not_input(t, self.inputs, self.what)
+        _check_folder_kind(t, self.what)
+        self._created = not t.exists()
+        t.mkdir(parents=True, exist_ok=True)
+        try:
+            self._lock.acquire()
+            if not _is_empty_dir(t) and not self.force:
+                raise OutputError(f"{t}: the {self.what} exists and is not empty; choose another, or --force to "
+                                  "replace it")
+            clean_abandoned_partials(t)
+            pid, start = _owner_token().split()
+            self.tmp = Path(tempfile.mkdtemp(dir=t.parent, prefix=f".{t.name}.partial-{pid}-{start}-"))
+            os.chmod(self.tmp, dir_mode())  # mkdtemp gives 0700; the result is an ordinary folder
+        except BaseException:
+            self._release()
+            raise
+        return self.tmp
+
+    def _release(self) -> None:
+        self._lock.release()
+        if self._created:
+            with contextlib.suppress(OSError):
+                self.target.rmdir()  # only if still empty
+
+    def __exit__(self, exc_type, *_) -> None:
+        assert self.tmp is not None
+        if exc_type is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self._release()
+            return
+        t = self.target
+        # the new folder carries this process's lock, so the target stays locked across the swap
+        with open(self.tmp / LOCK_NAME, "w", encoding="ascii") as f:
+            f.write(_owner_token() + "\n")
+        pid, start = _owner_token().split()
+        old = Path(tempfile.mkdtemp(dir=t.parent, prefix=f".{t.name}.old-{pid}-{start}-"))
+        os.rmdir(old)
+        os.replace(t, old)
+        os.replace(self.tmp, t)
+        self._created = False
+        self._lock.release()
+        shutil.rmtree(old, ignore_errors=True)
+
+    def final(self, p: str | Path) -> Path:
+        """The path a file built under the temporary folder will have once renamed."""
+        assert self.tmp is not None
+        return self.target / Path(p).relative_to(self.tmp)

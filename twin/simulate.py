@@ -54,7 +54,7 @@ import numpy as np
 
 from benchtwin.analysis.dataset import JOURNAL, DatasetError, DatasetWriter
 from benchtwin.forkcall import ForkCall
-from benchtwin.fsio import DirLock, OutputError, check_output_dir
+from benchtwin.fsio import OutputError, locked_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, SimClock
@@ -191,17 +191,16 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
 
     ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
-    ``force`` clears it first (``benchtwin.fsio.check_output_dir``). A lock file keeps a second
-    run off the folder; the manifest is written last (a killed run leaves no dataset).
+    ``force`` clears it first, once this run holds the folder's lock (``benchtwin.fsio.
+    locked_output_dir``: a live run's folder is refused, whatever the flags); the scenario's own file
+    may not be in it; the manifest is written last (a killed run leaves no dataset).
     ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
     of ``simulate --live``); it only watches the run."""
     out = Path(out_dir)
     try:
-        check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
-    except OutputError as exc:
-        raise DatasetError(str(exc)) from None
-    try:
-        with DirLock(out, "simulate"):
+        # the lock first, then the check (and --force's clearing): never a live run's folder
+        with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
+                               owner="simulate", inputs=[getattr(sc, "path", None)]):
             return _simulate(sc, out, progress, backend, resume, live)[0]
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
@@ -223,11 +222,7 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     ``benchtwin run``; the analysis never needs it (principle 3), so the two can overlap."""
     out = Path(out_dir)
     try:
-        check_output_dir(out, what="dataset folder")
-    except OutputError as exc:
-        raise DatasetError(str(exc)) from None
-    try:
-        with DirLock(out, "simulate"):
+        with locked_output_dir(out, what="dataset folder", owner="simulate", inputs=[getattr(sc, "path", None)]):
             _, job = _simulate(sc, out, progress, backend, False, None, truth_dir=Path(truth_dir))
     except OutputError as exc:
         raise DatasetError(str(exc)) from None

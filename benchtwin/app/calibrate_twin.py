@@ -634,16 +634,19 @@ def dump_toml(raw: dict[str, Any], comments: dict[tuple[str, str], str], header:
 # ----------------------------------------------------------------------------- the command
 
 def calibrate_twin(dataset: Path, out: Path, base: Path | None = None, results: Path | None = None,
-                   order: int = 10, progress: bool = False) -> dict[str, Any]:
-    """Write OUT (a scenario TOML) whose twin reproduces the measured DATASET; returns a summary."""
+                   order: int = 10, progress: bool = False, *, force: bool = False) -> dict[str, Any]:
+    """Write OUT (a scenario TOML) whose twin reproduces the measured DATASET; returns a summary.
+    The writing rule (``benchtwin.fsio.check_output_target``): an existing OUT is replaced only with
+    ``force``, and never when it is (or lies in) one of the inputs: the dataset, the results, the base."""
     import copy
 
     from benchtwin.analysis.dataset import open_dataset
-    from benchtwin.fsio import atomic_write_text
+    from benchtwin.fsio import atomic_write_text, check_output_target
     from benchtwin.schema import load_toml_file
     from benchtwin.twin.scenario import ScenarioError, default_scenario_path, load_scenario, validate
 
     ds_path, res_path = locate(Path(dataset), results)
+    check_output_target(out, force=force, inputs=[dataset, ds_path, res_path, base], what="scenario file")
     ds = open_dataset(ds_path)
     if ds.kind == "error-curve":
         raise CalibrationInputError(f"{ds_path}: an error-curve dataset (imported table) has no bench to learn: "
@@ -680,8 +683,7 @@ def calibrate_twin(dataset: Path, out: Path, base: Path | None = None, results: 
         validate(load_toml_text(text, out), str(out))
     except ScenarioError as exc:   # a bug here, never the user's input
         raise RuntimeError(f"calibrate-twin wrote an invalid scenario: {exc}") from None
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = check_output_target(out, force=force, inputs=[dataset, ds_path, res_path, base], what="scenario file")
     atomic_write_text(out, text)
     fitted_keys = sorted({f"{s}.{k}" for s, k in fitted})
     return {"scenario": str(out), "dataset": str(ds_path), "results": str(res_path) if res_path else None,

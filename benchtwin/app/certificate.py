@@ -807,8 +807,13 @@ def dataset_manifest(res: Mapping[str, Any]) -> dict[str, Any] | None:
 
 
 def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: str | Path | None = None,
-                      today: str | None = None) -> dict[str, Any]:
-    """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically)."""
+                      today: str | None = None, *, force: bool = False) -> dict[str, Any]:
+    """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically). The writing
+    rule (``benchtwin.fsio.check_output_target``): an existing ``out_path`` is replaced only with
+    ``force``, and never when it is the results or the lab file."""
+    from benchtwin.fsio import atomic_write_bytes, check_output_target
+
+    out = check_output_target(out_path, force=force, inputs=[results_path, lab_path], what="certificate")
     today = today or _dt.datetime.now(_dt.UTC).date().isoformat()
     res = load_results(results_path)
     lab = load_lab(lab_path, today)
@@ -817,11 +822,7 @@ def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: 
     errors = validation_errors(tree)
     if errors:  # a bug in the writer, not bad input: never hand on a certificate that does not validate
         raise RuntimeError("the certificate does not validate against dcc.xsd 3.1.2: " + "; ".join(errors[:5]))
-    out = Path(out_path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")
-    tree.write(str(tmp), xml_declaration=True, encoding="UTF-8", pretty_print=True)
-    tmp.replace(out)
+    atomic_write_bytes(out, etree.tostring(tree, xml_declaration=True, encoding="UTF-8", pretty_print=True))
     curve = encoder_curve(res, str(results_path))
     return {"certificate": str(out), "unique_identifier": lab.certificate_id, "schema": f"DCC {SCHEMA_VERSION} / D-SI 2.1.0",
             "valid": True, "n_angles": len(curve["theta_deg"]), "curve": curve["key"],

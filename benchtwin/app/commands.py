@@ -50,22 +50,8 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
 
 def _force_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
-                   help="replace a non-empty output folder (default: refuse it; docs/reliability.md)")
-
-
-def _remap(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
-    """Paths built under an AtomicDir's temporary folder, as they are after its rename. The texts
-    written there (report, results, model file) named the temporary folder; they are rewritten
-    (atomically) to name OUT, so no report points at a folder that no longer exists."""
-    from benchtwin.fsio import atomic_write_text
-
-    for name in ("report.html", "results.json", "model.json"):
-        f = out / name
-        if f.is_file():
-            text = f.read_text(encoding="utf-8")
-            if str(tmp) in text:
-                atomic_write_text(f, text.replace(str(tmp), str(out)))
-    return {k: str(out / Path(v).relative_to(tmp)) if Path(v).is_relative_to(tmp) else v for k, v in paths.items()}
+                   help="replace a non-empty output folder (default: refuse it; never one a live run holds, nor "
+                        "an input; docs/reliability.md)")
 
 
 def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
@@ -104,19 +90,17 @@ def cmd_analyze(ns: argparse.Namespace) -> dict[str, Any]:
 
 
 def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, Any]:
-    """analyze/close-loop into a temporary sibling of OUT, renamed onto OUT when complete: a killed
-    analysis leaves neither a half report nor the previous results.json under OUT (issue #13)."""
+    """analyze/close-loop by the API's ``analyze`` and its writing rule (one rule for the CLI and the
+    API, issue 31): into a temporary sibling of OUT, renamed onto OUT when complete, under OUT's lock
+    (a killed analysis leaves neither a half report nor the previous results.json under OUT, issue
+    #13; a second analysis into OUT is refused while the first runs)."""
     from benchtwin.analysis.pipeline import analyze
-    from benchtwin.fsio import AtomicDir
 
     from benchtwin.app.bench_view import bench_preface_for_dataset
 
-    with AtomicDir(ns.out, force=ns.force, what="analysis output folder") as tmp:
-        res = analyze(ns.dataset, tmp, order=ns.order, model_file=ns.model,
-                      progress=not (ns.quiet or ns.json), close_loop=close_loop,
-                      preface=bench_preface_for_dataset(ns.dataset))
-    res["paths"] = _remap(res["paths"], tmp, ns.out)
-    return res
+    return analyze(ns.dataset, ns.out, force=ns.force, order=ns.order, model_file=ns.model,
+                   progress=not (ns.quiet or ns.json), close_loop=close_loop,
+                   preface=bench_preface_for_dataset(ns.dataset))
 
 
 def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
@@ -139,7 +123,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
-    from benchtwin.analysis.pipeline import analyze
+    from benchtwin.analysis.pipeline import analyze_into, retarget
     from benchtwin.fsio import AtomicDir
     from benchtwin.twin.simulate import simulate_apart
 
@@ -152,7 +136,9 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     # earlier run's own complete output (its RUN_MARKER and results.json) is replaced without
     # --force, so the README's command can be repeated; it is swapped only once the new run is
     # complete, so a killed re-run keeps the earlier one. Any other non-empty folder needs --force.
-    with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder") as tmp:
+    # OUT's lock is held throughout: a second run into OUT is refused while this one lives.
+    with AtomicDir(out, force=ns.force or _is_run_output(out), what="run output folder", owner="run",
+                   inputs=[sc.path]) as tmp:
         # The truth never enters the dataset (principle 3): it is written to OUT/truth by a forked
         # child while the analysis reads the measured dataset (issue #17: the truth, with its α
         # grid, was 4–9 s on the run's critical path; the child computes both at low priority,
@@ -160,13 +146,14 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
         truth = tmp / "truth"
         ds, truth_job = simulate_apart(sc, tmp / "dataset", truth, progress=not quiet, backend=ns.backend)
         with truth_job:
-            res = analyze(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop, preface=bench_preface(sc))
+            res = analyze_into(ds, tmp, progress=not quiet, close_loop=not ns.no_close_loop,
+                               preface=bench_preface(sc))
             truth_job.wait()
         from benchtwin.fsio import atomic_write_text
 
+        paths = retarget({"dataset": str(ds), "truth": str(truth), **res["paths"]}, tmp, out)
         atomic_write_text(tmp / RUN_MARKER, json.dumps({"command": "benchtwin run", "scenario": sc.name,
                                                         "seed": int(sc.seed)}) + "\n")
-    paths = _remap({"dataset": str(ds), "truth": str(truth), **res["paths"]}, tmp, out)
     return {"ok": True, **paths, "message": f"report: {paths['report']}"}
 
 
@@ -179,14 +166,16 @@ def _is_run_output(out: Path) -> bool:
             and (out / "results.json").is_file())
 
 
-def _study_output(out: Path, force: bool) -> None:
-    """A study's folder is resumable (its cache/ is keyed by content): an earlier study folder is
-    continued; any other non-empty folder is refused unless --force (which clears it)."""
-    from benchtwin.fsio import check_output_dir
+def _study_output(out: Path, force: bool, study: Path) -> Any:
+    """The study's folder, locked for the run (``benchtwin.fsio.locked_output_dir``). It is
+    resumable (its cache/ is keyed by content): an earlier study folder is continued; any other
+    non-empty folder is refused unless --force (which clears it); never a folder another live study
+    holds, nor one holding the study file."""
+    from benchtwin.fsio import locked_output_dir
 
-    if (out / "cache").is_dir() and not out.is_symlink() and not force:
-        return
-    check_output_dir(out, force=force, what="study output folder")
+    resume = (out / "cache").is_dir() and not out.is_symlink() and not force
+    return locked_output_dir(out, force=force, resume=resume, resume_marker="cache", what="study output folder",
+                             owner="study", inputs=[study])
 
 
 if _have("benchtwin.twin.simulate"):
@@ -212,8 +201,9 @@ if _have("benchtwin.app.study"):
 
         load_study(ns.study)  # a bad study file: exit 2 before any output folder is touched
         out = ns.out or Path("out") / ns.study.stem
-        _study_output(out, ns.force)
-        res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers, progress=not (ns.quiet or ns.json))
+        with _study_output(out, ns.force, ns.study):
+            res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers,
+                            progress=not (ns.quiet or ns.json))
         # run_study's dict is JSON-ready (it is also written as study.json): counts, wall time,
         # fidelity per output and the target verdict go to --json as they are
         return {**res, "ok": True, "message": res.get("message", f"study written to {out}")}

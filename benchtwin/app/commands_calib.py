@@ -21,6 +21,8 @@ def _calibrate_args(p: argparse.ArgumentParser) -> None:
                    help="scenario whose non-fitted values are kept (default: the embedded one + the dataset's manifest)")
     p.add_argument("--results", type=Path, default=None,
                    help="results.json of close-loop on DATASET (default: one beside it, else close-loop is run)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing scenario file (default: refuse it; never an input file)")
 
 
 @command("calibrate-twin", "write a scenario whose twin reproduces a measured dataset (fitted values with u)",
@@ -30,7 +32,7 @@ def cmd_calibrate_twin(ns: argparse.Namespace) -> dict[str, Any]:
 
     try:
         res = calibrate_twin(ns.dataset, ns.out, base=ns.base, results=ns.results,
-                             progress=not (ns.quiet or ns.json))
+                             progress=not (ns.quiet or ns.json), force=ns.force)
     except CalibrationInputError as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res,

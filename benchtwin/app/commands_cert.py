@@ -18,6 +18,8 @@ def _certificate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lab", type=Path, default=None,
                    help="lab file (TOML): laboratory, customer, item, persons, equipment, environment, dates "
                         "(example: docs/lab.example.toml); without it they are 'not stated'")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing certificate file (default: refuse it; never an input file)")
 
 
 @command("certificate", "write a PTB Digital Calibration Certificate (DCC 3.1.2, validated offline) from results.json",
@@ -26,7 +28,7 @@ def cmd_certificate(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.app.certificate import CertificateInputError, write_certificate
 
     try:
-        res = write_certificate(ns.results, ns.out, ns.lab)
+        res = write_certificate(ns.results, ns.out, ns.lab, force=ns.force)
     except CertificateInputError as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res,

@@ -35,6 +35,9 @@ def _emulate_args(p: argparse.ArgumentParser) -> None:
                    help="with --tcp: first port (the k-th instrument gets PORT+k); default 0: free ports")
     p.add_argument("--duration", type=float, default=None,
                    help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
+    p.add_argument("--force", action="store_true",
+                   help="use a non-empty --dir (deletes its contents; an earlier emulator's own folder is reused "
+                        "without it; never the folder of a live emulator)")
 
 
 @command("emulate", "serve a scenario's instruments on pseudo-terminals; writes a bench file for `acquire`",
@@ -43,7 +46,6 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     import tempfile
 
     from benchtwin.twin.emulators.pty import load_fault_plan
-    from benchtwin.twin.emulators.serve import EmulationSession
     from benchtwin.twin.scenario import ScenarioError, load_scenario
 
     try:
@@ -52,6 +54,22 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     except (ScenarioError, ValueError) as exc:
         raise InputError(str(exc)) from None
     directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
+    from benchtwin.fsio import locked_output_dir
+
+    # the writing rule (benchtwin.fsio): --dir is held under its lock while the emulator runs; an
+    # earlier emulator's own folder (its bench file, port links and frames) is replaced, anything
+    # else needs --force; never a folder holding the scenario or the fault plan
+    own = {"bench.toml", "ports", "frames", ".benchtwin.lock"}
+    earlier = directory.is_dir() and not directory.is_symlink() and (directory / "bench.toml").is_file() and all(
+        c.name in own for c in directory.iterdir())
+    with locked_output_dir(directory, force=ns.force or earlier, what="emulator folder (--dir)", owner="emulate",
+                           inputs=[ns.scenario, ns.faults]):
+        return _emulate(ns, sc, faults, directory)
+
+
+def _emulate(ns: argparse.Namespace, sc: Any, faults: Any, directory: Path) -> dict[str, Any]:
+    from benchtwin.twin.emulators.serve import EmulationSession
+
     session = EmulationSession(sc, faults=faults, autocollimator=ns.autocollimator, probes=ns.probes,
                                camera=None if ns.camera == "none" else ns.camera, tcp=ns.tcp,
                                tcp_base_port=ns.tcp_port)
@@ -100,7 +118,8 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
     p.add_argument("--force", action="store_true",
-                   help="start again in a non-empty folder: deletes its contents, journal included")
+                   help="start again in a non-empty folder: deletes its contents, journal included (never the "
+                        "folder of a live run: its lock is exit 2 naming the pid)")
     from benchtwin.app.live import add_live_argument
 
     add_live_argument(p)
@@ -140,8 +159,12 @@ def cmd_acquire(ns: argparse.Namespace) -> dict[str, Any]:
         if isinstance(exc, OSError) and not isinstance(exc, serial.SerialException) and exc.errno not in _DEVICE_GONE:
             raise
         j = ns.out / JOURNAL
-        kept = (f"the readings taken so far are kept in {j}; continue with `benchtwin acquire {ns.bench} "
-                f"-o {ns.out} --resume`" if j.is_file() else "no reading was taken")
+        # truthful about --force: it deleted the folder's earlier readings before this run began
+        taken = "the readings this run took are" if ns.force else "the readings taken so far are"
+        kept = (f"{taken} kept in {j}; continue with `benchtwin acquire {ns.bench} -o {ns.out} --resume`"
+                if j.is_file() else "no reading was taken")
+        if ns.force:
+            kept += " (--force deleted the folder's earlier contents, its journal included, before this run began)"
         raise InputError(f"{ns.bench}: acquisition stopped by an instrument error: {_error_line(exc)}; {kept}") from None
     if live is not None:
         live.close("finished")

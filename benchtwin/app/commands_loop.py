@@ -18,6 +18,8 @@ def _import_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--u", default=None, help="a column of standard uncertainties of the errors (same unit)")
     p.add_argument("--error-unit", default="arcsec", choices=("arcsec", "urad", "deg"),
                    help="unit of the error columns (default arcsec)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty dataset folder (default: refuse it; never the folder of the table)")
 
 
 @command("import", "read a measured error table (CSV) into an error-curve dataset", _import_args)
@@ -27,7 +29,7 @@ def cmd_import(ns: argparse.Namespace) -> dict[str, Any]:
 
     try:
         res = import_table(ns.table, ns.out, angle=ns.angle, error=ns.error, reverse=ns.reverse,
-                           error_unit=ns.error_unit, u=ns.u)
+                           error_unit=ns.error_unit, u=ns.u, force=ns.force)
     except (ImportError_, DatasetError) as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res, "message": f"dataset written: {res['dataset']} ({res['n_angles']} angles, "

@@ -84,10 +84,15 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
 
 
 def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, reverse: str | None = None,
-                 error_unit: str = "arcsec", u: str | None = None) -> dict[str, Any]:
+                 error_unit: str = "arcsec", u: str | None = None, force: bool = False) -> dict[str, Any]:
     """Write the dataset; returns a summary. ``reverse``: the column of the other direction
-    (``error`` is then the forward one); ``u``: a column of standard uncertainties (same unit)."""
+    (``error`` is then the forward one); ``u``: a column of standard uncertainties (same unit).
+    The writing rule (``benchtwin.fsio.locked_output_dir``): a non-empty ``out`` is replaced only
+    with ``force``, never while another live run holds it, never when it holds the table."""
     from benchtwin.analysis.dataset import DatasetWriter
+    from benchtwin.fsio import check_not_input, locked_output_dir
+
+    check_not_input(out, [table], "dataset folder")  # before reading: the table is never the output
 
     if error_unit not in ERROR_UNITS:
         raise ImportError_(f"--error-unit: expected one of {sorted(ERROR_UNITS)}, got {error_unit!r}")
@@ -113,7 +118,8 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
                            "reverse_column": reverse, "u_column": u, "error_unit": error_unit,
                            "convention": "error = encoder reading − reference angle (docs/conventions.md); "
                                          "the error column is the forward direction"}}
-    w = DatasetWriter(out, manifest)
-    w.write_table("error_curve", rows)
-    w.close()
+    with locked_output_dir(out, force=force, what="dataset folder", owner="import", inputs=[table]):
+        w = DatasetWriter(out, manifest, prepared=True)
+        w.write_table("error_curve", rows)
+        w.close()
     return {"dataset": str(out), "n_angles": len(th), "directions": 2 if reverse else 1}

@@ -222,9 +222,12 @@ class LiveView:
         return True
 
     def close(self, status: str = "finished") -> None:
+        """The final page; nothing when the run never started (a run refused before its first step,
+        e.g. by another live run's lock on the folder, leaves that run's page alone)."""
         self.status = status
         self._close_polygon_run()
-        self.write()
+        if self.writes:
+            self.write()
 
     def write(self) -> Path:
         self._last_write = self.clock()
@@ -333,11 +336,17 @@ def add_live_argument(p: Any) -> None:
 
 
 def live_for(ns: Any, title: str) -> LiveView | None:
-    """The LiveView a command's ``--live`` asks for (None without it)."""
+    """The LiveView a command's ``--live`` asks for (None without it). The page is an output like
+    any other (``benchtwin.fsio.check_output_target``): an existing one is replaced only with
+    ``--force`` or by the run it belongs to (``--resume``), never when it is an input."""
     if not getattr(ns, "live", False):
         return None
     if not (ns.live_interval > 0 and math.isfinite(ns.live_interval)):
         from benchtwin.cli import InputError
 
         raise InputError(f"--live-interval: expected a positive number of seconds, got {ns.live_interval}")
-    return LiveView(live_path(ns.out), title, 0, min_interval_s=ns.live_interval)
+    from benchtwin.fsio import check_output_target
+
+    page = check_output_target(live_path(ns.out), force=getattr(ns, "force", False) or getattr(ns, "resume", False),
+                               inputs=[getattr(ns, "scenario", None), getattr(ns, "bench", None)], what="live page")
+    return LiveView(page, title, 0, min_interval_s=ns.live_interval)

@@ -47,6 +47,8 @@ def _suite_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--size", choices=SIZES, default="full",
                    help="full: all 19 datasets (~6 min with --jobs 2); small: six of them")
     p.add_argument("--jobs", type=int, default=1, help="simulate this many datasets in parallel (default 1)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty suite folder (default: refuse it; docs/reliability.md)")
 
 
 @command("suite", "write the fixed, versioned benchmark suite of twin datasets", _suite_args)
@@ -56,7 +58,8 @@ def cmd_suite(ns: argparse.Namespace) -> dict[str, Any]:
     if ns.jobs < 1:
         raise InputError(f"--jobs: expected an integer >= 1, got {ns.jobs}")
     say = None if (ns.quiet or ns.json) else (lambda m: print(m, file=sys.stderr, flush=True))
-    meta = write_suite(ns.out, seed=ns.seed, blind=ns.blind, size=ns.size, jobs=ns.jobs, progress=say)
+    meta = write_suite(ns.out, seed=ns.seed, blind=ns.blind, size=ns.size, jobs=ns.jobs, progress=say,
+                       force=ns.force)
     where = f"{ns.out}/datasets" if ns.blind else str(ns.out)
     return {"ok": True, "suite": str(ns.out), **meta,
             "message": f"suite v{meta['suite_version']} ({meta['size']}, seed {meta['seed']}"

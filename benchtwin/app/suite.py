@@ -138,9 +138,9 @@ def _simulate_one(args: tuple[Entry, int, str]) -> tuple[str, float]:
 
 
 def _write_json_atomic(path: Path, obj: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=1) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    from benchtwin.fsio import atomic_write_text
+
+    atomic_write_text(path, json.dumps(obj, indent=1) + "\n")
 
 
 def anonymous_names(names: list[str], seed: int) -> dict[str, str]:
@@ -151,13 +151,26 @@ def anonymous_names(names: list[str], seed: int) -> dict[str, str]:
 
 
 def write_suite(out: str | Path, seed: int = DEFAULT_SEED, blind: bool = False, size: str = "full",
-                jobs: int = 1, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-    """Simulate the suite into ``out`` (see the module docstring); returns the suite.json content."""
+                jobs: int = 1, progress: Callable[[str], None] | None = None, *, force: bool = False
+                ) -> dict[str, Any]:
+    """Simulate the suite into ``out`` (see the module docstring); returns the suite.json content.
+
+    The writing rule (``benchtwin.fsio.locked_output_dir``): ``out`` is held under its lock for the
+    run (a second suite into it is refused while the first lives); a non-empty ``out`` is refused
+    unless ``force`` (which clears it), except the folder of an interrupted suite (its ``.partial``
+    and no suite.json), which is started again."""
+    from benchtwin.fsio import locked_output_dir
+
     out = Path(out)
-    if (out / "suite.json").exists():
-        raise InputError(f"{out}: a suite is already there (suite.json); choose another -o or delete it")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a directory")
+    if (out / "suite.json").exists() and not force:
+        raise InputError(f"{out}: a suite is already there (suite.json); choose another -o, or --force to replace it")
+    interrupted = (out / ".partial").is_dir() and not (out / "suite.json").exists() and not out.is_symlink()
+    with locked_output_dir(out, force=force or interrupted, what="suite folder", owner="suite"):
+        return _write_suite(out, seed, blind, size, jobs, progress)
+
+
+def _write_suite(out: Path, seed: int, blind: bool, size: str, jobs: int,
+                 progress: Callable[[str], None] | None) -> dict[str, Any]:
     es = entries(size)
     work = out / ".partial"
     work.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.analysis.dataset import DatasetWriter
-from benchtwin.fsio import DirLock, OutputError, atomic_write_text, check_output_dir
+from benchtwin.fsio import OutputError, atomic_write_text, locked_output_dir
 
 from .bench import BenchConfig, BenchFileError, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
 from .runner import Runner, WallClock
@@ -74,12 +74,14 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     (the error says to resume, or to restart with ``force``, which clears the folder); any other
     non-empty folder is refused without ``force``; a lock file (``benchtwin.fsio.DirLock``, O_EXCL
     with the pid) stops a second run on the same folder (issue #13: two acquires interleaved one
-    journal)."""
+    journal), and is taken before ``force`` clears anything (issue 31: ``--force`` deleted a live
+    run's journal)."""
     cfg = load_bench(bench_path)
     out = Path(out_dir)
     try:
-        check_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder")
-        with DirLock(out, "acquire"):
+        # the lock first, then the check (and --force's clearing): never a live run's journal
+        with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
+                               owner="acquire", inputs=[bench_path]):
             return _acquire(cfg, out, resume, progress, on_row, live)
     except OutputError as exc:
         raise BenchFileError(str(exc)) from None
