@@ -11,7 +11,7 @@ What a user script needs (docs/api.md)::
     import benchtwin
     sc = benchtwin.load_scenario("scenarios/jia2019.toml")     # or None: the embedded default
     ds = benchtwin.simulate(sc, "out/jia/dataset")             # dataset + truth/
-    res = benchtwin.analyze(ds, "out/jia")                     # results.json + report.html
+    res = benchtwin.analyze(ds, "out/jia/analysis")            # results.json + report.html
     benchtwin.acquire("bench.toml", "out/real")                # the same format from instruments
     benchtwin.run_study("scenarios/studies/bearing_distance.toml", "out/study")
     benchtwin.score(my_algorithm)                              # against the benchmark suite

@@ -382,7 +382,7 @@ def clean_abandoned_partials(target: str | Path) -> list[Path]:
     started at another time); returns those removed. Called by ``AtomicDir`` while it holds
     ``target``'s lock, so no live run of this version is building any of them."""
     t = Path(target)
-    removed = []
+    removed: list[Path] = []
     prefix = f".{t.name}"
     try:
         siblings = list(t.parent.iterdir())
