@@ -26,6 +26,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from benchtwin.analysis.calibration import CalibrationCurve, calibration_curve, write_calibration_files
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
 from benchtwin.analysis.results import (AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
                                         Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
@@ -528,6 +529,8 @@ def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
+    # the calibration result a lab uses, beside results.json (analysis/calibration.py)
+    paths.update(write_calibration_files(out, results))
     # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
     atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
     return {"results": results, "paths": paths}
@@ -717,6 +720,9 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
     rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}). Analysis: Jia et al. 2019 "
                   "(radial motion, eccentricity from CCD images, error model eq. 5) and Hsieh et al. 2022 "
                   "(shift-angle method, self-calibration, GUM budget). Standard uncertainties unless stated.")
+    from benchtwin.analysis.report.figures_calibration import add_calibration_section
+
+    add_calibration_section(rep, calibration_curve(results))  # the calibration result first (issue 34)
     for fig, caption in preface or []:
         rep.figure(fig, caption)
     rows = []
@@ -882,12 +888,14 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
         results["unexplained"] = ec["unexplained"]
         results["close_loop"] = CloseLoop(status=ec["status"], left=ec.get("left", []))
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
-    _write_error_curve_report(out, ds, ec, close_loop)
+    _write_error_curve_report(out, ds, ec, close_loop, calibration_curve(results))
+    paths.update(write_calibration_files(out, results))
     _write_results(out, results)
     return {"results": results, "paths": paths}
 
 
-def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool) -> None:
+def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool,
+                              cal: CalibrationCurve | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -900,6 +908,9 @@ def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_
     rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}, an imported error curve"
                   + (f" from {imp.get('table')}" if imp.get("table") else "") + "). A lone curve: no radial probes, "
                   "no CCD, no polygon start faces; what it cannot separate is stated below.")
+    from benchtwin.analysis.report.figures_calibration import add_calibration_section
+
+    add_calibration_section(rep, cal)  # the calibration result first (issue 34)
     cov = ec["coverage"]
     rows = [["coverage", f"{ec['coverage_deg']:.1f}° ({'full turn' if cov['full_turn'] else 'arc'}, "
                          f"{cov['n_angles']} angles, step {cov['step_deg'] or float('nan'):.3g}°)"],
