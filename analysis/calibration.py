@@ -32,7 +32,7 @@ import numpy as np
 
 from .distributions import t_ppf
 
-__all__ = ["CalibrationCurve", "calibration_curve", "calibration_csv", "compensation_csv", "write_calibration_files",
+__all__ = ["CalibrationCurve", "calibration_curve", "ambiguities", "LONE_CURVE_CAUSES", "LONE_CURVE_SEPARATION", "calibration_csv", "compensation_csv", "write_calibration_files",
            "calibration_rows", "CALIBRATION_COLUMNS", "COMPENSATION_COLUMNS", "K_NORMAL", "P_DEFAULT"]
 
 #: the columns of calibration.csv, in this order
@@ -50,6 +50,29 @@ ZERO_MEAN_ARCSEC = 1e-9
 
 #: the two repeatability rows of the shift-angle budget: per angle they are the propagated u_A(θ)
 _TYPE_A_ROWS = ("Repeatability of angle error measurement", "Repeatability of the pitch angle deviation measurement")
+
+
+#: the causes a lone curve cannot tell apart (analysis/error_curve.py), in words that assume no
+#: reference instrument: an imported table names none
+LONE_CURVE_CAUSES = {"graduation_error": "a division error of the scale",
+                     "tangential_motion": "a synchronous tangential motion of the axis",
+                     "polygon_pitch_ignored": "an error of the (unknown) reference"}
+#: what would separate them, in the same words
+LONE_CURVE_SEPARATION = ("measuring the axis's tangential motion, re-mounting the scale rotated on the shaft, or a "
+                         "calibration in which the reference's own error cancels (a self-calibration with several "
+                         "reading heads)")
+
+
+def ambiguities(res: Mapping[str, Any]) -> list[str]:
+    """The ambiguity sets the analysis reported, each in words (an imported curve's in the words of
+    :data:`LONE_CURVE_CAUSES`), with the harmonic orders they concern."""
+    lone = res.get("kind") == "error-curve"
+    out = []
+    for a in res.get("ambiguous") or []:
+        names = [LONE_CURVE_CAUSES.get(str(n), str(n)) if lone else str(n) for n in a.get("names", [])]
+        h = a.get("harmonics")
+        out.append(", ".join(names) + (" at harmonic order " + ", ".join(str(x) for x in h) if h else ""))
+    return out
 
 
 @dataclass(frozen=True)
@@ -128,7 +151,7 @@ def _shift_angle_u(res: Mapping[str, Any], corrections: Sequence[Mapping[str, An
     exc = ("values between the calibrated angles (periods shorter than twice the step, e.g. the sub-division "
            "error, are not sampled); another mounting of the encoder (eccentricity and axis motion differ); "
            "temperature and drift after the calibration; the additive constant of the curve")
-    amb = [", ".join(a.get("names", [])) for a in res.get("ambiguous") or []]
+    amb = ambiguities(res)
     if amb:
         exc += ("; the effects the analysis could not tell apart (" + "; ".join(amb) + "): they are in the stated "
                 "values, uncorrected")
@@ -150,9 +173,7 @@ def _imported_u(res: Mapping[str, Any]) -> tuple[str, str]:
            + "values between the calibrated angles; the additive constant of the curve")
     if "given per point" in src:
         exc = "what the table's own u includes is not stated by the import; " + exc
-    amb = [", ".join(a.get("names", [])) + (" at harmonic order " + ", ".join(str(h) for h in a["harmonics"])
-                                            if a.get("harmonics") else "")
-           for a in res.get("ambiguous") or []]
+    amb = ambiguities(res)
     if amb:
         exc += ("; the causes the curve cannot tell apart (" + "; ".join(amb) + "): they are in the stated values, "
                 "uncorrected")
@@ -189,8 +210,8 @@ def calibration_curve(res: Mapping[str, Any]) -> CalibrationCurve | None:
         label = f"imported measured error curve (table {table}, {ndir}; the mean of the directions at each angle)"
     else:
         k_b, nu_b = _num(bs.get("k")), _num(bs.get("nu_eff"))
-        if k_b is not None:
-            k, nu, dist = k_b, nu_b, "t"
+        if k_b is not None:   # the budget's k = t_{(1+p)/2}(ν_eff); without ν_eff it is stated as normal
+            k, nu, dist = k_b, nu_b, "t" if nu_b is not None else "normal"
             k_src = ("t-distribution at the effective degrees of freedom of the GUM budget (Welch-Satterthwaite"
                      + (f", ν_eff = {math.floor(nu_b)}" if nu_b else "") + "; Hsieh 2022 Table 3, JCGM 100 G.4)")
         else:

@@ -379,28 +379,36 @@ def _number(where: str, d: Mapping[str, Any], key: str, positive: bool = False) 
 
 
 def encoder_curve(res: Mapping[str, Any], src: str) -> dict[str, Any]:
-    """The curve the certificate states: the loop's corrected curve when there is one, else the
-    measured encoder error; values, U and the k, p they were expanded with."""
-    bs = res.get("budget_summary") or {}
-    k = float(bs.get("k", K_DEFAULT)) if isinstance(bs.get("k"), (int, float)) else K_DEFAULT
-    p = float(bs.get("p", P_DEFAULT)) if isinstance(bs.get("p"), (int, float)) else P_DEFAULT
-    key, label = "encoder_error_arcsec", "measured (shift-angle method, Hsieh 2022 eq. 3)"
+    """The curve the certificate states (analysis/calibration.py, the same as calibration.csv): the
+    loop's corrected curve when a correction of the reference chain was applied, else the measured
+    encoder error; values, U and the k, p, ν and distribution they were expanded with, and what u
+    includes and excludes (``cal``: the :class:`CalibrationCurve`). Each list is checked first, so
+    bad input names its key and index (exit 2)."""
+    from benchtwin.analysis.calibration import calibration_curve
+
     # results.json's encoder_error_corrected_arcsec (analysis/pipeline.py corrected_curve) equals the
     # measured curve when nothing was identified; it is stated as corrected only when a correction
-    # of the reference chain was applied, and the applied corrections are named
+    # of the reference chain was applied (calibration_curve names the corrections)
+    key = "encoder_error_arcsec"
     corrected = res.get("encoder_error_corrected_arcsec")
     if isinstance(corrected, Mapping) and corrected.get("value") and corrected.get("corrections_applied"):
-        names = ", ".join(str(c.get("effect")) for c in corrected["corrections_applied"])
-        key, label = "encoder_error_corrected_arcsec", f"corrected by the effects the loop identified ({names})"
+        key = "encoder_error_corrected_arcsec"
     d = res[key]
     w = f"{src}: {key}"
     theta = _series(w, d, "theta_deg")
-    value = _series(w, d, "value", len(theta))
-    if d.get("U"):
-        U = _series(w, d, "U", len(theta), positive=True)
-    else:
-        U = [k * u for u in _series(w, d, "u", len(theta), positive=True)]
-    return {"key": key, "label": label, "theta_deg": theta, "value": value, "U": U, "k": k, "p": p}
+    _series(w, d, "value", len(theta))
+    _series(w, d, "u", len(theta), positive=True)
+    if d.get("U") and key == "encoder_error_arcsec":
+        _series(w, d, "U", len(theta), positive=True)
+    try:
+        cal = calibration_curve(res)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise CertificateInputError(f"{src}: {exc}") from None
+    if cal is None:
+        raise CertificateInputError(f"{w}: no encoder error curve")
+    return {"key": cal.key, "label": cal.label, "theta_deg": list(cal.theta_deg), "value": list(cal.error_arcsec),
+            "U": list(cal.U_arcsec), "k": cal.k, "p": cal.p, "nu": cal.nu, "distribution": cal.distribution,
+            "cal": cal}
 
 
 # ----------------------------------------------------------------------------- XML building
@@ -440,7 +448,8 @@ def _contact_xml(parent: etree._Element, tag: str, c: Contact, lang: str, strict
     return e
 
 
-def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | None, k: float, p: float) -> etree._Element:
+def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | None, k: float, p: float,
+          distribution: str = "normal") -> etree._Element:
     r = _el(parent, "real", ns=SI_NS)
     _el(r, "label", label, ns=SI_NS)
     if U is None:
@@ -454,13 +463,13 @@ def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | No
     _el(eu, "uncertainty", Us, ns=SI_NS)
     _el(eu, "coverageFactor", _k_str(k), ns=SI_NS)
     _el(eu, "coverageProbability", _p_str(p), ns=SI_NS)
-    _el(eu, "distribution", "normal", ns=SI_NS)
+    _el(eu, "distribution", distribution, ns=SI_NS)
     return r
 
 
 def _real_list(parent: etree._Element, labels: Sequence[str] | None, values: Sequence[float], unit: str,
                U: Sequence[float] | None = None, k: float = K_DEFAULT, p: float = P_DEFAULT,
-               decimals: int | None = None) -> etree._Element:
+               decimals: int | None = None, distribution: str = "normal") -> etree._Element:
     """si:realListXMLList: one unit for all, each value rounded to its own U (or to ``decimals``)."""
     r = _el(parent, "realListXMLList", ns=SI_NS)
     if labels is not None:
@@ -477,7 +486,7 @@ def _real_list(parent: etree._Element, labels: Sequence[str] | None, values: Seq
         _el(eu, "uncertaintyXMLList", " ".join(b for _, b in pairs), ns=SI_NS)
         _el(eu, "coverageFactorXMLList", _k_str(k), ns=SI_NS)
         _el(eu, "coverageProbabilityXMLList", _p_str(p), ns=SI_NS)
-        _el(eu, "distributionXMLList", "normal", ns=SI_NS)
+        _el(eu, "distributionXMLList", distribution, ns=SI_NS)
     return r
 
 
@@ -504,48 +513,136 @@ def _statement(parent: etree._Element, text: str, lang: str, ref: str, norm: str
     _text(s, "declaration", text, lang)
 
 
-METHODS = [
-    ("shift-angle method", "benchtwin_shiftAngle",
-     "Cross-calibration of the encoder against an optical polygon read by an autocollimator at several shift angles; "
-     "the polygon's pitch deviations and the encoder error separate by the closure condition (Hsieh eqs. 1-3).",
-     "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.2"),
-    ("multi-head self-calibration", "benchtwin_selfCalibration",
-     "Equal-division-averaged self-calibration from several reading heads of the encoder (Hsieh sec. 2.3).",
-     "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.3"),
-    ("Jia error model", "benchtwin_jiaModel",
-     "Angle error from installation eccentricity (CCD images of the grating edge) and radial error motion (two test "
-     "spheres): Δθ = [e·sin(θ−θ0) + ∫δY dθ]/r.",
-     "", "Jia et al. 2019, Appl. Sci. 9, 3415, eqs. 5-13"),
-    ("GUM uncertainty evaluation", "basic_GUM",
-     "Standard uncertainties by the GUM law of propagation with Welch-Satterthwaite effective degrees of freedom, "
-     "validated by a Monte Carlo method (JCGM 101).", "JCGM 100:2008", ""),
-    ("ISO 230-7 radial error motion", "benchtwin_iso230_7",
-     "Total, synchronous and asynchronous radial error motion, fixed sensitive direction, fundamental removed, about "
-     "the least-squares centre.", "ISO 230-7:2015", ""),
-]
+def _shifts(res: Mapping[str, Any]) -> list[float]:
+    """The shift angles the polygon was measured at (the keys of results.json's setup errors)."""
+    out = []
+    for key in res.get("setup_error_arcsec") or {}:
+        try:
+            out.append(float(key))
+        except ValueError:
+            continue
+    return sorted(out)
+
+
+def _reference_chain(res: Mapping[str, Any]) -> str:
+    """The reference of a bench dataset in words: the polygon and the autocollimator as the analysis
+    used them (declared in the dataset manifest, or assumed and said so)."""
+    b = res.get("bench") or {}
+    faces = b.get("polygon_faces")
+    beta = ("its pitch deviations taken from its certificate" if b.get("polygon_certificate_arcsec") is not None
+            else "its pitch deviations determined with the encoder by the closure condition")
+    s = f"a {faces}-face optical polygon ({beta})" if faces else f"an optical polygon ({beta})"
+    ac = res.get("autocollimator_declared") or {}
+    if ac:
+        decl = ("declared in the dataset manifest" if ac.get("source") == "manifest"
+                else "not declared by the dataset: the values of Hsieh 2022's ELCOMAT 3000 assumed in the budget")
+        s += (f", read by an autocollimator (resolution {float(ac['resolution_arcsec']):g} arcsec, maximum error "
+              f"{float(ac['accuracy_arcsec']):g} arcsec; {decl})")
+    else:
+        s += ", read by an autocollimator"
+    return s
 
 
 def _methods_used(res: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]]:
-    used = [METHODS[0]]
+    """(name, refType, description, norm, reference) of each method the analysis ran on this dataset."""
+    used: list[tuple[str, str, str, str, str]] = []
+    if res.get("kind") == "error-curve":
+        imp = res.get("imported_from") or {}
+        cols = ", ".join(f"{k.removesuffix('_column')} = {imp[k]}" for k in ("angle_column", "error_column",
+                                                                              "reverse_column", "u_column")
+                         if imp.get(k))
+        up = res.get("u_point") or {}
+        used.append(("imported measured error curve", "benchtwin_importedCurve",
+                     f"The encoder error as listed in an imported table ({Path(str(imp.get('table'))).name if imp.get('table') else NOT_STATED}"
+                     + (f"; {cols}" if cols else "") + "), read with benchtwin import; the mean of the directions "
+                     "at each angle is stated. How the table was measured and against which reference instrument "
+                     "are not known.", "", ""))
+        used.append(("error-curve analysis", "benchtwin_errorCurve",
+                     "Coverage, closure, hysteresis between the directions and harmonics with their standard "
+                     "uncertainties (benchtwin analysis/error_curve.py); a lone curve identifies no cause.", "", ""))
+        used.append(("type A evaluation of the uncertainty", "basic_GUM",
+                     f"Standard uncertainty of each point: {up.get('source', NOT_STATED)}.", "JCGM 100:2008", ""))
+        return used
+    if res.get("encoder_error_arcsec") is not None:
+        shifts = _shifts(res)
+        starts = {k: len(v) for k, v in (res.get("setup_error_arcsec") or {}).items() if isinstance(v, Sequence)}
+        ref = _reference_chain(res)
+        if len(shifts) > 1:
+            used.append(("shift-angle method", "benchtwin_shiftAngle",
+                         f"Cross-calibration of the encoder against {ref}, at {len(shifts)} shift angles "
+                         f"(S = {', '.join(f'{x:g}' for x in shifts)} deg); the polygon's pitch deviations and the "
+                         "encoder error separate by the closure condition (Hsieh eqs. 1-3).",
+                         "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.2"))
+        else:
+            n0 = next(iter(starts.values()), None)
+            used.append(("polygon cross-calibration", "benchtwin_polygonCrossCalibration",
+                         f"Cross-calibration of the encoder against {ref}, at one shift angle"
+                         + (f" (S = {shifts[0]:g} deg)" if shifts else "")
+                         + (f" from {n0} start faces" if n0 else "") + "; the polygon's pitch deviations and the "
+                         "encoder error separate by the closure condition (Hsieh eqs. 1-3).",
+                         "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.1"))
     if res.get("selfcal_error_arcsec"):
-        used.append(METHODS[1])
-    if res.get("eccentricity_um") is not None:
-        used.append(METHODS[2])
-    used.append(METHODS[3])
+        used.append(("multi-head self-calibration", "benchtwin_selfCalibration",
+                     "Equal-division-averaged self-calibration from several reading heads of the encoder (Hsieh "
+                     "sec. 2.3).", "", "Hsieh, Watanabe, Hsu 2022, Appl. Sci. 12, 5008, sec. 2.3"))
+    if res.get("model_prediction_arcsec") is not None:
+        used.append(("Jia error model", "benchtwin_jiaModel",
+                     "Angle error from installation eccentricity (CCD images of the grating edge)"
+                     + (" and radial error motion (two test spheres)" if res.get("radial_motion") is not None else "")
+                     + ": Δθ = [e·sin(θ−θ0) + ∫δY dθ]/r, compared with the measured encoder error.",
+                     "", "Jia et al. 2019, Appl. Sci. 9, 3415, eqs. 5-13"))
+    if "identified_effects" in res and res.get("residual_before") is not None:
+        used.append(("residual tracing", "benchtwin_closeLoop",
+                     "The residual of the error model tested for significance and traced to effects of the benchtwin "
+                     "library (docs/effects.md); a correction of the reference chain is applied to the stated curve "
+                     "only when such an effect is identified.", "", ""))
+    bs = res.get("budget_summary") or {}
+    if bs:
+        mc = bs.get("monte_carlo") or {}
+        check = ""
+        if mc:
+            check = (", validated to one significant digit by a Monte Carlo method (JCGM 101)"
+                     if mc.get("validated_1_digit") else
+                     "; a Monte Carlo method (JCGM 101) did not validate it to one significant digit")
+        used.append(("GUM uncertainty evaluation", "basic_GUM",
+                     "Standard uncertainties by the GUM law of propagation with Welch-Satterthwaite effective degrees "
+                     f"of freedom (Hsieh 2022 sec. 3.3, Table 3){check}.", "JCGM 100:2008", ""))
     if res.get("radial_error_motion"):
-        used.append(METHODS[4])
+        used.append(("ISO 230-7 radial error motion", "benchtwin_iso230_7",
+                     "Total, synchronous and asynchronous radial error motion, fixed sensitive direction, fundamental "
+                     "removed, about the least-squares centre.", "ISO 230-7:2015", ""))
     return used
 
 
+def _ambiguity(res: Mapping[str, Any]) -> str:
+    """The ambiguity sets the analysis reported, with what would separate them."""
+    from benchtwin.analysis.calibration import LONE_CURVE_SEPARATION, ambiguities
+
+    words = ambiguities(res)
+    if not words:
+        return ""
+    if res.get("kind") == "error-curve":
+        return f" The data cannot tell apart: {'; '.join(words)} ({LONE_CURVE_SEPARATION} would separate them)."
+    seps = [str(a.get("separating_measurement") or "") for a in res.get("ambiguous") or []]
+    return " The data cannot tell apart: " + "; ".join(
+        w + (f" (separating measurement: {sep})" if sep else "") for w, sep in zip(words, seps)) + "."
+
+
 def effects_statement(res: Mapping[str, Any]) -> str:
-    """The effects the loop identified, in one sentence a reader of the certificate can check."""
+    """What the analysis concluded about the causes of the error, in sentences a reader can check:
+    only the models it ran, the effects it identified and the ambiguities it reported."""
+    amb = _ambiguity(res)
     if "identified_effects" not in res:
-        return "The residual of the error model was not traced (the loop was not closed)."
+        return "The causes of the error were not traced (the loop was not closed)." + amb
     eff = res.get("identified_effects") or []
     rb, ra = res.get("residual_before") or {}, res.get("residual_after") or {}
+    if res.get("kind") == "error-curve":
+        return ("No effect was identified: a lone error curve cannot tell causes apart (no error model was "
+                "compared with it)." + amb)
     if not eff:
+        model = "the Jia error model" if res.get("model_prediction_arcsec") is not None else "the error model"
         extra = " It is significant but no effect of the library explains it." if res.get("unexplained") else ""
-        return f"No effect beyond the Jia error model was identified in the residual.{extra}"
+        return f"No effect beyond {model} was identified in the residual.{extra}{amb}"
     parts = []
     for e in eff:
         ps = ", ".join(f"{k} = {v:.4g} ± {e.get('u', {}).get(k, float('nan')):.2g}" for k, v in e.get("params", {}).items())
@@ -559,10 +656,7 @@ def effects_statement(res: Mapping[str, Any]) -> str:
             s += (f" The model after the loop takes the eccentricity from the CCD combined with the first harmonic "
                   f"of the comparison: e = {ref['e_um']:.3f} ± {ref['u_e_um']:.2g} µm (CCD alone "
                   f"{ref['ccd']['e_um']:.3f} ± {ref['ccd']['u_e_um']:.2g} µm; consistency p = {ref['p_value']:.2g}).")
-    amb = res.get("ambiguous") or []
-    if amb:
-        s += " Ambiguous: " + "; ".join(", ".join(a.get("names", [])) for a in amb) + "."
-    return s
+    return s + amb
 
 
 def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[str, Any] | None = None,
@@ -624,18 +718,31 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
 
     st = _el(adm, "statements")
     source = str(res.get("source", man.get("source", "unknown")))
-    if source == "twin":
+    curve = encoder_curve(res, src)
+    cal = curve["cal"]
+    if res.get("kind") == "error-curve":
+        imp = res.get("imported_from") or {}
+        _statement(st, "The values are an imported measured error curve, not a measurement made with benchtwin: table "
+                       f"{imp.get('table', NOT_STATED)!s}, read with benchtwin import (data source: {source}; "
+                       f"{imp.get('convention', 'convention not stated')!s}). The reference instrument, its "
+                       "traceability, the method and the conditions of the original measurement are unknown.",
+                   lang, "benchtwin_importedCurve")
+    elif source == "twin":
         _statement(st, f"The values were obtained on the benchtwin digital twin (scenario "
                        f"{man.get('scenario', NOT_STATED)!s}, seed {man.get('seed', NOT_STATED)!s}), not on a physical "
                        "item: they describe the simulated bench.", lang, "benchtwin_simulated")
     else:
         _statement(st, f"Measured data source: {source}.", lang, "benchtwin_dataSource")
+    if res.get("kind") == "error-curve" and (lab.equipment or lab.environment):
+        _statement(st, f"The measuring equipment and environment of the lab file ({lab.source}) are not stated for "
+                       "this imported curve: the table does not say with which instruments and under which "
+                       "conditions it was measured.", lang, "benchtwin_importedCurveEquipment")
     if not lab.stated:
         _statement(st, "No lab file was given: laboratory, customer, item and responsible person are not stated.",
                    lang, "benchtwin_adminNotStated")
     _statement(st, "The expanded uncertainties are the standard uncertainties multiplied by the coverage factor k "
-                   "stated with them; for the encoder error k follows from the effective degrees of freedom of the "
-                   "budget (t-distribution), elsewhere k = 2 (normal distribution, about 95 %).",
+                   f"stated with them. Encoder error: k = {cal.k:.2f}, {cal.k_source}; its u includes {cal.u_includes}; it does not include {cal.u_excludes}. "
+                   "Elsewhere k = 2 (normal distribution, about 95 %), and each result says what its U includes.",
                lang, "basic_uncertainty", norm="JCGM 100:2008", reference="EA-4/02 M:2022")
     _statement(st, effects_statement(res), lang, "benchtwin_identifiedEffects")
     for n in res.get("notes") or []:
@@ -658,7 +765,10 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
     _el(usw, "release", __version__)
     _el(usw, "type", "application")
 
-    equipment = _equipment(man, lab)
+    imported = res.get("kind") == "error-curve"
+    # an imported table names no instrument and no environment: the lab file's (its bench's) are not
+    # claimed for it (said in a statement)
+    equipment = _equipment(man, lab) if not imported else []
     if equipment:
         me = _el(mr, "measuringEquipments")
         for e in equipment:
@@ -681,7 +791,7 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
 
     env = dict(man.get("environment") or {}) if isinstance(man.get("environment"), Mapping) else {}
     env_src = "the dataset manifest"
-    if not env and lab.environment:
+    if not env and lab.environment and not imported:
         env, env_src = lab.environment, lab.source
     env = {k: v for k, v in env.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     if env:
@@ -699,25 +809,39 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             _real(q, base, float(env[k]), unit, K_DEFAULT * float(u) if u else None, K_DEFAULT, P_DEFAULT)
 
     results = _el(mr, "results")
-    curve = encoder_curve(res, src)
+    corr = [c for c in (res.get(cal.key) or {}).get("corrections_applied") or [] if isinstance(c, Mapping)]
+    corr_s = ("Corrections applied: " + "; ".join(
+        f"{c.get('effect')} ({float(c['rms_arcsec']):.3f} arcsec RMS)" if isinstance(c.get("rms_arcsec"), (int, float))
+        else str(c.get("effect")) for c in corr) + ".") if corr else "No correction applied to the values."
     d = _result(results, "Encoder error", lang, "benchtwin_encoderError",
-                f"Encoder error (reading minus reference angle), {curve['label']}, at every calibrated angle; the "
-                "mean over the angles is removed (the method determines the error up to a constant).")
+                f"Encoder error α = encoder reading − reference angle at every calibrated angle: {cal.label}. "
+                f"Constant: {cal.constant}. {corr_s} U = k·u, k = {cal.k:.2f}, {cal.k_source}. "
+                f"u includes {cal.u_includes}. It does not include {cal.u_excludes}.")
     lst = _el(d, "list")
-    q = _quantity(lst, "angle", lang, "benchtwin_angle")
+    # the DCC's own refTypes first (readers look for them), benchtwin's as the additional one
+    q = _quantity(lst, "encoder reading (calibrated angle)", lang, "basic_measuredValue benchtwin_angle")
     _real_list(q, None, curve["theta_deg"], DSI_UNITS["deg"], decimals=6)
-    q = _quantity(lst, "encoder error", lang, "benchtwin_encoderErrorValue")
-    _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"], curve["k"], curve["p"])
+    q = _quantity(lst, "reference angle (encoder reading − encoder error)", lang,
+                  "basic_referenceValue benchtwin_referenceAngle")
+    _real_list(q, None, [t - a / 3600.0 for t, a in zip(curve["theta_deg"], curve["value"])], DSI_UNITS["deg"],
+               [U / 3600.0 for U in curve["U"]], curve["k"], curve["p"], distribution=curve["distribution"])
+    q = _quantity(lst, "encoder error", lang, "basic_measurementError benchtwin_encoderErrorValue")
+    _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"], curve["k"], curve["p"],
+               distribution=curve["distribution"])
 
     sc = res.get("selfcal_error_arcsec")
     if isinstance(sc, Mapping) and sc.get("value"):
         w = f"{src}: selfcal_error_arcsec"
         th = _series(w, sc, "theta_deg")
         d = _result(results, "Encoder error by self-calibration", lang, "benchtwin_selfCalibrationError",
-                    "Encoder error from the multi-head self-calibration (Hsieh sec. 2.3), mean removed.")
+                    "Encoder error from the multi-head self-calibration (Hsieh sec. 2.3), mean removed. U = 2·u "
+                    "(normal distribution): u is the repeatability of the heads' readings propagated through Hsieh "
+                    "eq. 9 with the encoder's resolution; the harmonics the head sets cannot see are absent from "
+                    "the values and not included in U.")
         lst = _el(d, "list")
-        _real_list(_quantity(lst, "angle", lang, "benchtwin_angle"), None, th, DSI_UNITS["deg"], decimals=6)
-        _real_list(_quantity(lst, "encoder error", lang, "benchtwin_encoderErrorValue"), None,
+        _real_list(_quantity(lst, "encoder reading (calibrated angle)", lang, "basic_measuredValue benchtwin_angle"),
+                   None, th, DSI_UNITS["deg"], decimals=6)
+        _real_list(_quantity(lst, "encoder error", lang, "basic_measurementError benchtwin_encoderErrorValue"), None,
                    _series(w, sc, "value", len(th)), DSI_UNITS["arcsec"],
                    [K_DEFAULT * u for u in _series(w, sc, "u", len(th), positive=True)])
 
@@ -725,7 +849,9 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
         beta = _series(src, res, "polygon_pitch_deviation_arcsec")
         u_beta = _series(src, res, "polygon_pitch_deviation_u_arcsec", len(beta), positive=True)
         d = _result(results, "Polygon pitch deviations", lang, "benchtwin_polygonPitchDeviation",
-                    "Pitch deviation β of each polygon face (Hsieh eq. 1, sum zero), determined with the encoder.")
+                    "Pitch deviation β of each polygon face (Hsieh eq. 1, sum zero), determined with the encoder. "
+                    "U = 2·u (normal distribution): u is the repeatability of the autocollimator readings propagated "
+                    "to β (type A); it does not include the autocollimator's own error or its traceability.")
         lst = _el(d, "list")
         _real_list(_quantity(lst, "face", lang, "benchtwin_face"), None, list(range(1, len(beta) + 1)),
                    DSI_UNITS["one"], decimals=0)
@@ -734,7 +860,9 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
 
     if res.get("eccentricity_um") is not None:
         d = _result(results, "Installation eccentricity", lang, "benchtwin_eccentricity",
-                    "Eccentricity of the grating relative to the axis from the CCD images of its edge (Jia eqs. 10-12).")
+                    "Eccentricity of the grating relative to the axis from the CCD images of its edge (Jia eqs. 10-12). "
+                    f"U = 2·u (normal distribution); u: {res.get('eccentricity_u_source', NOT_STATED)!s}. It does not "
+                    "include a change of the mounting after the calibration.")
         q = _quantity(d, "eccentricity e", lang, "benchtwin_eccentricityValue")
         _real(q, "e", _number(src, res, "eccentricity_um"), DSI_UNITS["um"],
               K_DEFAULT * _number(src, res, "eccentricity_u_um", positive=True), K_DEFAULT, P_DEFAULT)
@@ -746,7 +874,9 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
     if isinstance(rem, Mapping) and rem.get("locations"):
         d = _result(results, "Radial error motion (ISO 230-7)", lang, "benchtwin_radialErrorMotion",
                     "Error motion values, fixed sensitive direction, fundamental removed, about the least-squares "
-                    f"centre; {rem.get('n_revolutions', NOT_STATED)} revolutions.")
+                    f"centre; {rem.get('n_revolutions', NOT_STATED)} revolutions. U = 2·u (normal distribution): u "
+                    "from the probes' reading noise; it does not include the probes' calibration or the test "
+                    "spheres' form error.")
         for loc in rem["locations"]:
             w = f"{src}: radial_error_motion.locations[{loc.get('name')!r}]"
             lst = _el(d, "list", refType=f"benchtwin_{loc['name']}")
@@ -807,13 +937,18 @@ def dataset_manifest(res: Mapping[str, Any]) -> dict[str, Any] | None:
 
 
 def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: str | Path | None = None,
-                      today: str | None = None, *, force: bool = False) -> dict[str, Any]:
-    """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically). The writing
-    rule (``benchtwin.fsio.check_output_target``): an existing ``out_path`` is replaced only with
-    ``force``, and never when it is the results or the lab file."""
-    from benchtwin.fsio import atomic_write_bytes, check_output_target
+                      today: str | None = None, html_path: str | Path | None = None, *,
+                      force: bool = False) -> dict[str, Any]:
+    """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically); with
+    ``html_path`` also the page for people rendered from it (benchtwin/app/certificate_html.py). The
+    writing rule (``benchtwin.fsio.check_output_target``) holds for both: an existing file is replaced
+    only with ``force``, and never when it is the results or the lab file."""
+    from benchtwin.fsio import atomic_write_bytes, atomic_write_text, check_output_target
 
     out = check_output_target(out_path, force=force, inputs=[results_path, lab_path], what="certificate")
+    html_out = (None if html_path is None else
+                check_output_target(html_path, force=force, inputs=[results_path, lab_path, out],
+                                    what="certificate page"))
     today = today or _dt.datetime.now(_dt.UTC).date().isoformat()
     res = load_results(results_path)
     lab = load_lab(lab_path, today)
@@ -823,8 +958,13 @@ def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: 
     if errors:  # a bug in the writer, not bad input: never hand on a certificate that does not validate
         raise RuntimeError("the certificate does not validate against dcc.xsd 3.1.2: " + "; ".join(errors[:5]))
     atomic_write_bytes(out, etree.tostring(tree, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+    extra: dict[str, Any] = {}
+    if html_out is not None:
+        from benchtwin.app.certificate_html import render_html
+
+        extra["html"] = str(atomic_write_text(html_out, render_html(tree)))
     curve = encoder_curve(res, str(results_path))
-    return {"certificate": str(out), "unique_identifier": lab.certificate_id, "schema": f"DCC {SCHEMA_VERSION} / D-SI 2.1.0",
+    return {"certificate": str(out), **extra, "unique_identifier": lab.certificate_id, "schema": f"DCC {SCHEMA_VERSION} / D-SI 2.1.0",
             "valid": True, "n_angles": len(curve["theta_deg"]), "curve": curve["key"],
             "max_U_arcsec": max(curve["U"]), "administrative_data": "lab file" if lab.stated else "not stated",
             "identified_effects": [e["name"] for e in res.get("identified_effects") or []]}

@@ -20,6 +20,9 @@ def _certificate_args(p: argparse.ArgumentParser) -> None:
                         "(example: docs/lab.example.toml); without it they are 'not stated'")
     p.add_argument("--force", action="store_true",
                    help="replace an existing certificate file (default: refuse it; never an input file)")
+    p.add_argument("--html", nargs="?", const="", default=None, metavar="HTML",
+                   help="also write the certificate for people: a self-contained HTML page rendered from the DCC "
+                        "(default path: OUT with the suffix .html)")
 
 
 @command("certificate", "write a PTB Digital Calibration Certificate (DCC 3.1.2, validated offline) from results.json",
@@ -28,9 +31,11 @@ def cmd_certificate(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.app.certificate import CertificateInputError, write_certificate
 
     try:
-        res = write_certificate(ns.results, ns.out, ns.lab, force=ns.force)
+        html = None if ns.html is None else (Path(ns.html) if ns.html else ns.out.with_suffix(".html"))
+        res = write_certificate(ns.results, ns.out, ns.lab, html_path=html, force=ns.force)
     except CertificateInputError as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res,
             "message": f"certificate written: {res['certificate']} ({res['schema']}, {res['n_angles']} angles, "
-                       f"U ≤ {res['max_U_arcsec']:.2g}″, administrative data: {res['administrative_data']})"}
+                       f"U ≤ {res['max_U_arcsec']:.2g}″, administrative data: {res['administrative_data']})"
+                       + (f"; for people: {res['html']}" if res.get("html") else "")}

@@ -28,3 +28,21 @@ def grad_results(grad_dataset, tmp_path_factory):
     out = tmp_path_factory.mktemp("analysis")
     analyze(ds, out, progress=False, close_loop=True)
     return out / "results.json"
+
+
+@pytest.fixture(scope="session")
+def imported_results(tmp_path_factory):
+    """The shared Sensors 2024 table (docs/real-data.md) imported with both directions and closed-loop
+    through the CLI, as a lab would (~2 s, no simulation): results.json of it."""
+    from pathlib import Path
+
+    from benchtwin.cli import main
+
+    table = Path(__file__).resolve().parents[3] / "shared" / "realdata" / "sensors2024_24_1400_table6_matrix_encoder_errors.csv"
+    if not table.is_file():
+        pytest.skip(f"{table} (the shared real-data table) is not beside this checkout")
+    base = tmp_path_factory.mktemp("imported")
+    assert main(["import", str(table), "-o", str(base / "rd"), "--angle", "angle_deg", "--error",
+                 "error_prograde_arcsec", "--reverse", "error_reversal_arcsec", "--quiet"]) == 0
+    assert main(["close-loop", str(base / "rd"), "-o", str(base / "out"), "--quiet"]) == 0
+    return base / "out" / "results.json"
