@@ -9,10 +9,13 @@ local ``SI_Format.xsd``.
 
 Contents (one ``measurementResult``):
 
-- the encoder error at every calibrated angle (the loop's corrected curve when there is one, else
-  the shift-angle result of Hsieh et al. 2022 sec. 2, eq. 3), each value with its expanded
-  uncertainty ``si:expandedUncXMLList`` (U, k, p: k and p from the GUM budget, Hsieh Table 3 /
-  JCGM 100:2008 G.4 with Welch–Satterthwaite ν_eff);
+- the encoder error at every calibrated angle (analysis/calibration.py, the numbers of
+  calibration.csv: the loop's corrected curve when a correction was applied, else the measured
+  curve of Hsieh et al. 2022 eq. 3 or of an imported table), as the encoder reading
+  (``basic_measuredValue``), the reference angle (``basic_referenceValue``) and the error
+  (``basic_measurementError``), each with ``si:expandedUncXMLList`` (U, k, p and the distribution
+  k belongs to: t at the budget's ν_eff, Hsieh Table 3 / JCGM 100:2008 G.4, or at an imported
+  table's type A ν), and what U includes and excludes;
 - the self-calibration curve (Hsieh sec. 2.3) when it was measured;
 - the polygon pitch deviations β (Hsieh eq. 1) and the eccentricity e, θ0 (Jia et al. 2019
   eqs. 10–12), each with U = k·u, k = 2 (p ≈ 95 %, normal distribution, GUM 6.3.3: these are
@@ -29,8 +32,10 @@ Contents (one ``measurementResult``):
 Rounding (EA-4/02 M:2022 sec. 5): U to two significant digits, the value to the same decimal
 place as its U.
 
-A dataset from the twin is declared as such in a statement: the values then describe the simulated
-bench, not a physical item.
+It states only what happened (issue 34): the methods and the reference chain are those the analysis
+ran (read from results.json), a dataset from the twin is declared as such (the values then describe
+the simulated bench, not a physical item), an imported table as an imported measured curve whose
+reference is unknown, and each ambiguity the analysis reported is stated.
 """
 
 from __future__ import annotations
