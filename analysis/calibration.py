@@ -162,13 +162,13 @@ def _imported_u(res: Mapping[str, Any]) -> tuple[str, str]:
     up = res.get("u_point") or {}
     src = str(up.get("source") or "not stated")
     dof = _num(up.get("dof"))
-    r = (res.get("bench") or {}).get("encoder_resolution_arcsec")
-    inc = f"{src}" + (f", ν = {dof:.0f}" if dof else "")
+    r = _num((res.get("bench") or {}).get("encoder_resolution_arcsec"))
+    inc = f"{src}" + (f", ν = {math.floor(dof)}" if dof else "")
     exc = ("the reference instrument's own error and its traceability (the imported table names no reference: "
            "unknown); anything " + ("both directions share" if res.get("hysteresis") else "smooth across the points")
            + " (a systematic error of the reference or of the setup enters every run alike and does not show in "
            "the scatter u is taken from); "
-           + (f"the encoder's resolution ({float(r):g}″ declared, not included); " if _num(r) else
+           + (f"the encoder's resolution ({r:g}″ declared, not included); " if r is not None else
               "the encoder's resolution (not declared); ")
            + "values between the calibrated angles; the additive constant of the curve")
     if "given per point" in src:
