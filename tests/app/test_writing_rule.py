@@ -273,7 +273,7 @@ class TestNothingReplacedWithoutForce:
             analyze(ds, out, progress=False)
         assert [p.name for p in out.iterdir()] == ["notes.txt"]
         res = analyze(ds, out, force=True, progress=False)
-        assert sorted(p.name for p in out.iterdir()) == ["report.html", "results.json"]
+        assert sorted(p.name for p in out.iterdir()) == ["calibration.csv", "compensation.csv", "report.html", "results.json"]
         assert res["paths"]["results"] == str(out / "results.json")
         assert str(tmp_path / ".api.partial") not in (out / "report.html").read_text()
 
