@@ -41,6 +41,7 @@ __all__ = [
     "evaluate",
     "remove_harmonics",
     "amplitude_phase",
+    "amplitude_phase_ab",
     "param_index",
     "harmonic_columns",
     "fit_harmonics",
@@ -320,8 +321,15 @@ def amplitude_phase(fit: FourierFit, harmonic: int = 1) -> dict:
     if not 1 <= harmonic <= fit.order:
         raise ValueError(f"harmonic must be in 1…{fit.order}, got {harmonic}")
     ia, ib = param_index(harmonic)
-    a, b = float(fit.params[ia]), float(fit.params[ib])
-    cov_ab = fit.cov[np.ix_([ia, ib], [ia, ib])]
+    return amplitude_phase_ab(float(fit.params[ia]), float(fit.params[ib]), fit.cov[np.ix_([ia, ib], [ia, ib])])
+
+
+def amplitude_phase_ab(a: float, b: float, cov_ab: np.ndarray) -> dict:
+    """Eqs. 11-12 for one sine/cosine pair ``a sin x + b cos x = A cos(x − φ)`` with the 2×2 covariance
+    of (a, b): the keys of :func:`amplitude_phase`. Also for a pair of a non-integer order (a period
+    over an arc, analysis/arc_periods.py)."""
+    a, b = float(a), float(b)
+    cov_ab = np.asarray(cov_ab, dtype=float)
     A = math.hypot(a, b)
     phi = math.atan2(a, b)
     if A > 0:

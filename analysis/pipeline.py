@@ -28,7 +28,7 @@ import numpy as np
 
 from benchtwin.analysis.calibration import CalibrationCurve, calibration_curve, write_calibration_files
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
-from benchtwin.analysis.results import (AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
+from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
                                         Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
                                         ModelPrediction, RadialErrorMotion, ResidualSummary)
 from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
@@ -353,6 +353,27 @@ def step_polygon(ds: Dataset) -> PolygonAnalysis:
         raise DatasetError(f"{ds.path / 'polygon.csv'}: {exc} (array index i is file row i + 2)") from None
 
 
+def step_iso230_2_polygon(ds: Dataset, pol: PolygonAnalysis) -> dict[str, Any] | None:
+    """ISO 230-2 positioning statistics from the polygon's clampings swept in both directions
+    (analysis.iso230_2); None when no clamping was measured in both directions."""
+    from benchtwin.analysis import shift_angle as sa
+    from benchtwin.analysis.iso230_2 import positioning_statistics, runs_from_polygon
+
+    t = polygon_table(ds)
+    if "direction" not in t or len(set(np.asarray(t["direction"]).astype(str))) < 2:
+        return None
+    table = sa.tabulate_polygon(t["shift_deg"], t["start_face"], t["step"], t["ac_arcsec"], ds.bench["polygon_faces"],
+                                theta_deg=t.get("theta_deg"), rep=t.get("rep"),
+                                direction=np.asarray(t["direction"]).astype(str))
+    got = runs_from_polygon(table, np.asarray(pol.pitch_deviation_arcsec, dtype=float))
+    if got is None:
+        return None
+    target, up, dn, how = got
+    out = positioning_statistics(target, up, dn, source="polygon.csv: " + how["note"])
+    out["shift_deg"] = how["shift_deg"]
+    return out
+
+
 def _setup_error_lookup(pol: PolygonAnalysis):
     table = {}
     for s, values in pol.setup_error_arcsec.items():
@@ -495,6 +516,9 @@ def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         pol = _step(ds, "polygon.csv", step_polygon, ds)
         results.update(pol.to_json())
         results["notes"] += pol.notes
+        iso2 = _step(ds, "polygon.csv", step_iso230_2_polygon, ds, pol)
+        if iso2 is not None:
+            results["iso230_2"] = iso2
 
     # Jia eq. 5: the error model from the measured eccentricity and radial motion.
     model = None
@@ -788,6 +812,8 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
         if pol.selfcal_error_arcsec:
             rep.figure(fh.figure_selfcal_vs_shift_angle(pol.detail), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
             rep.figure(fh.figure_difference(pol.detail), "Difference between the two methods (Hsieh fig. 12)")
+        if results.get("iso230_2"):
+            _add_iso230_2_table(rep, results["iso230_2"])
         if pol.budget:
             rep.heading("Uncertainty budget (GUM, Hsieh Table 3)", level=3)
             rep.table([[r.get("name"), r.get("u"), r.get("sensitivity"), r.get("contribution"), r.get("dof")]
@@ -870,6 +896,24 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
     except ValueError as exc:
         raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
     mc = ec["mean_curve"]
+    arc = None
+    if not ec["coverage"]["full_turn"]:
+        from benchtwin.analysis.arc_periods import ArcInputError, analyze_arc_periods
+
+        # u from outside the fit (a u column, the two directions) weighs the points; else none
+        u_ext = None if ec["u_point"]["source"].startswith("type A from the residual") else mc["u_arcsec"]
+        try:
+            arc = analyze_arc_periods(mc["theta_deg"], mc["value_arcsec"], u_ext,
+                                      drive_elements=ds.manifest.get("drive_elements"))
+        except ArcInputError as exc:
+            raise DatasetError(f"{ds.path}/{exc}") from None
+    iso2 = None
+    from benchtwin.analysis.iso230_2 import positioning_statistics, runs_from_error_curve
+
+    runs = runs_from_error_curve(t["theta_deg"], t["error_arcsec"], t.get("direction"))
+    if runs is not None:
+        iso2 = positioning_statistics(*runs, source="error_curve.csv: one run per direction at the angles measured "
+                                                    "in both")
     results = ErrorCurveResults(
         format="bench-results", version=1, dataset=str(ds.path), source=ds.manifest["source"],
         kind="error-curve", bench=_bench(ds.bench), notes=list(ec["notes"]),
@@ -882,20 +926,75 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
         encoder_error_corrected_arcsec=CorrectedCurve(theta_deg=mc["theta_deg"], value=mc["value_arcsec"],
                                                       u=mc["u_arcsec"], corrections_applied=[]),
     )
+    if arc is not None:
+        results["arc_periods"] = cast(list[ArcPeriod], arc["periods"])
+        results["arc_period_scan"] = arc["scan"]
+    if iso2 is not None:
+        results["iso230_2"] = iso2
     if close_loop:
         results["identified_effects"] = []
         results["ambiguous"] = ec["ambiguous"]
         results["unexplained"] = ec["unexplained"]
         results["close_loop"] = CloseLoop(status=ec["status"], left=ec.get("left", []))
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
-    _write_error_curve_report(out, ds, ec, close_loop, calibration_curve(results))
+    _write_error_curve_report(out, ds, ec, close_loop, calibration_curve(results), arc, iso2)
     paths.update(write_calibration_files(out, results))
     _write_results(out, results)
     return {"results": results, "paths": paths}
 
 
+def _add_iso230_2_table(rep: Any, iso: Mapping[str, Any]) -> None:
+    """The ISO 230-2 figures as a small table (analysis.iso230_2)."""
+    n = iso["n_runs"]
+    rep.heading("Positioning statistics of the rotary axis (ISO 230-2:2014)", level=3)
+    rep.paragraph(f"{iso['n_positions']} target positions, {n['forward']} forward and {n['backward']} backward "
+                  f"runs ({iso['source']}). {iso['convention']}. Not included: {iso['excludes']}.")
+    rep.table([[f["symbol"], "–" if not math.isfinite(f["value"]) else f"{f['value']:.3f}″", f["what"]]
+               for f in iso["figures"].values()], ["figure", "value", "what it is"])
+    for fl in iso["flags"]:
+        rep.paragraph(fl, note=True)
+
+
+def _add_arc_periods(rep: Any, arc: Mapping[str, Any]) -> None:
+    """The periods over an arc: a table and the periodogram (analysis.arc_periods)."""
+    import matplotlib.pyplot as plt
+
+    from benchtwin.analysis.report.html import value_with_u
+
+    sc = arc["scan"]
+    rep.heading("Periodic components over the arc", level=3)
+    if "period_min_deg" not in sc:
+        rep.paragraph(f"No period scan: {sc.get('reason', '')}", note=True)
+        return
+    rep.paragraph(f"{sc['method']}; periods {sc['period_min_deg']:.3g}°…{sc['period_max_deg']:.3g}° "
+                  f"({sc['n_trial_periods']} trial periods); false alarm: {sc['false_alarm_method']}; kept below "
+                  f"{sc['significance']:g}. u: {sc['u_source']}. No harmonic of the turn and no closure is claimed.")
+    if arc["periods"]:
+        rep.table([[value_with_u(p["period_deg"], p["u_period_deg"], "°"),
+                    value_with_u(p["amplitude_arcsec"], p["u"], "″"),
+                    value_with_u(p["phase_deg"], p["u_phase_deg"], "°"), f"{p['false_alarm']:.2g}",
+                    f"{p['n_periods_covered']:.1f}", p["drive_element"]["note"]] for p in arc["periods"]],
+                  ["period", "amplitude", "phase", "false alarm", "periods covered", "drive element"])
+    else:
+        b = sc.get("best_rejected") or {}
+        rep.paragraph("No period: the highest peak" + (f" ({b['period_deg']:.4g}°, false alarm {b['false_alarm']:.2g})"
+                                                      if b else "") + " is what noise gives.", note=True)
+    pg = sc.get("periodogram")
+    if pg is not None:
+        fig, ax = plt.subplots(figsize=(7, 2.6))
+        ax.semilogx(pg["period_deg"], pg["power"], "k-", lw=0.8)
+        for p in arc["periods"]:
+            ax.axvline(p["period_deg"], color="C3", lw=0.8, ls="--")
+        ax.set_xlabel("period (°)")
+        ax.set_ylabel("power (1 − χ²/χ²_trend)")
+        fig.tight_layout()
+        rep.figure(fig, "Least-squares periodogram of the arc (trend fitted jointly); dashed: the periods kept")
+        plt.close(fig)
+
+
 def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool,
-                              cal: CalibrationCurve | None = None) -> None:
+                              cal: CalibrationCurve | None = None, arc: Mapping[str, Any] | None = None,
+                              iso: Mapping[str, Any] | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -925,6 +1024,10 @@ def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_
         tr = ec["trend"]
         rows.append(["slope over the arc", value_with_u(tr["slope_arcsec_per_deg"], tr["u_slope"], "″/°")])
     rows.append(["residual: RMS / P-V", f"{ec['residual']['rms_arcsec']:.3f}″ / {ec['residual']['pv_arcsec']:.3f}″"])
+    if arc is not None:
+        rows.append(["periods over the arc (false alarm < " f"{arc['scan']['significance']:g})",
+                     "; ".join(f"{p['period_deg']:.4g}° ± {p['u_period_deg']:.2g}°: {p['amplitude_arcsec']:.3g}″ ± "
+                               f"{p['u']:.2g}″" for p in arc["periods"]) or "none"])
     if close_loop:
         rows.append(["status", ec["status"]])
     rep.heading("Summary")
@@ -942,6 +1045,10 @@ def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_
                       + f". Separating measurement: {a['separating_measurement']}", note=True)
     if ec.get("unexplained"):
         rep.paragraph("Unexplained: " + "; ".join(ec.get("left", [])), note=True)
+    if arc is not None:
+        _add_arc_periods(rep, arc)
+    if iso is not None:
+        _add_iso230_2_table(rep, iso)
     fig, ax = plt.subplots(figsize=(7, 3.2))
     t = ds.table("error_curve")
     d = t.get("direction")

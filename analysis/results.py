@@ -264,6 +264,55 @@ class BudgetSummary(TypedDict, total=False):
                                                          "symmetric, delta, validated_1_digit")]
 
 
+class IsoFigure(TypedDict):
+    """One ISO 230-2 figure of the rotary axis."""
+
+    symbol: Annotated[str, Key("", "its symbol in ISO 230-2 (A, A↑, E, M, R, B, B̄, ...)")]
+    value: Annotated[Num, Key("arcsec", "its value; null where the runs cannot give it (R, A with one run)")]
+    unit: Annotated[str, Key("", "\"arcsec\"")]
+    what: Annotated[str, Key("", "what it is, with its formula")]
+
+
+class Iso230_2(TypedDict):
+    """Positioning statistics of the rotary axis, ISO 230-2:2014 (analysis/iso230_2.py), from runs in
+    both directions."""
+
+    standard: Annotated[str, Key("", "the standard")]
+    convention: Annotated[str, Key("", "positional deviation x = actual − target = −α")]
+    source: Annotated[str, Key("", "the runs used (table, how a run is formed)")]
+    target_deg: Annotated[Floats, Key("deg", "the target positions P_i")]
+    n_positions: Annotated[int, Key("", "number of target positions m")]
+    n_runs: Annotated[dict[str, int], Key("", "runs per direction (forward, backward)")]
+    runs_required_per_direction: Annotated[int, Key("", "what ISO 230-2 asks for (5)")]
+    meets_run_count: Annotated[bool, Key("", "both directions have at least that many runs")]
+    figures: Annotated[dict[str, IsoFigure], Key("", "A, A_forward, A_backward, E, E_forward, E_backward, M, R, "
+                                                     "R_forward, R_backward, B, B_mean")]
+    per_position: Annotated[dict[str, Floats], Key("arcsec", "per target: mean_forward_arcsec, mean_backward_arcsec, "
+                                                             "mean_bidirectional_arcsec, s_forward_arcsec, "
+                                                             "s_backward_arcsec, reversal_arcsec, "
+                                                             "R_bidirectional_arcsec")]
+    flags: Annotated[list[str], Key("", "what falls short of ISO 230-2 (fewer runs, no s)")]
+    excludes: Annotated[str, Key("", "what the figures do not include")]
+    shift_deg: NotRequired[Annotated[float, Key("deg", "polygon: the shift whose clampings are the runs")]]
+
+
+class ArcPeriod(TypedDict):
+    """A periodic component of a partial arc (analysis/arc_periods.py)."""
+
+    period_deg: Annotated[Num, Key("deg", "the period P")]
+    u_period_deg: Annotated[Num, Key("deg", "its standard uncertainty (joint least squares)")]
+    amplitude_arcsec: Annotated[Num, Key("arcsec", "amplitude A of A cos(2πθ/P − φ)")]
+    u: Annotated[Num, Key("arcsec", "standard uncertainty of the amplitude")]
+    phase_deg: Annotated[Num, Key("deg", "phase φ, θ from the table's 0°")]
+    u_phase_deg: Annotated[Num, Key("deg", "its standard uncertainty")]
+    false_alarm: Annotated[Num, Key("1", "probability that noise gives such a peak in the band (Baluev 2008)")]
+    power: Annotated[Num, Key("1", "periodogram power (χ²_null − χ²_P)/χ²_null")]
+    n_periods_covered: Annotated[Num, Key("1", "arc / P")]
+    alias_periods_deg: Annotated[Floats, Key("deg", "periods that fit a regular grid equally well ([] otherwise)")]
+    drive_element: Annotated[dict[str, Any], Key("", "source, within, matches [{name, period_deg, teeth?}], note: "
+                                                     "the drive element the period points to")]
+
+
 # ----------------------------------------------------------------------------------------------
 # closing the loop
 # ----------------------------------------------------------------------------------------------
@@ -375,6 +424,7 @@ class BenchResults(_Common, PolygonResults, total=False):
     residual_after: Annotated[ResidualSummary, Key("", "close-loop: measured − (model + traced effects), (e, θ0) "
                                                        "refined (eccentricity_refined)")]
     comparison_after: Annotated[Comparison, Key("", "close-loop: the same after the traced effects")]
+    iso230_2: Annotated[Iso230_2, Key("", "ISO 230-2 positioning statistics (polygon runs in both directions)")]
 
 
 class ErrorCurveResults(_Common):
@@ -394,6 +444,11 @@ class ErrorCurveResults(_Common):
                                                              "significant; [] on an arc")]
     error_curve: Annotated[dict[str, Any], Key("", "everything of analysis/error_curve.py")]
     encoder_error_arcsec: Annotated[Curve, Key("arcsec", "the mean curve")]
+    arc_periods: NotRequired[Annotated[list[ArcPeriod], Key("", "an arc: the significant periodic components "
+                                                                "([] for none)")]]
+    arc_period_scan: NotRequired[Annotated[dict[str, Any], Key("", "an arc: the period scan (method, false-alarm "
+                                                                   "method, band, best rejected peak, periodogram)")]]
+    iso230_2: NotRequired[Annotated[Iso230_2, Key("", "ISO 230-2 positioning statistics (both directions)")]]
 
 
 # ----------------------------------------------------------------------------------------------

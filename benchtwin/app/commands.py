@@ -106,8 +106,17 @@ def _analyze_atomically(ns: argparse.Namespace, close_loop: bool) -> dict[str, A
 def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
     res = _analyze_atomically(ns, close_loop=True)
     names = [e["name"] for e in res["results"].get("identified_effects", [])]
-    return {"ok": True, **res["paths"], "identified_effects": names,
-            "message": f"identified: {', '.join(names) or 'none'}; report: {res['paths']['report']}"}
+    out = {"ok": True, **res["paths"], "identified_effects": names,
+           "message": f"identified: {', '.join(names) or 'none'}; report: {res['paths']['report']}"}
+    if "arc_periods" in res["results"]:  # an arc: what it does support (analysis/arc_periods.py)
+        per = res["results"]["arc_periods"]
+        out["arc_periods"] = [p["period_deg"] for p in per]
+        out["message"] = ("arc: " + ("; ".join(
+            f"period {p['period_deg']:.4g}° ± {p['u_period_deg']:.2g}° ({p['amplitude_arcsec']:.3g}″ ± {p['u']:.2g}″, "
+            f"false alarm {p['false_alarm']:.1g}, {p['n_periods_covered']:.1f} periods covered; "
+            f"{p['drive_element']['note']})" for p in per) or "no period (no peak above noise)")
+            + "; no turn harmonics, no closure. " + out["message"])
+    return out
 
 
 # ----------------------------------------------------------------------------- run
