@@ -115,25 +115,27 @@ def fap_baluev(z: float, f_max: float, theta_deg: np.ndarray, w: np.ndarray, n_h
 def _read_candidates(declared: Any) -> list[dict[str, Any]]:
     if declared is None:
         return []
-    where = "manifest.json: key 'drive_elements'"
+    where = "manifest.json: key"
     if not isinstance(declared, list):
-        raise ArcInputError(f"{where}: expected a list of {{name, period_deg}} or {{name, teeth}} objects")
+        raise ArcInputError(f"{where} 'drive_elements': expected a list of {{name, period_deg}} or {{name, teeth}} "
+                            "objects")
     out = []
     for i, c in enumerate(declared):
-        at = f"{where}[{i}]"
+        at = f"drive_elements[{i}]"
         if not isinstance(c, dict) or not isinstance(c.get("name"), str) or not c["name"]:
-            raise ArcInputError(f"{at}: expected an object with a non-empty string 'name'")
+            raise ArcInputError(f"{where} '{at}': expected an object with a non-empty string 'name'")
         if ("period_deg" in c) == ("teeth" in c):
-            raise ArcInputError(f"{at}: expected exactly one of 'period_deg' (a number > 0) or 'teeth' (an integer > 0)")
+            raise ArcInputError(f"{where} '{at}': expected exactly one of 'period_deg' (a number > 0) or 'teeth' "
+                                "(an integer > 0)")
         if "teeth" in c:
             t = c["teeth"]
             if isinstance(t, bool) or not isinstance(t, int) or t <= 0:
-                raise ArcInputError(f"{at}.teeth: expected an integer > 0, got {t!r}")
+                raise ArcInputError(f"{where} '{at}.teeth': expected an integer > 0, got {t!r}")
             out.append({"name": c["name"], "period_deg": 360.0 / t, "teeth": t})
         else:
             p = c["period_deg"]
             if isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p) or p <= 0:
-                raise ArcInputError(f"{at}.period_deg: expected a finite number > 0, got {p!r}")
+                raise ArcInputError(f"{where} '{at}.period_deg': expected a finite number > 0, got {p!r}")
             out.append({"name": c["name"], "period_deg": float(p)})
     return out
 
