@@ -26,7 +26,8 @@ such periods and says what they point to; it claims nothing about the turn.
 - **Amplitude, phase and u.** The joint non-linear least-squares fit (trend, each period's a, b
   and period): the covariance ``(JᵀWJ)⁻¹`` from its Jacobian, absolute when u is given from outside
   the fit (a ``u_arcsec`` column or the scatter between two directions), else scaled by the
-  residual variance χ²/(n − p) (type A). Amplitude and phase by Jia et al. 2019 eqs. 11-12
+  residual variance χ²/(n − p) (type A, ν = n − p: with a dozen points 2u covers about 91 %, the
+  t-distribution's, not 95 %). Amplitude and phase by Jia et al. 2019 eqs. 11-12
   (``A cos(2πθ/P − φ)``, θ from the table's 0°: analysis/fourier.amplitude_phase_ab); u(P) from
   the same covariance.
 - **Aliases.** On a regular grid of step h the periods with frequency |m/h ± 1/P| fit the points
@@ -50,7 +51,7 @@ from scipy.special import gammaln
 from .fourier import amplitude_phase_ab, harmonic_columns
 
 __all__ = ["analyze_arc_periods", "fap_baluev", "drive_candidates", "ArcInputError", "P_SIG", "TREND_DEGREE",
-           "OVERSAMPLE", "MAX_PERIODS", "MIN_DOF"]
+           "OVERSAMPLE", "MAX_TRIALS", "MAX_PERIODS", "MIN_DOF"]
 
 #: false alarm below which a period is kept (the significance of error_curve.P_SIG)
 P_SIG = 1e-3
@@ -59,6 +60,9 @@ P_SIG = 1e-3
 TREND_DEGREE = 2
 #: trial frequencies per resolution element 1/arc (a peak is not missed between grid points)
 OVERSAMPLE = 10
+#: at most this many trial periods: angles very close together (a repeated point 0.001° apart) would
+#: otherwise ask for a band of millions; the shortest period scanned is then raised (and said so)
+MAX_TRIALS = 20000
 #: at most this many periods are extracted one after the other
 MAX_PERIODS = 3
 #: residual degrees of freedom left after the last period (its period counted as a parameter)
@@ -90,6 +94,29 @@ def _design(theta: np.ndarray, T: np.ndarray, ks: list[float]) -> np.ndarray:
 
 def _chi2(theta, y, w, T, ks: list[float]) -> float:
     return _wls(_design(theta, T, ks), y, w)[1]
+
+
+def _scan_chi2(theta, y, w, base: np.ndarray, ks: np.ndarray) -> np.ndarray:
+    """χ² of ``base`` + one sine/cosine pair at each order in ``ks``, all at once: the pair is projected
+    off the (weighted) base columns and the 2×2 normal equations are solved per order (the same least
+    squares as :func:`_chi2`, vectorised)."""
+    Q, _ = np.linalg.qr(base * w[:, None])
+    yw = y * w
+    r = yw - Q @ (Q.T @ yw)
+    out = np.empty(ks.size)
+    for i0 in range(0, ks.size, 2000):
+        kk = ks[i0:i0 + 2000]
+        X = harmonic_columns(theta, kk)[0] * w[:, None]   # [sin k₁θ, cos k₁θ, sin k₂θ, ...]
+        X = X - Q @ (Q.T @ X)
+        sn, cs = X[:, 0::2], X[:, 1::2]
+        a11, a12, a22 = np.sum(sn * sn, 0), np.sum(sn * cs, 0), np.sum(cs * cs, 0)
+        b1, b2 = sn.T @ r, cs.T @ r
+        det = a11 * a22 - a12 ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            red = np.where(det > 1e-12 * np.maximum(a11 * a22, 1e-300),
+                           (a22 * b1 ** 2 - 2 * a12 * b1 * b2 + a11 * b2 ** 2) / det, 0.0)
+        out[i0:i0 + kk.size] = float(r @ r) - red
+    return out
 
 
 def _weighted_var(theta: np.ndarray, w: np.ndarray) -> float:
@@ -202,7 +229,8 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
     uncertainties from outside the fit (None: unit weights, covariance scaled by the residual);
     ``drive_elements``: the manifest's declaration (or None). Returns ``{"periods": [...], "scan":
     {...}}``; each period: period_deg, u_period_deg, amplitude_arcsec, u (of the amplitude),
-    phase_deg, u_phase_deg, false_alarm, power, n_periods_covered, alias_periods_deg, drive_element."""
+    phase_deg, u_phase_deg, false_alarm, power, n_periods_covered, dof (of the u's: residual degrees of
+    freedom when u is scaled by the residual, None when given), alias_periods_deg, drive_element."""
     declared = _read_candidates(drive_elements)
     th = np.asarray(theta_deg, dtype=float).ravel()
     y = np.asarray(value_arcsec, dtype=float).ravel()
@@ -230,6 +258,10 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
     regular = bool(np.ptp(steps) <= 1e-6 * float(np.median(steps)))
     f_min, f_max = 1.0 / arc, 1.0 / (2.0 * step_min)
     df = 1.0 / (OVERSAMPLE * arc)
+    if (f_max - f_min) / df > MAX_TRIALS:
+        f_max = f_min + MAX_TRIALS * df
+        scan["band_limited"] = (f"the closest angles ({step_min:.3g}° apart) would allow periods down to "
+                                f"{2 * step_min:.3g}°; the scan stops at {1.0 / f_max:.3g}° ({MAX_TRIALS} trial periods)")
     grid = np.arange(f_min, f_max + 0.5 * df, df)
     scan.update(period_min_deg=1.0 / f_max, period_max_deg=arc, regular_grid=regular, step_min_deg=step_min,
                 n_trial_periods=int(grid.size))
@@ -243,7 +275,7 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
         if n - p_null - 3 < MIN_DOF:
             scan["stopped"] = f"{n - p_null - 3} residual degrees of freedom would be left for another period"
             break
-        chi2_f = np.array([_chi2(th, y, w, T, ks + [360.0 * f]) for f in grid])
+        chi2_f = _scan_chi2(th, y, w, _design(th, T, ks), 360.0 * grid)
         if power_first is None:
             power_first = 1.0 - chi2_f / chi2_null if chi2_null > 0 else np.zeros_like(chi2_f)
         i = int(np.argmin(chi2_f))
@@ -286,6 +318,7 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
                 "period_deg": P, "u_period_deg": u_P, "amplitude_arcsec": ap["amplitude"], "u": ap["u_amplitude"],
                 "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "false_alarm": fap_list[i][0],
                 "power": fap_list[i][1], "n_periods_covered": arc / P,
+                "dof": None if u_given else int(fit["dof"]),
                 "alias_periods_deg": _aliases(P, float(np.median(steps)), regular),
                 "drive_element": drive_candidates(P, u_P, declared)})
             if periods[-1]["alias_periods_deg"]:
@@ -293,7 +326,10 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
                     "; on this regular grid the alias periods " + ", ".join(
                         f"{a:.4g}°" for a in periods[-1]["alias_periods_deg"]) + " fit the points equally well")
         r = y - _design(th, T, ks) @ beta
-        scan.update(residual_rms_arcsec=float(np.sqrt(np.mean(r ** 2))), chi2=fit["chi2"], dof=int(fit["dof"]))
+        scan.update(residual_rms_arcsec=float(np.sqrt(np.mean(r ** 2))), chi2=fit["chi2"], dof=int(fit["dof"]),
+                    # the trend fitted with the periods (x = (θ − centre)/half-arc: slope = β₁/half-arc)
+                    trend_slope_arcsec_per_deg=float(beta[1] / (0.5 * arc)),
+                    u_trend_slope_arcsec_per_deg=float(math.sqrt(max(cov[1, 1], 0.0)) / (0.5 * arc)))
     scan["periods_found"] = len(periods)
     scan["phase_reference"] = "A cos(2π·θ/P − φ), θ in degrees from the table's 0°"
     return {"periods": periods, "scan": scan}

@@ -975,6 +975,11 @@ def _add_arc_periods(rep: Any, arc: Mapping[str, Any]) -> None:
                     value_with_u(p["phase_deg"], p["u_phase_deg"], "°"), f"{p['false_alarm']:.2g}",
                     f"{p['n_periods_covered']:.1f}", p["drive_element"]["note"]] for p in arc["periods"]],
                   ["period", "amplitude", "phase", "false alarm", "periods covered", "drive element"])
+        rep.paragraph(f"With the periods and the trend fitted together: residual {sc['residual_rms_arcsec']:.3g}″ RMS "
+                      f"(χ² {sc['chi2']:.3g} for {sc['dof']} dof), slope "
+                      f"{value_with_u(sc['trend_slope_arcsec_per_deg'], sc['u_trend_slope_arcsec_per_deg'], '″/°')}. "
+                      "The arc's u of one point and slope in the summary come from a quadratic alone, which counts "
+                      "these periods as noise.", note=True)
     else:
         b = sc.get("best_rejected") or {}
         rep.paragraph("No period: the highest peak" + (f" ({b['period_deg']:.4g}°, false alarm {b['false_alarm']:.2g})"

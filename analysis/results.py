@@ -308,6 +308,7 @@ class ArcPeriod(TypedDict):
     false_alarm: Annotated[Num, Key("1", "probability that noise gives such a peak in the band (Baluev 2008)")]
     power: Annotated[Num, Key("1", "periodogram power (χ²_null − χ²_P)/χ²_null")]
     n_periods_covered: Annotated[Num, Key("1", "arc / P")]
+    dof: Annotated[int | None, Key("", "degrees of freedom of the u's (residual; null when u is given)")]
     alias_periods_deg: Annotated[Floats, Key("deg", "periods that fit a regular grid equally well ([] otherwise)")]
     drive_element: Annotated[dict[str, Any], Key("", "source, within, matches [{name, period_deg, teeth?}], note: "
                                                      "the drive element the period points to")]

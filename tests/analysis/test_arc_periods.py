@@ -63,6 +63,9 @@ def test_drive_period_on_a_sixth_of_a_turn(tmp_path, capsys):
     # 60° / 6° = a 60-tooth worm wheel (or gear, or 60 pole pitches): the only integer within 2u
     assert p["drive_element"]["source"] == "integer counts per turn" and p["drive_element"]["counts"] == [60]
     assert p["alias_periods_deg"] == []   # irregular angles: no exact alias
+    sc = res["arc_period_scan"]   # the trend fitted with the period: the slope put in
+    assert abs(sc["trend_slope_arcsec_per_deg"] - SLOPE) <= 3 * sc["u_trend_slope_arcsec_per_deg"]
+    assert p["dof"] == 12 - 3 - 3   # quadratic trend, a, b and the period
     # phase of A cos(2πθ/P − φ): sin(x + 0.7) = cos(x − (π/2 − 0.7))
     assert abs((p["phase_deg"] - np.degrees(np.pi / 2 - 0.7) + 180) % 360 - 180) <= 3 * p["u_phase_deg"]
     assert "period 6" in msg and "no closure" in msg
