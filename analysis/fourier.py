@@ -61,11 +61,12 @@ def param_index(harmonic: int) -> tuple[int, ...]:
     return (0,) if harmonic == 0 else (2 * harmonic - 1, 2 * harmonic)
 
 
-def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[int], prefix: str = "",
+def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[float], prefix: str = "",
                      unit: str = "arcsec") -> tuple[np.ndarray, list[str]]:
     """Columns ``[sin k₁θ, cos k₁θ, sin k₂θ, cos k₂θ, ...]`` for the harmonics ``ks`` (θ in degrees;
     n × 2·len(ks)) and their names ``{prefix}a{k}_{unit}`` / ``{prefix}b{k}_{unit}``: the terms of
-    eq. 6 of the orders listed, the one place this module builds them."""
+    eq. 6 of the orders listed, the one place this module builds them. An order need not be an
+    integer: k = 360°/P is a period P over an arc (analysis/arc_periods.py)."""
     th = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
     cols, names = [], []
     for k in ks:

@@ -30,7 +30,7 @@ from benchtwin.analysis.calibration import CalibrationCurve, calibration_curve, 
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
 from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
                                         Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
-                                        ModelPrediction, RadialErrorMotion, ResidualSummary)
+                                        Iso230_2, ModelPrediction, RadialErrorMotion, ResidualSummary)
 from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
 from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
@@ -930,7 +930,7 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
         results["arc_periods"] = cast(list[ArcPeriod], arc["periods"])
         results["arc_period_scan"] = arc["scan"]
     if iso2 is not None:
-        results["iso230_2"] = iso2
+        results["iso230_2"] = cast(Iso230_2, iso2)
     if close_loop:
         results["identified_effects"] = []
         results["ambiguous"] = ec["ambiguous"]
