@@ -1031,8 +1031,9 @@ def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_
     rows.append(["residual: RMS / P-V", f"{ec['residual']['rms_arcsec']:.3f}″ / {ec['residual']['pv_arcsec']:.3f}″"])
     if arc is not None:
         rows.append(["periods over the arc (false alarm < " f"{arc['scan']['significance']:g})",
-                     "; ".join(f"{p['period_deg']:.4g}° ± {p['u_period_deg']:.2g}°: {p['amplitude_arcsec']:.3g}″ ± "
-                               f"{p['u']:.2g}″" for p in arc["periods"]) or "none"])
+                     "; ".join(f"{value_with_u(p['period_deg'], p['u_period_deg'], '°', k=1)}: "
+                               f"{value_with_u(p['amplitude_arcsec'], p['u'], '″', k=1)}"
+                               for p in arc["periods"]) or "none"])
     if close_loop:
         rows.append(["status", ec["status"]])
     rep.heading("Summary")

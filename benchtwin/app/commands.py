@@ -109,10 +109,13 @@ def cmd_close_loop(ns: argparse.Namespace) -> dict[str, Any]:
     out = {"ok": True, **res["paths"], "identified_effects": names,
            "message": f"identified: {', '.join(names) or 'none'}; report: {res['paths']['report']}"}
     if "arc_periods" in res["results"]:  # an arc: what it does support (analysis/arc_periods.py)
+        from benchtwin.analysis.report.html import value_with_u
+
         per = res["results"]["arc_periods"]
         out["arc_periods"] = [p["period_deg"] for p in per]
         out["message"] = ("arc: " + ("; ".join(
-            f"period {p['period_deg']:.4g}° ± {p['u_period_deg']:.2g}° ({p['amplitude_arcsec']:.3g}″ ± {p['u']:.2g}″, "
+            f"period {value_with_u(p['period_deg'], p['u_period_deg'], '°', k=1)} "
+            f"(amplitude {value_with_u(p['amplitude_arcsec'], p['u'], '″', k=1)}, "
             f"false alarm {p['false_alarm']:.1g}, {p['n_periods_covered']:.1f} periods covered; "
             f"{p['drive_element']['note']})" for p in per) or "no period (no peak above noise)")
             + "; no turn harmonics, no closure. " + out["message"])
