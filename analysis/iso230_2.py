@@ -1,5 +1,5 @@
-"""Positioning statistics of the rotary axis, ISO 230-2:2014 (the figures CARTO and the VDI/DGQ 3441
-tradition report): accuracy A, systematic deviation E, mean bidirectional range M, repeatability R,
+"""Positioning statistics of the rotary axis, ISO 230-2:2014 (the figures CARTO reports; VDI/DGQ 3441's
+own P, Pa, U, Ps are not computed here): accuracy A, systematic deviation E, mean bidirectional range M, repeatability R,
 reversal value B and the mean reversal value, unidirectional (↑ forward, ↓ backward) and
 bidirectional, from runs in both directions over the same target positions.
 
@@ -118,8 +118,8 @@ def positioning_statistics(target_deg, forward_arcsec, backward_arcsec, *, sourc
                                           "repetitions are"))
     figures = {k: {"symbol": sym, "value": val[k], "unit": "arcsec", "what": what} for k, sym, what in FIGURES}
     return {
-        "standard": "ISO 230-2:2014 (positioning of numerically controlled axes, rotary axis; the VDI/DGQ 3441 and "
-                    "CARTO tables of the same runs)",
+        "standard": "ISO 230-2:2014 (accuracy and repeatability of positioning of numerically controlled axes; "
+                    "rotary axis); VDI/DGQ 3441's own figures (P, Pa, U, Ps) are not computed",
         "convention": "positional deviation x = actual position − target position = −α (the axis positioned by the "
                       "encoder, the actual angle from the reference); arcsec",
         "source": source, "target_deg": P, "n_positions": int(m),

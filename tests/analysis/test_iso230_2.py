@@ -133,6 +133,8 @@ def test_polygon_swept_both_ways(tmp_path):
     # its clamping's mean), so R↑ is about 0.2″; R ≥ max(R↑, R↓)
     assert 0.12 < f["R_forward"] < 0.32 and f["R"] >= max(f["R_forward"], f["R_backward"])
     assert f["A"] >= f["E"]
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "Positioning statistics of the rotary axis (ISO 230-2:2014)" in html and "40 forward and 40 backward" in html
 
 
 def test_one_direction_polygon_has_no_iso_section(tmp_path):
