@@ -969,6 +969,8 @@ def _add_arc_periods(rep: Any, arc: Mapping[str, Any]) -> None:
     rep.paragraph(f"{sc['method']}; periods {sc['period_min_deg']:.3g}°…{sc['period_max_deg']:.3g}° "
                   f"({sc['n_trial_periods']} trial periods); false alarm: {sc['false_alarm_method']}; kept below "
                   f"{sc['significance']:g}. u: {sc['u_source']}. No harmonic of the turn and no closure is claimed.")
+    if sc.get("band_limited"):
+        rep.paragraph(f"Band limited: {sc['band_limited']}.", note=True)
     if arc["periods"]:
         rep.table([[value_with_u(p["period_deg"], p["u_period_deg"], "°"),
                     value_with_u(p["amplitude_arcsec"], p["u"], "″"),
