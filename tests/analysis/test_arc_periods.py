@@ -9,8 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from benchtwin.analysis.arc_periods import analyze_arc_periods, fap_baluev
+from benchtwin.analysis.arc_periods import ArcInputError, _read_candidates, analyze_arc_periods, fap_baluev
 from benchtwin.analysis.results import validate_results
 from benchtwin.cli import main
 
@@ -160,3 +162,21 @@ def test_the_shared_full_turn_gets_no_arc_periods(tmp_path):
     k8 = res["harmonics"][7]
     assert round(k8["amplitude_arcsec"], 2) == 2.19 and round(k8["u_arcsec"], 2) == 0.40
     assert [h["k"] for h in res["harmonics"] if h["significant"]] == [8]
+
+
+_json = st.recursive(st.none() | st.booleans() | st.integers(-5, 400) | st.floats(allow_nan=True) | st.text(max_size=5),
+                     lambda c: st.lists(c, max_size=3) | st.dictionaries(st.sampled_from(["name", "teeth", "period_deg",
+                                                                                           "x"]), c, max_size=3),
+                     max_leaves=8)
+
+
+@settings(max_examples=100, deadline=None)
+@given(decl=_json)
+def test_drive_elements_reader_never_crashes(decl):
+    """Any JSON value as the manifest's drive_elements: read, or an ArcInputError naming the key."""
+    try:
+        got = _read_candidates(decl)
+    except ArcInputError as exc:
+        assert "drive_elements" in str(exc)
+        return
+    assert all(c["period_deg"] > 0 and c["name"] for c in got)
