@@ -307,7 +307,7 @@ def _check_folder_kind(p: Path, what: str) -> None:
 
 
 def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: str | None = None,
-                     resume: bool = False, what: str = "output folder") -> Path:
+                     resume: bool = False, what: str = "output folder", complete_marker: str | None = None) -> Path:
     """Make ``path`` ready as a new output folder, or refuse.
 
     - missing or empty: created, fine;
@@ -317,7 +317,9 @@ def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: st
       file excepted) or ``resume`` with ``resume_marker`` (e.g. ``journal.jsonl``) present: a
       resumable run continues there.
     With ``resume_marker`` given and present but neither ``resume`` nor ``force``: an error that
-    says how to resume or restart (nothing already measured is ever deleted unasked).
+    says how to resume or restart (nothing already measured is ever deleted unasked); but when
+    ``complete_marker`` (e.g. ``manifest.json``, written last) is present too, the run finished, and
+    the error says so (another folder, or ``--force``), not that it could be continued (issue 34).
     ``locked_output_dir`` takes the lock first, then runs this check."""
     p = Path(path)
     _check_folder_kind(p, what)
@@ -332,6 +334,9 @@ def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: st
     if p.is_dir() and not _is_empty_dir(p):
         if force:
             clear_dir(p)
+        elif complete_marker is not None and (p / complete_marker).is_file():
+            raise OutputError(f"{p}: holds a complete {what.removesuffix(' folder')} ({complete_marker} written: the run "
+                              "finished); choose another folder, or --force to replace it")
         elif resume_marker is not None and (p / resume_marker).exists():
             raise OutputError(f"{p}: holds {resume_marker} of an unfinished run (its readings are kept); "
                               "continue it with --resume, or start again with --force (deletes them)")
@@ -345,7 +350,7 @@ def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: st
 @contextlib.contextmanager
 def locked_output_dir(path: str | Path, *, force: bool = False, resume: bool = False,
                       resume_marker: str | None = None, what: str = "output folder", owner: str = "run",
-                      inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
+                      inputs: Iterable[str | Path | None] = (), complete_marker: str | None = None) -> Iterator[Path]:
     """An output folder written in place, held under its lock for the whole block.
 
     The order is what makes ``--force`` safe: the inputs are checked, the lock is taken (a live
@@ -361,7 +366,8 @@ def locked_output_dir(path: str | Path, *, force: bool = False, resume: bool = F
     try:
         lock.acquire()
         try:
-            check_output_dir(p, force=force, resume=resume, resume_marker=resume_marker, what=what)
+            check_output_dir(p, force=force, resume=resume, resume_marker=resume_marker, what=what,
+                             complete_marker=complete_marker)
             yield p
         finally:
             lock.release()

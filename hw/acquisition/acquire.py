@@ -81,7 +81,7 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     try:
         # the lock first, then the check (and --force's clearing): never a live run's journal
         with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
-                               owner="acquire", inputs=[bench_path]):
+                               complete_marker="manifest.json", owner="acquire", inputs=[bench_path]):
             return _acquire(cfg, out, resume, progress, on_row, live)
     except OutputError as exc:
         raise BenchFileError(str(exc)) from None
@@ -89,7 +89,7 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
 
 def _acquire(cfg: BenchConfig, out: Path, resume: bool, progress: bool,
              on_row: Callable[[dict, dict], None] | None, live: Any | None = None) -> Path:
-    from tqdm import tqdm
+    from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
 
     n_steps = sum(1 for _ in iter_procedure(cfg))
     clock = AcquireClock(time.sleep if cfg.run["waits"] == "real" else None)
