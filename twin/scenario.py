@@ -9,7 +9,7 @@ expected, so a metrologist can fix the file without reading code.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -34,13 +34,32 @@ class Scenario(Mapping):
     """A validated scenario: ``sc["bench"]["L1"]`` is in metres, ``sc.seed`` an int.
 
     Instrument sections are nested: ``sc["instruments"]["probe"]["repeatability"]``.
-    ``raw`` keeps the file's own text values, for writing into a dataset's truth/.
+    ``raw`` keeps the file's own text values, for writing into a dataset's truth/; ``overrides``
+    the ``{"bench.L1": "5 mm", ...}`` applied to the file by :meth:`with_overrides` (``--set``,
+    ``--seed``), recorded in truth/scenario.json so the run can be repeated.
     """
 
-    def __init__(self, data: dict[str, Any], raw: dict[str, Any], path: Path | None):
+    def __init__(self, data: dict[str, Any], raw: dict[str, Any], path: Path | None,
+                 overrides: Mapping[str, Any] | None = None):
         self._data = data
         self.raw = raw
         self.path = path
+        self.overrides: dict[str, Any] = dict(overrides or {})
+
+    def __repr__(self) -> str:
+        """The scenario at a glance (a notebook shows this): name, seed, file, the bench's main
+        geometry and procedure, how many hidden effects, and the overrides applied."""
+        b, pr = self._data["bench"], self._data["procedure"]
+        e = self._data["errors"]["eccentricity"]
+        where = self.path.name if self.path is not None else "<no file>"
+        parts = [f"{self.name!r}", f"seed={self.seed}", f"file={where}",
+                 f"r={b['optical_radius'] * 1e3:g} mm", f"L1={b['L1'] * 1e3:g} mm", f"L2={b['L2'] * 1e3:g} mm",
+                 f"e={e * 1e6:g} µm", f"heads={len(b['heads'])}", f"polygon={b['polygon_faces']} faces",
+                 f"shifts={len(pr['polygon_shifts'])}", f"radial={pr['radial_reps']}x{pr['radial_positions']}",
+                 f"hidden effects={len(self.hidden)}"]
+        if self.overrides:
+            parts.append("overrides={" + ", ".join(f"{k}={v!r}" for k, v in self.overrides.items()) + "}")
+        return "Scenario(" + ", ".join(parts) + ")"
 
     def __getitem__(self, key: str) -> Any:
         return self._data[key]
@@ -69,7 +88,8 @@ class Scenario(Mapping):
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> "Scenario":
         """A copy with ``{"bench.L1": "10 mm", ...}`` applied to the file's text values and
-        re-validated (used by design studies: overrides are written with units too)."""
+        re-validated (used by design studies: overrides are written with units too). The copy's
+        ``overrides`` are this scenario's followed by these (a later value of a key wins)."""
         import copy
 
         raw = copy.deepcopy(self.raw)
@@ -79,7 +99,33 @@ class Scenario(Mapping):
             for p in parts[:-1]:
                 node = node.setdefault(p, {})
             node[parts[-1]] = value
-        return validate(raw, str(self.path or "<overrides>"))
+        sc = validate(raw, str(self.path or "<overrides>"))
+        sc.overrides = {**self.overrides, **overrides}
+        return sc
+
+
+def parse_set_options(items: Sequence[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` options as overrides: KEY a dotted scenario key (``bench.L1``), VALUE a TOML
+    value (``5``, ``true``, ``"5 mm"``, ``["0 deg", "5 deg"]``); a VALUE that is not TOML is taken as
+    the string it is (``--set bench.L1="5 mm"`` reaches us as ``bench.L1=5 mm`` after the shell's
+    quotes). The scenario's schema validates the result (:meth:`Scenario.with_overrides`).
+    Raises ScenarioError naming the option."""
+    from benchtwin.schema import loads_toml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, eq, text = item.partition("=")
+        key = key.strip()
+        parts = key.split(".")
+        if not eq or len(parts) < 2 or not all(p and p.replace("_", "").isalnum() for p in parts):
+            raise ScenarioError(f"--set {item!r}: expected KEY=VALUE with a dotted scenario key, e.g. "
+                                "--set bench.L1=\"5 mm\" or --set procedure.polygon_reps=2")
+        try:
+            parsed = loads_toml(f"v = {text.strip()}", f"--set {key}")
+        except (SchemaError, ValueError):
+            parsed = {}
+        out[key] = parsed["v"] if set(parsed) == {"v"} else text.strip()
+    return out
 
 
 _plain = to_json  # plain dicts and lists (benchtwin/jsonable.py)

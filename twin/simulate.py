@@ -45,14 +45,17 @@ from __future__ import annotations
 import contextlib
 import copy
 import math
+import shutil
+import tempfile
+import weakref
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
-from benchtwin.analysis.dataset import JOURNAL, DatasetError, DatasetWriter
+from benchtwin.analysis.dataset import JOURNAL, Dataset, DatasetError, DatasetWriter
 from benchtwin.forkcall import ForkCall
 from benchtwin.fsio import OutputError, locked_output_dir
 from benchtwin.hw.acquisition import procedures as P
@@ -186,9 +189,57 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
     return m
 
 
-def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto",
-             resume: bool = False, force: bool = False, live: Any | None = None) -> Path:
+class SimulatedDataset(Dataset):
+    """A dataset ``simulate(scenario)`` made in a temporary folder (``out_dir`` None, a notebook):
+    an open :class:`~benchtwin.analysis.dataset.Dataset` (``analyze`` takes it, and it is a path:
+    ``os.fspath``) whose folder, truth/ included, is removed by :meth:`cleanup`, at the end of a
+    ``with`` block, or when the object is garbage-collected or the interpreter exits; ``keep=True``
+    leaves it for you (``.path`` says where)."""
+
+    def __init__(self, path: str | Path, *, keep: bool = False):
+        super().__init__(path)
+        self.keep = keep
+        root = self.path.parent
+        self._finalizer = None if keep else weakref.finalize(self, shutil.rmtree, root, ignore_errors=True)
+
+    def __fspath__(self) -> str:
+        return str(self.path)
+
+    def cleanup(self) -> None:
+        """Remove the temporary folder now (nothing with ``keep=True``)."""
+        if self._finalizer is not None:
+            self._finalizer()
+
+    def __enter__(self) -> "SimulatedDataset":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cleanup()
+
+    def __repr__(self) -> str:
+        return (f"SimulatedDataset({str(self.path)!r}, scenario={self.manifest.get('scenario')!r}, "
+                f"seed={self.manifest.get('seed')}, tables={self.tables()}, "
+                f"{'kept' if self.keep else 'temporary'})")
+
+
+@overload
+def simulate(sc: Any, out_dir: None = None, progress: bool = True, backend: str = "auto", resume: bool = False,
+             force: bool = False, live: Any | None = None, *, keep: bool = False) -> SimulatedDataset: ...
+
+
+@overload
+def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str = "auto", resume: bool = False,
+             force: bool = False, live: Any | None = None, *, keep: bool = False) -> Path: ...
+
+
+def simulate(sc: Any, out_dir: str | Path | None = None, progress: bool = True, backend: str = "auto",
+             resume: bool = False, force: bool = False, live: Any | None = None, *,
+             keep: bool = False) -> Path | SimulatedDataset:
     """Run the scenario on the twin and write the dataset directory ``out_dir``; returns it.
+
+    ``out_dir`` None (a notebook): the dataset is made in a new temporary folder and returned as a
+    :class:`SimulatedDataset` (an open dataset that ``analyze`` accepts), removed when it is no
+    longer used (``keep=True``: kept; ``resume`` and ``force`` need an ``out_dir``).
 
     ``out_dir`` must be new or empty, or hold an unfinished run's journal with ``resume``;
     ``force`` clears it first, once this run holds the folder's lock (``benchtwin.fsio.
@@ -196,11 +247,22 @@ def simulate(sc: Any, out_dir: str | Path, progress: bool = True, backend: str =
     may not be in it; the manifest is written last (a killed run leaves no dataset).
     ``live``: an observer with ``start(n_steps)``, ``on_step(...)``, ``on_row(...)`` (the live view
     of ``simulate --live``); it only watches the run."""
+    if out_dir is None:
+        if resume or force:
+            raise ValueError("simulate: resume and force need an out_dir (out_dir=None simulates into a new "
+                             "temporary folder)")
+        root = Path(tempfile.mkdtemp(prefix=f"benchtwin-{sc.name}-"))
+        try:
+            path = simulate(sc, root / "dataset", progress=progress, backend=backend, live=live)
+        except BaseException:
+            shutil.rmtree(root, ignore_errors=True)
+            raise
+        return SimulatedDataset(path, keep=keep)
     out = Path(out_dir)
     try:
         # the lock first, then the check (and --force's clearing): never a live run's folder
         with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
-                               owner="simulate", inputs=[getattr(sc, "path", None)]):
+                               complete_marker="manifest.json", owner="simulate", inputs=[getattr(sc, "path", None)]):
             return _simulate(sc, out, progress, backend, resume, live)[0]
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
@@ -263,7 +325,7 @@ def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: boo
                    truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
                    alpha_grid: Callable[[], dict[str, list]]) -> tuple[Path, ForkCall | None]:
     """``_simulate``'s run of the built bench: the steps, the frames, the tables, the truth."""
-    from tqdm import tqdm
+    from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
 
     enc: SimEncoder = inst["encoder"]
     cam = inst.get("ccd")
@@ -543,9 +605,13 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                  ccd_truth: dict[int, dict], alpha: dict[str, list]) -> None:
     """The run's truth into ``w``'s truth folder; ``alpha``: the α grid's columns (``_alpha_grid``)."""
     N = bench.n_faces
+    # the overrides applied to the file (--set, --seed, with_overrides): only when there are some, so
+    # a run of the file as it is keeps its bytes; "file" holds the values with them applied
+    overrides = dict(getattr(sc, "overrides", None) or {})
     w.write_truth_json("scenario.json", {"name": sc.name, "seed": int(sc.seed), "si": sc.to_dict(),
                                          "file": getattr(sc, "raw", None),
-                                         "path": str(sc.path) if getattr(sc, "path", None) else None})
+                                         "path": str(sc.path) if getattr(sc, "path", None) else None,
+                                         **({"overrides": overrides} if overrides else {})})
     w.write_truth_table("encoder_error", alpha)
 
     radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]

@@ -25,13 +25,53 @@ def _have(module: str) -> bool:
         return False
 
 
-def _scenario(path: Path | None) -> Scenario:
+def _scenario(path: Path | None, ns: argparse.Namespace | None = None) -> Scenario:
+    """The scenario file (None: the embedded default) with the command line's ``--set`` and
+    ``--seed`` applied and validated by the scenario's schema; the overrides are kept with the
+    scenario (``Scenario.overrides``) and recorded in the dataset's truth/scenario.json."""
     from benchtwin.twin.scenario import ScenarioError, load_scenario
 
     try:
-        return load_scenario(path)
+        sc = load_scenario(path)
+        overrides = _cli_overrides(ns)
     except ScenarioError as exc:
         raise InputError(str(exc)) from None
+    if not overrides:
+        return sc
+    file_path = sc.path
+    try:
+        sc = sc.with_overrides(overrides)
+    except ScenarioError as exc:
+        msg = str(exc)
+        named = [k for k in overrides if f"{k}:" in msg or f"{k} " in msg]
+        raise InputError(msg + (f" (the value given by --set {named[0]}" if named else " (with the --set values")
+                         + ")") from None
+    sc.path = file_path  # still that file's scenario (the input check, truth/scenario.json "path")
+    return sc
+
+
+def _override_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--set", dest="set_options", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key (dotted, e.g. bench.L1=\"5 mm\", procedure.polygon_reps=2); "
+                        "VALUE is a TOML value (text that is not TOML is taken as a string); validated by the "
+                        "scenario's schema; repeatable")
+    p.add_argument("--seed", type=int, default=None, metavar="N", help="the scenario's seed (scenario.seed)")
+
+
+def _cli_overrides(ns: argparse.Namespace | None) -> dict[str, Any]:
+    """``--set`` and ``--seed`` as one overrides dict (ScenarioError: a malformed option, or a
+    ``--seed`` that contradicts ``--set scenario.seed``)."""
+    from benchtwin.twin.scenario import ScenarioError, parse_set_options
+
+    if ns is None:
+        return {}
+    overrides = parse_set_options(getattr(ns, "set_options", None) or [])
+    seed = getattr(ns, "seed", None)
+    if seed is not None:
+        if "scenario.seed" in overrides and overrides["scenario.seed"] != seed:
+            raise ScenarioError(f"--seed {seed} contradicts --set scenario.seed={overrides['scenario.seed']!r}")
+        overrides["scenario.seed"] = seed
+    return overrides
 
 
 # ----------------------------------------------------------------------------- simulate
@@ -42,6 +82,10 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto",
                    help="CCD renderer (auto: pyrender when OpenGL is available)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted simulation from OUT/journal.jsonl (the same scenario, --set and "
+                        "--seed): the dataset is the one an uninterrupted run writes")
+    _override_args(p)
     _force_arg(p)
     from benchtwin.app.live import add_live_argument
 
@@ -58,11 +102,13 @@ def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.app.live import live_for
     from benchtwin.twin.simulate import simulate
 
-    sc = _scenario(ns.scenario)
+    if ns.resume and ns.force:
+        raise InputError("simulate: --resume and --force contradict each other (continue the run, or delete it)")
+    sc = _scenario(ns.scenario, ns)
     live = live_for(ns, f"simulate {sc.name}")
     try:
         out = simulate(sc, ns.out, progress=not (ns.quiet or ns.json), backend=ns.backend, force=ns.force,
-                       live=live)
+                       resume=ns.resume, live=live)
     except BaseException as exc:
         if live is not None:
             live.close(f"failed: {type(exc).__name__}: {exc}")
@@ -70,6 +116,7 @@ def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
     if live is not None:
         live.close("finished")
     return {"ok": True, "dataset": str(out), "scenario": sc.name, "seed": sc.seed,
+            **({"overrides": sc.overrides} if sc.overrides else {}),
             **({"live": str(live.path)} if live else {}), "message": f"dataset written: {out}"}
 
 
@@ -131,6 +178,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
                    help="output directory (default: out/<scenario name>); the dataset goes to OUT/dataset")
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto")
     p.add_argument("--no-close-loop", action="store_true", help="stop after the Jia/Hsieh analysis")
+    _override_args(p)
     _force_arg(p)
 
 
@@ -139,7 +187,7 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.fsio import AtomicDir
     from benchtwin.twin.simulate import simulate_apart
 
-    sc = _scenario(ns.scenario)
+    sc = _scenario(ns.scenario, ns)
     out = ns.out or Path("out") / sc.name
     quiet = ns.quiet or ns.json
     from benchtwin.app.bench_view import bench_preface
@@ -165,7 +213,9 @@ def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
 
         paths = retarget({"dataset": str(ds), "truth": str(truth), **res["paths"]}, tmp, out)
         atomic_write_text(tmp / RUN_MARKER, json.dumps({"command": "benchtwin run", "scenario": sc.name,
-                                                        "seed": int(sc.seed)}) + "\n")
+                                                        "seed": int(sc.seed),
+                                                        **({"overrides": sc.overrides} if sc.overrides else {})})
+                          + "\n")
     return {"ok": True, **paths, "message": f"report: {paths['report']}"}
 
 
@@ -205,17 +255,28 @@ if _have("benchtwin.app.study"):
         p.add_argument("-o", "--out", type=Path, default=None, help="output directory (default: out/<study name>)")
         p.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://HOST:PORT (default: local pool)")
         p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+        p.add_argument("--set", dest="set_options", action="append", default=[], metavar="KEY=VALUE",
+                       help="a scenario key fixed for every point (joins [study.fixed]; VALUE a TOML value); repeatable")
+        p.add_argument("--seed", type=int, default=None, metavar="N", help="the study's seed (study.seed)")
         _force_arg(p)
 
     @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
     def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:
         from benchtwin.app.study import load_study, run_study
+        from benchtwin.app.study.spec import study_with_overrides
+        from benchtwin.twin.scenario import ScenarioError
 
-        load_study(ns.study)  # a bad study file: exit 2 before any output folder is touched
+        study = load_study(ns.study)  # a bad study file: exit 2 before any output folder is touched
+        try:
+            overrides = _cli_overrides(ns)
+        except ScenarioError as exc:
+            raise InputError(str(exc)) from None
+        if overrides:
+            study_with_overrides(study, overrides)   # a bad --set: exit 2 before any output is touched
         out = ns.out or Path("out") / ns.study.stem
         with _study_output(out, ns.force, ns.study):
             res = run_study(ns.study, out, scheduler=ns.scheduler, workers=ns.workers,
-                            progress=not (ns.quiet or ns.json))
+                            progress=not (ns.quiet or ns.json), overrides=overrides or None)
         # run_study's dict is JSON-ready (it is also written as study.json): counts, wall time,
         # fidelity per output and the target verdict go to --json as they are
         return {**res, "ok": True, "message": res.get("message", f"study written to {out}")}

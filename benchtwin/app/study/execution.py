@@ -26,7 +26,7 @@ import json
 import math
 import multiprocessing as mp
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,7 +38,8 @@ from benchtwin.runtime import usable_cores
 
 from . import points as study_points
 from . import report
-from .spec import _SEED_MAX, Point, Study, StudyError, _column, _hash, expand_points, load_study
+from .spec import (_SEED_MAX, Point, Study, StudyError, _column, _hash, expand_points, load_study,
+                   study_with_overrides)
 
 PointFn = Callable[[dict[str, Any]], list[dict[str, float]]]
 
@@ -161,7 +162,8 @@ def _plan(study: Study, points: list[Point], fns: list[PointFn], fn_ids: list[st
 
 
 def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None, workers: int | None = None,
-              progress: bool = True, point_fn: PointFn | None = None) -> dict[str, Any]:
+              progress: bool = True, point_fn: PointFn | None = None,
+              overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Run a study file; write table, summary, figures under ``out_dir``; return a JSON-ready dict.
 
     - ``scheduler``: ``None`` for a local process pool, or a Dask scheduler address
@@ -169,8 +171,13 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
     - ``workers``: local pool size (default: all cores); ``0`` runs the points in this process.
     - ``point_fn``: replaces the fidelity's point function (a module-level callable or a
       ``functools.partial`` of one; used by tests and benchmarks); its name enters the cache key.
+    - ``overrides``: ``{"bench.L1": "5 mm", "scenario.seed": 3}`` (``study --set``, ``--seed``):
+      joined to ``[study.fixed]``, the seed the study's (``spec.study_with_overrides``); recorded in
+      study.json and the summary.
     """
     study = load_study(study_path)
+    if overrides:
+        study = study_with_overrides(study, overrides)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # study.json is written last (the completion marker): an earlier run's must not outlive a new
@@ -226,7 +233,7 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
         where="dask " + str(getattr(scheduler, "scheduler_address", scheduler))
         if scheduler is not None else ("in-process" if workers == 0 else
                                        f"local pool, {workers or usable_cores()} workers"))
-    return _write_results(study, points, plan, seeds, out, info)
+    return _write_results(study, points, plan, seeds, out, info, overrides)
 
 
 def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict[str, Any]], None],
@@ -255,7 +262,7 @@ def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict
 
 def _progress_bar(enabled: bool, total: int, initial: int, name: str) -> _Bar:
     if enabled:
-        from tqdm import tqdm
+        from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
 
         bar: _Bar = tqdm(total=total, initial=initial, desc=f"study {name}", unit="pt", smoothing=0.1)
         return bar
@@ -366,7 +373,7 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
 
 
 def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[int], out: Path,
-                   info: report.RunInfo) -> dict[str, Any]:
+                   info: report.RunInfo, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     summary_rows = _write_tables(study, points, plan, seeds, out, info)
     written = report.write_report(study, summary_rows, plan.done, out, info)
     verdict = written.verdict
@@ -381,6 +388,7 @@ def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[i
         "summary_html": str(out / "summary.html"), "report_html": str(written.report),
         "figures": [str(f) for f in written.figures],
         "target": verdict,
+        **({"overrides": dict(overrides)} if overrides else {}),   # --set / --seed, as given
         "message": (verdict or {}).get("sentence") or
         f"study {study.name}: {len(points)} points × {study.repetitions} reps ({info.computed} computed, "
         f"{info.cached} from cache) -> {out}",

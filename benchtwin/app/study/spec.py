@@ -295,6 +295,32 @@ def _load_study(path: str | Path) -> Study:
     return study
 
 
+def study_with_overrides(study: Study, overrides: Mapping[str, Any]) -> Study:
+    """The study with the command line's ``--set KEY=VALUE`` joined to ``[study.fixed]`` (applied to
+    every point, recorded in its summary) and ``--seed`` / ``scenario.seed`` as the study's seed
+    (which every point's scenario.seed comes from). A key the scenario does not have, or one a
+    study parameter varies, is a StudyError naming it; every point's scenario is validated."""
+    import dataclasses
+
+    fixed = dict(study.fixed)
+    seed = study.seed
+    params = {k for q in study.parameters for k in ([q.key] if q.key else list(q.sets) + q.table_keys)}
+    for k, v in overrides.items():
+        if k == "scenario.seed":
+            if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= _SEED_MAX:
+                raise StudyError(f"{study.path}: --seed / --set scenario.seed: expected an integer 0…2^63−1, got {v!r}")
+            seed = v
+            continue
+        if _field(k) is None:
+            raise StudyError(f"{study.path}: --set {k}: unknown scenario key")
+        if k in params:
+            raise StudyError(f"{study.path}: --set {k}: a study parameter varies this key")
+        fixed[k] = v
+    out = dataclasses.replace(study, fixed=fixed, seed=seed)
+    expand_points(out)  # every point's scenario validated now, before any output is touched
+    return out
+
+
 def _parse_outputs(st: Mapping[str, Any], fidelity: str, fail: _Fail) -> tuple[list[str], int]:
     """``study.outputs`` (each known, at a fidelity the study allows) and ``study.order``."""
     outputs = st["outputs"]
