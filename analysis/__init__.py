@@ -22,6 +22,12 @@ _EXPORTS = {
     "DatasetWriter": "benchtwin.analysis.dataset",
     "DatasetError": "benchtwin.analysis.dataset",
     "analyze": "benchtwin.analysis.pipeline",
+    "Results": "benchtwin.analysis.results_api",
+    "Quantity": "benchtwin.analysis.results_api",
+    "figure_error_curve": "benchtwin.analysis.figures",
+    "figure_residual": "benchtwin.analysis.figures",
+    "figure_radial_motion_polar": "benchtwin.analysis.figures",
+    "figure_ccd_frame": "benchtwin.analysis.figures",
     "ErrorModel": "benchtwin.analysis.error_model",
     "error_model_from_results": "benchtwin.analysis.error_model",
     "jia_error_model": "benchtwin.analysis.error_model",
@@ -37,5 +43,8 @@ if TYPE_CHECKING:
     from benchtwin.analysis.eccentricity import eccentricity_from_images
     from benchtwin.analysis.error_model import ErrorModel, error_model_from_results, jia_error_model
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
+    from benchtwin.analysis.figures import (figure_ccd_frame, figure_error_curve, figure_radial_motion_polar,
+                                            figure_residual)
     from benchtwin.analysis.pipeline import analyze
+    from benchtwin.analysis.results_api import Quantity, Results
     from benchtwin.analysis.selfcal import selfcal_fourier

@@ -22,7 +22,7 @@ import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, cast, overload
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
 from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
                                         Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
                                         Iso230_2, ModelPrediction, RadialErrorMotion, ResidualSummary)
+from benchtwin.analysis.results_api import Results
 from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
 from benchtwin.jsonable import to_json
 from benchtwin.fsio import atomic_write_text
@@ -40,7 +41,7 @@ from benchtwin.fsio import atomic_write_text
 _jsonable = functools.partial(to_json, nonfinite="null", drop_callables=True)
 
 def _progress(enabled: bool, total: int, desc: str):
-    from tqdm import tqdm
+    from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
 
     return tqdm(total=total, desc=desc, disable=not enabled, unit="step", leave=False)
 
@@ -421,35 +422,62 @@ def _step(ds: Dataset, table: str, fn, *args):
         raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
 
 
-def analyze(dataset: str | Path, out_dir: str | Path, *, force: bool = False, order: int = 10,
+@overload
+def analyze(dataset: str | Path | Dataset, out: None = None, *, force: bool = False, order: int = 10,
+            model_file: str | Path | None = None, progress: bool = True, close_loop: bool = True,
+            preface: list | None = None) -> Results: ...
+
+
+@overload
+def analyze(dataset: str | Path | Dataset, out: str | Path, *, force: bool = False, order: int = 10,
+            model_file: str | Path | None = None, progress: bool = True, close_loop: bool = True,
+            preface: list | None = None) -> dict[str, Any]: ...
+
+
+def analyze(dataset: str | Path | Dataset, out: str | Path | None = None, *, force: bool = False, order: int = 10,
             model_file: str | Path | None = None,
-            progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
-    """Analyse a dataset directory into the folder ``out_dir`` (``results.json``, ``report.html``,
-    ``model.json`` when the loop identifies effects), by the writing rule of ``benchtwin analyze``
-    (issue 31, ``benchtwin.fsio``): a non-empty ``out_dir`` is refused unless ``force``; a folder
-    another live run holds, and an ``out_dir`` that is, contains or lies inside the dataset or the
-    model file, are refused whatever ``force`` says; the folder is built beside ``out_dir`` and
+            progress: bool = True, close_loop: bool = True, preface: list | None = None) -> Results | dict[str, Any]:
+    """Analyse a dataset directory (or an open :class:`Dataset`).
+
+    ``out`` None (a notebook): in memory; nothing is written anywhere (no report, no results.json,
+    no calibration files, no model file); returns the :class:`~benchtwin.analysis.results_api.Results`
+    (a read-only mapping of results.json's keys with typed properties). ``force`` needs ``out``.
+
+    ``out`` a folder: ``results.json``, ``report.html``, the calibration files and ``model.json``
+    when the loop identifies effects, by the writing rule of ``benchtwin analyze``
+    (issue 31, ``benchtwin.fsio``): a non-empty ``out`` is refused unless ``force``; a folder
+    another live run holds, and an ``out`` that is, contains or lies inside the dataset or the
+    model file, are refused whatever ``force`` says; the folder is built beside ``out`` and
     renamed onto it when complete (a failed run keeps the previous output).
 
     ``preface``: [(matplotlib figure, caption)] the report opens with (the app layer's rendered
     view of the bench; the analysis itself never builds the twin).
 
-    Returns ``{"results": dict, "paths": {"results": ..., "report": ..., "model": ...?}}``.
+    With ``out``, returns ``{"results": Results, "paths": {"results": ..., "report": ..., "model": ...?}}``
+    (as before the in-memory form: ``res["results"]["eccentricity_um"]`` still works).
     Raises :class:`DatasetError` for invalid input (naming file, row, column), and
     ``benchtwin.fsio.OutputError`` for an output folder the rule refuses.
     """
     from benchtwin.fsio import AtomicDir
 
+    if isinstance(dataset, Dataset):
+        dataset = dataset.path
+    if out is None:
+        if force:
+            raise ValueError("analyze: force=True needs an output folder (out=None writes nothing)")
+        return Results(analyze_into(dataset, None, order=order, model_file=model_file, progress=progress,
+                                    close_loop=close_loop)["results"])
     if model_file is not None:  # a bad model file is named as such before any output rule applies
         from benchtwin.analysis.model_file import read_model_file
 
         read_model_file(model_file)
-    out = Path(out_dir)
+    out = Path(out)
     with AtomicDir(out, force=force, what="analysis output folder", owner="analyze",
                    inputs=[dataset, model_file]) as tmp:
         res = analyze_into(dataset, tmp, order=order, model_file=model_file, progress=progress,
                            close_loop=close_loop, preface=preface)
         res["paths"] = retarget(res["paths"], tmp, out)
+    res["results"] = Results(res["results"])
     return res
 
 
@@ -466,12 +494,13 @@ def retarget(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
     return {k: str(out / Path(v).relative_to(tmp)) if Path(v).is_relative_to(tmp) else v for k, v in paths.items()}
 
 
-def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
+def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int = 10,
                  model_file: str | Path | None = None,
                  progress: bool = True, close_loop: bool = True, preface: list | None = None) -> dict[str, Any]:
     """``analyze`` writing in place into ``out_dir``, a folder the caller has prepared and holds
     (``benchtwin run`` analyses into its own partial folder, beside the dataset it simulated);
-    the files it writes there are replaced. Everyone else calls ``analyze``."""
+    the files it writes there are replaced. ``out_dir`` None: nothing is written (``paths`` is
+    empty). Everyone else calls ``analyze``."""
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
 
     ds = open_dataset(dataset)
@@ -482,8 +511,9 @@ def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         from benchtwin.analysis.model_file import read_model_file
 
         model_payload = read_model_file(model_file)  # checked before any analysis runs (issue #13)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
     if ds.kind == "error-curve":
         return analyze_error_curve_dataset(ds, out, close_loop=close_loop)
     b = ds.bench
@@ -545,13 +575,15 @@ def analyze_into(dataset: str | Path, out_dir: str | Path, *, order: int = 10,
         results["comparison"] = Comparison(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
                                            model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"])
 
-    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
+    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")} if out is not None else {}
     ev = tr = None
     if pol is not None:  # the raw curve until the loop identifies an artefact of the reference chain
         results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, None, {})
     if close_loop and cmp is not None and ecc is not None and pol is not None and model is not None:
         ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
 
+    if out is None:  # in memory (analyze(dataset) in a notebook): nothing written
+        return {"results": results, "paths": paths}
     _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
     # the calibration result a lab uses, beside results.json (analysis/calibration.py)
     paths.update(write_calibration_files(out, results))
@@ -634,7 +666,7 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
 
 
 def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | None, ecc: EccentricityResult,
-                pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path) -> tuple[Any, TraceOutcome]:
+                pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path | None) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
     from benchtwin.analysis.error_model import (compare_with_measured, eccentricity_term, error_model_from_results,
@@ -691,9 +723,10 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
     results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, ev.theta_deg,
                                                                 tr.reference_corrections)
     if tr.identified_effects:
-        mpath = out / "model.json"
-        save_model(mpath, tr.model_file)
-        paths["model"] = str(mpath)
+        if out is not None:
+            mpath = out / "model.json"
+            save_model(mpath, tr.model_file)
+            paths["model"] = str(mpath)
         r_um = b["optical_radius_mm"] * 1000.0
         rm_detail = rm.detail if rm is not None else None
         model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
@@ -883,7 +916,7 @@ def _write_results(out: Path, results: ErrorCurveResults) -> None:
     tmp.replace(out / "results.json")
 
 
-def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = True) -> dict[str, Any]:
+def analyze_error_curve_dataset(ds: Dataset, out: Path | None, *, close_loop: bool = True) -> dict[str, Any]:
     """An "error curve" dataset (an imported α(θ) table): coverage, closure, hysteresis, harmonics with
     u, what a lone curve cannot separate (analysis.error_curve) → results.json + report.html.
     ``close_loop`` adds the verdict keys (status, ambiguous, unexplained) that close-loop reports;
@@ -936,6 +969,8 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path, *, close_loop: bool = Tr
         results["ambiguous"] = ec["ambiguous"]
         results["unexplained"] = ec["unexplained"]
         results["close_loop"] = CloseLoop(status=ec["status"], left=ec.get("left", []))
+    if out is None:  # in memory: nothing written
+        return {"results": results, "paths": {}}
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
     _write_error_curve_report(out, ds, ec, close_loop, calibration_curve(results), arc, iso2)
     paths.update(write_calibration_files(out, results))
