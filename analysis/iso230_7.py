@@ -47,7 +47,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["remove_fundamental", "error_motion", "radial_error_motion", "spectrum_orders"]
+__all__ = ["remove_fundamental", "error_motion", "radial_error_motion", "spectrum_orders", "bandwidth", "acquisition"]
 
 
 def _design01(theta_deg: np.ndarray) -> np.ndarray:
@@ -180,9 +180,47 @@ def radial_error_motion(rep: np.ndarray, theta_deg: np.ndarray, probes: Mapping[
         em = error_motion(th, R, s)
         locs.append({"name": name, "label": label, **em})
     n = locs[0]["n_revolutions"] if locs else 0
+    per_turn = min(int(np.unique(np.round(np.asarray(theta_deg, dtype=float)[rep_a == r] % 360.0, 9)).size)
+                   for r in np.unique(rep_a))
     return {"standard": "ISO 230-7:2015", "sensitive_direction": "fixed", "centre": "least-squares circle (LSC)",
             "fundamental_removed": True, "filtered": filtered, "order": order if filtered else None,
-            "n_revolutions": n, "locations": locs}
+            "n_revolutions": n, "bandwidth": bandwidth(None if filtered else th, order if filtered else None),
+            "acquisition": acquisition(per_turn, n), "locations": locs}
+
+
+def bandwidth(theta_deg: np.ndarray | None, order: int | None) -> dict:
+    """The orders per revolution an error motion value contains, in numbers and words.
+
+    The fundamental removed, the lowest order is 2. Unfiltered (``order`` None), the readings at the
+    angles ``theta_deg`` of a turn resolve the orders up to their Nyquist: N/2 for N equally spaced
+    positions, 180°/(the largest step) otherwise; motion of higher orders is not removed but aliases
+    into the values (stop-and-go readings have no anti-alias filter). Filtered: the Fourier series
+    of order ``order`` keeps orders 2…order (Jia eq. 7)."""
+    if order is not None:
+        return {"lowest_order": 2, "highest_order": int(order), "filter": f"Fourier series of order {order}",
+                "text": f"orders 2–{order} of the revolution (the order-{order} Fourier series of each revolution: "
+                        f"motion and probe noise above order {order} filtered out)"}
+    t = np.sort(np.unique(np.round(np.asarray(theta_deg, dtype=float) % 360.0, 9)))
+    steps = np.diff(np.append(t, t[0] + 360.0))
+    n = int(t.size)
+    equal = bool(np.ptp(steps) <= 1e-6 * 360.0)
+    top = n // 2 if equal else int(math.floor(180.0 / float(np.max(steps)) + 1e-9))
+    how = (f"the Nyquist order of {n} equally spaced positions per turn" if equal else
+           f"the Nyquist order of the largest step between the {n} positions per turn, {float(np.max(steps)):g}°")
+    return {"lowest_order": 2, "highest_order": top, "filter": "none",
+            "text": f"orders 2–{top} of the revolution (unfiltered: all orders up to {how}; motion of higher "
+                    "orders is not filtered out but aliases into the values)"}
+
+
+def acquisition(positions_per_turn: int, n_revolutions: int) -> dict:
+    """How the readings of radial_motion.csv were taken, in numbers and words: the table holds one
+    reading per probe at each stop of each revolution (docs/dataset-format.md: stop-and-go
+    revolutions), so the values describe the axis at rest at each position, not at a spindle
+    speed (a run turning without stopping is the table radial_continuous, its spectrum only)."""
+    return {"mode": "step-and-settle", "positions_per_turn": int(positions_per_turn),
+            "text": f"step-and-settle: one reading per probe at each of {positions_per_turn} positions per turn "
+                    f"with the spindle at rest (no spindle speed), {n_revolutions} revolution"
+                    + ("s" if n_revolutions != 1 else "")}
 
 
 def summary(rem: Mapping) -> dict:

@@ -788,9 +788,20 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
         rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc.theta0_deg, ecc.u_theta0_deg, "°")])
         rows.append(["pixel scale (from the grating)", f"{ecc.pixel_um:.5f} µm/px"])
     if rm is not None:
+        from benchtwin.analysis.report.figures_iso import iso_band_label
+
+        # two quantities, each under its own name with its bandwidth (issue 34): the P-V of Jia's
+        # order-2…10 series (what the error model integrates) and the ISO 230-7 value of the readings
         s = rm.summary["disk"]
-        rows.append(["disk radial motion δY, synchronous P-V (eq. 9)", f"{s['synchronous_um']:.3f} µm"])
-        rows.append(["δY asynchronous (ISO 230-7)", f"{s['asynchronous_um']:.3f} µm"])
+        rows.append([f"disk radial motion δY, synchronous P-V of the order-2–10 series (Jia eqs. 7, 9; "
+                     f"{iso_band_label(rm.bandwidth)})",
+                     value_with_u(s["synchronous_um"], s.get("synchronous_u_um", float("nan")), "µm")])
+        disk = next((loc for loc in rm.iso230_7["locations"] if loc["name"] == "disk"), None)
+        if disk is not None and math.isfinite(disk["asynchronous_um"]):
+            bw, acq = rm.iso230_7["bandwidth"], rm.iso230_7["acquisition"]
+            rows.append([f"δY asynchronous error motion, ISO 230-7, disk plane ({iso_band_label(bw)}; step-and-settle, "
+                         f"{acq['positions_per_turn']} positions per turn)",
+                         value_with_u(disk["asynchronous_um"], disk["asynchronous_u_um"], "µm")])
         rows.append(["u(δY), range method (d_n)", f"{rm.u_dY_range_um:.3f} µm"])
     if pol is not None and pol.budget_summary:
         bs = pol.budget_summary

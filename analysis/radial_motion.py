@@ -99,6 +99,16 @@ def error_motion_values(values_reps: np.ndarray) -> dict[str, float]:
     }
 
 
+def _with_u(values: dict[str, float], point_var_um2: float, n_reps: int) -> dict[str, float]:
+    """The error-motion values with their standard uncertainties from the probe noise (GUM, first
+    order, as analysis/iso230_7.py): a range is the difference of two points of the curves, each
+    with variance ``point_var_um2``, so u(total) = u(asynchronous) = √(2·var) and u(synchronous) =
+    √(2·var/n) for the mean of n revolutions; the asynchronous value of one revolution has none."""
+    s2 = point_var_um2 if math.isfinite(point_var_um2) else float("nan")
+    return {**values, "total_u_um": math.sqrt(2.0 * s2), "synchronous_u_um": math.sqrt(2.0 * s2 / n_reps),
+            "asynchronous_u_um": math.sqrt(2.0 * s2) if n_reps > 1 else float("nan")}
+
+
 @dataclass
 class RadialMotion:
     """Sphere probe readings on a θ grid (radial_motion.csv), µm, all reps pooled: the motion as a
@@ -319,7 +329,9 @@ def radial_motion(
     - ``tilt_x_urad`` (eq. 8, synchronous) and ``tilt_x_reps_urad``
     - ``dY_fn``: callable θ[deg] → δY[µm] (the mean Fourier series, exact between grid points)
     - ``dY_params``: [0, 0, 0, a2, b2, ...] of that mean series (µm), ``dY_cov``: its GUM covariance
-    - ``summary``: {"top"|"bottom"|"disk" [|"top_x"|"bottom_x"|"disk_x"]: error_motion_values}
+    - ``summary``: {"top"|"bottom"|"disk" [|"top_x"|"bottom_x"|"disk_x"]: error_motion_values with
+      ``total_u_um``, ``synchronous_u_um``, ``asynchronous_u_um`` (:func:`_with_u`)}; ``bandwidth``: the
+      orders per revolution the curves hold (2…order; ``text`` in words)
     - ``u_dY_range_theta_um``: range method per θ (σ of one repetition); ``u_dY_range_um``: its
       maximum over θ (the single number Jia quotes, 0.18 µm); ``d_n``
     - ``u_dY_gum_theta_um``: GUM standard uncertainty of the synchronous δY at each θ from the fit
@@ -402,7 +414,23 @@ def radial_motion(
         dY_reps_um=dY_r, dY_um=dY_r.mean(axis=0), dY_async_um=dY_r - dY_r.mean(axis=0),
         tilt_x_reps_urad=tilt_r, tilt_x_urad=tilt_r.mean(axis=0),
     )
-    summary = {"top": error_motion_values(top_r), "bottom": error_motion_values(bot_r), "disk": error_motion_values(dY_r)}
+    def point_var(fl: list[FourierFit], w: float = 1.0) -> float:
+        """w²·(variance of one revolution's curve at a point from the probe noise), mean over θ and reps:
+        gᵀ·cov·g of the series (harmonics 2…order), or σ² itself for the kept residual."""
+        if keep_residual:
+            return float(np.mean([w**2 * (u_probe_um if u_probe_um is not None else f.sigma) ** 2 for f in fl]))
+        return float(np.mean([w**2 * np.mean(np.einsum("ij,jk,ik->i", G, f.cov, G)) for f in fl]))
+
+    summary = {"top": _with_u(error_motion_values(top_r), point_var(fits["top"]), reps.size),
+               "bottom": _with_u(error_motion_values(bot_r), point_var(fits["bottom"]), reps.size),
+               "disk": _with_u(error_motion_values(dY_r), point_var(fits["top"], w_top)
+                               + point_var(fits["bottom"], w_bot), reps.size)}
+    out["bandwidth"] = (
+        {"lowest_order": 2, "highest_order": None, "filter": "none",
+         "text": "orders 2 and up of the revolution (the readings minus orders 0 and 1, unfiltered)"} if keep_residual
+        else {"lowest_order": 2, "highest_order": int(order), "filter": f"Fourier series of order {order} (Jia eq. 7)",
+              "text": f"orders 2–{order} of the revolution (Jia eq. 7's series of each revolution: motion and "
+                      f"probe noise above order {order} filtered out)"})
 
     def mean_series(fa: list[FourierFit], fb: list[FourierFit]):
         """Mean over reps of w_top·(top series) + w_bot·(bottom series), harmonics 2…order."""
@@ -473,8 +501,10 @@ def radial_motion(
         out["dX_fn"] = _interp_fn(grid, out["dX_um"]) if keep_residual else _series_fn(pX, order)
         out["u_dX_range_theta_um"] = (range_method_u(dX_r, out["d_n"]) if reps.size >= 2
                                       else np.full(grid.size, np.nan))
-        summary.update(top_x=error_motion_values(topx_r), bottom_x=error_motion_values(botx_r),
-                       disk_x=error_motion_values(dX_r))
+        summary.update(top_x=_with_u(error_motion_values(topx_r), point_var(fits["top_x"]), reps.size),
+                       bottom_x=_with_u(error_motion_values(botx_r), point_var(fits["bottom_x"]), reps.size),
+                       disk_x=_with_u(error_motion_values(dX_r), point_var(fits["top_x"], w_top)
+                                      + point_var(fits["bottom_x"], w_bot), reps.size))
     out["summary"] = summary
     out["fits"] = fits
     return out

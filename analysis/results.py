@@ -177,7 +177,8 @@ class RadialMotionSection(TypedDict):
     """Radial error motion from the two test spheres (Jia sec. 4.1, eqs. 6–9; analysis/radial_motion.py)."""
 
     summary: Annotated[dict[str, dict[str, Num]], Key("µm", "per location (top, bottom, disk [, _x]): total_um, "
-                                                             "synchronous_um, asynchronous_um, asynchronous_pv_um")]
+                                                             "synchronous_um, asynchronous_um, asynchronous_pv_um of "
+                                                             "the order-2…10 series (Jia eq. 7), their _u_um")]
     u_dY_range_um: Annotated[Num, Key("µm", "range method (max range / d_n, Jia sec. 5)")]
     u_dY_gum_um: Annotated[Num, Key("µm", "GUM u of the synchronous δY from the fits (max over θ)")]
     d_n: Annotated[Num, Key("1", "d_n of the range method")]
@@ -188,6 +189,8 @@ class RadialMotionSection(TypedDict):
     u_dY_um: Annotated[Num, Key("µm", "u of δY as the spindle's synchronous motion (max over θ)")]
     u_dY_theta_um: Annotated[Floats, Key("µm", "the same at each θ")]
     u_h1_async_um: Annotated[Num, Key("µm", "asynchronous motion's share in the 1st harmonic of one revolution")]
+    bandwidth: NotRequired[Annotated[dict[str, Any], Key("", "orders per revolution of the summary's values: "
+                                                             "lowest_order, highest_order, filter, text")]]
 
 
 class RadialErrorMotion(TypedDict, total=False):
@@ -200,6 +203,10 @@ class RadialErrorMotion(TypedDict, total=False):
     fundamental_removed: Annotated[bool, Key("", "1st harmonic (centring) removed")]
     n_revolutions: Annotated[int, Key("", "revolutions")]
     order: Annotated[int | None, Key("", "Fourier order of the filter, null unfiltered")]
+    bandwidth: Annotated[dict[str, Any], Key("", "orders per revolution the values hold: lowest_order, "
+                                                 "highest_order (the positions' Nyquist unfiltered), filter, text")]
+    acquisition: Annotated[dict[str, Any], Key("", "how the readings were taken: mode (step-and-settle), "
+                                                   "positions_per_turn, text")]
     locations: Annotated[list[dict[str, Any]], Key("µm", "per location: name, label, total_um, synchronous_um, "
                                                          "asynchronous_um and their _u_um, n_revolutions, theta_deg, "
                                                          "synchronous_plot_um")]

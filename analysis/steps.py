@@ -71,12 +71,18 @@ class RadialMotionResult:
                    u_h1_async_um=rm["u_h1_async_um"], u_h1_async_dof=rm["u_h1_async_dof"], summary=rm["summary"],
                    iso230_7=iso230_7, detail=rm)
 
+    @property
+    def bandwidth(self) -> dict[str, Any]:
+        """The orders per revolution the summary's values hold (radial_motion's series: 2…order)."""
+        return cast(dict[str, Any], self.detail["bandwidth"])
+
     def to_json(self) -> RadialMotionSection:
         return RadialMotionSection(
             summary=self.summary, u_dY_range_um=self.u_dY_range_um, u_dY_gum_um=self.u_dY_gum_um, d_n=self.d_n,
             n_reps=self.n_reps, theta_deg=self.theta_deg, dY_um=self.dY_um, tilt_x_urad=self.tilt_x_urad,
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
-            u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um)
+            u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um,
+            bandwidth=self.bandwidth)
 
 
 #: eccentricity_u_source of a one-sweep fit before the asynchronous motion is added

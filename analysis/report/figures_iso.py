@@ -111,6 +111,12 @@ def fig_spectrum(spec: Mapping, kinematic_orders: Mapping[str, float] | None, la
     return fixed_margins(fig)
 
 
+def iso_band_label(bw: Mapping) -> str:
+    """'orders 2–18/rev' : the short name of a bandwidth (analysis/iso230_7.bandwidth)."""
+    hi = bw.get("highest_order")
+    return f"orders {bw['lowest_order']}–{hi}/rev" if hi is not None else f"orders ≥ {bw['lowest_order']}/rev"
+
+
 def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = None) -> None:
     """The report's ISO 230-7 subsection: the values with u, the polar plots, and the spectrum of a
     continuous rotation when the dataset has one (table ``radial_continuous``: ``theta_deg``
@@ -122,20 +128,31 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
     rep.heading("Radial error motion values (ISO 230-7:2015)", level=3)
     how = (f"the order-{iso['order']} Fourier series of each revolution (revolutions read at different angles)"
            if iso["filtered"] else "the readings themselves (unfiltered)")
+    bw, acq = iso.get("bandwidth"), iso.get("acquisition")
     rep.paragraph(f"Fixed sensitive direction, fundamental removed, about the least-squares centre; "
-                  f"{iso['n_revolutions']} revolutions; from {how}. u: reading noise of the probes "
-                  "(√2·σ for a range, √(2/n)·σ for the synchronous mean), standard uncertainties.")
+                  f"{iso['n_revolutions']} revolutions; from {how}."
+                  + (f" Bandwidth: {bw['text']}." if bw else "") + (f" Speed: {acq['text']}." if acq else "")
+                  + " u: reading noise of the probes (√2·σ for a range, √(2/n)·σ for the synchronous mean), "
+                  "standard uncertainties.")
     rows = []
     for loc in locs:
         rows.append([loc["label"]] + [
             value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
             if np.isfinite(loc[f"{k}_um"]) else "– (one revolution)" for k in ("total", "synchronous", "asynchronous")])
-    rep.table(rows, ["location", "total", "synchronous", "asynchronous"])
+    band = f", {iso_band_label(bw)}" if bw else ""
+    rep.table(rows, ["location", f"total{band}", f"synchronous{band}", f"asynchronous{band}"])
     if filtered and not iso["filtered"]:
         f = [(loc["label"], filtered[loc["name"]]) for loc in locs if filtered.get(loc["name"])]
-        rep.paragraph("The same values of the order-2…10 Fourier series of each revolution (Jia eq. 7: probe noise "
-                      "and motion above order 10 filtered out), for comparison: "
-                      + "; ".join(f"{lab}: {v['total_um']:.3f} / {v['synchronous_um']:.3f} / {v['asynchronous_um']:.3f} µm"
+
+        def vu(v: Mapping, k: str) -> str:
+            u = v.get(f"{k}_u_um")
+            return value_with_u(v[f"{k}_um"], u if u is not None else float("nan"), "µm").replace(
+                " (standard uncertainty)", "")
+
+        rep.paragraph("A different quantity, for comparison: the same values of Jia's order-2…10 Fourier series of "
+                      "each revolution (eq. 7, orders 2–10 of the revolution: probe noise and motion above order 10 "
+                      "filtered out; u from the probe noise left in the series): "
+                      + "; ".join(f"{lab}: {vu(v, 'total')} / {vu(v, 'synchronous')} / {vu(v, 'asynchronous')}"
                                   for lab, v in f) + " (total / synchronous / asynchronous).", note=True)
     y = [loc for loc in locs if not loc["name"].endswith("_x")]
     x = [loc for loc in locs if loc["name"].endswith("_x")]

@@ -615,8 +615,37 @@ def _methods_used(res: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]
     if res.get("radial_error_motion"):
         used.append(("ISO 230-7 radial error motion", "benchtwin_iso230_7",
                      "Total, synchronous and asynchronous radial error motion, fixed sensitive direction, fundamental "
-                     "removed, about the least-squares centre.", "ISO 230-7:2015", ""))
+                     f"removed, about the least-squares centre. {_iso230_7_conditions(res['radial_error_motion'])}",
+                     "ISO 230-7:2015", ""))
+    return used + _methods_used_curve(res)
+
+
+def _methods_used_curve(res: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]]:
+    """The ISO 230-2 statistics and the period scan of an arc, when the analysis made them."""
+    used: list[tuple[str, str, str, str, str]] = []
+    iso = res.get("iso230_2")
+    if isinstance(iso, Mapping) and iso.get("figures"):
+        used.append(("ISO 230-2 positioning statistics", "benchtwin_iso230_2",
+                     f"Accuracy, systematic deviation, repeatability and reversal of the rotary axis from runs in both "
+                     f"directions ({iso.get('source', NOT_STATED)}); {iso.get('convention', '')}.",
+                     "ISO 230-2:2014", ""))
+    scan = res.get("arc_period_scan")
+    if res.get("arc_periods") is not None and isinstance(scan, Mapping):
+        used.append(("period scan over an arc", "benchtwin_arcPeriods",
+                     f"Periodic components the measured arc supports: {scan.get('method', NOT_STATED)}; false-alarm "
+                     f"probability {scan.get('false_alarm_method', NOT_STATED)}. No turn harmonics and no closure are "
+                     "claimed for an arc.", "", "Zechmeister & Kürster 2009, A&A 496, 577; Baluev 2008, MNRAS 385, 1279"))
     return used
+
+
+def _iso230_7_conditions(rem: Mapping[str, Any]) -> str:
+    """Speed and bandwidth of the ISO 230-7 values in words (analysis/iso230_7.py bandwidth, acquisition)."""
+    acq, bw = rem.get("acquisition"), rem.get("bandwidth")
+    speed = (f"Speed: {acq['text']}." if isinstance(acq, Mapping) and acq.get("text") else
+             "Speed: not stated by the results (an older results.json).")
+    band = (f"Bandwidth: {bw['text']}." if isinstance(bw, Mapping) and bw.get("text") else
+            "Bandwidth: not stated by the results (an older results.json).")
+    return f"{speed} {band}"
 
 
 def _ambiguity(res: Mapping[str, Any]) -> str:
@@ -877,11 +906,15 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
 
     rem = res.get("radial_error_motion")
     if isinstance(rem, Mapping) and rem.get("locations"):
+        cond = _iso230_7_conditions(rem)
         d = _result(results, "Radial error motion (ISO 230-7)", lang, "benchtwin_radialErrorMotion",
                     "Error motion values, fixed sensitive direction, fundamental removed, about the least-squares "
-                    f"centre; {rem.get('n_revolutions', NOT_STATED)} revolutions. U = 2·u (normal distribution): u "
-                    "from the probes' reading noise; it does not include the probes' calibration or the test "
-                    "spheres' form error.")
+                    f"centre; {rem.get('n_revolutions', NOT_STATED)} revolutions. {cond} U = 2·u (normal "
+                    "distribution): u from the probes' reading noise; it does not include the probes' calibration, "
+                    "the test spheres' form error or motion of the orders outside the bandwidth.")
+        bw, acq = rem.get("bandwidth"), rem.get("acquisition")
+        band = (f" (orders {bw['lowest_order']}–{bw['highest_order']} per revolution)"
+                if isinstance(bw, Mapping) and bw.get("highest_order") is not None else "")
         for loc in rem["locations"]:
             w = f"{src}: radial_error_motion.locations[{loc.get('name')!r}]"
             lst = _el(d, "list", refType=f"benchtwin_{loc['name']}")
@@ -891,9 +924,15 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
                     continue  # one revolution: no asynchronous error motion value
                 x = _number(w, loc, f"{kind}_um")
                 u = loc.get(f"{kind}_u_um")
-                q = _quantity(lst, f"{kind} error motion value", lang, f"benchtwin_{kind}ErrorMotion")
+                q = _quantity(lst, f"{kind} error motion value{band}", lang, f"benchtwin_{kind}ErrorMotion")
+                _text(q, "description", cond, lang)
                 _real(q, kind, x, DSI_UNITS["um"],
                       K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None, K_DEFAULT, P_DEFAULT)
+            if isinstance(bw, Mapping) and isinstance(acq, Mapping):
+                _iso230_7_influence(lst, bw, acq, lang)
+
+    _iso230_2_result(results, res, src, lang)
+    _arc_periods_result(results, res, src, lang)
 
     eff = res.get("identified_effects") or []
     if eff:
@@ -908,6 +947,106 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
                 _real(q, pk, float(pv), unit, K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None,
                       K_DEFAULT, P_DEFAULT)
     return etree.ElementTree(root)
+
+
+def _iso230_7_influence(lst: etree._Element, bw: Mapping[str, Any], acq: Mapping[str, Any], lang: str) -> None:
+    """The bandwidth (lowest and highest order per revolution) and the speed (step-and-settle at N
+    positions per turn) of an ISO 230-7 list as influence conditions a reader can take numbers from."""
+    ic = _el(lst, "influenceConditions")
+    c = _el(ic, "influenceCondition", refType="benchtwin_bandwidth")
+    _text(c, "name", "bandwidth", lang)
+    _text(c, "description", str(bw.get("text", "")), lang)
+    data = _el(c, "data")
+    for key in ("lowest_order", "highest_order"):
+        if bw.get(key) is not None:
+            _real(_quantity(data, f"{key.replace('_', ' ')} per revolution", lang, f"benchtwin_{key}"), key,
+                  float(bw[key]), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+    c = _el(ic, "influenceCondition", refType="benchtwin_stepAndSettle")
+    _text(c, "name", "speed: step-and-settle", lang)
+    _text(c, "description", str(acq.get("text", "")), lang)
+    _real(_quantity(_el(c, "data"), "positions per turn", lang, "benchtwin_positionsPerTurn"), "positions_per_turn",
+          float(acq["positions_per_turn"]), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+
+
+def _iso230_2_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
+    """ISO 230-2 figures (arcsec, without U: statistics of the measured deviations, the reference's
+    uncertainty not in them, as results.json's ``excludes`` says), the runs per direction, whether
+    they meet the standard's count, and its flags."""
+    iso = res.get("iso230_2")
+    if not (isinstance(iso, Mapping) and isinstance(iso.get("figures"), Mapping) and iso["figures"]):
+        return
+    runs = iso.get("n_runs") or {}
+    meets = iso.get("meets_run_count")
+    flags = [str(f) for f in iso.get("flags") or []]
+    d = _result(results, "Positioning statistics (ISO 230-2)", lang, "benchtwin_iso230_2",
+                f"{iso.get('standard', 'ISO 230-2')}. {iso.get('convention', '')}. Runs: {iso.get('source', NOT_STATED)}"
+                f"; {runs.get('forward', NOT_STATED)} forward, {runs.get('backward', NOT_STATED)} backward; "
+                f"{'meets' if meets else 'does not meet'} the {iso.get('runs_required_per_direction', 5)} runs per "
+                f"direction ISO 230-2 asks for. No uncertainty is stated for the figures: they are statistics of the "
+                f"measured deviations and exclude {iso.get('excludes', NOT_STATED)}."
+                + (" Flags: " + "; ".join(flags) + "." if flags else ""))
+    lst = _el(d, "list", refType="benchtwin_iso230_2Figures")
+    _text(lst, "name", "figures of the axis", lang)
+    for key, f in iso["figures"].items():
+        if not isinstance(f, Mapping):
+            continue
+        q = _quantity(lst, f"{f.get('symbol', key)}: {f.get('what', '')}", lang, f"benchtwin_iso230_2_{key}")
+        v = f.get("value")
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+            _real(q, key, float(v), DSI_UNITS.get(str(f.get("unit", "arcsec")), DSI_UNITS["arcsec"]), None,
+                  K_DEFAULT, P_DEFAULT)
+        else:
+            _text(q, "noQuantity", "not computed: the runs cannot give it (see the flags)", lang)
+    lst = _el(d, "list", refType="benchtwin_iso230_2Runs")
+    _text(lst, "name", "runs", lang)
+    for direction in ("forward", "backward"):
+        n = runs.get(direction)
+        if isinstance(n, int) and not isinstance(n, bool):
+            _real(_quantity(lst, f"runs, {direction}", lang, f"benchtwin_runs_{direction}"), f"n_runs_{direction}",
+                  float(n), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+    _text(_quantity(lst, "meets the run count of ISO 230-2", lang, "benchtwin_meetsRunCount"), "noQuantity",
+          "true" if meets else "false", lang)
+
+
+def _arc_periods_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
+    """The periodic components of an arc (analysis/arc_periods.py): period, amplitude and phase with
+    U = k·u, k = t_0.975(ν) at the fit's residual degrees of freedom (normal, k = 2, when the table
+    gave u), the false-alarm probability, the periods the arc covers and the drive element it points to."""
+    periods = res.get("arc_periods")
+    if not isinstance(periods, Sequence) or isinstance(periods, str):
+        return
+    from benchtwin.analysis.distributions import t_ppf
+
+    scan = res.get("arc_period_scan") or {}
+    d = _result(results, "Periodic components over the arc", lang, "benchtwin_arcPeriods",
+                f"{len(periods)} significant component(s) A·cos(2π·θ/P − φ) over an arc of "
+                f"{scan.get('arc_deg', NOT_STATED)} deg ({scan.get('phase_reference', 'θ from the table')}). "
+                f"u: from the joint least-squares fit of period, amplitude, phase and trend ({scan.get('u_source', NOT_STATED)}); "
+                "it does not include the reference instrument's error (unknown for an imported table) or components "
+                "outside the scanned band. The false-alarm probability is that of noise giving such a peak in the band.")
+    for i, p in enumerate(periods):
+        w = f"{src}: arc_periods[{i}]"
+        if not isinstance(p, Mapping):
+            raise CertificateInputError(f"{w}: expected an object with period_deg, amplitude_arcsec, u, ...")
+        dof = p.get("dof")
+        if isinstance(dof, (int, float)) and not isinstance(dof, bool) and dof >= 1:
+            k, dist = float(t_ppf(0.975, math.floor(dof))), "t"
+            k_s = f"k = {k:.2f} = t_0.975(ν = {int(dof)}), the fit's residual degrees of freedom"
+        else:
+            k, dist, k_s = K_DEFAULT, "normal", "k = 2 (normal distribution: u from the table's own u)"
+        note = str((p.get("drive_element") or {}).get("note") or "no drive element matches")
+        lst = _el(d, "list", refType="benchtwin_arcPeriod")
+        _text(lst, "name", f"component {i + 1}", lang)
+        _text(lst, "description", f"U = k·u, {k_s}. Drive element: {note}.", lang)
+        for key, ukey, name, ref in (("period_deg", "u_period_deg", "period P", "benchtwin_period"),
+                                     ("amplitude_arcsec", "u", "amplitude A", "benchtwin_amplitude"),
+                                     ("phase_deg", "u_phase_deg", "phase φ", "benchtwin_phase")):
+            _real(_quantity(lst, name, lang, ref), key.rsplit("_", 1)[0], _number(w, p, key), _unit_of(key)[1],
+                  k * _number(w, p, ukey, positive=True), k, P_DEFAULT, distribution=dist)
+        for key, name, ref in (("false_alarm", "false-alarm probability", "benchtwin_falseAlarm"),
+                               ("n_periods_covered", "periods covered by the arc", "benchtwin_periodsCovered")):
+            _real(_quantity(lst, name, lang, ref), key, _number(w, p, key), DSI_UNITS["one"], None, K_DEFAULT,
+                  P_DEFAULT)
 
 
 def _equipment(man: Mapping[str, Any], lab: LabFile) -> list[dict[str, str]]:
