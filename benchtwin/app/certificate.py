@@ -567,7 +567,7 @@ def _methods_used(res: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]
                      "uncertainties (benchtwin analysis/error_curve.py); a lone curve identifies no cause.", "", ""))
         used.append(("type A evaluation of the uncertainty", "basic_GUM",
                      f"Standard uncertainty of each point: {up.get('source', NOT_STATED)}.", "JCGM 100:2008", ""))
-        return used
+        return used + _methods_used_curve(res)
     if res.get("encoder_error_arcsec") is not None:
         shifts = _shifts(res)
         starts = {k: len(v) for k, v in (res.get("setup_error_arcsec") or {}).items() if isinstance(v, Sequence)}
@@ -982,8 +982,8 @@ def _iso230_2_result(results: etree._Element, res: Mapping[str, Any], src: str, 
                 f"{iso.get('standard', 'ISO 230-2')}. {iso.get('convention', '')}. Runs: {iso.get('source', NOT_STATED)}"
                 f"; {runs.get('forward', NOT_STATED)} forward, {runs.get('backward', NOT_STATED)} backward; "
                 f"{'meets' if meets else 'does not meet'} the {iso.get('runs_required_per_direction', 5)} runs per "
-                f"direction ISO 230-2 asks for. No uncertainty is stated for the figures: they are statistics of the "
-                f"measured deviations and exclude {iso.get('excludes', NOT_STATED)}."
+                f"direction ISO 230-2 asks for. No uncertainty is stated for the figures; not included in them: "
+                f"{iso.get('excludes', NOT_STATED)}."
                 + (" Flags: " + "; ".join(flags) + "." if flags else ""))
     lst = _el(d, "list", refType="benchtwin_iso230_2Figures")
     _text(lst, "name", "figures of the axis", lang)

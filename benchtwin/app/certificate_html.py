@@ -96,6 +96,9 @@ def _list_html(lst: Any) -> list[str]:
     name = _t(lst, "dcc:name")
     if name:
         out.append(f"<h4>{_e(name)}</h4>")
+    desc = _t(lst, "dcc:description")
+    if desc:
+        out.append(f'<p class="small">{_e(desc)}</p>')
     cols, reals, notes = [], [], []
     for q in lst.findall("dcc:quantity", NS):
         if q.find("si:realListXMLList", NS) is not None:
@@ -105,6 +108,8 @@ def _list_html(lst: Any) -> list[str]:
                 notes.append(note)
         elif q.find("si:real", NS) is not None:
             reals.append(_real(q))
+        elif q.find("dcc:noQuantity", NS) is not None:   # a statement in place of a value ("not computed: ...")
+            reals.append((_t(q, "dcc:name"), _t(q, "dcc:noQuantity"), ""))
     if cols:
         n = max(len(c) for _, c in cols)
         out.append("<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h, _ in cols) + "</tr>")
