@@ -50,6 +50,8 @@ __all__ = [
     "error_model_from_results",
     "compare_with_measured",
     "refine_eccentricity",
+    "fit_statistics",
+    "sampling_advice",
 ]
 
 TermFn = Callable[[np.ndarray], np.ndarray]  # θ [rad] → arcsec
@@ -374,77 +376,172 @@ def compare_with_measured(theta_deg: np.ndarray, measured_arcsec: np.ndarray,
     }
 
 
+#: below this 1 − h_ii a stop determines a parameter by itself: no fit without it predicts it
+LOO_LEVERAGE_TOL = 1e-8
+#: a model is tested by its residual only with at least this many degrees of freedom left
+MIN_TEST_DOF = 3
+
+
+def fit_statistics(J: np.ndarray, residual_arcsec: np.ndarray, u_arcsec: np.ndarray | float,
+                   prior_precision: np.ndarray | None = None) -> dict:
+    """How far the residual of a weighted least-squares fit can test the fitted model.
+
+    The fit: y ≈ J·x, weights w_i = 1/u_i², optionally a Gaussian prior of precision Λ on x (a
+    parameter measured elsewhere, e.g. the CCD's e); ``residual_arcsec`` is r = y − J·x̂ at its
+    solution (for a non-linear fit J is its Jacobian there: Gauss-Newton's last step).
+
+    - ``n_params``: the rank of the weighted design W^½·J, i.e. the directions of x the data
+      determine (a direction fixed only by its prior does not count); ``dof`` = n_points − n_params.
+    - ``chi2`` = Σ (r_i/u_i)² with the u_i given (the caller states which yardstick), ``p_value`` =
+      P(χ²_dof ≥ chi2); None when dof ≤ 0 (the residual cannot test anything).
+    - leave-one-out: the PRESS residual (Allen 1974, Technometrics 16, 125) r_i/(1 − h_ii), h_ii the
+      diagonal of the hat matrix H = W^½ J (JᵀWJ + Λ)⁻¹ Jᵀ W^½: point i predicted by the fit made
+      without it, exactly for a linear fit (Sherman–Morrison: removing one row of a least-squares
+      problem, the prior included), to first order at the solution for a non-linear one.
+      ``loo_rms_arcsec`` is their RMS, None when a point alone determines a parameter
+      (1 − h_ii < ``LOO_LEVERAGE_TOL``: no fit without it predicts it).
+    """
+    from benchtwin.analysis.distributions import chi2_sf
+
+    r = np.asarray(residual_arcsec, dtype=float).ravel()
+    J = np.asarray(J, dtype=float).reshape(r.size, -1)
+    u = np.broadcast_to(np.asarray(u_arcsec, dtype=float), r.shape)
+    sw = 1.0 / u
+    Jw = J * sw[:, None]
+    n, p = Jw.shape
+    if p:
+        norms = np.linalg.norm(Jw, axis=0)
+        Jn = Jw[:, norms > 0] / norms[norms > 0]
+        sv = np.linalg.svd(Jn, compute_uv=False) if Jn.size else np.zeros(0)
+        rank = int(np.sum(sv > 1e-9 * sv[0])) if sv.size and sv[0] > 0 else 0
+        A = Jw.T @ Jw + (np.zeros((p, p)) if prior_precision is None else np.asarray(prior_precision, dtype=float))
+        h = np.einsum("ij,ij->i", Jw, np.linalg.lstsq(A, Jw.T, rcond=None)[0].T)
+    else:
+        rank, h = 0, np.zeros(n)
+    dof = n - rank
+    chi2 = float(np.sum((r * sw) ** 2))
+    one_minus_h = 1.0 - h
+    defined = one_minus_h > LOO_LEVERAGE_TOL
+    loo = np.where(defined, r / np.where(defined, one_minus_h, 1.0), np.nan)
+    return {"n_points": int(n), "n_params": rank, "dof": int(dof), "chi2": chi2,
+            "p_value": float(chi2_sf(chi2, dof)) if dof > 0 else None,
+            "loo_residual_arcsec": loo, "leverage": h,
+            "loo_rms_arcsec": float(np.sqrt(np.mean(loo ** 2))) if bool(np.all(defined)) else None}
+
+
+def sampling_advice(n_points: int, n_params: int) -> str | None:
+    """None when the residual has ≥ ``MIN_TEST_DOF`` degrees of freedom; else the sentence the
+    report, results.json and the certificate state: this sampling cannot test the model, and which
+    would (Hsieh 2022's shift-angle method adds N stops per shift of an N-face polygon)."""
+    dof = n_points - n_params
+    if dof >= MIN_TEST_DOF:
+        return None
+    need = n_params + MIN_TEST_DOF
+    return (f"this sampling cannot test the model: {n_params} parameters fitted to {n_points} stops leave {max(dof, 0)} "
+            f"degrees of freedom, so the residual after is an interpolation, not a test. A sampling with at least "
+            f"{need} distinct angles would test it: a shift-angle run (Hsieh 2022: the polygon re-mounted at "
+            f"shifts S, e.g. 0, 5, 10°, N stops per shift) or a polygon with more faces; the leave-one-out "
+            f"prediction then says how well the model predicts a stop it was not fitted to")
+
+
 def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_arcsec: np.ndarray | float,
                         e_um: float, theta0_deg: float, u_e_um: float, u_theta0_deg: float, r_um: float,
-                        cov_e_theta0: float = 0.0) -> dict:
+                        cov_e_theta0: float = 0.0, *, u_k1_arcsec: float = 0.0,
+                        columns: np.ndarray | None = None) -> dict:
     """(e, θ0) from the CCD (Jia eqs. 11-12) combined with the first harmonic that a comparison with
-    a measured α (polygon + autocollimator) still shows after the model.
+    a measured α (polygon + autocollimator) still shows after the model, fitted jointly with the
+    comparison's constant, a first-order graduation term and further linear ``columns``.
 
-    Two measurements of one measurand: the CCD's (e, θ0) with its covariance P, and the comparison,
-    whose residual r_i = α_i − model_i (mean-free) is linear in the corrections x = (δe, δθ0):
-    r = J·x + c + noise, J the eq. 3 sensitivities at the model's (e, θ0), c the unknown constant of
-    α (removed by centring J and r), noise independent with the points' standard uncertainties u_i.
-    The generalised least-squares estimate with the CCD as prior information (minimum of
-    Σ w_i (α_i − model_i(x))² + (x − x_ccd)ᵀ P⁻¹ (x − x_ccd), Gauss-Newton; at the linear limit
-    x̂ = (JᵀWJ + P⁻¹)⁻¹ JᵀW r, cov(x̂) = (JᵀWJ + P⁻¹)⁻¹, W = diag 1/u_i²) is the weighted
-    combination of the two (JCGM 102:2011 sec. 8 / the GLS combination of correlated estimates;
-    Cox 2002, Metrologia 39, 589, for the consistency check). The two are compared by
-    χ² = x_cᵀ (P + C_c)⁻¹ x_c with 2 dof, x_c = (JᵀWJ)⁻¹JᵀW r the comparison's own estimate and C_c its
-    covariance: p < 0.05 says the CCD's e disagrees with the comparison beyond both u (a first-harmonic
-    effect, which the tracing tests separately). The u_i are taken as independent: the shift-angle
-    α of neighbouring stops share parts of their budget (the autocollimator's calibration, a
-    constant that centring removes), so this is the usual approximation of a diagonal W.
+    The residual r_i = α_i − model_i at the stops is modelled as
+    r = [ecc(e, θ0) − ecc(e_ccd, θ0_ccd)] + a1·sin θ + b1·cos θ + c + C·δp + noise:
+    ecc the eq. 3 term, c the unknown constant of α, C the ``columns`` (each a unit change of a
+    parameter of a traced effect at the stops: its correction δp is refitted here), noise
+    independent with the points' standard uncertainties u_i. Priors: the CCD's (e, θ0) with its
+    covariance P; the first-order graduation term (a1, b1) ~ N(0, u_k1²) per component — in α a
+    k = 1 graduation term (the ruling's centre off the edge the CCD sees, and at N stops the orders
+    N ± 1, 2N ± 1, ... that alias onto it) cannot be told from eccentricity, so the comparison
+    measures e only as well as u_k1 allows (``u_k1_arcsec`` = 0: no such term, the former
+    combination). The generalised least-squares estimate (minimum of Σ w_i r_i(x)² + the priors'
+    quadratic forms; Gauss-Newton, non-linear in θ0) is the weighted combination of the CCD and
+    the comparison (JCGM 102:2011 sec. 8; Cox 2002, Metrologia 39, 589, for the consistency check).
+    The two are compared by χ² = dᵀ (P + C_c)⁻¹ d with 2 dof, d = x_c − x_ccd, x_c the comparison's
+    own estimate (no CCD prior; its covariance C_c holds the k = 1 prior): p < 0.05 says the CCD's e
+    disagrees with the comparison beyond both u. The u_i are taken as independent (the shift-angle
+    α of neighbouring stops share parts of their budget, a constant that c absorbs).
 
     Returns e_um, theta0_deg, u_e_um, u_theta0_deg, cov_e_theta0 (µm·deg), the comparison's own
-    e/θ0 estimate and u (``comparison``), chi2, dof, p_value, n_points.
+    e/θ0 estimate and u (``comparison``), ``ccd``, chi2, dof, p_value, n_points, ``k1_arcsec``
+    ([a1, b1] and their u), ``column_params`` (δp), ``residual_arcsec`` (the residual at the
+    solution) and ``fit`` (:func:`fit_statistics` of the joint fit, χ² against u_i).
     """
     from benchtwin.analysis.distributions import chi2_sf
 
     th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
-    res = np.asarray(residual_arcsec, dtype=float).ravel() * ARCSEC        # rad
-    u = np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape) * ARCSEC
-    if th.size < 4 or res.size != th.size or not np.all(np.isfinite(u)) or not np.all(u > 0):
+    res = np.asarray(residual_arcsec, dtype=float).ravel()
+    u_in = np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape)
+    if th.size < 4 or res.size != th.size or not np.all(np.isfinite(u_in)) or not np.all(u_in > 0):
         raise ValueError("refine_eccentricity: need ≥ 4 points with finite residuals and positive u")
+    C = np.zeros((th.size, 0)) if columns is None else np.asarray(columns, dtype=float).reshape(th.size, -1)
+    k1 = float(u_k1_arcsec) > 0.0
+    r = float(r_um)
     m0 = np.array([float(e_um), math.radians(theta0_deg)])
-    w = 1.0 / u ** 2
+    w = 1.0 / u_in ** 2
+    f0 = eccentricity_term(m0[0], math.degrees(m0[1]), r)(th)
 
-    def f_c(x):   # the eq. 3 term at x [rad], centred (α is known up to a constant)
-        v = eccentricity_term(x[0], math.degrees(x[1]), float(r_um))(th) * ARCSEC
-        return v - v.mean()
+    def design(x):   # arcsec per unit: e [µm], θ0 [rad], (a1, b1) [″], c [″], δp
+        de, dt = eccentricity_sensitivities(th, x[0], x[1], r)
+        cols = [de / ARCSEC, dt / ARCSEC] + ([np.sin(th), np.cos(th)] if k1 else []) + [np.ones_like(th)]
+        return np.column_stack(cols + [C])
 
-    def J_c(x):
-        de, dt = eccentricity_sensitivities(th, x[0], x[1], float(r_um))
-        return np.column_stack([de - de.mean(), dt - dt.mean()])
+    def model(x):
+        lin = design(x)[:, 2:] @ x[2:]
+        return eccentricity_term(x[0], math.degrees(x[1]), r)(th) - f0 + lin
 
-    y = res - res.mean() + f_c(m0)          # the comparison's once-per-revolution content, centred
+    n_par = 2 + (2 if k1 else 0) + 1 + C.shape[1]
     c = math.radians(cov_e_theta0)
     P = np.array([[u_e_um ** 2, c], [c, math.radians(u_theta0_deg) ** 2]])
-    Pinv = np.linalg.inv(P)
+    x0 = np.concatenate([m0, np.zeros(n_par - 2)])
 
-    def gauss_newton(prior: bool):
-        # the model is non-linear in θ0 (and e·θ0): Gauss-Newton from the CCD's values, to
-        # convergence (a δθ0 of degrees leaves e·δθ0² ≈ 0.01 µm in one linear step)
-        x = m0.copy()
+    def precision(prior_ccd: bool) -> np.ndarray:
+        L = np.zeros((n_par, n_par))
+        if prior_ccd:
+            L[:2, :2] = np.linalg.inv(P)
+        if k1:
+            L[2, 2] = L[3, 3] = 1.0 / float(u_k1_arcsec) ** 2
+        return L
+
+    def gauss_newton(prior_ccd: bool):
+        # non-linear in θ0 (and e·θ0): Gauss-Newton from the CCD's values, to convergence (a δθ0 of
+        # degrees leaves e·δθ0² ≈ 0.01 µm in one linear step); the other parameters are linear
+        L = precision(prior_ccd)
+        x = x0.copy()
         for _ in range(50):
-            J = J_c(x)
-            A = J.T @ (J * w[:, None]) + (Pinv if prior else 0.0)
-            g = J.T @ (w * (y - f_c(x))) - (Pinv @ (x - m0) if prior else 0.0)
-            step = np.linalg.solve(A, g)
+            J = design(x)
+            A = J.T @ (J * w[:, None]) + L
+            g = J.T @ (w * (res - model(x))) - L @ (x - x0)
+            step = np.linalg.lstsq(A, g, rcond=None)[0]
             x = x + step
             if abs(step[0]) <= 1e-12 * max(1.0, abs(x[0])) and abs(step[1]) <= 1e-14:
                 break
-        J = J_c(x)
-        return x, np.linalg.inv(J.T @ (J * w[:, None]) + (Pinv if prior else 0.0))
+        J = design(x)
+        return x, np.linalg.pinv(J.T @ (J * w[:, None]) + L), J, L
 
-    x, cov = gauss_newton(True)
-    xc, Cc = gauss_newton(False)
-    d = xc - m0
-    chi2 = float(d @ np.linalg.solve(P + Cc, d))
-    return {"e_um": float(x[0]), "theta0_deg": float(math.degrees(x[1])),
-            "u_e_um": float(math.sqrt(cov[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(cov[1, 1]))),
-            "cov_e_theta0": float(math.degrees(cov[0, 1])),
-            "comparison": {"e_um": float(xc[0]), "theta0_deg": float(math.degrees(xc[1])),
-                           "u_e_um": float(math.sqrt(Cc[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(Cc[1, 1])))},
-            "ccd": {"e_um": float(e_um), "theta0_deg": float(theta0_deg), "u_e_um": float(u_e_um),
-                    "u_theta0_deg": float(u_theta0_deg)},
-            "chi2": chi2, "dof": 2, "p_value": float(chi2_sf(chi2, 2)), "n_points": int(th.size)}
+    x, cov, J, L = gauss_newton(True)
+    xc, Cc, _, _ = gauss_newton(False)
+    d = xc[:2] - m0
+    chi2 = float(d @ np.linalg.solve(P + Cc[:2, :2], d))
+    resid = res - model(x)
+    out = {"e_um": float(x[0]), "theta0_deg": float(math.degrees(x[1])),
+           "u_e_um": float(math.sqrt(cov[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(cov[1, 1]))),
+           "cov_e_theta0": float(math.degrees(cov[0, 1])),
+           "comparison": {"e_um": float(xc[0]), "theta0_deg": float(math.degrees(xc[1])),
+                          "u_e_um": float(math.sqrt(Cc[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(Cc[1, 1])))},
+           "ccd": {"e_um": float(e_um), "theta0_deg": float(theta0_deg), "u_e_um": float(u_e_um),
+                   "u_theta0_deg": float(u_theta0_deg)},
+           "chi2": chi2, "dof": 2, "p_value": float(chi2_sf(chi2, 2)), "n_points": int(th.size),
+           "column_params": x[n_par - C.shape[1]:].tolist(), "residual_arcsec": resid,
+           "fit": fit_statistics(J, resid, u_in, L)}
+    if k1:
+        out["k1_arcsec"] = {"a1": float(x[2]), "b1": float(x[3]), "u_a1": float(math.sqrt(cov[2, 2])),
+                            "u_b1": float(math.sqrt(cov[3, 3])), "u_prior": float(u_k1_arcsec)}
+    return out

@@ -34,6 +34,7 @@ from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, Bench
 from benchtwin.analysis.results_api import Results
 from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
 from benchtwin.jsonable import to_json
+from benchtwin.units import ARCSEC
 from benchtwin.fsio import atomic_write_text
 
 
@@ -394,7 +395,18 @@ def _setup_error_lookup(pol: PolygonAnalysis):
     return lookup
 
 
-def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> ResidualSummary:
+#: the yardstick of the residuals' χ² (results.json ``residual_before`` / ``residual_after``: ``chi2_u``)
+CHI2_YARDSTICK = ("u of each α (encoder_error_arcsec.u: the GUM budget of the shift-angle curve, Hsieh 2022 "
+                  "Table 3); the model's own parameters (e, θ0 from the CCD, δY from the probes) are not in it")
+
+
+def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None,
+                      stats: Mapping[str, Any] | None = None) -> ResidualSummary:
+    """The comparison's RMS, P-V, ... and, with ``stats`` (error_model.fit_statistics of the fit
+    behind the residual), what it can test: n_params, dof, chi2, p_value, loo_rms_arcsec and, where
+    dof < 3, the sentence saying this sampling cannot test the model and which would."""
+    from benchtwin.analysis.error_model import sampling_advice
+
     out = ResidualSummary(rms_arcsec=cmp["residual_rms_arcsec"], pv_arcsec=cmp["residual_pv_arcsec"],
                           max_abs_arcsec=cmp["residual_max_abs_arcsec"], fraction_of_error=cmp["fraction_of_error"],
                           pv_ratio=cmp["pv_ratio"], measured_pv_arcsec=cmp["measured_pv_arcsec"],
@@ -402,6 +414,99 @@ def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None) -> Res
                           note=cmp["note"])
     if u_arcsec is not None:
         out["u_rms_arcsec"] = u_arcsec
+    if stats is not None:
+        out["n_params"] = int(stats["n_params"])
+        out["dof"] = int(stats["dof"])
+        out["chi2"] = float(stats["chi2"])
+        out["p_value"] = stats["p_value"]
+        out["loo_rms_arcsec"] = stats["loo_rms_arcsec"]
+        out["chi2_u"] = CHI2_YARDSTICK
+        advice = sampling_advice(out["n_points"], out["n_params"])
+        if advice is not None:
+            out["sampling_note"] = advice
+    return out
+
+
+def _constant_fit(cmp: dict[str, Any], u: np.ndarray) -> dict[str, Any]:
+    """fit_statistics of measured − model with only α's constant fitted (the Jia model takes e, θ0
+    and δY from the CCD and the probes, not from α): the weighted mean removed, one parameter."""
+    from benchtwin.analysis.error_model import fit_statistics
+
+    y = np.asarray(cmp["residual_arcsec"], dtype=float)
+    w = 1.0 / u ** 2
+    return fit_statistics(np.ones((y.size, 1)), y - float(np.sum(w * y) / np.sum(w)), u)
+
+
+def _alpha_u(enc: Curve | Mapping[str, Any], fallback: float) -> np.ndarray:
+    """u of each α (the χ² yardstick, CHI2_YARDSTICK); a point without a positive u takes ``fallback``."""
+    th = np.asarray(enc["theta_deg"], dtype=float)
+    u = np.asarray(enc.get("u") if enc.get("u") is not None else np.full(th.shape, fallback), dtype=float)
+    return np.where(np.isfinite(u) & (u > 0), u, fallback)
+
+
+def k1_prior(signature: Mapping[str, Any]) -> tuple[float, str]:
+    """The prior u (per Fourier component, arcsec) of a first-order graduation term, and its source.
+
+    In α a k = 1 graduation term (the ruling's centre off the edge the CCD measures, and at N stops
+    the orders N ± 1, 2N ± 1, ... aliasing onto order 1) cannot be told from eccentricity. No
+    encoder class states it (a maker centres the disk's edge on its ruling: the outer edge of the
+    pattern is taken as concentric with it, Celera Motion, "Rotary scales alignment", MicroE
+    technical paper; no tolerance given), so the prior is this encoder's own division error: the
+    order 1 taken as one more low order of the same disk, of the size the residual shows at the
+    orders 2…kmax the data resolve (the RMS of their Fourier components a_k, b_k; the orders that
+    alias onto them included). Conservative where the residual holds other effects too (their
+    content only widens the prior, i.e. leans e on the CCD)."""
+    comps = [c for h in (signature.get("harmonics") or []) if int(h.get("k", 0)) >= 2
+             for c in (h.get("a_arcsec"), h.get("b_arcsec")) if c is not None and math.isfinite(float(c))]
+    if not comps:
+        return 0.0, "no harmonic of order ≥ 2 in the residual's signature: no first-order graduation term"
+    u = float(np.sqrt(np.mean(np.square(comps))))
+    ks = [int(h["k"]) for h in signature["harmonics"] if int(h.get("k", 0)) >= 2]
+    return u, (f"this encoder's division error at the orders the data resolve: RMS of the residual's Fourier "
+               f"components at orders {min(ks)}…{max(ks)} (before the loop), the order 1 taken as one more low "
+               "order of the same disk; no encoder class states a first-order term (the maker centres the edge "
+               "the CCD sees on the ruling)")
+
+
+def traced_columns(payload: Mapping[str, Any], base_terms: Mapping[str, Any], theta_deg: np.ndarray
+                   ) -> tuple[np.ndarray, list[tuple[int, str]]]:
+    """∂(traced terms)/∂p at ``theta_deg`` [arcsec per unit of each parameter] for every parameter
+    of the traced encoder effects in the model file ``payload`` (tracing.model_terms_from_payload:
+    reference-chain effects give no term), and their (effect index, parameter name). Central
+    differences with a step of the parameter's u (1e-3 where it has none): exact for effects linear
+    in their parameters (graduation_error, interpolation_error, tangential_motion, …), the
+    linearisation at the traced values otherwise."""
+    import copy
+
+    from benchtwin.analysis.tracing import model_terms_from_payload
+
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float))
+    cols, names = [], []
+    for i, e in enumerate(payload.get("effects", [])):
+        one = {**payload, "effects": [e]}
+        if not model_terms_from_payload(one, dict(base_terms)):
+            continue
+        for name, v in e["params"].items():
+            uu = (e.get("u") or {}).get(name)
+            h = float(uu) if uu is not None and math.isfinite(float(uu)) and float(uu) > 0 else 1e-3 * max(1.0, abs(float(v)))
+            vals = []
+            for sgn in (1.0, -1.0):
+                q = copy.deepcopy(one)
+                q["effects"][0]["params"][name] = float(v) + sgn * h
+                terms = model_terms_from_payload(q, dict(base_terms))
+                vals.append(sum(np.asarray(fn(th), dtype=float) for fn in terms.values()))
+            cols.append((vals[0] - vals[1]) / (2.0 * h))
+            names.append((i, name))
+    return (np.column_stack(cols) if cols else np.zeros((th.size, 0))), names
+
+
+def _refitted_payload(payload: Mapping[str, Any], names: list[tuple[int, str]], dp: list[float]) -> dict[str, Any]:
+    """The model file with each refitted parameter moved by its correction δp (refine_eccentricity)."""
+    import copy
+
+    out = copy.deepcopy(dict(payload))
+    for (i, name), d in zip(names, dp):
+        out["effects"][i]["params"][name] = float(out["effects"][i]["params"][name]) + float(d)
     return out
 
 
@@ -571,7 +676,8 @@ def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int 
         enc = pol.encoder_error_arcsec
         cmp = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model)
         u_meas = float(np.sqrt(np.mean(np.square(np.asarray(enc["u"], dtype=float)))))
-        results["residual_before"] = _residual_summary(cmp, u_meas)
+        u_pts = _alpha_u(enc, u_meas if u_meas > 0 else 1.0)
+        results["residual_before"] = _residual_summary(cmp, u_meas, _constant_fit(cmp, u_pts))
         results["comparison"] = Comparison(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
                                            model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"])
 
@@ -665,6 +771,33 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
     return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
+def _per_reading_after(ev: Any, tr: TraceOutcome, model2: Any, ccd: Mapping[str, Any], r_um: float,
+                       payload: Mapping[str, Any], col_names: list[tuple[int, str]], ref: Mapping[str, Any]
+                       ) -> float | None:
+    """RMS per polygon reading of the residual after the model of ``residual_after``: the tracing's
+    residual after its effects (closure-centred, residual_after_trace) with the eq. 3 term moved from
+    the CCD's (e, θ0) to the refined one, the first-order graduation term and the refitted parameters'
+    corrections, all evaluated at the readings' θ — the same model as the stops' residual, per reading
+    (what ``benchtwin score`` compares with its per-reading floor)."""
+    from benchtwin.analysis.error_model import eccentricity_term
+    from benchtwin.analysis.report.figures_loop import effect_contribution
+    from benchtwin.analysis.tracing import _center
+
+    if not tr.identified_effects:
+        return None
+    th = np.deg2rad(np.asarray(ev.theta_deg, dtype=float))
+    r1 = _center(ev.residual_arcsec, ev.closure_group, 1.0 / ev.u_arcsec ** 2) - effect_contribution(ev, tr.detail)
+    delta = (eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um)(th)
+             - eccentricity_term(ccd["e_um"], ccd["theta0_deg"], r_um)(th))
+    if "graduation_k1" in model2.terms:
+        delta = delta + model2.terms["graduation_k1"](th)
+    if col_names:
+        cols, _ = traced_columns(payload, dict(model2.terms), np.asarray(ev.theta_deg, dtype=float))
+        delta = delta + cols @ np.asarray(ref["column_params"], dtype=float)
+    r2 = r1 - _center(delta, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
+    return float(np.sqrt(np.mean(r2 ** 2)))
+
+
 def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | None, ecc: EccentricityResult,
                 pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path | None) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
@@ -737,25 +870,48 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
         # The model after the loop takes (e, θ0) from the CCD combined with the first harmonic the
         # comparison still shows (error_model.refine_eccentricity): one CCD sweep states e to u(e)
         # of tenths of a µm (Jia: 0.24 µm, ≈ 2.3″ of first harmonic at r = 22 mm), the comparison
-        # measures that harmonic to hundredths of an arcsecond; no traced effect may take it
-        # (graduation_error starts at order 2). The tracing's decisions are made before, on the
-        # CCD's values with their u (ev.add_eccentricity_uncertainty); this changes no decision.
-        u_c = np.asarray(enc.get("u") if enc.get("u") is not None else np.full(th_c.shape, u_eps), dtype=float)
+        # measures that harmonic to hundredths of an arcsecond — but in α a first-order graduation
+        # term reads exactly as eccentricity, so the comparison measures e only within the prior on
+        # that term (k1_prior). The traced effects' parameters are refitted with it on the stops
+        # (traced_columns): one weighted least-squares fit, whose residual is ``residual_after`` and
+        # whose statistics (n_params, dof, χ², leave-one-out) say what that residual can test. The
+        # tracing's decisions are made before, on the CCD's values with their u
+        # (ev.add_eccentricity_uncertainty); this changes no decision.
+        u_c = _alpha_u(enc, u_eps)
         d = ecc.detail
         if th_c.size >= 4:
-            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], np.where(u_c > 0, u_c, u_eps), d["e_um"],
-                                      d["theta0_deg"], d["e_u_um"], d["theta0_u_deg"], r_um,
-                                      d.get("cov_e_theta0", 0.0))
+            base = dict(model2.terms)
+            cols, col_names = traced_columns(tr.model_file, base, th_c)
+            u_k1, k1_source = k1_prior(tr.detail.get("signature") or {})
+            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], u_c, d["e_um"], d["theta0_deg"], d["e_u_um"],
+                                      d["theta0_u_deg"], r_um, d.get("cov_e_theta0", 0.0), u_k1_arcsec=u_k1,
+                                      columns=cols)
+            fit = ref.pop("fit")
+            ref.pop("residual_arcsec")
+            ref["k1_prior"] = {"u_arcsec": u_k1, "u_um": u_k1 * ARCSEC * r_um, "source": k1_source}
+            ref["refitted_params"] = [f"{tr.model_file['effects'][i]['name']}.{n}" for i, n in col_names]
             ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # with the CCD's (e, θ0)
             results["eccentricity_refined"] = ref
-            # the same model with its eq. 3 term replaced (add_term replaces by name)
+            # the model after: the refitted traced terms, the eq. 3 term replaced (add_term replaces by
+            # name) and the first-order graduation term the fit gave
+            model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
+            added = add_to_error_model(model2, _refitted_payload(tr.model_file, col_names, ref["column_params"]))
             model2.add_term("eccentricity", eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um, ref["u_e_um"],
                                                               ref["u_theta0_deg"], ref["cov_e_theta0"]))
-            added = added + ["refined:eccentricity (CCD ⊕ comparison)"]
+            if "k1_arcsec" in ref:
+                a1, b1 = ref["k1_arcsec"]["a1"], ref["k1_arcsec"]["b1"]
+                model2.add_term("graduation_k1", lambda t, a1=a1, b1=b1: a1 * np.sin(t) + b1 * np.cos(t))
+            added = added + ["refined:eccentricity (CCD ⊕ comparison, first-order graduation prior)",
+                             "refitted on the stops: " + ", ".join(ref["refitted_params"]) if col_names else
+                             "refitted on the stops: none"]
             cmp2 = compare_with_measured(th_c, a_c, model2)
+            results["residual_after"] = _residual_summary(cmp2, stats=fit)
+            per_reading = _per_reading_after(ev, tr, model2, d, r_um, tr.model_file, col_names, ref)
+            if per_reading is not None:
+                results["residual_after"]["per_reading_rms_arcsec"] = per_reading
         else:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
             results["notes"].append(f"(e, θ0) not refined by the comparison: {th_c.size} points, at least 4 needed")
-        results["residual_after"] = _residual_summary(cmp2)
+            results["residual_after"] = _residual_summary(cmp2)
         results["residual_after"]["added_terms"] = added
         results["comparison_after"] = Comparison(theta_deg=cmp2["theta_deg"], model_arcsec=cmp2["model_arcsec"],
                                                  residual_arcsec=cmp2["residual_arcsec"])

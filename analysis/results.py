@@ -134,6 +134,22 @@ class ResidualSummary(TypedDict):
     note: Annotated[str, Key("", "how the comparison is made")]
     u_rms_arcsec: NotRequired[Annotated[Num, Key("arcsec", "RMS of the measured curve's u")]]
     added_terms: NotRequired[Annotated[list[str], Key("", "terms the traced effects added to the model")]]
+    # what the residual can test (error_model.fit_statistics of the fit behind it)
+    n_params: NotRequired[Annotated[int, Key("", "parameters fitted to these angles (rank of the weighted design: "
+                                                 "α's constant; after the loop also the first harmonic and the "
+                                                 "traced effects' parameters)")]]
+    dof: NotRequired[Annotated[int, Key("", "degrees of freedom left: n_points − n_params")]]
+    chi2: NotRequired[Annotated[Num, Key("1", "Σ (residual/u)², u of each α (chi2_u)")]]
+    p_value: NotRequired[Annotated[Num, Key("1", "P(χ²_dof ≥ chi2); null when dof = 0")]]
+    loo_rms_arcsec: NotRequired[Annotated[Num, Key("arcsec", "leave-one-out: RMS of each angle predicted by the fit "
+                                                            "made without it (PRESS residual r/(1 − h), hat "
+                                                            "matrix); null when an angle alone fixes a parameter")]]
+    chi2_u: NotRequired[Annotated[str, Key("", "the u the χ² is taken against")]]
+    sampling_note: NotRequired[Annotated[str, Key("", "only when dof < 3: this sampling cannot test the model, "
+                                                      "and which sampling would")]]
+    per_reading_rms_arcsec: NotRequired[Annotated[Num, Key("arcsec", "after the loop: RMS per polygon reading of "
+                                                                     "the residual after this same model "
+                                                                     "(closure-centred)")]]
 
 
 class TraceResidual(TypedDict, total=False):
@@ -424,11 +440,15 @@ class BenchResults(_Common, PolygonResults, total=False):
     residual_after_trace: Annotated[TraceResidual, Key("", "close-loop: after the traced effects")]
     eccentricity_refined: Annotated[dict[str, Any], Key("µm", "close-loop: (e, θ0) of the model after the loop, "
                                                               "the CCD's combined with the comparison's first "
-                                                              "harmonic (GLS): e_um, u_e_um, theta0_deg (deg), "
-                                                              "u_theta0_deg, cov_e_theta0 (µm·deg), comparison, "
-                                                              "ccd, chi2, dof, p_value (their consistency), "
-                                                              "residual_after_ccd_e_pv_arcsec (the P-V after "
-                                                              "with the CCD's own e, θ0)")]
+                                                              "harmonic (GLS), its u including the confounding "
+                                                              "with a first-order graduation term (k1_prior: "
+                                                              "u_arcsec, u_um, source; k1_arcsec: a1, b1 and u): "
+                                                              "e_um, u_e_um, theta0_deg (deg), u_theta0_deg, "
+                                                              "cov_e_theta0 (µm·deg), comparison, ccd, chi2, dof, "
+                                                              "p_value (their consistency), refitted_params, "
+                                                              "column_params, residual_after_ccd_e_pv_arcsec (the "
+                                                              "P-V after with the CCD's own e, θ0 and the traced "
+                                                              "parameters)")]
     residual_after: Annotated[ResidualSummary, Key("", "close-loop: measured − (model + traced effects), (e, θ0) "
                                                        "refined (eccentricity_refined)")]
     comparison_after: Annotated[Comparison, Key("", "close-loop: the same after the traced effects")]
