@@ -921,6 +921,21 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
     return ev, tr
 
 
+def r_um_of(ds: Dataset) -> float:
+    """The optical radius r of the dataset's bench in µm (Jia eq. 5)."""
+    return float(ds.bench["optical_radius_mm"]) * 1000.0
+
+
+def residual_test_text(r: Mapping[str, Any]) -> str:
+    """One line on what a residual can test (results.json residual_before / residual_after): stops,
+    parameters fitted, dof, χ² and p against u of each α, and the leave-one-out RMS."""
+    p = r.get("p_value")
+    loo = r.get("loo_rms_arcsec")
+    return (f"{r['n_points']} stops, {r['n_params']} parameters fitted, {r['dof']} dof; χ² = {r['chi2']:.3g} "
+            f"against u of each α (p = {'–' if p is None else f'{p:.2g}'}); each stop predicted by the fit made "
+            f"without it: {'no such fit (a stop alone fixes a parameter)' if loo is None else f'{loo:.3g}″ RMS'}")
+
+
 def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotionResult | None,
                   ecc: EccentricityResult | None, pol: PolygonAnalysis | None, model: Any, cmp: Any, ev: Any,
                   tr: TraceOutcome | None, preface: list | None = None) -> None:
@@ -964,15 +979,24 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
         rows.append(["shift-angle α: u_c, ν_eff, k, U", f"{bs['u_c']:.3f}″, {bs['nu_eff']:.0f}, {bs['k']:.2f}, {bs['U']:.3f}″"])
         if pol.en_max is not None:
             rows.append(["E_n max (shift-angle vs self-calibration)", f"{pol.en_max:.2f}"])
+    test_notes = []
     if "residual_before" in results:
         rb = results["residual_before"]
         rows.append(["residual after the Jia model: RMS / P-V / share", f"{rb['rms_arcsec']:.3f}″ / {rb['pv_arcsec']:.3f}″ / {100 * rb['fraction_of_error']:.1f} %"])
+        if "dof" in rb:
+            rows.append(["… what it tests", residual_test_text(rb)])
     if "residual_after" in results and results.get("identified_effects"):
         ra = results["residual_after"]
         rows.append(["residual after adding the traced effect(s): RMS / P-V / share",
                      f"{ra['rms_arcsec']:.3f}″ / {ra['pv_arcsec']:.3f}″ / {100 * ra['fraction_of_error']:.1f} %"])
+        if "dof" in ra:
+            rows.append(["… what it tests", residual_test_text(ra)])
+            if ra.get("sampling_note"):
+                test_notes.append("Residual after: " + ra["sampling_note"] + ".")
     rep.heading("Summary")
     rep.table(rows, ["quantity", "value"])
+    for n in test_notes:
+        rep.paragraph(n, note=True)
     for n in results["notes"]:
         rep.paragraph(str(n), note=True)
 
@@ -1035,6 +1059,18 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
                 f"of the error) to {ra_t['rms_arcsec']:.3f}″ RMS ({ra_t['pv_arcsec']:.2f}″ P-V, "
                 f"{100 * ra_t['fraction_of_error']:.1f} %); noise floor {rb_t.get('noise_floor_arcsec', float('nan')):.3f}″ "
                 f"(u of one reading), χ² after {ra_t['chi2']:.0f} for {ra_t['dof']} dof (p = {ra_t['p_value']:.2g}).")
+            ra_s = results.get("residual_after") or {}
+            ref = results.get("eccentricity_refined") or {}
+            if ra_s.get("per_reading_rms_arcsec") is not None and ref:
+                rep.paragraph(
+                    f"That residual per reading keeps the Jia model's eccentricity term with the CCD's (e, θ0): its first "
+                    f"harmonic is the CCD's e within its u (u(e) = {ref['ccd']['u_e_um']:.3f} µm, "
+                    f"{ref['ccd']['u_e_um'] / (r_um_of(ds)) / ARCSEC:.2f}″ at the optical radius). The model after the loop "
+                    f"takes the first harmonic from the comparison (e = {ref['e_um']:.3f} ± {ref['u_e_um']:.3f} µm, its u "
+                    f"including a first-order graduation term of u = {ref['k1_prior']['u_arcsec']:.2f}″ per component that "
+                    f"α cannot tell from e) and refits the traced parameters on the stops: per reading it leaves "
+                    f"{ra_s['per_reading_rms_arcsec']:.3f}″ RMS, at the stops {ra_s['rms_arcsec']:.3f}″ "
+                    f"({residual_test_text(ra_s)}).")
             am = rb_t.get("async_motion") or {}
             if am.get("sigma_um"):
                 rep.paragraph(

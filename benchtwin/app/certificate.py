@@ -662,6 +662,17 @@ def _ambiguity(res: Mapping[str, Any]) -> str:
         w + (f" (separating measurement: {sep})" if sep else "") for w, sep in zip(words, seps)) + "."
 
 
+def _residual_test(r: Mapping[str, Any]) -> str:
+    """What a residual can test, in brackets (results.json residual_before / residual_after: the
+    stops, the parameters fitted, dof, χ², leave-one-out); empty for results without these keys."""
+    if r.get("dof") is None:
+        return ""
+    p, loo = r.get("p_value"), r.get("loo_rms_arcsec")
+    return (f"({r['n_points']} stops, {r['n_params']} parameters fitted, {r['dof']} degrees of freedom, chi2 "
+            f"{r['chi2']:.3g}" + ("" if p is None else f", p = {p:.2g}") + "; each stop predicted by the fit made "
+            "without it: " + ("no such fit" if loo is None else f"{loo:.3g} arcsec RMS") + ")")
+
+
 def effects_statement(res: Mapping[str, Any]) -> str:
     """What the analysis concluded about the causes of the error, in sentences a reader can check:
     only the models it ran, the effects it identified and the ambiguities it reported."""
@@ -683,13 +694,19 @@ def effects_statement(res: Mapping[str, Any]) -> str:
         parts.append(f"{e['name']} ({ps}; standard uncertainties)")
     s = "The loop identified: " + "; ".join(parts) + "."
     if rb.get("rms_arcsec") is not None and ra.get("rms_arcsec") is not None:
-        s += (f" With it the residual of the error model went from {rb['rms_arcsec']:.3f} arcsec RMS to "
-              f"{ra['rms_arcsec']:.3f} arcsec RMS.")
+        s += (f" With it the residual of the error model went from {rb['rms_arcsec']:.3f} arcsec RMS "
+              f"{_residual_test(rb)} to {ra['rms_arcsec']:.3f} arcsec RMS {_residual_test(ra)}.")
+        if ra.get("sampling_note"):
+            s += f" The residual after: {ra['sampling_note']}."
         ref = res.get("eccentricity_refined")
         if isinstance(ref, Mapping) and ref.get("e_um") is not None:
+            k1 = ref.get("k1_prior") or {}
             s += (f" The model after the loop takes the eccentricity from the CCD combined with the first harmonic "
                   f"of the comparison: e = {ref['e_um']:.3f} ± {ref['u_e_um']:.2g} µm (CCD alone "
-                  f"{ref['ccd']['e_um']:.3f} ± {ref['ccd']['u_e_um']:.2g} µm; consistency p = {ref['p_value']:.2g}).")
+                  f"{ref['ccd']['e_um']:.3f} ± {ref['ccd']['u_e_um']:.2g} µm; consistency p = {ref['p_value']:.2g}"
+                  + (f"; its u includes a first-order graduation term, which the comparison cannot tell from "
+                     f"eccentricity, of {k1['u_arcsec']:.2g} arcsec per component" if k1.get("u_arcsec") else "")
+                  + ").")
     return s + amb
 
 
