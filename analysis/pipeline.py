@@ -931,7 +931,7 @@ def residual_test_text(r: Mapping[str, Any]) -> str:
     parameters fitted, dof, χ² and p against u of each α, and the leave-one-out RMS."""
     p = r.get("p_value")
     loo = r.get("loo_rms_arcsec")
-    return (f"{r['n_points']} stops, {r['n_params']} parameters fitted, {r['dof']} dof; χ² = {r['chi2']:.3g} "
+    return (f"{r['n_points']} stops, {r['n_params']} parameter{'' if r['n_params'] == 1 else 's'} fitted, {r['dof']} dof; χ² = {r['chi2']:.3g} "
             f"against u of each α (p = {'–' if p is None else f'{p:.2g}'}); each stop predicted by the fit made "
             f"without it: {'no such fit (a stop alone fixes a parameter)' if loo is None else f'{loo:.3g}″ RMS'}")
 

@@ -668,7 +668,8 @@ def _residual_test(r: Mapping[str, Any]) -> str:
     if r.get("dof") is None:
         return ""
     p, loo = r.get("p_value"), r.get("loo_rms_arcsec")
-    return (f"({r['n_points']} stops, {r['n_params']} parameters fitted, {r['dof']} degrees of freedom, chi2 "
+    return (f"({r['n_points']} stops, {r['n_params']} parameter{'' if r['n_params'] == 1 else 's'} fitted, "
+            f"{r['dof']} degrees of freedom, chi2 "
             f"{r['chi2']:.3g}" + ("" if p is None else f", p = {p:.2g}") + "; each stop predicted by the fit made "
             "without it: " + ("no such fit" if loo is None else f"{loo:.3g} arcsec RMS") + ")")
 
