@@ -899,8 +899,12 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
             model2.add_term("eccentricity", eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um, ref["u_e_um"],
                                                               ref["u_theta0_deg"], ref["cov_e_theta0"]))
             if "k1_arcsec" in ref:
-                a1, b1 = ref["k1_arcsec"]["a1"], ref["k1_arcsec"]["b1"]
-                model2.add_term("graduation_k1", lambda t, a1=a1, b1=b1: a1 * np.sin(t) + b1 * np.cos(t))
+                a1, b1 = float(ref["k1_arcsec"]["a1"]), float(ref["k1_arcsec"]["b1"])
+
+                def graduation_k1(t: np.ndarray, a1: float = a1, b1: float = b1) -> np.ndarray:
+                    return a1 * np.sin(t) + b1 * np.cos(t)
+
+                model2.add_term("graduation_k1", graduation_k1)
             added = added + ["refined:eccentricity (CCD ⊕ comparison, first-order graduation prior)",
                              "refitted on the stops: " + ", ".join(ref["refitted_params"]) if col_names else
                              "refitted on the stops: none"]
@@ -1059,8 +1063,8 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
                 f"of the error) to {ra_t['rms_arcsec']:.3f}″ RMS ({ra_t['pv_arcsec']:.2f}″ P-V, "
                 f"{100 * ra_t['fraction_of_error']:.1f} %); noise floor {rb_t.get('noise_floor_arcsec', float('nan')):.3f}″ "
                 f"(u of one reading), χ² after {ra_t['chi2']:.0f} for {ra_t['dof']} dof (p = {ra_t['p_value']:.2g}).")
-            ra_s = results.get("residual_after") or {}
-            ref = results.get("eccentricity_refined") or {}
+            ra_s: Mapping[str, Any] = results.get("residual_after") or {}
+            ref: Mapping[str, Any] = results.get("eccentricity_refined") or {}
             if ra_s.get("per_reading_rms_arcsec") is not None and ref:
                 rep.paragraph(
                     f"That residual per reading keeps the Jia model's eccentricity term with the CCD's (e, θ0): its first "
