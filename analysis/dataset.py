@@ -84,6 +84,10 @@ _UNIT_RANGES: dict[str, tuple[float, float]] = {
     "_s": (0.0, 3.2e7),
 }
 THETA_RANGE = (-360.0, 720.0)
+#: the Fourier order ``analyze`` uses unless told (``--order``; Jia eqs. 6 and 10: order 10)
+ANALYSIS_ORDER = 10
+#: the orders ``--order`` accepts (the largest needs a revolution of 2·1000 + 1 angles)
+ORDER_RANGE = (1, 1000)
 
 
 TABLES: dict[str, TableSpec] = {
@@ -563,8 +567,15 @@ def _check_duplicates(cols: Mapping[str, np.ndarray], spec: TableSpec, where: st
 class Dataset:
     """A dataset directory opened for reading. Validation happens on access and in ``validate()``."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, order: int = ANALYSIS_ORDER):
         self.path = Path(path)
+        # the Fourier order the analysis will use: check_tables checks what it needs of the tables
+        # (analysis/structure.py: the angles a revolution or a CCD sweep needs)
+        if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or \
+                not ORDER_RANGE[0] <= order <= ORDER_RANGE[1]:
+            raise DatasetError(f"Fourier order (analyze --order): expected an integer {ORDER_RANGE[0]}…"
+                               f"{ORDER_RANGE[1]}, got {order!r}")
+        self.order = int(order)
         if not self.path.is_dir():
             raise DatasetError(f"{self.path}: not a dataset directory")
         mp = self.path / "manifest.json"
@@ -611,6 +622,10 @@ class Dataset:
                 raise DatasetError(str(exc)) from None
             cols = parse_table(text, name, str(p))
             self._check_semantics(name, cols, p)
+            from benchtwin.analysis.structure import check_structure
+
+            # the structure the analysis assumes (issue 31: a revolution cut short passed every cell check)
+            check_structure(name, cols, str(p), self.bench)
             self._cache[name] = cols
         return self._cache[name]
 
@@ -764,12 +779,23 @@ class Dataset:
             raise DatasetError(f"{where}image {p}: expected 8- or 16-bit, got {img.dtype}")
         return img
 
-    def validate(self) -> list[str]:
-        """Read every known table and image; returns a list of what was checked, raises on error."""
-        checked = ["manifest.json"]
+    def check_tables(self) -> list[str]:
+        """Read and check every known table (its cells and the structure the analysis assumes at
+        ``self.order``); a dataset without tables is an error (issue #13: analyze exited 0). The one
+        check ``validate`` and ``analyze`` both run before anything else (issue 31). Returns what
+        was checked."""
+        from benchtwin.analysis.structure import check_order
+
+        checked = []
         for name in self.require_tables():
             cols = self.table(name)
+            check_order(name, cols, str(self.path / f"{name}.csv"), self.order)
             checked.append(f"{name}.csv ({len(next(iter(cols.values())))} rows)")
+        return checked
+
+    def validate(self) -> list[str]:
+        """Read every known table and image; returns a list of what was checked, raises on error."""
+        checked = ["manifest.json", *self.check_tables()]
         if self.has("ccd/index"):
             n = sum(1 for _ in self.ccd_frames())
             checked.append(f"{n} CCD images")
@@ -784,5 +810,6 @@ def _png_size(data: np.ndarray) -> tuple[int, int] | None:
     return None
 
 
-def open_dataset(path: str | Path) -> Dataset:
-    return Dataset(path)
+def open_dataset(path: str | Path, order: int = ANALYSIS_ORDER) -> Dataset:
+    """A dataset opened for reading; its tables are checked for the analysis at Fourier ``order``."""
+    return Dataset(path, order)

@@ -608,9 +608,10 @@ def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int 
     empty). Everyone else calls ``analyze``."""
     from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
 
-    ds = open_dataset(dataset)
-    for name in ds.require_tables():  # a dataset without tables is an error, not a report with no sections
-        ds.table(name)  # every table read and checked before any analysis step runs
+    ds = open_dataset(dataset, order)
+    # every table read and checked (cells, and the structure each step assumes at this order:
+    # analysis/structure.py) before any analysis step runs; the same check as validate's
+    ds.check_tables()
     model_payload: dict[str, Any] | None = None
     if model_file is not None:
         from benchtwin.analysis.model_file import read_model_file

@@ -82,6 +82,8 @@ __all__ = [
     "alpha_scatter_by_rep",
     "ShiftResult",
     "ShiftAngleResult",
+    "reference_shift",
+    "require_reference_table",
     "shift_angle_analysis",
     "combined_curve",
     "fit_sine2_offset",
@@ -564,6 +566,32 @@ class ShiftAngleResult:
     reference_shift_deg: float = 0.0  # the shift whose full table gave the closure β
 
 
+def reference_shift(table: PolygonTable, reference_shift_deg: float | None = None) -> float:
+    """The shift whose full N×N table gives the closure β (eqs. 5-6): ``reference_shift_deg`` if given,
+    else S = 0 when there are readings at 0 (the paper), else the smallest shift with a complete table."""
+    if reference_shift_deg is not None:
+        return _shift_key(reference_shift_deg)
+    complete = [float(x) for x in table.shifts_deg if table.is_complete(float(x))]
+    return 0.0 if (0.0 in table.eps_arcsec or not complete) else complete[0]
+
+
+def require_reference_table(table: PolygonTable, *, certificate: bool,
+                            reference_shift_deg: float | None = None) -> float:
+    """The reference shift (:func:`reference_shift`); without a certificate β comes from its closure,
+    so its N×N table must be complete, else :class:`PolygonDataError` names the missing cells. The
+    dataset reader applies the same rule (analysis/structure.py), so validate accepts what this runs."""
+    s0 = reference_shift(table, reference_shift_deg)
+    if certificate or (s0 in table.eps_arcsec and table.is_complete(s0)):
+        return s0
+    N = table.n_faces
+    if s0 not in table.eps_arcsec:
+        raise PolygonDataError(f"no readings at shift_deg={s0:g}: the closure (eqs. 5-6) needs the full "
+                               f"N×N table at one shift (N={N}), or pass certificate_beta_arcsec")
+    missing = [(int(j) + 1, int(i) + 1) for j, i in np.argwhere(~np.isfinite(table.eps_arcsec[s0]))]
+    raise PolygonDataError(f"shift_deg={s0:g}, columns start_face/step: incomplete Table 1, missing readings "
+                           f"{_cells(missing)} (the closure needs all N×N = {N * N})")
+
+
 def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
                          u_certificate_arcsec: np.ndarray | float | None = None,
                          u_eps_arcsec: float | None = None, beta_source: str = "auto",
@@ -587,11 +615,7 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     """
     N = table.n_faces
     notes: list[str] = []
-    if reference_shift_deg is None:
-        complete = [float(x) for x in table.shifts_deg if table.is_complete(float(x))]
-        s0 = 0.0 if (0.0 in table.eps_arcsec or not complete) else complete[0]
-    else:
-        s0 = _shift_key(reference_shift_deg)
+    s0 = reference_shift(table, reference_shift_deg)
     have_full0 = s0 in table.eps_arcsec and table.is_complete(s0)
     if beta_source not in ("auto", "closure", "certificate"):
         raise ValueError(f"beta_source must be auto/closure/certificate, got {beta_source!r}")
@@ -616,14 +640,7 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         u0 = u_cells(s0)
         beta_closure, ub, cb = pitch_deviation_arcsec(table.eps_arcsec[s0], u0)
     if src == "closure":
-        if not have_full0:
-            if s0 not in table.eps_arcsec:
-                raise PolygonDataError(f"no readings at shift_deg={s0:g}: the closure (eqs. 5-6) needs the full "
-                                       f"N×N table at one shift (N={N}), or pass certificate_beta_arcsec")
-            e0 = table.eps_arcsec[s0]
-            missing = [(int(j) + 1, int(i) + 1) for j, i in np.argwhere(~np.isfinite(e0))]
-            raise PolygonDataError(f"shift_deg={s0:g}, columns start_face/step: incomplete Table 1, missing readings "
-                                   f"{_cells(missing)} (the closure needs all N×N = {N * N})")
+        require_reference_table(table, certificate=False, reference_shift_deg=reference_shift_deg)
         beta, u_beta, cov_beta = beta_closure, ub, cb
     else:
         beta, cov_beta, mean = _certificate(certificate_beta_arcsec, N, u_certificate_arcsec)

@@ -56,6 +56,8 @@ class InputError(Exception):
 
 def _validate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("path", type=Path, help="a scenario, study, bench or fault-plan file, or a dataset directory")
+    p.add_argument("--order", type=int, default=10,
+                   help="a dataset: check it for analyze --order (the Fourier order; default 10)")
 
 
 @command("validate", "check a scenario file or a dataset directory", _validate_args)
@@ -66,7 +68,7 @@ def cmd_validate(ns: argparse.Namespace) -> dict[str, Any]:
     path: Path = ns.path
     try:
         if path.is_dir():
-            checked = open_dataset(path).validate()
+            checked = open_dataset(path, ns.order).validate()
             return {"ok": True, "kind": "dataset", "path": str(path), "checked": checked,
                     "message": f"{path}: valid dataset ({'; '.join(checked)})"}
         other = _validate_other_file(path)

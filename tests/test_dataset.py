@@ -32,21 +32,27 @@ MANIFEST = {
 
 
 def make_dataset(root: Path, **overrides) -> Path:
-    """A small, complete, valid dataset (4-face polygon, 2 heads, 2 images)."""
+    """A small, complete, valid dataset (4-face polygon, 2 heads, 60 tiny images) with the structure
+    the analysis needs at order 10 (issue 31: every revolution and the CCD sweep cover the turn with
+    gaps below 18°, the heads on a full-circle grid); the images are not gratings."""
     m = json.loads(json.dumps(MANIFEST))
     m.update(overrides.pop("manifest", {}))
     w = DatasetWriter(root, m)
-    th = np.arange(0, 360, 30.0)
+    th = np.arange(0, 360, 15.0)
     w.write_table("radial_motion", {"rep": np.repeat([0, 1], th.size), "theta_deg": np.tile(th, 2),
                                     "probe_top_um": np.sin(np.radians(np.tile(th, 2))), "probe_bottom_um": np.zeros(2 * th.size)})
     rows = [(0.0, j, i, (i - 1) * 90.0, 0.1 * i - 0.05 * j, float(4 * j + i)) for j in range(1, 5) for i in range(1, 5)]
     w.write_table("polygon", dict(zip(["shift_deg", "start_face", "step", "theta_deg", "ac_arcsec", "t_s"], map(list, zip(*rows)))))
-    w.write_table("heads", {"theta_deg": [0.0, 0.0, 90.0, 90.0], "head": [1, 2, 1, 2], "delta_arcsec": [0.0, 0.3, 0.0, -0.2]})
-    for k in range(2):  # two frames at different angles are never pixel-identical (the reader checks)
+    w.write_table("heads", {"theta_deg": [0.0, 0.0, 90.0, 90.0, 180.0, 180.0, 270.0, 270.0], "head": [1, 2] * 4,
+                            "delta_arcsec": [0.0, 0.3, 0.0, -0.2, 0.0, 0.1, 0.0, -0.1]})
+    for k in range(60):  # frames at different angles are never pixel-identical (the reader checks)
         img = np.full((12, 16), 200, np.uint8)
-        img[:, 8 + k:] = 30
+        img[:, 8 + min(k, 1):] = 30
+        if k >= 2:
+            img[k % 12, k // 12] = 100
         w.write_image(f"ccd/img_{k:03d}.png", img)
-    w.write_table("ccd/index", {"k": [0, 1], "theta_deg": [0.0, 6.0], "file": ["img_000.png", "img_001.png"]})
+    w.write_table("ccd/index", {"k": list(range(60)), "theta_deg": [6.0 * k for k in range(60)],
+                                "file": [f"img_{k:03d}.png" for k in range(60)]})
     w.close()
     return root
 
@@ -54,9 +60,9 @@ def make_dataset(root: Path, **overrides) -> Path:
 def test_valid_dataset_round_trip(tmp_path):
     ds = open_dataset(make_dataset(tmp_path / "ds"))
     checked = ds.validate()
-    assert "2 CCD images" in checked
+    assert "60 CCD images" in checked
     assert ds.table("polygon")["start_face"].dtype == np.int64
-    assert ds.table("radial_motion")["probe_top_um"][3] == math.sin(math.radians(90.0))
+    assert ds.table("radial_motion")["probe_top_um"][6] == math.sin(math.radians(90.0))
     frames = list(ds.ccd_frames())
     assert frames[1][0] == 1 and frames[1][2].shape == (12, 16)
 
@@ -189,20 +195,16 @@ def test_truth_and_extra_columns_are_allowed(tmp_path):
 def test_repeated_ccd_sweeps_share_angles_not_within_a_sweep(tmp_path):
     """ccd/index.csv's optional ``sweep`` column (procedure.ccd_reps): the same angle once per sweep."""
     root = make_dataset(tmp_path / "ds")
-    img = np.full((12, 16), 200, np.uint8)
-    img[:, 3:] = 30
-    import cv2
-
-    (root / "ccd" / "img_002.png").write_bytes(cv2.imencode(".png", img)[1].tobytes())
-    idx = {"k": [0, 1, 2], "theta_deg": [0.0, 6.0, 0.0], "file": ["img_000.png", "img_001.png", "img_002.png"],
-           "theta_read_deg": [0.0001, 6.0001, 0.0002]}
-    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[0, 0, 1])))
+    th = [12.0 * (k % 30) for k in range(60)]   # two sweeps of 30 frames over the turn (the 60 images)
+    idx = {"k": list(range(60)), "theta_deg": th, "file": [f"img_{k:03d}.png" for k in range(60)],
+           "theta_read_deg": [t + 0.0001 for t in th]}
+    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[k // 30 for k in range(60)])))
     ds = open_dataset(root)
-    assert "3 CCD images" in ds.validate()
-    assert list(ds.table("ccd/index")["sweep"]) == [0, 0, 1]
-    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[0, 0, 0])))
-    with pytest.raises(DatasetError, match="rows 2 and 4: two frames of sweep 0 at the same angle"):
+    assert "60 CCD images" in ds.validate()
+    assert list(ds.table("ccd/index")["sweep"]) == [k // 30 for k in range(60)]
+    (root / "ccd" / "index.csv").write_bytes(table_to_csv(dict(idx, sweep=[0] * 60)))
+    with pytest.raises(DatasetError, match="rows 2 and 32: two frames of sweep 0 at the same angle"):
         open_dataset(root).validate()
     (root / "ccd" / "index.csv").write_bytes(table_to_csv(idx))   # no sweep column: one sweep
-    with pytest.raises(DatasetError, match="rows 2 and 4: two frames at the same angle"):
+    with pytest.raises(DatasetError, match="rows 2 and 32: two frames at the same angle"):
         open_dataset(root).validate()

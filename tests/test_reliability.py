@@ -81,8 +81,12 @@ def test_a_duplicated_and_identical_frames_are_rejected(tmp_path, capsys):
 def test_a_swapped_angles_are_caught_by_theta_read(tmp_path, capsys):
     root = make_dataset(tmp_path / "ds")
     # the encoder's readings of the two stops (0° and 6°), then the commanded angles swapped
-    _rewrite(root / "ccd" / "index.csv", lambda t: t.replace("k,theta_deg,file", "k,theta_deg,file,theta_read_deg")
-             .replace("img_000.png", "img_000.png,0.0001").replace("img_001.png", "img_001.png,5.9998"))
+    def with_readings(t: str) -> str:  # every stop's reading next to its angle (0.0001 and 5.9998 for 0° and 6°)
+        head, *rows = t.splitlines()
+        return "\n".join([head + ",theta_read_deg"] + [r + f",{float(r.split(',')[1]) + (-2e-4 if r.startswith('1,') else 1e-4):.4f}"
+                                                        for r in rows]) + "\n"
+
+    _rewrite(root / "ccd" / "index.csv", with_readings)
     assert open_dataset(root).validate()
     _rewrite(root / "ccd" / "index.csv", lambda t: t.replace("0,0.0,img_000", "0,6.0,img_000").replace("1,6.0,img_001", "1,0.0,img_001"))
     _err(["validate", str(root)], capsys, "index.csv", "row 2", "theta_read_deg", "swapped")
@@ -421,10 +425,10 @@ def test_g_output_onto_an_existing_file_is_exit_2(tmp_path, capsys):
 def test_g_a_cell_over_128_kib_is_exit_2(tmp_path, capsys):
     root = make_dataset(tmp_path / "ds")
     _rewrite(root / "heads.csv", lambda t: t + '0.0,2,"' + "9" * 200_000 + '"\n')
-    _err(["validate", str(root)], capsys, "heads.csv", "row 6", "at most 4096 characters")
+    _err(["validate", str(root)], capsys, "heads.csv", "row 10", "at most 4096 characters")
     root = make_dataset(tmp_path / "ds2")
     _rewrite(root / "heads.csv", lambda t: t + "0.0,2," + "9" * 5000 + "\n")
-    _err(["validate", str(root)], capsys, "heads.csv", "row 6", "'delta_arcsec'")
+    _err(["validate", str(root)], capsys, "heads.csv", "row 10", "'delta_arcsec'")
 
 
 def test_g_deeply_nested_json_and_toml_are_exit_2(tmp_path, capsys):

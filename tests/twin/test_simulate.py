@@ -304,7 +304,9 @@ def test_repeated_ccd_sweeps_and_the_microscope_stand_drift(tmp_path):
                  progress=False, backend="analytic")
     idx = read_csv(b / "ccd" / "index.csv")
     assert idx["sweep"] == ["0"] * 4 + ["1"] * 4 and idx["k"] == [str(k) for k in range(8)]
-    assert Dataset(b).validate()
+    # read back: the sweeps' index and every frame (4 frames a sweep are too few for the eccentricity
+    # fit, so validate, which checks what analyze needs, refuses this dataset: issue 31)
+    assert sum(1 for _ in Dataset(b).ccd_frames()) == 8
     fa, fb = files(a), files(b)
     changed = sorted(k for k in fa if fa[k] != fb[k])
     assert all(k.startswith("ccd/img_") or k.startswith("truth/") for k in changed), changed
