@@ -9,13 +9,13 @@ the checks across rows, each the assumption of an analysis step:
 - every table has at least one row (a header-only table is an error, not a missing section);
 - ``radial_motion.csv`` (Jia 2019 sec. 4.1, :mod:`.radial_motion`, :mod:`.iso230_7`): repetitions
   numbered without a gap and at most ``max(D_N)`` of them (the range method's d_n); every repetition
-  reads the same angles of the turn, each once (Jia sec. 5's range and ISO 230-7's asynchronous
-  motion compare the revolutions angle by angle); for order K (:func:`check_order`) those angles
-  cover the turn for a Fourier series of the analysis' order K: no gap of 180°/K or more between neighbours (the maximal-gap condition
-  under which a trigonometric polynomial of degree K is stably determined by its samples,
-  Gröchenig, Math. Comp. 59 (1992) 181-194; it implies the 2K+1 angles of eq. 6). A table cut
-  inside a revolution (issue 31: ``head -n 541`` gave a disk motion of 327 388 µm) fails here;
-  X probes come in pairs (eq. 9 needs both spheres);
+  reads the same angles of the turn (within a quarter of their closest spacing), each once (Jia
+  sec. 5's range and ISO 230-7's asynchronous motion compare the revolutions angle by angle); for
+  order K (:func:`check_order`) those angles cover the turn: no gap of 180°/K or more between
+  neighbours (the maximal-gap condition under which a trigonometric polynomial of degree K is stably
+  determined by its samples, Gröchenig, Math. Comp. 59 (1992) 181-194; it implies the 2K+1 angles
+  of eq. 6). A table cut inside a revolution (issue 31: ``head -n 541`` gave a disk motion of
+  327 388 µm) fails here; X probes come in pairs (eq. 9 needs both spheres);
 - ``ccd/index.csv`` (Jia sec. 4.2), for order K: every sweep has the frames eq. 10 needs
   (:func:`benchtwin.analysis.pipeline.ccd_frame_limits`) and covers the turn like a repetition;
 - ``polygon.csv`` (Hsieh 2022, :mod:`.shift_angle`): every run of a start face (shift, rep,
@@ -140,13 +140,20 @@ def _radial(cols: Mapping[str, np.ndarray], where: str) -> None:
     _once_per_group([rep, turn], where, "a repetition's angle")
     first = rep == reps[0]
     grid = np.unique(turn[first])
+    # an angle of the grid is matched within a quarter of the grid's closest spacing: with `acquire`'s
+    # [run] theta = "encoder", theta_deg is the encoder's display, one count (0.39″) apart between
+    # revolutions at the same stop (as polygon.csv's theta_deg may be a quarter pitch off its step)
+    spacing = np.diff(np.concatenate([grid, grid[:1] + 360.0])).min() if grid.size > 1 else 360.0
+    tol = 0.25 * float(spacing)
     for r in reps[1:]:
         m = rep == r
         got = np.unique(turn[m])
-        if got.size == grid.size and np.array_equal(got, grid):
+        k, d = _nearest(grid, got)
+        ok = d <= tol
+        if got.size == grid.size and bool(ok.all()) and np.unique(k).size == grid.size:
             continue
-        missing = np.setdiff1d(grid, got)
-        extra = np.setdiff1d(got, grid)
+        missing = np.delete(grid, np.unique(k[ok]))
+        extra = got[~ok]
         rows = np.flatnonzero(m)
         desc = (f"missing theta_deg {_list(missing)}" if missing.size else "") + \
                ("; " if missing.size and extra.size else "") + \
@@ -155,6 +162,17 @@ def _radial(cols: Mapping[str, np.ndarray], where: str) -> None:
             f"{where}: rows {rows[0] + 2}…{rows[-1] + 2}: rep {int(r)} reads {got.size} angles, rep {int(reps[0])} "
             f"{grid.size}: {desc} (expected every repetition at the same angles of the turn: Jia sec. 5's range "
             "and ISO 230-7 compare the revolutions angle by angle)")
+
+
+def _nearest(grid: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each angle of ``a``: the index of the nearest angle of the sorted ``grid`` on the circle,
+    and the distance (°)."""
+    n = grid.size
+    j = np.searchsorted(grid, a) % n
+    i = (j - 1) % n
+    dj = np.abs((a - grid[j] + 180.0) % 360.0 - 180.0)
+    di = np.abs((a - grid[i] + 180.0) % 360.0 - 180.0)
+    return np.where(dj <= di, j, i), np.minimum(dj, di)
 
 
 def _ccd_index(cols: Mapping[str, np.ndarray], where: str, order: int) -> None:

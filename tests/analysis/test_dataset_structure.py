@@ -226,6 +226,25 @@ def test_a_dataset_cut_at_a_repetition_boundary_is_complete(base, tmp_path, caps
         assert rc == 0, obj
 
 
+def test_revolutions_read_at_the_encoders_display_still_match(base, tmp_path, capsys):
+    """acquire's [run] theta = "encoder" writes the encoder's display: the same stop one count (0.39″)
+    apart between revolutions. Matched within a quarter of the spacing; half a spacing off is another
+    angle (validate and analyze alike)."""
+    for shift, ok in ((0.39 / 3600.0, True), (0.5, False)):
+        root = tmp_path / f"ds{ok}"
+        shutil.copytree(base, root)
+        p = root / "radial_motion.csv"
+        lines = _lines(p)
+        p.write_text(lines[0] + "".join(
+            ",".join([c[0], repr(float(c[1]) + (shift if c[0] == "1" else 0.0)), *c[2:]])
+            for c in (line.split(",") for line in lines[1:])))
+        for cmd in (["validate", str(root)], ["analyze", str(root), "-o", str(tmp_path / f"out{ok}")]):
+            rc, obj = _cli(cmd, capsys)
+            assert rc == (0 if ok else 2), obj
+            if not ok:
+                assert "rep 1 reads 360 angles, rep 0 360: missing theta_deg 0, 1, 2" in obj["error"], obj
+
+
 def test_the_order_sets_the_angles_a_revolution_needs(base, tmp_path, capsys):
     """36 angles (10° apart) carry order 17 (gap < 180°/17 = 10.6°) but not 18 (10°), for validate and
     analyze alike; --order 0 is exit 2 too (it was an IndexError)."""
