@@ -77,7 +77,11 @@ def check_order(name: str, cols: Mapping[str, np.ndarray], where: str, order: in
     a reader that only compares tables (the emulators' tests) does not need it."""
     if name == "radial_motion":
         rep = np.asarray(cols["rep"], dtype=np.int64)
-        _covers_turn(np.unique(_turn(cols["theta_deg"])[rep == rep.min()]), where, "each repetition's", order)
+        grid = np.unique(_turn(cols["theta_deg"])[rep == rep.min()])
+        _covers_turn(grid, where, "each repetition's", order)
+        if grid.size < 4:   # at order 1 three angles cover the turn
+            raise DatasetError(f"{where}: each repetition reads {grid.size} angles; ISO 230-7's least-squares "
+                               "circle (the fundamental's 3 parameters) needs at least 4")
     elif name == "ccd/index":
         _ccd_index(cols, where, order)
 

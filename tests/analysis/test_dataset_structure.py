@@ -247,7 +247,7 @@ def test_revolutions_read_at_the_encoders_display_still_match(base, tmp_path, ca
 
 def test_the_order_sets_the_angles_a_revolution_needs(base, tmp_path, capsys):
     """36 angles (10° apart) carry order 17 (gap < 180°/17 = 10.6°) but not 18 (10°), for validate and
-    analyze alike; --order 0 is exit 2 too (it was an IndexError)."""
+    analyze alike; --order 0 is exit 2 too (it was an IndexError); 3 angles are too few at any order."""
     root = tmp_path / "ds"
     small_dataset(root, reps=2, positions=36)
     for p in ("polygon.csv", "heads.csv"):
@@ -260,6 +260,11 @@ def test_the_order_sets_the_angles_a_revolution_needs(base, tmp_path, capsys):
     for order in ("0", "-1", "1001"):
         rc, obj = _cli(["analyze", str(root), "-o", str(tmp_path / "o"), "--order", order], capsys)
         assert rc == 2 and "--order" in obj["error"], obj
+    # 3 angles cover the turn at order 1, but ISO 230-7's least-squares circle needs 4 (analyze refused)
+    _keep(root / "radial_motion.csv", lambda i, c: float(c[1]) in (0.0, 120.0, 240.0))
+    for cmd in (["validate", str(root), "--order", "1"], ["analyze", str(root), "-o", str(tmp_path / "o"), "--order", "1"]):
+        rc, obj = _cli(cmd, capsys)
+        assert rc == 2 and "reads 3 angles" in obj["error"] and "at least 4" in obj["error"], obj
 
 
 def test_ccd_sweep_structure_is_checked_for_the_order(tmp_path):
