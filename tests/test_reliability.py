@@ -105,7 +105,7 @@ def test_b_simulate_refuses_an_existing_dataset_before_simulating(tmp_path, caps
     root = make_dataset(tmp_path / "ds")
     before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
     t0 = time.perf_counter()
-    _err(["simulate", str(JIA), "-o", str(root), "--backend", "analytic"], capsys, str(root), "not empty", "--force")
+    _err(["simulate", str(JIA), "-o", str(root), "--backend", "analytic"], capsys, str(root), "holds a complete dataset", "--force")
     assert time.perf_counter() - t0 < 10  # refused at once, nothing simulated
     assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before
 
@@ -145,7 +145,7 @@ def test_b_simulate_killed_over_an_old_dataset_leaves_nothing_complete(tmp_path,
         return real(self, relpath, image)
 
     monkeypatch.setattr(dsmod.DatasetWriter, "write_image", dying)
-    with pytest.raises(DatasetError, match="not empty"):
+    with pytest.raises(DatasetError, match="holds a complete dataset"):
         simulate(sc, root, progress=False, backend="analytic")
     with pytest.raises(KeyboardInterrupt):
         simulate(sc, root, progress=False, backend="analytic", force=True)
