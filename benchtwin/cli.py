@@ -225,7 +225,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: seconds a failed command's process may take to exit normally (its pools and threads joined)
+#: before it is ended with its exit code (``_end_promptly``)
+EXIT_GRACE_S = 3.0
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: this process's); returns the exit code. As the
+    process's own command (``argv`` None, the ``benchtwin`` script) a failed command also ends
+    the process promptly (``_end_promptly``)."""
+    code = _main(argv)
+    if code != 0 and argv is None:
+        _end_promptly(code)
+    return code
+
+
+def _end_promptly(code: int, grace_s: float = EXIT_GRACE_S) -> None:
+    """A failed command's process ends within ``grace_s`` with ``code``, whatever is still alive
+    in it (issue #31: after a MemoryError, ``simulate`` printed its error and never exited: the
+    interpreter's exit joins non-daemon threads and process pools, and a pool whose forkserver
+    never answers is joined forever). The normal exit goes on meanwhile (pools shut down, exit
+    handlers run); if it has not finished when the grace ends, a daemon thread flushes the output
+    and ends the process (``os._exit``; every output file is atomic or journaled, so nothing is
+    left half-written that a reader would take as complete)."""
+    import threading
+    import time
+
+    def end() -> None:
+        time.sleep(grace_s)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:  # noqa: BLE001 - a closed or broken stream: exit all the same
+                pass
+        os._exit(code)
+
+    threading.Thread(target=end, name="benchtwin-exit", daemon=True).start()
+
+
+def _main(argv: list[str] | None) -> int:
     # Headless GL for the whole process, before anything imports mujoco (it binds its GL backend at
     # import): Mesa's EGL for the twin's renderer and the report's bench view alike, unless the
     # user chose a platform (twin/render/gl.py; the same default as the tests' conftest).

@@ -158,6 +158,49 @@ def die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
+def watch_creator() -> None:
+    """A multiprocessing worker (a pool's: the frame workers, a study's points) ends the moment the
+    process that created it ends (issue #31: after ``kill -9`` of ``simulate`` its frame workers
+    wrote 5 more frames, then blocked for minutes on their task queue, which they hold open
+    themselves).
+
+    - Its creator is multiprocessing's ``parent_process()``, whose sentinel (a pipe the creator
+      holds open) reads as closed once the creator is gone, however it died. A daemon thread waits
+      on it and kills this process (SIGKILL: no exit handler, no flush, no half-finished write
+      completed). This works for a worker forked by the forkserver, whose OS parent is the
+      forkserver (PR_SET_PDEATHSIG cannot name a grandparent).
+    - Where the OS parent is the creator (a spawned worker), ``die_with_parent`` as well: the
+      kernel kills it without waiting for the thread to be scheduled.
+    Not a multiprocessing child: nothing to do."""
+    import multiprocessing as mp
+    import threading
+
+    creator = mp.parent_process()
+    if creator is None:
+        return
+    if creator.pid is not None and os.getppid() == creator.pid:
+        die_with_parent(creator.pid)
+    sentinel = creator.sentinel
+
+    def watch() -> None:
+        from multiprocessing.connection import wait
+
+        wait([sentinel])
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name="benchtwin-creator-watch", daemon=True).start()
+
+
+def creator_alive() -> bool:
+    """Whether the process that created this multiprocessing worker still runs (True outside
+    one). A worker asks before it writes into its creator's output (twin/render/pipeline.py)."""
+    import multiprocessing as mp
+    from multiprocessing.connection import wait
+
+    creator = mp.parent_process()
+    return creator is None or not wait([creator.sentinel], 0)
+
+
 def _report(fd: int, exc: BaseException) -> None:
     tb = "".join(traceback.format_exception(exc))
     try:
@@ -175,4 +218,4 @@ def _send(fd: int, data: bytes) -> None:
         view = view[n:]
 
 
-__all__ = ["ForkCall", "ForkCallError", "die_with_parent", "fork_enabled"]
+__all__ = ["ForkCall", "ForkCallError", "creator_alive", "die_with_parent", "fork_enabled", "watch_creator"]

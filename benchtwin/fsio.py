@@ -47,7 +47,8 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["OutputError", "atomic_write_bytes", "atomic_write_text", "file_mode", "dir_mode", "check_output_dir",
+__all__ = ["OutputError", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
+           "discard_staged", "file_mode", "dir_mode", "check_output_dir",
            "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME", "check_not_input", "check_output_target",
            "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
 
@@ -78,6 +79,15 @@ def dir_mode() -> int:
 def atomic_write_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
     """Write ``data`` to ``path`` atomically (temporary sibling, fsync, chmod, rename)."""
     path = Path(path)
+    return commit_staged(stage_bytes(path, data, fsync=fsync), path)
+
+
+def stage_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
+    """The first half of ``atomic_write_bytes``: ``data`` in a complete temporary sibling of
+    ``path`` (flushed, fsynced, mode set), returned; ``commit_staged`` renames it onto ``path``.
+    Split so that a worker process can write a file's bytes while only its parent makes it
+    appear (twin/render/pipeline.py: a worker outliving a killed run adds no file)."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -87,14 +97,28 @@ def atomic_write_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> 
             if fsync:
                 os.fsync(f.fileno())
         os.chmod(tmp, file_mode())  # mkstemp creates 0600; outputs are ordinary files (issue #13)
+    except BaseException:
+        discard_staged(tmp)
+        raise
+    return Path(tmp)
+
+
+def commit_staged(tmp: str | Path, path: str | Path) -> Path:
+    """Rename a file ``stage_bytes`` wrote onto its target (atomic); removes it if that fails."""
+    try:
         os.replace(tmp, path)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+        discard_staged(tmp)
         raise
-    return path
+    return Path(path)
+
+
+def discard_staged(tmp: str | Path) -> None:
+    """Remove a staged file that will not be committed (missing: nothing to do)."""
+    try:
+        os.unlink(tmp)
+    except FileNotFoundError:
+        pass
 
 
 def atomic_write_text(path: str | Path, text: str, *, fsync: bool = True) -> Path:

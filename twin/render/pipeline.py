@@ -25,6 +25,15 @@ in the caller), whichever worker made them.
   submission order. The caller (twin/simulate.py) journals a capture, and every step after it,
   only once its frame — and every frame before it — is on disk, so the journal never names a
   frame that is not complete.
+- The workers die with the caller and never add a frame after it is gone (issue #31: after a
+  ``kill -9`` of ``simulate`` they wrote 5 more frames, then blocked for minutes): a worker writes
+  a frame's bytes into a temporary sibling (``benchtwin.fsio.stage_bytes``: fsynced, mode set)
+  and the caller renames it onto its name when it collects the frame (``completed``), so only a
+  live caller makes a frame appear; each worker kills itself the moment its creator is gone
+  (``benchtwin.forkcall.watch_creator``) and the forkserver dies with its parent
+  (``benchtwin.forkserver_guard``, its first preload). A frame staged but not collected when the
+  caller fails is removed (``close``); after a ``kill -9`` at most one dot-file per worker may
+  remain, which no reader takes for a frame, and a resume renders the frame again.
 - Not forked from the caller: it may hold threads (EGL, OpenBLAS, OpenCV, a progress bar) and a
   forked child of a process holding a lock hangs (analysis/parallel.py); and each process creates
   its own EGL/OSMesa context (GL contexts do not survive a fork). The workers are forked from
@@ -83,6 +92,8 @@ START_TIMEOUT_S = 120.0
 
 #: the module the forkserver imports before it forks the workers (twin/render/worker_preload.py)
 PRELOAD_MODULE = "benchtwin.twin.render.worker_preload"
+#: imported by the forkserver before ``PRELOAD_MODULE``: it dies with its parent (benchtwin/forkserver_guard.py)
+GUARD_MODULE = "benchtwin.forkserver_guard"
 
 _worker: dict[str, Any] = {}
 #: the GL platform this process's forkserver was started with (``worker_context``)
@@ -161,14 +172,17 @@ def worker_context() -> Any:
         return mp.get_context("spawn")
     if _forkserver_platform.setdefault("gl", platform) != platform:
         return mp.get_context("spawn")
-    ctx.set_forkserver_preload([PRELOAD_MODULE])
+    ctx.set_forkserver_preload([GUARD_MODULE, PRELOAD_MODULE])
     return ctx
 
 
 # ------------------------------------------------------------------------------ worker side
 
 def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
+    from benchtwin.forkcall import watch_creator
     from benchtwin.heap import keep_freed_memory
+
+    watch_creator()     # this worker ends with the run that started it (issue #31)
 
     # a frame's 12 MB temporaries reused from frame to frame instead of fresh pages from the
     # kernel (≈ 3000 page faults, 15 ms of kernel CPU a frame; benchtwin/heap.py): this process only makes frames
@@ -223,15 +237,22 @@ def _make_renderer() -> str:
     return used
 
 
-def render_and_write(path: str, disk: Any, rng: np.random.Generator) -> str:
-    """Worker: one frame from the posed disk and its noise stream, written atomically to ``path``."""
+def render_and_write(path: str, disk: Any, rng: np.random.Generator) -> tuple[str, str]:
+    """Worker: one frame from the posed disk and its noise stream, its PNG written complete to a
+    temporary sibling of ``path``; returns (that file, the backend). The caller renames it onto
+    ``path`` (``FramePipeline.completed``): a worker never makes a frame appear by itself."""
+    import signal
+
     from benchtwin.analysis.dataset import encode_png
-    from benchtwin.fsio import atomic_write_bytes
+    from benchtwin.forkcall import creator_alive
+    from benchtwin.fsio import stage_bytes
 
     w = _worker
     frame = w["renderer"].render(disk, w["grating"], w["camera"], w["sensor"], rng)
-    atomic_write_bytes(path, encode_png(path, frame.image))
-    return str(frame.truth["backend"])
+    png = encode_png(path, frame.image)
+    if not creator_alive():     # the run is gone: write nothing into its folder
+        os.kill(os.getpid(), signal.SIGKILL)
+    return str(stage_bytes(path, png)), str(frame.truth["backend"])
 
 
 # ------------------------------------------------------------------------------ caller side
@@ -246,7 +267,7 @@ class FramePipeline:
         self._started: list[Future] | None = None    # one probe per worker, once they are started
         self._failed = False
         self._backend: str | None = None
-        self._pending: deque[Future] = deque()
+        self._pending: deque[tuple[str, Future]] = deque()   # (frame path, its worker's future)
         self.submitted = 0
         self.done = 0
 
@@ -306,26 +327,46 @@ class FramePipeline:
             raise RuntimeError("FramePipeline.submit before the worker reported its backend")
         if self._pool is None:
             raise RuntimeError("FramePipeline.submit after close")
-        self._pending.append(self._pool.submit(render_and_write, str(path), disk, rng))
+        self._pending.append((str(path), self._pool.submit(render_and_write, str(path), disk, rng)))
         self.submitted += 1
 
     def completed(self, wait: bool = False) -> int:
-        """Frames finished (the finished prefix, in submission order); ``wait``: all of them.
+        """Frames finished and on disk under their names (the finished prefix, in submission
+        order: each renamed here from the worker's temporary file); ``wait``: all of them.
         Re-raises a frame's error."""
-        while self._pending and (wait or self._pending[0].done()):
-            used = self._pending.popleft().result()
+        from benchtwin.fsio import commit_staged, discard_staged
+
+        while self._pending and (wait or self._pending[0][1].done()):
+            path, fut = self._pending.popleft()
+            tmp, used = fut.result()
             if used != self._backend:   # a worker whose probe was not asked (another took both) and whose GL failed
+                discard_staged(tmp)
                 raise RuntimeError(f"frame rendered by {used!r}, journaled as {self._backend!r}")
+            commit_staged(tmp, path)
             self.done += 1
         return self.done
 
     def close(self, wait: bool = True) -> None:
-        """Stop the workers: ``wait`` for the submitted frames (else cancel those not started).
+        """Stop the workers: ``wait`` for the submitted frames and rename them into place (else
+        cancel those not started, wait for those in flight and remove their files).
         The workers then leave in the background (their GL teardown and interpreter exit, ≈ 0.6 s
         on the run's critical path when waited for, issue #17): every frame is on disk already."""
         if self._pool is None:
             return
         if wait:
-            futures.wait(self._pending)
+            self.completed(wait=True)
+        else:   # a failed run: the frames in flight are waited for and their files removed
+            for _, fut in self._pending:
+                fut.cancel()
+            futures.wait([fut for _, fut in self._pending])
+            self._discard_pending()
         self._pool.shutdown(wait=False, cancel_futures=not wait)
         self._pool = None
+
+    def _discard_pending(self) -> None:
+        from benchtwin.fsio import discard_staged
+
+        while self._pending:
+            _, fut = self._pending.popleft()
+            if fut.done() and not fut.cancelled() and fut.exception() is None:
+                discard_staged(fut.result()[0])

@@ -238,7 +238,13 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
 
 def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict[str, Any]], None],
               bar: _Bar) -> None:
-    pool = cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks)), mp_context=_mp_context())
+    from benchtwin.forkcall import watch_creator
+
+    # every worker ends with this process (issue #31: after a kill -9 of `study` its workers went on
+    # computing, then blocked on the task queue): the cache is written here only (store), so no
+    # entry appears once this process is gone
+    pool = cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks)), mp_context=_mp_context(),
+                                  initializer=watch_creator)
     try:
         futs = [pool.submit(_run_task, t) for t in tasks]
         for fut in cf.as_completed(futs):
