@@ -38,7 +38,7 @@ import numpy as np
 
 from benchtwin.jsonable import json_default
 
-from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir
+from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir, disk_full
 from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
 
@@ -344,12 +344,15 @@ class TableAppender:
         if len(set(self.columns)) != len(self.columns):
             raise DatasetError(f"{self.path.name}: duplicated column names {self.columns}")
         self.part = self.path.with_name(f".{self.path.name}.part")
-        self.part.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.part, "w", encoding="utf-8", newline="")
-        self._w = csv.writer(self._fh, lineterminator="\n")
-        self._w.writerow(self.columns)
-        self._fh.flush()
         self.rows = 0
+        try:
+            self.part.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = open(self.part, "w", encoding="utf-8", newline="")
+            self._w = csv.writer(self._fh, lineterminator="\n")
+            self._w.writerow(self.columns)
+            self._fh.flush()
+        except OSError as exc:
+            raise disk_full(exc, self.part) or exc
 
     def append(self, row: Mapping[str, Any] | Sequence[Any]) -> None:
         """One row: a mapping with every column, or a sequence in column order."""
@@ -361,20 +364,29 @@ class TableAppender:
         elif len(row) != len(self.columns):
             raise DatasetError(f"{self.path.name}: row {self.rows + 2}: expected {len(self.columns)} values, "
                                f"got {len(row)}")
-        self._w.writerow([_cell(v) for v in row])
-        self._fh.flush()
+        try:
+            self._w.writerow([_cell(v) for v in row])
+            self._fh.flush()
+        except OSError as exc:  # a full disk names the table (benchtwin.fsio.DiskFullError)
+            raise disk_full(exc, self.part) or exc
         self.rows += 1
 
     def close(self) -> Path:
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
-        self._fh.close()
+        try:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+        except OSError as exc:
+            raise disk_full(exc, self.part) or exc
         os.replace(self.part, self.path)
         return self.path
 
     def abort(self) -> None:
         if not self._fh.closed:
-            self._fh.close()
+            try:
+                self._fh.close()
+            except OSError:     # the rows it could not flush (a full disk): the file goes anyway
+                pass
         if self.part.exists():
             self.part.unlink()
 

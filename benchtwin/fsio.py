@@ -47,7 +47,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["OutputError", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
+__all__ = ["OutputError", "DiskFullError", "disk_full", "free_bytes", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
            "discard_staged", "file_mode", "dir_mode", "check_output_dir",
            "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME", "check_not_input", "check_output_target",
            "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
@@ -57,6 +57,69 @@ LOCK_NAME = ".benchtwin.lock"
 
 class OutputError(ValueError):
     """An output target that cannot be written as asked (exists, is locked, is not a folder)."""
+
+
+#: the errors of a full file system: no space left, disk quota exceeded
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+
+
+def _size(n: float) -> str:
+    """Bytes in the largest binary unit that keeps the number ≥ 1 (``12.0 MiB``)."""
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(n) < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    raise AssertionError("unreachable")
+
+
+def free_bytes(path: str | Path) -> int | None:
+    """Bytes an unprivileged writer may still use on the file system of ``path`` (or of its
+    nearest existing parent); None where the OS cannot say."""
+    p = Path(path)
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    try:
+        st = os.statvfs(p)
+    except (OSError, AttributeError):
+        return None
+    return int(st.f_bavail) * int(st.f_frsize)
+
+
+class DiskFullError(OutputError):
+    """A write failed because the file system is full (ENOSPC) or the quota is exceeded (EDQUOT):
+    the file, the bytes it needed, the space left (exit 2, issue #31: a bare ``[Errno 28]`` named
+    nothing). ``needed_bytes``: what that write needed; a command adds what the rest of its run
+    needs and how to resume (``hint``)."""
+
+    def __init__(self, path: str | Path, needed_bytes: int | None, reason: str, hint: str = ""):
+        self.path = Path(path)
+        self.needed_bytes = needed_bytes
+        self.free_bytes = free_bytes(self.path.parent)
+        self.reason = reason
+        self.hint = hint
+        super().__init__(self._text())
+
+    def _text(self) -> str:
+        need = f" writing {_size(self.needed_bytes)}" if self.needed_bytes is not None else ""
+        free = f"; {_size(self.free_bytes)} free there" if self.free_bytes is not None else ""
+        return f"{self.path}: the disk is full ({self.reason}){need}{free}" + (f"; {self.hint}" if self.hint else "")
+
+    def with_hint(self, hint: str) -> "DiskFullError":
+        """The same error, with what the command knows: the space the rest needs, how to resume."""
+        err = DiskFullError(self.path, self.needed_bytes, self.reason, hint)
+        err.__cause__ = self.__cause__
+        return err
+
+
+def disk_full(exc: BaseException, path: str | Path, needed_bytes: int | None = None) -> DiskFullError | None:
+    """``exc`` as a ``DiskFullError`` naming ``path`` if it is a full file system's error, else None."""
+    if isinstance(exc, DiskFullError):
+        return exc
+    if isinstance(exc, OSError) and exc.errno in DISK_FULL_ERRNOS:
+        err = DiskFullError(path, needed_bytes, exc.strerror or os.strerror(exc.errno))
+        err.__cause__ = exc
+        return err
+    return None
 
 
 def _umask() -> int:
@@ -88,8 +151,11 @@ def stage_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
     Split so that a worker process can write a file's bytes while only its parent makes it
     appear (twin/render/pipeline.py: a worker outliving a killed run adds no file)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise disk_full(exc, path, len(data)) or exc
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -97,9 +163,9 @@ def stage_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
             if fsync:
                 os.fsync(f.fileno())
         os.chmod(tmp, file_mode())  # mkstemp creates 0600; outputs are ordinary files (issue #13)
-    except BaseException:
+    except BaseException as exc:
         discard_staged(tmp)
-        raise
+        raise disk_full(exc, path, len(data)) or exc
     return Path(tmp)
 
 

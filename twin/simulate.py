@@ -439,10 +439,10 @@ class _FrameGatedRunner(Runner):
         super().__init__(*args, **kw)
         self._held: list[tuple[dict, int]] = []
 
-    def _append(self, fh, rec: dict) -> None:
+    def _append(self, fh, *recs: dict) -> None:
         if fh is None:
             return
-        self._held.append((rec, self.frames.submitted))
+        self._held.extend((rec, self.frames.submitted) for rec in recs)
         self._release(fh, self.frames.completed())
 
     def _release(self, fh, done: int) -> None:

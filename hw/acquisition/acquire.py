@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.analysis.dataset import DatasetWriter
-from benchtwin.fsio import OutputError, atomic_write_text, locked_output_dir
+from benchtwin.fsio import DiskFullError, OutputError, atomic_write_text, locked_output_dir
 
 from .bench import BenchConfig, BenchFileError, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
 from .runner import Runner, WallClock
@@ -75,7 +75,12 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     non-empty folder is refused without ``force``; a lock file (``benchtwin.fsio.DirLock``, O_EXCL
     with the pid) stops a second run on the same folder (issue #13: two acquires interleaved one
     journal), and is taken before ``force`` clears anything (issue 31: ``--force`` deleted a live
-    run's journal)."""
+    run's journal).
+
+    A full disk (ENOSPC, EDQUOT) is ``BenchFileError`` (exit 2) naming the file that could not be
+    written, the space free and the space the rest of the run needs (``_rest_of_run``), and how to
+    resume; the step that failed was not journaled, so the resume takes it again (for a CCD stop,
+    its encoder reading and frame: hw/acquisition/runner.py)."""
     cfg = load_bench(bench_path)
     out = Path(out_dir)
     try:
@@ -83,8 +88,31 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
         with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
                                complete_marker="manifest.json", owner="acquire", inputs=[bench_path]):
             return _acquire(cfg, out, resume, progress, on_row, live)
+    except DiskFullError as exc:
+        raise BenchFileError(str(exc.with_hint(_rest_of_run(exc, cfg, bench_path, out)))) from exc
     except OutputError as exc:
         raise BenchFileError(str(exc)) from None
+
+
+def _rest_of_run(exc: DiskFullError, cfg: BenchConfig, bench_path: str | Path, out: Path) -> str:
+    """What a full disk's message adds: the space the rest of the run needs, estimated from what
+    the steps journaled so far wrote (the folder's bytes per step × the steps left, with the
+    failed write's own bytes as the least), and the command that resumes."""
+    from .runner import iter_journal
+
+    n_steps = sum(1 for _ in iter_procedure(cfg))
+    done = sum(1 for r in iter_journal(out / JOURNAL) if "i" in r) if (out / JOURNAL).is_file() else 0
+    written = sum(p.stat().st_size for p in out.rglob("*") if p.is_file() and not p.is_symlink())
+    rest = written / done * (n_steps - done) if done else 0.0
+    need = max(rest, float(exc.needed_bytes or 0))
+    how = (f"free at least {_mib(need)} (the rest of the run: {n_steps - done} of {n_steps} steps, estimated "
+           f"from the {done} written) and continue with `benchtwin acquire {bench_path} -o {out} --resume`; "
+           "every reading journaled is kept, and the step that failed is taken again")
+    return how
+
+
+def _mib(n: float) -> str:
+    return f"{n / 2**20:.1f} MiB"
 
 
 def _acquire(cfg: BenchConfig, out: Path, resume: bool, progress: bool,

@@ -24,6 +24,13 @@
   (benchmarks/hil_bench.py). ``run`` is ``stream`` with a sink that collects the rows into a list.
   Order per live row: ``on_row``, then ``sink``, then the journal line (so whatever the sink writes
   for a row exists before the row is journaled).
+- A stop's Read and the Capture right after it are journaled together, once the frame is on disk
+  (one write): the encoder reading at a CCD stop is what makes a hot-folder camera's frame (the
+  emulator renders it then, twin/emulators/backend.py), so a run that failed at the frame (a full
+  disk, issue #31) resumes at the Read and takes the frame again, instead of asking the camera
+  for a frame it already gave. The journal's lines and their order are unchanged.
+- A full disk (ENOSPC, EDQUOT) while a journal line is written is ``benchtwin.fsio.DiskFullError``
+  naming the journal; the torn line is cut on resume and its step done again.
 
 This module never imports the twin (``hw`` is usable without it).
 """
@@ -39,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.fsio import disk_full
 from benchtwin.jsonable import to_json
 from benchtwin.hw.interfaces import MOVE_NOT_HELD
 
@@ -130,6 +138,16 @@ def read_journal(path: str | Path) -> list[dict[str, Any]]:
     return list(iter_journal(path))
 
 
+def _with_next(procedure: Iterable[Step]) -> Iterator[tuple[Step, Step | None]]:
+    """(step, the step after it or None), consuming the procedure lazily (one step ahead)."""
+    it = iter(procedure)
+    cur = next(it, None)
+    while cur is not None:
+        nxt = next(it, None)
+        yield cur, nxt
+        cur = nxt
+
+
 def _drop_torn_tail(path: Path) -> None:
     """Cut a half-written last line (a crash during a write) before appending to the journal; reads
     only the file's tail."""
@@ -180,13 +198,18 @@ class Runner:
         if self.strict and reading.get("status", "ok") != "ok":
             raise RunnerError(f"step {i}: {name} returned status {reading.get('status')!r}")
 
-    def _append(self, fh, rec: dict) -> None:
+    def _append(self, fh, *recs: dict) -> None:
+        """Journal ``recs`` (one write: a Read and its stop's Capture go in together)."""
         if fh is None:
             return
-        fh.write(json.dumps(rec, sort_keys=True, allow_nan=True) + "\n")
-        fh.flush()
-        if self.fsync:
-            os.fsync(fh.fileno())
+        text = "".join(json.dumps(rec, sort_keys=True, allow_nan=True) + "\n" for rec in recs)
+        try:
+            fh.write(text)
+            fh.flush()
+            if self.fsync:
+                os.fsync(fh.fileno())
+        except OSError as exc:
+            raise disk_full(exc, self.journal or Path(fh.name), len(text.encode())) or exc
 
     # ------------------------------------------------------------------ run
     def run(self, procedure: Iterable[Step], resume: bool = False, restart: bool = False) -> list[dict[str, Any]]:
@@ -227,10 +250,12 @@ class Runner:
                 self._append(f, {"journal": "benchtwin-run", "version": JOURNAL_VERSION})
             return f
 
+        held: dict | None = None    # a Read's line, journaled with the Capture after it
+        failed = False
         try:
             if self.journal is not None and journal_iter is None:
                 fh = open_journal(False)
-            for i, step in enumerate(procedure):
+            for i, (step, nxt) in enumerate(_with_next(procedure)):
                 desc = describe_step(step)
                 if isinstance(step, Mark):
                     context.update(step.context)
@@ -299,8 +324,21 @@ class Runner:
                     if sink is not None:
                         sink(row, live)
                 rec["t_s"] = float(self.clock.now())
-                self._append(fh, rec)
+                if isinstance(step, Read) and isinstance(nxt, Capture):
+                    held = rec
+                elif held is not None:
+                    self._append(fh, held, rec)
+                    held = None
+                else:
+                    self._append(fh, rec)
+        except BaseException:
+            failed = True
+            raise
         finally:
             if fh is not None:
-                fh.close()
+                try:
+                    fh.close()
+                except OSError:     # what a full disk kept in the buffer: the error in flight says so
+                    if not failed:
+                        raise
         return n_rows
