@@ -80,7 +80,12 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     A full disk (ENOSPC, EDQUOT) is ``BenchFileError`` (exit 2) naming the file that could not be
     written, the space free and the space the rest of the run needs (``_rest_of_run``), and how to
     resume; the step that failed was not journaled, so the resume takes it again (for a CCD stop,
-    its encoder reading and frame: hw/acquisition/runner.py)."""
+    its encoder reading and frame: hw/acquisition/runner.py).
+
+    An emulated bench (``source = "emulated"``) is checked before a resumed run appends a reading
+    (``Runner(verify_resume=True)``): the stage must stand where the journal left it and the last
+    journaled reading must read the same again; a fresh emulator session fails that check
+    (``ResumeMismatchError``, exit 2) instead of serving the run wrong readings."""
     cfg = load_bench(bench_path)
     out = Path(out_dir)
     try:
@@ -142,7 +147,7 @@ def _acquire(cfg: BenchConfig, out: Path, resume: bool, progress: bool,
             live.start(n_steps)
         try:
             Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
-                   fsync=cfg.run["fsync"], on_step=step_cb,
+                   fsync=cfg.run["fsync"], on_step=step_cb, verify_resume=cfg.source == "emulated",
                    on_row=row_cb if (on_row is not None or live is not None) else None).stream(
                        iter_procedure(cfg), sink, resume=resume)
         except BaseException:

@@ -29,6 +29,14 @@
   emulator renders it then, twin/emulators/backend.py), so a run that failed at the frame (a full
   disk, issue #31) resumes at the Read and takes the frame again, instead of asking the camera
   for a frame it already gave. The journal's lines and their order are unchanged.
+- ``verify_resume`` (emulated benches: ``acquire`` with ``source = "emulated"``): before the first
+  live step of a resumed run the stage must stand at the journal's last move (or at the move in
+  progress when the run stopped); once the last move is re-issued, the last journaled Read is taken
+  again if it was taken at that stop (no move journaled after it: a move elsewhere and back would
+  change the bench's path, and with it the readings); every number must be the journaled one (an
+  emulator draws the same value at the same stop of the same session), else
+  ``ResumeMismatchError`` says which reading differs and what to do. A fresh emulator session has lost the run's state (its place in the procedure, the
+  polygon's clamping, its clock) and served a resumed run wrong readings with exit 0 (issue #31).
 - A full disk (ENOSPC, EDQUOT) while a journal line is written is ``benchtwin.fsio.DiskFullError``
   naming the journal; the torn line is cut on resume and its step done again.
 
@@ -52,13 +60,24 @@ from benchtwin.hw.interfaces import MOVE_NOT_HELD
 
 from .procedures import Capture, Mark, Move, Read, Step, Wait, describe_step
 
-__all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "dry_run", "read_journal", "iter_journal"]
+__all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "ResumeMismatchError", "dry_run", "read_journal", "iter_journal"]
 
 JOURNAL_VERSION = 1
 
 
 class RunnerError(RuntimeError):
     """The run cannot go on (failed reading status, journal mismatch on resume)."""
+
+
+class ResumeMismatchError(RunnerError):
+    """On resume, the instruments do not read at the journal's last stop what the journal holds."""
+
+
+#: how far the stage may stand from the journal's last move on resume (a microstep is 1e-3° or less)
+STAGE_TOLERANCE_DEG = 1e-3
+_MISMATCH_HINT = ("An emulator keeps that state (its place in the procedure, the polygon's clamping, its clock) only "
+                  "within the session that served the run: resume against that session, or start the run again "
+                  "with --force on a fresh session (the journaled readings are then deleted)")
 
 
 class SimClock:
@@ -138,6 +157,23 @@ def read_journal(path: str | Path) -> list[dict[str, Any]]:
     return list(iter_journal(path))
 
 
+def _numbers_differ(old: Any, new: Any, key: str = "") -> Iterator[tuple[str, Any, Any]]:
+    """(key, journaled, now) of every number of a reading that differs (time stamps excepted)."""
+    if isinstance(old, Mapping):
+        for k, v in old.items():
+            if k != "t_s":
+                yield from _numbers_differ(v, new.get(k) if isinstance(new, Mapping) else None, f"{key}.{k}" if key else k)
+    elif isinstance(old, list):
+        if not isinstance(new, list) or len(new) != len(old):
+            yield key, old, new
+            return
+        for j, (a, b) in enumerate(zip(old, new)):
+            yield from _numbers_differ(a, b, f"{key}[{j}]")
+    elif isinstance(old, (int, float)) and not isinstance(old, bool):
+        if not isinstance(new, (int, float)) or float(new) != float(old):
+            yield key, old, new
+
+
 def _with_next(procedure: Iterable[Step]) -> Iterator[tuple[Step, Step | None]]:
     """(step, the step after it or None), consuming the procedure lazily (one step ahead)."""
     it = iter(procedure)
@@ -177,7 +213,8 @@ def _drop_torn_tail(path: Path) -> None:
 class Runner:
     def __init__(self, instruments: Mapping[str, Any], clock: Any, journal: str | Path | None = None,
                  stage: str = "stage", on_step: Callable[..., None] | None = None,
-                 on_row: Callable[[dict, dict], None] | None = None, strict: bool = True, fsync: bool = True):
+                 on_row: Callable[[dict, dict], None] | None = None, strict: bool = True, fsync: bool = True,
+                 verify_resume: bool = False):
         self.instruments = dict(instruments)
         self.clock = clock
         self.journal = Path(journal) if journal is not None else None
@@ -186,6 +223,7 @@ class Runner:
         self.on_row = on_row
         self.strict = strict  # raise on a reading whose status is not "ok"
         self.fsync = fsync    # hardware: fsync every line; the twin may only flush (fast, same file)
+        self.verify_resume = verify_resume  # re-read the last journaled stop on resume (see module docstring)
 
     # ------------------------------------------------------------------ internals
     def _inst(self, name: str) -> Any:
@@ -210,6 +248,32 @@ class Runner:
                 os.fsync(fh.fileno())
         except OSError as exc:
             raise disk_full(exc, self.journal or Path(fh.name), len(text.encode())) or exc
+
+    def _verify_stage(self, last_move: float, step: Step) -> None:
+        """Resume: the stage must stand where the journal left it (its last move), or at the target
+        of the move the run was making when it stopped (done, not yet journaled)."""
+        pos = self._inst(self.stage).position()
+        deg = float(pos.get("stage_deg", pos["angle_deg"]))
+        stops = [last_move] + ([step.target_deg] if isinstance(step, Move) else [])
+        if all(abs(deg - s) > STAGE_TOLERANCE_DEG for s in stops):
+            raise ResumeMismatchError(
+                f"{self.journal}: resume: the stage {self.stage!r} stands at {deg:.6g}°, the journal left it at "
+                f"{last_move:.6g}°: the bench is not in the state the run left it in. {_MISMATCH_HINT}")
+
+    def _verify_position(self, rec: dict) -> None:
+        """Resume, the bench standing at the stop of the journaled Read ``rec``: take it again;
+        every number of every reading (but its time stamp) must be the journal's
+        (ResumeMismatchError)."""
+        differ = []
+        for name, old in rec["row"]["readings"].items():
+            new = _plain(self._inst(name).read())
+            differ += [f"{name}.{key}: journal {a!r}, now {b!r}" for key, a, b in _numbers_differ(old, new)]
+        if differ:
+            where = ", ".join(f"{k} {v}" for k, v in rec["row"]["tag"].items())
+            raise ResumeMismatchError(
+                f"{self.journal}: resume: the instruments do not read at step {rec['i']} ({where}) what the journal "
+                f"holds ({'; '.join(differ[:4])}{'; …' if len(differ) > 4 else ''}): the bench is not in the state the "
+                f"run left it in. {_MISMATCH_HINT}")
 
     # ------------------------------------------------------------------ run
     def run(self, procedure: Iterable[Step], resume: bool = False, restart: bool = False) -> list[dict[str, Any]]:
@@ -251,6 +315,7 @@ class Runner:
             return f
 
         held: dict | None = None    # a Read's line, journaled with the Capture after it
+        last_read: tuple[dict, float | None] | None = None   # the last journaled Read, and its stop
         failed = False
         try:
             if self.journal is not None and journal_iter is None:
@@ -268,6 +333,8 @@ class Runner:
                         self.on_step(i, step, dict(context), True)
                     if isinstance(step, Move):
                         last_move = step.target_deg
+                    if isinstance(step, Read) and "row" in rec:
+                        last_read = (rec, last_move)
                     if "row" in rec:
                         n_rows += 1
                         if sink is not None:
@@ -278,8 +345,12 @@ class Runner:
                 if journal_iter is not None:  # the first live step after the journaled ones
                     journal_iter = None
                     if n_done:
+                        if self.verify_resume and last_move is not None:
+                            self._verify_stage(last_move, step)
                         if last_move is not None:  # stand where the bench stood (move times count from there)
                             self._inst(self.stage).move_to(last_move)
+                        if self.verify_resume and last_read is not None and last_read[1] == last_move:
+                            self._verify_position(last_read[0])
                         self.clock.set(last_t)
                     fh = open_journal(True)
                 if self.on_step is not None:
