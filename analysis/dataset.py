@@ -38,7 +38,7 @@ import numpy as np
 
 from benchtwin.jsonable import json_default
 
-from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir, disk_full
+from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir, raise_if_disk_full
 from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
 
@@ -352,7 +352,8 @@ class TableAppender:
             self._w.writerow(self.columns)
             self._fh.flush()
         except OSError as exc:
-            raise disk_full(exc, self.part) or exc
+            raise_if_disk_full(exc, self.part)
+            raise
 
     def append(self, row: Mapping[str, Any] | Sequence[Any]) -> None:
         """One row: a mapping with every column, or a sequence in column order."""
@@ -368,7 +369,8 @@ class TableAppender:
             self._w.writerow([_cell(v) for v in row])
             self._fh.flush()
         except OSError as exc:  # a full disk names the table (benchtwin.fsio.DiskFullError)
-            raise disk_full(exc, self.part) or exc
+            raise_if_disk_full(exc, self.part)
+            raise
         self.rows += 1
 
     def close(self) -> Path:
@@ -377,7 +379,8 @@ class TableAppender:
             os.fsync(self._fh.fileno())
             self._fh.close()
         except OSError as exc:
-            raise disk_full(exc, self.part) or exc
+            raise_if_disk_full(exc, self.part)
+            raise
         os.replace(self.part, self.path)
         return self.path
 

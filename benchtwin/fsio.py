@@ -47,7 +47,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["OutputError", "DiskFullError", "disk_full", "free_bytes", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
+__all__ = ["OutputError", "DiskFullError", "disk_full", "raise_if_disk_full", "free_bytes", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
            "discard_staged", "file_mode", "dir_mode", "check_output_dir",
            "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME", "check_not_input", "check_output_target",
            "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
@@ -111,6 +111,16 @@ class DiskFullError(OutputError):
         return err
 
 
+def raise_if_disk_full(exc: BaseException, path: str | Path, needed_bytes: int | None = None) -> None:
+    """In an ``except`` clause: raise ``exc`` as a ``DiskFullError`` naming ``path`` if it is a full
+    file system's error; else return (the caller re-raises ``exc``)."""
+    err = disk_full(exc, path, needed_bytes)
+    if err is exc:
+        raise exc
+    if err is not None:
+        raise err from exc
+
+
 def disk_full(exc: BaseException, path: str | Path, needed_bytes: int | None = None) -> DiskFullError | None:
     """``exc`` as a ``DiskFullError`` naming ``path`` if it is a full file system's error, else None."""
     if isinstance(exc, DiskFullError):
@@ -155,7 +165,8 @@ def stage_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
-        raise disk_full(exc, path, len(data)) or exc
+        raise_if_disk_full(exc, path, len(data))
+        raise
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -165,7 +176,8 @@ def stage_bytes(path: str | Path, data: bytes, *, fsync: bool = True) -> Path:
         os.chmod(tmp, file_mode())  # mkstemp creates 0600; outputs are ordinary files (issue #13)
     except BaseException as exc:
         discard_staged(tmp)
-        raise disk_full(exc, path, len(data)) or exc
+        raise_if_disk_full(exc, path, len(data))
+        raise
     return Path(tmp)
 
 

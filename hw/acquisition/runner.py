@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from benchtwin.fsio import disk_full
+from benchtwin.fsio import raise_if_disk_full
 from benchtwin.jsonable import to_json
 from benchtwin.hw.interfaces import MOVE_NOT_HELD
 
@@ -247,7 +247,8 @@ class Runner:
             if self.fsync:
                 os.fsync(fh.fileno())
         except OSError as exc:
-            raise disk_full(exc, self.journal or Path(fh.name), len(text.encode())) or exc
+            raise_if_disk_full(exc, self.journal or Path(fh.name), len(text.encode()))
+            raise
 
     def _verify_stage(self, last_move: float, step: Step) -> None:
         """Resume: the stage must stand where the journal left it (its last move), or at the target
