@@ -132,6 +132,10 @@ class ProtocolEmulator:
             out.append((req, reply))
         return out
 
+    def pending_bytes(self) -> int:
+        """Bytes of a request received without its terminator yet (a server limits them)."""
+        return len(self._buf)
+
     def handle(self, request: bytes) -> bytes | None:  # pragma: no cover - abstract
         raise NotImplementedError
 

@@ -18,6 +18,26 @@ so a connection is only a connection: ``emulator.connect({"transport": "tcp"})``
 client's partial request. One client per instrument at a time, as the instruments' single command
 channel: a new connection replaces the old one (a client that re-connects after a network fault
 is served at once; the stale connection is closed).
+
+A hostile or broken client cannot take a port down (issue #31: one client that sent requests
+without reading the replies blocked its port for good, its thread stuck in ``sendall``). Per
+connection:
+
+- replies are sent without blocking, from a buffer of at most ``MAX_OUTPUT_BYTES`` (and a socket
+  send buffer of that size); while replies
+  wait, no further request is read (the client's own sends back up, not the server); replies
+  still waiting after ``SEND_TIMEOUT_S`` (a client of this request/reply protocol takes each reply
+  before it asks again: its replies never wait long), or a buffer over the limit, close the
+  connection;
+- a request line longer than ``MAX_LINE_BYTES`` without its terminator closes the connection (an
+  instrument's input buffer is a few hundred bytes; the protocols' requests are under 100);
+- requests are read ``RECV_BYTES`` at a time, and the emulators' lock is released between reads,
+  so a flood on one port leaves the other ports served;
+- the listening socket is watched all the time: a new connection is served at once (and replaces
+  the old one, as above).
+
+Each closed connection is noted in ``TcpServer.closed`` (port and why); these are the clients'
+faults, not the emulator's (``errors``).
 """
 
 from __future__ import annotations
@@ -25,6 +45,7 @@ from __future__ import annotations
 import select
 import socket
 import threading
+import time
 from collections.abc import Mapping
 from typing import Any
 
@@ -33,6 +54,16 @@ from .pty import fault_reply, load_fault_plan
 __all__ = ["TcpServer", "HOST"]
 
 HOST = "127.0.0.1"
+#: longest request line (bytes) a connection may send without its terminator
+MAX_LINE_BYTES = 4096
+#: most reply bytes kept for a connection that is not reading them
+MAX_OUTPUT_BYTES = 65536
+#: seconds replies may wait for a client that reads none of them
+SEND_TIMEOUT_S = 5.0
+#: bytes read from a connection at a time (the emulators' lock is released in between)
+RECV_BYTES = 1024
+#: closed connections noted at most (``TcpServer.closed``)
+CLOSED_KEPT = 100
 
 
 class _Endpoint:
@@ -42,6 +73,8 @@ class _Endpoint:
         self.sock = sock
         self.port = sock.getsockname()[1]
         self.client: socket.socket | None = None
+        self.out = bytearray()           # replies not yet sent to the client
+        self.out_since = 0.0             # monotonic time since when replies have been waiting
         self.count = 0
         self.faults: dict[int, dict[str, Any]] = {}
         self.fired: list[dict[str, Any]] = []
@@ -71,6 +104,7 @@ class TcpServer:
         self._stop = threading.Event()
         self.ends: dict[str, _Endpoint] = {}
         self.errors: list[str] = []
+        self.closed: list[str] = []      # connections closed for a client's fault (see the module docstring)
 
     def start(self) -> dict[str, str]:
         try:
@@ -131,12 +165,36 @@ class TcpServer:
             except OSError:
                 pass
             e.client = None
+        e.out.clear()
+
+    def _close(self, e: _Endpoint, why: str) -> None:
+        """Close the client's connection for its own fault, and note why."""
+        if len(self.closed) < CLOSED_KEPT:
+            self.closed.append(f"{e.name}: {why}")
+        self._drop(e)
+
+    def _send(self, e: _Endpoint) -> None:
+        """Send what the client's socket takes now (never blocks)."""
+        if e.client is None or not e.out:
+            return
+        try:
+            n = e.client.send(e.out)
+        except BlockingIOError:
+            n = 0
+        except OSError:
+            self._drop(e)
+            return
+        del e.out[:n]
 
     def _serve(self, e: _Endpoint) -> None:
         while not self._stop.is_set():
-            watch = [e.sock] + ([e.client] if e.client is not None else [])
+            readers: list[socket.socket] = [e.sock]
+            writers: list[socket.socket] = []
+            if e.client is not None:
+                # replies waiting: send them before reading more requests (back-pressure)
+                (writers if e.out else readers).append(e.client)
             try:
-                r, _, _ = select.select(watch, [], [], self.poll_s)
+                r, w, _ = select.select(readers, writers, [], self.poll_s)
             except (OSError, ValueError):
                 self._drop(e)
                 continue
@@ -148,14 +206,24 @@ class TcpServer:
                 if conn is not None:
                     self._drop(e)
                     conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    # a fixed send buffer: the kernel's autotuning would take megabytes of replies
+                    # for a client that reads none (and hide that it reads none)
+                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, MAX_OUTPUT_BYTES)
+                    conn.setblocking(False)
                     e.client = conn
                     with self.lock:
                         e.emulator.connect({"transport": "tcp"})
                 continue
+            if e.client is not None and e.client in w:
+                self._send(e)
+            if e.client is not None and e.out and time.monotonic() - e.out_since > SEND_TIMEOUT_S:
+                self._close(e, f"the client read none of {len(e.out)} reply bytes for {SEND_TIMEOUT_S:g} s")
             if e.client is None or e.client not in r:
                 continue
             try:
-                data = e.client.recv(4096)
+                data = e.client.recv(RECV_BYTES)
+            except BlockingIOError:
+                continue
             except OSError:
                 data = b""
             if not data:          # the client closed its end
@@ -164,6 +232,7 @@ class TcpServer:
             try:
                 with self.lock:
                     exchanges = e.emulator.feed(data)
+                    pending = e.emulator.pending_bytes()
             except Exception as exc:  # noqa: BLE001 - an emulator bug must not kill the port silently
                 self.errors.append(f"{e.name}: {type(exc).__name__}: {exc}")
                 continue
@@ -173,8 +242,14 @@ class TcpServer:
                     self._drop(e)
                     break
                 if reply and e.client is not None:
-                    try:
-                        e.client.sendall(reply)
-                    except OSError:
-                        self._drop(e)
-                        break
+                    if not e.out:
+                        e.out_since = time.monotonic()
+                    e.out += reply
+            if e.client is None:
+                continue
+            if pending > MAX_LINE_BYTES:
+                self._close(e, f"a request of over {MAX_LINE_BYTES} bytes without its line end")
+                continue
+            self._send(e)
+            if len(e.out) > MAX_OUTPUT_BYTES:
+                self._close(e, f"over {MAX_OUTPUT_BYTES} reply bytes the client did not read")
