@@ -246,3 +246,40 @@ def test_simulate_under_a_memory_limit_ends(tmp_path):
     assert not alive, f"alive after simulate ended: {alive}"
     assert proc.returncode != 0, err
     assert not (out / "manifest.json").exists()
+
+
+@needs_linux
+def test_a_forkserver_that_never_answers_is_given_up():
+    """The frame workers' forkserver stopped (as one stuck in its imports under ``ulimit -v``):
+    the run's wait for its first worker ends after ``START_TIMEOUT_S``, the forkserver is killed
+    and the frames fall back to serial (``backend()`` None, with a warning). In a process of its
+    own: the forkserver is the process's."""
+    script = textwrap.dedent("""
+        import multiprocessing as mp, os, signal, warnings
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import forkserver
+        from benchtwin.twin.render import pipeline
+
+        if __name__ == "__main__":
+            pipeline.START_TIMEOUT_S = 1.0
+            ctx = mp.get_context("forkserver")
+            pipe = pipeline.FramePipeline(ProcessPoolExecutor(max_workers=1, mp_context=ctx), 1)
+            forkserver.ensure_running()
+            pid = forkserver._forkserver._forkserver_pid
+            os.kill(pid, signal.SIGSTOP)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                assert pipe.backend() is None
+            assert any("did not answer within 1 s" in str(w.message) for w in caught), caught
+            assert os.waitpid(pid, 0)[0] == pid             # killed: reaped here
+            print("given up")
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the wait for a forkserver that never answers did not end")
+    finally:
+        _reap(proc.pid)
+    assert proc.returncode == 0 and "given up" in out, err

@@ -176,6 +176,19 @@ def worker_context() -> Any:
     return ctx
 
 
+def _kill_forkserver() -> None:
+    """Kill this process's multiprocessing forkserver (one that does not answer)."""
+    import signal
+    from multiprocessing import forkserver
+
+    pid = getattr(getattr(forkserver, "_forkserver", None), "_forkserver_pid", None)
+    if pid:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 # ------------------------------------------------------------------------------ worker side
 
 def _init_worker(backend: str, grating: Any, camera: Any, sensor: Any) -> None:
@@ -304,13 +317,43 @@ class FramePipeline:
         if self._started is None and self._pool is not None:
             self._started = [self._pool.submit(probe) for _ in range(self._n_workers)]
 
+    def _start_workers_within(self, timeout_s: float) -> None:
+        """``_start_workers``, given up after ``timeout_s``. A worker's start waits for the
+        forkserver's answer, and a forkserver that never answers (under ``ulimit -v``, OpenBLAS
+        loops in its thread start while the forkserver imports the render stack, issue #31) would
+        hold the run for good: it is killed, which ends that wait (the run then renders its frames
+        serially; the next pipeline starts a new forkserver)."""
+        import threading
+
+        if self._started is not None or self._pool is None:
+            return
+        failed: list[BaseException] = []
+
+        def start() -> None:
+            try:
+                self._start_workers()
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+                failed.append(exc)
+
+        t = threading.Thread(target=start, name="benchtwin-frame-workers-start", daemon=True)
+        t.start()
+        t.join(timeout_s)
+        if t.is_alive():
+            _kill_forkserver()
+            t.join(timeout_s)
+            if t.is_alive():    # still inside the pool's lock: leave the pool alone (no shutdown)
+                self._pool = None
+            raise RuntimeError(f"the frame workers' forkserver did not answer within {timeout_s:g} s")
+        if failed:
+            raise failed[0]
+
     def backend(self) -> str | None:
         """The workers' backend (starts them if they are not yet, and waits for their start); None
         if they could not start or found different backends (fall back to serial: nothing has been
         submitted yet)."""
         if self._backend is None and not self._failed:
             try:
-                self._start_workers()
+                self._start_workers_within(START_TIMEOUT_S)
                 used = {f.result(timeout=START_TIMEOUT_S) for f in self._started or []}
                 if len(used) != 1:
                     raise RuntimeError(f"workers found different backends {sorted(used)}")
