@@ -31,12 +31,13 @@
   for a frame it already gave. The journal's lines and their order are unchanged.
 - ``verify_resume`` (emulated benches: ``acquire`` with ``source = "emulated"``): before the first
   live step of a resumed run the stage must stand at the journal's last move (or at the move in
-  progress when the run stopped); once the last move is re-issued, the last journaled Read is taken
-  again if it was taken at that stop (no move journaled after it: a move elsewhere and back would
-  change the bench's path, and with it the readings); every number must be the journaled one (an
-  emulator draws the same value at the same stop of the same session), else
-  ``ResumeMismatchError`` says which reading differs and what to do. A fresh emulator session has lost the run's state (its place in the procedure, the
-  polygon's clamping, its clock) and served a resumed run wrong readings with exit 0 (issue #31).
+  progress when the run stopped); if it stands at the last move and the last journaled Read was
+  taken there, that Read is taken again once the move is re-issued (not after a move elsewhere
+  and back: that changes the bench's path, and with it the readings); every number must be the
+  journaled one (an emulator draws the same value at the same stop of the same session), else
+  ``ResumeMismatchError`` says which reading differs and what to do. A fresh emulator session has
+  lost the run's state (its place in the procedure, the polygon's clamping, its clock) and served
+  a resumed run wrong readings with exit 0 (issue #31).
 - A full disk (ENOSPC, EDQUOT) while a journal line is written is ``benchtwin.fsio.DiskFullError``
   naming the journal; the torn line is cut on resume and its step done again.
 
@@ -250,9 +251,11 @@ class Runner:
             raise_if_disk_full(exc, self.journal or Path(fh.name), len(text.encode()))
             raise
 
-    def _verify_stage(self, last_move: float, step: Step) -> None:
+    def _verify_stage(self, last_move: float, step: Step) -> bool:
         """Resume: the stage must stand where the journal left it (its last move), or at the target
-        of the move the run was making when it stopped (done, not yet journaled)."""
+        of the move the run was making when it stopped (done, not yet journaled). Returns whether
+        it stands at the last move (then a reading taken there may be taken again: a stage sent
+        on and back has another path, and the twin reads otherwise at the display's last digits)."""
         pos = self._inst(self.stage).position()
         deg = float(pos.get("stage_deg", pos["angle_deg"]))
         stops = [last_move] + ([step.target_deg] if isinstance(step, Move) else [])
@@ -260,6 +263,7 @@ class Runner:
             raise ResumeMismatchError(
                 f"{self.journal}: resume: the stage {self.stage!r} stands at {deg:.6g}°, the journal left it at "
                 f"{last_move:.6g}°: the bench is not in the state the run left it in. {_MISMATCH_HINT}")
+        return abs(deg - last_move) <= STAGE_TOLERANCE_DEG
 
     def _verify_position(self, rec: dict) -> None:
         """Resume, the bench standing at the stop of the journaled Read ``rec``: take it again;
@@ -346,11 +350,12 @@ class Runner:
                 if journal_iter is not None:  # the first live step after the journaled ones
                     journal_iter = None
                     if n_done:
+                        still = False   # the stage has not left the journal's last stop
                         if self.verify_resume and last_move is not None:
-                            self._verify_stage(last_move, step)
+                            still = self._verify_stage(last_move, step)
                         if last_move is not None:  # stand where the bench stood (move times count from there)
                             self._inst(self.stage).move_to(last_move)
-                        if self.verify_resume and last_read is not None and last_read[1] == last_move:
+                        if still and last_read is not None and last_read[1] == last_move:
                             self._verify_position(last_read[0])
                         self.clock.set(last_t)
                     fh = open_journal(True)

@@ -65,7 +65,8 @@ def test_the_mismatch_names_the_reading_that_differs(tmp_path, monkeypatch, caps
         _, out, steps = _cut(tmp_path, monkeypatch, capsys, first, 152)
     last = steps[-1]["row"]
     assert last["tag"]["procedure"] == "polygon" and last["tag"]["target_deg"] != 0.0
-    monkeypatch.setattr(Runner, "_verify_stage", lambda self, last_move, step: None)  # the stage check off
+    # the stage check off (as if the fresh session's stage stood at the journal's last stop)
+    monkeypatch.setattr(Runner, "_verify_stage", lambda self, last_move, step: True)
     with EmulationSession(_scenario(), camera="analytic") as fresh:
         bench = fresh.start(tmp_path / "emulator-b")
         code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
