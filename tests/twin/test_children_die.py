@@ -222,8 +222,9 @@ def test_main_with_arguments_returns_instead_of_ending_the_process(capsys):
 
 @needs_linux
 def test_simulate_under_a_memory_limit_ends(tmp_path):
-    """``ulimit -v``: the run fails (MemoryError, or a library that cannot load) and its process
-    and every child end; the exit code says it failed."""
+    """``ulimit -v``: the run ends, and every child with it. Here (Debian 12, 2 cores) 640 MiB
+    ends it after ≈ 13 s with a frame worker's MemoryError (exit 1); where the limit suffices,
+    the run completes instead (a dataset with its manifest)."""
     import resource
 
     out = tmp_path / "ds"
@@ -244,8 +245,11 @@ def test_simulate_under_a_memory_limit_ends(tmp_path):
         alive = _wait_session_gone(proc.pid)
         _reap(proc.pid)
     assert not alive, f"alive after simulate ended: {alive}"
-    assert proc.returncode != 0, err
-    assert not (out / "manifest.json").exists()
+    if proc.returncode == 0:
+        assert (out / "manifest.json").is_file()
+    else:
+        assert proc.returncode == 1 and "internal error" in err, err
+        assert not (out / "manifest.json").exists()
 
 
 @needs_linux
