@@ -401,7 +401,7 @@ class FramePipeline:
         else:   # a failed run: the frames in flight are waited for and their files removed
             for _, fut in self._pending:
                 fut.cancel()
-            futures.wait([fut for _, fut in self._pending])
+            futures.wait([fut for _, fut in self._pending], timeout=START_TIMEOUT_S)   # (a hung worker: not for good)
             self._discard_pending()
         self._pool.shutdown(wait=False, cancel_futures=not wait)
         self._pool = None
