@@ -1,5 +1,5 @@
 """The loop on the twin (issue 16), slow: a quadratic autocollimator non-linearity of 3e-4/″
-(scenarios/hidden/ac_nonlinearity.toml) is named and corrected: the residual falls well below
+(scenarios/hidden_templates/ac_nonlinearity.toml, the template-shaped stress case) is named and corrected: the residual falls well below
 0.75× of before, and the corrected calibration curve is within 2u of the encoder's true error."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.slow
 def test_ac_nonlinearity_named_and_corrected(tmp_path):
-    sc = load_scenario(ROOT / "scenarios" / "hidden" / "ac_nonlinearity.toml")
+    sc = load_scenario(ROOT / "scenarios" / "hidden_templates" / "ac_nonlinearity.toml")
     ds = simulate(sc, tmp_path / "ds", progress=False, backend="analytic")
     truth = list(csv.DictReader(open(ds / "truth" / "encoder_error.csv")))
     import shutil

@@ -376,6 +376,9 @@ class Bench:
         self.unbalance_phase_rad = float(ph)
         # Synchronous race waviness, per bearing.
         self.waviness = {"top": list(br["waviness_top"]), "bottom": list(br["waviness_bottom"])}
+        # hidden tangential_motion (twin/hidden.py): undeclared lobes of the same rotating races
+        for s_ in ("top", "bottom"):
+            self.waviness[s_] += self.hidden.race_waviness_lobes(s_)
         self._wav = {s: _lobes_arrays(self.waviness[s]) for s in ("top", "bottom")}
         # Cage lobing: fixed property of each bearing's ball set (orders 1…3, random phases),
         # scaled so its per-axis RMS is sqrt(async_cage_fraction)·async_rms.
@@ -400,6 +403,11 @@ class Bench:
                 self.ball_sets[s_] = generate_ball_set(g, str(br["grade"]), str(br["ball_grade"]),
                                                        _rng(seed, "ball_set", i),
                                                        float(_opt(sc, "bearings", "waviness_scale", 1.0)))
+                extra = _lobes_arrays(self.hidden.race_waviness_lobes(s_))
+                if extra[0].size:   # hidden tangential_motion: undeclared lobes of the inner race
+                    bs = self.ball_sets[s_]
+                    inner = tuple(np.concatenate([x, y]) for x, y in zip(bs.inner, extra))
+                    self.ball_sets[s_] = BallSet(bs.geometry, inner=inner, outer=bs.outer, ball_dd_m=bs.ball_dd_m)
             self.cage_ratio = self.ball_sets["top"].rho
         # Optional measured motion table: replaces the synchronous waviness.
         self.motion_table = None

@@ -284,6 +284,10 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
         "ruling_eccentricity": Field("length", 0.0, lo=0.0, hi=1 * MM,
                                      doc="lines ruled radially from a point this far from the edge's centre"),
         "ruling_eccentricity_azimuth": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
+        "form_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                          doc="mounted form / master-wheel error: broadband orders 2…K, ∝ k^−slope, seeded phases"),
+        "form_slope": Field("dimensionless", 1.5, lo=0.0, hi=4.0, doc="amplitude envelope k^−slope"),
+        "form_max_order": Field("int", 200, lo=2, hi=2000, doc="highest order K of the form spectrum"),
     },
     "optical_radius": {
         "relative": Field("dimensionless", 0.0, lo=-0.2, hi=0.2,
@@ -296,13 +300,26 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
                                          doc="true period at the scale edge = datasheet·(1 + x), same line count"),
     },
     "tangential_motion": {
-        "x_lobes": Field("lobes", [], doc="non-rotating axis motion along lab X: a·cos(k·θ − φ) on both bearings"),
+        "race_waviness_top": Field("lobes", [], doc="undeclared waviness of the top bearing's rotating race "
+                                   "(through the bearing model: a whirl, or Hertz sums for ball bearings)"),
+        "race_waviness_bottom": Field("lobes", [], doc="the same for the bottom bearing"),
+        "x_lobes": Field("lobes", [], doc="legacy template: a·cos(k·θ − φ) on both rolling paths' x only"),
     },
     "tilt_abbe": {
         "delta_L1": Field("length", 0.0, lo=-0.05, hi=0.05, doc="true L1 = L1 + ΔL1 (spheres higher), L2 kept"),
     },
     "ac_drift": {
-        "rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3, doc="extra autocollimator zero drift"),
+        "zero_per_kelvin": Field("angle_per_kelvin", 0.0, lo=-1e-4, hi=1e-4,
+                                 doc="zero shift per K of the instrument's own temperature"),
+        "warmup_rise": Field("temperature_difference", 0.0, lo=0.0, hi=20.0,
+                             doc="steady internal rise after switch-on (light source, electronics)"),
+        "warmup_time_constant": Field("time", 1800.0, lo=1.0, hi=1e6, doc="lumped node's time constant τ"),
+        "switched_on_before": Field("time", 0.0, lo=0.0, hi=1e7, doc="switch-on this long before t = 0"),
+        "room_amplitude": Field("temperature_difference", 0.0, lo=0.0, hi=5.0,
+                                doc="room control cycle ±A the instrument lags with τ"),
+        "room_period": Field("time", 1200.0, lo=10.0, hi=1e6),
+        "room_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
+        "rate": Field("angular_speed", 0.0, lo=-1e-3, hi=1e-3, doc="legacy template: zero drift rate·t"),
     },
     # The autocollimator's optics (twin/instruments/ac_optics.py): physical keys, or the legacy
     # small-angle coefficients gain / quadratic_per_arcsec, mapped to the focal-length error and
@@ -332,7 +349,11 @@ HIDDEN_EFFECTS: dict[str, dict[str, Field]] = {
                      doc="true polygon = certificate + seeded zero-sum pattern; certificate in the manifest"),
     },
     "interpolation_error": {
-        "c1": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC, doc="c1·sin(L·g + φ1), L lines"),
+        "offset_cos": Field("dimensionless", 0.0, lo=-0.2, hi=0.2, doc="Heydemann p: offset of u = cos φ + p"),
+        "offset_sin": Field("dimensionless", 0.0, lo=-0.2, hi=0.2, doc="Heydemann q: offset of v = r·sin(φ + δ) + q"),
+        "amplitude_ratio": Field("dimensionless", 1.0, lo=0.5, hi=2.0, doc="Heydemann r: amplitude of v / u"),
+        "quadrature_error": Field("angle", 0.0, lo=-30 * DEG, hi=30 * DEG, doc="Heydemann δ: departure from 90°"),
+        "c1": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC, doc="legacy template: c1·sin(L·g + φ1), L lines"),
         "c1_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),
         "c2": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC, doc="c2·sin(2·L·g + φ2)"),
         "c2_phase": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG),

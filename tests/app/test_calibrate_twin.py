@@ -1,6 +1,6 @@
 """The twin learns the bench (issue 16, item 3): simulate a bench, calibrate-twin, simulate again.
 
-The bench is scenarios/hidden/graduation_error.toml (a disk division error of 0.8″/0.5″ at k = 4, 6
+The bench is scenarios/hidden_templates/graduation_error.toml (a disk division error of 0.8″/0.5″ at k = 4, 6
 that the dataset does not declare) with a short procedure and wavy bearing races (the jia2019
 lobes of an earlier version: 2/3/5 lobes of 0.15/0.10/0.05 µm on the top race, 2/4 of 0.10/0.05 µm
 on the bottom one: ≈ 0.16 µm RMS of δX at the disk, ≈ 1.5″ of α that Jia's eq. 5 holds only 1/k
@@ -46,7 +46,7 @@ def _alpha(ds: Path) -> np.ndarray:
 @pytest.fixture(scope="module")
 def round_trip(tmp_path_factory):
     d = tmp_path_factory.mktemp("calib")
-    raw = load_toml_file(ROOT / "scenarios" / "hidden" / "graduation_error.toml")
+    raw = load_toml_file(ROOT / "scenarios" / "hidden_templates" / "graduation_error.toml")
     raw["procedure"].update(SHORT)
     raw["bearings"].update(WAVY)
     (d / "bench.toml").write_text(dump_toml(raw, {}, ["the bench"]), encoding="utf-8")
@@ -163,11 +163,11 @@ def test_compare_before_and_after(round_trip, tmp_path):
 
 @pytest.mark.slow
 def test_reference_chain_effect_round_trip(tmp_path):
-    """An autocollimator non-linearity (scenarios/hidden/ac_nonlinearity.toml, 3e-4/″) becomes the
+    """An autocollimator non-linearity (scenarios/hidden_templates/ac_nonlinearity.toml, 3e-4/″) becomes the
     calibrated twin's [hidden.ac_scale]: the MEASURED encoder curve of the calibrated twin (what its
     polygon and autocollimator give, not truth) then matches the bench's, which a twin without it
     does not (the curve is distorted by q·v², v up to ±70″: 1–2″)."""
-    raw = load_toml_file(ROOT / "scenarios" / "hidden" / "ac_nonlinearity.toml")
+    raw = load_toml_file(ROOT / "scenarios" / "hidden_templates" / "ac_nonlinearity.toml")
     raw["procedure"].update(SHORT)
     (tmp_path / "bench.toml").write_text(dump_toml(raw, {}, ["the bench"]), encoding="utf-8")
     base = copy.deepcopy(raw)

@@ -212,7 +212,7 @@ class SimEncoder:
         for k, p, a in self._interpolation_terms:
             out = out + a * np.sin(k * g + p)
         if self.hidden is not None:
-            out = out + self.hidden.interpolation_error_rad(self.n_lines * g)
+            out = out + self.hidden.interpolation_error_rad(self.n_lines * g, self.n_lines)
         return out
 
     # ------------------------------------------------------------------ geometry
