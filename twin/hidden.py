@@ -169,8 +169,8 @@ class Hidden:
         else:
             self._grad = (np.zeros(0), np.zeros(0), np.zeros(0))
         self._race_x = _lobes((self.effects.get("tangential_motion") or {}).get("x_lobes"))
-        a = self.effects.get("ac_drift") or {}
-        self._ac_room_phase = (float(a["room_phase"]) if a.get("room_phase") is not None else float(
+        acd = self.effects.get("ac_drift") or {}
+        self._ac_room_phase = (float(acd["room_phase"]) if acd.get("room_phase") is not None else float(
             np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["ac_room_phase"]])).uniform(0, TWO_PI)))
 
     @classmethod
