@@ -190,14 +190,47 @@ def _reject_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-def loads_json(text: str, where: str, max_depth: int = MAX_DEPTH) -> Any:
-    """JSON with bounded nesting and no NaN/Infinity; errors name ``where``."""
+def _json_int(text: str) -> int:
+    """A JSON integer within int64 (Python's json gives any size: a 401-digit one overflowed later)."""
+    try:
+        return parse_int(text)
+    except ValueError:
+        raise ValueError(f"the integer {_short(text, 30)} is outside the 64-bit range") from None
+
+
+def _json_float(text: str) -> float:
+    """A JSON number that is a finite double (Python's json reads 1e400 as inf)."""
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"the number {_short(text, 30)} overflows a double")
+    return x
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are distinct (Python's json lets the last of a repeated key win)."""
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise _DuplicateKey(f"key {_short(k)} appears twice in one object")
+        out[k] = v
+    return out
+
+
+def loads_json(text: str, where: str, max_depth: int = MAX_DEPTH, allow_nan: bool = False) -> Any:
+    """JSON with bounded nesting, no NaN/Infinity (unless ``allow_nan``: a cache the project wrote
+    itself), integers within int64, numbers that fit a double and no key repeated in an object;
+    errors name ``where``."""
     # '#' is not a comment in JSON: count brackets without the TOML comment rule
     d = nesting_depth(text.replace("#", " "))
     if d > max_depth:
         raise SchemaError(f"{where}: nested {d} levels deep; at most {max_depth} are allowed")
     try:
-        return json.loads(text, parse_constant=_reject_constant)
+        return json.loads(text, parse_constant=float if allow_nan else _reject_constant, parse_int=_json_int,
+                          parse_float=_json_float, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise SchemaError(f"{where}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
     except (ValueError, RecursionError) as exc:

@@ -6,18 +6,24 @@ column name, converts the error to arcsec, and writes a dataset of kind "error-c
 (docs/dataset-format.md: ``error_curve.csv`` with ``theta_deg``, ``error_arcsec``, ``direction``
 [, ``u_arcsec``]) that ``analyze`` / ``close-loop`` read like any other dataset (analysis/error_curve.py).
 
-Every cell is checked: a missing column, an empty or non-numeric cell, a non-finite value or a
-repeated angle is an input error naming the file, the row (as in a text editor: the header is
-row 1) and the column. The dataset is written atomically, manifest last (analysis.dataset).
+Every cell is checked as the dataset reader checks it (issue 31, docs/reliability.md): the file is
+read by ``benchtwin.schema`` (a regular file, bounded size, UTF-8), every number by its one number
+grammar (``1_000`` is an error, not 1000), every value within the range ``validate`` gives its
+column (angles −360…720°, errors and u within ±36 000″); a missing or repeated column, an empty or
+non-numeric cell and a repeated angle are input errors naming the file, the row (as in a text
+editor: the header is row 1) and the column. The table is checked by the dataset reader's own
+``parse_table`` before anything is written, so ``validate`` accepts what ``import`` writes. The
+dataset is written atomically, manifest last (analysis.dataset).
 """
 
 from __future__ import annotations
 
 import csv
-import math
+import io
 from pathlib import Path
 from typing import Any
 
+from benchtwin.schema import MAX_CELL_CHARS, SchemaError, parse_float, read_input_text
 from benchtwin.units import ARCSEC
 
 __all__ = ["import_table", "ERROR_UNITS", "ImportError_"]
@@ -31,56 +37,104 @@ class ImportError_(ValueError):
 
 
 def _number(cell: str, where: str, row: int, col: str) -> float:
-    c = cell.strip().replace("\u2212", "-")  # a typeset minus sign (U+2212) is a minus
+    """One cell by the project's number grammar (benchtwin.schema.parse_float: no ``1_000``, no
+    ``nan``/``inf``, no overflow); a typeset minus sign (U+2212) is a minus."""
+    c = cell.strip().replace("\u2212", "-")
     if not c:
         raise ImportError_(f"{where}: row {row}, column {col!r}: empty cell (expected a number)")
     try:
-        x = float(c)
-    except ValueError:
-        raise ImportError_(f"{where}: row {row}, column {col!r}: expected a number, got {cell!r}") from None
-    if not math.isfinite(x):
-        raise ImportError_(f"{where}: row {row}, column {col!r}: expected a finite number, got {cell!r}")
-    return x
+        return parse_float(c)
+    except ValueError as exc:
+        detail = str(exc).removeprefix("expected ")
+        raise ImportError_(f"{where}: row {row}, column {col!r}: expected a number, got {_short(cell)} "
+                           f"({detail})") from None
+
+
+def _short(v: str, n: int = 40) -> str:
+    s = repr(v)
+    return s if len(s) <= n else s[: n - 1] + "…"
 
 
 def read_columns(table: str | Path, angle: str, error: str, reverse: str | None = None,
                  u: str | None = None) -> dict[str, list[float]]:
-    """The named columns of a CSV table as floats (``u`` and ``reverse`` optional)."""
+    """The named columns of a CSV table as floats (``u`` and ``reverse`` optional). The file is
+    read as every input is (benchtwin.schema: a regular file, bounded size, UTF-8); a column named
+    twice in the header, a malformed row or cell, and an angle given twice are errors."""
+    from benchtwin.analysis.dataset import MAX_ROWS, MAX_TABLE_BYTES
+
     p = Path(table)
-    if not p.is_file():
-        raise ImportError_(f"{p}: no such file")
     try:
-        text = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ImportError_(f"{p}: not UTF-8 text: {exc}") from None
-    rd = csv.reader(text.splitlines())
+        text = read_input_text(p, max_bytes=MAX_TABLE_BYTES, what="table")
+    except SchemaError as exc:
+        raise ImportError_(str(exc)) from None
+    text = text.removeprefix("\ufeff")  # a byte-order mark (spreadsheet exports)
+    if "\x00" in text:
+        raise ImportError_(f"{p}: contains NUL bytes; expected CSV text")
+    rows = enumerate(csv.reader(io.StringIO(text)), start=1)
     try:
-        header = [h.strip() for h in next(rd)]
+        _, first = next(rows)
     except StopIteration:
         raise ImportError_(f"{p}: empty file (expected a header row)") from None
+    except csv.Error as exc:
+        raise ImportError_(f"{p}: row 1: not valid CSV ({exc})") from None
+    header = [h.strip() for h in first]
     want = {"angle": angle, "error": error, "reverse": reverse, "u": u}
     for what, col in want.items():
         if col is not None and col not in header:
-            raise ImportError_(f"{p}: row 1: no column {col!r} (--{what if what != 'u' else 'u'}; the header has {header})")
+            raise ImportError_(f"{p}: row 1: no column {col!r} (--{what}; the header has {_short(str(header), 200)})")
+        if col is not None and header.count(col) > 1:
+            raise ImportError_(f"{p}: row 1: column {col!r} (--{what}) appears {header.count(col)} times; "
+                               "expected it once")
     idx = {k: header.index(c) for k, c in want.items() if c is not None}
     out: dict[str, list[float]] = {k: [] for k in idx}
-    for rowno, row in enumerate(rd, start=2):
+    rowno = 1
+    while True:
+        try:
+            rowno, row = next(rows)
+        except StopIteration:
+            break
+        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
+            raise ImportError_(f"{p}: row {rowno + 1}: not valid CSV ({exc})") from None
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != len(header):
             raise ImportError_(f"{p}: row {rowno}: expected {len(header)} fields, got {len(row)}")
+        if len(out["angle"]) >= MAX_ROWS:
+            raise ImportError_(f"{p}: more than {MAX_ROWS} data rows; a table may have at most {MAX_ROWS}")
         for k, i in idx.items():
+            if len(row[i]) > MAX_CELL_CHARS:
+                raise ImportError_(f"{p}: row {rowno}, column {want[k]!r}: a cell of {len(row[i])} characters; "
+                                   f"at most {MAX_CELL_CHARS} are allowed")
             out[k].append(_number(row[i], str(p), rowno, str(want[k])))
+        out.setdefault("_row", []).append(rowno)
     if len(out["angle"]) < 3:
         raise ImportError_(f"{p}: {len(out['angle'])} data rows; an error curve needs at least 3")
     seen: dict[float, int] = {}
-    for i, a in enumerate(out["angle"]):
-        key = round(a % 360.0, 9)
+    for a, r in zip(out["angle"], out["_row"]):
+        key = round(a % 360.0, 9) % 360.0
         if key in seen:
-            raise ImportError_(f"{p}: rows {seen[key] + 2} and {i + 2}, column {angle!r}: the same angle twice "
+            raise ImportError_(f"{p}: rows {seen[key]} and {r}, column {angle!r}: the same angle twice "
                                f"({a}°; 0° and 360° are the same position)")
-        seen[key] = i
+        seen[key] = r
     return out
+
+
+def _check_range(table: str | Path, values: list[float], rows: list[int], col: str, column: str,
+                 factor: float, unit: str) -> None:
+    """Every value within the range the dataset reader gives ``column`` (analysis.dataset:
+    ``column_range``), so that ``validate`` accepts what ``import`` writes; the error names the
+    source row and column and the range in the table's unit."""
+    from benchtwin.analysis.dataset import TABLES, column_range
+
+    rng = column_range(TABLES["error_curve"], column)
+    assert rng is not None  # every numeric column of error_curve has a unit suffix
+    lo, hi = rng
+    for v, r in zip(values, rows):
+        x = v * factor
+        if not lo <= x <= hi:
+            extra = f" ({lo / factor:g}…{hi / factor:g} {unit})" if factor != 1.0 else ""
+            raise ImportError_(f"{table}: row {r}, column {col!r}: expected {lo:g}…{hi:g} "
+                               f"{column.rsplit('_', 1)[1]}{extra}, got {v:g}")
 
 
 def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, reverse: str | None = None,
@@ -89,7 +143,7 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
     (``error`` is then the forward one); ``u``: a column of standard uncertainties (same unit).
     The writing rule (``benchtwin.fsio.locked_output_dir``): a non-empty ``out`` is replaced only
     with ``force``, never while another live run holds it, never when it holds the table."""
-    from benchtwin.analysis.dataset import DatasetWriter
+    from benchtwin.analysis.dataset import DatasetError, DatasetWriter, parse_table, table_to_csv
     from benchtwin.fsio import check_not_input, locked_output_dir
 
     check_not_input(out, [table], "dataset folder")  # before reading: the table is never the output
@@ -99,13 +153,19 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
     f = ERROR_UNITS[error_unit]
     cols = read_columns(table, angle, error, reverse, u)
     th = cols["angle"]
+    src_rows = cols["_row"]
+    _check_range(table, th, src_rows, angle, "theta_deg", 1.0, "deg")
+    for k in ("error", "reverse", "u"):
+        if k in cols:
+            _check_range(table, cols[k], src_rows, {"error": error, "reverse": reverse, "u": u}[k] or "",
+                         "u_arcsec" if k == "u" else "error_arcsec", f, error_unit)
     rows: dict[str, list[Any]] = {"theta_deg": list(th), "error_arcsec": [v * f for v in cols["error"]],
                                   "direction": ["forward"] * len(th)}
     if u is not None:
         rows["u_arcsec"] = [v * f for v in cols["u"]]
-        bad = [i for i, v in enumerate(rows["u_arcsec"]) if v <= 0]
+        bad = [r for r, v in zip(src_rows, rows["u_arcsec"]) if v <= 0]
         if bad:
-            raise ImportError_(f"{table}: row {bad[0] + 2}, column {u!r}: expected u > 0")
+            raise ImportError_(f"{table}: row {bad[0]}, column {u!r}: expected u > 0")
     if reverse is not None:
         rows["theta_deg"] += th
         rows["error_arcsec"] += [v * f for v in cols["reverse"]]
@@ -118,6 +178,11 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
                            "reverse_column": reverse, "u_column": u, "error_unit": error_unit,
                            "convention": "error = encoder reading − reference angle (docs/conventions.md); "
                                          "the error column is the forward direction"}}
+    # what validate will read: the dataset reader's own check of the table, before anything is written
+    try:
+        parse_table(table_to_csv(rows).decode("utf-8"), "error_curve", f"{table} (as error_curve.csv)")
+    except DatasetError as exc:
+        raise ImportError_(str(exc)) from None
     with locked_output_dir(out, force=force, what="dataset folder", owner="import", inputs=[table]):
         w = DatasetWriter(out, manifest, prepared=True)
         w.write_table("error_curve", rows)
