@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import traceback
@@ -301,9 +302,34 @@ def _emit(ns: argparse.Namespace, result: dict[str, Any], error: bool = False) -
     """The result (or error) as one JSON object on stdout under --json, else its message (errors
     on stderr)."""
     if ns.json:
-        print(json.dumps(result, default=str), flush=True)
+        print(_json_line(result), flush=True)
     else:
         print(result.get("message") or result.get("error"), file=sys.stderr if error else sys.stdout, flush=True)
+
+
+def _json_line(result: dict[str, Any]) -> str:
+    """``result`` as strict JSON: JSON has no NaN or infinity (``score --json`` printed
+    ``-Infinity``, which no JSON parser reads); a non-finite number becomes null and a note under
+    ``notes`` names its key (issue 31). A result without one is written as before."""
+    try:
+        return json.dumps(result, default=str, allow_nan=False)
+    except ValueError:
+        pass
+    notes: list[str] = []
+
+    def clean(x: Any, at: str) -> Any:
+        if isinstance(x, dict):
+            return {k: clean(v, f"{at}.{k}" if at else str(k)) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v, f"{at}[{i}]") for i, v in enumerate(x)]
+        if isinstance(x, float) and not math.isfinite(x):
+            notes.append(f"{at}: {x} (not a finite number; written as null)")
+            return None
+        return x
+
+    out = clean(result, "")
+    out["notes"] = [*(out.get("notes") or []), *notes] if isinstance(out.get("notes") or [], list) else notes
+    return json.dumps(out, default=str, allow_nan=False)
 
 
 def _load_commands() -> None:

@@ -41,9 +41,9 @@ reference is unknown, and each ambiguity the analysis reported is stated.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
-import tomllib
+import re
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -53,6 +53,7 @@ from typing import Any
 from lxml import etree
 
 from benchtwin import __version__
+from benchtwin.schema import Key, SchemaError, check_table, load_toml_file, loads_json, read_input_text
 
 DCC_NS = "https://ptb.de/dcc"
 SI_NS = "https://ptb.de/si"
@@ -204,6 +205,62 @@ class LabFile:
 _CONTACT_KEYS = {"name", "email", "street", "street_no", "post_code", "city", "country", "phone"}
 _LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
 
+# The lab file's keys, declared (benchtwin.schema.Key / check_table; issue 31): kinds, lengths and
+# choices; every string of the file is also free of control characters (_check_text). A value of
+# another type (a street given as a table, role = 5) is an error naming the key, never a dict or
+# a number printed into the certificate.
+MAX_LAB_BYTES = 1024 * 1024   # a real lab file is about 2 kB
+_NAME = 200                   # a name, an address line, an identifier
+_LONG = 2000                  # a description
+
+
+def _str(required: bool = False, n_max: int = _NAME) -> Key:
+    return Key("str", required=required, n_min=1 if required else 0, n_max=n_max)
+
+
+LAB_KEYS: dict[str, Key] = {
+    "certificate": Key("table", required=True), "laboratory": Key("table", required=True),
+    "customer": Key("table", required=True), "item": Key("table", required=True),
+    "person": Key("list[table]", n_max=100), "equipment": Key("list[table]", n_max=1000),
+    "environment": Key("table")}
+CERTIFICATE_KEYS: dict[str, Key] = {
+    "id": _str(True), "language": _str(), "country": _str(), "begin_date": Key("any"), "end_date": Key("any"),
+    "receipt_date": Key("any"), "location": Key("str", choices=_LOCATIONS)}
+CONTACT_KEYS: dict[str, Key] = {"name": _str(True), "email": _str(True),
+                                **{k: _str() for k in sorted(_CONTACT_KEYS - {"name", "email"})}}
+ITEM_KEYS: dict[str, Key] = {"name": _str(True), "manufacturer": _str(True), "serial": _str(True), "model": _str(),
+                             "customer_id": _str(), "description": _str(n_max=_LONG)}
+PERSON_KEYS: dict[str, Key] = {"name": _str(True), "role": _str(), "main_signer": Key("bool")}
+EQUIPMENT_KEYS: dict[str, Key] = {k: _str(k == "name") for k in
+                                  ("name", "manufacturer", "model", "serial", "certificate", "instrument")}
+#: the range of an environment value by its unit suffix (value, and its standard uncertainty
+#: ``*_u_<unit>``): the conditions a calibration lab works in, generously; any other unit ±1e6
+ENV_RANGES: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
+    "degC": ((-50.0, 100.0), (0.0, 50.0)), "K": ((223.15, 373.15), (0.0, 50.0)),
+    "percent": ((0.0, 100.0), (0.0, 100.0)), "hPa": ((0.0, 2000.0), (0.0, 2000.0)),
+    "Pa": ((0.0, 200000.0), (0.0, 200000.0))}
+ENV_OTHER = ((-1e6, 1e6), (0.0, 1e6))
+_ENV_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}\Z")
+
+
+def _fail(msg: str) -> Exception:
+    return CertificateInputError(msg)
+
+
+def _check_text(where: str, data: Any) -> None:
+    """No control character (a NUL, an escape sequence, a line break) in any string of the lab
+    file: they are not XML characters, or would be written into the certificate as they are."""
+    stack: list[tuple[Any, str]] = [(data, "")]
+    while stack:
+        v, at = stack.pop()
+        if isinstance(v, Mapping):
+            stack.extend((x, f"{at}.{k}" if at else str(k)) for k, x in v.items())
+        elif isinstance(v, list):
+            stack.extend((x, f"{at}[{i}]") for i, x in enumerate(v))
+        elif isinstance(v, str) and any(unicodedata.category(c) in ("Cc", "Cs") for c in v):
+            raise CertificateInputError(f"{where}: key {at}: expected text without control characters "
+                                        "(tab, line break, NUL, escape)")
+
 
 def _s(where: str, table: Mapping[str, Any], key: str, default: str | None = None) -> str:
     v = table.get(key, default)
@@ -246,14 +303,24 @@ def _contact(where: str, t: Any) -> Contact:
 
 
 def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
-    """Check a lab file's tables (docs/lab.example.toml); errors name the file and the key."""
-    _unknown(source, data, {"certificate", "laboratory", "customer", "item", "person", "equipment", "environment"})
+    """Check a lab file's tables (docs/lab.example.toml; the keys declared in ``LAB_KEYS`` and
+    the tables below it); errors name the file and the key."""
     for key in ("certificate", "laboratory", "customer", "item"):
-        if key not in data:
+        if isinstance(data, Mapping) and key not in data:
             raise CertificateInputError(f"{source}: table [{key}] is required")
+    check_table(data, LAB_KEYS, source, fail=_fail)
+    _check_text(source, data)
+    check_table(data["certificate"], CERTIFICATE_KEYS, source, "[certificate]", fail=_fail)
+    lab_keys = {**CONTACT_KEYS, "code": _str()}
+    check_table(data["laboratory"], lab_keys, source, "[laboratory]", fail=_fail)
+    check_table(data["customer"], CONTACT_KEYS, source, "[customer]", fail=_fail)
+    check_table(data["item"], ITEM_KEYS, source, "[item]", fail=_fail)
+    for i, p in enumerate(data.get("person", [])):
+        check_table(p, PERSON_KEYS, source, f"[[person]] #{i + 1}", fail=_fail)
+    for i, e in enumerate(data.get("equipment", [])):
+        check_table(e, EQUIPMENT_KEYS, source, f"[[equipment]] #{i + 1}", fail=_fail)
     cert = data["certificate"]
     w = f"{source} [certificate]"
-    _unknown(w, cert, {"id", "language", "country", "begin_date", "end_date", "receipt_date", "location"})
     lang = _s(w, cert, "language", "en")
     if not (len(lang) == 2 and lang.isalpha() and lang.islower()):
         raise CertificateInputError(f"{w}: key 'language' must be an ISO 639-1 code like 'en', got {lang!r}")
@@ -308,16 +375,29 @@ def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
 
 
 def _environment(where: str, env: Any) -> dict[str, float]:
+    """The environment: names with a unit suffix, each a finite number within its unit's range
+    (``ENV_RANGES``: temperature −50…100 °C, humidity 0…100 %, ...; an uncertainty ``*_u_<unit>``
+    ≥ 0). Used for the lab file's [environment] and the manifest's ``environment`` alike."""
     if not isinstance(env, Mapping):
         raise CertificateInputError(f"{where}: expected a table of numbers such as temperature_degC = 20.1")
+    if len(env) > 100:
+        raise CertificateInputError(f"{where}: {len(env)} entries; at most 100 are allowed")
     out: dict[str, float] = {}
     for k, v in env.items():
+        if not isinstance(k, str) or not _ENV_NAME.match(k):
+            raise CertificateInputError(f"{where}: key {str(k)[:40]!r}: expected a name of ASCII letters, digits "
+                                        "and '_' (at most 64), such as temperature_degC")
         base, unit = _unit_of(k)
         if unit == DSI_UNITS["one"] and not k.endswith("_one"):
             raise CertificateInputError(
                 f"{where}: key {k!r} needs a unit suffix (_degC, _K, _percent, _hPa, _Pa), e.g. temperature_degC")
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-            raise CertificateInputError(f"{where}: key {k!r} must be a finite number, got {v!r}")
+            raise CertificateInputError(f"{where}: key {k!r} must be a finite number, got {str(v)[:40]!r}")
+        suffix = k[len(base) + 1:]
+        value_rng, u_rng = ENV_RANGES.get(suffix, ENV_OTHER)
+        lo, hi = u_rng if base.endswith("_u") else value_rng
+        if not lo <= v <= hi:
+            raise CertificateInputError(f"{where}: key {k!r}: expected {lo:g}…{hi:g} {suffix}, got {str(v)[:40]}")
         out[k] = float(v)
     return out
 
@@ -333,12 +413,12 @@ def load_lab(path: str | Path | None, today: str) -> LabFile:
                        persons=[{"name": NOT_STATED, "role": "", "main_signer": False}], equipment=[],
                        environment={}, stated=False)
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CertificateInputError(f"{p}: lab file not found") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CertificateInputError(f"{p}: not a TOML file ({exc})") from None
+    if not p.exists() and not p.is_symlink():
+        raise CertificateInputError(f"{p}: lab file not found")
+    try:  # the one TOML reader: a regular file (a FIFO is refused, not opened), bounded size, depth, numbers
+        data = load_toml_file(p, what="lab file", max_bytes=MAX_LAB_BYTES)
+    except SchemaError as exc:
+        raise CertificateInputError(str(exc)) from None
     return parse_lab(data, str(p), today)
 
 
@@ -346,19 +426,31 @@ def load_lab(path: str | Path | None, today: str) -> LabFile:
 
 
 def load_results(path: str | Path) -> dict[str, Any]:
+    """results.json by the one JSON reader (benchtwin.schema: a regular file, bounded size, strict
+    JSON) and checked by its format (analysis.results.validate_results: the type of every key)."""
+    from benchtwin.analysis.results import MAX_RESULTS_BYTES, ResultsError, validate_results
+
     p = Path(path)
+    if not p.exists() and not p.is_symlink():
+        raise CertificateInputError(f"{p}: results file not found")
     try:
-        res = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CertificateInputError(f"{p}: results file not found") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CertificateInputError(f"{p}: not a JSON file ({exc})") from None
+        text = read_input_text(p, max_bytes=MAX_RESULTS_BYTES, what="results file")
+    except SchemaError as exc:
+        raise CertificateInputError(str(exc)) from None
+    try:
+        res = loads_json(text, str(p))
+    except SchemaError as exc:
+        raise CertificateInputError(f"{p}: not a JSON file ({str(exc).removeprefix(str(p) + ': ')})") from None
     if not isinstance(res, dict) or res.get("format") != "bench-results":
         raise CertificateInputError(f"{p}: key 'format' must be 'bench-results' (the results.json of `benchtwin analyze`)")
     if not isinstance(res.get("encoder_error_arcsec"), Mapping):
         raise CertificateInputError(
             f"{p}: key 'encoder_error_arcsec' is required: a certificate states the encoder error, which needs the "
             "polygon measurement (polygon.csv) in the dataset")
+    try:
+        validate_results(res, str(p))
+    except ResultsError as exc:
+        raise CertificateInputError(str(exc)) from None
     return res
 
 
@@ -1091,11 +1183,21 @@ def dataset_manifest(res: Mapping[str, Any]) -> dict[str, Any] | None:
     if not ds:
         return None
     p = Path(str(ds)) / "manifest.json"
-    try:
-        m = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError):
-        return None
-    return m if isinstance(m, dict) else None
+    if not p.is_file():
+        return None  # moved or deleted since the analysis: the certificate says what it knows
+    try:  # present: read as every manifest is (benchtwin.schema); a bad one is an error, not ignored
+        m = loads_json(read_input_text(p, max_bytes=1024 * 1024, what="manifest"), str(p))
+    except SchemaError as exc:
+        raise CertificateInputError(f"{exc} (the dataset of the results, key 'dataset')") from None
+    if not isinstance(m, dict):
+        raise CertificateInputError(f"{p}: expected a JSON object (the dataset's manifest)")
+    if m.get("environment") is not None:
+        _environment(f"{p}: environment", m["environment"])
+    for k in ("instruments",):
+        if m.get(k) is not None and not isinstance(m[k], Mapping):
+            raise CertificateInputError(f"{p}: key {k!r}: expected an object")
+    _check_text(str(p), {k: m.get(k) for k in ("instruments", "source", "scenario", "seed")})
+    return m
 
 
 def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: str | Path | None = None,

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -63,74 +62,133 @@ CSV_QUANTITIES = ("e_um", "theta0_deg", "alpha_arcsec", "beta_arcsec", "selfcal_
 
 def read_results(path: str | Path) -> dict[str, Any]:
     """The canonical results of a results file: the project's results.json, the minimal JSON
-    format or the minimal CSV format (chosen by content). Exit-2 errors name file, row and key."""
+    format or the minimal CSV format (chosen by content). Read as every input is
+    (``benchtwin.schema``: a regular file, bounded size, UTF-8, strict JSON: no NaN, no number
+    that overflows, no key twice); the project's results.json is checked by its format's reader
+    (analysis.results). Exit-2 errors name file, row and key."""
+    from benchtwin.analysis.results import MAX_RESULTS_BYTES, ResultsError, validate_results
+    from benchtwin.schema import SchemaError, loads_json, read_input_text
+
     path = Path(path)
     if path.is_dir():
         path = path / "results.json"
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
+    if not path.exists() and not path.is_symlink():
         raise InputError(f"{path}: no such results file (expected results.json, a minimal results .json "
-                         f"or .csv; docs/scoring.md)") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read results ({exc})") from None
+                         f"or .csv; docs/scoring.md)")
+    try:
+        text = read_input_text(path, max_bytes=MAX_RESULTS_BYTES, what="results file")
+    except SchemaError as exc:
+        raise InputError(str(exc)) from None
     if path.suffix.lower() == ".csv" or (text.lstrip()[:1] not in ("{", "[") and "quantity" in text[:200]):
         return results_from_csv(text, str(path))
     try:
-        raw = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+        raw = loads_json(text, str(path))
+        if isinstance(raw, Mapping) and raw.get("format") == "bench-results":
+            validate_results(raw, str(path))
+    except (SchemaError, ResultsError) as exc:
+        raise InputError(str(exc)) from None
     return canonical_results(raw, str(path))
 
 
-def _num(x: Any, where: str, allow_none: bool = True) -> float | None:
+#: the range of every number score reads, by its unit (as the dataset reader's unit ranges,
+#: analysis/dataset.py ``_UNIT_RANGES``: angles of a turn, errors within ±10°, lengths within ±10 mm)
+RANGE_UM = (-10000.0, 10000.0)
+RANGE_DEG = (-360.0, 720.0)
+RANGE_ARCSEC = (-36000.0, 36000.0)
+#: polygon faces and harmonic orders: positive integers of at most this
+MAX_ORDER = 100_000
+
+
+def _num(x: Any, where: str, allow_none: bool = True, rng: tuple[float, float] | None = None) -> float | None:
+    """A finite number (a JSON int within int64, not a bool) within ``rng``."""
+    from benchtwin.schema import is_number
+
     if x is None and allow_none:
         return None
-    if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) or not math.isfinite(float(x)):
-        raise InputError(f"{where}: expected a finite number, got {x!r}")
-    return float(x)
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) or not is_number(x):
+        raise InputError(f"{where}: expected a finite number, got {_short(x)}")
+    v = float(x)
+    if rng is not None and not rng[0] <= v <= rng[1]:
+        raise InputError(f"{where}: expected {rng[0]:g}…{rng[1]:g}, got {_short(x)}")
+    return v
 
 
-def _required_num(x: Any, where: str) -> float:
+def _short(x: Any, n: int = 60) -> str:
+    r = repr(x)
+    return r if len(r) <= n else r[: n - 1] + "…"
+
+
+def _required_num(x: Any, where: str, rng: tuple[float, float] | None = None) -> float:
     """``_num`` for a value that must be present (never ``None``)."""
-    v = _num(x, where, allow_none=False)
+    v = _num(x, where, allow_none=False, rng=rng)
     assert v is not None  # allow_none=False: _num raised InputError instead
     return v
 
 
-def _arr(x: Any, where: str, n: int | None = None) -> np.ndarray:
+def _arr(x: Any, where: str, n: int | None = None, rng: tuple[float, float] | None = None) -> np.ndarray:
     if isinstance(x, np.ndarray) and x.ndim == 1:
         x = x.tolist()
     if not isinstance(x, (list, tuple)):
         raise InputError(f"{where}: expected a list of numbers, got {type(x).__name__}")
-    out = np.array([_num(v, f"{where}[{i}]", allow_none=False) for i, v in enumerate(x)], dtype=float)
+    if not x:
+        raise InputError(f"{where}: expected a non-empty list of numbers, got []")
+    out = np.array([_num(v, f"{where}[{i}]", allow_none=False, rng=rng) for i, v in enumerate(x)], dtype=float)
     if n is not None and out.size != n:
         raise InputError(f"{where}: expected {n} values (as many as theta_deg / face), got {out.size}")
     return out
 
 
+def _int_list(x: Any, where: str) -> list[int]:
+    """A list of positive integers (face numbers, harmonic orders): 2.5 is not rounded to 2."""
+    if not isinstance(x, (list, tuple)):
+        raise InputError(f"{where}: expected a list of integers, got {type(x).__name__}")
+    out = []
+    for i, v in enumerate(x):
+        f = _required_num(v, f"{where}[{i}]", (1, MAX_ORDER))
+        if f != int(f):
+            raise InputError(f"{where}[{i}]: expected an integer 1…{MAX_ORDER}, got {_short(v)}")
+        out.append(int(f))
+    return out
+
+
 def _curve(d: Any, where: str, x_key: str, keys: Sequence[tuple[str, str]]) -> dict[str, Any] | None:
-    """{x, value, u|None} of a curve written as {x_key: [...], value: [...], u: [...]}."""
+    """{x, value, u|None} of a curve written as {x_key: [...], value: [...], u: [...]}: at least one
+    point, no point twice (θ modulo 360°, or the face number), values and u within ±36 000″."""
     if d is None:
         return None
     if not isinstance(d, Mapping):
         raise InputError(f"{where}: expected an object with {x_key!r} and a value list")
     if x_key not in d:
         raise InputError(f"{where}: missing key {x_key!r}")
-    x = _arr(d[x_key], f"{where}.{x_key}")
+    if x_key == "face":
+        x = np.array(_int_list(d[x_key], f"{where}.{x_key}"), dtype=float)
+        if x.size == 0:
+            raise InputError(f"{where}.{x_key}: expected a non-empty list of face numbers, got []")
+        same = np.asarray(x)
+    else:
+        x = _arr(d[x_key], f"{where}.{x_key}", rng=RANGE_DEG)
+        same = np.round(np.mod(x, 360.0), 9) % 360.0
+    first: dict[float, int] = {}
+    for i, k in enumerate(same.tolist()):
+        if k in first:
+            raise InputError(f"{where}.{x_key}: items {first[k]} and {i} are the same point ({x[i]:g}"
+                             f"{'' if x_key == 'face' else '°; 0° and 360° are one position'}); expected each once")
+        first[k] = i
     value = u = None
     for vk, uk in keys:
         if vk in d and value is None:
-            value = _arr(d[vk], f"{where}.{vk}", x.size)
+            value = _arr(d[vk], f"{where}.{vk}", x.size, RANGE_ARCSEC)
             if d.get(uk) is not None:
-                u = _arr(d[uk], f"{where}.{uk}", x.size)
+                u = _arr(d[uk], f"{where}.{uk}", x.size, RANGE_ARCSEC)
                 if np.any(u <= 0):
                     raise InputError(f"{where}.{uk}: standard uncertainties must be > 0")
     if value is None:
         raise InputError(f"{where}: missing the values (one of {', '.join(repr(k) for k, _ in keys)})")
     out: dict[str, Any] = {"x": x, "value": value, "u": u}
     if d.get("unobservable_harmonics") is not None:
-        out["drop"] = [int(_required_num(k, f"{where}.unobservable_harmonics")) for k in d["unobservable_harmonics"]]
+        out["drop"] = _int_list(d["unobservable_harmonics"], f"{where}.unobservable_harmonics")
     return out
 
 
@@ -193,9 +251,10 @@ def _from_minimal(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
         raise InputError(f"{where}.unexplained: expected true or false, got {unexpl!r}")
     has_id = any(k in raw for k in ("named", "ambiguous", "unexplained"))
     return {
-        "e_um": _num(raw.get("e_um"), f"{where}.e_um"), "e_u_um": _pos(raw.get("e_u_um"), f"{where}.e_u_um"),
-        "theta0_deg": _num(raw.get("theta0_deg"), f"{where}.theta0_deg"),
-        "theta0_u_deg": _pos(raw.get("theta0_u_deg"), f"{where}.theta0_u_deg"),
+        "e_um": _num(raw.get("e_um"), f"{where}.e_um", rng=RANGE_UM),
+        "e_u_um": _pos(raw.get("e_u_um"), f"{where}.e_u_um", hi=RANGE_UM[1]),
+        "theta0_deg": _num(raw.get("theta0_deg"), f"{where}.theta0_deg", rng=RANGE_DEG),
+        "theta0_u_deg": _pos(raw.get("theta0_u_deg"), f"{where}.theta0_u_deg", hi=RANGE_DEG[1]),
         "alpha": _curve(raw.get("alpha"), f"{where}.alpha", "theta_deg", [("value_arcsec", "u_arcsec")]),
         "alpha_corrected": None,
         "beta": _curve(raw.get("beta"), f"{where}.beta", "face", [("value_arcsec", "u_arcsec")]),
@@ -203,16 +262,20 @@ def _from_minimal(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
         "named": _names(raw.get("named"), f"{where}.named") if has_id else None,
         "ambiguous": _sets(raw.get("ambiguous"), f"{where}.ambiguous") if has_id else None,
         "unexplained": bool(unexpl) if has_id else None,
-        "residual_before_arcsec": _pos(raw.get("residual_before_arcsec"), f"{where}.residual_before_arcsec", True),
-        "residual_after_arcsec": _pos(raw.get("residual_after_arcsec"), f"{where}.residual_after_arcsec", True),
+        "residual_before_arcsec": _pos(raw.get("residual_before_arcsec"), f"{where}.residual_before_arcsec", True,
+                                       RANGE_ARCSEC[1]),
+        "residual_after_arcsec": _pos(raw.get("residual_after_arcsec"), f"{where}.residual_after_arcsec", True,
+                                      RANGE_ARCSEC[1]),
         "residual_kind": "per_stop",
     }
 
 
-def _pos(x: Any, where: str, zero_ok: bool = False) -> float | None:
+def _pos(x: Any, where: str, zero_ok: bool = False, hi: float | None = None) -> float | None:
     v = _num(x, where)
     if v is not None and (v < 0 or (v == 0 and not zero_ok)):
-        raise InputError(f"{where}: expected a number > 0, got {x!r}")
+        raise InputError(f"{where}: expected a number > 0, got {_short(x)}")
+    if v is not None and hi is not None and v > hi:
+        raise InputError(f"{where}: expected a number {'≥' if zero_ok else '>'} 0 and ≤ {hi:g}, got {_short(x)}")
     return v
 
 
@@ -255,10 +318,11 @@ def _from_project(r: Mapping[str, Any], where: str) -> dict[str, Any]:
         if after is None and traced and not r.get("identified_effects"):
             after = before  # nothing traced: the model is the one of 'before'
     return {
-        "e_um": _num(r.get("eccentricity_um"), f"{where}.eccentricity_um"),
-        "e_u_um": _pos(r.get("eccentricity_u_um"), f"{where}.eccentricity_u_um"),
-        "theta0_deg": _num(r.get("eccentricity_phase_deg"), f"{where}.eccentricity_phase_deg"),
-        "theta0_u_deg": _pos(r.get("eccentricity_phase_u_deg"), f"{where}.eccentricity_phase_u_deg"),
+        "e_um": _num(r.get("eccentricity_um"), f"{where}.eccentricity_um", rng=RANGE_UM),
+        "e_u_um": _pos(r.get("eccentricity_u_um"), f"{where}.eccentricity_u_um", hi=RANGE_UM[1]),
+        "theta0_deg": _num(r.get("eccentricity_phase_deg"), f"{where}.eccentricity_phase_deg", rng=RANGE_DEG),
+        "theta0_u_deg": _pos(r.get("eccentricity_phase_u_deg"), f"{where}.eccentricity_phase_u_deg",
+                             hi=RANGE_DEG[1]),
         "alpha": _curve(r.get("encoder_error_arcsec"), f"{where}.encoder_error_arcsec", "theta_deg",
                         [("value", "u")]),
         "alpha_corrected": _curve(r.get("encoder_error_corrected_arcsec"), f"{where}.encoder_error_corrected_arcsec",
@@ -269,52 +333,90 @@ def _from_project(r: Mapping[str, Any], where: str) -> dict[str, Any]:
         "named": _names(r.get("identified_effects"), f"{where}.identified_effects") if traced else None,
         "ambiguous": _sets(r.get("ambiguous"), f"{where}.ambiguous") if traced else None,
         "unexplained": bool(r.get("unexplained")) if traced else None,
-        "residual_before_arcsec": _pos(before, f"{where}.residual_test/residual_before.rms_arcsec", True),
-        "residual_after_arcsec": _pos(after, f"{where}.residual_after_trace/residual_after.rms_arcsec", True),
+        "residual_before_arcsec": _pos(before, f"{where}.residual_test/residual_before.rms_arcsec", True,
+                                       RANGE_ARCSEC[1]),
+        "residual_after_arcsec": _pos(after, f"{where}.residual_after_trace/residual_after.rms_arcsec", True,
+                                      RANGE_ARCSEC[1]),
         "residual_kind": kind,
     }
 
 
 def results_from_csv(text: str, where: str) -> dict[str, Any]:
     """The minimal CSV results: columns ``quantity,key,value,u`` (docs/scoring.md), one row per
-    scalar, per curve point (key = θ in degrees or the face number) or per named effect."""
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in rows if r and not (len(r) == 1 and not r[0].strip()) and not r[0].lstrip().startswith("#")]
-    if not rows or [c.strip() for c in rows[0]][:4] != ["quantity", "key", "value", "u"]:
+    scalar, per curve point (key = θ in degrees or the face number) or per named effect. Numbers by
+    the project's one number grammar (``benchtwin.schema.parse_float``: ``6_9`` is an error, not
+    69); a scalar, a curve point or a name given twice is an error naming both rows."""
+    from benchtwin.schema import MAX_CELL_CHARS
+
+    if "\x00" in text:
+        raise InputError(f"{where}: contains NUL bytes; expected CSV text")
+    rows: list[tuple[int, list[str]]] = []
+    reader = enumerate(csv.reader(io.StringIO(text)), start=1)
+    lineno = 0
+    while True:
+        try:
+            lineno, r = next(reader)
+        except StopIteration:
+            break
+        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
+            raise InputError(f"{where}: row {lineno + 1}: not valid CSV ({exc})") from None
+        if r and not (len(r) == 1 and not r[0].strip()) and not r[0].lstrip().startswith("#"):
+            long = [c for c in r if len(c) > MAX_CELL_CHARS]
+            if long:
+                raise InputError(f"{where}: row {lineno}: a cell of {len(long[0])} characters; at most "
+                                 f"{MAX_CELL_CHARS} are allowed")
+            rows.append((lineno, r))
+    if not rows or [c.strip() for c in rows[0][1]][:4] != ["quantity", "key", "value", "u"]:
         raise InputError(f"{where}: row 1: expected the header 'quantity,key,value,u' (docs/scoring.md)")
     out: dict[str, Any] = {"format": RESULTS_FORMAT, "version": RESULTS_VERSION}
     curves: dict[str, dict[str, list]] = {}
     sets: dict[str, list[str]] = {}
-    for i, r in enumerate(rows[1:], start=2):
+    seen: dict[tuple[str, ...], int] = {}
+
+    def once(key: tuple[str, ...], i: int, what: str) -> None:
+        if key in seen:
+            raise InputError(f"{where}: rows {seen[key]} and {i}: {what} given twice; expected it once")
+        seen[key] = i
+
+    for i, r in rows[1:]:
         r = [c.strip() for c in r] + [""] * (4 - len(r))
         q, key, value, u = r[:4]
         at = f"{where}: row {i}"
         if q not in CSV_QUANTITIES:
-            raise InputError(f"{at}: unknown quantity {q!r} (expected one of {', '.join(CSV_QUANTITIES)})")
+            raise InputError(f"{at}: unknown quantity {_short(q)} (expected one of {', '.join(CSV_QUANTITIES)})")
         if q == "named":
-            out.setdefault("named", []).append(_need(value, at, "an effect name in 'value'"))
+            name = _need(value, at, "an effect name in 'value'")
+            once(("named", name), i, f"the effect {_short(name)}")
+            out.setdefault("named", []).append(name)
             continue
         if q == "ambiguous":
-            sets.setdefault(_need(key, at, "the set's number in 'key'"), []).append(
-                _need(value, at, "an effect name in 'value'"))
+            k, name = _need(key, at, "the set's number in 'key'"), _need(value, at, "an effect name in 'value'")
+            once(("ambiguous", k, name), i, f"the effect {_short(name)} in ambiguity set {_short(k)}")
+            sets.setdefault(k, []).append(name)
             continue
         if q == "unexplained":
+            once((q,), i, "'unexplained'")
             if value.lower() not in ("true", "false", "1", "0"):
-                raise InputError(f"{at}: unexplained: expected true or false in 'value', got {value!r}")
+                raise InputError(f"{at}: unexplained: expected true or false in 'value', got {_short(value)}")
             out["unexplained"] = value.lower() in ("true", "1")
             continue
         v = _float(value, at, "value")
         uu = _float(u, at, "u") if u else None
         if q in ("e_um", "theta0_deg"):
+            once((q,), i, f"{q!r}")
             out[q] = v
             if uu is not None:
                 out[q.replace("_um", "_u_um").replace("_deg", "_u_deg")] = uu
         elif q in ("residual_before_arcsec", "residual_after_arcsec"):
+            once((q,), i, f"{q!r}")
             out[q] = v
         else:
             name = q.replace("_arcsec", "")
+            x = _float(key, at, "key")
+            once((q, repr(round(x % 360.0, 9) % 360.0 if name != "beta" else x)), i,
+                 f"{q!r} at key {_short(key)}" + ("" if name == "beta" else " (0° and 360° are one position)"))
             c = curves.setdefault(name, {"x": [], "v": [], "u": []})
-            c["x"].append(_float(key, at, "key"))
+            c["x"].append(x)
             c["v"].append(v)
             c["u"].append(uu)
     for name, c in curves.items():
@@ -339,44 +441,110 @@ def _need(s: str, at: str, what: str) -> str:
 
 
 def _float(s: str, at: str, col: str) -> float:
+    """A cell by the one number grammar (benchtwin.schema.parse_float)."""
+    from benchtwin.schema import parse_float
+
     try:
-        v = float(s)
-    except ValueError:
-        raise InputError(f"{at}: column {col!r}: expected a number, got {s!r}") from None
-    if not math.isfinite(v):
-        raise InputError(f"{at}: column {col!r}: expected a finite number, got {s!r}")
-    return v
+        return parse_float(s)
+    except ValueError as exc:
+        raise InputError(f"{at}: column {col!r}: expected a number, got {_short(s)} "
+                         f"({str(exc).removeprefix('expected ')})") from None
 
 
 # =========================================================================== truth
 
 
+#: a truth file (the twin's own output, handed back by the user): at most this many bytes
+MAX_TRUTH_BYTES = 512 * 1024 * 1024
+
+
+def _truth_number(cell: str) -> float:
+    """A cell of a truth table: the one number grammar, or the spellings of a non-finite float the
+    twin's writer uses (``repr``: nan, inf, -inf)."""
+    from benchtwin.schema import parse_float
+
+    c = cell.strip()
+    if c in ("nan", "inf", "-inf"):
+        return float(c)
+    return parse_float(c)
+
+
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    """A CSV table of a truth or dataset folder, read as every input is (benchtwin.schema: a
+    regular file, bounded size, UTF-8): a column whose every cell is a number is an array of
+    floats, any other an array of strings; a malformed table is an error naming the file."""
+    from benchtwin.schema import SchemaError, read_input_text
+
+    if not path.exists() and not path.is_symlink():
+        raise InputError(f"{path}: missing")
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: missing") from None
-    rows = list(csv.DictReader(io.StringIO(text)))
-    cols: dict[str, list] = {}
-    for i, r in enumerate(rows, start=2):
-        for k, v in r.items():
-            cols.setdefault(k, []).append(v)
+        text = read_input_text(path, max_bytes=MAX_TRUTH_BYTES, what="CSV table")
+    except SchemaError as exc:
+        raise InputError(str(exc)) from None
+    if "\x00" in text:
+        raise InputError(f"{path}: contains NUL bytes; expected CSV text")
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise InputError(f"{path}: not valid CSV ({exc})") from None
+    rows = [r for r in rows if r]
+    if not rows:
+        raise InputError(f"{path}: empty file (expected a header row)")
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        raise InputError(f"{path}: row 1: a column named twice; expected distinct column names")
+    for i, r in enumerate(rows[1:], start=2):
+        if len(r) != len(header):
+            raise InputError(f"{path}: row {i}: expected {len(header)} fields, got {len(r)}")
     out = {}
-    for k, vs in cols.items():
+    for j, k in enumerate(header):
+        vs = [r[j] for r in rows[1:]]
         try:
-            out[k] = np.array([float(v) for v in vs])
-        except (TypeError, ValueError):
+            out[k] = np.array([_truth_number(v) for v in vs], dtype=float)
+        except ValueError:
             out[k] = np.array(vs, dtype=object)
     return out
 
 
+def _numeric(path: Path, cols: Mapping[str, np.ndarray], *names: str) -> None:
+    """The columns ``names`` are present and numeric (an error naming the file and column)."""
+    for n in names:
+        if n not in cols:
+            raise InputError(f"{path}: row 1: missing column {n!r}")
+        if cols[n].dtype != float:
+            raise InputError(f"{path}: column {n!r}: expected numbers in every row")
+
+
 def _read_json(path: Path) -> Any:
+    """A JSON file of a truth or dataset folder, by the one JSON reader (benchtwin.schema; NaN as
+    the twin's writer may spell it is allowed: these are its own files)."""
+    from benchtwin.schema import SchemaError, loads_json, read_input_text
+
+    if not path.exists() and not path.is_symlink():
+        raise InputError(f"{path}: missing")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: missing") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+        return loads_json(read_input_text(path, what="JSON file"), str(path), allow_nan=True)
+    except SchemaError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _json_object(path: Path, obj: Any, keys: Mapping[str, str]) -> dict[str, Any]:
+    """A truth JSON object whose ``keys`` (name -> "number" | "object" | "names") have their type
+    when present; an error names the file and the key."""
+    from benchtwin.schema import is_number
+
+    if not isinstance(obj, Mapping):
+        raise InputError(f"{path}: expected a JSON object")
+    for k, kind in keys.items():
+        v = obj.get(k)
+        if v is None:
+            continue
+        ok = {"number": is_number(v) and not isinstance(v, bool), "object": isinstance(v, Mapping),
+              "names": isinstance(v, list) and all(isinstance(x, str) for x in v)}[kind]
+        if not ok:
+            want = {"number": "a finite number", "object": "an object", "names": "a list of names"}[kind]
+            raise InputError(f"{path}: key {k!r}: expected {want}, got {_short(v)}")
+    return dict(obj)
 
 
 def library_effects() -> set[str]:
@@ -429,12 +597,15 @@ def read_truth(truth_dir: str | Path, dataset_dir: str | Path | None = None) -> 
         raise InputError(f"{td}: no truth folder (a twin dataset has truth/; a blind suite keeps it in "
                          f"SUITE/truth/<name>)")
     t: dict[str, Any] = {"dir": str(td)}
-    bench = _read_json(td / "bench.json") if (td / "bench.json").exists() else {}
-    t["e_um"] = float(bench["disk_eccentricity_m"]) * 1e6 if "disk_eccentricity_m" in bench else None
-    t["theta0_deg"] = math.degrees(float(bench["theta0_rad"])) % 360.0 if "theta0_rad" in bench else None
+    bench = _json_object(td / "bench.json", _read_json(td / "bench.json"),
+                         {"disk_eccentricity_m": "number", "theta0_rad": "number"}) \
+        if (td / "bench.json").exists() else {}
+    t["e_um"] = float(bench["disk_eccentricity_m"]) * 1e6 if bench.get("disk_eccentricity_m") is not None else None
+    t["theta0_deg"] = math.degrees(float(bench["theta0_rad"])) % 360.0 if bench.get("theta0_rad") is not None else None
     t["beta"] = None
     if (td / "polygon_beta.csv").exists():
         b = _read_csv(td / "polygon_beta.csv")
+        _numeric(td / "polygon_beta.csv", b, "face", "beta_arcsec")
         t["beta"] = {int(f): float(v) for f, v in zip(b["face"], b["beta_arcsec"])}
     t["n_faces"] = len(t["beta"]) if t["beta"] else None
     # α: per stop the mean true α of the polygon readings at that stop (the readings' own times:
@@ -442,6 +613,7 @@ def read_truth(truth_dir: str | Path, dataset_dir: str | Path | None = None) -> 
     t["alpha_stops"] = None
     if (td / "polygon.csv").exists():
         p = _read_csv(td / "polygon.csv")
+        _numeric(td / "polygon.csv", p, "target_deg" if "target_deg" in p else "theta_deg", "alpha_arcsec")
         # keyed by the commanded stop (the dataset's theta_deg): truth's theta_deg is the count the
         # drive servo held there (twin/instruments/drive.py), target_deg the commanded stop
         th = np.round(np.mod(p["target_deg"] if "target_deg" in p else p["theta_deg"], 360.0), 6)
@@ -451,12 +623,16 @@ def read_truth(truth_dir: str | Path, dataset_dir: str | Path | None = None) -> 
     ee = None
     if (td / "encoder_error.csv").exists():
         ee = _read_csv(td / "encoder_error.csv")
+        _numeric(td / "encoder_error.csv", ee, "theta_deg", "alpha_arcsec")
         t["alpha_grid"] = (ee["theta_deg"], ee["alpha_arcsec"])
-    hidden = _read_json(td / "hidden.json") if (td / "hidden.json").exists() else {"effects": {}}
+    hidden = _json_object(td / "hidden.json", _read_json(td / "hidden.json"), {"effects": "object"}) \
+        if (td / "hidden.json").exists() else {"effects": {}}
     t["hidden"] = sorted(hidden.get("effects", {}) or {})
     t["hidden_effects"] = hidden.get("effects", {}) or {}
     scen = _read_json(td / "scenario.json") if (td / "scenario.json").exists() else None
-    t["expected"] = _read_json(td / "expected.json") if (td / "expected.json").exists() else \
+    t["expected"] = _json_object(td / "expected.json", _read_json(td / "expected.json"),
+                                 {"expect": "names", "accept": "names"}) \
+        if (td / "expected.json").exists() else \
         expected_from_hidden(hidden, declared_beyond_jia(scen if isinstance(scen, Mapping) else None))
     ds = Path(dataset_dir) if dataset_dir else td.parent
     t["floor"] = _floor(td, ds, ee, t["hidden_effects"])
@@ -568,8 +744,7 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     #    truth's axis motion (0.1° grid, harmonics 2…10) is outside any Y-probe model.
     x_probes = None
     if (ds / "radial_motion.csv").exists():
-        head = (ds / "radial_motion.csv").read_text(encoding="utf-8").split("\n", 1)[0]
-        x_probes = "probe_top_x_um" in head.split(",")
+        x_probes = "probe_top_x_um" in _read_csv(ds / "radial_motion.csv")
     if x_probes is False and ee is not None and r_mm and {"axis_dx_um", "axis_dy_um"} <= set(ee):
         parts["unseen_tangential_arcsec"] = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"],
                                                                  ee["axis_dy_um"], float(r_mm))
@@ -650,7 +825,8 @@ def _drop_harmonics(theta_deg: np.ndarray, y: np.ndarray, orders: Sequence[int])
 def _coverage(err: np.ndarray, u: np.ndarray | None) -> dict[str, Any] | None:
     if u is None or err.size == 0:
         return None
-    z = np.abs(err) / u
+    with np.errstate(over="ignore"):  # a u far too small gives z = inf (null with a note under --json)
+        z = np.abs(err) / u
     return {"n": int(z.size), "within_1u": int(np.sum(z <= 1.0)), "within_2u": int(np.sum(z <= 2.0)),
             "coverage_1u": float(np.mean(z <= 1.0)), "coverage_2u": float(np.mean(z <= 2.0)),
             "z_rms": float(np.sqrt(np.mean(z**2)))}
@@ -873,7 +1049,8 @@ def format_table(s: Mapping[str, Any]) -> str:
 
 
 def public(s: Mapping[str, Any]) -> dict[str, Any]:
-    """The JSON-ready score (numpy scalars and private arrays removed)."""
+    """The JSON-ready score (numpy scalars and private arrays removed; a non-finite number is made
+    null with a note by the CLI's JSON writer, benchtwin.cli)."""
     def clean(x: Any) -> Any:
         if isinstance(x, Mapping):
             return {k: clean(v) for k, v in x.items() if not str(k).startswith("_")}

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.cli import InputError
+from benchtwin.schema import Key, SchemaError, check_table, loads_json, read_input_text
 
 SUITE_FORMAT = "benchtwin-suite"
 SUITE_VERSION = 2  # 2: jia2019 expects its declared graduation error (issue 32); the hidden effects from their physical causes (issue 33 item 4)
@@ -245,10 +246,7 @@ def open_suite(suite_dir: str | Path) -> tuple[dict[str, Any], list[SuiteItem]]:
     sj = sd / "suite.json"
     if not sj.exists():
         raise InputError(f"{sd}: no suite.json (not a suite, or `benchtwin suite` did not finish)")
-    try:
-        meta = json.loads(sj.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{sj}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    meta = _read_suite_json(sj)
     if meta.get("format") != SUITE_FORMAT:
         raise InputError(f"{sj}: key 'format': expected {SUITE_FORMAT!r}, got {meta.get('format')!r}")
     if meta.get("suite_version") != SUITE_VERSION:
@@ -259,18 +257,44 @@ def open_suite(suite_dir: str | Path) -> tuple[dict[str, Any], list[SuiteItem]]:
         kp = sd / "truth" / "key.json"
         if not kp.exists():
             raise InputError(f"{kp}: missing (a blind suite keeps its truth and key in SUITE/truth/)")
-        key = json.loads(kp.read_text(encoding="utf-8"))["key"]
+        key = check_table(_read_suite_json(kp), {"key": Key("table", required=True)}, str(kp), extra=True,
+                          fail=InputError)["key"]
         for n in meta["datasets"]:
-            k = key.get(n, {})
+            k = check_table(key.get(n, {}), {"name": Key("str", n_min=1, n_max=200),
+                                             "category": Key("str", n_min=1, n_max=200)},
+                            str(kp), f"key.{n}", extra=True, fail=InputError)
             items.append(SuiteItem(n, sd / "datasets" / n, sd / "truth" / n, k.get("name", n), k.get("category", "?")))
     else:
-        cat = {e["name"]: e["category"] for e in meta.get("entries", [])}
+        entries = meta.get("entries", [])
+        for i, e in enumerate(entries):
+            check_table(e, {"name": Key("str", required=True), "category": Key("str", required=True)},
+                        str(sj), f"entries[{i}]", extra=True, fail=InputError)
+        cat = {e["name"]: e["category"] for e in entries}
         for n in meta["datasets"]:
             items.append(SuiteItem(n, sd / n, sd / n / "truth", n, cat.get(n, "?")))
     for it in items:
         if not it.dataset.is_dir():
             raise InputError(f"{it.dataset}: dataset of the suite missing")
     return meta, items
+
+
+def _read_suite_json(path: Path) -> dict[str, Any]:
+    """suite.json / truth/key.json by the one JSON reader (benchtwin.schema), its keys checked: the
+    datasets are folder names inside the suite (no '..', no path), the entries tables."""
+    try:
+        obj = loads_json(read_input_text(path, what="suite file"), str(path))
+    except SchemaError as exc:
+        raise InputError(str(exc)) from None
+    if path.name != "suite.json":
+        return check_table(obj, {}, str(path), extra=True, fail=InputError)
+    meta = check_table(obj, {"datasets": Key("list[str]", required=True, n_max=10_000),
+                             "entries": Key("list[table]"), "blind": Key("bool", required=True),
+                             "size": Key("str", required=True), "seed": Key("int", required=True)},
+                       str(path), extra=True, fail=InputError)
+    for i, n in enumerate(meta["datasets"]):
+        if not n or n in (".", "..") or "/" in n or "\\" in n or "\x00" in n:
+            raise InputError(f"{path}: key 'datasets'[{i}]: expected a folder name of the suite, got {n!r}")
+    return meta
 
 
 def find_results(results_dir: Path, name: str) -> Path | None:

@@ -35,6 +35,7 @@ import numpy as np
 
 from benchtwin.fsio import atomic_write_text
 from benchtwin.runtime import usable_cores
+from benchtwin.schema import SchemaError, loads_json, read_input_text
 
 from . import points as study_points
 from . import report
@@ -94,25 +95,62 @@ def _mp_context() -> Any:
     return mp.get_context("forkserver" if "forkserver" in methods else "spawn")
 
 
+#: a cache entry is one point's outputs (a few hundred bytes); anything far larger is not one
+MAX_CACHE_ENTRY_BYTES = 1024 * 1024
+
+
 class _Cache:
-    """One JSON file per (point, repetition) under ``<out_dir>/cache``, written atomically."""
+    """One JSON file per (point, repetition) under ``<out_dir>/cache``, written atomically.
+
+    An entry that is not one this module wrote (unreadable, not a regular file, not JSON, not
+    ``{"outputs": {name: number}, "elapsed_s": number, "code": text}``) is a miss: the point is
+    recomputed and the entry replaced, with a note in ``notes`` (study.json). Why not an error: the
+    cache is derived data keyed by content, so recomputing gives exactly what a good entry would
+    hold; an error would only make the user delete it by hand (issue 31)."""
 
     def __init__(self, root: Path):
         self.root = root
+        self.notes: list[str] = []
 
     def path(self, key: str) -> Path:
         return self.root / key[:2] / f"{key}.json"
 
     def get(self, key: str) -> dict[str, Any] | None:
         p = self.path(key)
-        try:
-            entry: dict[str, Any] = json.loads(p.read_text())
-        except (FileNotFoundError, json.JSONDecodeError):
+        if not p.exists() and not p.is_symlink():
+            return None
+        try:  # the one JSON reader; NaN allowed: a point's output may be NaN and json.dumps wrote it so
+            entry = loads_json(read_input_text(p, max_bytes=MAX_CACHE_ENTRY_BYTES, what="cache entry"), str(p),
+                               allow_nan=True)
+            why = _entry_problem(entry)
+        except SchemaError as exc:
+            why = str(exc).removeprefix(f"{p}: ")
+        if why is not None:
+            self.notes.append(f"cache entry {p}: {why}; recomputed")
+            if p.is_dir() and not p.is_symlink():
+                raise StudyError(f"{p}: a folder where a cache entry belongs; remove it to resume the study")
             return None
         return entry
 
     def put(self, key: str, entry: dict[str, Any]) -> None:
         atomic_write_text(self.path(key), json.dumps(entry), fsync=False)  # benchtwin.fsio
+
+
+def _entry_problem(entry: Any) -> str | None:
+    """What makes ``entry`` not a cache entry this module wrote, or None."""
+    if not isinstance(entry, dict):
+        return "not a JSON object"
+    outs = entry.get("outputs")
+    if not isinstance(outs, dict):
+        return "key 'outputs': expected an object of numbers"
+    for k, v in outs.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return f"key 'outputs.{k[:40]}': expected a number"
+    if isinstance(entry.get("elapsed_s"), bool) or not isinstance(entry.get("elapsed_s"), (int, float)):
+        return "key 'elapsed_s': expected a number"
+    if not isinstance(entry.get("code"), str):
+        return "key 'code': expected the code version"
+    return None
 
 
 class _Bar(Protocol):
@@ -233,7 +271,7 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
         where="dask " + str(getattr(scheduler, "scheduler_address", scheduler))
         if scheduler is not None else ("in-process" if workers == 0 else
                                        f"local pool, {workers or usable_cores()} workers"))
-    return _write_results(study, points, plan, seeds, out, info, overrides)
+    return _write_results(study, points, plan, seeds, out, info, overrides, cache.notes)
 
 
 def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict[str, Any]], None],
@@ -379,7 +417,8 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
 
 
 def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[int], out: Path,
-                   info: report.RunInfo, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                   info: report.RunInfo, overrides: Mapping[str, Any] | None = None,
+                   notes: list[str] | None = None) -> dict[str, Any]:
     summary_rows = _write_tables(study, points, plan, seeds, out, info)
     written = report.write_report(study, summary_rows, plan.done, out, info)
     verdict = written.verdict
@@ -399,5 +438,9 @@ def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[i
         f"study {study.name}: {len(points)} points × {study.repetitions} reps ({info.computed} computed, "
         f"{info.cached} from cache) -> {out}",
     }
+    if notes:  # only then: the study.json of a run without them stays as it was
+        result["notes"] = list(notes)
+        result["message"] += f" ({len(notes)} unusable cache entr{'y' if len(notes) == 1 else 'ies'} recomputed: " \
+                             f"see notes)"
     atomic_write_text(out / "study.json", json.dumps(result, indent=2, default=str))  # last: the completion marker
     return result
