@@ -285,14 +285,18 @@ def reopener(spec: str | Mapping[str, Any], *, recorder: "RecordingTransport | N
 def load_transcript(source: str | Path | list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Transcript entries (comments dropped) from a JSON-lines file or an already-parsed list."""
     if isinstance(source, (str, Path)):
+        from benchtwin.schema import loads_json, read_input_text
+
         entries = []
-        for lineno, line in enumerate(Path(source).read_text(encoding="utf-8").splitlines(), 1):
+        # the one reader (benchtwin.schema): a regular file (a FIFO is refused, not opened), bounded
+        # size, strict JSON per line; its SchemaError is a ValueError naming the file
+        for lineno, line in enumerate(read_input_text(source, what="transcript").splitlines(), 1):
             if not line.strip():
                 continue
-            try:
-                entries.append(json.loads(line))
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{source}:{lineno}: not a JSON object: {exc}") from exc
+            e = loads_json(line, f"{source}:{lineno}")
+            if not isinstance(e, dict):
+                raise ValueError(f"{source}:{lineno}: expected a JSON object, got {type(e).__name__}")
+            entries.append(e)
     else:
         entries = [dict(e) for e in source]
     out = []

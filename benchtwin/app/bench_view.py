@@ -353,11 +353,13 @@ def scenario_from_manifest(manifest: dict) -> Any:
 def bench_preface_for_dataset(dataset: Any) -> list:
     """The opening picture for ``analyze`` / ``close-loop``: the bench model with the dataset's
     declared geometry (``scenario_from_manifest``), or nothing when that cannot be built or drawn."""
-    import json
     from pathlib import Path
 
-    try:
-        man = json.loads((Path(dataset) / "manifest.json").read_text(encoding="utf-8"))
+    from benchtwin.schema import loads_json, read_input_text
+
+    try:  # the one reader: a manifest that is a FIFO is refused here, not opened (analyze names it)
+        p = Path(dataset) / "manifest.json"
+        man = loads_json(read_input_text(p, max_bytes=1024 * 1024, what="manifest"), str(p))
         sc = scenario_from_manifest(man)
     except Exception:  # noqa: BLE001 - a missing or bad manifest: the analysis reports it (exit 2), no picture
         return []

@@ -451,7 +451,35 @@ def load_results(path: str | Path) -> dict[str, Any]:
         validate_results(res, str(p))
     except ResultsError as exc:
         raise CertificateInputError(str(exc)) from None
+    _check_ranges(res, str(p))
     return res
+
+
+#: the ranges of what a certificate states (as the dataset reader's unit ranges: angles of a turn,
+#: errors within ±10°), and of the coverage factor and probability it states them with
+_CURVE_RANGES = {"theta_deg": (-360.0, 720.0), "value": (-36000.0, 36000.0), "u": (0.0, 36000.0),
+                 "U": (0.0, 36000.0)}
+
+
+def _check_ranges(res: Mapping[str, Any], where: str) -> None:
+    """Numbers the certificate states within their ranges (a k below 1 was an internal error)."""
+    bs = res.get("budget_summary")
+    if isinstance(bs, Mapping):
+        for key, lo, hi in (("k", 1.0, 100.0), ("p", 1e-9, 1.0)):
+            v = bs.get(key)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and not lo <= v <= hi:
+                raise CertificateInputError(f"{where}: key 'budget_summary.{key}': expected {lo:g}…{hi:g}, got {v!r}")
+    for curve in ("encoder_error_arcsec", "encoder_error_corrected_arcsec", "selfcal_error_arcsec"):
+        d = res.get(curve)
+        if not isinstance(d, Mapping):
+            continue
+        for key, (lo, hi) in _CURVE_RANGES.items():
+            vals = d.get(key)
+            if not isinstance(vals, list):
+                continue
+            for i, v in enumerate(vals):
+                if isinstance(v, (int, float)) and not isinstance(v, bool) and not lo <= v <= hi:
+                    raise CertificateInputError(f"{where}: {curve}.{key}[{i}]: expected {lo:g}…{hi:g}, got {v!r}")
 
 
 def _series(where: str, d: Mapping[str, Any], key: str, n: int | None = None, positive: bool = False) -> list[float]:

@@ -21,6 +21,7 @@ high byte).
 from __future__ import annotations
 
 import csv
+import io
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -97,6 +98,38 @@ class OpenCVCamera:
             release()
 
 
+def _read_index(index: Path, folder: Path) -> list[tuple[Path, float | None]]:
+    """A camera folder's index.csv by the one reader (benchtwin.schema): a regular file, bounded
+    size, ``file`` a relative name inside the folder, ``t_s`` by the number grammar. Errors are
+    ValueErrors naming the file and the row (the bench file's reader makes them exit 2)."""
+    from benchtwin.schema import check_relative_name, parse_float, read_input_text
+
+    text = read_input_text(index, what="camera index")
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise ValueError(f"{index}: not valid CSV ({exc})") from None
+    header = [h.strip() for h in rows[0]] if rows else []
+    if "file" not in header:
+        raise ValueError(f"{index}: row 1: needs a 'file' column, has {header}")
+    i_file = header.index("file")
+    i_t = header.index("t_s") if "t_s" in header else None
+    frames: list[tuple[Path, float | None]] = []
+    for n, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(header):
+            raise ValueError(f"{index}: row {n}: expected {len(header)} fields, got {len(row)}")
+        name = check_relative_name(row[i_file].strip(), f"{index}: row {n}, column 'file'")
+        t = row[i_t].strip() if i_t is not None else ""
+        try:
+            t_s = parse_float(t) if t else None
+        except ValueError as exc:
+            raise ValueError(f"{index}: row {n}, column 't_s': {exc}") from None
+        frames.append((folder / name, t_s))
+    return frames
+
+
 class FolderCamera:
     """Replays a folder of images. Arguments: ``name``, ``folder``, ``dtype`` (None), ``loop`` (False),
     ``clock`` (used for ``t_s`` when the index has no ``t_s`` column), ``pixel_size_um``."""
@@ -113,14 +146,8 @@ class FolderCamera:
         self.pixel_size_um = pixel_size_um
         index = self.folder / "index.csv"
         self.frames: list[tuple[Path, float | None]] = []
-        if index.exists():
-            with index.open(newline="") as fh:
-                reader = csv.DictReader(fh)
-                if not reader.fieldnames or "file" not in reader.fieldnames:
-                    raise ValueError(f"{index}: needs a 'file' column, has {reader.fieldnames}")
-                for row in reader:
-                    t = row.get("t_s")
-                    self.frames.append((self.folder / row["file"], float(t) if t not in (None, "") else None))
+        if index.exists() or index.is_symlink():
+            self.frames = _read_index(index, self.folder)
         else:
             self.frames = [(p, None) for p in sorted(self.folder.glob("*.png"))]
         if not self.frames:
