@@ -39,17 +39,27 @@ _cells = st.one_of(st.sampled_from(["0", "1", "-1", "0.5", "90", "180", "270", "
 
 #: mostly numbers, so that many tables parse and reach the ranges and the writer
 _numbers = st.one_of(st.sampled_from(["0", "90", "180", "270", "360", "-360", "720", "720.5", "7200.5", "0.5", "-3",
-                                      "1_000", "36000", "36001", "1e30", "1e-30", "-0"]),
-                     st.floats(min_value=-1e5, max_value=1e5, allow_nan=False).map(repr))
+                                      "1_000", "36000", "36001", "1e30", "1e-30", "-0", "\u22123"]),
+                     st.floats(min_value=-1e5, max_value=1e5, allow_nan=False).map(repr),
+                     st.floats(min_value=-400, max_value=800, allow_nan=False).map(repr))
 
 
 @st.composite
 def import_table(draw):
-    cols = draw(st.lists(st.sampled_from(["a", "e", "r", "u", "x"]), min_size=1, max_size=5))
-    cells = st.one_of(_numbers, _numbers, _numbers, _cells)
-    rows = draw(st.lists(st.lists(cells, min_size=len(cols) - 1, max_size=len(cols) + 1), max_size=6))
+    cols = draw(st.permutations(["a", "e"] + draw(st.lists(st.sampled_from(["a", "e", "r", "u", "x"]), max_size=3))))
+    rows = draw(st.lists(st.lists(_numbers, min_size=len(cols), max_size=len(cols)), min_size=3, max_size=6))
+    # then, sometimes, a hostile cell, a short or long row, or junk before the header
+    for _ in range(draw(st.integers(0, 2))):
+        r = draw(st.sampled_from(rows))
+        op = draw(st.sampled_from(["cell", "cell", "short", "long"]))
+        if op == "cell":
+            r[draw(st.integers(0, len(r) - 1))] = draw(_cells)
+        elif op == "short":
+            r.pop()
+        else:
+            r.append(draw(_cells))
     text = ",".join(cols) + "\n" + "".join(",".join(r) + "\n" for r in rows)
-    return text if not draw(st.booleans()) else draw(st.text(max_size=30)) + text
+    return text if draw(st.integers(0, 4)) else draw(st.text(max_size=30)) + text
 
 
 @FUZZ
