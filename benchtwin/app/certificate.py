@@ -285,16 +285,9 @@ def _date(where: str, table: Mapping[str, Any], key: str, default: str | None) -
     raise CertificateInputError(f"{where}: key {key!r} must be a date YYYY-MM-DD, got {v!r}")
 
 
-def _unknown(where: str, table: Mapping[str, Any], allowed: set[str]) -> None:
-    extra = sorted(set(table) - allowed)
-    if extra:
-        raise CertificateInputError(f"{where}: unknown key {extra[0]!r} (expected one of {', '.join(sorted(allowed))})")
-
-
 def _contact(where: str, t: Any) -> Contact:
     if not isinstance(t, Mapping):
         raise CertificateInputError(f"{where}: expected a table with name, email, city, country, ...")
-    _unknown(where, t, _CONTACT_KEYS)
     c = Contact(name=_s(where, t, "name"), email=_s(where, t, "email"),
                 **{k: str(t[k]) for k in ("street", "street_no", "post_code", "city", "country", "phone") if k in t})
     if c.country and not (len(c.country) == 2 and c.country.isalpha() and c.country.isupper()):
@@ -339,7 +332,6 @@ def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
     lab_t = {k: v for k, v in lab.items() if k != "code"} if isinstance(lab, Mapping) else lab
     item = data["item"]
     wi = f"{source} [item]"
-    _unknown(wi, item, {"name", "manufacturer", "model", "serial", "customer_id", "description"})
     item_d = {"name": _s(wi, item, "name"), "manufacturer": _s(wi, item, "manufacturer"),
               "serial": _s(wi, item, "serial")}
     for k in ("model", "customer_id", "description"):
@@ -350,7 +342,6 @@ def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
         wp = f"{source} [[person]] #{i + 1}"
         if not isinstance(p, Mapping):
             raise CertificateInputError(f"{wp}: expected a table with name, role, main_signer")
-        _unknown(wp, p, {"name", "role", "main_signer"})
         ms = p.get("main_signer", False)
         if not isinstance(ms, bool):
             raise CertificateInputError(f"{wp}: key 'main_signer' must be true or false, got {ms!r}")
@@ -362,7 +353,6 @@ def parse_lab(data: Mapping[str, Any], source: str, today: str) -> LabFile:
         we = f"{source} [[equipment]] #{i + 1}"
         if not isinstance(e, Mapping):
             raise CertificateInputError(f"{we}: expected a table with name, manufacturer, model, serial, certificate")
-        _unknown(we, e, {"name", "manufacturer", "model", "serial", "certificate", "instrument"})
         equipment.append({k: _s(we, e, k) for k in e})
         if "name" not in e:
             raise CertificateInputError(f"{we}: key 'name' is required")
