@@ -110,7 +110,7 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
     if len(out["angle"]) < 3:
         raise ImportError_(f"{p}: {len(out['angle'])} data rows; an error curve needs at least 3")
     seen: dict[float, int] = {}
-    for a, r in zip(out["angle"], out["_row"]):
+    for a, r in zip(out["angle"], (int(x) for x in out["_row"])):
         key = round(a % 360.0, 9) % 360.0
         if key in seen:
             raise ImportError_(f"{p}: rows {seen[key]} and {r}, column {angle!r}: the same angle twice "
@@ -153,7 +153,7 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
     f = ERROR_UNITS[error_unit]
     cols = read_columns(table, angle, error, reverse, u)
     th = cols["angle"]
-    src_rows = cols["_row"]
+    src_rows = [int(r) for r in cols["_row"]]  # the source table's row numbers, for the errors
     _check_range(table, th, src_rows, angle, "theta_deg", 1.0, "deg")
     for k in ("error", "reverse", "u"):
         if k in cols:

@@ -440,7 +440,7 @@ def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[i
     }
     if notes:  # only then: the study.json of a run without them stays as it was
         result["notes"] = list(notes)
-        result["message"] += f" ({len(notes)} unusable cache entr{'y' if len(notes) == 1 else 'ies'} recomputed: " \
-                             f"see notes)"
+        result["message"] = (f"{result['message']} ({len(notes)} unusable cache "
+                             f"entr{'y' if len(notes) == 1 else 'ies'} recomputed: see notes)")
     atomic_write_text(out / "study.json", json.dumps(result, indent=2, default=str))  # last: the completion marker
     return result
