@@ -528,6 +528,14 @@ def _read_json(path: Path) -> Any:
         raise InputError(str(exc)) from None
 
 
+def _manifest(ds: Path) -> dict[str, Any]:
+    """The dataset's manifest.json, checked by the dataset format's reader (analysis.dataset:
+    types and ranges of the bench and CCD keys the floor and the sweep use)."""
+    from benchtwin.analysis.dataset import validate_manifest
+
+    return validate_manifest(_read_json(ds / "manifest.json"), str(ds / "manifest.json"))
+
+
 def _json_object(path: Path, obj: Any, keys: Mapping[str, str]) -> dict[str, Any]:
     """A truth JSON object whose ``keys`` (name -> "number" | "object" | "names") have their type
     when present; an error names the file and the key."""
@@ -652,10 +660,12 @@ def _sweep_truth(td: Path, ds: Path) -> tuple[float, float] | None:
         return None
     from benchtwin.analysis.eccentricity import eccentricity_from_dref
 
-    ccd = _get(_read_json(ds / "manifest.json"), "ccd")
+    ccd = _get(_manifest(ds), "ccd")
     tc, idx = _read_csv(td / "ccd.csv"), _read_csv(ds / "ccd" / "index.csv")
     if not isinstance(ccd, Mapping) or "reference_px" not in ccd or tc.get("k") is None or idx.get("k") is None:
         return None
+    _numeric(td / "ccd.csv", tc, "k", "centre_x_px", "centre_y_px", "edge_radius_px", "pixel_um")
+    _numeric(ds / "ccd" / "index.csv", idx, "k", "theta_deg")
     by_k = {int(k): i for i, k in enumerate(tc["k"])}
     sel = [(by_k[int(k)], float(th)) for k, th in zip(idx["k"], idx["theta_deg"]) if int(k) in by_k]
     if len(sel) < 4:
@@ -687,6 +697,8 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     if (td / "polygon.csv").exists() and (ds / "polygon.csv").exists():
         t = _read_csv(td / "polygon.csv")
         d = _read_csv(ds / "polygon.csv")
+        _numeric(td / "polygon.csv", t, "theta_deg", "ac_exact_arcsec")
+        _numeric(ds / "polygon.csv", d, "theta_deg", "ac_arcsec", *(["t_s"] if "t_s" in d else []))
         kc = [c for c in ("shift_deg", "start_face", "step", "rep", "direction") if c in t and c in d]
         key = lambda cols, i: tuple(str(cols[c][i]) for c in kc)  # noqa: E731
         exact = {key(t, i): float(t["ac_exact_arcsec"][i]) for i in range(t["theta_deg"].size)}
@@ -716,12 +728,15 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     #    centre along Y (truth/radial_motion.csv: repeatability, linearity, the spheres' form),
     #    averaged over the revolutions, extrapolated to the disk plane as Jia eq. 9 does
     #    (δY = top + (top − bottom)·L1/L2), its orders 2…10 integrated as in eq. 5 (∫ dθ / r).
-    man = _read_json(ds / "manifest.json") if (ds / "manifest.json").exists() else {}
+    man = _manifest(ds) if (ds / "manifest.json").exists() else {}
     r_mm = _get(man, "bench", "optical_radius_mm")
     L1, L2 = _get(man, "bench", "L1_mm"), _get(man, "bench", "L2_mm")
     if (td / "radial_motion.csv").exists() and (ds / "radial_motion.csv").exists() and r_mm and L1 and L2:
         t = _read_csv(td / "radial_motion.csv")
         d = _read_csv(ds / "radial_motion.csv")
+        _numeric(td / "radial_motion.csv", t, "theta_deg", "rep",
+                 *[c for c in ("sphere_top_y_um", "sphere_bottom_y_um") if c in t])
+        _numeric(ds / "radial_motion.csv", d, "theta_deg", "rep", "probe_top_um", "probe_bottom_um")
         if {"sphere_top_y_um", "sphere_bottom_y_um"} <= set(t) and t["theta_deg"].size == d["theta_deg"].size \
                 and np.allclose(t["theta_deg"], d["theta_deg"]) and np.array_equal(t["rep"], d["rep"]):
             e_top = d["probe_top_um"] - t["sphere_top_y_um"]
@@ -746,6 +761,7 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     if (ds / "radial_motion.csv").exists():
         x_probes = "probe_top_x_um" in _read_csv(ds / "radial_motion.csv")
     if x_probes is False and ee is not None and r_mm and {"axis_dx_um", "axis_dy_um"} <= set(ee):
+        _numeric(td / "encoder_error.csv", ee, "axis_dx_um", "axis_dy_um")
         parts["unseen_tangential_arcsec"] = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"],
                                                                  ee["axis_dy_um"], float(r_mm))
     # what a Y-probe bench cannot attribute is reported, not floored: an analysis can fit it (as a

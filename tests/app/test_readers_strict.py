@@ -200,6 +200,19 @@ def test_score_bad_truth_files_are_exit_2(truth, tmp_path, capsys, name, text, n
     assert rc == 2 and name in out["error"] and needle in out["error"], out
 
 
+def test_score_floor_columns_are_checked(truth, tmp_path, capsys):  # noqa: F811
+    """The floor reads the dataset's and the truth's polygon.csv by column: a missing or
+    non-numeric one was a KeyError / TypeError (exit 1)."""
+    (truth / "polygon.csv").write_text("theta_deg,ac_arcsec\n0,1\n90,x\n", encoding="utf-8")
+    r = _results(tmp_path, "ok.json", '{"format": "benchtwin-min-results", "e_um": 7.1}')
+    rc, out = _cli(["score", str(r), str(truth)], capsys)
+    assert rc == 2 and "truth/polygon.csv" in out["error"] and "'ac_exact_arcsec'" in out["error"], out
+    (truth / "truth" / "polygon.csv").write_text("theta_deg,alpha_arcsec,ac_exact_arcsec\n0,1,1\n90,2,2\n",
+                                                 encoding="utf-8")
+    rc, out = _cli(["score", str(r), str(truth)], capsys)
+    assert rc == 2 and "ds/polygon.csv: column 'ac_arcsec'" in out["error"], out
+
+
 def test_score_suite_refuses_a_suite_file_of_the_wrong_shape(tmp_path, capsys):
     (tmp_path / "suite").mkdir()
     (tmp_path / "res").mkdir()
