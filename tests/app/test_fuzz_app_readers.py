@@ -270,10 +270,14 @@ def test_lab_file_text_raises_only_certificate_input_error_and_gives_a_valid_cer
 def _spell(data, text: str) -> str:
     """A number of ``text`` as a hostile file may spell it (a 401-digit integer, an overflow, a
     separator, a constant JSON does not have, a key given twice), sometimes."""
-    if not data.draw(st.booleans()) or "0.05" not in text:
-        return text
-    return text.replace("0.05", data.draw(st.sampled_from(["1" + "0" * 400, "1e400", "0_05", "NaN", "-Infinity",
-                                                           "1e-320", "0.05, \"u\": [1]"])), 1)
+    how = data.draw(st.sampled_from(["as is", "u", "en_max"]))
+    spelling = data.draw(st.sampled_from(["1" + "0" * 400, "1e400", "0_05", "NaN", "-Infinity", "1e-320",
+                                          "0.05, \"u\": [1]"]))
+    if how == "u" and "0.05" in text:  # a standard uncertainty of the encoder error
+        return text.replace("0.05", spelling, 1)
+    if how == "en_max" and text.startswith("{") and text.endswith("}") and text != "{}":
+        return text[:-1] + f', "en_max": {spelling}}}'  # a number the format types (analysis.results)
+    return text
 
 
 @FUZZ
