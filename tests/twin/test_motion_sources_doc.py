@@ -1,0 +1,76 @@
+"""docs/physics.md's "Sources of motion and drift, bench by bench" table is the one the scenarios give.
+
+benchmarks/motion_sources.py loads every shipped scenario through the project's loader and writes
+each source of motion and drift with its resolved size; the doc's block between the markers must
+equal a fresh one, so the table cannot drift from the scenarios (issue 33, first "Done when" item).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _module():
+    spec = importlib.util.spec_from_file_location("motion_sources", ROOT / "benchmarks" / "motion_sources.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod          # its dataclass looks its module up there
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_doc_table_equals_a_fresh_one():
+    ms = _module()
+    fresh = ms.table()
+    doc = ms.doc_block(ms.DOC.read_text(encoding="utf-8"))
+    assert doc == fresh, ("docs/physics.md's motion-sources table differs from the scenarios: "
+                          "run .venv/bin/python benchmarks/motion_sources.py --write")
+
+
+def test_every_shipped_bench_is_in_the_table():
+    ms = _module()
+    block = ms.table()
+    names = [ms.bench_name(p) for p in ms.scenario_files()]
+    assert len(names) == 2 + len(list((ROOT / "scenarios" / "hidden").glob("*.toml"))) + len(
+        list((ROOT / "scenarios" / "hidden_templates").glob("*.toml")))
+    headers = [line for line in block.splitlines() if line.startswith("**")]
+    listed = [n for h in headers for n in h.strip("*").split(", ")]
+    assert sorted(listed) == sorted(names)
+
+
+def test_rows_follow_the_resolved_values(tmp_path):
+    """A changed value changes its row, and a reference lapses with the value it was read for."""
+    ms = _module()
+    src = (ROOT / "scenarios" / "jia2019.toml").read_text(encoding="utf-8")
+    assert 'cage_slip = 0.02' in src and 'hvac_amplitude = "0.5 K"' in src
+    changed = src.replace("cage_slip = 0.02", "cage_slip = 0.05").replace(
+        'hvac_amplitude = "0.5 K"', 'hvac_amplitude = "0.7 K"')
+    p = tmp_path / "scenarios" / "jia2019.toml"      # named "jia2019" like the shipped bench
+    p.parent.mkdir()
+    p.write_text(changed, encoding="utf-8")
+    rows = {r.source: r for r in ms.bench_rows(p)}
+    slip = rows["ball bearings: cage slip (sets the asynchronous motion)"]
+    assert slip.size == "σ = 0.05 of the move's rolling"
+    temps = rows["temperatures (drive every thermal row below)"]
+    assert "room control ±0.7 K" in temps.size
+    assert ms.bench_name(p) == "jia2019"
+    # the reference was read for "0.5 K": it lapses with the value
+    assert "Bryan 1990" not in temps.size_source
+    # the shipped file keeps its reference
+    shipped = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "jia2019.toml")}
+    assert "Bryan 1990" in shipped["temperatures (drive every thermal row below)"].size_source
+
+
+def test_path_bearing_rows_say_the_whirl_is_imposed():
+    ms = _module()
+    rows = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "hidden" / "null_paper.toml")}
+    wav = rows["path bearing: race waviness"]
+    assert "FORWARD whirl" in wav.mechanism
+    assert wav.size == "top: k=2 0.15 µm, k=3 0.1 µm, k=5 0.05 µm; bottom: k=2 0.1 µm, k=4 0.06 µm"
+    assert rows["path bearing: random non-repeating motion"].keyed_by.endswith("not time")
+    assert rows["path bearing: cage lobing"].size_source.startswith(
+        "`bearings.async_rms`: Jia 2019 fig. 13")
