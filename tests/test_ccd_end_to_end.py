@@ -20,9 +20,7 @@ grating period (at the edge radius, the twin's convention).
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -109,10 +107,9 @@ def test_noise_free_frames_d_ref_within_0p02_px():
 
 
 def _conftest_helper():
-    spec = importlib.util.spec_from_file_location("_analysis_conftest", Path(__file__).parent / "analysis" / "conftest.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.lab_to_image_centre
+    from tests.support.grating import lab_to_image_centre
+
+    return lab_to_image_centre
 
 
 # None: the scenario's own seed (20190819). ~18 s per seed (render 9 s + analysis 9 s): the other

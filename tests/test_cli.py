@@ -27,7 +27,7 @@ def test_validate_bad_scenario_exit_2(tmp_path, capsys):
 
 
 def test_validate_dataset(tmp_path, capsys):
-    from tests.test_dataset import make_dataset
+    from tests.support.fake_dataset import make_dataset
 
     root = make_dataset(tmp_path / "ds")
     assert main(["validate", str(root)]) == 0

@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchtwin.analysis.dataset import TABLES, DatasetError, open_dataset, parse_table, validate_manifest
-from tests.test_dataset import MANIFEST, make_dataset
+from tests.support.fake_dataset import MANIFEST, make_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
@@ -205,7 +205,7 @@ def monkeypatch_module():
 @given(data=st.data())
 def test_bench_file_raises_only_bench_file_error(data):
     from benchtwin.hw.acquisition.bench import BenchFileError, parse_bench
-    from tests.hw.test_hil import _bench
+    from tests.support.bench_file import bench_raw as _bench
 
     raw = data.draw(mutated(_bench()))
     try:

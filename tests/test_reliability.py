@@ -18,7 +18,7 @@ import pytest
 from benchtwin.analysis.dataset import DatasetError, DatasetWriter, open_dataset
 from benchtwin.cli import main
 from benchtwin.fsio import AtomicDir, DirLock, OutputError, atomic_write_text, check_output_dir
-from tests.test_dataset import MANIFEST, make_dataset
+from tests.support.fake_dataset import MANIFEST, make_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 JIA = ROOT / "scenarios" / "jia2019.toml"

@@ -48,7 +48,7 @@ def _alpha_arcsec(th_deg):
 
 @pytest.fixture(scope="module")
 def external_dataset(tmp_path_factory):
-    from tests.analysis.conftest import lab_to_image_centre, render_grating
+    from tests.support.grating import lab_to_image_centre, render_grating
 
     rng = np.random.default_rng(2024)
     path = tmp_path_factory.mktemp("ext") / "bench_2024-05-01"

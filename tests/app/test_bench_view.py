@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.twin.test_render import needs_gl
+from tests.support.gl import needs_gl
 
 pytestmark = pytest.mark.render
 

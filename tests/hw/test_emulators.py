@@ -20,22 +20,7 @@ from benchtwin.twin.emulators.tesa import TesaEmulator
 from benchtwin.twin.emulators.triangle import TriAngleEmulator
 from benchtwin.twin.emulators.zaber import ZaberEmulator
 
-
-class Stub:
-    """A reading source: fixed readings per instrument, moves recorded."""
-
-    def __init__(self, **readings):
-        self.readings = readings
-        self.moves: list[float] = []
-        self.position_deg = 0.0
-        self.speed_deg_s = 20.0
-
-    def read(self, name):
-        return dict(self.readings[name])
-
-    def move(self, target):
-        self.moves.append(target)
-        return target
+from tests.support.acquisition import Stub
 
 
 def one(emu, data: bytes):

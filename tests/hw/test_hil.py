@@ -42,6 +42,9 @@ import pytest
 from benchtwin.analysis.dataset import open_dataset
 from benchtwin.hw.acquisition.bench import BenchFileError, build_procedure, load_bench, parse_bench
 
+from tests.support.acquisition import compare_tables as _compare
+from tests.support.bench_file import bench_raw as _bench
+
 ROOT = Path(__file__).resolve().parents[2]
 REDUCED = {"procedure.radial_positions": 36, "procedure.radial_reps": 1, "procedure.polygon_shifts": ["0 deg", "5 deg"],
            "procedure.polygon_reps": 1, "procedure.ccd_step": "45 deg", "procedure.selfcal_step": "30 deg",
@@ -92,26 +95,6 @@ def run(request, tmp_path_factory):
 def _tables(path: Path) -> dict:
     ds = open_dataset(path)
     return {n: ds.table(n) for n in TABLES if ds.has(n)}
-
-
-def _compare(a: dict, b: dict, *, skip=("t_s",)) -> None:
-    assert set(a) == set(b)
-    for name in a:
-        assert set(a[name]) == set(b[name]), name
-        for col, va in a[name].items():
-            if col in skip:
-                continue
-            vb = b[name][col]
-            try:  # extra columns (theta_read_deg, ac_y_arcsec) come back as text
-                va, vb = np.asarray(va, dtype=float), np.asarray(vb, dtype=float)
-            except ValueError:
-                pass
-            if col == "theta_read_deg":  # the ND display sends 6 decimals of a degree
-                np.testing.assert_allclose(va, vb, rtol=0, atol=0.51e-6, err_msg=f"{name}.{col}")
-            elif va.dtype.kind in "fc":
-                np.testing.assert_array_equal(va, vb, err_msg=f"{name}.{col}")
-            else:
-                assert list(va) == list(vb), f"{name}.{col}"
 
 
 def test_emulated_acquisition_with_faults_equals_simulation(run):
@@ -230,24 +213,6 @@ def test_kill_and_resume_gives_the_uninterrupted_dataset(run, tmp_path):
 
 
 # --------------------------------------------------------------------------- bench-file errors
-
-def _bench(**over) -> dict:
-    raw = {"bench": {"name": "b", "source": "hardware"},
-           "geometry": {"optical_radius": "22 mm", "L1": "6.81 mm", "L2": "122.96 mm", "grating_period": "20 um",
-                        "polygon_faces": 23, "heads": ["0 deg"]},
-           "instruments": {"encoder": {"driver": "heidenhain", "port": "loop://"},
-                           "autocollimator": {"driver": "elcomat", "port": "loop://"},
-                           "stage": {"driver": "zaber", "port": "loop://", "soft_limits": ["-1 deg", "361 deg"],
-                                     "max_speed": "20 deg/s", "options": {"microsteps_per_deg": 1000}}},
-           "procedure": [{"type": "polygon_traditional", "start_face": 2, "dwell": "0.1 s"}]}
-    for k, v in over.items():
-        sec, key = k.split("__")
-        if v is None:
-            raw[sec].pop(key)
-        else:
-            raw[sec][key] = v
-    return raw
-
 
 def test_bench_file_loads_and_builds_the_procedure(tmp_path):
     cfg = parse_bench(_bench(), "b.toml")

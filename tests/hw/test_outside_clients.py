@@ -36,7 +36,7 @@ from benchtwin.twin.emulators.tesa import TesaEmulator
 from benchtwin.twin.emulators.triangle import TriAngleEmulator
 from benchtwin.twin.emulators.zaber import ZaberEmulator
 
-from .test_emulators import Stub
+from tests.support.acquisition import Stub
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 

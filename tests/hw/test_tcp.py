@@ -16,8 +16,8 @@ from benchtwin.hw.transport import SocketTransport, TransportClosed, open_transp
 from benchtwin.twin.emulators.tcp import TcpServer
 from benchtwin.twin.emulators.tesa import TesaEmulator
 
-from .test_emulators import Stub
-from .test_hil import _compare
+from tests.support.acquisition import Stub
+from tests.support.acquisition import compare_tables as _compare
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -99,7 +99,7 @@ def test_simulated_autocollimator_reads_through_the_optics():
     from benchtwin.twin.scenario import load_scenario
     from benchtwin.twin.simulate import sim_build
 
-    from tests.twin.test_hidden import HIDDEN_DIR, without_hidden
+    from tests.support.scenarios import HIDDEN_DIR, without_hidden
 
     sc = load_scenario(HIDDEN_DIR / "ac_scale.toml").with_overrides(
         {"hidden.ac_scale.gain": 0.0, "hidden.ac_scale.quadratic_per_arcsec": 0.0,

@@ -13,7 +13,7 @@ from benchtwin.twin.render.pipeline import (FRAME_WORKERS, FRAMES_ENV, WORKERS_E
                                              frame_workers)
 from benchtwin.twin.simulate import simulate
 
-from tests.twin.test_simulate import files, small_scenario
+from tests.support.scenarios import files, small_scenario
 
 # ball bearings (the path-dependent cage state must survive the resume), 8 frames of 128×96
 OVR = {"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"], "procedure.ccd_step": "45 deg",

@@ -17,14 +17,13 @@ from benchtwin.twin.pose import BodyPose
 from benchtwin.twin.render import CcdCamera, GratingSpec, Renderer, SensorParams, render_ccd
 from benchtwin.twin.render.analytic import coverage_image, polygon_pixel_area
 from benchtwin.twin.render.grating import build_scene
-from benchtwin.twin.render.gl import gl_available, gl_status
+from benchtwin.twin.render.gl import gl_status
 from benchtwin.twin.render.sensor import apply_sensor
+
+from tests.support.gl import GL, needs_gl
 
 GRATING = GratingSpec(period_m=20e-6, duty=0.5, line_length_m=1.2e-3, edge_radius_m=22.5e-3)
 SMALL = dict(width_px=512, height_px=384)
-
-_GL = gl_available()
-needs_gl = pytest.mark.skipif(not _GL, reason=f"no OpenGL context: {gl_status() if not _GL else ''}")
 
 
 def rot(axis: str, a: float) -> np.ndarray:
@@ -80,7 +79,7 @@ def area_ends(cov: np.ndarray, ends_px: np.ndarray, half_rows: int = 4) -> np.nd
 
 @pytest.fixture(scope="module")
 def gl_renderer():
-    if not _GL:
+    if not GL:
         pytest.skip(f"no OpenGL context: {gl_status()}")
     r = Renderer(backend="pyrender")
     yield r

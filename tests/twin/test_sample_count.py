@@ -12,7 +12,7 @@ from benchtwin.twin.pose import BodyPose
 from benchtwin.twin.render import CcdCamera, GratingSpec
 from benchtwin.twin.render.grating import build_scene
 from benchtwin.twin.render.sample_count import pair_table, resolved_byte
-from tests.twin.test_render import needs_gl  # the one GL skip marker of the render tests
+from tests.support.gl import needs_gl  # the one GL skip marker of the render tests
 
 GRATING = GratingSpec(period_m=20e-6, duty=0.5, line_length_m=1.2e-3, edge_radius_m=22.5e-3)
 

@@ -14,7 +14,7 @@ from benchtwin.twin import simulate as S
 from benchtwin.twin.instruments import settle_ahead as SA
 from benchtwin.twin.instruments.drive import DriveServo
 
-from tests.twin.test_simulate import files, small_scenario
+from tests.support.scenarios import files, small_scenario
 
 needs_fork = pytest.mark.skipif(not hasattr(os, "fork"), reason="the worker is a forked process (POSIX fork)")
 

@@ -28,7 +28,9 @@ from benchtwin.twin.scenario import validate
 from benchtwin.twin.simulate import simulate
 from benchtwin.units import ARCSEC
 
-from tests.twin.test_hidden import SMALL, load, without_hidden
+from tests.support.scenarios import HIDDEN_SMALL as SMALL
+from tests.support.scenarios import load_hidden as load
+from tests.support.scenarios import without_hidden
 
 # Hidden effects with distinct true values (SI), all at once.
 HIDDEN = {

@@ -30,7 +30,7 @@ from scipy import integrate, signal, stats
 
 from benchtwin.twin import vibration as V
 from benchtwin.twin.scenario import load_scenario
-from tests.twin.test_instruments import eccentric_pose   # the instrument tests' posed disk
+from tests.support.poses import eccentric_pose   # the instrument tests' posed disk
 
 ROOT = Path(__file__).resolve().parents[2]
 JIA = load_scenario(ROOT / "scenarios" / "jia2019.toml")
