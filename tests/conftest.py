@@ -2,6 +2,9 @@
 
 - Headless OpenGL is configured before anything imports pyrender or mujoco's renderer.
 - ``--hardware`` opts in to tests that need a real bench (marker ``hardware``); never in CI.
+- ``datasets``: the session's twin datasets, each scenario simulated once per run, shared by the
+  xdist workers of a run (tests/support/datasets.py).
+- ``BENCHTWIN_TEST_SIMLOG=FILE`` logs every simulation and process pool (tests/support/simlog.py).
 """
 
 from __future__ import annotations
@@ -22,6 +25,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                      help="run tests that talk to a real bench (see hw/README); never in CI")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    from tests.support import simlog
+
+    if os.environ.get(simlog.LOG_ENV) and not config.pluginmanager.has_plugin("tests.support.simlog"):
+        config.pluginmanager.register(simlog, "tests.support.simlog")
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if config.getoption("--hardware"):
         return
@@ -31,6 +41,21 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(skip)
 
 
+@pytest.fixture(scope="session")
+def datasets(tmp_path_factory: pytest.TempPathFactory):
+    """The run's twin datasets by scenario (``datasets.dataset(sc)``: shared, read-only;
+    ``datasets.copy(sc, dest)``: a test's own copy). Under xdist the workers share the folder
+    (their base temporary folders' parent), so a scenario is simulated once per run."""
+    from tests.support.datasets import DatasetFactory
+
+    base = tmp_path_factory.getbasetemp()
+    root: Path = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "twin-datasets"
+    factory = DatasetFactory(root)
+    yield factory
+    changed = factory.verify()
+    assert not changed, f"a test wrote into a shared dataset (take datasets.copy(sc, dest) to change one): {changed}"
+
+
 # ----------------------------------------------------------------------------- certified runs
 # A small simulated jia2019 run and a reduced hsieh2022 run, analysed with the loop closed and the
 # truth deleted: the inputs of the certificate's tests (tests/test_certificate.py) and of the
@@ -38,15 +63,14 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 @pytest.fixture(scope="session")
-def jia_results(tmp_path_factory) -> Path:
+def jia_results(tmp_path_factory, datasets) -> Path:
+    """A reduced jia2019 run (the dataset tests/analysis/test_parallel_frames.py analyses too)."""
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.twin.scenario import load_scenario
-    from benchtwin.twin.simulate import simulate
 
     sc = load_scenario().with_overrides({"procedure.radial_positions": 36, "procedure.ccd_step": "12 deg"})
     base = tmp_path_factory.mktemp("cert_jia")
-    ds = simulate(sc, base / "ds", progress=False, backend="analytic")
-    shutil.rmtree(ds / "truth")  # the certificate is made without ground truth
+    ds = datasets.copy(sc, base / "ds", ignore=("truth",))  # the certificate is made without ground truth
     analyze(ds, base / "out", progress=False, close_loop=True)
     return base / "out" / "results.json"
 

@@ -38,9 +38,9 @@ NOISE_FREE_PROBES = {
 
 
 @pytest.fixture(scope="module")
-def jia_small(tmp_path_factory) -> Path:
-    sc = load_scenario().with_overrides(REDUCED)
-    return simulate(sc, tmp_path_factory.mktemp("jia") / "ds", progress=False, backend="analytic")
+def jia_small(datasets) -> Path:
+    """The reduced jia2019 dataset, shared (read only; the tests copy it to change it)."""
+    return datasets.dataset(load_scenario().with_overrides(REDUCED))
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +21,6 @@ from benchtwin.analysis.dataset import open_dataset
 from benchtwin.analysis.parallel import default_workers, ordered_map
 from benchtwin.analysis.pipeline import analyze, step_eccentricity
 from benchtwin.twin.scenario import load_scenario
-from benchtwin.twin.simulate import simulate
 
 REDUCED = {"procedure.radial_positions": 36, "procedure.ccd_step": "12 deg"}  # 30 frames (≥ 24 at order 10)
 
@@ -95,13 +93,13 @@ def test_default_workers_env(monkeypatch):
 
 
 @pytest.fixture(scope="module")
-def small_ds(tmp_path_factory) -> Path:
-    """A reduced jia2019 dataset (30 frames) with its first frame fogged (rejected by the analysis)."""
+def small_ds(tmp_path_factory, datasets) -> Path:
+    """A reduced jia2019 dataset (30 frames; tests/test_certificate.py's) with its first frame fogged
+    (rejected by the analysis)."""
     import cv2
 
     sc = load_scenario().with_overrides(REDUCED)
-    ds = simulate(sc, tmp_path_factory.mktemp("par") / "ds", progress=False, backend="analytic")
-    shutil.rmtree(ds / "truth")
+    ds = datasets.copy(sc, tmp_path_factory.mktemp("par") / "ds", ignore=("truth",))
     f = (ds / "ccd" / "index.csv").read_text().splitlines()[1].split(",")[2]
     img = cv2.imread(str(ds / "ccd" / f), cv2.IMREAD_UNCHANGED)
     fog = np.median(img) + np.random.default_rng(3).normal(0.0, 2.0, img.shape)

@@ -14,6 +14,7 @@ from benchtwin.twin.physics import Bench
 from benchtwin.twin.scenario import load_scenario
 
 from benchtwin.units import ARCSEC  # noqa: E402
+from tests.support.scenarios import small_scenario
 RES = 0.39 * ARCSEC
 CELL_SIGMA = RES / math.sqrt(12.0)          # rectangular distribution over one count (GUM 4.3.7)
 
@@ -98,19 +99,14 @@ def _truth(path, name):
 
 
 @pytest.fixture(scope="module")
-def small_servo_ds(tmp_path_factory):
-    from benchtwin.twin.simulate import simulate
-    from tests.twin.test_simulate import small_scenario
-
-    out = tmp_path_factory.mktemp("servo") / "ds"
-    return simulate(small_scenario(), out, progress=False, backend="analytic")
+def small_servo_ds(datasets):
+    """tests/twin/test_simulate.py's small bench (the same dataset: simulated once per run)."""
+    return datasets.dataset(small_scenario())
 
 
 def test_truth_keeps_the_held_count_and_the_continuous_error(small_servo_ds):
     """truth/polygon.csv and truth/radial_motion.csv: theta_deg = the held count, true_deg, and
     α at the true pose, so (θ − true)·3600 − α is minus the rest offset in the count's cell."""
-    from tests.twin.test_simulate import small_scenario
-
     res = small_scenario()["bench"]["encoder_resolution"] / ARCSEC
     for name in ("polygon", "radial_motion"):
         t = _truth(small_servo_ds, name)

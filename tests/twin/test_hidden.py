@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,24 +18,16 @@ from benchtwin.twin.scenario_schema import HIDDEN_EFFECTS
 from benchtwin.twin.simulate import sim_build, simulate
 from benchtwin.units import ARCSEC
 
-ROOT = Path(__file__).resolve().parents[2]
-HIDDEN_DIR = ROOT / "scenarios" / "hidden"
+from tests.support.scenarios import HIDDEN_DIR, files, without_hidden
+from tests.support.scenarios import HIDDEN_SMALL as SMALL
+from tests.support.scenarios import load_hidden as load
+
 SCENARIOS = sorted(HIDDEN_DIR.glob("*.toml"))
 # An effect that moves the stop's true angle by ~1″ moves the 3 µm-centred spheres by ~1e-5 µm:
 # "unchanged" probes means below this, 100× under the probe's 0.01 µm resolution.
 PROBE_TOL_UM = 1e-4
 ARCSEC_RAD = ARCSEC
 STOPS_DEG = [0.0, 31.3, 62.6, 93.9, 125.2, 156.5, 187.8, 219.1, 250.4, 281.7, 313.0, 344.3]
-
-
-def load(name: str):
-    return load_scenario(HIDDEN_DIR / f"{name}.toml")
-
-
-def without_hidden(sc):
-    raw = dict(sc.raw)
-    raw.pop("hidden", None)
-    return validate(raw, f"{sc.name} without [hidden]")
 
 
 def channels(sc, direction: str = "forward", times_s=None, faces: bool = True) -> dict[str, np.ndarray]:
@@ -308,20 +299,14 @@ def test_thermal_growth_follows_the_hub_temperature():
 
 # --------------------------------------------------------------------------- datasets
 
-SMALL = {"procedure.radial_reps": 1, "procedure.radial_positions": 24, "procedure.ccd_step": "180 deg",
-         "bench.polygon_faces": 8, "instruments.ccd.width": "128 px", "instruments.ccd.height": "96 px"}
-
-
-def files(d: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
-
-
 @pytest.fixture(scope="module")
-def grad_runs(tmp_path_factory):
+def grad_runs(tmp_path_factory, datasets):
+    """The hidden effect's dataset (the run's shared one), the same scenario simulated again here,
+    and the scenario without [hidden]."""
     base = tmp_path_factory.mktemp("hidden")
     sc = load("graduation_error").with_overrides(SMALL)
-    out = {}
-    for key, s in (("hidden", sc), ("again", sc), ("plain", without_hidden(sc))):
+    out = {"hidden": files(datasets.dataset(sc))}
+    for key, s in (("again", sc), ("plain", without_hidden(sc))):
         out[key] = files(simulate(s, base / key, progress=False, backend="analytic"))
     return out
 

@@ -15,36 +15,7 @@ from benchtwin.analysis.dataset import Dataset
 from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import sim_procedure, simulate
 
-ROOT = Path(__file__).resolve().parents[2]
-
-SMALL = {
-    "procedure.radial_reps": 2,
-    "procedure.radial_positions": 24,
-    "procedure.ccd_step": "90 deg",
-    "procedure.polygon_shifts": ["0 deg", "5 deg"],
-    "procedure.selfcal": True,
-    "procedure.selfcal_step": "30 deg",
-    "procedure.directions": ["forward", "backward"],
-    "bench.heads": ["0 deg", "120 deg", "240 deg"],
-    "bench.polygon_faces": 8,
-    "instruments.ccd.width": "128 px",
-    "instruments.ccd.height": "96 px",
-    "instruments.autocollimator.accuracy": "0 arcsec",
-    "instruments.autocollimator.noise": "0 arcsec",
-    "errors.graduation_error_rms": "0.5 arcsec",
-    # rolling-path bearings with the waviness and rep-wise non-repeating motion jia2019.toml had
-    # before its ball sets: these tests check the instruments' equations against the truth α grid,
-    # which a ball bench's path-dependent asynchronous motion (tests/twin/test_bearing.py) would blur
-    "bearings.type": "path",
-    "bearings.waviness_top": [{"order": 2, "amplitude": "0.15 um", "phase": "30 deg"},
-                              {"order": 3, "amplitude": "0.10 um", "phase": "110 deg"}],
-    "bearings.waviness_bottom": [{"order": 2, "amplitude": "0.10 um", "phase": "250 deg"}],
-    "bearings.async_rms": "0.06 um",
-}
-
-
-def small_scenario(**extra):
-    return load_scenario(ROOT / "scenarios" / "jia2019.toml").with_overrides({**SMALL, **extra})
+from tests.support.scenarios import ROOT, files, small_scenario
 
 
 def read_csv(p: Path) -> dict[str, list[str]]:
@@ -53,14 +24,9 @@ def read_csv(p: Path) -> dict[str, list[str]]:
     return {k: [r[k] for r in rows] for k in rows[0]}
 
 
-def files(d: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
-
-
 @pytest.fixture(scope="module")
-def small_ds(tmp_path_factory):
-    out = tmp_path_factory.mktemp("small") / "ds"
-    return simulate(small_scenario(), out, progress=False, backend="analytic")
+def small_ds(datasets):
+    return datasets.dataset(small_scenario())
 
 
 def test_dataset_tables_and_manifest(small_ds):
@@ -172,13 +138,13 @@ def test_same_seed_byte_identical_and_seed_matters(tmp_path, bearings):
 
 
 @pytest.mark.parametrize("bearings", ["path", "ball"])
-def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch, bearings):
+def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatch, bearings, datasets):
     """Ball bearings too: the cage path (and its slip draws) is re-done by the replayed moves."""
     from benchtwin.twin.instruments.probe import SimProbe
 
     sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
                            "bearings.type": bearings})
-    ref = simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
+    ref = datasets.dataset(sc)       # the uninterrupted run (the factory's: simulated once per test run)
 
     calls = {"n": 0}
     orig = SimProbe.read
@@ -208,12 +174,12 @@ def test_dry_run_of_the_jia_scenario():
     assert kinds.count("Read") == 1080 + 60 + 23 * 23
 
 
-def test_jia2019_full_run(tmp_path):
+def test_jia2019_full_run(datasets):
     """The embedded default scenario end to end (analytic renderer): the dataset's shape and the size of
     its error. Its speed is a benchmark (benchmarks/run_bench.py, docs/benchmarks.md), not a timed test:
     a wall-clock bound fails on a loaded machine and passes a slow change on a fast one."""
     sc = load_scenario(ROOT / "scenarios" / "jia2019.toml")
-    out = simulate(sc, tmp_path / "jia", progress=False, backend="analytic")
+    out = datasets.dataset(sc)
     ds = Dataset(out)
     assert len(ds.table("radial_motion")["rep"]) == 1080
     assert len(ds.table("polygon")["step"]) == 529 and not ds.has("heads")

@@ -13,14 +13,14 @@ from benchtwin.analysis.dataset import DatasetError
 from benchtwin.forkcall import ForkCall, ForkCallError
 from benchtwin.twin import simulate as S
 
-from tests.twin.test_simulate import files, small_scenario
+from tests.support.scenarios import files, small_scenario
 
 
 @pytest.mark.parametrize("bearings", ["path", "ball"])
-def test_truth_apart_is_the_same_bytes_as_simulates_truth(tmp_path, bearings):
+def test_truth_apart_is_the_same_bytes_as_simulates_truth(tmp_path, bearings, datasets):
     sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
                            "bearings.type": bearings})
-    ref = S.simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
+    ref = datasets.dataset(sc)
     ds, job = S.simulate_apart(sc, tmp_path / "ds", tmp_path / "truth", progress=False, backend="analytic")
     assert (ds / "manifest.json").is_file()          # the measured dataset is complete at once
     job.wait()
