@@ -22,7 +22,11 @@ from tests.support.acquisition import compare_tables as _compare
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_socket_transport_contract_and_faults():
+def test_socket_transport_contract_and_faults(monkeypatch):
+    import types
+
+    import benchtwin.hw.transport as T
+
     src = Stub(probe_top={"value_um": 1.25, "status": "ok"})
     plan = [{"port": "tesa", "request": 2, "action": "partial"}, {"port": "tesa", "request": 3, "action": "disconnect"}]
     with TcpServer({"tesa": TesaEmulator("tesa", src, "probe_top")}, plan) as server:
@@ -33,9 +37,17 @@ def test_socket_transport_contract_and_faults():
         t.write(b"?\r")
         assert t.read_until(b"\r\n") == b"+1.25\r\n"
         t.write(b"?\r")
+        # "Reads wait at most ``timeout`` seconds in all": one deadline for the whole read, and no
+        # wait past it (counted, not timed: a busy machine cannot fail this)
+        deadlines, waits = [], []
+        monkeypatch.setattr(t, "_deadline", lambda d=t._deadline: deadlines.append(d()) or deadlines[-1])
+        monkeypatch.setattr(T, "select", types.SimpleNamespace(
+            select=lambda r, w, x, wait, s=T.select.select: waits.append(wait) or s(r, w, x, wait)))
         t0 = time.monotonic()
         assert t.read_until(b"\r\n") == b"+1.25\r"           # partial: what came before the timeout
-        assert 0.25 < time.monotonic() - t0 < 2.0
+        assert time.monotonic() - t0 > 0.25                  # it waited for the timeout
+        assert len(deadlines) == 1 and waits and all(0.0 <= w <= 0.3 for w in waits)
+        monkeypatch.undo()
         t.write(b"?\r")                                       # 3: the instrument drops the connection
         with pytest.raises(TransportClosed):
             t.read_until(b"\r\n")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-import time
 
 import mujoco
 import numpy as np
@@ -347,13 +346,17 @@ def test_determinism_by_seed(jia):
     assert not np.array_equal(c.pose_at(2.0, rep=3).disk.pos, pa.disk.pos)
 
 
-def test_pose_cost_is_a_fraction_of_a_millisecond(bench):
+def test_pose_cost_is_a_few_newton_iterations(bench):
+    """A pose costs its Newton iterations, one ``mj_forward`` each (requirement: a few ms a pose;
+    typical 0.1–0.3 ms). Counted, not timed: the time is a benchmark (benchmarks/physics_bench.py,
+    docs/benchmarks.md "Twin physics"), which a busy machine cannot fail. Measured: 2.62 on this
+    sweep (0.72° moves), 2.99 at random angles."""
     th = np.linspace(0, 2 * np.pi, 500)
-    t0 = time.perf_counter()
+    bench.total_iterations = bench.n_poses = 0
     for x in th:
         bench.pose_at(x)
-    per_pose = (time.perf_counter() - t0) / th.size
-    assert per_pose < 3e-3     # requirement: a few ms; typical 0.1–0.2 ms
+    assert bench.n_poses == th.size
+    assert bench.total_iterations / bench.n_poses <= 3.5
 
 
 # ---------------------------------------------------------------------- design study -------
