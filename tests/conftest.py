@@ -5,6 +5,10 @@
 - ``datasets``: the session's twin datasets, each scenario simulated once per run, shared by the
   xdist workers of a run (tests/support/datasets.py).
 - ``BENCHTWIN_TEST_SIMLOG=FILE`` logs every simulation and process pool (tests/support/simlog.py).
+- pytest-xdist (``-n auto --dist loadgroup`` in pyproject.toml): a test module runs on one worker
+  (its module-scoped fixtures are built once), and the tests marked ``xdist_group("serial")`` (those
+  that start process pools, forkservers or a browser, or wait on deadlines) run one after another on
+  one worker, never two of them at once on the machine's cores.
 """
 
 from __future__ import annotations
@@ -39,6 +43,62 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "hardware" in item.keywords:
             item.add_marker(skip)
+
+
+#: the pytest cache's record of the seconds each xdist work unit (a module, or a group) took last time
+SCOPE_SECONDS = "benchtwin/xdist-scope-seconds"
+
+
+def _scope(nodeid: str) -> str:
+    """A test's xdist work unit: its ``xdist_group`` (xdist appends ``@group`` to a marked test's
+    node id), else its module."""
+    return nodeid.rsplit("@", 1)[-1] if "@" in nodeid else nodeid.split("::", 1)[0]
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``--dist loadgroup`` by module. xdist's own loadgroup sends each unmarked test anywhere (a
+    module's fixtures then built on every worker); here a test goes with its module or its group.
+    The longest units start first (by the seconds the last run took, in the pytest cache), so no
+    long one is left for the end while the other worker idles; without a record, xdist's order."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    cache = getattr(config, "cache", None)
+    seconds: dict[str, float] = cache.get(SCOPE_SECONDS, {}) if cache is not None else {}
+
+    class ModuleOrGroupScheduling(LoadGroupScheduling):
+        ordered = False
+
+        def _split_scope(self, nodeid: str) -> str:
+            return _scope(nodeid)
+
+        def _assign_work_unit(self, node) -> None:
+            if not self.ordered:
+                self.ordered = True
+                for scope in sorted(self.workqueue, key=lambda s: -seconds.get(s, 0.0)):
+                    self.workqueue.move_to_end(scope)
+            super()._assign_work_unit(node)
+
+    return ModuleOrGroupScheduling(config, log)
+
+
+_seconds_this_run: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    _seconds_this_run[_scope(report.nodeid)] = _seconds_this_run.get(_scope(report.nodeid), 0.0) + report.duration
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """The controller (or a run without xdist) records the units' seconds for the next run's order."""
+    cache = getattr(session.config, "cache", None)
+    if cache is None or hasattr(session.config, "workerinput") or not _seconds_this_run:
+        return
+    seconds = cache.get(SCOPE_SECONDS, {})
+    seconds.update({k: round(v, 2) for k, v in _seconds_this_run.items()})
+    cache.set(SCOPE_SECONDS, seconds)
 
 
 @pytest.fixture(scope="session")

@@ -22,6 +22,9 @@ from benchtwin.analysis.parallel import default_workers, ordered_map
 from benchtwin.analysis.pipeline import analyze, step_eccentricity
 from benchtwin.twin.scenario import load_scenario
 
+# xdist: one at a time on one worker (process pools; tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("serial")
+
 REDUCED = {"procedure.radial_positions": 36, "procedure.ccd_step": "12 deg"}  # 30 frames (≥ 24 at order 10)
 
 

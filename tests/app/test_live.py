@@ -16,6 +16,9 @@ import pytest
 from benchtwin.app.live import LiveView, live_path
 from benchtwin.hw.acquisition.procedures import Mark
 
+# xdist: one at a time on one worker (a headless browser waited for on a deadline; tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("serial")
+
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 

@@ -27,6 +27,9 @@ from benchtwin.app.study import execution as st
 from benchtwin.app.study import StudyError, expand_points, load_study, run_study
 from benchtwin.units import ARCSEC
 
+# xdist: one at a time on one worker (process pools, a dask cluster, kills waited for on deadlines; tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("serial")
+
 HERE = Path(__file__).resolve().parent
 
 

@@ -65,7 +65,9 @@ FAULTS = [{"port": "autocollimator", "request": 7, "action": "drop"},
 AGREE = 1e-9   # analysed results: emulated vs simulated, in the result's unit
 TABLES = ("radial_motion", "ccd/index", "polygon", "heads")
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals"),
+              # xdist: one at a time on one worker (a killed acquisition waited for on a deadline; tests/conftest.py)
+              pytest.mark.xdist_group("serial")]
 
 
 def _scenario(name: str):

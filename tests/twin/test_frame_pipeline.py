@@ -15,6 +15,9 @@ from benchtwin.twin.simulate import simulate
 
 from tests.support.scenarios import files, small_scenario
 
+# xdist: one at a time on one worker (forkservers and frame-worker pools; tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("serial")
+
 # ball bearings (the path-dependent cage state must survive the resume), 8 frames of 128×96
 OVR = {"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"], "procedure.ccd_step": "45 deg",
        "procedure.radial_reps": 1, "procedure.radial_positions": 12, "procedure.selfcal": False,

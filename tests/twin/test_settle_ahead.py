@@ -16,6 +16,9 @@ from benchtwin.twin.instruments.drive import DriveServo
 
 from tests.support.scenarios import files, small_scenario
 
+# xdist: one at a time on one worker (a forked worker waited for on a deadline; tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("serial")
+
 needs_fork = pytest.mark.skipif(not hasattr(os, "fork"), reason="the worker is a forked process (POSIX fork)")
 
 
