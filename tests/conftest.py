@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import shutil
 from pathlib import Path
@@ -30,6 +31,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    global _rootpath
+    _rootpath = config.rootpath
     from tests.support import simlog
 
     if os.environ.get(simlog.LOG_ENV) and not config.pluginmanager.has_plugin("tests.support.simlog"):
@@ -45,14 +48,40 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(skip)
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto`` (pyproject.toml) spreads the whole suite (the README's command, CI) over the
+    cores; a run of named files or folders stays in this process (on a shared machine a second
+    worker would start, collect and idle: a file is one work unit). ``-n N`` asks for N anyway."""
+    if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+        return 0
+    return None        # xdist's own count: one worker per core
+
+
 #: the pytest cache's record of the seconds each xdist work unit (a module, or a group) took last time
 SCOPE_SECONDS = "benchtwin/xdist-scope-seconds"
 
 
-def _scope(nodeid: str) -> str:
-    """A test's xdist work unit: its ``xdist_group`` (xdist appends ``@group`` to a marked test's
-    node id), else its module."""
-    return nodeid.rsplit("@", 1)[-1] if "@" in nodeid else nodeid.split("::", 1)[0]
+SERIAL_MARK = 'pytest.mark.xdist_group("serial")'
+
+
+@functools.cache
+def _serial(module: Path) -> bool:
+    try:
+        return SERIAL_MARK in module.read_text(encoding="utf-8")
+    except OSError:
+        return False
+
+
+def _scope(rootpath: Path, nodeid: str) -> str:
+    """A test's xdist work unit: "serial" for a module that holds ``SERIAL_MARK`` (its
+    ``pytestmark``: the whole module goes; read from the file, because xdist 3.8's own marking of
+    the node id has no effect under pytest 9, whose node ids are no longer ``_nodeid``), else its
+    module."""
+    if "@" in nodeid:                   # a later xdist's marking, should it work again
+        return nodeid.rsplit("@", 1)[-1]
+    module = nodeid.split("::", 1)[0]
+    return "serial" if _serial(rootpath / module) else module
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -72,12 +101,18 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
         ordered = False
 
         def _split_scope(self, nodeid: str) -> str:
-            return _scope(nodeid)
+            return _scope(config.rootpath, nodeid)
+
+        def _seconds(self, scope: str) -> float:
+            """The unit's seconds last time, else its modules' (a group recorded module by module)."""
+            if scope in seconds:
+                return seconds[scope]
+            return sum(seconds.get(m, 0.0) for m in {n.split("::", 1)[0] for n in self.workqueue[scope]})
 
         def _assign_work_unit(self, node) -> None:
             if not self.ordered:
                 self.ordered = True
-                for scope in sorted(self.workqueue, key=lambda s: -seconds.get(s, 0.0)):
+                for scope in sorted(self.workqueue, key=lambda s: -self._seconds(s)):
                     self.workqueue.move_to_end(scope)
             super()._assign_work_unit(node)
 
@@ -85,10 +120,12 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
 
 
 _seconds_this_run: dict[str, float] = {}
+_rootpath: Path | None = None
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    _seconds_this_run[_scope(report.nodeid)] = _seconds_this_run.get(_scope(report.nodeid), 0.0) + report.duration
+    scope = _scope(_rootpath or Path.cwd(), report.nodeid)
+    _seconds_this_run[scope] = _seconds_this_run.get(scope, 0.0) + report.duration
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:

@@ -160,7 +160,7 @@ def test_realistic_sweep_recovers_e_and_theta0(seed):
 
 
 @pytest.mark.slow
-def test_simulated_jia2019_dataset_every_image_analysed(tmp_path):
+def test_simulated_jia2019_dataset_every_image_analysed(datasets):
     """The reported failure: ``simulate(jia2019)`` → img_010.png (a dust speck bridging two lines near
     their ends) was rejected ("line spacing is irregular"). Every image must now give d_ref within
     0.05 px of truth/ccd.csv and a pixel scale from the regular majority of line spacings (~35 s)."""
@@ -170,9 +170,8 @@ def test_simulated_jia2019_dataset_every_image_analysed(tmp_path):
     import cv2
 
     from benchtwin.twin.scenario import load_scenario
-    from benchtwin.twin.simulate import simulate
 
-    ds = simulate(load_scenario(), tmp_path / "jia", progress=False, backend=BACKEND)
+    ds = datasets.dataset(load_scenario(), backend=BACKEND)   # the run's default jia2019 (tests/twin/test_simulate.py's)
     man = json.loads((ds / "manifest.json").read_text())
     ref, period = man["ccd"]["reference_px"], man["bench"]["grating_period_um"]
     idx = list(csv.DictReader(open(ds / "ccd" / "index.csv")))

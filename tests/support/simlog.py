@@ -4,7 +4,8 @@ With ``BENCHTWIN_TEST_SIMLOG=FILE`` (tests/conftest.py registers this plugin the
 ``-p tests.support.simlog``) every twin simulation (``twin/simulate.py``'s ``_simulate``, which
 ``simulate`` and ``simulate_apart`` run) and every process pool started (``ProcessPoolExecutor``,
 ``multiprocessing.Pool``) appends one JSON line to FILE: what, the test running, the process, and
-for a simulation the scenario's key (tests/support/datasets.py) and its wall and CPU seconds. xdist
+for a simulation the scenario's key (tests/support/datasets.py), its wall seconds and its CPU
+seconds (this process's, and its children's: the settle worker and the α grid child it reaps). xdist
 workers append to the same file (O_APPEND, one short write per line). Nothing changes without the
 variable.
 """
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import time
 
 LOG_ENV = "BENCHTWIN_TEST_SIMLOG"
@@ -25,6 +27,11 @@ def _log(path: str, rec: dict) -> None:
         os.write(fd, (json.dumps(rec) + "\n").encode())
     finally:
         os.close(fd)
+
+
+def _children_cpu_s() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def pytest_collection_finish(session) -> None:
@@ -43,12 +50,13 @@ def pytest_collection_finish(session) -> None:
     run = S._simulate
 
     def logged(sc, out, progress, backend, *a, **kw):
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, c0, k0 = time.perf_counter(), time.process_time(), _children_cpu_s()
         try:
             return run(sc, out, progress, backend, *a, **kw)
         finally:
             _log(path, {"what": "simulate", "scenario": scenario_key(sc, backend), "name": sc.name,
-                        "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3)})
+                        "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3),
+                        "children_cpu_s": round(_children_cpu_s() - k0, 3)})
 
     S._simulate = logged
     for cls, what in ((cfp.ProcessPoolExecutor, "ProcessPoolExecutor"), (mpp.Pool, "multiprocessing.Pool")):
