@@ -13,62 +13,15 @@ import tomllib
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from benchtwin.analysis.dataset import TABLES, DatasetError, open_dataset, parse_table, validate_manifest
 from tests.support.fake_dataset import MANIFEST, make_dataset
+from tests.support.fuzz import FUZZ, mutated
+from tests.support.fuzz import any_value as _value  # the tests' source, hence hypothesis' derandomised seeds, unchanged
 
 ROOT = Path(__file__).resolve().parents[1]
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-
-# values a hostile file can hold: every JSON/TOML type, edge numbers, odd strings
-_scalar = st.one_of(
-    st.none(), st.booleans(),
-    st.integers(min_value=-(2**70), max_value=2**70),
-    st.sampled_from([0, -1, 1, 2**63, -(2**63) - 1, 10**30]),
-    st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=12),
-    st.sampled_from(["", "1_000", "1e400", "nan", "inf", "7 mm", "7 kg", "-1 deg", "1e300 deg", "../x", "/etc/passwd",
-                     "forward", "sideways", "0 deg", "٣ mm", "\x00", "a" * 300]),
-)
-_value = st.recursive(_scalar, lambda c: st.one_of(st.lists(c, max_size=4),
-                                                   st.dictionaries(st.text(max_size=6), c, max_size=4)), max_leaves=8)
-
-
-def _paths(obj, prefix=()):
-    """Every (path) into nested dicts/lists of a parsed file."""
-    out = [prefix]
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            out += _paths(v, prefix + (k,))
-    elif isinstance(obj, list):
-        for i, v in enumerate(obj):
-            out += _paths(v, prefix + (i,))
-    return out
-
-
-@st.composite
-def mutated(draw, base):
-    """A valid parsed file with 1-3 values replaced, deleted or added at random paths."""
-    obj = copy.deepcopy(base)
-    for _ in range(draw(st.integers(1, 3))):
-        paths = [p for p in _paths(obj) if p]
-        if not paths:
-            break
-        path = draw(st.sampled_from(paths))
-        parent = obj
-        for k in path[:-1]:
-            parent = parent[k]
-        op = draw(st.sampled_from(["replace", "replace", "delete", "add"]))
-        if op == "delete":
-            del parent[path[-1]]
-        elif op == "add" and isinstance(parent, dict):
-            parent[draw(st.text(min_size=1, max_size=6))] = draw(_value)
-        else:
-            parent[path[-1]] = draw(_value)
-    return obj
 
 
 # ----------------------------------------------------------------------------- grammar

@@ -1,4 +1,5 @@
-"""Shared fixtures of the scoring tests: one twin dataset of the suite, simulated once."""
+"""Shared fixtures of the scoring tests: one twin dataset of the suite, simulated once, and the
+hand-made truth of known values (tests/support/known_truth.py)."""
 
 from __future__ import annotations
 
@@ -46,3 +47,11 @@ def imported_results(tmp_path_factory):
                  "error_prograde_arcsec", "--reverse", "error_reversal_arcsec", "--quiet"]) == 0
     assert main(["close-loop", str(base / "rd"), "-o", str(base / "out"), "--quiet"]) == 0
     return base / "out" / "results.json"
+
+
+@pytest.fixture()
+def truth(tmp_path):
+    """A dataset folder holding only the hand-made truth/ of known values (no simulation)."""
+    from tests.support.known_truth import write_truth
+
+    return write_truth(tmp_path)

@@ -22,8 +22,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.app.test_readers_strict import LAB, _strict
-from tests.test_fuzz_readers import FUZZ, _value, mutated
+from tests.support.fuzz import FUZZ, mutated
+from tests.support.fuzz import any_value as _value  # the tests' source, hence hypothesis' derandomised seeds, unchanged
+from tests.support.known_truth import write_truth
+from tests.support.readers import LAB
+from tests.support.readers import strict_json as _strict
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -123,7 +126,7 @@ _PROJECT = {"format": "bench-results", "version": 1, "dataset": "d", "source": "
 
 @FUZZ
 @given(data=st.data())
-def test_score_results_raise_only_input_error_and_print_strict_json(truth, tmp_path_factory, data):  # noqa: F811
+def test_score_results_raise_only_input_error_and_print_strict_json(truth, tmp_path_factory, data):
     """A mutated results file (minimal or project format), read as ``score`` reads it and scored
     against the hand-made truth: InputError or a score whose --json is strict JSON."""
     from benchtwin.app.score import public, read_results, read_truth, score_results
@@ -149,9 +152,7 @@ def test_score_results_raise_only_input_error_and_print_strict_json(truth, tmp_p
 
 @pytest.fixture(scope="module")
 def truth(tmp_path_factory):
-    from tests.app.test_score_known_error import truth as truth_fixture
-
-    return truth_fixture.__wrapped__(tmp_path_factory.mktemp("truth"))
+    return write_truth(tmp_path_factory.mktemp("truth"))
 
 
 @FUZZ
@@ -160,9 +161,8 @@ def test_score_truth_files_raise_only_input_error(tmp_path_factory, data):
     """A truth folder with a mutated bench.json / hidden.json / expected.json or a fuzzed table."""
     from benchtwin.app.score import read_truth
     from benchtwin.cli import InputError
-    from tests.app.test_score_known_error import truth as truth_fixture
 
-    ds = truth_fixture.__wrapped__(tmp_path_factory.getbasetemp() / f"t-{uuid.uuid4().hex}")
+    ds = write_truth(tmp_path_factory.getbasetemp() / f"t-{uuid.uuid4().hex}")
     name = data.draw(st.sampled_from(["bench.json", "hidden.json", "expected.json", "polygon_beta.csv", "polygon.csv",
                                       "encoder_error.csv"]))
     p = ds / "truth" / name

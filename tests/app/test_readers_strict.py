@@ -15,18 +15,13 @@ from pathlib import Path
 import pytest
 
 from benchtwin.cli import main
-from tests.app.test_score_known_error import E_UM, truth  # noqa: F401  (the hand-made truth fixture)
+from tests.support.known_truth import E_UM
+from tests.support.readers import LAB
+from tests.support.readers import strict_json as _strict
+from tests.support.study import BASIC, counting_point
+from tests.support.study import write_study as _write
 
-ROOT = Path(__file__).resolve().parents[2]
-LAB = ROOT / "docs" / "lab.example.toml"
 BIG = "1" + "0" * 400  # a 401-digit number
-
-
-def _strict(text: str):
-    """JSON as a strict parser reads it: NaN / Infinity are not JSON."""
-    def bad(name):
-        raise ValueError(f"{name} is not JSON")
-    return json.loads(text, parse_constant=bad)
 
 
 def _bounded(fn, *args, **kw):
@@ -122,7 +117,7 @@ def _results(tmp_path: Path, name: str, text: str) -> Path:
     return p
 
 
-def test_score_csv_refuses_6_9(truth, tmp_path, capsys):  # noqa: F811
+def test_score_csv_refuses_6_9(truth, tmp_path, capsys):
     """`6_9` in a minimal results CSV scored as e = 69 µm."""
     r = _results(tmp_path, "r.csv", "quantity,key,value,u\ne_um,,6_9,0.1\n")
     rc, out = _cli(["score", str(r), str(truth)], capsys)
@@ -134,13 +129,13 @@ def test_score_csv_refuses_6_9(truth, tmp_path, capsys):  # noqa: F811
     ("quantity,key,value,u\nalpha_arcsec,0,1,\nalpha_arcsec,90,1,\nalpha_arcsec,360,2,\n", "rows 2 and 4"),
     ("quantity,key,value,u\nnamed,,graduation_error,\nnamed,,graduation_error,\n", "rows 2 and 3"),
 ])
-def test_score_csv_refuses_a_repeated_key(truth, tmp_path, capsys, text, needle):  # noqa: F811
+def test_score_csv_refuses_a_repeated_key(truth, tmp_path, capsys, text, needle):
     """A repeated key silently won (the last row)."""
     rc, out = _cli(["score", str(_results(tmp_path, "r.csv", text)), str(truth)], capsys)
     assert rc == 2 and needle in out["error"]
 
 
-def test_score_json_refuses_a_repeated_key(truth, tmp_path, capsys):  # noqa: F811
+def test_score_json_refuses_a_repeated_key(truth, tmp_path, capsys):
     r = _results(tmp_path, "r.json", '{"format": "benchtwin-min-results", "e_um": 7.1, "e_um": 69}')
     rc, out = _cli(["score", str(r), str(truth)], capsys)
     assert rc == 2 and "key 'e_um' appears twice" in out["error"]
@@ -161,13 +156,13 @@ def test_score_json_refuses_a_repeated_key(truth, tmp_path, capsys):  # noqa: F8
     ('{"format": "bench-results", "version": 1, "dataset": "d", "source": "twin", "bench": {}, "notes": [], '
      '"eccentricity_um": "7"}', "key 'eccentricity_um': expected"),
 ])
-def test_score_bad_numbers_and_empty_lists_are_exit_2(truth, tmp_path, capsys, body, needle):  # noqa: F811
+def test_score_bad_numbers_and_empty_lists_are_exit_2(truth, tmp_path, capsys, body, needle):
     """A 401-digit number or empty lists were exit 1 (OverflowError, max() of an empty array)."""
     rc, out = _cli(["score", str(_results(tmp_path, "r.json", body)), str(truth)], capsys)
     assert rc == 2 and out["kind"] == "input" and needle in out["error"], out
 
 
-def test_score_json_is_valid_json_with_a_note_for_a_non_finite_number(truth, tmp_path, capsys):  # noqa: F811
+def test_score_json_is_valid_json_with_a_note_for_a_non_finite_number(truth, tmp_path, capsys):
     """`score --json` printed -Infinity (z = error / u with a subnormal u)."""
     r = _results(tmp_path, "r.json", json.dumps({"format": "benchtwin-min-results", "e_um": E_UM - 0.1,
                                                  "e_u_um": 5e-324}))
@@ -176,7 +171,7 @@ def test_score_json_is_valid_json_with_a_note_for_a_non_finite_number(truth, tmp
     assert any(n.startswith("e_z: -inf") for n in out["notes"])
 
 
-def test_score_results_fifo_and_truth_fifo_do_not_block(truth, tmp_path, capsys):  # noqa: F811
+def test_score_results_fifo_and_truth_fifo_do_not_block(truth, tmp_path, capsys):
     rc, out = _cli(["score", str(_fifo(tmp_path / "r.json")), str(truth)], capsys)
     assert rc == 2 and "not a regular file" in out["error"]
     r = _results(tmp_path, "ok.json", '{"format": "benchtwin-min-results", "e_um": 7.1}')
@@ -193,14 +188,14 @@ def test_score_results_fifo_and_truth_fifo_do_not_block(truth, tmp_path, capsys)
     ("polygon_beta.csv", "face,beta_arcsec\n1,0.5\n2,x\n", "column 'beta_arcsec'"),
     ("encoder_error.csv", "theta_deg\n0\n", "missing column 'alpha_arcsec'"),
 ])
-def test_score_bad_truth_files_are_exit_2(truth, tmp_path, capsys, name, text, needle):  # noqa: F811
+def test_score_bad_truth_files_are_exit_2(truth, tmp_path, capsys, name, text, needle):
     (truth / "truth" / name).write_text(text, encoding="utf-8")
     r = _results(tmp_path, "ok.json", '{"format": "benchtwin-min-results", "e_um": 7.1}')
     rc, out = _cli(["score", str(r), str(truth)], capsys)
     assert rc == 2 and name in out["error"] and needle in out["error"], out
 
 
-def test_score_floor_columns_are_checked(truth, tmp_path, capsys):  # noqa: F811
+def test_score_floor_columns_are_checked(truth, tmp_path, capsys):
     """The floor reads the dataset's and the truth's polygon.csv by column: a missing or
     non-numeric one was a KeyError / TypeError (exit 1)."""
     (truth / "polygon.csv").write_text("theta_deg,ac_arcsec\n0,1\n90,x\n", encoding="utf-8")
@@ -337,7 +332,6 @@ def test_a_study_cache_entry_of_braces_is_recomputed_with_a_note(tmp_path, monke
     """A cache entry of `{}` was exit 1 (KeyError 'outputs'); a foreign or corrupt entry is now a
     miss: the point is recomputed (the cache is keyed by content), and study.json notes it."""
     from benchtwin.app.study import execution as st
-    from tests.app.test_study import BASIC, _write, counting_point
 
     monkeypatch.setattr(st, "code_version", lambda: "test-fixed")
     p = _write(tmp_path, BASIC.replace('"10 mm", "20 mm"]', '"10 mm"]'))
@@ -364,7 +358,6 @@ def test_a_study_cache_entry_of_braces_is_recomputed_with_a_note(tmp_path, monke
 
 def test_a_study_cache_entry_of_braces_through_the_cli_is_not_exit_1(tmp_path, capsys, monkeypatch):
     from benchtwin.app.study import execution as st
-    from tests.app.test_study import BASIC, _write
 
     monkeypatch.setattr(st, "code_version", lambda: "test-fixed")
     p = _write(tmp_path, BASIC.replace('"5 mm", "10 mm", "20 mm"]', '"5 mm"]').replace("repetitions = 2",

@@ -1,6 +1,7 @@
 """The scorer against hand-made truth and hand-made results of known error (issue 19).
 
-A truth folder is written by hand (no simulation): e, θ0, β of a 4-face polygon, α at its stops
+A truth folder is written by hand (no simulation; tests/support/known_truth.py, the ``truth``
+fixture of tests/app/conftest.py): e, θ0, β of a 4-face polygon, α at its stops
 and on a 16-point grid. Each test gives results whose error is known in advance and checks the
 score to rounding, so a scorer that passed a wrong result (or failed a right one) fails here.
 """
@@ -15,40 +16,7 @@ import pytest
 
 from benchtwin.app.score import (canonical_results, read_results, read_truth, results_from_csv, score_results)
 from benchtwin.cli import InputError
-
-E_UM, THETA0_DEG = 7.1, 359.9
-BETA = {1: 0.5, 2: -0.2, 3: -0.6, 4: 0.3}
-STOPS = np.array([0.0, 90.0, 180.0, 270.0])
-GRID = np.arange(0.0, 360.0, 22.5)  # 16 points
-
-
-def alpha_true(th_deg):
-    th = np.radians(th_deg)
-    return 66.6 * np.sin(th - math.radians(THETA0_DEG)) + 0.4 * np.cos(2 * th) + 0.2 * np.sin(4 * th)
-
-
-def _csv(path, cols):
-    keys = list(cols)
-    lines = [",".join(keys)] + [",".join(repr(float(cols[k][i])) if not isinstance(cols[k][i], str) else cols[k][i]
-                                         for k in keys) for i in range(len(cols[keys[0]]))]
-    path.write_text("\n".join(lines) + "\n")
-
-
-@pytest.fixture()
-def truth(tmp_path):
-    ds = tmp_path / "ds"
-    td = ds / "truth"
-    td.mkdir(parents=True)
-    (td / "bench.json").write_text(json.dumps({"disk_eccentricity_m": E_UM * 1e-6,
-                                               "theta0_rad": math.radians(THETA0_DEG)}))
-    _csv(td / "polygon_beta.csv", {"face": list(BETA), "beta_arcsec": list(BETA.values())})
-    # polygon stops read twice each (two start faces), same true α
-    th = np.repeat(STOPS, 2)
-    _csv(td / "polygon.csv", {"theta_deg": th, "alpha_arcsec": alpha_true(th)})
-    fine = np.arange(0.0, 360.0, 0.1)
-    _csv(td / "encoder_error.csv", {"theta_deg": fine, "alpha_arcsec": alpha_true(fine)})
-    (td / "hidden.json").write_text(json.dumps({"effects": {}}))
-    return ds
+from tests.support.known_truth import BETA, E_UM, GRID, STOPS, THETA0_DEG, alpha_true
 
 
 def _score(ds, res):

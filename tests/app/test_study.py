@@ -3,8 +3,8 @@ recomputes nothing; an interrupted study finishes only its missing points), the 
 the same table as the local pool, the tidy CSV/Parquet round trip, and one small run of the real
 physics point function against closed-form expectations.
 
-Runner tests use a cheap stand-in point function (module-level, so worker processes import it by
-reference) that counts its calls by writing one file per call.
+Runner tests use a cheap stand-in point function (tests/support/study.py: module-level, so worker
+processes import it by reference) that counts its calls by writing one file per call.
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ import subprocess
 import sys
 import textwrap
 import time
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,8 @@ import pytest
 from benchtwin.app.study import execution as st
 from benchtwin.app.study import StudyError, expand_points, load_study, run_study
 from benchtwin.units import ARCSEC
+from tests.support.study import BASIC, counting_point
+from tests.support.study import write_study as _write
 
 # xdist: one at a time on one worker (process pools, a dask cluster, kills waited for on deadlines; tests/conftest.py)
 pytestmark = pytest.mark.xdist_group("serial")
@@ -42,45 +43,8 @@ def fixed_code_version(monkeypatch):
 # ----------------------------------------------------------------------------- stand-ins
 
 
-def counting_point(task: dict, count_dir: str | None = None, delay_s: float = 0.0) -> list[dict]:
-    """Cheap analytic outputs of L1 (and the rep seed); one file per call in ``count_dir``."""
-    if count_dir:
-        Path(count_dir, uuid.uuid4().hex).write_text(str(task["point"]))
-    if delay_s:
-        time.sleep(delay_s)
-    L1_mm = task["scenario"]["bench"]["L1"] * 1e3
-    out = []
-    for seed in task["rep_seeds"]:
-        rng = np.random.default_rng(seed)
-        out.append({"angle_error_pv_arcsec": 0.1 * L1_mm + 0.01 * rng.standard_normal(),
-                    "disk_motion_x_pv_um": 0.02 * L1_mm})
-    return out
-
-
 def _calls(d: Path) -> int:
     return len(list(d.iterdir()))
-
-
-def _write(tmp_path: Path, body: str, name: str = "s.toml") -> Path:
-    p = tmp_path / name
-    p.write_text(textwrap.dedent(body), encoding="utf-8")
-    return p
-
-
-BASIC = """
-[study]
-name = "basic"
-base = "jia2019"
-seed = 7
-repetitions = 2
-outputs = ["angle_error_pv_arcsec", "disk_motion_x_pv_um"]
-[[study.parameters]]
-key = "bench.L1"
-values = ["2 mm", "5 mm", "10 mm", "20 mm"]
-[study.target]
-output = "angle_error_pv_arcsec"
-below = "1.2 arcsec"
-"""
 
 
 # ------------------------------------------------------------------------------ sampling

@@ -17,7 +17,7 @@ import os
 
 import pytest
 
-from tests.hw.test_disk_full_resume import _acquire_cli, _full_at, _same_dataset, _scenario, _steps, simulated  # noqa: F401
+from tests.support.resume import acquire_cli, full_at, journal_steps, same_dataset, small_scenario
 
 pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals"),
               pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="names an fd by /proc/self/fd")]
@@ -26,11 +26,11 @@ pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseud
 def _cut(tmp_path, monkeypatch, capsys, session, nth: int):
     bench = session.start(tmp_path / "emulator-a")
     out = tmp_path / "ds"
-    full = _full_at(monkeypatch, "/journal.jsonl", nth=nth)
-    code, res = _acquire_cli(bench, out, capsys=capsys)
+    full = full_at(monkeypatch, "/journal.jsonl", nth=nth)
+    code, res = acquire_cli(bench, out, capsys=capsys)
     monkeypatch.undo()
     assert full["fired"] and code == 2, res
-    return bench, out, _steps(out / "journal.jsonl")
+    return bench, out, journal_steps(out / "journal.jsonl")
 
 
 # journal lines: 1 the header, then one per step; radial stops are Move, Wait, Read (steps 1, 2, 3, ...)
@@ -38,13 +38,13 @@ def _cut(tmp_path, monkeypatch, capsys, session, nth: int):
 def test_a_fresh_emulator_session_is_refused_on_resume(tmp_path, monkeypatch, capsys, nth, last):
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario(), camera="analytic") as first:
+    with EmulationSession(small_scenario(), camera="analytic") as first:
         _, out, steps = _cut(tmp_path, monkeypatch, capsys, first, nth)
     assert steps[-1]["step"]["type"] == last
     before = (out / "journal.jsonl").read_bytes()
-    with EmulationSession(_scenario(), camera="analytic") as fresh:
+    with EmulationSession(small_scenario(), camera="analytic") as fresh:
         bench = fresh.start(tmp_path / "emulator-b")
-        code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
+        code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
     assert code == 2 and res["kind"] == "ResumeMismatchError", res
     msg = res["error"]
     assert "journal.jsonl: resume:" in msg and "not in the state the run left it in" in msg
@@ -61,26 +61,26 @@ def test_the_mismatch_names_the_reading_that_differs(tmp_path, monkeypatch, caps
     from benchtwin.hw.acquisition.runner import Runner
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario(), camera="analytic") as first:
+    with EmulationSession(small_scenario(), camera="analytic") as first:
         _, out, steps = _cut(tmp_path, monkeypatch, capsys, first, 152)
     last = steps[-1]["row"]
     assert last["tag"]["procedure"] == "polygon" and last["tag"]["target_deg"] != 0.0
     # the stage check off (as if the fresh session's stage stood at the journal's last stop)
     monkeypatch.setattr(Runner, "_verify_stage", lambda self, last_move, step: True)
-    with EmulationSession(_scenario(), camera="analytic") as fresh:
+    with EmulationSession(small_scenario(), camera="analytic") as fresh:
         bench = fresh.start(tmp_path / "emulator-b")
-        code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
+        code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
     assert code == 2, res
     assert f"at step {last['i']}" in res["error"] and "autocollimator.x_arcsec: journal" in res["error"]
     assert json.loads(json.dumps(res))["kind"] == "ResumeMismatchError"
 
 
-def test_the_same_session_resumes_to_the_uninterrupted_dataset(tmp_path, monkeypatch, capsys, simulated):  # noqa: F811
+def test_the_same_session_resumes_to_the_uninterrupted_dataset(tmp_path, monkeypatch, capsys, simulated):
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario(), camera="analytic") as session:
+    with EmulationSession(small_scenario(), camera="analytic") as session:
         bench, out, steps = _cut(tmp_path, monkeypatch, capsys, session, 151)
         assert steps[-1]["step"]["type"] == "wait"
-        code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
+        code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
         assert code == 0, res
-    _same_dataset(simulated, out)
+    same_dataset(simulated, out)

@@ -14,7 +14,7 @@ from benchtwin.twin.emulators import tcp
 from benchtwin.twin.emulators.tcp import MAX_LINE_BYTES, TcpServer
 from benchtwin.twin.emulators.tesa import TesaEmulator
 
-from .test_emulators import Stub
+from tests.support.acquisition import Stub
 
 REQUEST, REPLY = b"?\r", b"+1.25\r\n"
 

@@ -125,7 +125,7 @@ def test_killed_simulate_leaves_no_process_and_no_new_frame(tmp_path):
 
 
 #: a study on a local pool of 2 workers whose point function takes 0.3 s a call and leaves one
-#: file per call started (tests/app/test_study.py's stand-in)
+#: file per call started (tests/support/study.py's stand-in)
 STUDY = """
 [study]
 name = "killed"
@@ -148,8 +148,8 @@ def test_killed_study_leaves_no_worker_and_no_new_entry(tmp_path):
     calls.mkdir()
     script = textwrap.dedent(f"""
         import functools, importlib, sys
-        sys.path[:0] = [{str(ROOT / "tests" / "app")!r}, {str(ROOT)!r}]
-        counting_point = importlib.import_module("test_study").counting_point
+        sys.path[:0] = [{str(ROOT)!r}]
+        counting_point = importlib.import_module("tests.support.study").counting_point
         import benchtwin.app.study.execution as st
         if __name__ == "__main__":
             st.run_study({str(study)!r}, {str(out)!r}, workers=2, progress=False,
