@@ -328,7 +328,9 @@ def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, BudgetInput], list[s
     return out, notes
 
 
-def step_polygon(ds: Dataset) -> PolygonAnalysis:
+def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> PolygonAnalysis:
+    """The shift-angle analysis of ``polygon_table(ds)``, or of ``table`` (the same rows with corrected
+    autocollimator readings: :func:`reading_corrections`)."""
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
 
@@ -339,7 +341,7 @@ def step_polygon(ds: Dataset) -> PolygonAnalysis:
     inputs, input_notes = budget_inputs(b)
     try:
         out = analyze_polygon(
-            polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
+            dict(table) if table is not None else polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
             np.asarray(cert, dtype=float) if cert is not None else None,
             encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
@@ -700,7 +702,8 @@ def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int 
 
 
 def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
-                    corrections: Mapping[str, Mapping[str, Any]]) -> CorrectedCurve:
+                    corrections: Mapping[str, Mapping[str, Any]],
+                    in_readings: frozenset[str] = frozenset()) -> CorrectedCurve:
     """The encoder's error after removing the identified artefacts of the reference chain.
 
     ``enc``: the measured curve {theta_deg, value, u} (Hsieh's combined α); ``corrections``: per
@@ -708,7 +711,10 @@ def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
     (tracing ``reference_corrections``). At each θ of the curve the correction is the mean of the
     readings' contributions at that stop (±``THETA_BIN_DEG``/2; the curve averages the same readings)
     and its u the mean of theirs (fully correlated: one set of parameters); u of the corrected value =
-    √(u_curve² + Σ u_correction²). Unchanged (and ``corrections_applied`` empty) without corrections."""
+    √(u_curve² + Σ u_correction²). Effects named in ``in_readings`` were already removed from the
+    autocollimator readings before the shift-angle solution that gave ``enc``
+    (:func:`reading_corrections`): only their u is added. Unchanged (and ``corrections_applied``
+    empty) without corrections."""
     from benchtwin.analysis.tracing import THETA_BIN_DEG
 
     th = np.asarray(enc["theta_deg"], dtype=float)
@@ -725,7 +731,8 @@ def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
             uc = np.asarray(c["u_arcsec"], dtype=float)
             corr = np.where(cnt > 0, (near @ v) / np.maximum(cnt, 1), 0.0)
             ucorr = np.where(cnt > 0, (near @ uc) / np.maximum(cnt, 1), 0.0)
-            val = val - corr
+            if name not in in_readings:
+                val = val - corr
             u2 = u2 + ucorr ** 2
             applied.append(CorrectionApplied(effect=name, rms_arcsec=float(np.sqrt(np.mean(corr ** 2))),
                                              u_rms_arcsec=float(np.sqrt(np.mean(ucorr ** 2))), params=c.get("params"),
@@ -736,6 +743,38 @@ def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
                                "twist); the raw curve when none is identified. Stated at the calibration points "
                                "(theta_deg) only: no value between them (periods shorter than twice the step, "
                                "e.g. the sub-division error, are not sampled)")
+
+
+def reading_corrections(tr: TraceOutcome, ev: Any) -> dict[str, np.ndarray]:
+    """{effect: what it added to each raw autocollimator reading (arcsec)} for the identified
+    reference-chain effects that act on the reading itself (an effect module's ``reading_correction``:
+    ac_scale's (k/100)·ε + q·ε²). The pipeline subtracts them from the readings and repeats the
+    shift-angle solution: the corrected curve and the residual after the loop then come out of the
+    same analysis as the measured curve. Empty when nothing of the kind is identified."""
+    from benchtwin.analysis.effects import ALL
+
+    out: dict[str, np.ndarray] = {}
+    for eff in tr.identified_effects:
+        mod = ALL.get(eff["name"])
+        if eff["name"] in tr.reference_corrections and hasattr(mod, "reading_correction"):
+            out[eff["name"]] = np.asarray(mod.reading_correction(ev, eff["params"]), dtype=float)
+    return out
+
+
+def corrected_polygon(ds: Dataset, poly: Mapping[str, Any], pol: PolygonAnalysis, tr: TraceOutcome,
+                      ev: Any) -> CorrectedCurve:
+    """The corrected calibration curve from the same pipeline as the measured one: an identified
+    artefact of the autocollimator acts on the reading it measures (ε = α + Σβ + U, Hsieh eq. 3), so
+    it is removed from every reading of ``poly`` (the table ``ev`` was built from) and the shift-angle
+    solution is repeated (β, U, α); the other artefacts of the reference chain are then subtracted per
+    stop (:func:`corrected_curve`). ``pol``'s curve when nothing acts on the readings."""
+    in_readings = reading_corrections(tr, ev)
+    pol_c = pol
+    if in_readings:
+        poly_c = dict(poly)
+        poly_c["ac_arcsec"] = np.asarray(poly["ac_arcsec"], dtype=float) - sum(in_readings.values())
+        pol_c = step_polygon(ds, poly_c)
+    return corrected_curve(pol_c.encoder_error_arcsec, ev.theta_deg, tr.reference_corrections, frozenset(in_readings))
 
 
 def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, n_faces: int) -> np.ndarray | None:
@@ -854,8 +893,8 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
     results["unexplained"] = tr.unexplained
     results["residual_test"] = tr.residual_before
     results["residual_after_trace"] = tr.residual_after
-    results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, ev.theta_deg,
-                                                                tr.reference_corrections)
+    corrected = corrected_polygon(ds, poly, pol, tr, ev)
+    results["encoder_error_corrected_arcsec"] = corrected
     if tr.identified_effects:
         if out is not None:
             mpath = out / "model.json"
@@ -865,7 +904,9 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
         rm_detail = rm.detail if rm is not None else None
         model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
         added = add_to_error_model(model2, tr.model_file)
-        enc = pol.encoder_error_arcsec
+        # the model after is compared with the curve the reference chain would have given: the
+        # measured one less the identified artefacts of the reference chain (the raw curve when none)
+        enc = corrected
         th_c, a_c = np.asarray(enc["theta_deg"]), np.asarray(enc["value"])
         cmp2 = compare_with_measured(th_c, a_c, model2)
         # The model after the loop takes (e, θ0) from the CCD combined with the first harmonic the

@@ -10,6 +10,15 @@ the reference chain. A quadratic term q·ε² does not pass through the linear a
 to first order it adds q·ε² to the reading (its per-run mean goes into U_j). ε is ``ac_arcsec``
 when the evidence has it, else α (then the quadratic column differs from q·ε² by the Σβ + U
 cross terms — noted in the result).
+
+The non-linearity acts on the whole reading the autocollimator measures, ε = α + Σβ + U (Hsieh
+eq. 3), not on α alone: the instrument shows ε = m + (k/100)·m + q·m² for the true angle m, so
+to the order the fit resolves m = ε − (k/100)·ε − q·ε², the same function of the measured ε as the
+columns (``reading_correction``). The pipeline subtracts it from every reading and repeats the
+shift-angle solution (β, U, α), so the corrected curve comes out of the same analysis as the
+measured one; subtracting the α response of q·ε² afterwards is equal to first order, but a residual
+α after the loop is only meaningful on the curve the instrument would have given (issue 32 item 6:
+with the raw α, a 2–4e-4/″ non-linearity named as ac_scale left the residual at 0.8–1.0× of before).
 """
 
 from __future__ import annotations
@@ -85,8 +94,17 @@ def plausible(ev, params, u, ctx=None):
         return False, f"non-linearity {abs(q) * e2:.3g}″ over the readings' range is beyond {MAX_QUAD_ARCSEC:g}″"
     return True, ""
 
+
 def predict(ev, params, ctx=None):
     return linear_predict(design, ev, params, ctx)
+
+
+def reading_correction(ev, params) -> np.ndarray:
+    """What the autocollimator added to each raw reading ε (arcsec): (k/100)·ε + q·ε², so that the
+    true reading is m = ε − this (the model of the columns, with ε the measured reading: the linear
+    column's regressor is the model only to keep α's noise off it). Needs the raw readings."""
+    e = np.asarray(ev.ac_arcsec, dtype=float)
+    return float(params.get("gain_pct", 0.0)) / 100.0 * e + float(params.get("quad_per_arcsec", 0.0)) * e * e
 
 
 def aux(ev, ctx=None):
