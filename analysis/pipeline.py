@@ -755,9 +755,9 @@ def reading_corrections(tr: TraceOutcome, ev: Any) -> dict[str, np.ndarray]:
 
     out: dict[str, np.ndarray] = {}
     for eff in tr.identified_effects:
-        mod = ALL.get(eff["name"])
-        if eff["name"] in tr.reference_corrections and hasattr(mod, "reading_correction"):
-            out[eff["name"]] = np.asarray(mod.reading_correction(ev, eff["params"]), dtype=float)
+        fn = getattr(ALL.get(eff["name"]), "reading_correction", None)
+        if fn is not None and eff["name"] in tr.reference_corrections:
+            out[eff["name"]] = np.asarray(fn(ev, eff["params"]), dtype=float)
     return out
 
 
