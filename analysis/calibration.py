@@ -1,7 +1,7 @@
 """The calibration result a lab hands on: the encoder error at each calibrated angle with u, U, k, ν.
 
 One source for the report's opening section, ``calibration.csv``, ``compensation.csv`` and the
-certificate (benchtwin/app/certificate.py): :func:`calibration_curve` reads results.json (as
+certificate (app/certificate.py): :func:`calibration_curve` reads results.json (as
 written, or the pipeline's dict before it is written) and says, for the curve it states,
 
 - which curve it is: the loop's corrected curve when a correction of the reference chain was

@@ -12,7 +12,7 @@ eccentricity step's worker threads, analysis/parallel.py, included).
 Usage: ``.venv/bin/python benchmarks/report_bench.py DATASET [-o OUT] [--close-loop] [--json]``
 (``--close-loop``: the tracing's own time, measured inside the one process, issue 17's "tracing the
 default ≤ 1 s"). The bench
-picture's cache (benchtwin/app/bench_view.py) is used as configured: ``BENCHTWIN_CACHE=none``
+picture's cache (app/bench_view.py) is used as configured: ``BENCHTWIN_CACHE=none``
 measures the render itself.
 """
 

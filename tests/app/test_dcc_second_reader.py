@@ -4,7 +4,7 @@ lxml writer and of pydcc) gives every calibrated angle, encoder error, U and k, 
 own refTypes (``basic_measuredValue``, ``basic_measurementError``), equal to results.json's curve
 (analysis/calibration.py) rounded as the certificate states it.
 
-The reader validates against the packaged schemas (benchtwin/app/dcc/), offline: its cache is put in
+The reader validates against the packaged schemas (app/dcc/), offline: its cache is put in
 a temporary folder holding the packaged D-SI schema, and the network is closed (a download fails the
 test instead of passing it by luck). Inputs: the session's runs (tests/conftest.py) and the imported
 shared table (tests/app/conftest.py); nothing simulated here.

@@ -184,7 +184,7 @@ def test_workers_fork_from_a_forkserver_that_imported_the_render_stack(monkeypat
     if ctx.get_start_method() != "forkserver":
         pytest.skip("no forkserver on this platform: the workers are spawned")
     # this test process's forkserver may have been started already, without the preload, by a
-    # design study's pool (benchtwin/app/study/execution.py): start it afresh (CPython's own
+    # design study's pool (app/study/execution.py): start it afresh (CPython's own
     # multiprocessing tests stop it the same way)
     from multiprocessing import forkserver
 

@@ -3,7 +3,7 @@
 What a calibration lab hands on (issue 20): the analysis's ``results.json`` becomes an XML
 certificate in the PTB DCC format (https://ptb.de/dcc/, schema v3.1.2; quantities in D-SI v2.1.0,
 https://ptb.de/si/), validated against the schemas before it is written. The schemas ship with the
-package (``benchtwin/app/dcc/``, LGPL-3.0, unchanged copies of ``../shared/dcc/``) so a certificate
+package (``app/dcc/``, LGPL-3.0, unchanged copies of ``../shared/dcc/``) so a certificate
 is checked offline: ``dcc.xsd`` imports D-SI by its URL, which :func:`load_schema` resolves to the
 local ``SI_Format.xsd``.
 
@@ -1222,7 +1222,7 @@ def write_certificate(results_path: str | Path, out_path: str | Path, lab_path: 
                       today: str | None = None, html_path: str | Path | None = None, *,
                       force: bool = False) -> dict[str, Any]:
     """results.json (+ lab file) -> a validated DCC at ``out_path`` (written atomically); with
-    ``html_path`` also the page for people rendered from it (benchtwin/app/certificate_html.py). The
+    ``html_path`` also the page for people rendered from it (app/certificate_html.py). The
     writing rule (``benchtwin.fsio.check_output_target``) holds for both: an existing file is replaced
     only with ``force``, and never when it is the results or the lab file."""
     from benchtwin.fsio import atomic_write_bytes, atomic_write_text, check_output_target

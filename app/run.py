@@ -1,6 +1,6 @@
 """Simulate → analyze in one call, and the scalar outputs a design study collects from it.
 
-Why: a design study's ``full`` fidelity (``benchtwin/app/study/points.py``) asks, per point and repetition,
+Why: a design study's ``full`` fidelity (``app/study/points.py``) asks, per point and repetition,
 what the *whole* bench would report — measured encoder error from the polygon, the Jia error model
 predicted from the measured eccentricity and radial motion, the residual, the stated uncertainties,
 the effects the close-the-loop step identifies — not only what the posed disk does. This module is

@@ -1,7 +1,7 @@
 """The certificate for people: one self-contained HTML page rendered from the DCC itself.
 
 ``benchtwin certificate RESULTS.json -o CERT.xml --html [CERT.html]`` writes it beside the XML. It
-is rendered from the validated XML tree (benchtwin/app/certificate.py), not from results.json, so
+is rendered from the validated XML tree (app/certificate.py), not from results.json, so
 the page shows what the certificate states and nothing else: the administrative data, the
 statements, the methods, the equipment, the influence conditions and every result (lists as tables,
 each value with its expanded uncertainty, k, p and distribution). Every string from the

@@ -6,7 +6,7 @@ dynamics never pays for them:
 
 - ``physics``: build the twin's ``Bench`` (MuJoCo, quasi-static poses) and read the posed disk
   with exact trigonometry. Outputs: ``PHYSICS_OUTPUTS``. Milliseconds to a second per point.
-- ``full``: the whole simulate → analyze pipeline (``benchtwin/app/run.py``: rendered CCD images, every
+- ``full``: the whole simulate → analyze pipeline (``app/run.py``: rendered CCD images, every
   instrument, the analysis of the dataset it wrote). Outputs: ``run.FULL_OUTPUTS`` by name (measured,
   predicted, residual, uncertainty, eccentricity, true α from the twin's truth),
   ``identified.<effect>`` and any number in the pipeline's ``results.json`` written
@@ -56,7 +56,7 @@ PHYSICS_OUTPUTS: dict[str, str] = {
 }
 
 FULL_PREFIX = "results."
-# The simulate -> analyze entry point (module, function), benchtwin/app/run.py:
+# The simulate -> analyze entry point (module, function), app/run.py:
 #   simulate_and_analyze(scenario: Scenario, out_dir: pathlib.Path, rep_seed: int,
 #                        progress: bool = False, *, order=10, close_loop=True) -> dict  # results.json
 FULL_ENTRY_POINT = ("benchtwin.app.run", "simulate_and_analyze")
