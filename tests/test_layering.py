@@ -19,7 +19,7 @@ def _package_tree(dest: Path) -> Path:
     pkg = dest / "benchtwin"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(ROOT / "benchtwin", pkg, ignore=ignore)
-    for folder in ("twin", "analysis", "hw", "models", "scenarios"):
+    for folder in ("app", "twin", "analysis", "hw", "models", "scenarios"):
         shutil.copytree(ROOT / folder, pkg / folder, ignore=ignore)
     return dest
 
@@ -83,3 +83,15 @@ def test_tracing_uses_the_one_fourier_engine_directly():
     assert not offenders, offenders
     uses = "".join(p.read_text(encoding="utf-8") for p in (ROOT / "analysis" / "tracing").glob("*.py"))
     assert "from ..fourier import" in uses
+
+
+def test_the_floor_is_under_the_contract(tmp_path):
+    """The floor modules of benchtwin/ (fsio, schema, runtime, ...) are in the layers contract: one
+    of them importing the analysis is reported (issue 35: the floor under a contract)."""
+    tree = _package_tree(tmp_path)
+    schema = tree / "benchtwin" / "schema.py"
+    schema.write_text(schema.read_text() + "\nfrom benchtwin.analysis import fourier  # noqa: E402,F401\n")
+    r = _lint(tree)
+    assert r.returncode != 0
+    assert "over the floor BROKEN" in r.stdout, r.stdout  # the layers contract itself, not only the twin's
+    assert "benchtwin.schema -> benchtwin.analysis.fourier" in r.stdout, r.stdout
