@@ -205,7 +205,7 @@ class _without_polygon:
     """simulate() with the scenario's procedure cut before the polygon (and self-calibration)
     steps. The radial-motion and CCD steps come first in ``sim_procedure``, and the twin keys every
     random stream by the step's index, so the radial and CCD data are the same as those of the
-    full simulation of that seed (checked by ``tests/test_coverage_jia.py``)."""
+    full simulation of that seed (checked by ``tests/analysis/test_coverage_jia.py``)."""
 
     def __enter__(self):
         import benchtwin.twin.simulate as S
@@ -405,7 +405,7 @@ PREAMBLE = """\
 twin's truth? jia2019 (realistic noise: probe repeatability 0.1 µm, linearity, sphere form 14 nm,
 asynchronous spindle motion 0.06 µm RMS, CCD read noise, dust, scratches) simulated for each seed
 (analytic renderer; the polygon steps skipped — the radial and CCD data are byte-identical to the
-full run's, `tests/test_coverage_jia.py`), truth/ moved out, the pipeline's Jia steps run
+full run's, `tests/analysis/test_coverage_jia.py`), truth/ moved out, the pipeline's Jia steps run
 (the pixel scale from every 6th frame: its spread is ~5e-6 relative, irrelevant to e), estimate −
 truth divided by the reported u.
 

@@ -155,7 +155,7 @@ def datasets(tmp_path_factory: pytest.TempPathFactory):
 
 # ----------------------------------------------------------------------------- certified runs
 # A small simulated jia2019 run and a reduced hsieh2022 run, analysed with the loop closed and the
-# truth deleted: the inputs of the certificate's tests (tests/test_certificate.py) and of the
+# truth deleted: the inputs of the certificate's tests (tests/app/test_certificate.py) and of the
 # calibration files' and honest certificate's tests (tests/app/); simulated once per session.
 
 

@@ -214,7 +214,7 @@ def load_study(path: str | Path) -> Study:
     """Read and validate a study file; every point's resolved scenario is validated too.
 
     The checks name each key; a value of a type no check foresaw (found by the fuzz tests,
-    tests/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
+    tests/benchtwin/test_fuzz_readers.py) still ends as ``StudyError``, never as a TypeError (issue #13)."""
     try:
         return _load_study(path)
     except StudyError:

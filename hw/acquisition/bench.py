@@ -135,7 +135,7 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
     """Validate a parsed bench file (see docs/bench-file.md).
 
     The checks below name each key; a value of a type no check foresaw (found by the fuzz tests,
-    tests/test_fuzz_readers.py) still ends as ``BenchFileError`` naming the section, never as a
+    tests/benchtwin/test_fuzz_readers.py) still ends as ``BenchFileError`` naming the section, never as a
     TypeError (issue #13)."""
     section = ["the top level"]
     try:

@@ -97,7 +97,7 @@ def test_default_workers_env(monkeypatch):
 
 @pytest.fixture(scope="module")
 def small_ds(tmp_path_factory, datasets) -> Path:
-    """A reduced jia2019 dataset (30 frames; tests/test_certificate.py's) with its first frame fogged
+    """A reduced jia2019 dataset (30 frames; tests/app/test_certificate.py's) with its first frame fogged
     (rejected by the analysis)."""
     import cv2
 

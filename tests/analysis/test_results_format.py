@@ -5,7 +5,7 @@
   unchanged; one key of such an object made wrong (a wrong type, a required key dropped, a
   non-finite number) is rejected with a ResultsError naming exactly that key;
 - ``benchtwin validate RESULTS.json`` accepts a valid file and exits 2 on a broken one, naming the key.
-The pipeline's own results.json is checked in tests/test_pipeline.py (test_results_json_follows_the_format).
+The pipeline's own results.json is checked in tests/analysis/test_pipeline.py (test_results_json_follows_the_format).
 """
 
 from __future__ import annotations
@@ -195,7 +195,7 @@ def test_validate_command_exit_codes(tmp_path, capsys):
 
 def test_error_curve_results_round_trip(tmp_path):
     """analyze / close-loop on an imported curve (both directions, a full turn) write a results.json
-    that reads back valid and re-serialises to the same bytes. (Bench datasets: tests/test_pipeline.py.)"""
+    that reads back valid and re-serialises to the same bytes. (Bench datasets: tests/analysis/test_pipeline.py.)"""
     from benchtwin.cli import main
 
     th = np.arange(0.0, 360.0, 15.0)

@@ -29,7 +29,7 @@ from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-SHORT = {"radial_positions": 72, "ccd_step": "12 deg"}   # as tests/test_pipeline.py REDUCED
+SHORT = {"radial_positions": 72, "ccd_step": "12 deg"}   # as tests/analysis/test_pipeline.py REDUCED
 WAVY = {"waviness_top": [{"order": 2, "amplitude": "0.15 um", "phase": "20 deg"},
                          {"order": 3, "amplitude": "0.10 um", "phase": "100 deg"},
                          {"order": 5, "amplitude": "0.05 um", "phase": "250 deg"}],

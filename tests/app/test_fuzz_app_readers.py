@@ -1,4 +1,4 @@
-"""Bounded fuzzing of the newer readers (issue 31), as tests/test_fuzz_readers.py does for the dataset,
+"""Bounded fuzzing of the newer readers (issue 31), as tests/benchtwin/test_fuzz_readers.py does for the dataset,
 scenario, study, bench file, fault plan and model file: ``import``'s table, ``score``'s results
 (minimal CSV and JSON, the project's results.json) and truth files, ``score-suite``'s suite.json,
 ``certificate``'s lab file and results.json, ``compare``'s results, and the study cache. Hostile

@@ -1,4 +1,4 @@
-"""What the fuzz tests share (tests/test_fuzz_readers.py, tests/app/test_fuzz_app_readers.py): the
+"""What the fuzz tests share (tests/benchtwin/test_fuzz_readers.py, tests/app/test_fuzz_app_readers.py): the
 bounded, derandomised settings, hostile values of every JSON/TOML type, and a valid parsed file
 with a few values replaced, deleted or added."""
 

@@ -85,12 +85,12 @@ def test_forkcall_cancel_stops_a_running_child(tmp_path):
 def test_benchtwin_run_end_to_end_keeps_the_truth_beside_the_dataset(tmp_path, monkeypatch):
     """The real `benchtwin run` on a small bench: OUT/truth is the truth simulate writes (same
     bytes), the dataset holds none, and the analysis ran (results.json, report.html). Slow (30
-    frames of 2048×1536 px, ~20 s); the plumbing with a real fork is in tests/test_reliability.py
+    frames of 2048×1536 px, ~20 s); the plumbing with a real fork is in tests/app/test_reliability.py
     (the twin and analysis replaced) and the truth's bytes in the tests above."""
     import benchtwin.app.commands as commands
     from benchtwin.cli import main
 
-    # frames the eccentricity step can use: the paper's 2048×1536 px, 30 of them (tests/test_pipeline.py)
+    # frames the eccentricity step can use: the paper's 2048×1536 px, 30 of them (tests/analysis/test_pipeline.py)
     sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
                            "procedure.selfcal": False, "procedure.ccd_step": "12 deg",
                            "instruments.ccd.width": "2048 px", "instruments.ccd.height": "1536 px"})

@@ -24,7 +24,7 @@ from benchtwin.app.certificate import (SCHEMA_DIR, load_results, round_expanded,
                                        write_certificate)
 from benchtwin.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SHARED_DCC = ROOT.parent / "shared" / "dcc"
 LAB = ROOT / "docs" / "lab.example.toml"
 

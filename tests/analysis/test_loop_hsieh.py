@@ -18,7 +18,7 @@ from benchtwin.twin.simulate import simulate
 def test_hsieh2022_default_names_the_graduation_error_and_no_drift(tmp_path):
     from pathlib import Path
 
-    sc = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "hsieh2022.toml")
+    sc = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "hsieh2022.toml")
     ds = simulate(sc, tmp_path / "ds", progress=False, backend="analytic")
     shutil.rmtree(ds / "truth")
     res = analyze(ds, tmp_path / "out", progress=False, close_loop=True)["results"]

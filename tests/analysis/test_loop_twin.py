@@ -14,7 +14,7 @@ from benchtwin.analysis.pipeline import analyze
 from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.slow

@@ -19,7 +19,7 @@ from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import scenario_procedures, sim_procedure
 
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 class _Enc:

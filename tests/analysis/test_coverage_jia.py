@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REDUCED = {"procedure.radial_positions": 72, "procedure.ccd_step": "15 deg"}
 
 

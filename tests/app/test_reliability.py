@@ -19,7 +19,7 @@ from benchtwin.cli import main
 from benchtwin.fsio import AtomicDir, DirLock, OutputError, atomic_write_text, check_output_dir
 from tests.support.fake_dataset import MANIFEST, make_dataset
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 JIA = ROOT / "scenarios" / "jia2019.toml"
 
 
@@ -600,7 +600,7 @@ def test_validate_reads_study_bench_and_fault_plan_files_as_their_commands_do(tm
 
 def test_a_uniform_blank_frames_are_left_to_the_image_analysis(tmp_path):
     """Two fogged (uniform) frames are alike by nature: not a duplicated file; the analysis rejects
-    them with its own note (tests/test_pipeline.py::test_too_many_bad_ccd_frames_abort_naming_the_threshold)."""
+    them with its own note (tests/analysis/test_pipeline.py::test_too_many_bad_ccd_frames_abort_naming_the_threshold)."""
     root = make_dataset(tmp_path / "ds")
     for k in range(2):
         _png(root / "ccd" / f"img_{k:03d}.png", np.full((12, 16), 117, np.uint8))

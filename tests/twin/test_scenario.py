@@ -14,7 +14,7 @@ import pytest
 from benchtwin.twin.scenario import ScenarioError, default_scenario_path, load_scenario, validate
 from benchtwin.units import ARCSEC, UM
 
-SCEN = Path(__file__).resolve().parents[1] / "scenarios"
+SCEN = Path(__file__).resolve().parents[2] / "scenarios"
 
 
 def test_default_is_embedded_jia2019():

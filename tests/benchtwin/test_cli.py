@@ -9,7 +9,7 @@ from pathlib import Path
 
 from benchtwin.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_validate_scenario_ok(capsys):

@@ -11,7 +11,7 @@ reading: after ≤ 0.4 × before (measured, seed 20190819: 4.07″ → 0.70″) 
 tracing consistent. The refined e (CCD ⊕ the comparison's first harmonic, with the prior on a
 first-order graduation term) is within 2u of the truth (7.122 ± 0.093 µm against 7.100 µm).
 Slow (the whole default run: ~40 s of simulation, 60 CCD frames, the analysis):
-`pytest -m slow tests/test_default_run.py`."""
+`pytest -m slow tests/app/test_default_run.py`."""
 
 from __future__ import annotations
 

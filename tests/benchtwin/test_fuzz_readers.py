@@ -21,7 +21,7 @@ from tests.support.fake_dataset import MANIFEST, make_dataset
 from tests.support.fuzz import FUZZ, mutated
 from tests.support.fuzz import any_value as _value  # the tests' source, hence hypothesis' derandomised seeds, unchanged
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 # ----------------------------------------------------------------------------- grammar

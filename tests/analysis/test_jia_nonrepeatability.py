@@ -13,7 +13,7 @@ the twin's own realisations: the six sweeps are six revolutions at six times (an
 thermal state and microscope drift each, and every frame its own draw of the microscope stand's
 vibration), so their scatter of e is the twin's σ_e; the u(e) the
 analysis states for ONE sweep (the fit ⊕ the probes' asynchronous first harmonic, type B) must cover
-it. `pytest -m slow tests/test_jia_nonrepeatability.py` (~8 min: two simulations, 1080 radial readings and up to 360 frames each,
+it. `pytest -m slow tests/analysis/test_jia_nonrepeatability.py` (~8 min: two simulations, 1080 radial readings and up to 360 frames each,
 the polygon run).
 """
 
@@ -30,7 +30,7 @@ from benchtwin.analysis.pipeline import analyze
 from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 N_SWEEPS = 6
 #: the σ band within which Jia's range-of-3 estimate is a 95 % outcome (module docstring)
 R3_LO, R3_HI = 0.305, 3.68

@@ -36,7 +36,7 @@ def test_json_default_hook():
 
 def test_no_other_module_converts_numpy_for_json():
     """One converter: no module of the package defines its own numpy -> JSON conversion again."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     pattern = re.compile(r"^def (_jsonable|_json_default|_json|_plain)\(", re.M)
     offenders = [f"{p.relative_to(root)}: {m.group(1)}" for folder in ("benchtwin", "twin", "analysis", "hw")
                  for p in (root / folder).rglob("*.py") for m in pattern.finditer(p.read_text())]
