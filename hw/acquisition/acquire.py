@@ -84,8 +84,9 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
 
     An emulated bench (``source = "emulated"``) is checked before a resumed run appends a reading
     (``Runner(verify_resume=True)``): the stage must stand where the journal left it and the last
-    journaled reading must read the same again; a fresh emulator session fails that check
-    (``ResumeMismatchError``, exit 2) instead of serving the run wrong readings."""
+    journaled reading must read the same again, and the bench file's ``[bench] session`` (written by
+    ``benchtwin emulate``, journaled in the journal's header) must be the journal's; a fresh emulator
+    session fails that check (``ResumeMismatchError``, exit 2) instead of serving the run wrong readings."""
     cfg = load_bench(bench_path)
     out = Path(out_dir)
     try:
@@ -148,6 +149,7 @@ def _acquire(cfg: BenchConfig, out: Path, resume: bool, progress: bool,
         try:
             Runner(inst, clock, journal=out / JOURNAL, stage=cfg.run["stage"], strict=cfg.run["strict"],
                    fsync=cfg.run["fsync"], on_step=step_cb, verify_resume=cfg.source == "emulated",
+                   session=cfg.session,
                    on_row=row_cb if (on_row is not None or live is not None) else None).stream(
                        iter_procedure(cfg), sink, resume=resume)
         except BaseException:

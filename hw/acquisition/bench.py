@@ -47,7 +47,7 @@ PROCEDURES = P.PROCEDURE_TYPES
 
 _TOP = {"bench", "geometry", "run", "instruments", "procedure", "ccd"}
 _CCD = {"position": "angle", "tangential": None, "reference_px": None, "pixel_size": "length"}
-_BENCH = {"name", "source", "description"}
+_BENCH = {"name", "source", "description", "session"}
 _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "grating_period": "length",
              "polygon_faces": None, "heads": "angle", "encoder_lines": None, "encoder_resolution": "angle",
              "polygon_certificate": "angle", "scale_edge_radius": "length",
@@ -77,6 +77,7 @@ class BenchConfig:
     procedures: list[dict[str, Any]] = field(default_factory=list)
     text: str | None = None
     ccd: dict[str, Any] | None = None  # manifest["ccd"] (the [ccd] section), for a CCD sweep
+    session: str | None = None         # [bench] session: the emulator session that wrote the file (None: hardware)
 
 
 # --------------------------------------------------------------------------- loading
@@ -162,6 +163,10 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
     source = bench.get("source", "hardware")
     if source not in SOURCES:
         raise _fail(where, "bench.source", f"one of {SOURCES}", source)
+    session = bench.get("session")
+    if session is not None and not (isinstance(session, str) and len(session) == 32
+                                    and all(c in "0123456789abcdef" for c in session)):
+        raise _fail(where, "bench.session", "32 lower-case hex characters (the emulator session's uuid4)", session)
 
     g = _table(raw.get("geometry"), where, "geometry", set(_GEOMETRY))
     for k in _GEOMETRY_REQUIRED:
@@ -243,7 +248,7 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
         section[0] = f"procedure[{k}]"
         procedures.append(_procedure(k, p, where, geo))
     section[0] = "the top level"
-    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd)
+    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd, session=session)
     if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
         raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
                              f"reference_px: the camera's geometry for the dataset manifest)")

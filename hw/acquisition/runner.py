@@ -38,6 +38,11 @@
   ``ResumeMismatchError`` says which reading differs and what to do. A fresh emulator session has
   lost the run's state (its place in the procedure, the polygon's clamping, its clock) and served
   a resumed run wrong readings with exit 0 (issue #31).
+- ``session`` (an emulated bench file's ``[bench] session``) is journaled in the header line; a
+  resume whose bench file names another session, or none, is ``ResumeMismatchError`` before
+  anything is replayed or appended (a fresh session whose stage happens to stand at the journal's
+  last stop, with no reading journaled there, passes the checks above). A header without a session
+  (hardware) is not checked.
 - A full disk (ENOSPC, EDQUOT) while a journal line is written is ``benchtwin.fsio.DiskFullError``
   naming the journal; the torn line is cut on resume and its step done again.
 
@@ -215,7 +220,7 @@ class Runner:
     def __init__(self, instruments: Mapping[str, Any], clock: Any, journal: str | Path | None = None,
                  stage: str = "stage", on_step: Callable[..., None] | None = None,
                  on_row: Callable[[dict, dict], None] | None = None, strict: bool = True, fsync: bool = True,
-                 verify_resume: bool = False):
+                 verify_resume: bool = False, session: str | None = None):
         self.instruments = dict(instruments)
         self.clock = clock
         self.journal = Path(journal) if journal is not None else None
@@ -225,6 +230,7 @@ class Runner:
         self.strict = strict  # raise on a reading whose status is not "ok"
         self.fsync = fsync    # hardware: fsync every line; the twin may only flush (fast, same file)
         self.verify_resume = verify_resume  # re-read the last journaled stop on resume (see module docstring)
+        self.session = session  # the emulator session serving the instruments (journaled; None: hardware)
 
     # ------------------------------------------------------------------ internals
     def _inst(self, name: str) -> Any:
@@ -280,6 +286,22 @@ class Runner:
                 f"holds ({'; '.join(differ[:4])}{'; …' if len(differ) > 4 else ''}): the bench is not in the state the "
                 f"run left it in. {_MISMATCH_HINT}")
 
+    def _verify_session(self) -> None:
+        """Resume: a journal whose header records an emulator session is continued only by that
+        session (ResumeMismatchError). A fresh session whose stage stands at the journal's last stop,
+        with no reading journaled there, passes the stage and reading checks: only its id tells."""
+        header = next(iter_journal(self.journal), None) if self.journal is not None else None
+        if header is None or "journal" not in header or header.get("session") is None:
+            return  # nothing journaled yet, or a run without a session (hardware)
+        if header["session"] == self.session:
+            return
+        now = (f"the bench file is of emulator session {self.session}" if self.session is not None
+               else "the bench file names no emulator session")
+        raise ResumeMismatchError(
+            f"{self.journal}: resume: the journal was written against emulator session {header['session']}, {now}: "
+            f"the emulator was restarted, and the journaled readings belong to the other session, so the bench is "
+            f"not in the state the run left it in. {_MISMATCH_HINT}")
+
     # ------------------------------------------------------------------ run
     def run(self, procedure: Iterable[Step], resume: bool = False, restart: bool = False) -> list[dict[str, Any]]:
         """Execute the procedure; returns every row (replayed and live), in order."""
@@ -297,6 +319,7 @@ class Runner:
         neither, the run stops (RunnerError) rather than discard the readings it holds (issue #13)."""
         journal_iter: Iterator[dict] | None = None
         if self.journal is not None and resume:
+            self._verify_session()
             journal_iter = (r for r in iter_journal(self.journal) if "i" in r)
         elif self.journal is not None and self.journal.exists():
             if not restart:
@@ -316,7 +339,8 @@ class Runner:
                 _drop_torn_tail(self.journal)
             f = open(self.journal, "a", encoding="utf-8")
             if f.tell() == 0:
-                self._append(f, {"journal": "benchtwin-run", "version": JOURNAL_VERSION})
+                head = {"journal": "benchtwin-run", "version": JOURNAL_VERSION}
+                self._append(f, head if self.session is None else {**head, "session": self.session})
             return f
 
         held: dict | None = None    # a Read's line, journaled with the Capture after it

@@ -8,6 +8,11 @@ resumes to the uninterrupted dataset (tests/hw/test_disk_full_resume.py as well)
 
 The run is cut at a chosen journal line (its fsync fails with ENOSPC), so the last journaled step
 is a Move, a Wait or a Read, in the radial and in the polygon procedure.
+
+The journal's header also records the emulator session (``[bench] session``), and a resume against
+another session is refused before these checks (tests/hw/test_resume_session_id.py); here the
+session check is off, as for a journal that records no session, so that the checks of the bench's
+state are tested on their own.
 """
 
 from __future__ import annotations
@@ -21,6 +26,12 @@ from tests.support.resume import acquire_cli, full_at, journal_steps, same_datas
 
 pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals"),
               pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="names an fd by /proc/self/fd")]
+
+
+def _no_session_check(monkeypatch):
+    from benchtwin.hw.acquisition.runner import Runner
+
+    monkeypatch.setattr(Runner, "_verify_session", lambda self: None)
 
 
 def _cut(tmp_path, monkeypatch, capsys, session, nth: int):
@@ -42,6 +53,7 @@ def test_a_fresh_emulator_session_is_refused_on_resume(tmp_path, monkeypatch, ca
         _, out, steps = _cut(tmp_path, monkeypatch, capsys, first, nth)
     assert steps[-1]["step"]["type"] == last
     before = (out / "journal.jsonl").read_bytes()
+    _no_session_check(monkeypatch)
     with EmulationSession(small_scenario(), camera="analytic") as fresh:
         bench = fresh.start(tmp_path / "emulator-b")
         code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
@@ -67,6 +79,7 @@ def test_the_mismatch_names_the_reading_that_differs(tmp_path, monkeypatch, caps
     assert last["tag"]["procedure"] == "polygon" and last["tag"]["target_deg"] != 0.0
     # the stage check off (as if the fresh session's stage stood at the journal's last stop)
     monkeypatch.setattr(Runner, "_verify_stage", lambda self, last_move, step: True)
+    _no_session_check(monkeypatch)
     with EmulationSession(small_scenario(), camera="analytic") as fresh:
         bench = fresh.start(tmp_path / "emulator-b")
         code, res = acquire_cli(bench, out, "--resume", capsys=capsys)

@@ -26,6 +26,7 @@ operator only replays it, to keep the twin's clock and noise keys those of ``sim
 from __future__ import annotations
 
 import math
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -88,9 +89,11 @@ def _q(x: float, unit: str) -> str:
 
 
 def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], timeout_s: float = 0.25,
-                    camera: Any = None, frames_dir: str | Path | None = None) -> str:
+                    camera: Any = None, frames_dir: str | Path | None = None, session: str | None = None) -> str:
     """A ready-to-use bench file for the emulated instruments (docs/bench-file.md). ``camera``:
-    the twin's ``SimCamera`` (its nominal geometry goes to ``[ccd]``), served from ``frames_dir``."""
+    the twin's ``SimCamera`` (its nominal geometry goes to ``[ccd]``), served from ``frames_dir``.
+    ``session``: the serving session's id (``[bench] session``; ``acquire`` journals it and a resume
+    against another session is refused)."""
     b = sc["bench"]
     from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
 
@@ -102,6 +105,8 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
          "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs."),
         "", "[bench]", f'name = "{sc.name}-emulated"', 'source = "emulated"',
         f'description = "emulated instruments of scenario {sc.name} (benchtwin emulate)"',
+        *([f'session = "{session}"           # this emulator session: a resume against another is refused']
+          if session is not None else []),
         "", "[geometry]",
         f"optical_radius = {_q(float(b['optical_radius']) * 1e3, 'mm')}",
         f"L1 = {_q(float(b['L1']) * 1e3, 'mm')}",
@@ -183,6 +188,10 @@ class EmulationSession:
         self.tcp, self.tcp_base_port = bool(tcp), int(tcp_base_port)
         self.server: Any = None
         self.bench_path: Path | None = None
+        # the session's identity, in its bench file: the emulators' state (the operator's place in
+        # the procedure, the clock, the noise streams) lives only here, so a journal of this
+        # session is resumed against this session only (issue #31)
+        self.session_id = uuid.uuid4().hex
 
     def start(self, directory: str | Path) -> Path:
         d = Path(directory)
@@ -196,7 +205,7 @@ class EmulationSession:
         self.bench_path = d / "bench.toml"
         # atomic (benchtwin.fsio): a client polling for the bench file never reads half of it
         atomic_write_text(self.bench_path, bench_file_text(self.sc, ports, self.emulators, self.timeout_s,
-                                                           self.backend.camera, frames))
+                                                           self.backend.camera, frames, self.session_id))
         return self.bench_path
 
     def ports(self) -> dict[str, str]:
