@@ -13,7 +13,7 @@ import os
 
 import pytest
 
-from tests.hw.test_disk_full_resume import _acquire_cli, _full_at, _scenario, _steps
+from tests.support.resume import acquire_cli, full_at, journal_steps, small_scenario
 
 pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals"),
               pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="names an fd by /proc/self/fd")]
@@ -24,11 +24,11 @@ def _cut_after_move_to_zero(tmp_path, monkeypatch, capsys, session):
     last reading journaled: the CCD sweep's at 270°): the journal's next fsync fails."""
     bench = session.start(tmp_path / "emulator-a")
     out = tmp_path / "ds"
-    full = _full_at(monkeypatch, "/journal.jsonl", nth=54)
-    code, res = _acquire_cli(bench, out, capsys=capsys)
+    full = full_at(monkeypatch, "/journal.jsonl", nth=54)
+    code, res = acquire_cli(bench, out, capsys=capsys)
     monkeypatch.undo()
     assert full["fired"] and code == 2, res
-    steps = _steps(out / "journal.jsonl")
+    steps = journal_steps(out / "journal.jsonl")
     assert steps[-1]["step"] == {"type": "move", "target_deg": 0.0}, steps[-1]
     last_read = max(k for k, s in enumerate(steps) if s["step"]["type"] == "read")
     stop = [s["step"]["target_deg"] for s in steps[:last_read] if s["step"]["type"] == "move"][-1]
@@ -42,15 +42,15 @@ def test_a_fresh_session_at_the_journals_last_stop_is_refused(tmp_path, monkeypa
     0.06 to 0.8 arcsec, by the first run's timing)."""
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario(), camera="analytic") as first:
+    with EmulationSession(small_scenario(), camera="analytic") as first:
         _, out = _cut_after_move_to_zero(tmp_path, monkeypatch, capsys, first)
         header = json.loads((out / "journal.jsonl").read_text().splitlines()[0])
         assert header == {"journal": "benchtwin-run", "version": 1, "session": first.session_id}
     before = (out / "journal.jsonl").read_bytes()
-    with EmulationSession(_scenario(), camera="analytic") as fresh:
+    with EmulationSession(small_scenario(), camera="analytic") as fresh:
         assert fresh.session_id != first.session_id
         bench = fresh.start(tmp_path / "emulator-b")
-        code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
+        code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
     assert code == 2 and res["kind"] == "ResumeMismatchError", res
     msg = res["error"]
     assert "journal.jsonl: resume:" in msg and first.session_id in msg and fresh.session_id in msg
@@ -63,11 +63,11 @@ def test_a_fresh_session_at_the_journals_last_stop_is_refused(tmp_path, monkeypa
 def test_a_bench_file_without_the_session_is_refused_too(tmp_path, monkeypatch, capsys):
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario(), camera="analytic") as first:
+    with EmulationSession(small_scenario(), camera="analytic") as first:
         bench, out = _cut_after_move_to_zero(tmp_path, monkeypatch, capsys, first)
         text = bench.read_text()
         bench.write_text("".join(line for line in text.splitlines(keepends=True) if not line.startswith("session =")))
-        code, res = _acquire_cli(bench, out, "--resume", capsys=capsys)
+        code, res = acquire_cli(bench, out, "--resume", capsys=capsys)
     assert code == 2 and res["kind"] == "ResumeMismatchError", res
     assert "names no emulator session" in res["error"]
 
@@ -77,7 +77,7 @@ def test_a_bad_session_key_names_the_key(tmp_path, value):
     from benchtwin.hw.acquisition.bench import BenchFileError, load_bench
     from benchtwin.twin.emulators.serve import EmulationSession
 
-    with EmulationSession(_scenario()) as s:
+    with EmulationSession(small_scenario()) as s:
         bench = s.start(tmp_path / "emulator")
         good = load_bench(bench)
         assert good.session == s.session_id and len(good.session) == 32
