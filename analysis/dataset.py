@@ -39,7 +39,7 @@ import numpy as np
 from benchtwin.jsonable import json_default
 
 from benchtwin.fsio import OutputError, atomic_write_bytes, check_output_dir, raise_if_disk_full
-from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, is_number, loads_json, parse_float, parse_int,
+from benchtwin.schema import (MAX_CELL_CHARS, SchemaError, csv_rows, is_number, loads_json, parse_float, parse_int,
                               read_input_text, resolve_inside, check_relative_name)
 
 FORMAT = "bench-dataset"
@@ -479,16 +479,11 @@ def parse_table(text: str, name: str, where: str, spec: TableSpec | None = None)
 
     Rows are numbered as in a text editor (the header is row 1)."""
     spec = spec or TABLES.get(name)
-    if "\x00" in text:
-        raise DatasetError(f"{where}: contains NUL bytes; expected CSV text")
-    reader = csv.reader(io.StringIO(text))
-    rowno = 1
+    rows = csv_rows(text, where, DatasetError)
     try:
-        header = next(reader)
+        _, header = next(rows)
     except StopIteration:
         raise DatasetError(f"{where}: empty file (expected a header row)") from None
-    except csv.Error as exc:
-        raise DatasetError(f"{where}: row 1: not valid CSV ({exc})") from None
     header = [h.strip() for h in header]
     if len(header) > 256 or any(len(h) > 128 for h in header):
         raise DatasetError(f"{where}: row 1: expected at most 256 column names of at most 128 characters")
@@ -503,15 +498,7 @@ def parse_table(text: str, name: str, where: str, spec: TableSpec | None = None)
         types = {**spec.required, **spec.optional}
     raw: dict[str, list[Any]] = {h: [] for h in header}
     n_rows = 0
-    rows = enumerate(reader, start=2)
-    while True:
-        try:
-            rowno, row = next(rows)
-        except StopIteration:
-            break
-        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
-            raise DatasetError(f"{where}: row {rowno + 1}: not valid CSV ({exc}); a cell may have at most "
-                               f"{MAX_CELL_CHARS} characters") from None
+    for rowno, row in rows:
         if not row or all(not c.strip() for c in row):
             continue
         n_rows += 1

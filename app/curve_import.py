@@ -18,12 +18,10 @@ dataset is written atomically, manifest last (analysis.dataset).
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 from typing import Any
 
-from benchtwin.schema import MAX_CELL_CHARS, SchemaError, parse_float, read_input_text
+from benchtwin.schema import MAX_CELL_CHARS, SchemaError, csv_rows, parse_float, read_input_text
 from benchtwin.units import ARCSEC
 
 __all__ = ["import_table", "ERROR_UNITS", "ImportError_"]
@@ -68,15 +66,11 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
     except SchemaError as exc:
         raise ImportError_(str(exc)) from None
     text = text.removeprefix("\ufeff")  # a byte-order mark (spreadsheet exports)
-    if "\x00" in text:
-        raise ImportError_(f"{p}: contains NUL bytes; expected CSV text")
-    rows = enumerate(csv.reader(io.StringIO(text)), start=1)
+    rows = csv_rows(text, str(p), ImportError_)
     try:
         _, first = next(rows)
     except StopIteration:
         raise ImportError_(f"{p}: empty file (expected a header row)") from None
-    except csv.Error as exc:
-        raise ImportError_(f"{p}: row 1: not valid CSV ({exc})") from None
     header = [h.strip() for h in first]
     want = {"angle": angle, "error": error, "reverse": reverse, "u": u}
     for what, col in want.items():
@@ -87,14 +81,7 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
                                "expected it once")
     idx = {k: header.index(c) for k, c in want.items() if c is not None}
     out: dict[str, list[float]] = {k: [] for k in idx}
-    rowno = 1
-    while True:
-        try:
-            rowno, row = next(rows)
-        except StopIteration:
-            break
-        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
-            raise ImportError_(f"{p}: row {rowno + 1}: not valid CSV ({exc})") from None
+    for rowno, row in rows:
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != len(header):

@@ -28,8 +28,6 @@ docs/scoring.md); missing keys are scored on what is there. Pure functions over 
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -346,20 +344,10 @@ def results_from_csv(text: str, where: str) -> dict[str, Any]:
     scalar, per curve point (key = θ in degrees or the face number) or per named effect. Numbers by
     the project's one number grammar (``benchtwin.schema.parse_float``: ``6_9`` is an error, not
     69); a scalar, a curve point or a name given twice is an error naming both rows."""
-    from benchtwin.schema import MAX_CELL_CHARS
+    from benchtwin.schema import MAX_CELL_CHARS, csv_rows
 
-    if "\x00" in text:
-        raise InputError(f"{where}: contains NUL bytes; expected CSV text")
     rows: list[tuple[int, list[str]]] = []
-    reader = enumerate(csv.reader(io.StringIO(text)), start=1)
-    lineno = 0
-    while True:
-        try:
-            lineno, r = next(reader)
-        except StopIteration:
-            break
-        except csv.Error as exc:  # e.g. a cell over csv's field size limit (128 KiB)
-            raise InputError(f"{where}: row {lineno + 1}: not valid CSV ({exc})") from None
+    for lineno, r in csv_rows(text, where, InputError):
         if r and not (len(r) == 1 and not r[0].strip()) and not r[0].lstrip().startswith("#"):
             long = [c for c in r if len(c) > MAX_CELL_CHARS]
             if long:
@@ -473,7 +461,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     """A CSV table of a truth or dataset folder, read as every input is (benchtwin.schema: a
     regular file, bounded size, UTF-8): a column whose every cell is a number is an array of
     floats, any other an array of strings; a malformed table is an error naming the file."""
-    from benchtwin.schema import SchemaError, read_input_text
+    from benchtwin.schema import SchemaError, csv_rows, read_input_text
 
     if not path.exists() and not path.is_symlink():
         raise InputError(f"{path}: missing")
@@ -481,13 +469,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
         text = read_input_text(path, max_bytes=MAX_TRUTH_BYTES, what="CSV table")
     except SchemaError as exc:
         raise InputError(str(exc)) from None
-    if "\x00" in text:
-        raise InputError(f"{path}: contains NUL bytes; expected CSV text")
-    try:
-        rows = list(csv.reader(io.StringIO(text)))
-    except csv.Error as exc:
-        raise InputError(f"{path}: not valid CSV ({exc})") from None
-    rows = [r for r in rows if r]
+    rows = [r for _, r in csv_rows(text, str(path), InputError) if r]
     if not rows:
         raise InputError(f"{path}: empty file (expected a header row)")
     header = [h.strip() for h in rows[0]]

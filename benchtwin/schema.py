@@ -21,18 +21,20 @@ The module imports nothing of the project, so every layer (analysis, twin, hw, a
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
 import re
 import stat
 import tomllib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["SchemaError", "MAX_DEPTH", "MAX_NUMBER_CHARS", "MAX_CELL_CHARS", "MAX_INPUT_BYTES",
+__all__ = ["SchemaError", "csv_rows", "MAX_DEPTH", "MAX_NUMBER_CHARS", "MAX_CELL_CHARS", "MAX_INPUT_BYTES",
            "parse_float", "parse_int", "is_number", "read_input_text", "resolve_inside", "check_relative_name", "loads_json",
            "loads_toml", "load_toml_file", "Key", "check_table", "check_version", "nesting_depth"]
 
@@ -154,6 +156,28 @@ def read_input_text(path: str | Path, *, max_bytes: int = MAX_INPUT_BYTES, what:
 
 
 # --------------------------------------------------------------------------- JSON / TOML
+
+
+def csv_rows(text: str, where: str, error: Callable[[str], Exception] = ValueError) -> Iterator[tuple[int, list[str]]]:
+    """The rows of CSV text as (row number, cells), numbered as in a text editor (the header is row
+    1): the one CSV row reader of every table reader (the dataset's tables, an imported table, the
+    minimal results CSV and truth tables of ``score``, a camera folder's index). Text with NUL bytes,
+    and a row ``csv`` cannot parse (an unterminated quote, a cell over csv's field size limit), raise
+    ``error`` naming ``where`` and the row; what the cells mean is the caller's to check."""
+    if "\x00" in text:
+        raise error(f"{where}: contains NUL bytes; expected CSV text")
+    rows = csv.reader(io.StringIO(text))
+    rowno = 0
+    while True:
+        try:
+            row = next(rows)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise error(f"{where}: row {rowno + 1}: not valid CSV ({exc}); a cell may have at most "
+                        f"{MAX_CELL_CHARS} characters") from None
+        rowno += 1
+        yield rowno, row
 
 
 def nesting_depth(text: str, opens: str = "[{", closes: str = "]}") -> int:

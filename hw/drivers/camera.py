@@ -20,8 +20,6 @@ high byte).
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -102,13 +100,9 @@ def _read_index(index: Path, folder: Path) -> list[tuple[Path, float | None]]:
     """A camera folder's index.csv by the one reader (benchtwin.schema): a regular file, bounded
     size, ``file`` a relative name inside the folder, ``t_s`` by the number grammar. Errors are
     ValueErrors naming the file and the row (the bench file's reader makes them exit 2)."""
-    from benchtwin.schema import check_relative_name, parse_float, read_input_text
+    from benchtwin.schema import check_relative_name, csv_rows, parse_float, read_input_text
 
-    text = read_input_text(index, what="camera index")
-    try:
-        rows = list(csv.reader(io.StringIO(text)))
-    except csv.Error as exc:
-        raise ValueError(f"{index}: not valid CSV ({exc})") from None
+    rows = [r for _, r in csv_rows(read_input_text(index, what="camera index"), str(index))]
     header = [h.strip() for h in rows[0]] if rows else []
     if "file" not in header:
         raise ValueError(f"{index}: row 1: needs a 'file' column, has {header}")
