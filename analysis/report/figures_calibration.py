@@ -16,7 +16,13 @@ from matplotlib.figure import Figure
 from ..calibration import CalibrationCurve, calibration_rows
 from .layout import fixed_margins
 
-__all__ = ["fig_calibration_curve", "add_calibration_section"]
+__all__ = ["fig_calibration_curve", "add_calibration_section", "U_BAND_COLOR", "U_BAND_ALPHA"]
+
+#: the band ± U: this colour at this opacity, drawn over the axes' white (so on the page it is the
+#: composite 255 − α·(255 − c) per channel, a light blue no other element of the figure fills a region with;
+#: tests/app/test_report_u_band_browser.py finds the band by it in a browser screenshot)
+U_BAND_COLOR = "tab:blue"
+U_BAND_ALPHA = 0.3
 
 
 def fig_calibration_curve(c: CalibrationCurve) -> Figure:
@@ -29,13 +35,13 @@ def fig_calibration_curve(c: CalibrationCurve) -> Figure:
     fig = Figure(figsize=(8, 5.6))
     top, bot = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1]})
     band = f"± U (k = {c.k:.2f}, p = {c.p:.2f})"
-    top.fill_between(th, e - U, e + U, color="tab:blue", alpha=0.3, lw=0, label=band)
+    top.fill_between(th, e - U, e + U, color=U_BAND_COLOR, alpha=U_BAND_ALPHA, lw=0, label=band)
     top.errorbar(th, e, yerr=U, fmt="o-", color="tab:blue", ms=3, lw=1, capsize=2, label="encoder error α")
     top.axhline(0.0, color="0.6", lw=0.8)
     top.set_ylabel("α = reading − reference (″)")
     top.legend(fontsize="small")
     top.set_title("Encoder error with its expanded uncertainty U")
-    bot.fill_between(th, -U, U, color="tab:blue", alpha=0.3, lw=0, label=band)
+    bot.fill_between(th, -U, U, color=U_BAND_COLOR, alpha=U_BAND_ALPHA, lw=0, label=band)
     bot.plot(th, U, "o-", color="tab:blue", ms=2, lw=0.8)
     bot.plot(th, -U, "o-", color="tab:blue", ms=2, lw=0.8)
     bot.plot(th, u, "--", color="0.3", lw=0.8, label="± u (k = 1)")
