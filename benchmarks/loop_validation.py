@@ -188,12 +188,14 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
         t0 = time.time()
         analyze(ds, d / "analysis", progress=False, close_loop=True)
         rec["analyze_s"] = round(time.time() - t0, 1)
-        from app.score import score_files
+        from app.score import read_results, score_files
 
         s = score_files(d / "analysis" / "results.json", ds, truth)
+        res = read_results(d / "analysis" / "results.json")
         ident = s.get("identification") or {}
         rec.update(correct=bool(s.get("identification_correct")), outcome=ident.get("outcome"),
-                   accept=ident.get("accept"), named=s.get("named"), spurious=s.get("spurious"),
+                   accept=ident.get("accept"), named=list(res.get("named") or []),
+                   ambiguous=[list(x) for x in res.get("ambiguous") or []], spurious=s.get("spurious"),
                    unexplained=ident.get("unexplained"),
                    residual_before_arcsec=s.get("residual_before_arcsec"),
                    residual_after_arcsec=s.get("residual_after_arcsec"),
@@ -248,7 +250,9 @@ def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> st
                 lines.append(head + f" — **error**: {r['error'].splitlines()[0][:200]}")
             else:
                 lines.append(head + f" — **{'right' if r.get('correct') else 'WRONG'}** ({r.get('outcome')}; "
-                             f"named {r.get('named')}, spurious {r.get('spurious') or '—'}"
+                             f"named {', '.join(r.get('named') or []) or '—'}; sets "
+                             f"{' | '.join('{' + ', '.join(x) + '}' for x in r.get('ambiguous') or []) or '—'}; "
+                             f"spurious {', '.join(r.get('spurious') or []) or '—'}"
                              f"{', unexplained' if r.get('unexplained') else ''}; "
                              f"{_f(r.get('residual_before_arcsec'))} → {_f(r.get('residual_after_arcsec'))}, "
                              f"after/floor {_f(r.get('after_over_floor'))})")
@@ -270,7 +274,7 @@ def write_doc(doc: Path, section: str) -> None:
 
 def _commit() -> str:
     try:
-        return subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+        return subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True,
                               text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
