@@ -18,6 +18,7 @@ from benchtwin.analysis.dataset import DatasetError, DatasetWriter, open_dataset
 from benchtwin.cli import main
 from benchtwin.fsio import AtomicDir, DirLock, OutputError, atomic_write_text, check_output_dir
 from tests.support.fake_dataset import MANIFEST, make_dataset
+from tests.support.bench_file import loop_bench_file
 
 ROOT = Path(__file__).resolve().parents[2]
 JIA = ROOT / "scenarios" / "jia2019.toml"
@@ -217,23 +218,8 @@ def test_b_all_outputs_have_one_file_mode(tmp_path):
 # ----------------------------------------------------------------------------- C. acquisition never discards readings
 
 
-def _bench_file(tmp_path: Path) -> Path:
-    p = tmp_path / "b.toml"
-    p.write_text(
-        '[bench]\nname = "b"\nsource = "emulated"\n'
-        '[geometry]\noptical_radius = "22 mm"\nL1 = "6.81 mm"\nL2 = "122.96 mm"\ngrating_period = "20 um"\n'
-        'polygon_faces = 4\nheads = ["0 deg"]\n'
-        '[run]\nwaits = "skip"\ndriver_sleep_scale = 0\n'
-        '[instruments.encoder]\ndriver = "heidenhain"\nport = "loop://"\nretries = 0\nserial = { timeout = 0.05 }\n'
-        '[instruments.autocollimator]\ndriver = "elcomat"\nport = "loop://"\nretries = 0\nserial = { timeout = 0.05 }\n'
-        '[instruments.stage]\ndriver = "zaber"\nport = "loop://"\nsoft_limits = ["-1 deg", "361 deg"]\n'
-        'max_speed = "20 deg/s"\nretries = 0\nserial = { timeout = 0.05 }\noptions = { microsteps_per_deg = 1000 }\n'
-        '[[procedure]]\ntype = "polygon_traditional"\nstart_face = 1\ndwell = "0.1 s"\n')
-    return p
-
-
 def test_c_acquire_without_resume_keeps_the_journal(tmp_path, capsys):
-    bench = _bench_file(tmp_path)
+    bench = loop_bench_file(tmp_path)
     out = tmp_path / "ds"
     out.mkdir()
     journal = out / "journal.jsonl"
@@ -254,7 +240,7 @@ def test_c_runner_without_resume_never_deletes_a_journal(tmp_path):
 
 
 def test_c_a_lock_stops_a_second_acquire_on_one_folder(tmp_path, capsys):
-    bench = _bench_file(tmp_path)
+    bench = loop_bench_file(tmp_path)
     out = tmp_path / "ds"
     out.mkdir()
     (out / "journal.jsonl").write_text('{"journal": "benchtwin-run", "version": 1}\n')
@@ -277,7 +263,7 @@ def test_c_instrument_errors_exit_2_and_say_how_to_resume(tmp_path, capsys, monk
     from benchtwin.hw.acquisition import acquire as acq
     from benchtwin.hw.drivers.base import InstrumentError
 
-    bench = _bench_file(tmp_path)
+    bench = loop_bench_file(tmp_path)
     out = tmp_path / "ds"
     for exc in (InstrumentError("autocollimator", "read", "no reply", b"", attempts=3),
                 serial.SerialException("device reports readiness to read but returned no data (device disconnected?)")):
@@ -294,7 +280,7 @@ def test_c_instrument_errors_exit_2_and_say_how_to_resume(tmp_path, capsys, monk
 def test_c_retries_exhausted_on_a_silent_instrument_is_exit_2(tmp_path, capsys):
     """A real run on loopback ports (the instrument never answers properly): the driver's retries
     run out; exit 2 with the instrument, and the journal is kept for --resume."""
-    bench = _bench_file(tmp_path)
+    bench = loop_bench_file(tmp_path)
     out = tmp_path / "ds"
     err = _err(["acquire", str(bench), "-o", str(out)], capsys, str(bench))
     assert "Traceback" not in err
@@ -586,14 +572,14 @@ def test_validate_reads_study_bench_and_fault_plan_files_as_their_commands_do(tm
     fault plans (emulate --faults) are checked by those commands' own readers."""
     obj = _cli(["validate", str(ROOT / "scenarios" / "studies" / "bearing_distance.toml")], capsys, code=0)
     assert obj["kind"] == "study"
-    obj = _cli(["validate", str(_bench_file(tmp_path))], capsys, code=0)
+    obj = _cli(["validate", str(loop_bench_file(tmp_path))], capsys, code=0)
     assert obj["kind"] == "bench" and "stage" in obj["instruments"]
     f = tmp_path / "faults.toml"
     f.write_text('[[faults]]\nport = "stage"\nrequest = 3\naction = "drop"\n')
     assert _cli(["validate", str(f)], capsys, code=0)["kind"] == "fault_plan"
     f.write_text('[[faults]]\nport = "stage"\nrequest = 3\naction = "delay"\nseconds = nan\n')
     _err(["validate", str(f)], capsys, "faults.toml", "faults[0]", "seconds", "finite")
-    b = _bench_file(tmp_path)
+    b = loop_bench_file(tmp_path)
     b.write_text(b.read_text().replace('source = "emulated"', 'source = "twin"'))
     _err(["validate", str(b)], capsys, "b.toml", "bench.source")
 

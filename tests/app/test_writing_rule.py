@@ -28,6 +28,7 @@ import pytest
 
 from benchtwin.cli import main
 from benchtwin.fsio import LOCK_NAME, DirLock, OutputError
+from tests.support.bench_file import loop_bench_file
 
 ROOT = Path(__file__).resolve().parents[2]
 JIA = ROOT / "scenarios" / "jia2019.toml"
@@ -127,21 +128,6 @@ def _no_simulation(monkeypatch):
     monkeypatch.setattr(simulate, "_simulate", fail)
 
 
-def _bench_file(tmp_path: Path) -> Path:
-    p = tmp_path / "b.toml"
-    p.write_text(
-        '[bench]\nname = "b"\nsource = "emulated"\n'
-        '[geometry]\noptical_radius = "22 mm"\nL1 = "6.81 mm"\nL2 = "122.96 mm"\ngrating_period = "20 um"\n'
-        'polygon_faces = 4\nheads = ["0 deg"]\n'
-        '[run]\nwaits = "skip"\ndriver_sleep_scale = 0\n'
-        '[instruments.encoder]\ndriver = "heidenhain"\nport = "loop://"\nretries = 0\nserial = { timeout = 0.05 }\n'
-        '[instruments.autocollimator]\ndriver = "elcomat"\nport = "loop://"\nretries = 0\nserial = { timeout = 0.05 }\n'
-        '[instruments.stage]\ndriver = "zaber"\nport = "loop://"\nsoft_limits = ["-1 deg", "361 deg"]\n'
-        'max_speed = "20 deg/s"\nretries = 0\nserial = { timeout = 0.05 }\noptions = { microsteps_per_deg = 1000 }\n'
-        '[[procedure]]\ntype = "polygon_traditional"\nstart_face = 1\ndwell = "0.1 s"\n')
-    return p
-
-
 def _journal(folder: Path, steps: int) -> str:
     folder.mkdir(parents=True, exist_ok=True)
     text = '{"journal": "benchtwin-run", "version": 1}\n' + "".join(f'{{"i": {i}}}\n' for i in range(steps))
@@ -157,7 +143,7 @@ class TestForceNeverBreaksALiveLock:
         out = tmp_path / "run"
         journal = _journal(out, 310)
         h = holder(out)
-        _err(["acquire", str(_bench_file(tmp_path)), "-o", str(out), "--force"], capsys, str(out), f"pid {h.pid}",
+        _err(["acquire", str(loop_bench_file(tmp_path)), "-o", str(out), "--force"], capsys, str(out), f"pid {h.pid}",
              "--force never breaks a live lock")
         assert (out / "journal.jsonl").read_text() == journal
         assert (out / LOCK_NAME).read_text().split()[0] == str(h.pid)
@@ -201,7 +187,7 @@ class TestForceNeverBreaksALiveLock:
             raise InstrumentError("autocollimator", "read", "no reply", b"", attempts=3)
 
         monkeypatch.setattr(acq, "_acquire", failing)
-        msg = _err(["acquire", str(_bench_file(tmp_path)), "-o", str(out), "--force"], capsys,
+        msg = _err(["acquire", str(loop_bench_file(tmp_path)), "-o", str(out), "--force"], capsys,
                    "the readings this run took are kept", "--force deleted the folder's earlier contents")
         assert "the readings taken so far" not in msg
 
