@@ -1160,9 +1160,7 @@ def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotio
 
 
 def _write_results(out: Path, results: ErrorCurveResults) -> None:
-    tmp = out / "results.json.tmp"
-    tmp.write_text(json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(out / "results.json")
+    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
 
 
 def analyze_error_curve_dataset(ds: Dataset, out: Path | None, *, close_loop: bool = True) -> dict[str, Any]:

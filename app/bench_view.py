@@ -17,7 +17,7 @@ the scenario and the code. The cache lives in ``$BENCHTWIN_CACHE/bench_view`` (d
 ``~/.cache/benchtwin/bench_view``, the folder benchtwin's other caches use), one ``<key>.npz`` per
 geometry (the ``CACHE_MAX_ENTRIES`` most recently used are kept), the key a SHA-256 of the scenario's full content, the picture size, the MuJoCo version
 and the sources the picture is made of (this module, twin/*.py, models/*). A file is written under
-a unique temporary name and renamed into place (``os.replace``, atomic on POSIX), so concurrent
+a unique temporary name and renamed into place (``benchtwin.fsio.atomic_write_bytes``), so concurrent
 runs never read a half-written picture; an unreadable or foreign file is re-rendered and replaced.
 ``BENCHTWIN_CACHE=none`` turns the cache off; a cache folder that cannot be written only costs the
 re-render.
@@ -26,14 +26,16 @@ re-render.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from benchtwin.fsio import OutputError, atomic_write_bytes
 
 WIDTH, HEIGHT = 1000, 760
 
@@ -253,17 +255,12 @@ def render_bench_cached(sc: Any, width: int = WIDTH, height: int = HEIGHT
     img, labels = render_bench(sc, width, height)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}-", suffix=".npz.part", dir=folder)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(fh, key=np.array(key), image=img,
-                         labels=np.array(json.dumps({k: [float(u), float(v)] for k, (u, v) in labels.items()})))
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        buf = io.BytesIO()
+        np.savez_compressed(buf, key=np.array(key), image=img,
+                            labels=np.array(json.dumps({k: [float(u), float(v)] for k, (u, v) in labels.items()})))
+        atomic_write_bytes(path, buf.getvalue(), fsync=False)  # a cache: a lost entry is re-rendered
         _evict(folder, CACHE_MAX_ENTRIES)
-    except OSError:
+    except (OSError, OutputError):  # OutputError: fsio's DiskFullError
         pass  # a read-only or full cache folder costs the re-render next time, nothing else
     return img, labels
 

@@ -11,7 +11,7 @@ The page is an observer: ``on_step`` / ``on_row`` follow the signatures of
 ``benchtwin.hw.acquisition.runner.Runner`` (the acquire and simulate commands pass them through),
 so the run itself never depends on it. It is cheap: O(1) state (the last points of a bounded
 number of curves), rendered at most once per ``min_interval_s`` of wall time (and at the end), and
-written atomically (``live.html.part`` then renamed: a browser never reads half a page). The page
+written atomically (``benchtwin.fsio.atomic_write_text``: a browser never reads half a page). The page
 reloads itself every ``refresh_s`` seconds (``<meta http-equiv="refresh">``; no script, no server:
 it opens from the file system). Every number shown carries its unit.
 """
@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import html
 import math
-import os
 import time
 from collections import OrderedDict, deque
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+from benchtwin.fsio import atomic_write_text
 
 __all__ = ["LiveView"]
 
@@ -233,10 +234,8 @@ class LiveView:
         self._last_write = self.clock()
         text = self.render()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_name(self.path.name + ".part")
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, self.path)
+        # the one atomic writer; no fsync: the page is rewritten every second and only a view
+        atomic_write_text(self.path, text, fsync=False)
         self.writes += 1
         return self.path
 
