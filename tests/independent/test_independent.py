@@ -79,7 +79,10 @@ def _check(name: str, seed: int, tmp_path) -> None:
         c = corrected_check(res, truth)
         assert c is not None and c["ok"], c
         assert c["applied"], "a reference-chain effect was identified but no correction applied"
-        assert c["rms_arcsec"] < c["raw_rms_arcsec"], c
+        # never worse than the raw curve; a linear drift is absorbed by the setup constants U_j (the
+        # reference generator's caveat 3), so its correction in the readings may leave the curve equal
+        # to the raw one to rounding: equality within 1e-9″ is no failure (a strict < flipped at 5e-14″)
+        assert c["rms_arcsec"] <= c["raw_rms_arcsec"] + 1e-9, c
 
 
 def test_geometry_closed_forms():
@@ -115,7 +118,10 @@ def test_independent_fast(name, fast_runs):
     if case.corrected:
         c = corrected_check(res, truth)
         assert c is not None and c["ok"] and c["applied"], c
-        assert c["rms_arcsec"] < c["raw_rms_arcsec"], c
+        # never worse than the raw curve; a linear drift is absorbed by the setup constants U_j (the
+        # reference generator's caveat 3), so its correction in the readings may leave the curve equal
+        # to the raw one to rounding: equality within 1e-9″ is no failure (a strict < flipped at 5e-14″)
+        assert c["rms_arcsec"] <= c["raw_rms_arcsec"] + 1e-9, c
 
 
 def _robust_names(full: bool):

@@ -94,7 +94,7 @@ def test_benchtwin_run_end_to_end_keeps_the_truth_beside_the_dataset(tmp_path, m
     sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"],
                            "procedure.selfcal": False, "procedure.ccd_step": "12 deg",
                            "instruments.ccd.width": "2048 px", "instruments.ccd.height": "1536 px"})
-    monkeypatch.setattr(commands, "_scenario", lambda path: sc)
+    monkeypatch.setattr(commands, "_scenario", lambda path, *overrides: sc)  # (path, --set/--seed)
     out = tmp_path / "out"
     assert main(["run", "-o", str(out), "--backend", "analytic", "--quiet", "--no-close-loop"]) == 0
     ref = S.simulate(sc, tmp_path / "ref", progress=False, backend="analytic")
