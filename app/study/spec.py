@@ -179,6 +179,15 @@ def _dim_of_unit(unit: str) -> str | None:
     return None
 
 
+def _unit_dimension(unit: str, fail: Any, where: str, text: str) -> str:
+    """The dimension of a free parameter's unit (no scenario key to take it from), or the spec
+    error naming ``where`` and the value ``text`` the unit came from."""
+    d = _dim_of_unit(unit)
+    if d is None:
+        raise fail(f"{where}: unknown unit in {text!r}")
+    return d
+
+
 def _factor(unit: str, dim: str) -> float:
     return parse_quantity(f"1 {unit}", dim) if unit else 1.0
 
@@ -442,10 +451,7 @@ def _parse_values(p: Parameter, pr: Mapping[str, Any], dim: str, ctx: _ParamCont
         p.kind = "quantity"
         p.unit = _split_unit(first)
         if key is None:
-            d = _dim_of_unit(p.unit)
-            if d is None:
-                raise fail(f"{at}.values ({name}): unknown unit in {first!r}")
-            dim = d
+            dim = _unit_dimension(p.unit, fail, f"{at}.values ({name})", first)
         for j, v in enumerate(values):
             try:
                 x_si = parse_quantity(v, dim)
@@ -497,10 +503,7 @@ def _parse_range(p: Parameter, pr: Mapping[str, Any], dim: str, ctx: _ParamConte
         p.kind = "quantity"
         p.unit = _split_unit(lo)
         if key is None:
-            d = _dim_of_unit(p.unit)
-            if d is None:
-                raise fail(f"{at}.low ({name}): unknown unit in {lo!r}")
-            dim = d
+            dim = _unit_dimension(p.unit, fail, f"{at}.low ({name})", lo)
         if dim not in DIMENSIONS:
             raise fail(f"{at} ({name}): low/high/n needs a quantity or integer key; {key} is {dim}")
         try:
