@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 
 from benchtwin.cli import main
+from tests.support.interrupt import power_cut_after
 
 SMALL = ["--set", "procedure.radial_reps=2", "--set", "procedure.radial_positions=24", "--set",
          'procedure.ccd_step="90 deg"', "--set", "bench.polygon_faces=8", "--set", "instruments.ccd.width=128 px",
@@ -26,16 +27,7 @@ def test_interrupted_simulation_is_continued_by_simulate_resume_and_then_said_co
     from benchtwin.twin.instruments.probe import SimProbe
 
     assert main(_sim(tmp_path / "ref")) == 0
-    calls = {"n": 0}
-    orig = SimProbe.read
-
-    def flaky(self):
-        calls["n"] += 1
-        if calls["n"] > 31:
-            raise KeyboardInterrupt("power cut")
-        return orig(self)
-
-    monkeypatch.setattr(SimProbe, "read", flaky)
+    orig = power_cut_after(monkeypatch, SimProbe, "read", 31)
     run = tmp_path / "run"
     assert main(_sim(run)) == 130
     monkeypatch.setattr(SimProbe, "read", orig)

@@ -16,6 +16,7 @@ from benchtwin.twin.scenario import load_scenario
 from benchtwin.twin.simulate import sim_procedure, simulate
 
 from tests.support.scenarios import ROOT, files, small_scenario
+from tests.support.interrupt import power_cut_after
 
 
 def read_csv(p: Path) -> dict[str, list[str]]:
@@ -146,16 +147,7 @@ def test_interrupted_simulation_resumes_to_the_same_dataset(tmp_path, monkeypatc
                            "bearings.type": bearings})
     ref = datasets.dataset(sc)       # the uninterrupted run (the factory's: simulated once per test run)
 
-    calls = {"n": 0}
-    orig = SimProbe.read
-
-    def flaky(self):
-        calls["n"] += 1
-        if calls["n"] > 31:
-            raise KeyboardInterrupt("power cut")
-        return orig(self)
-
-    monkeypatch.setattr(SimProbe, "read", flaky)
+    orig = power_cut_after(monkeypatch, SimProbe, "read", 31)
     with pytest.raises(KeyboardInterrupt):
         simulate(sc, tmp_path / "run", progress=False, backend="analytic")
     assert not (tmp_path / "run" / "manifest.json").exists()
