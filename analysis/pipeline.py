@@ -22,17 +22,20 @@ import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
+from dataclasses import dataclass, replace
 from typing import Any, cast, overload
 
 import numpy as np
 
-from benchtwin.analysis.calibration import CalibrationCurve, calibration_curve, write_calibration_files
+from benchtwin.analysis.calibration import calibration_curve, write_calibration_files
 from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
-from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, BenchResults, Bench, BudgetInput, CloseLoop,
-                                        Comparison, CorrectedCurve, CorrectionApplied, Curve, ErrorCurveResults,
-                                        Iso230_2, ModelPrediction, RadialErrorMotion, ResidualSummary)
+from benchtwin.analysis.results import (AutocollimatorDeclared, Bench, BudgetInput, CorrectedCurve, CorrectionApplied,
+                                        Curve, ModelPrediction, RejectedFrame, ResidualSummary)
 from benchtwin.analysis.results_api import Results
-from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
+from benchtwin.analysis.steps import (BenchAnalysis, BenchGeometry, CcdFrames, CcdSweepSetup, EccentricityResult,
+                                      ErrorCurveAnalysis, ErrorCurveTable, FitStatistics, LoopOutcome, ModelComparison,
+                                      PolygonAnalysis, PolygonReadings, RadialMotionResult, RadialMotionTable, RefinedEccentricity,
+                                      TraceOutcome)
 from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 from benchtwin.fsio import atomic_write_text
@@ -54,11 +57,11 @@ def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
     """Radial error motion from the two test spheres (Jia eqs. 6-9), with its ISO 230-7 values."""
     from benchtwin.analysis.radial_motion import radial_motion
 
-    t = ds.table("radial_motion")
-    b = ds.bench
+    t = RadialMotionTable.from_table(ds.table("radial_motion"))
+    b = BenchGeometry.from_manifest(ds.bench)
     rm = radial_motion(
-        t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-        probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"), order=order,
+        t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um, b.L1_mm, b.L2_mm,
+        probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um, order=order,
     )
     # with the ISO 230-7 values and polar plots (issue 20)
     return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order))
@@ -68,16 +71,9 @@ def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]
     """ISO 230-7 total / synchronous / asynchronous radial error motion (analysis.iso230_7)."""
     from benchtwin.analysis.iso230_7 import radial_error_motion
 
-    t = ds.table("radial_motion")
-    probes = {k: t.get(k) for k in ("probe_top_um", "probe_bottom_um", "probe_top_x_um", "probe_bottom_x_um")}
-    return radial_error_motion(t["rep"], t["theta_deg"], probes, ds.bench["L1_mm"], ds.bench["L2_mm"], rm=rm,
-                               order=order)
-
-
-def _iso_summary(iso: Mapping[str, Any]) -> RadialErrorMotion:
-    from benchtwin.analysis.iso230_7 import summary
-
-    return cast(RadialErrorMotion, summary(iso))  # the section iso230_7.summary builds (analysis/results.py)
+    t = RadialMotionTable.from_table(ds.table("radial_motion"))
+    b = BenchGeometry.from_manifest(ds.bench)
+    return radial_error_motion(t.rep, t.theta_deg, t.probes(), b.L1_mm, b.L2_mm, rm=rm, order=order)
 
 
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
@@ -100,61 +96,106 @@ def ccd_frame_limits(n_frames: int, order: int) -> dict[str, int]:
     return {"min_frames": max(by_fit, by_fraction), "by_fit": by_fit, "by_fraction": by_fraction}
 
 
-def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | None = None) -> EccentricityResult:
-    from benchtwin.analysis import eccentricity as ecc
-    from collections.abc import Iterator
+@dataclass(frozen=True)
+class _Rejection:
+    """A CCD frame the image analysis could not use, and at which stage."""
 
-    from benchtwin.analysis.parallel import ordered_map
+    file: str
+    theta_deg: float
+    stage: str
+    reason: str
 
-    ccd = ds.manifest.get("ccd")
-    if ccd is None:
-        raise DatasetError(f"{ds.path}/manifest.json: key 'ccd' is required when ccd/index.csv is present")
-    period_um = ds.bench["grating_period_um"]
-    ref = tuple(ccd["reference_px"])
-    # Two stages: the pixel scale first (from the grating period, Jia eq. 13), then d_ref with the
-    # edge radius fixed where the manifest knows it (Jia: "r_fitting is already known") — a short arc
-    # of a 22 mm circle does not determine its radius well.
-    # Each frame is decoded once and its line edges found once (ecc.frame_edges_and_scale), frames in
-    # worker threads (analysis/parallel.py: in order, bit-identical to the serial loop, at most a
-    # few frames in flight; frames are read and checked in this thread); only the edges (a few
-    # hundred numbers per frame) are kept for the d_ref stage, so memory stays flat for long sweeps of
-    # large frames. ``workers``: threads (default: BENCHTWIN_WORKERS, else the cores that help, as
-    # measured, see analysis/parallel.py; 1 = serial, in this thread).
-    # A frame the image analysis rejects is dropped from that stage on and recorded (module constants).
-    n_frames = len(ds.table("ccd/index")["k"])
-    limits = ccd_frame_limits(n_frames, order)
-    rejected: dict[str, dict[str, Any]] = {}
 
-    def reject(f: str, theta: float, stage: str, exc: Exception) -> None:
+class _FrameCheck:
+    """The CCD frames rejected so far and the limit on them (ccd_frame_limits): ``check`` raises the
+    DatasetError naming them when too few frames are left for a stage."""
+
+    def __init__(self, ds: Dataset, n_frames: int, order: int) -> None:
+        self.ds, self.n_frames, self.order = ds, n_frames, order
+        self.limits = ccd_frame_limits(n_frames, order)
+        self.min_frames = self.limits["min_frames"]
+        self.rejected: dict[str, _Rejection] = {}
+
+    def reject(self, f: str, theta: float, stage: str, exc: Exception) -> None:
         msg = str(exc)
         prefix = f"image {f!r}: "
-        rejected.setdefault(f, {"file": f, "theta_deg": float(theta), "stage": stage,
-                                "reason": msg[len(prefix):] if msg.startswith(prefix) else msg})
+        self.rejected.setdefault(f, _Rejection(file=f, theta_deg=float(theta), stage=stage,
+                                               reason=msg[len(prefix):] if msg.startswith(prefix) else msg))
 
-    def check(n_used: int, what: str) -> None:
-        if n_used < limits["min_frames"]:
-            lst = "; ".join(f"{r['file']} ({r['stage']}): {r['reason']}" for r in list(rejected.values())[:5])
-            more = f" (and {len(rejected) - 5} more)" if len(rejected) > 5 else ""
+    def check(self, n_used: int, what: str) -> None:
+        if n_used < self.min_frames:
+            rej = list(self.rejected.values())
+            lst = "; ".join(f"{r.file} ({r.stage}): {r.reason}" for r in rej[:5])
+            more = f" (and {len(rej) - 5} more)" if len(rej) > 5 else ""
+            order = self.order
             raise DatasetError(
-                f"{ds.path / 'ccd'}: only {n_used} of {n_frames} CCD frames usable for the {what}; need ≥ "
-                f"{limits['min_frames']} (the order-{order} series of Jia eq. 10 has {2 * order + 1} coefficients "
+                f"{self.ds.path / 'ccd'}: only {n_used} of {self.n_frames} CCD frames usable for the {what}; need ≥ "
+                f"{self.min_frames} (the order-{order} series of Jia eq. 10 has {2 * order + 1} coefficients "
                 f"+ {CCD_MIN_DOF} residual dof for u(e), and at most {CCD_MAX_REJECTED_FRACTION:.0%} of the frames "
                 f"may be rejected before the failure counts as systematic). Rejected: {lst}{more}")
 
+    def rejected_frames(self) -> list[RejectedFrame]:
+        return [RejectedFrame(file=r.file, theta_deg=r.theta_deg, stage=r.stage, reason=r.reason)
+                for r in self.rejected.values()]
+
+
+def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | None = None) -> EccentricityResult:
+    """e and θ0 from the CCD sweep (Jia eqs. 10-13), in two stages: the pixel scale first (from the
+    grating period, Jia eq. 13), then d_ref with the edge radius fixed where the manifest knows it
+    (Jia: "r_fitting is already known") — a short arc of a 22 mm circle does not determine its radius
+    well. A frame the image analysis rejects is dropped from that stage on and recorded (module
+    constants above); ``workers``: threads for the frames (_ccd_edges)."""
+    ccd = ds.manifest.get("ccd")
+    if ccd is None:
+        raise DatasetError(f"{ds.path}/manifest.json: key 'ccd' is required when ccd/index.csv is present")
+    geo = BenchGeometry.from_manifest(ds.bench)
+    setup = CcdSweepSetup.from_dataset(ccd, ds.table("ccd/index"))
+    frames = _FrameCheck(ds, setup.n_frames, order)
+    meta, edges, scales = _ccd_edges(ds, geo, frames, progress, workers)
+    frames.check(len(scales), "pixel scale (Jia eq. 13)")
+    scale = float(np.median(scales))
+    edge_mm = geo.scale_edge_radius_mm
+    radius_px = edge_mm * 1000.0 / scale if edge_mm else None
+    thetas, drefs_px, files, first_fit = _d_ref_stage(meta, edges, setup.reference_px, radius_px, frames)
+    frames.check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
+    dref_um = np.asarray(drefs_px) * scale
+    fit = _fit_sweeps(ds, setup, np.asarray(thetas), dref_um, files, order)
+    return EccentricityResult.from_frames(fit, CcdFrames(
+        pixel_um=scale, radius_fixed_px=radius_px, theta_deg=thetas, d_ref_um=dref_um, files=files,
+        n_frames=frames.n_frames, rejected_frames=frames.rejected_frames(), frame_limits=frames.limits,
+        first_frame_fit=first_fit))
+
+
+def _ccd_edges(ds: Dataset, geo: BenchGeometry, frames: _FrameCheck, progress: bool, workers: int | None
+               ) -> tuple[list[tuple[float, str]], list[Any], list[float]]:
+    """The pixel-scale stage: each frame decoded once and its line edges found once
+    (ecc.frame_edges_and_scale), frames in worker threads (analysis/parallel.py: in order,
+    bit-identical to the serial loop, at most a few frames in flight; frames are read and checked in
+    this thread); only the edges (a few hundred numbers per frame) are kept for the d_ref stage, so
+    memory stays flat for long sweeps of large frames. ``workers``: threads (default:
+    BENCHTWIN_WORKERS, else the cores that help, as measured, see analysis/parallel.py; 1 = serial,
+    in this thread). Returns (θ, file) per frame in index order, its edges (None if rejected) and
+    the scales of the frames kept."""
+    from collections.abc import Iterator
+
+    from benchtwin.analysis import eccentricity as ecc
+    from benchtwin.analysis.parallel import ordered_map
+
+    period_um = geo.grating_period_um
     meta: list[tuple[float, str]] = []  # (theta, file) per frame, in index order
 
-    def frames() -> Iterator[tuple[np.ndarray, float, str]]:
+    def sweep_frames() -> Iterator[tuple[np.ndarray, float, str]]:
         for _k, theta, image, f in ds.ccd_frames():
             meta.append((float(theta), f))
             yield image, period_um, f
 
     scales: list[float] = []
     edges: list[Any] = []  # per frame: its LineEdges, or None if rejected
-    bar = _progress(progress, n_frames, "CCD images")
+    bar = _progress(progress, frames.n_frames, "CCD images")
     # The first frame that can be analysed is done here (before any pool starts): its lines' polarity
     # is the one the other frames are expected to have, which orders their labelling work only
     # (ecc.segment_lines: each frame decides its own polarity, the same whatever is expected)
-    sweep = frames()
+    sweep = sweep_frames()
     head: list[Any] = []
     polarity = None
     for args in sweep:
@@ -167,17 +208,24 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
         bar.update()
         theta, f = meta[i]
         if exc is not None or scale_i is None:
-            reject(f, theta, "pixel scale (eq. 13)", exc or ecc.ImageAnalysisError("no pixel scale"))
+            frames.reject(f, theta, "pixel scale (eq. 13)", exc or ecc.ImageAnalysisError("no pixel scale"))
             edges.append(None)
             continue
         scales.append(scale_i)
         edges.append(ed)
     bar.close()
-    check(len(scales), "pixel scale (Jia eq. 13)")
-    scale = float(np.median(scales))
-    edge_mm = ds.bench.get("scale_edge_radius_mm")
-    radius_px = edge_mm * 1000.0 / scale if edge_mm else None
-    thetas, drefs_px, files = [], [], []
+    return meta, edges, scales
+
+
+def _d_ref_stage(meta: list[tuple[float, str]], edges: list[Any], ref: tuple, radius_px: float | None,
+                 frames: _FrameCheck) -> tuple[list[float], list[float], list[str], dict[str, Any] | None]:
+    """d_ref per frame (Jia eqs. 10-12) from the edges of the pixel-scale stage: (θ, d_ref in px, file)
+    of the frames used and the first one's fit, which the report draws (figures_ccd.add_ccd_pictures)."""
+    from benchtwin.analysis import eccentricity as ecc
+
+    thetas: list[float] = []
+    drefs_px: list[float] = []
+    files: list[str] = []
     first_fit: dict[str, Any] | None = None
     for (theta, f), ed in zip(meta, edges):
         if ed is None:
@@ -185,44 +233,34 @@ def step_eccentricity(ds: Dataset, order: int, progress: bool, workers: int | No
         try:
             fit = ecc.d_ref_px(None, ref, radius_px=radius_px, name=f, edges=ed)
         except ecc.ImageAnalysisError as exc:
-            reject(f, theta, "d_ref (eqs. 10-12)", exc)
+            frames.reject(f, theta, "d_ref (eqs. 10-12)", exc)
             continue
         drefs_px.append(fit["d_ref_px"])
-        if first_fit is None:  # the report draws the first used frame's fit (figures_ccd.add_ccd_pictures)
+        if first_fit is None:
             first_fit = {"file": f, "fit": fit}
         thetas.append(theta)
         files.append(f)
-    check(len(thetas), "eccentricity fit (Jia eqs. 10-12)")
-    dref_um = np.asarray(drefs_px) * scale
-    res = _fit_sweeps(ds, ecc, np.asarray(thetas), dref_um, files, ccd["position_deg"], order)
-    res["pixel_um"] = scale
-    res["radius_fixed_px"] = radius_px
-    res["theta_deg"] = thetas
-    res["d_ref_um"] = dref_um
-    res["files"] = files
-    res["n_frames"] = n_frames
-    res["rejected_frames"] = list(rejected.values())
-    res["frame_limits"] = limits
-    res["first_frame_fit"] = first_fit
-    return EccentricityResult.from_eccentricity(res)
+    return thetas, drefs_px, files, first_fit
 
 
-def _fit_sweeps(ds: Dataset, ecc: Any, thetas: np.ndarray, dref_um: np.ndarray, files: list[str], camera_deg: float,
+def _fit_sweeps(ds: Dataset, setup: CcdSweepSetup, thetas: np.ndarray, dref_um: np.ndarray, files: list[str],
                 order: int) -> dict[str, Any]:
     """Jia eqs. 10-12 on the frames of each sweep (``ccd/index.csv`` column ``sweep``; one sweep
     without it) and, with ≥ 2 sweeps, e ± u(e) type A from their scatter
     (:func:`benchtwin.analysis.eccentricity.eccentricity_from_sweeps`). One sweep: the fit's result
     (its u is the fit's; ``run`` adds the probes' asynchronous part, ``with_async_motion``)."""
-    idx = ds.table("ccd/index")
-    if "sweep" not in idx or len(np.unique(idx["sweep"])) < 2:
+    from benchtwin.analysis import eccentricity as ecc
+
+    camera_deg = setup.position_deg
+    if setup.sweep is None or len(np.unique(setup.sweep)) < 2:
         return ecc.eccentricity_from_dref(thetas, dref_um, camera_azimuth_deg=camera_deg, order=order)
-    sweep_of = {str(f).strip(): int(sw) for f, sw in zip(idx["file"], idx["sweep"])}
+    sweep_of = {f: int(sw) for f, sw in zip(setup.files, setup.sweep)}
     sw = np.array([sweep_of[f] for f in files])
     fits = []
-    for k in np.unique(np.asarray(idx["sweep"], dtype=int)):
+    for k in np.unique(np.asarray(setup.sweep, dtype=int)):
         m = sw == k
         # each sweep is a fit of its own: the frame limits hold per sweep
-        lim = ccd_frame_limits(int(np.sum(np.asarray(idx["sweep"]) == k)), order)
+        lim = ccd_frame_limits(int(np.sum(np.asarray(setup.sweep) == k)), order)
         if int(m.sum()) < lim["min_frames"]:
             raise DatasetError(f"{ds.path / 'ccd'}: sweep {int(k)}: only {int(m.sum())} usable CCD frames for its "
                                f"eccentricity fit (Jia eqs. 10-12); need ≥ {lim['min_frames']} (see ccd_frame_limits)")
@@ -334,20 +372,18 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
     from benchtwin.analysis.hsieh_pipeline import analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
 
-    b = ds.bench
+    b = BenchGeometry.from_manifest(ds.bench)
     heads = ds.table("heads") if ds.has("heads") else None
-    cert = b.get("polygon_certificate_arcsec")
-    ac_res, ac_acc, note = autocollimator_declared(b)
-    inputs, input_notes = budget_inputs(b)
+    cert = b.polygon_certificate_arcsec
+    ac_res, ac_acc, note = autocollimator_declared(b.block)
+    inputs, input_notes = budget_inputs(b.block)
     try:
+        # the budget's other type B inputs go by their results.json names, which are analyze_polygon's
         out = analyze_polygon(
-            dict(table) if table is not None else polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
-            np.asarray(cert, dtype=float) if cert is not None else None,
-            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
+            dict(table) if table is not None else polygon_table(ds), b.polygon_faces, heads,
+            b.heads_deg if heads is not None else None, np.asarray(cert, dtype=float) if cert is not None else None,
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
-            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
-            ac_traceability_k=inputs["ac_traceability_k"]["value"],
-            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
+            **{name: bi["value"] for name, bi in inputs.items()},
         )
         declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
                                           source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")
@@ -363,12 +399,13 @@ def step_iso230_2_polygon(ds: Dataset, pol: PolygonAnalysis) -> dict[str, Any] |
     from benchtwin.analysis import shift_angle as sa
     from benchtwin.analysis.iso230_2 import positioning_statistics, runs_from_polygon
 
-    t = polygon_table(ds)
-    if "direction" not in t or len(set(np.asarray(t["direction"]).astype(str))) < 2:
+    t = PolygonReadings.from_table(polygon_table(ds))
+    direction = t.directions()
+    if direction is None or len(set(direction)) < 2:
         return None
-    table = sa.tabulate_polygon(t["shift_deg"], t["start_face"], t["step"], t["ac_arcsec"], ds.bench["polygon_faces"],
-                                theta_deg=t.get("theta_deg"), rep=t.get("rep"),
-                                direction=np.asarray(t["direction"]).astype(str))
+    table = sa.tabulate_polygon(t.shift_deg, t.start_face, t.step, t.ac_arcsec,
+                                BenchGeometry.from_manifest(ds.bench).polygon_faces, theta_deg=t.theta_deg, rep=t.rep,
+                                direction=direction)
     got = runs_from_polygon(table, np.asarray(pol.pitch_deviation_arcsec, dtype=float))
     if got is None:
         return None
@@ -397,46 +434,14 @@ def _setup_error_lookup(pol: PolygonAnalysis):
     return lookup
 
 
-#: the yardstick of the residuals' χ² (results.json ``residual_before`` / ``residual_after``: ``chi2_u``)
-CHI2_YARDSTICK = ("u of each α (encoder_error_arcsec.u: the GUM budget of the shift-angle curve, Hsieh 2022 "
-                  "Table 3); the model's own parameters (e, θ0 from the CCD, δY from the probes) are not in it")
-
-
-def _residual_summary(cmp: dict[str, Any], u_arcsec: float | None = None,
-                      stats: Mapping[str, Any] | None = None) -> ResidualSummary:
-    """The comparison's RMS, P-V, ... and, with ``stats`` (error_model.fit_statistics of the fit
-    behind the residual), what it can test: n_params, dof, chi2, p_value, loo_rms_arcsec and, where
-    dof < 3, the sentence saying this sampling cannot test the model and which would."""
-    from benchtwin.analysis.error_model import sampling_advice
-
-    out = ResidualSummary(rms_arcsec=cmp["residual_rms_arcsec"], pv_arcsec=cmp["residual_pv_arcsec"],
-                          max_abs_arcsec=cmp["residual_max_abs_arcsec"], fraction_of_error=cmp["fraction_of_error"],
-                          pv_ratio=cmp["pv_ratio"], measured_pv_arcsec=cmp["measured_pv_arcsec"],
-                          measured_rms_arcsec=cmp["measured_rms_arcsec"], n_points=int(len(cmp["theta_deg"])),
-                          note=cmp["note"])
-    if u_arcsec is not None:
-        out["u_rms_arcsec"] = u_arcsec
-    if stats is not None:
-        out["n_params"] = int(stats["n_params"])
-        out["dof"] = int(stats["dof"])
-        out["chi2"] = float(stats["chi2"])
-        out["p_value"] = stats["p_value"]
-        out["loo_rms_arcsec"] = stats["loo_rms_arcsec"]
-        out["chi2_u"] = CHI2_YARDSTICK
-        advice = sampling_advice(out["n_points"], out["n_params"])
-        if advice is not None:
-            out["sampling_note"] = advice
-    return out
-
-
-def _constant_fit(cmp: dict[str, Any], u: np.ndarray) -> dict[str, Any]:
+def _constant_fit(cmp: ModelComparison, u: np.ndarray) -> FitStatistics:
     """fit_statistics of measured − model with only α's constant fitted (the Jia model takes e, θ0
     and δY from the CCD and the probes, not from α): the weighted mean removed, one parameter."""
     from benchtwin.analysis.error_model import fit_statistics
 
-    y = np.asarray(cmp["residual_arcsec"], dtype=float)
+    y = np.asarray(cmp.residual_arcsec, dtype=float)
     w = 1.0 / u ** 2
-    return fit_statistics(np.ones((y.size, 1)), y - float(np.sum(w * y) / np.sum(w)), u)
+    return FitStatistics.from_fit(fit_statistics(np.ones((y.size, 1)), y - float(np.sum(w * y) / np.sum(w)), u))
 
 
 def _alpha_u(enc: Curve | Mapping[str, Any], fallback: float) -> np.ndarray:
@@ -608,8 +613,6 @@ def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int 
     (``benchtwin run`` analyses into its own partial folder, beside the dataset it simulated);
     the files it writes there are replaced. ``out_dir`` None: nothing is written (``paths`` is
     empty). Everyone else calls ``analyze``."""
-    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
-
     ds = open_dataset(dataset, order)
     # every table read and checked (cells, and the structure each step assumes at this order:
     # analysis/structure.py) before any analysis step runs; the same check as validate's
@@ -624,81 +627,80 @@ def analyze_into(dataset: str | Path, out_dir: str | Path | None, *, order: int 
         out.mkdir(parents=True, exist_ok=True)
     if ds.kind == "error-curve":
         return analyze_error_curve_dataset(ds, out, close_loop=close_loop)
-    b = ds.bench
-    r_um = b["optical_radius_mm"] * 1000.0
-    results: BenchResults = {
-        "format": "bench-results", "version": 1, "dataset": str(ds.path), "source": ds.manifest["source"],
-        "bench": _bench(b), "notes": [],
-    }
+    a = _jia_model(_measure(ds, order, progress), model_payload)
+    if close_loop and a.cmp is not None and a.ecc is not None and a.pol is not None and a.model is not None:
+        a = replace(a, loop=_close_loop(ds, a, out))
+    results = a.to_json()
+    if out is None:  # in memory (analyze(dataset) in a notebook): nothing written
+        return {"results": results, "paths": {}}
+    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
+    if a.loop is not None and a.loop.model_path is not None:
+        paths["model"] = a.loop.model_path
+    _write_report(out, ds, a, results, preface)
+    # the calibration result a lab uses, beside results.json (analysis/calibration.py)
+    paths.update(write_calibration_files(out, results))
+    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
+    _write_results(out, results)
+    return {"results": results, "paths": paths}
 
+
+def _measure(ds: Dataset, order: int, progress: bool) -> BenchAnalysis:
+    """Steps 1-3: the radial motion (Jia eqs. 6-9), the eccentricity (eqs. 10-13) and the polygon
+    (Hsieh 2022), each where the dataset has its table."""
     rm: RadialMotionResult | None = None
     ecc: EccentricityResult | None = None
     pol: PolygonAnalysis | None = None
+    iso2 = None
+    notes: list[str] = []
     if ds.has("radial_motion"):
         rm = _step(ds, "radial_motion.csv", step_radial_motion, ds, order)
-        results["radial_motion"] = rm.to_json()
-        results["radial_error_motion"] = _iso_summary(rm.iso230_7)
     if ds.has("ccd/index"):
         ecc = _step(ds, "ccd/index.csv", step_eccentricity, ds, order, progress)
         if rm is not None and ecc.sweeps is None:
             # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12): a type B
             # term from the radial run's repetitions; repeated sweeps hold it in their own scatter
             ecc = ecc.with_async_motion(rm.u_h1_async_um, rm.u_h1_async_dof)
-        results.update(cast(BenchResults, ecc.to_json()))
         if ecc.rejected_frames:
-            results["notes"].append(
+            notes.append(
                 f"CCD: {len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected and dropped "
-                f"({', '.join(r['file'] for r in ecc.rejected_frames)}); e and θ0 fitted on the "
+                f"({', '.join(ecc.rejected_files)}); e and θ0 fitted on the "
                 f"{len(ecc.files)} remaining angles (≥ {ecc.min_frames} required)")
     if ds.has("polygon"):
         pol = _step(ds, "polygon.csv", step_polygon, ds)
-        results.update(pol.to_json())
-        results["notes"] += pol.notes
+        notes += pol.notes
         iso2 = _step(ds, "polygon.csv", step_iso230_2_polygon, ds, pol)
-        if iso2 is not None:
-            results["iso230_2"] = iso2
+    return BenchAnalysis(dataset=str(ds.path), source=ds.manifest["source"], bench=BenchGeometry.from_manifest(ds.bench),
+                         rm=rm, ecc=ecc, pol=pol, iso230_2=iso2, notes=tuple(notes))
 
-    # Jia eq. 5: the error model from the measured eccentricity and radial motion.
-    model = None
-    if ecc is not None:
-        model = error_model_from_results(ecc.detail, rm.detail if rm is not None else None, r_um)
-        if model_payload is not None:
-            from benchtwin.analysis.tracing import add_to_error_model
 
-            added = add_to_error_model(model, model_payload)
-            results["model_file_terms"] = added
-        grid = np.arange(0.0, 360.0, 1.0)
-        results["model_prediction_arcsec"] = ModelPrediction(theta_deg=grid, value=model.predict(grid),
-                                                             u=model.uncertainty(grid),
-                                                             terms=dict(model.predict_terms(grid).items()))
-    else:
-        results["notes"].append("no CCD images: the Jia error model (eq. 5) needs the eccentricity; no prediction")
+def _jia_model(a: BenchAnalysis, model_payload: Mapping[str, Any] | None) -> BenchAnalysis:
+    """Step 4, Jia eq. 5: the error model from the measured eccentricity and radial motion (with the
+    terms of a model file), its prediction, and its comparison with the polygon's α (sec. 4.3)."""
+    from benchtwin.analysis.error_model import compare_with_measured, error_model_from_results
 
-    cmp = None
-    if model is not None and pol is not None:
-        enc = pol.encoder_error_arcsec
-        cmp = compare_with_measured(np.asarray(enc["theta_deg"]), np.asarray(enc["value"]), model)
-        u_meas = float(np.sqrt(np.mean(np.square(np.asarray(enc["u"], dtype=float)))))
-        u_pts = _alpha_u(enc, u_meas if u_meas > 0 else 1.0)
-        results["residual_before"] = _residual_summary(cmp, u_meas, _constant_fit(cmp, u_pts))
-        results["comparison"] = Comparison(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
-                                           model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"])
+    pol = a.pol
+    # the raw curve until the loop identifies an artefact of the reference chain
+    corrected = corrected_curve(pol.encoder_error_arcsec, None, {}) if pol is not None else None
+    if a.ecc is None:
+        return replace(a, corrected=corrected, notes=a.notes + (
+            "no CCD images: the Jia error model (eq. 5) needs the eccentricity; no prediction",))
+    model = error_model_from_results(a.ecc.detail, a.rm.detail if a.rm is not None else None, a.bench.r_um)
+    terms = None
+    if model_payload is not None:
+        from benchtwin.analysis.tracing import add_to_error_model
 
-    paths = {"results": str(out / "results.json"), "report": str(out / "report.html")} if out is not None else {}
-    ev = tr = None
-    if pol is not None:  # the raw curve until the loop identifies an artefact of the reference chain
-        results["encoder_error_corrected_arcsec"] = corrected_curve(pol.encoder_error_arcsec, None, {})
-    if close_loop and cmp is not None and ecc is not None and pol is not None and model is not None:
-        ev, tr = _close_loop(ds, results, rm, ecc, pol, model, paths, out)
-
-    if out is None:  # in memory (analyze(dataset) in a notebook): nothing written
-        return {"results": results, "paths": paths}
-    _write_report(out, ds, results, rm, ecc, pol, model, cmp, ev, tr, preface)
-    # the calibration result a lab uses, beside results.json (analysis/calibration.py)
-    paths.update(write_calibration_files(out, results))
-    # written last (atomically, benchtwin.fsio): results.json is the completion marker of an analysis
-    atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
-    return {"results": results, "paths": paths}
+        terms = add_to_error_model(model, model_payload)
+    grid = np.arange(0.0, 360.0, 1.0)
+    prediction = ModelPrediction(theta_deg=grid, value=model.predict(grid), u=model.uncertainty(grid),
+                                 terms=dict(model.predict_terms(grid).items()))
+    cmp = before = None
+    if pol is not None:
+        cmp = ModelComparison.from_compare(compare_with_measured(pol.alpha_theta_deg, pol.alpha_arcsec, model))
+        u_meas = float(np.sqrt(np.mean(np.square(pol.alpha_u_arcsec))))
+        u_pts = _alpha_u(pol.encoder_error_arcsec, u_meas if u_meas > 0 else 1.0)
+        before = cmp.residual_summary(u_meas, _constant_fit(cmp, u_pts))
+    return replace(a, model=model, model_file_terms=terms, prediction=prediction, cmp=cmp, residual_before=before,
+                   corrected=corrected)
 
 
 def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
@@ -771,13 +773,12 @@ def corrected_polygon(ds: Dataset, poly: Mapping[str, Any], pol: PolygonAnalysis
     in_readings = reading_corrections(tr, ev)
     pol_c = pol
     if in_readings:
-        poly_c = dict(poly)
-        poly_c["ac_arcsec"] = np.asarray(poly["ac_arcsec"], dtype=float) - sum(in_readings.values())
-        pol_c = step_polygon(ds, poly_c)
+        ac = np.asarray(PolygonReadings.from_table(poly).ac_arcsec, dtype=float) - sum(in_readings.values())
+        pol_c = step_polygon(ds, {**poly, "ac_arcsec": ac})
     return corrected_curve(pol_c.encoder_error_arcsec, ev.theta_deg, tr.reference_corrections, frozenset(in_readings))
 
 
-def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, n_faces: int) -> np.ndarray | None:
+def reading_response(poly: Mapping[str, Any], pol: PolygonAnalysis, d: np.ndarray, n_faces: int) -> np.ndarray | None:
     """The α per reading that a perturbation ``d`` of every autocollimator reading produces after the
     shift-angle analysis (Hsieh eqs. 5-7: β from the closure of the reference shift's full table, or
     the certificate, which does not move; U_j per start face; α = ε − Σβ − U, eq. 3). The analysis is
@@ -787,9 +788,10 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
     from benchtwin.analysis import shift_angle as sa
 
     N = int(n_faces)
+    p = PolygonReadings.from_table(poly)
     try:
-        t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
-                                theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
+        t = sa.tabulate_polygon(p.shift_deg, p.start_face, p.step, d, N, theta_deg=p.theta_deg, rep=p.rep,
+                                direction=p.direction)
         src = pol.beta_source
         res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
                                       beta_source=src)
@@ -801,9 +803,9 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
             U[(round(float(sr.shift_deg), 6), int(f))] = float(u)
     beta = np.asarray(res.beta_arcsec, dtype=float)
     cum = np.concatenate([[0.0], np.cumsum(np.concatenate([beta, beta]))])
-    j = np.asarray(poly["start_face"]).astype(int)
-    i = np.asarray(poly["step"]).astype(int)
-    S = np.asarray(poly["shift_deg"], dtype=float)
+    j = np.asarray(p.start_face).astype(int)
+    i = np.asarray(p.step).astype(int)
+    S = np.asarray(p.shift_deg, dtype=float)
     try:
         Uj = np.array([U[(round(float(s_), 6), int(f))] for s_, f in zip(S, j)])
     except KeyError:
@@ -811,8 +813,34 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
     return np.asarray(d, dtype=float) - (cum[j - 1 + i] - cum[j - 1]) - Uj
 
 
-def _per_reading_after(ev: Any, tr: TraceOutcome, model2: Any, ccd: Mapping[str, Any], r_um: float,
-                       payload: Mapping[str, Any], col_names: list[tuple[int, str]], ref: Mapping[str, Any]
+@dataclass(frozen=True, eq=False)
+class _LoopFit:
+    """What the model after the loop is built from: the analysis so far, the tracing's evidence and
+    verdict, the corrected curve the model is compared with and the u of one reading."""
+
+    a: BenchAnalysis
+    ev: Any
+    tr: TraceOutcome
+    corrected: CorrectedCurve
+    u_eps: float
+
+    @property
+    def ecc(self) -> EccentricityResult:
+        return cast(EccentricityResult, self.a.ecc)
+
+    @property
+    def r_um(self) -> float:
+        return self.a.bench.r_um
+
+    def jia_model(self) -> Any:
+        """The Jia model (eq. 5) of the CCD's (e, θ0) and the probes' δY, before any traced term."""
+        from benchtwin.analysis.error_model import error_model_from_results
+
+        return error_model_from_results(self.ecc.detail, self.a.rm.detail if self.a.rm is not None else None,
+                                        self.r_um)
+
+
+def _per_reading_after(f: _LoopFit, model2: Any, col_names: list[tuple[int, str]], ref: RefinedEccentricity
                        ) -> float | None:
     """RMS per polygon reading of the residual after the model of ``residual_after``: the tracing's
     residual after its effects (closure-centred, residual_after_trace) with the eq. 3 term moved from
@@ -823,148 +851,176 @@ def _per_reading_after(ev: Any, tr: TraceOutcome, model2: Any, ccd: Mapping[str,
     from benchtwin.analysis.report.figures_loop import effect_contribution
     from benchtwin.analysis.tracing import _center
 
+    ev, tr, r_um = f.ev, f.tr, f.r_um
     if not tr.identified_effects:
         return None
     th = np.deg2rad(np.asarray(ev.theta_deg, dtype=float))
     r1 = _center(ev.residual_arcsec, ev.closure_group, 1.0 / ev.u_arcsec ** 2) - effect_contribution(ev, tr.detail)
-    delta = (eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um)(th)
-             - eccentricity_term(ccd["e_um"], ccd["theta0_deg"], r_um)(th))
+    delta = (eccentricity_term(ref.e_um, ref.theta0_deg, r_um)(th)
+             - eccentricity_term(f.ecc.e_um, f.ecc.theta0_deg, r_um)(th))
     if "graduation_k1" in model2.terms:
         delta = delta + model2.terms["graduation_k1"](th)
     if col_names:
-        cols, _ = traced_columns(payload, dict(model2.terms), np.asarray(ev.theta_deg, dtype=float))
-        delta = delta + cols @ np.asarray(ref["column_params"], dtype=float)
+        cols, _ = traced_columns(tr.model_file, dict(model2.terms), np.asarray(ev.theta_deg, dtype=float))
+        delta = delta + cols @ np.asarray(ref.column_params, dtype=float)
     r2 = r1 - _center(delta, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
     return float(np.sqrt(np.mean(r2 ** 2)))
 
 
-def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | None, ecc: EccentricityResult,
-                pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path | None) -> tuple[Any, TraceOutcome]:
-    """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
-    chosen effect joins the model and the comparison is redone (before/after)."""
-    from benchtwin.analysis.error_model import (compare_with_measured, eccentricity_term, error_model_from_results,
-                                                refine_eccentricity)
-    from benchtwin.analysis.tracing import RadialMotion, add_to_error_model, evidence_from_polygon, save_model, trace
+def _close_loop(ds: Dataset, a: BenchAnalysis, out: Path | None) -> LoopOutcome:
+    """Step 5: Jia's residual → significance, signature, effect selection (analysis.tracing), then the
+    chosen effect joins the model and the comparison is redone (before/after). With ``out``, the
+    model file of the identified effects is written there (model.json)."""
+    from benchtwin.analysis.tracing import save_model, trace
 
-    b = ds.bench
+    pol = cast(PolygonAnalysis, a.pol)
+    ev, poly, u_eps, notes = _loop_evidence(ds, a)
+    tr = TraceOutcome.from_trace(trace(ev))
+    corrected = corrected_polygon(ds, poly, pol, tr, ev)
+    if not tr.identified_effects:
+        before = cast(ResidualSummary, a.residual_before)
+        return LoopOutcome(evidence=ev, trace=tr, corrected=corrected,
+                           residual_after=ResidualSummary(**before, added_terms=[]), comparison_after=None,
+                           refined=None, notes=notes, model_path=None)
+    model_path = None
+    if out is not None:
+        save_model(out / "model.json", tr.model_file)
+        model_path = str(out / "model.json")
+    residual_after, cmp2, refined, more_notes = _model_after(_LoopFit(a=a, ev=ev, tr=tr, corrected=corrected,
+                                                                      u_eps=u_eps))
+    return LoopOutcome(evidence=ev, trace=tr, corrected=corrected, residual_after=residual_after,
+                       comparison_after=cmp2, refined=refined, notes=notes + more_notes, model_path=model_path)
+
+
+def _reading_u(pol: PolygonAnalysis) -> tuple[float, float]:
+    """(u of α's readings ε for the evidence's floor, u of one reading): the budget's u_c, else the
+    declared autocollimator's type B parts (resolution r/(2√3), max error a/√3, Hsieh sec. 3.3 (2),
+    (4)) with the readings' repeatability where the data give one; one reading's u is the
+    repeatability (pooled, else the closure's sd), else that u."""
+    u_c = pol.u_c_arcsec
+    if u_c is not None:
+        u_eps = u_c
+    else:
+        res_, acc_ = pol.ac_resolution_arcsec, pol.ac_accuracy_arcsec
+        s_rep = pol.pooled_sd_eps_arcsec or 0.0
+        u_eps = math.sqrt((res_ / (2 * math.sqrt(3.0))) ** 2 + (acc_ / math.sqrt(3.0)) ** 2 + float(s_rep) ** 2)
+    return u_eps, pol.pooled_sd_eps_arcsec or pol.closure_sd_arcsec or u_eps
+
+
+def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], float, list[str]]:
+    """The tracing's evidence (analysis.tracing.evidence_from_polygon): the polygon's readings less
+    the Jia model, the radial probes, the self-calibration where it has a u, and the CCD's (e, θ0)
+    with their u. Returns (evidence, the polygon table it was built from, u of α's readings, notes)."""
+    from benchtwin.analysis.tracing import RadialMotion, evidence_from_polygon
+
+    geo, ecc, pol = a.bench, cast(EccentricityResult, a.ecc), cast(PolygonAnalysis, a.pol)
     radial = None
-    if rm is not None:
-        t = ds.table("radial_motion")
-        radial = RadialMotion(t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-                              top_x_um=t.get("probe_top_x_um"), bottom_x_um=t.get("probe_bottom_x_um"), rep=t["rep"])
+    if a.rm is not None:
+        t = RadialMotionTable.from_table(ds.table("radial_motion"))
+        radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, geo.L1_mm, geo.L2_mm,
+                              top_x_um=t.probe_top_x_um, bottom_x_um=t.probe_bottom_x_um, rep=t.rep)
+    notes = []
     sc_cal = pol.selfcal_error_arcsec
     if sc_cal and not np.all(np.isfinite(np.asarray(sc_cal["u"], dtype=float))):
         # 2 heads: δ = α(θ) − α(θ+180°) fixes every odd harmonic with no redundancy, so no u; evidence
         # without an uncertainty cannot be weighted (issue #13: the close loop's SVD did not converge)
-        results["notes"].append("close loop: the self-calibration has no uncertainty (no redundancy between the "
-                                "heads), so it is not used as evidence")
+        notes.append("close loop: the self-calibration has no uncertainty (no redundancy between the "
+                     "heads), so it is not used as evidence")
         sc_cal = None
-    rep = pol.repeatability
-    if pol.budget_summary:
-        u_eps = float(pol.budget_summary["u_c"])
-    else:
-        # no budget: the declared autocollimator's type B parts (resolution r/(2√3), max error a/√3,
-        # Hsieh sec. 3.3 (2), (4)) with the readings' repeatability where the data give one
-        ac = pol.autocollimator_declared
-        res_, acc_ = ac["resolution_arcsec"], ac["accuracy_arcsec"]
-        s_rep = rep.get("pooled_sd_eps_arcsec") or 0.0
-        u_eps = math.sqrt((res_ / (2 * math.sqrt(3.0))) ** 2 + (acc_ / math.sqrt(3.0)) ** 2 + float(s_rep) ** 2)
-    u_read = rep.get("pooled_sd_eps_arcsec") or rep.get("closure_sd_arcsec") or u_eps
+    u_eps, u_read = _reading_u(pol)
     poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in polygon_table(ds).items()}
     ev = evidence_from_polygon(
-        poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), model,
-        n_faces=b["polygon_faces"], u_arcsec=float(u_read), radial=radial,
+        poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), a.model,
+        n_faces=geo.polygon_faces, u_arcsec=float(u_read), radial=radial,
         selfcal_theta_deg=sc_cal["theta_deg"] if sc_cal else None,
         selfcal_value_arcsec=sc_cal["value"] if sc_cal else None,
         selfcal_u_arcsec=np.asarray(sc_cal["u"]) if sc_cal else None,
-        n_heads=len(b.get("heads_deg", [0])),
-        optical_radius_mm=b["optical_radius_mm"], L1_mm=b["L1_mm"], L2_mm=b["L2_mm"],
-        grating_period_um=b["grating_period_um"], encoder_lines=b.get("encoder_lines"),
-        radial_term="radial_motion" if rm is not None else None,
+        n_heads=geo.n_heads,
+        optical_radius_mm=geo.optical_radius_mm, L1_mm=geo.L1_mm, L2_mm=geo.L2_mm,
+        grating_period_um=geo.grating_period_um, encoder_lines=geo.encoder_lines,
+        radial_term="radial_motion" if a.rm is not None else None,
         u_floor_arcsec=max(float(u_read), u_eps),
     )
-    ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(poly["ac_arcsec"], dtype=float) ** 2,
-                                                b["polygon_faces"])
+    ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(PolygonReadings.from_table(poly).ac_arcsec,
+                                                                      dtype=float) ** 2,
+                                                cast(int, geo.polygon_faces))
     ev.add_eccentricity_uncertainty(ecc.e_um, ecc.theta0_deg, ecc.u_e_um, ecc.u_theta0_deg)
-    tr = TraceOutcome.from_trace(trace(ev))
-    results["close_loop"] = tr.to_json()
-    results["identified_effects"] = tr.identified_effects
-    results["ambiguous"] = tr.ambiguous
-    results["unexplained"] = tr.unexplained
-    results["residual_test"] = tr.residual_before
-    results["residual_after_trace"] = tr.residual_after
-    corrected = corrected_polygon(ds, poly, pol, tr, ev)
-    results["encoder_error_corrected_arcsec"] = corrected
-    if tr.identified_effects:
-        if out is not None:
-            mpath = out / "model.json"
-            save_model(mpath, tr.model_file)
-            paths["model"] = str(mpath)
-        r_um = b["optical_radius_mm"] * 1000.0
-        rm_detail = rm.detail if rm is not None else None
-        model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
-        added = add_to_error_model(model2, tr.model_file)
-        # the model after is compared with the curve the reference chain would have given: the
-        # measured one less the identified artefacts of the reference chain (the raw curve when none)
-        enc = corrected
-        th_c, a_c = np.asarray(enc["theta_deg"]), np.asarray(enc["value"])
-        cmp2 = compare_with_measured(th_c, a_c, model2)
-        # The model after the loop takes (e, θ0) from the CCD combined with the first harmonic the
-        # comparison still shows (error_model.refine_eccentricity): one CCD sweep states e to u(e)
-        # of tenths of a µm (Jia: 0.24 µm, ≈ 2.3″ of first harmonic at r = 22 mm), the comparison
-        # measures that harmonic to hundredths of an arcsecond — but in α a first-order graduation
-        # term reads exactly as eccentricity, so the comparison measures e only within the prior on
-        # that term (k1_prior). The traced effects' parameters are refitted with it on the stops
-        # (traced_columns): one weighted least-squares fit, whose residual is ``residual_after`` and
-        # whose statistics (n_params, dof, χ², leave-one-out) say what that residual can test. The
-        # tracing's decisions are made before, on the CCD's values with their u
-        # (ev.add_eccentricity_uncertainty); this changes no decision.
-        u_c = _alpha_u(enc, u_eps)
-        d = ecc.detail
-        if th_c.size >= 4:
-            base = dict(model2.terms)
-            cols, col_names = traced_columns(tr.model_file, base, th_c)
-            u_k1, k1_source = k1_prior(tr.detail.get("signature") or {})
-            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], u_c, d["e_um"], d["theta0_deg"], d["e_u_um"],
-                                      d["theta0_u_deg"], r_um, d.get("cov_e_theta0", 0.0), u_k1_arcsec=u_k1,
-                                      columns=cols)
-            fit = ref.pop("fit")
-            ref.pop("residual_arcsec")
-            ref["k1_prior"] = {"u_arcsec": u_k1, "u_um": u_k1 * ARCSEC * r_um, "source": k1_source}
-            ref["refitted_params"] = [f"{tr.model_file['effects'][i]['name']}.{n}" for i, n in col_names]
-            ref["residual_after_ccd_e_pv_arcsec"] = float(cmp2["residual_pv_arcsec"])   # with the CCD's (e, θ0)
-            results["eccentricity_refined"] = ref
-            # the model after: the refitted traced terms, the eq. 3 term replaced (add_term replaces by
-            # name) and the first-order graduation term the fit gave
-            model2 = error_model_from_results(ecc.detail, rm_detail, r_um)
-            added = add_to_error_model(model2, _refitted_payload(tr.model_file, col_names, ref["column_params"]))
-            model2.add_term("eccentricity", eccentricity_term(ref["e_um"], ref["theta0_deg"], r_um, ref["u_e_um"],
-                                                              ref["u_theta0_deg"], ref["cov_e_theta0"]))
-            if "k1_arcsec" in ref:
-                a1, b1 = float(ref["k1_arcsec"]["a1"]), float(ref["k1_arcsec"]["b1"])
+    return ev, poly, u_eps, notes
 
-                def graduation_k1(t: np.ndarray, a1: float = a1, b1: float = b1) -> np.ndarray:
-                    return a1 * np.sin(t) + b1 * np.cos(t)
 
-                model2.add_term("graduation_k1", graduation_k1)
-            added = added + ["refined:eccentricity (CCD ⊕ comparison, first-order graduation prior)",
-                             "refitted on the stops: " + ", ".join(ref["refitted_params"]) if col_names else
-                             "refitted on the stops: none"]
-            cmp2 = compare_with_measured(th_c, a_c, model2)
-            results["residual_after"] = _residual_summary(cmp2, stats=fit)
-            per_reading = _per_reading_after(ev, tr, model2, d, r_um, tr.model_file, col_names, ref)
-            if per_reading is not None:
-                results["residual_after"]["per_reading_rms_arcsec"] = per_reading
-        else:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
-            results["notes"].append(f"(e, θ0) not refined by the comparison: {th_c.size} points, at least 4 needed")
-            results["residual_after"] = _residual_summary(cmp2)
-        results["residual_after"]["added_terms"] = added
-        results["comparison_after"] = Comparison(theta_deg=cmp2["theta_deg"], model_arcsec=cmp2["model_arcsec"],
-                                                 residual_arcsec=cmp2["residual_arcsec"])
-    else:
-        results["residual_after"] = results["residual_before"].copy()
-        results["residual_after"]["added_terms"] = []
-    return ev, tr
+def _model_after(f: _LoopFit) -> tuple[ResidualSummary, ModelComparison, RefinedEccentricity | None, list[str]]:
+    """The model after the loop: the traced effects added to the Jia model and compared with the
+    curve the reference chain would have given (the measured one less the identified artefacts of
+    the reference chain; the raw curve when none).
+
+    The model after the loop takes (e, θ0) from the CCD combined with the first harmonic the
+    comparison still shows (error_model.refine_eccentricity): one CCD sweep states e to u(e) of
+    tenths of a µm (Jia: 0.24 µm, ≈ 2.3″ of first harmonic at r = 22 mm), the comparison measures
+    that harmonic to hundredths of an arcsecond — but in α a first-order graduation term reads
+    exactly as eccentricity, so the comparison measures e only within the prior on that term
+    (k1_prior). The traced effects' parameters are refitted with it on the stops (traced_columns):
+    one weighted least-squares fit, whose residual is ``residual_after`` and whose statistics
+    (n_params, dof, χ², leave-one-out) say what that residual can test. The tracing's decisions are
+    made before, on the CCD's values with their u (ev.add_eccentricity_uncertainty); this changes no
+    decision. Returns (residual_after, the comparison after, the refined (e, θ0) or None, notes)."""
+    from benchtwin.analysis.error_model import compare_with_measured
+    from benchtwin.analysis.tracing import add_to_error_model
+
+    model2 = f.jia_model()
+    added = add_to_error_model(model2, f.tr.model_file)
+    th_c, a_c = np.asarray(f.corrected["theta_deg"]), np.asarray(f.corrected["value"])
+    cmp2 = ModelComparison.from_compare(compare_with_measured(th_c, a_c, model2))
+    if th_c.size < 4:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
+        return (cmp2.residual_summary(added_terms=added), cmp2, None,
+                [f"(e, θ0) not refined by the comparison: {th_c.size} points, at least 4 needed"])
+    ref, col_names = _refine_eccentricity(f, model2, th_c, cmp2)
+    model2, added = _refined_model(f, ref, col_names)
+    cmp2 = ModelComparison.from_compare(compare_with_measured(th_c, a_c, model2))
+    return (cmp2.residual_summary(stats=ref.fit, per_reading_rms_arcsec=_per_reading_after(f, model2, col_names, ref),
+                                  added_terms=added), cmp2, ref, [])
+
+
+def _refine_eccentricity(f: _LoopFit, model2: Any, th_c: np.ndarray, cmp2: ModelComparison
+                         ) -> tuple[RefinedEccentricity, list[tuple[int, str]]]:
+    """(e, θ0) and the traced parameters refitted on the stops, with the prior on a first-order
+    graduation term (error_model.refine_eccentricity, k1_prior, traced_columns)."""
+    from benchtwin.analysis.error_model import refine_eccentricity
+
+    ecc, tr, r_um = f.ecc, f.tr, f.r_um
+    u_c = _alpha_u(f.corrected, f.u_eps)
+    cols, col_names = traced_columns(tr.model_file, dict(model2.terms), th_c)
+    u_k1, k1_source = k1_prior(tr.signature)
+    raw = refine_eccentricity(th_c, cmp2.residual_arcsec, u_c, ecc.e_um, ecc.theta0_deg, ecc.u_e_um,
+                              ecc.u_theta0_deg, r_um, ecc.cov_e_theta0, u_k1_arcsec=u_k1, columns=cols)
+    ref = RefinedEccentricity.from_refine(
+        raw, {"u_arcsec": u_k1, "u_um": u_k1 * ARCSEC * r_um, "source": k1_source},
+        [f"{tr.effect_name(i)}.{n}" for i, n in col_names],
+        float(cmp2.residual_pv_arcsec))   # the residual with the CCD's (e, θ0)
+    return ref, col_names
+
+
+def _refined_model(f: _LoopFit, ref: RefinedEccentricity, col_names: list[tuple[int, str]]) -> tuple[Any, list[str]]:
+    """The model after: the refitted traced terms, the eq. 3 term replaced (add_term replaces by
+    name) and the first-order graduation term the fit gave; and the terms it added."""
+    from benchtwin.analysis.error_model import eccentricity_term
+    from benchtwin.analysis.tracing import add_to_error_model
+
+    r_um = f.r_um
+    model2 = f.jia_model()
+    added = add_to_error_model(model2, _refitted_payload(f.tr.model_file, col_names, ref.column_params))
+    model2.add_term("eccentricity", eccentricity_term(ref.e_um, ref.theta0_deg, r_um, ref.u_e_um,
+                                                      ref.u_theta0_deg, ref.cov_e_theta0))
+    if ref.k1_a1_arcsec is not None and ref.k1_b1_arcsec is not None:
+        a1, b1 = ref.k1_a1_arcsec, ref.k1_b1_arcsec
+
+        def graduation_k1(t: np.ndarray, a1: float = a1, b1: float = b1) -> np.ndarray:
+            return a1 * np.sin(t) + b1 * np.cos(t)
+
+        model2.add_term("graduation_k1", graduation_k1)
+    added = added + ["refined:eccentricity (CCD ⊕ comparison, first-order graduation prior)",
+                     "refitted on the stops: " + ", ".join(ref.refitted_params) if col_names else
+                     "refitted on the stops: none"]
+    return model2, added
 
 
 def r_um_of(ds: Dataset) -> float:
@@ -972,194 +1028,19 @@ def r_um_of(ds: Dataset) -> float:
     return float(ds.bench["optical_radius_mm"]) * 1000.0
 
 
-def residual_test_text(r: Mapping[str, Any]) -> str:
-    """One line on what a residual can test (results.json residual_before / residual_after): stops,
-    parameters fitted, dof, χ² and p against u of each α, and the leave-one-out RMS."""
-    p = r.get("p_value")
-    loo = r.get("loo_rms_arcsec")
-    return (f"{r['n_points']} stops, {r['n_params']} parameter{'' if r['n_params'] == 1 else 's'} fitted, {r['dof']} dof; χ² = {r['chi2']:.3g} "
-            f"against u of each α (p = {'–' if p is None else f'{p:.2g}'}); each stop predicted by the fit made "
-            f"without it: {'no such fit (a stop alone fixes a parameter)' if loo is None else f'{loo:.3g}″ RMS'}")
+def _write_report(out: Path, ds: Dataset, a: BenchAnalysis, results: Mapping[str, Any],
+                  preface: list | None = None) -> None:
+    """report.html (analysis/report/bench_report.py)."""
+    from benchtwin.analysis.report.bench_report import write_bench_report
 
-
-def _write_report(out: Path, ds: Dataset, results: BenchResults, rm: RadialMotionResult | None,
-                  ecc: EccentricityResult | None, pol: PolygonAnalysis | None, model: Any, cmp: Any, ev: Any,
-                  tr: TraceOutcome | None, preface: list | None = None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from benchtwin.analysis.report.html import Report, value_with_u
-
-    rep = Report(f"Encoder calibration bench — {ds.manifest.get('scenario', ds.path.name)}")
-    rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}). Analysis: Jia et al. 2019 "
-                  "(radial motion, eccentricity from CCD images, error model eq. 5) and Hsieh et al. 2022 "
-                  "(shift-angle method, self-calibration, GUM budget). Standard uncertainties unless stated.")
-    from benchtwin.analysis.report.figures_calibration import add_calibration_section
-
-    add_calibration_section(rep, calibration_curve(results))  # the calibration result first (issue 34)
-    for fig, caption in preface or []:
-        rep.figure(fig, caption)
-    rows = []
-    if ecc is not None:
-        rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc.e_um, ecc.u_e_um, "µm")])
-        rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc.theta0_deg, ecc.u_theta0_deg, "°")])
-        rows.append(["pixel scale (from the grating)", f"{ecc.pixel_um:.5f} µm/px"])
-    if rm is not None:
-        from benchtwin.analysis.report.figures_iso import iso_band_label
-
-        # two quantities, each under its own name with its bandwidth (issue 34): the P-V of Jia's
-        # order-2…10 series (what the error model integrates) and the ISO 230-7 value of the readings
-        s = rm.summary["disk"]
-        rows.append([f"disk radial motion δY, synchronous P-V of the order-2–10 series (Jia eqs. 7, 9; "
-                     f"{iso_band_label(rm.bandwidth)})",
-                     value_with_u(s["synchronous_um"], s.get("synchronous_u_um", float("nan")), "µm")])
-        disk = next((loc for loc in rm.iso230_7["locations"] if loc["name"] == "disk"), None)
-        if disk is not None and math.isfinite(disk["asynchronous_um"]):
-            bw, acq = rm.iso230_7["bandwidth"], rm.iso230_7["acquisition"]
-            rows.append([f"δY asynchronous error motion, ISO 230-7, disk plane ({iso_band_label(bw)}; step-and-settle, "
-                         f"{acq['positions_per_turn']} positions per turn)",
-                         value_with_u(disk["asynchronous_um"], disk["asynchronous_u_um"], "µm")])
-        rows.append(["u(δY), range method (d_n)", f"{rm.u_dY_range_um:.3f} µm"])
-    if pol is not None and pol.budget_summary:
-        bs = pol.budget_summary
-        rows.append(["shift-angle α: u_c, ν_eff, k, U", f"{bs['u_c']:.3f}″, {bs['nu_eff']:.0f}, {bs['k']:.2f}, {bs['U']:.3f}″"])
-        if pol.en_max is not None:
-            rows.append(["E_n max (shift-angle vs self-calibration)", f"{pol.en_max:.2f}"])
-    test_notes = []
-    if "residual_before" in results:
-        rb = results["residual_before"]
-        rows.append(["residual after the Jia model: RMS / P-V / share", f"{rb['rms_arcsec']:.3f}″ / {rb['pv_arcsec']:.3f}″ / {100 * rb['fraction_of_error']:.1f} %"])
-        if "dof" in rb:
-            rows.append(["… what it tests", residual_test_text(rb)])
-    if "residual_after" in results and results.get("identified_effects"):
-        ra = results["residual_after"]
-        rows.append(["residual after adding the traced effect(s): RMS / P-V / share",
-                     f"{ra['rms_arcsec']:.3f}″ / {ra['pv_arcsec']:.3f}″ / {100 * ra['fraction_of_error']:.1f} %"])
-        if "dof" in ra:
-            rows.append(["… what it tests", residual_test_text(ra)])
-            if ra.get("sampling_note"):
-                test_notes.append("Residual after: " + ra["sampling_note"] + ".")
-    rep.heading("Summary")
-    rep.table(rows, ["quantity", "value"])
-    for n in test_notes:
-        rep.paragraph(n, note=True)
-    for n in results["notes"]:
-        rep.paragraph(str(n), note=True)
-
-    from benchtwin.analysis.report import figures_jia as fj
-
-    if rm is not None:
-        rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
-        rep.figure(fj.fig_radial_motion(rm.detail), "Radial error motion of the test spheres and of the grating disk along the head direction")
-        from benchtwin.analysis.report.figures_iso import add_iso230_7_section
-
-        add_iso230_7_section(rep, rm.iso230_7, ds, filtered=rm.summary)
-    if ecc is not None:
-        rep.heading("Eccentricity from CCD images (Jia sec. 4.2, fig. 14)")
-        from benchtwin.analysis.report.figures_ccd import add_ccd_pictures
-
-        add_ccd_pictures(rep, ds, ecc.detail)  # the pictures of the image analysis (issue 20)
-        rep.figure(fj.fig_dref(ecc.detail, np.asarray(ecc.theta_deg), np.asarray(ecc.d_ref_um)), "d_ref over the sweep and its first harmonic")
-        if ecc.rejected_frames:
-            rep.paragraph(f"{len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected by the image analysis "
-                          f"and dropped; e and θ0 are fitted on the {len(ecc.files)} remaining angles (the "
-                          f"least-squares fit of eq. 10 does not need equal spacing; ≥ {ecc.min_frames} "
-                          "frames are required).", note=True)
-            rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in ecc.rejected_frames],
-                      ["rejected frame", "θ", "step", "reason"])
-    if model is not None:
-        rep.heading("Predicted angle error (Jia eq. 5, fig. 15)")
-        rep.figure(fj.fig_predicted_error(model), "Angle error predicted from eccentricity and radial motion")
-    if cmp is not None:
-        rep.heading("Comparison with the polygon (Jia sec. 4.3, fig. 16)")
-        rep.figure(fj.fig_comparison(cmp), "Measured encoder error (polygon + autocollimator) vs model, and the residual")
-    if pol is not None:
-        from benchtwin.analysis.report import figures_hsieh as fh
-
-        rep.heading("Polygon cross-calibration and shift-angle method (Hsieh 2022)")
-        rep.figure(fh.figure_pitch_deviation(pol.detail), "Pitch deviations β of the polygon (Hsieh fig. 6)")
-        rep.figure(fh.figure_alpha_at_shifts(pol.detail), "Encoder error at the shift angles (Hsieh fig. 7)")
-        if pol.selfcal_error_arcsec:
-            rep.figure(fh.figure_selfcal_vs_shift_angle(pol.detail), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
-            rep.figure(fh.figure_difference(pol.detail), "Difference between the two methods (Hsieh fig. 12)")
-        if results.get("iso230_2"):
-            _add_iso230_2_table(rep, results["iso230_2"])
-        if pol.budget:
-            rep.heading("Uncertainty budget (GUM, Hsieh Table 3)", level=3)
-            rep.table([[r.get("name"), r.get("u"), r.get("sensitivity"), r.get("contribution"), r.get("dof")]
-                       for r in pol.budget], ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
-    if tr is not None:
-        from benchtwin.analysis.report import figures_loop as fl
-
-        rep.heading("Closing the loop: what the model lacks")
-        status = tr.status
-        names = ", ".join(e["name"] for e in tr.identified_effects) or "none"
-        rep.paragraph(f"Status: {status}. Identified: {names}.")
-        rb_t, ra_t = tr.residual_before, tr.residual_after
-        if tr.identified_effects:
-            pars = "; ".join(f"{e['name']}: " + ", ".join(f"{k} = {value_with_u(v, e['u'].get(k, float('nan')), '')}"
-                                                         for k, v in e["params"].items()) for e in tr.identified_effects)
-            rep.paragraph(
-                f"The model lacked {names} ({pars}). Adding it brings the residual per polygon reading from "
-                f"{rb_t['rms_arcsec']:.3f}″ RMS ({rb_t['pv_arcsec']:.2f}″ P-V, {100 * rb_t['fraction_of_error']:.1f} % "
-                f"of the error) to {ra_t['rms_arcsec']:.3f}″ RMS ({ra_t['pv_arcsec']:.2f}″ P-V, "
-                f"{100 * ra_t['fraction_of_error']:.1f} %); noise floor {rb_t.get('noise_floor_arcsec', float('nan')):.3f}″ "
-                f"(u of one reading), χ² after {ra_t['chi2']:.0f} for {ra_t['dof']} dof (p = {ra_t['p_value']:.2g}).")
-            ra_s: Mapping[str, Any] = results.get("residual_after") or {}
-            ref: Mapping[str, Any] = results.get("eccentricity_refined") or {}
-            if ra_s.get("per_reading_rms_arcsec") is not None and ref:
-                rep.paragraph(
-                    f"That residual per reading keeps the Jia model's eccentricity term with the CCD's (e, θ0): its first "
-                    f"harmonic is the CCD's e within its u (u(e) = {ref['ccd']['u_e_um']:.3f} µm, "
-                    f"{ref['ccd']['u_e_um'] / (r_um_of(ds)) / ARCSEC:.2f}″ at the optical radius). The model after the loop "
-                    f"takes the first harmonic from the comparison (e = {ref['e_um']:.3f} ± {ref['u_e_um']:.3f} µm, its u "
-                    f"including a first-order graduation term of u = {ref['k1_prior']['u_arcsec']:.2f}″ per component that "
-                    f"α cannot tell from e) and refits the traced parameters on the stops: per reading it leaves "
-                    f"{ra_s['per_reading_rms_arcsec']:.3f}″ RMS, at the stops {ra_s['rms_arcsec']:.3f}″ "
-                    f"({residual_test_text(ra_s)}).")
-            am = rb_t.get("async_motion") or {}
-            if am.get("sigma_um"):
-                rep.paragraph(
-                    f"What remains includes the axis's non-repeating motion: the probes' revolutions scatter by "
-                    f"{am['sigma_um']:.3f} µm RMS (orders 1…{am.get('band_orders', 10)}), i.e. about "
-                    f"{am['per_stop_arcsec']:.2f}″ per polygon stop along X, unmeasured at the polygon's revolution; it "
-                    "is part of the model's uncertainty, not an effect (more polygon reps would average it).", note=True)
-        elif tr.partial_effects:
-            rep.paragraph("Best candidate (not accepted, the residual after it is still significant): "
-                          + ", ".join(e["name"] for e in tr.partial_effects)
-                          + f"; left: {', '.join(ra_t.get('signature_left') or [])}.", note=True)
-        for e in tr.identified_effects:
-            rep.table([[k, value_with_u(v, e["u"].get(k, float('nan')), "")] for k, v in e["params"].items()],
-                      [f"{e['name']}: parameter", "value"])
-        cc: CorrectedCurve | dict[str, Any] = results.get("encoder_error_corrected_arcsec") or {}
-        if cc.get("corrections_applied"):
-            rep.paragraph("Corrected calibration curve (encoder_error_corrected_arcsec, the curve a certificate states): "
-                          "the measured encoder error minus " + "; ".join(
-                              f"{a['effect']} ({a['rms_arcsec']:.3f}″ RMS, u {a['u_rms_arcsec']:.3f}″)"
-                              for a in cc["corrections_applied"]) + ".")
-        else:
-            rep.paragraph("Corrected calibration curve: no artefact of the reference chain identified; the "
-                          "measured encoder error is stated unchanged.", note=True)
-        for a in tr.ambiguous:
-            rep.paragraph(f"Ambiguous: {', '.join(a['names'])}. Separating measurement: {a.get('separating_measurement', '')}", note=True)
-        if tr.unexplained:
-            rep.paragraph("Unexplained: the residual is significant but no effect of the library explains it; see the signature.", note=True)
-        res_b = results.get("residual_before")
-        res_a = results.get("residual_after")
-        if res_b and res_a:
-            rep.table([["before", res_b["rms_arcsec"], res_b["pv_arcsec"], res_b["fraction_of_error"]],
-                       ["after", res_a["rms_arcsec"], res_a["pv_arcsec"], res_a["fraction_of_error"]]],
-                      ["residual", "RMS ″", "P-V ″", "share of the error"])
-        rep.figure(fl.plot_residual_before_after(ev, tr.detail), "Residual before and after adding the traced effect")
-        rep.figure(fl.plot_harmonic_spectrum(tr.detail), "Harmonic spectrum of the residual with uncertainties")
-        rep.figure(fl.plot_signature(ev, tr.detail), "Signature of the residual: time, start face, direction")
-    rep.write(out / "report.html")
+    write_bench_report(out, ds, a, cast(Any, results), preface)
 
 
 # ----------------------------------------------------------------------------- error curves
 
 
-def _write_results(out: Path, results: ErrorCurveResults) -> None:
+def _write_results(out: Path, results: Mapping[str, Any]) -> None:
+    """results.json (strict JSON, sorted keys): the one place it is written."""
     atomic_write_text(out / "results.json", json.dumps(_jsonable(results), indent=1, sort_keys=True) + "\n")
 
 
@@ -1169,190 +1050,38 @@ def analyze_error_curve_dataset(ds: Dataset, out: Path | None, *, close_loop: bo
     ``close_loop`` adds the verdict keys (status, ambiguous, unexplained) that close-loop reports;
     a lone curve identifies no effect and changes no curve."""
     from benchtwin.analysis.error_curve import analyze_error_curve
-
-    t = ds.table("error_curve")
-    try:
-        ec = analyze_error_curve(t["theta_deg"], t["error_arcsec"], t.get("direction"), t.get("u_arcsec"))
-    except ValueError as exc:
-        raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
-    mc = ec["mean_curve"]
-    arc = None
-    if not ec["coverage"]["full_turn"]:
-        from benchtwin.analysis.arc_periods import ArcInputError, analyze_arc_periods
-
-        # u from outside the fit (a u column, the two directions) weighs the points; else none
-        u_ext = None if ec["u_point"]["source"].startswith("type A from the residual") else mc["u_arcsec"]
-        try:
-            arc = analyze_arc_periods(mc["theta_deg"], mc["value_arcsec"], u_ext,
-                                      drive_elements=ds.manifest.get("drive_elements"))
-        except ArcInputError as exc:
-            raise DatasetError(f"{ds.path}/{exc}") from None
-    iso2 = None
     from benchtwin.analysis.iso230_2 import positioning_statistics, runs_from_error_curve
 
-    runs = runs_from_error_curve(t["theta_deg"], t["error_arcsec"], t.get("direction"))
+    t = ErrorCurveTable.from_table(ds.table("error_curve"))
+    try:
+        a = ErrorCurveAnalysis.from_analysis(analyze_error_curve(t.theta_deg, t.error_arcsec, t.direction, t.u_arcsec))
+    except ValueError as exc:
+        raise DatasetError(f"{ds.path / 'error_curve.csv'}: {exc}") from None
+    if not a.full_turn:
+        a = replace(a, arc=_arc_periods(ds, a))
+    runs = runs_from_error_curve(t.theta_deg, t.error_arcsec, t.direction)
     if runs is not None:
-        iso2 = positioning_statistics(*runs, source="error_curve.csv: one run per direction at the angles measured "
-                                                    "in both")
-    results = ErrorCurveResults(
-        format="bench-results", version=1, dataset=str(ds.path), source=ds.manifest["source"],
-        kind="error-curve", bench=_bench(ds.bench), notes=list(ec["notes"]),
-        imported_from=ds.manifest.get("import"),
-        coverage_deg=ec["coverage_deg"], coverage=ec["coverage"], closure=ec["closure"],
-        hysteresis=ec["hysteresis"], u_point=ec["u_point"], harmonics=ec["harmonics"],
-        error_curve={k: v for k, v in ec.items() if k not in ("notes",)},
-        encoder_error_arcsec=Curve(theta_deg=mc["theta_deg"], value=mc["value_arcsec"], u=mc["u_arcsec"]),
-        # nothing of the reference chain is identified on a lone curve: the corrected curve is the raw one
-        encoder_error_corrected_arcsec=CorrectedCurve(theta_deg=mc["theta_deg"], value=mc["value_arcsec"],
-                                                      u=mc["u_arcsec"], corrections_applied=[]),
-    )
-    if arc is not None:
-        results["arc_periods"] = cast(list[ArcPeriod], arc["periods"])
-        results["arc_period_scan"] = arc["scan"]
-    if iso2 is not None:
-        results["iso230_2"] = cast(Iso230_2, iso2)
-    if close_loop:
-        results["identified_effects"] = []
-        results["ambiguous"] = ec["ambiguous"]
-        results["unexplained"] = ec["unexplained"]
-        results["close_loop"] = CloseLoop(status=ec["status"], left=ec.get("left", []))
+        a = replace(a, iso230_2=positioning_statistics(
+            *runs, source="error_curve.csv: one run per direction at the angles measured in both"))
+    results = a.to_json(str(ds.path), ds.manifest, _bench(ds.bench), close_loop)
     if out is None:  # in memory: nothing written
         return {"results": results, "paths": {}}
+    from benchtwin.analysis.report.error_curve_report import write_error_curve_report
+
     paths = {"results": str(out / "results.json"), "report": str(out / "report.html")}
-    _write_error_curve_report(out, ds, ec, close_loop, calibration_curve(results), arc, iso2)
+    write_error_curve_report(out, ds, a, close_loop, calibration_curve(results))
     paths.update(write_calibration_files(out, results))
     _write_results(out, results)
     return {"results": results, "paths": paths}
 
 
-def _add_iso230_2_table(rep: Any, iso: Mapping[str, Any]) -> None:
-    """The ISO 230-2 figures as a small table (analysis.iso230_2)."""
-    n = iso["n_runs"]
-    rep.heading("Positioning statistics of the rotary axis (ISO 230-2:2014)", level=3)
-    rep.paragraph(f"{iso['n_positions']} target positions, {n['forward']} forward and {n['backward']} backward "
-                  f"runs ({iso['source']}). {iso['convention']}. Not included: {iso['excludes']}.")
-    rep.table([[f["symbol"], "–" if not math.isfinite(f["value"]) else f"{f['value']:.3f}″", f["what"]]
-               for f in iso["figures"].values()], ["figure", "value", "what it is"])
-    for fl in iso["flags"]:
-        rep.paragraph(fl, note=True)
+def _arc_periods(ds: Dataset, a: ErrorCurveAnalysis) -> dict[str, Any]:
+    """The periods over an arc (analysis.arc_periods): u from outside the fit (a u column, the two
+    directions) weighs the points; else none."""
+    from benchtwin.analysis.arc_periods import ArcInputError, analyze_arc_periods
 
-
-def _add_arc_periods(rep: Any, arc: Mapping[str, Any]) -> None:
-    """The periods over an arc: a table and the periodogram (analysis.arc_periods)."""
-    import matplotlib.pyplot as plt
-
-    from benchtwin.analysis.report.html import value_with_u
-
-    sc = arc["scan"]
-    rep.heading("Periodic components over the arc", level=3)
-    if "period_min_deg" not in sc:
-        rep.paragraph(f"No period scan: {sc.get('reason', '')}", note=True)
-        return
-    rep.paragraph(f"{sc['method']}; periods {sc['period_min_deg']:.3g}°…{sc['period_max_deg']:.3g}° "
-                  f"({sc['n_trial_periods']} trial periods); false alarm: {sc['false_alarm_method']}; kept below "
-                  f"{sc['significance']:g}. u: {sc['u_source']}. No harmonic of the turn and no closure is claimed.")
-    if sc.get("band_limited"):
-        rep.paragraph(f"Band limited: {sc['band_limited']}.", note=True)
-    if arc["periods"]:
-        rep.table([[value_with_u(p["period_deg"], p["u_period_deg"], "°"),
-                    value_with_u(p["amplitude_arcsec"], p["u"], "″"),
-                    value_with_u(p["phase_deg"], p["u_phase_deg"], "°"), f"{p['false_alarm']:.2g}",
-                    f"{p['n_periods_covered']:.1f}", p["drive_element"]["note"]] for p in arc["periods"]],
-                  ["period", "amplitude", "phase", "false alarm", "periods covered", "drive element"])
-        rep.paragraph(f"With the periods and the trend fitted together: residual {sc['residual_rms_arcsec']:.3g}″ RMS "
-                      f"(χ² {sc['chi2']:.3g} for {sc['dof']} dof), slope "
-                      f"{value_with_u(sc['trend_slope_arcsec_per_deg'], sc['u_trend_slope_arcsec_per_deg'], '″/°')}. "
-                      "The arc's u of one point and slope in the summary come from a quadratic alone, which counts "
-                      "these periods as noise.", note=True)
-    else:
-        b = sc.get("best_rejected") or {}
-        rep.paragraph("No period: the highest peak" + (f" ({b['period_deg']:.4g}°, false alarm {b['false_alarm']:.2g})"
-                                                      if b else "") + " is what noise gives.", note=True)
-    pg = sc.get("periodogram")
-    if pg is not None:
-        fig, ax = plt.subplots(figsize=(7, 2.6))
-        ax.semilogx(pg["period_deg"], pg["power"], "k-", lw=0.8)
-        for p in arc["periods"]:
-            ax.axvline(p["period_deg"], color="C3", lw=0.8, ls="--")
-        ax.set_xlabel("period (°)")
-        ax.set_ylabel("power (1 − χ²/χ²_trend)")
-        fig.tight_layout()
-        rep.figure(fig, "Least-squares periodogram of the arc (trend fitted jointly); dashed: the periods kept")
-        plt.close(fig)
-
-
-def _write_error_curve_report(out: Path, ds: Dataset, ec: dict[str, Any], close_loop: bool,
-                              cal: CalibrationCurve | None = None, arc: Mapping[str, Any] | None = None,
-                              iso: Mapping[str, Any] | None = None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from benchtwin.analysis.report.html import Report, value_with_u
-
-    rep = Report(f"Encoder error curve — {ds.path.name}")
-    imp = ds.manifest.get("import") or {}
-    rep.paragraph(f"Dataset {ds.path} (source: {ds.manifest['source']}, an imported error curve"
-                  + (f" from {imp.get('table')}" if imp.get("table") else "") + "). A lone curve: no radial probes, "
-                  "no CCD, no polygon start faces; what it cannot separate is stated below.")
-    from benchtwin.analysis.report.figures_calibration import add_calibration_section
-
-    add_calibration_section(rep, cal)  # the calibration result first (issue 34)
-    cov = ec["coverage"]
-    rows = [["coverage", f"{ec['coverage_deg']:.1f}° ({'full turn' if cov['full_turn'] else 'arc'}, "
-                         f"{cov['n_angles']} angles, step {cov['step_deg'] or float('nan'):.3g}°)"],
-            ["closure", ec["closure"]["state"]],
-            ["u of one point", f"{ec['u_point']['u_arcsec']:.3f}″ ({ec['u_point']['source']})"]]
-    h = ec.get("hysteresis")
-    if h and h.get("available"):
-        rows.append(["hysteresis: mean half difference", value_with_u(h["mean_arcsec"], h["u_mean_arcsec"], "″")])
-        rows.append(["hysteresis: RMS / max |half difference|", f"{h['rms_arcsec']:.3f}″ / {h['max_abs_arcsec']:.3f}″"])
-        rows.append(["angles where the directions differ in sign", str(h["opposite_sign_angles"])])
-    if "trend" in ec:
-        tr = ec["trend"]
-        rows.append(["slope over the arc", value_with_u(tr["slope_arcsec_per_deg"], tr["u_slope"], "″/°")])
-    rows.append(["residual: RMS / P-V", f"{ec['residual']['rms_arcsec']:.3f}″ / {ec['residual']['pv_arcsec']:.3f}″"])
-    if arc is not None:
-        rows.append(["periods over the arc (false alarm < " f"{arc['scan']['significance']:g})",
-                     "; ".join(f"{value_with_u(p['period_deg'], p['u_period_deg'], '°', k=1)}: "
-                               f"{value_with_u(p['amplitude_arcsec'], p['u'], '″', k=1)}"
-                               for p in arc["periods"]) or "none"])
-    if close_loop:
-        rows.append(["status", ec["status"]])
-    rep.heading("Summary")
-    rep.table(rows, ["quantity", "value"])
-    for n in ec["notes"]:
-        rep.paragraph(str(n), note=True)
-    if ec["harmonics"]:
-        rep.heading("Harmonics (Jia 2019 eqs. 6, 11, 12), direction mean", level=3)
-        rep.table([[x["k"], value_with_u(x["amplitude_arcsec"], x["u_arcsec"], "″"), f"{x['phase_deg']:.1f}°",
-                    f"{x['p_value']:.2g}", "yes" if x["significant"] else ""] for x in ec["harmonics"]],
-                  ["k", "amplitude", "phase", "p", "significant"])
-    for a in ec.get("ambiguous", []):
-        rep.paragraph(f"Cannot be separated on this curve: {', '.join(a['names'])}"
-                      + (f" (harmonics {a['harmonics']})" if a["harmonics"] else "")
-                      + f". Separating measurement: {a['separating_measurement']}", note=True)
-    if ec.get("unexplained"):
-        rep.paragraph("Unexplained: " + "; ".join(ec.get("left", [])), note=True)
-    if arc is not None:
-        _add_arc_periods(rep, arc)
-    if iso is not None:
-        _add_iso230_2_table(rep, iso)
-    fig, ax = plt.subplots(figsize=(7, 3.2))
-    t = ds.table("error_curve")
-    d = t.get("direction")
-    for name in ("forward", "backward"):
-        m = np.ones(len(t["theta_deg"]), bool) if d is None else (d == name)
-        if m.any():
-            o = np.argsort(t["theta_deg"][m])
-            ax.plot(t["theta_deg"][m][o], t["error_arcsec"][m][o], "o-", ms=3, label=name if d is not None else "error")
-    mc = ec["mean_curve"]
-    ax.errorbar(mc["theta_deg"], mc["value_arcsec"], yerr=mc["u_arcsec"], fmt="k.", ms=2, lw=0.6, label="mean ± u")
-    ax.set_xlabel("θ (°)")
-    ax.set_ylabel("error (″)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    rep.figure(fig, "The imported error curve")
-    plt.close(fig)
-    rep.write(out / "report.html")
+    u_ext = None if a.u_from_residual else a.u_arcsec
+    try:
+        return analyze_arc_periods(a.theta_deg, a.value_arcsec, u_ext, drive_elements=ds.manifest.get("drive_elements"))
+    except ArcInputError as exc:
+        raise DatasetError(f"{ds.path}/{exc}") from None

@@ -23,16 +23,21 @@ report's figures); each object keeps that dict as ``detail`` for those functions
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
 
-from benchtwin.analysis.results import (AutocollimatorDeclared, BudgetInput, BudgetRow, BudgetSummary, CCDSection,
-                                        CloseLoop, EncoderErrorCurve, Floats, IdentifiedEffect, PolygonResults,
-                                        RadialMotionSection, RejectedFrame, TraceResidual)
+from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, Bench, BenchResults, BudgetInput, BudgetRow,
+                                        BudgetSummary, CCDSection, CloseLoop, Comparison, CorrectedCurve, Curve,
+                                        EncoderErrorCurve, ErrorCurveResults, Floats, IdentifiedEffect, Iso230_2, ModelPrediction, PolygonResults,
+                                        RadialErrorMotion, RadialMotionSection, RejectedFrame, ResidualSummary,
+                                        TraceResidual)
 
-__all__ = ["RadialMotionResult", "EccentricityResult", "PolygonAnalysis", "TraceOutcome"]
+__all__ = ["RadialMotionResult", "EccentricityResult", "PolygonAnalysis", "TraceOutcome", "BenchGeometry",
+           "RadialMotionTable", "CcdFrames", "FitStatistics", "ModelComparison", "RefinedEccentricity", "LoopOutcome",
+           "BenchAnalysis", "ErrorCurveTable", "ErrorCurveAnalysis", "PolygonReadings", "CcdSweepSetup"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +88,12 @@ class RadialMotionResult:
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
             u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um,
             bandwidth=self.bandwidth)
+
+    def iso_summary(self) -> RadialErrorMotion:
+        """results.json's radial_error_motion: the ISO 230-7 section (iso230_7.summary)."""
+        from benchtwin.analysis.iso230_7 import summary
+
+        return cast(RadialErrorMotion, summary(self.iso230_7))
 
 
 #: eccentricity_u_source of a one-sweep fit before the asynchronous motion is added
@@ -137,6 +148,20 @@ class EccentricityResult:
                    u_source=ecc.get("u_source", ONE_SWEEP_U_SOURCE),
                    sweeps={k: ecc[k] for k in SWEEP_KEYS} if "n_sweeps" in ecc else None,
                    detail=ecc)
+
+    @classmethod
+    def from_frames(cls, fit: dict[str, Any], frames: CcdFrames) -> EccentricityResult:
+        """The fit of the sweep(s) (eccentricity.eccentricity_from_dref / _from_sweeps) with its frames."""
+        return cls.from_eccentricity({**fit, **frames.detail()})
+
+    @property
+    def cov_e_theta0(self) -> float:
+        """cov(e, θ0) of the fit (µm·deg); 0 where the fit states none."""
+        return cast(float, self.detail.get("cov_e_theta0", 0.0))
+
+    @property
+    def rejected_files(self) -> list[str]:
+        return [r["file"] for r in self.rejected_frames]
 
     def with_async_motion(self, u_h1_um: float, dof: float | None) -> EccentricityResult:
         """The asynchronous motion's 1st harmonic added to u(e) and u(θ0) (eccentricity.with_async_motion)."""
@@ -203,6 +228,42 @@ class PolygonAnalysis:
                    autocollimator_declared=autocollimator, budget_inputs=budget_inputs,
                    notes=list(pol.get("notes", [])) + notes, detail=pol)
 
+    @property
+    def alpha_theta_deg(self) -> np.ndarray:
+        """θ of the combined α (eq. 3), degrees."""
+        return np.asarray(self.encoder_error_arcsec["theta_deg"])
+
+    @property
+    def alpha_arcsec(self) -> np.ndarray:
+        return np.asarray(self.encoder_error_arcsec["value"])
+
+    @property
+    def alpha_u_arcsec(self) -> np.ndarray:
+        """u of each α (the GUM budget of the curve, Hsieh Table 3), arcsec."""
+        return np.asarray(self.encoder_error_arcsec["u"], dtype=float)
+
+    @property
+    def u_c_arcsec(self) -> float | None:
+        """The budget's combined standard uncertainty u_c of α (Table 3); None without a budget."""
+        return float(self.budget_summary["u_c"]) if self.budget_summary else None
+
+    @property
+    def pooled_sd_eps_arcsec(self) -> float | None:
+        """The readings' repeatability (pooled sd of ε over repeated runs); None (or 0) without."""
+        return self.repeatability.get("pooled_sd_eps_arcsec")
+
+    @property
+    def closure_sd_arcsec(self) -> float | None:
+        return self.repeatability.get("closure_sd_arcsec")
+
+    @property
+    def ac_resolution_arcsec(self) -> float:
+        return self.autocollimator_declared["resolution_arcsec"]
+
+    @property
+    def ac_accuracy_arcsec(self) -> float:
+        return self.autocollimator_declared["accuracy_arcsec"]
+
     def to_json(self) -> PolygonResults:
         out = PolygonResults(
             polygon_pitch_deviation_arcsec=self.pitch_deviation_arcsec,
@@ -249,6 +310,15 @@ class TraceOutcome:
                    residual_after=tr["residual_after"], reference_corrections=tr.get("reference_corrections") or {},
                    model_file=tr["model_file"], detail=tr)
 
+    @property
+    def signature(self) -> dict[str, Any]:
+        """The residual's signature (harmonics, time, start face, direction); {} when the trace has none."""
+        return self.detail.get("signature") or {}
+
+    def effect_name(self, i: int) -> str:
+        """The name of the model file's i-th effect."""
+        return str(self.model_file["effects"][i]["name"])
+
     def to_json(self) -> CloseLoop:
         """results.json's close_loop section (the verdict, the signature, the selection)."""
         out = CloseLoop(status=self.status)
@@ -256,3 +326,422 @@ class TraceOutcome:
             if k in self.detail:
                 out[k] = self.detail[k]  # type: ignore[literal-required]
         return out
+
+
+# ----------------------------------------------------------------------------- the pipeline's inputs and stages
+# (issue 35 item 1: the pipeline passes these frozen objects between its stages; the dataset's dicts
+# and the equation modules' dicts are read here, in one constructor each, and results.json's dict is
+# built from them by one ``to_json()`` each: BenchAnalysis.to_json is the edge where it is written)
+
+
+@dataclass(frozen=True, eq=False)
+class BenchGeometry:
+    """The manifest's bench quantities the pipeline reads (docs/dataset-format.md), as declared."""
+
+    optical_radius_mm: float
+    L1_mm: float | None
+    L2_mm: float | None
+    grating_period_um: float | None
+    polygon_faces: int | None
+    heads_deg: list[float] | None
+    #: heads the polygon's evidence counts (1 when the manifest names none)
+    n_heads: int
+    encoder_lines: int | None
+    scale_edge_radius_mm: float | None
+    polygon_certificate_arcsec: list[float] | None
+    #: the whole bench block as read (validated by analysis.dataset)
+    block: dict[str, Any]
+
+    @classmethod
+    def from_manifest(cls, b: dict[str, Any]) -> BenchGeometry:
+        return cls(optical_radius_mm=b.get("optical_radius_mm"), L1_mm=b.get("L1_mm"),  # type: ignore[arg-type]
+                   L2_mm=b.get("L2_mm"), grating_period_um=b.get("grating_period_um"),
+                   polygon_faces=b.get("polygon_faces"), heads_deg=b.get("heads_deg"),
+                   n_heads=len(b.get("heads_deg", [0])), encoder_lines=b.get("encoder_lines"),
+                   scale_edge_radius_mm=b.get("scale_edge_radius_mm"),
+                   polygon_certificate_arcsec=b.get("polygon_certificate_arcsec"), block=b)
+
+    @property
+    def r_um(self) -> float:
+        """The optical radius r in µm (Jia eq. 5)."""
+        return self.optical_radius_mm * 1000.0
+
+
+@dataclass(frozen=True, eq=False)
+class RadialMotionTable:
+    """radial_motion.csv: the two probes per revolution (docs/dataset-format.md), X probes optional."""
+
+    rep: np.ndarray
+    theta_deg: np.ndarray
+    probe_top_um: np.ndarray
+    probe_bottom_um: np.ndarray
+    probe_top_x_um: np.ndarray | None
+    probe_bottom_x_um: np.ndarray | None
+
+    @classmethod
+    def from_table(cls, t: Mapping[str, Any]) -> RadialMotionTable:
+        return cls(rep=t["rep"], theta_deg=t["theta_deg"], probe_top_um=t["probe_top_um"],
+                   probe_bottom_um=t["probe_bottom_um"], probe_top_x_um=t.get("probe_top_x_um"),
+                   probe_bottom_x_um=t.get("probe_bottom_x_um"))
+
+    def probes(self) -> dict[str, np.ndarray | None]:
+        """{column: values} of the four probes (analysis.iso230_7.radial_error_motion)."""
+        return {"probe_top_um": self.probe_top_um, "probe_bottom_um": self.probe_bottom_um,
+                "probe_top_x_um": self.probe_top_x_um, "probe_bottom_x_um": self.probe_bottom_x_um}
+
+
+@dataclass(frozen=True, eq=False)
+class FitStatistics:
+    """What a fit's residual can test (analysis.error_model.fit_statistics)."""
+
+    n_params: int
+    dof: int
+    chi2: float
+    p_value: float | None
+    loo_rms_arcsec: float | None
+
+    @classmethod
+    def from_fit(cls, st: Mapping[str, Any]) -> FitStatistics:
+        return cls(n_params=int(st["n_params"]), dof=int(st["dof"]), chi2=float(st["chi2"]), p_value=st["p_value"],
+                   loo_rms_arcsec=st["loo_rms_arcsec"])
+
+
+#: the yardstick of the residuals' χ² (results.json ``residual_before`` / ``residual_after``: ``chi2_u``)
+CHI2_YARDSTICK = ("u of each α (encoder_error_arcsec.u: the GUM budget of the shift-angle curve, Hsieh 2022 "
+                  "Table 3); the model's own parameters (e, θ0 from the CCD, δY from the probes) are not in it")
+
+
+@dataclass(frozen=True, eq=False)
+class ModelComparison:
+    """Measured encoder error − Jia model (eq. 5) at the curve's angles (error_model.compare_with_measured)."""
+
+    theta_deg: np.ndarray
+    measured_arcsec: np.ndarray
+    model_arcsec: np.ndarray
+    residual_arcsec: np.ndarray
+    residual_rms_arcsec: float
+    residual_pv_arcsec: float
+    residual_max_abs_arcsec: float
+    fraction_of_error: float
+    pv_ratio: float
+    measured_pv_arcsec: float
+    measured_rms_arcsec: float
+    note: str
+    #: compare_with_measured()'s whole dict for the report's figure (figures_jia.fig_comparison)
+    detail: dict[str, Any]
+
+    @classmethod
+    def from_compare(cls, cmp: dict[str, Any]) -> ModelComparison:
+        return cls(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
+                   model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"],
+                   residual_rms_arcsec=cmp["residual_rms_arcsec"], residual_pv_arcsec=cmp["residual_pv_arcsec"],
+                   residual_max_abs_arcsec=cmp["residual_max_abs_arcsec"], fraction_of_error=cmp["fraction_of_error"],
+                   pv_ratio=cmp["pv_ratio"], measured_pv_arcsec=cmp["measured_pv_arcsec"],
+                   measured_rms_arcsec=cmp["measured_rms_arcsec"], note=cmp["note"], detail=cmp)
+
+    def residual_summary(self, u_arcsec: float | None = None, stats: FitStatistics | None = None, *,
+                         per_reading_rms_arcsec: float | None = None,
+                         added_terms: list[str] | None = None) -> ResidualSummary:
+        """The comparison's RMS, P-V, ... and, with ``stats`` (the fit behind the residual), what it
+        can test: n_params, dof, chi2, p_value, loo_rms_arcsec and, where dof < 3, the sentence saying
+        this sampling cannot test the model and which would (error_model.sampling_advice); then the
+        residual per polygon reading and the terms the model after the loop added, where given."""
+        from benchtwin.analysis.error_model import sampling_advice
+
+        out = ResidualSummary(rms_arcsec=self.residual_rms_arcsec, pv_arcsec=self.residual_pv_arcsec,
+                              max_abs_arcsec=self.residual_max_abs_arcsec, fraction_of_error=self.fraction_of_error,
+                              pv_ratio=self.pv_ratio, measured_pv_arcsec=self.measured_pv_arcsec,
+                              measured_rms_arcsec=self.measured_rms_arcsec, n_points=int(len(self.theta_deg)),
+                              note=self.note)
+        if u_arcsec is not None:
+            out["u_rms_arcsec"] = u_arcsec
+        if stats is not None:
+            out.update(n_params=stats.n_params, dof=stats.dof, chi2=stats.chi2, p_value=stats.p_value,
+                       loo_rms_arcsec=stats.loo_rms_arcsec, chi2_u=CHI2_YARDSTICK)
+            advice = sampling_advice(out["n_points"], out["n_params"])
+            if advice is not None:
+                out["sampling_note"] = advice
+        if per_reading_rms_arcsec is not None:
+            out["per_reading_rms_arcsec"] = per_reading_rms_arcsec
+        if added_terms is not None:
+            out["added_terms"] = added_terms
+        return out
+
+    def section(self, with_measured: bool = True) -> Comparison:
+        """results.json's comparison (with the measured curve) or comparison_after (without)."""
+        if with_measured:
+            return Comparison(theta_deg=self.theta_deg, measured_arcsec=self.measured_arcsec,
+                              model_arcsec=self.model_arcsec, residual_arcsec=self.residual_arcsec)
+        return Comparison(theta_deg=self.theta_deg, model_arcsec=self.model_arcsec,  # type: ignore[typeddict-item]
+                          residual_arcsec=self.residual_arcsec)
+
+
+@dataclass(frozen=True, eq=False)
+class RefinedEccentricity:
+    """(e, θ0) from the CCD combined with the comparison's first harmonic, and the traced parameters
+    refitted on the stops (error_model.refine_eccentricity; results.json ``eccentricity_refined``)."""
+
+    e_um: float
+    u_e_um: float
+    theta0_deg: float
+    u_theta0_deg: float
+    cov_e_theta0: float
+    #: the refitted parameters' corrections δp, in the order of ``refitted_params``
+    column_params: list[float]
+    refitted_params: list[str]
+    #: the first-order graduation term's Fourier components (a1, b1), arcsec; None when not fitted
+    k1_a1_arcsec: float | None
+    k1_b1_arcsec: float | None
+    #: the prior u of that term per component (pipeline.k1_prior), arcsec
+    k1_prior_u_arcsec: float
+    #: u(e) of the CCD alone, µm
+    ccd_u_e_um: float
+    #: the fit's statistics (the residual after the loop)
+    fit: FitStatistics
+    #: the results.json section as refine_eccentricity gave it, with k1_prior, refitted_params and
+    #: residual_after_ccd_e_pv_arcsec
+    section: dict[str, Any]
+
+    @classmethod
+    def from_refine(cls, ref: dict[str, Any], k1_prior: dict[str, Any], refitted_params: list[str],
+                    residual_after_ccd_e_pv_arcsec: float) -> RefinedEccentricity:
+        sec = dict(ref)
+        fit = sec.pop("fit")
+        sec.pop("residual_arcsec")
+        sec.update(k1_prior=k1_prior, refitted_params=refitted_params,
+                   residual_after_ccd_e_pv_arcsec=residual_after_ccd_e_pv_arcsec)
+        k1 = sec.get("k1_arcsec")
+        return cls(e_um=sec["e_um"], u_e_um=sec["u_e_um"], theta0_deg=sec["theta0_deg"],
+                   u_theta0_deg=sec["u_theta0_deg"], cov_e_theta0=sec["cov_e_theta0"],
+                   column_params=sec["column_params"], refitted_params=refitted_params,
+                   k1_a1_arcsec=float(k1["a1"]) if k1 is not None else None,
+                   k1_b1_arcsec=float(k1["b1"]) if k1 is not None else None,
+                   k1_prior_u_arcsec=k1_prior["u_arcsec"], ccd_u_e_um=sec["ccd"]["u_e_um"],
+                   fit=FitStatistics.from_fit(fit), section=sec)
+
+    def to_json(self) -> dict[str, Any]:
+        return self.section
+
+
+@dataclass(frozen=True, eq=False)
+class LoopOutcome:
+    """Closing the loop (pipeline._close_loop): the tracing's verdict, the corrected curve, the model
+    after the traced effects and its residual."""
+
+    #: the tracing's evidence (analysis.tracing.Evidence) and its verdict
+    evidence: Any
+    trace: TraceOutcome
+    #: the encoder error less the identified artefacts of the reference chain
+    corrected: CorrectedCurve
+    residual_after: ResidualSummary
+    #: the comparison with the model after the loop; None when nothing was identified
+    comparison_after: ModelComparison | None
+    refined: RefinedEccentricity | None
+    notes: list[str]
+    #: the model file written (out/model.json); None when none
+    model_path: str | None
+
+    def to_json(self) -> dict[str, Any]:
+        """The keys of results.json the loop writes (close_loop, identified_effects, ..., residual_after)."""
+        tr = self.trace
+        out: dict[str, Any] = {
+            "close_loop": tr.to_json(), "identified_effects": tr.identified_effects, "ambiguous": tr.ambiguous,
+            "unexplained": tr.unexplained, "residual_test": tr.residual_before,
+            "residual_after_trace": tr.residual_after, "encoder_error_corrected_arcsec": self.corrected}
+        if self.refined is not None:
+            out["eccentricity_refined"] = self.refined.to_json()
+        out["residual_after"] = self.residual_after
+        if self.comparison_after is not None:
+            out["comparison_after"] = self.comparison_after.section(with_measured=False)
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class BenchAnalysis:
+    """A bench dataset's analysis, stage by stage (pipeline.analyze_into): what results.json,
+    the report and the calibration files are written from."""
+
+    #: format, version, dataset, source: results.json's header
+    dataset: str
+    source: str
+    bench: BenchGeometry
+    rm: RadialMotionResult | None = None
+    ecc: EccentricityResult | None = None
+    pol: PolygonAnalysis | None = None
+    #: ISO 230-2 statistics of the polygon's clampings (analysis.iso230_2); None without both directions
+    iso230_2: dict[str, Any] | None = None
+    #: the Jia error model (eq. 5; analysis.error_model.ErrorModel) and the terms a model file added
+    model: Any = None
+    model_file_terms: list[str] | None = None
+    prediction: ModelPrediction | None = None
+    cmp: ModelComparison | None = None
+    residual_before: ResidualSummary | None = None
+    #: the raw curve as the corrected one, until the loop identifies an artefact of the reference chain
+    corrected: CorrectedCurve | None = None
+    loop: LoopOutcome | None = None
+    notes: tuple[str, ...] = ()
+
+    def to_json(self) -> BenchResults:
+        """results.json's dict (the one place it is built for a bench dataset)."""
+        out: dict[str, Any] = {"format": "bench-results", "version": 1, "dataset": self.dataset,
+                               "source": self.source, "bench": cast(Bench, dict(self.bench.block)),
+                               "notes": list(self.notes) + (self.loop.notes if self.loop is not None else [])}
+        if self.rm is not None:
+            out["radial_motion"] = self.rm.to_json()
+            out["radial_error_motion"] = self.rm.iso_summary()
+        if self.ecc is not None:
+            out.update(self.ecc.to_json())
+        if self.pol is not None:
+            out.update(self.pol.to_json())
+            if self.iso230_2 is not None:
+                out["iso230_2"] = self.iso230_2
+        if self.model_file_terms is not None:
+            out["model_file_terms"] = self.model_file_terms
+        if self.prediction is not None:
+            out["model_prediction_arcsec"] = self.prediction
+        if self.cmp is not None:
+            out["residual_before"] = self.residual_before
+            out["comparison"] = self.cmp.section()
+        if self.corrected is not None:
+            out["encoder_error_corrected_arcsec"] = self.corrected
+        if self.loop is not None:
+            out.update(self.loop.to_json())
+        return cast(BenchResults, out)
+
+
+@dataclass(frozen=True, eq=False)
+class CcdFrames:
+    """The CCD sweep's frames as the image analysis left them (pipeline.step_eccentricity): the pixel
+    scale (Jia eq. 13), d_ref per frame used (eqs. 10–12) and the frames rejected."""
+
+    pixel_um: float
+    radius_fixed_px: float | None
+    theta_deg: list[float]
+    d_ref_um: np.ndarray
+    files: list[str]
+    n_frames: int
+    rejected_frames: list[RejectedFrame]
+    frame_limits: dict[str, int]
+    #: the first used frame's fit {file, fit}, which the report draws (figures_ccd.add_ccd_pictures)
+    first_frame_fit: dict[str, Any] | None
+
+    def detail(self) -> dict[str, Any]:
+        """The keys the step adds to the eccentricity fit's dict (EccentricityResult.detail)."""
+        return {"pixel_um": self.pixel_um, "radius_fixed_px": self.radius_fixed_px, "theta_deg": self.theta_deg,
+                "d_ref_um": self.d_ref_um, "files": self.files, "n_frames": self.n_frames,
+                "rejected_frames": self.rejected_frames, "frame_limits": self.frame_limits,
+                "first_frame_fit": self.first_frame_fit}
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorCurveTable:
+    """error_curve.csv: an imported α(θ) table (docs/dataset-format.md); direction and u optional."""
+
+    theta_deg: np.ndarray
+    error_arcsec: np.ndarray
+    direction: np.ndarray | None
+    u_arcsec: np.ndarray | None
+
+    @classmethod
+    def from_table(cls, t: Mapping[str, Any]) -> ErrorCurveTable:
+        return cls(theta_deg=t["theta_deg"], error_arcsec=t["error_arcsec"], direction=t.get("direction"),
+                   u_arcsec=t.get("u_arcsec"))
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorCurveAnalysis:
+    """A lone error curve's analysis (analysis.error_curve.analyze_error_curve), with what the pipeline
+    adds: the periods over an arc (analysis.arc_periods) and ISO 230-2 statistics (analysis.iso230_2)."""
+
+    #: the direction mean {theta_deg, value_arcsec, u_arcsec}
+    theta_deg: np.ndarray
+    value_arcsec: np.ndarray
+    u_arcsec: np.ndarray
+    full_turn: bool
+    #: u of one point is type A from the fit's residual (then it does not weigh the arc's periods)
+    u_from_residual: bool
+    status: str
+    ambiguous: list[dict[str, Any]]
+    unexplained: bool
+    left: list[str]
+    notes: list[str]
+    #: analyze_error_curve()'s whole dict (results.json error_curve; the report's tables)
+    detail: dict[str, Any]
+    arc: dict[str, Any] | None = None
+    iso230_2: dict[str, Any] | None = None
+
+    @classmethod
+    def from_analysis(cls, ec: dict[str, Any]) -> ErrorCurveAnalysis:
+        mc = ec["mean_curve"]
+        return cls(theta_deg=mc["theta_deg"], value_arcsec=mc["value_arcsec"], u_arcsec=mc["u_arcsec"],
+                   full_turn=ec["coverage"]["full_turn"],
+                   u_from_residual=ec["u_point"]["source"].startswith("type A from the residual"),
+                   status=ec["status"], ambiguous=ec["ambiguous"], unexplained=ec["unexplained"],
+                   left=ec.get("left", []), notes=ec["notes"], detail=ec)
+
+    def to_json(self, dataset: str, manifest: Mapping[str, Any], bench: Bench, close_loop: bool) -> ErrorCurveResults:
+        """results.json's dict of an error-curve dataset (the one place it is built)."""
+        ec = self.detail
+        results = ErrorCurveResults(
+            format="bench-results", version=1, dataset=dataset, source=manifest["source"],
+            kind="error-curve", bench=bench, notes=list(self.notes), imported_from=manifest.get("import"),
+            coverage_deg=ec["coverage_deg"], coverage=ec["coverage"], closure=ec["closure"],
+            hysteresis=ec["hysteresis"], u_point=ec["u_point"], harmonics=ec["harmonics"],
+            error_curve={k: v for k, v in ec.items() if k not in ("notes",)},
+            encoder_error_arcsec=Curve(theta_deg=self.theta_deg, value=self.value_arcsec, u=self.u_arcsec),
+            # nothing of the reference chain is identified on a lone curve: the corrected curve is the raw one
+            encoder_error_corrected_arcsec=CorrectedCurve(theta_deg=self.theta_deg, value=self.value_arcsec,
+                                                          u=self.u_arcsec, corrections_applied=[]),
+        )
+        if self.arc is not None:
+            results["arc_periods"] = cast(list[ArcPeriod], self.arc["periods"])
+            results["arc_period_scan"] = self.arc["scan"]
+        if self.iso230_2 is not None:
+            results["iso230_2"] = cast(Iso230_2, self.iso230_2)
+        if close_loop:
+            results["identified_effects"] = []
+            results["ambiguous"] = self.ambiguous
+            results["unexplained"] = self.unexplained
+            results["close_loop"] = CloseLoop(status=self.status, left=self.left)
+        return results
+
+
+@dataclass(frozen=True, eq=False)
+class PolygonReadings:
+    """polygon.csv's columns the shift-angle method reads (Hsieh eqs. 2–7; docs/dataset-format.md):
+    one autocollimator reading per (shift, start face, step); θ, repetition and direction optional."""
+
+    shift_deg: np.ndarray
+    start_face: np.ndarray
+    step: np.ndarray
+    ac_arcsec: np.ndarray
+    theta_deg: np.ndarray | None
+    rep: np.ndarray | None
+    direction: np.ndarray | None
+
+    @classmethod
+    def from_table(cls, t: Mapping[str, Any]) -> PolygonReadings:
+        return cls(shift_deg=t["shift_deg"], start_face=t["start_face"], step=t["step"], ac_arcsec=t["ac_arcsec"],
+                   theta_deg=t.get("theta_deg"), rep=t.get("rep"), direction=t.get("direction"))
+
+    def directions(self) -> np.ndarray | None:
+        """The direction column as text; None without one."""
+        return None if self.direction is None else np.asarray(self.direction).astype(str)
+
+
+@dataclass(frozen=True, eq=False)
+class CcdSweepSetup:
+    """The CCD sweep as the manifest and ccd/index.csv state it (Jia sec. 4.2)."""
+
+    #: the reference point d_ref is measured from (px) and the camera's azimuth (deg)
+    reference_px: tuple[float, ...]
+    position_deg: float
+    #: per frame of the index: its file and sweep (None: one sweep)
+    n_frames: int
+    files: list[str]
+    sweep: np.ndarray | None
+
+    @classmethod
+    def from_dataset(cls, ccd: Mapping[str, Any], index: Mapping[str, Any]) -> CcdSweepSetup:
+        return cls(reference_px=tuple(ccd["reference_px"]), position_deg=ccd["position_deg"],
+                   n_frames=len(index["k"]), files=[str(f).strip() for f in index["file"]], sweep=index.get("sweep"))
