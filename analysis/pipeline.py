@@ -23,7 +23,7 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 from dataclasses import dataclass, replace
-from typing import Any, cast, overload
+from typing import TYPE_CHECKING, Any, TypedDict, cast, overload
 
 import numpy as np
 
@@ -32,13 +32,18 @@ from benchtwin.analysis.dataset import Dataset, DatasetError, open_dataset
 from benchtwin.analysis.results import (AutocollimatorDeclared, Bench, BudgetInput, CorrectedCurve, CorrectionApplied,
                                         Curve, ModelPrediction, RejectedFrame, ResidualSummary)
 from benchtwin.analysis.results_api import Results
-from benchtwin.analysis.steps import (BenchAnalysis, BenchGeometry, CcdFrames, CcdSweepSetup, EccentricityResult,
+from benchtwin.analysis.steps import (CurveArrays, ModelFileEffect, ReferenceCorrection, SignatureHarmonic,
+                                      combined_sweeps, payload_with_params,
+                                      BenchAnalysis, BenchGeometry, CcdFrames, CcdSweepSetup, EccentricityResult,
                                       ErrorCurveAnalysis, ErrorCurveTable, FitStatistics, LoopOutcome, ModelComparison,
                                       PolygonAnalysis, PolygonReadings, RadialMotionResult, RadialMotionTable, RefinedEccentricity,
                                       TraceOutcome)
 from benchtwin.jsonable import to_json
 from benchtwin.units import ARCSEC
 from benchtwin.fsio import atomic_write_text
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 
 # results.json: strict JSON (non-finite -> null), model-term functions left out (benchtwin/jsonable.py)
@@ -89,6 +94,11 @@ CCD_MIN_DOF = 3
 CCD_MAX_REJECTED_FRACTION = 0.25
 
 
+def _min_frames(n_frames: int, order: int) -> int:
+    """The fewest usable frames of ``n_frames`` the eccentricity fit accepts (ccd_frame_limits)."""
+    return ccd_frame_limits(n_frames, order)["min_frames"]
+
+
 def ccd_frame_limits(n_frames: int, order: int) -> dict[str, int]:
     """The smallest number of usable CCD frames the eccentricity fit accepts (see above)."""
     by_fit = 2 * order + 1 + CCD_MIN_DOF
@@ -113,7 +123,7 @@ class _FrameCheck:
     def __init__(self, ds: Dataset, n_frames: int, order: int) -> None:
         self.ds, self.n_frames, self.order = ds, n_frames, order
         self.limits = ccd_frame_limits(n_frames, order)
-        self.min_frames = self.limits["min_frames"]
+        self.min_frames = _min_frames(n_frames, order)
         self.rejected: dict[str, _Rejection] = {}
 
     def reject(self, f: str, theta: float, stage: str, exc: Exception) -> None:
@@ -260,22 +270,13 @@ def _fit_sweeps(ds: Dataset, setup: CcdSweepSetup, thetas: np.ndarray, dref_um: 
     for k in np.unique(np.asarray(setup.sweep, dtype=int)):
         m = sw == k
         # each sweep is a fit of its own: the frame limits hold per sweep
-        lim = ccd_frame_limits(int(np.sum(np.asarray(setup.sweep) == k)), order)
-        if int(m.sum()) < lim["min_frames"]:
+        need = _min_frames(int(np.sum(np.asarray(setup.sweep) == k)), order)
+        if int(m.sum()) < need:
             raise DatasetError(f"{ds.path / 'ccd'}: sweep {int(k)}: only {int(m.sum())} usable CCD frames for its "
-                               f"eccentricity fit (Jia eqs. 10-12); need ≥ {lim['min_frames']} (see ccd_frame_limits)")
+                               f"eccentricity fit (Jia eqs. 10-12); need ≥ {need} (see ccd_frame_limits)")
         fits.append(ecc.eccentricity_from_dref(thetas[m], dref_um[m], camera_azimuth_deg=camera_deg, order=order))
-    comb = ecc.eccentricity_from_sweeps(fits)
     # the figures and the CCD section show sweep 0's fit with every sweep's points; the numbers are the sweeps'
-    res = dict(fits[0])
-    res.update(comb)
-    n = len(fits)
-    e_i, t_i = np.asarray(comb["e_sweeps_um"]), np.asarray(comb["theta0_sweeps_deg"])
-    dt = (t_i - comb["theta0_deg"] + 180.0) % 360.0 - 180.0
-    res["cov_e_theta0"] = float(np.cov(e_i, dt, ddof=1)[0, 1] / n)   # µm·deg, of the means
-    res["residual_rms_um"] = float(np.sqrt(np.mean([f["residual_rms_um"] ** 2 for f in fits])))
-    res["sweep_of_frame"] = sw.tolist()
-    return res
+    return combined_sweeps(fits, ecc.eccentricity_from_sweeps(fits), sw)
 
 
 #: The autocollimator Hsieh et al. 2022 used (MÖLLER-WEDEL ELCOMAT 3000, sec. 3.3 (2) and (4)):
@@ -314,13 +315,14 @@ def polygon_table(ds: Dataset) -> dict[str, Any]:
     a θ pattern of resolution/√12 ≈ 0.11″ RMS at the stops, read as a division error (issue 16:
     a 0.12″ 9th harmonic on the hidden nulls, 23 faces)."""
     t = dict(ds.table("polygon"))
-    if "theta_read_deg" in t:
-        th = np.asarray(t["theta_deg"], dtype=float)
+    p = PolygonReadings.from_table(t)
+    if p.theta_read_deg is not None:
+        th = np.asarray(p.theta_deg, dtype=float)
         # the display is known to what a display transmits: 6 decimals of a degree (Heidenhain ND,
         # hw/drivers/heidenhain.py), so the twin's exact reading and an emulated one give one q
-        shown = np.round(np.asarray(t["theta_read_deg"], dtype=float), DISPLAY_DECIMALS_DEG)
+        shown = np.round(np.asarray(p.theta_read_deg, dtype=float), DISPLAY_DECIMALS_DEG)
         q_arcsec = ((shown - th + 180.0) % 360.0 - 180.0) * 3600.0
-        t["ac_arcsec"] = np.asarray(t["ac_arcsec"], dtype=float) + q_arcsec
+        t.update(ac_arcsec=np.asarray(p.ac_arcsec, dtype=float) + q_arcsec)
     return t
 
 
@@ -446,8 +448,9 @@ def _constant_fit(cmp: ModelComparison, u: np.ndarray) -> FitStatistics:
 
 def _alpha_u(enc: Curve | Mapping[str, Any], fallback: float) -> np.ndarray:
     """u of each α (the χ² yardstick, CHI2_YARDSTICK); a point without a positive u takes ``fallback``."""
-    th = np.asarray(enc["theta_deg"], dtype=float)
-    u = np.asarray(enc.get("u") if enc.get("u") is not None else np.full(th.shape, fallback), dtype=float)
+    c = CurveArrays.from_curve(enc)
+    th = np.asarray(c.theta_deg, dtype=float)
+    u = np.asarray(c.u if c.u is not None else np.full(th.shape, fallback), dtype=float)
     return np.where(np.isfinite(u) & (u > 0), u, fallback)
 
 
@@ -463,12 +466,12 @@ def k1_prior(signature: Mapping[str, Any]) -> tuple[float, str]:
     orders 2…kmax the data resolve (the RMS of their Fourier components a_k, b_k; the orders that
     alias onto them included). Conservative where the residual holds other effects too (their
     content only widens the prior, i.e. leans e on the CCD)."""
-    comps = [c for h in (signature.get("harmonics") or []) if int(h.get("k", 0)) >= 2
-             for c in (h.get("a_arcsec"), h.get("b_arcsec")) if c is not None and math.isfinite(float(c))]
+    above = [h for h in SignatureHarmonic.from_signature(signature) if h.k >= 2]
+    comps = [c for h in above for c in (h.a_arcsec, h.b_arcsec) if c is not None and math.isfinite(float(c))]
     if not comps:
         return 0.0, "no harmonic of order ≥ 2 in the residual's signature: no first-order graduation term"
     u = float(np.sqrt(np.mean(np.square(comps))))
-    ks = [int(h["k"]) for h in signature["harmonics"] if int(h.get("k", 0)) >= 2]
+    ks = [h.k for h in above]
     return u, (f"this encoder's division error at the orders the data resolve: RMS of the residual's Fourier "
                f"components at orders {min(ks)}…{max(ks)} (before the loop), the order 1 taken as one more low "
                "order of the same disk; no encoder class states a first-order term (the maker centres the edge "
@@ -483,23 +486,19 @@ def traced_columns(payload: Mapping[str, Any], base_terms: Mapping[str, Any], th
     differences with a step of the parameter's u (1e-3 where it has none): exact for effects linear
     in their parameters (graduation_error, interpolation_error, tangential_motion, …), the
     linearisation at the traced values otherwise."""
-    import copy
-
     from benchtwin.analysis.tracing import model_terms_from_payload
 
     th = np.deg2rad(np.asarray(theta_deg, dtype=float))
     cols, names = [], []
-    for i, e in enumerate(payload.get("effects", [])):
-        one = {**payload, "effects": [e]}
-        if not model_terms_from_payload(one, dict(base_terms)):
+    for i, eff in enumerate(ModelFileEffect.effects_of(payload)):
+        if not model_terms_from_payload(payload_with_params(payload, {}, only=i), dict(base_terms)):
             continue
-        for name, v in e["params"].items():
-            uu = (e.get("u") or {}).get(name)
+        for name, v in eff.params.items():
+            uu = eff.u.get(name)
             h = float(uu) if uu is not None and math.isfinite(float(uu)) and float(uu) > 0 else 1e-3 * max(1.0, abs(float(v)))
             vals = []
             for sgn in (1.0, -1.0):
-                q = copy.deepcopy(one)
-                q["effects"][0]["params"][name] = float(v) + sgn * h
+                q = payload_with_params(payload, {(i, name): float(v) + sgn * h}, only=i)
                 terms = model_terms_from_payload(q, dict(base_terms))
                 vals.append(sum(np.asarray(fn(th), dtype=float) for fn in terms.values()))
             cols.append((vals[0] - vals[1]) / (2.0 * h))
@@ -509,12 +508,9 @@ def traced_columns(payload: Mapping[str, Any], base_terms: Mapping[str, Any], th
 
 def _refitted_payload(payload: Mapping[str, Any], names: list[tuple[int, str]], dp: list[float]) -> dict[str, Any]:
     """The model file with each refitted parameter moved by its correction δp (refine_eccentricity)."""
-    import copy
-
-    out = copy.deepcopy(dict(payload))
-    for (i, name), d in zip(names, dp):
-        out["effects"][i]["params"][name] = float(out["effects"][i]["params"][name]) + float(d)
-    return out
+    effects = ModelFileEffect.effects_of(payload)
+    return payload_with_params(payload, {(i, name): float(effects[i].params[name]) + float(d)
+                                         for (i, name), d in zip(names, dp)})
 
 
 def _bench(bench: dict[str, Any]) -> Bench:
@@ -534,21 +530,42 @@ def _step(ds: Dataset, table: str, fn, *args):
         raise DatasetError(f"{ds.path / table}: cannot be analysed: {exc}") from None
 
 
-@overload
-def analyze(dataset: str | Path | Dataset, out: None = None, *, force: bool = False, order: int = 10,
-            model_file: str | Path | None = None, progress: bool = True, close_loop: bool = True,
-            preface: list | None = None) -> Results: ...
+@dataclass(frozen=True)
+class AnalysisOptions:
+    """How ``analyze`` runs (its keywords, as one object): the Fourier ``order`` of the fits, a
+    ``model_file`` whose effects join the Jia model (benchtwin close-loop's model.json), the progress
+    bars, whether to close the loop, and the ``preface`` figures [(matplotlib figure, caption)] the
+    report opens with (the app layer's rendered view of the bench)."""
+
+    order: int = 10
+    model_file: str | Path | None = None
+    progress: bool = True
+    close_loop: bool = True
+    preface: list | None = None
+
+
+class AnalysisSettings(TypedDict, total=False):
+    """``analyze``'s keywords one by one (the fields of :class:`AnalysisOptions`)."""
+
+    order: int
+    model_file: str | Path | None
+    progress: bool
+    close_loop: bool
+    preface: list | None
 
 
 @overload
-def analyze(dataset: str | Path | Dataset, out: str | Path, *, force: bool = False, order: int = 10,
-            model_file: str | Path | None = None, progress: bool = True, close_loop: bool = True,
-            preface: list | None = None) -> dict[str, Any]: ...
+def analyze(dataset: str | Path | Dataset, out: None = None, *, force: bool = False,
+            options: AnalysisOptions | None = None, **settings: Unpack[AnalysisSettings]) -> Results: ...
 
 
-def analyze(dataset: str | Path | Dataset, out: str | Path | None = None, *, force: bool = False, order: int = 10,
-            model_file: str | Path | None = None,
-            progress: bool = True, close_loop: bool = True, preface: list | None = None) -> Results | dict[str, Any]:
+@overload
+def analyze(dataset: str | Path | Dataset, out: str | Path, *, force: bool = False,
+            options: AnalysisOptions | None = None, **settings: Unpack[AnalysisSettings]) -> dict[str, Any]: ...
+
+
+def analyze(dataset: str | Path | Dataset, out: str | Path | None = None, *, force: bool = False,
+            options: AnalysisOptions | None = None, **settings: Unpack[AnalysisSettings]) -> Results | dict[str, Any]:
     """Analyse a dataset directory (or an open :class:`Dataset`).
 
     ``out`` None (a notebook): in memory; nothing is written anywhere (no report, no results.json,
@@ -562,8 +579,11 @@ def analyze(dataset: str | Path | Dataset, out: str | Path | None = None, *, for
     model file, are refused whatever ``force`` says; the folder is built beside ``out`` and
     renamed onto it when complete (a failed run keeps the previous output).
 
-    ``preface``: [(matplotlib figure, caption)] the report opens with (the app layer's rendered
-    view of the bench; the analysis itself never builds the twin).
+    ``options`` (:class:`AnalysisOptions`) or its fields as keywords (``order=10``,
+    ``model_file=None``, ``progress=True``, ``close_loop=True``, ``preface=None``; a keyword
+    overrides the same field of ``options``). ``preface``: [(matplotlib figure, caption)] the
+    report opens with (the app layer's rendered view of the bench; the analysis itself never
+    builds the twin).
 
     With ``out``, returns ``{"results": Results, "paths": {"results": ..., "report": ..., "model": ...?}}``
     (as before the in-memory form: ``res["results"]["eccentricity_um"]`` still works).
@@ -572,25 +592,26 @@ def analyze(dataset: str | Path | Dataset, out: str | Path | None = None, *, for
     """
     from benchtwin.fsio import AtomicDir
 
+    opts = replace(options or AnalysisOptions(), **settings)
     if isinstance(dataset, Dataset):
         dataset = dataset.path
     if out is None:
         if force:
             raise ValueError("analyze: force=True needs an output folder (out=None writes nothing)")
-        return Results(analyze_into(dataset, None, order=order, model_file=model_file, progress=progress,
-                                    close_loop=close_loop)["results"])
-    if model_file is not None:  # a bad model file is named as such before any output rule applies
+        got = analyze_into(dataset, None, order=opts.order, model_file=opts.model_file, progress=opts.progress,
+                           close_loop=opts.close_loop)
+        return Results(got["results"])
+    if opts.model_file is not None:  # a bad model file is named as such before any output rule applies
         from benchtwin.analysis.model_file import read_model_file
 
-        read_model_file(model_file)
+        read_model_file(opts.model_file)
     out = Path(out)
     with AtomicDir(out, force=force, what="analysis output folder", owner="analyze",
-                   inputs=[dataset, model_file]) as tmp:
-        res = analyze_into(dataset, tmp, order=order, model_file=model_file, progress=progress,
-                           close_loop=close_loop, preface=preface)
-        res["paths"] = retarget(res["paths"], tmp, out)
-    res["results"] = Results(res["results"])
-    return res
+                   inputs=[dataset, opts.model_file]) as tmp:
+        got = analyze_into(dataset, tmp, order=opts.order, model_file=opts.model_file, progress=opts.progress,
+                           close_loop=opts.close_loop, preface=opts.preface)
+        paths = retarget(got["paths"], tmp, out)
+    return {"results": Results(got["results"]), "paths": paths}
 
 
 def retarget(paths: dict[str, str], tmp: Path, out: Path) -> dict[str, str]:
@@ -719,9 +740,10 @@ def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
     empty) without corrections."""
     from benchtwin.analysis.tracing import THETA_BIN_DEG
 
-    th = np.asarray(enc["theta_deg"], dtype=float)
-    val = np.asarray(enc["value"], dtype=float).copy()
-    u2 = np.asarray(enc["u"], dtype=float) ** 2
+    curve = CurveArrays.from_curve(enc)
+    th = np.asarray(curve.theta_deg, dtype=float)
+    val = np.asarray(curve.value, dtype=float).copy()
+    u2 = np.asarray(curve.u, dtype=float) ** 2
     applied: list[CorrectionApplied] = []
     if corrections and theta_read_deg is not None:
         tr_ = np.mod(np.asarray(theta_read_deg, dtype=float), 360.0)
@@ -729,15 +751,15 @@ def corrected_curve(enc: Curve | Mapping[str, Any], theta_read_deg,
         near = d <= THETA_BIN_DEG / 2.0
         cnt = near.sum(axis=1)
         for name, c in sorted(corrections.items()):
-            v = np.asarray(c["value_arcsec"], dtype=float)
-            uc = np.asarray(c["u_arcsec"], dtype=float)
+            rc = ReferenceCorrection.from_trace(c)
+            v, uc = rc.value_arcsec, rc.u_arcsec
             corr = np.where(cnt > 0, (near @ v) / np.maximum(cnt, 1), 0.0)
             ucorr = np.where(cnt > 0, (near @ uc) / np.maximum(cnt, 1), 0.0)
             if name not in in_readings:
                 val = val - corr
             u2 = u2 + ucorr ** 2
             applied.append(CorrectionApplied(effect=name, rms_arcsec=float(np.sqrt(np.mean(corr ** 2))),
-                                             u_rms_arcsec=float(np.sqrt(np.mean(ucorr ** 2))), params=c.get("params"),
+                                             u_rms_arcsec=float(np.sqrt(np.mean(ucorr ** 2))), params=rc.params,
                                              angles_without_readings=int(np.sum(cnt == 0))))
     return CorrectedCurve(theta_deg=th, value=val, u=np.sqrt(u2), corrections_applied=applied,
                           note="the measured encoder error minus the identified artefacts of the reference chain "
@@ -756,10 +778,10 @@ def reading_corrections(tr: TraceOutcome, ev: Any) -> dict[str, np.ndarray]:
     from benchtwin.analysis.effects import ALL
 
     out: dict[str, np.ndarray] = {}
-    for eff in tr.identified_effects:
-        fn = getattr(ALL.get(eff["name"]), "reading_correction", None)
-        if fn is not None and eff["name"] in tr.reference_corrections:
-            out[eff["name"]] = np.asarray(fn(ev, eff["params"]), dtype=float)
+    for name, params in tr.identified():
+        fn = getattr(ALL.get(name), "reading_correction", None)
+        if fn is not None and name in tr.reference_corrections:
+            out[name] = np.asarray(fn(ev, params), dtype=float)
     return out
 
 
@@ -920,8 +942,8 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
         radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, geo.L1_mm, geo.L2_mm,
                               top_x_um=t.probe_top_x_um, bottom_x_um=t.probe_bottom_x_um, rep=t.rep)
     notes = []
-    sc_cal = pol.selfcal_error_arcsec
-    if sc_cal and not np.all(np.isfinite(np.asarray(sc_cal["u"], dtype=float))):
+    sc_cal = pol.selfcal
+    if sc_cal is not None and not np.all(np.isfinite(np.asarray(sc_cal.u, dtype=float))):
         # 2 heads: δ = α(θ) − α(θ+180°) fixes every odd harmonic with no redundancy, so no u; evidence
         # without an uncertainty cannot be weighted (issue #13: the close loop's SVD did not converge)
         notes.append("close loop: the self-calibration has no uncertainty (no redundancy between the "
@@ -932,9 +954,9 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     ev = evidence_from_polygon(
         poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), a.model,
         n_faces=geo.polygon_faces, u_arcsec=float(u_read), radial=radial,
-        selfcal_theta_deg=sc_cal["theta_deg"] if sc_cal else None,
-        selfcal_value_arcsec=sc_cal["value"] if sc_cal else None,
-        selfcal_u_arcsec=np.asarray(sc_cal["u"]) if sc_cal else None,
+        selfcal_theta_deg=sc_cal.theta_deg if sc_cal else None,
+        selfcal_value_arcsec=sc_cal.value if sc_cal else None,
+        selfcal_u_arcsec=np.asarray(sc_cal.u) if sc_cal else None,
         n_heads=geo.n_heads,
         optical_radius_mm=geo.optical_radius_mm, L1_mm=geo.L1_mm, L2_mm=geo.L2_mm,
         grating_period_um=geo.grating_period_um, encoder_lines=geo.encoder_lines,
@@ -968,7 +990,8 @@ def _model_after(f: _LoopFit) -> tuple[ResidualSummary, ModelComparison, Refined
 
     model2 = f.jia_model()
     added = add_to_error_model(model2, f.tr.model_file)
-    th_c, a_c = np.asarray(f.corrected["theta_deg"]), np.asarray(f.corrected["value"])
+    corrected = CurveArrays.from_curve(f.corrected)
+    th_c, a_c = np.asarray(corrected.theta_deg), np.asarray(corrected.value)
     cmp2 = ModelComparison.from_compare(compare_with_measured(th_c, a_c, model2))
     if th_c.size < 4:   # a 3-face polygon: (e, θ0) and α's constant leave no degree of freedom
         return (cmp2.residual_summary(added_terms=added), cmp2, None,
@@ -1021,11 +1044,6 @@ def _refined_model(f: _LoopFit, ref: RefinedEccentricity, col_names: list[tuple[
                      "refitted on the stops: " + ", ".join(ref.refitted_params) if col_names else
                      "refitted on the stops: none"]
     return model2, added
-
-
-def r_um_of(ds: Dataset) -> float:
-    """The optical radius r of the dataset's bench in µm (Jia eq. 5)."""
-    return float(ds.bench["optical_radius_mm"]) * 1000.0
 
 
 def _write_report(out: Path, ds: Dataset, a: BenchAnalysis, results: Mapping[str, Any],

@@ -37,7 +37,8 @@ from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, Bench
 
 __all__ = ["RadialMotionResult", "EccentricityResult", "PolygonAnalysis", "TraceOutcome", "BenchGeometry",
            "RadialMotionTable", "CcdFrames", "FitStatistics", "ModelComparison", "RefinedEccentricity", "LoopOutcome",
-           "BenchAnalysis", "ErrorCurveTable", "ErrorCurveAnalysis", "PolygonReadings", "CcdSweepSetup"]
+           "BenchAnalysis", "ErrorCurveTable", "ErrorCurveAnalysis", "PolygonReadings", "CcdSweepSetup", "CurveArrays",
+           "ReferenceCorrection", "SignatureHarmonic", "ModelFileEffect", "payload_with_params", "combined_sweeps"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,6 +244,11 @@ class PolygonAnalysis:
         return np.asarray(self.encoder_error_arcsec["u"], dtype=float)
 
     @property
+    def selfcal(self) -> CurveArrays | None:
+        """The self-calibration's curve (Hsieh eqs. 8–9); None with one head."""
+        return CurveArrays.from_curve(self.selfcal_error_arcsec) if self.selfcal_error_arcsec else None
+
+    @property
     def u_c_arcsec(self) -> float | None:
         """The budget's combined standard uncertainty u_c of α (Table 3); None without a budget."""
         return float(self.budget_summary["u_c"]) if self.budget_summary else None
@@ -314,6 +320,10 @@ class TraceOutcome:
     def signature(self) -> dict[str, Any]:
         """The residual's signature (harmonics, time, start face, direction); {} when the trace has none."""
         return self.detail.get("signature") or {}
+
+    def identified(self) -> list[tuple[str, dict[str, Any]]]:
+        """(name, params) of each identified effect."""
+        return [(e["name"], e["params"]) for e in self.identified_effects]
 
     def effect_name(self, i: int) -> str:
         """The name of the model file's i-th effect."""
@@ -718,11 +728,14 @@ class PolygonReadings:
     theta_deg: np.ndarray | None
     rep: np.ndarray | None
     direction: np.ndarray | None
+    #: the encoder's display at each stop (pipeline.polygon_table), where recorded
+    theta_read_deg: np.ndarray | None
 
     @classmethod
     def from_table(cls, t: Mapping[str, Any]) -> PolygonReadings:
         return cls(shift_deg=t["shift_deg"], start_face=t["start_face"], step=t["step"], ac_arcsec=t["ac_arcsec"],
-                   theta_deg=t.get("theta_deg"), rep=t.get("rep"), direction=t.get("direction"))
+                   theta_deg=t.get("theta_deg"), rep=t.get("rep"), direction=t.get("direction"),
+                   theta_read_deg=t.get("theta_read_deg"))
 
     def directions(self) -> np.ndarray | None:
         """The direction column as text; None without one."""
@@ -745,3 +758,90 @@ class CcdSweepSetup:
     def from_dataset(cls, ccd: Mapping[str, Any], index: Mapping[str, Any]) -> CcdSweepSetup:
         return cls(reference_px=tuple(ccd["reference_px"]), position_deg=ccd["position_deg"],
                    n_frames=len(index["k"]), files=[str(f).strip() for f in index["file"]], sweep=index.get("sweep"))
+
+
+@dataclass(frozen=True, eq=False)
+class CurveArrays:
+    """A curve section of results.json ({theta_deg, value, u}: encoder_error_arcsec, the corrected
+    curve, the self-calibration) as its arrays, as stored (u None where the section has none)."""
+
+    theta_deg: Any
+    value: Any
+    u: Any
+
+    @classmethod
+    def from_curve(cls, c: Mapping[str, Any]) -> CurveArrays:
+        return cls(theta_deg=c["theta_deg"], value=c["value"], u=c.get("u"))
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceCorrection:
+    """One identified artefact of the reference chain per polygon reading (tracing
+    ``reference_corrections``): its contribution and u per reading (arcsec) and its parameters."""
+
+    value_arcsec: np.ndarray
+    u_arcsec: np.ndarray
+    params: dict[str, Any] | None
+
+    @classmethod
+    def from_trace(cls, c: Mapping[str, Any]) -> ReferenceCorrection:
+        return cls(value_arcsec=np.asarray(c["value_arcsec"], dtype=float),
+                   u_arcsec=np.asarray(c["u_arcsec"], dtype=float), params=c.get("params"))
+
+
+@dataclass(frozen=True, eq=False)
+class SignatureHarmonic:
+    """One harmonic of the residual's signature (analysis.tracing): order k and its Fourier
+    components a (sin), b (cos), arcsec (None where not stated)."""
+
+    k: int
+    a_arcsec: float | None
+    b_arcsec: float | None
+
+    @classmethod
+    def from_signature(cls, signature: Mapping[str, Any]) -> list[SignatureHarmonic]:
+        return [cls(k=int(h.get("k", 0)), a_arcsec=h.get("a_arcsec"), b_arcsec=h.get("b_arcsec"))
+                for h in (signature.get("harmonics") or [])]
+
+
+@dataclass(frozen=True, eq=False)
+class ModelFileEffect:
+    """One effect of a model file (analysis.tracing.save_model): its name, parameters and their u."""
+
+    name: str
+    params: dict[str, Any]
+    u: dict[str, Any]
+
+    @classmethod
+    def effects_of(cls, payload: Mapping[str, Any]) -> list[ModelFileEffect]:
+        return [cls(name=e.get("name", ""), params=e["params"], u=e.get("u") or {})
+                for e in payload.get("effects", [])]
+
+
+def payload_with_params(payload: Mapping[str, Any], params: Mapping[tuple[int, str], float],
+                        only: int | None = None) -> dict[str, Any]:
+    """A deep copy of the model file ``payload`` with parameter ``name`` of effect ``i`` set to
+    ``params[(i, name)]``; with ``only``, the copy holds that effect alone (index 0)."""
+    import copy
+
+    out = copy.deepcopy(dict(payload))
+    if only is not None:
+        out["effects"] = [out["effects"][only]]
+    for (i, name), v in params.items():
+        out["effects"][0 if only is not None else i]["params"][name] = v
+    return out
+
+
+def combined_sweeps(fits: list[dict[str, Any]], comb: Mapping[str, Any], sweep_of_frame: np.ndarray) -> dict[str, Any]:
+    """The eccentricity step's dict for repeated CCD sweeps: sweep 0's fit (the figures and the CCD
+    section show it with every sweep's points), the sweeps' combination (eccentricity_from_sweeps),
+    cov(e, θ0) of the means (µm·deg), the RMS of the fits' residuals and the sweep of each frame."""
+    n = len(fits)
+    e_i, t_i = np.asarray(comb["e_sweeps_um"]), np.asarray(comb["theta0_sweeps_deg"])
+    dt = (t_i - comb["theta0_deg"] + 180.0) % 360.0 - 180.0
+    res = dict(fits[0])
+    res.update(comb)
+    res["cov_e_theta0"] = float(np.cov(e_i, dt, ddof=1)[0, 1] / n)   # µm·deg, of the means
+    res["residual_rms_um"] = float(np.sqrt(np.mean([f["residual_rms_um"] ** 2 for f in fits])))
+    res["sweep_of_frame"] = sweep_of_frame.tolist()
+    return res
