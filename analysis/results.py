@@ -33,7 +33,7 @@ from typing import Annotated, Any, Literal, NotRequired, TypedDict, Union
 
 import numpy as np
 
-__all__ = ["ResultsError", "validate_results", "read_results", "results_format_markdown", "BenchResults",
+__all__ = ["ResultsError", "validate_results", "read_results", "read_results_text", "parse_results", "results_format_markdown", "BenchResults",
            "ErrorCurveResults", "PolygonResults", "FORMAT", "VERSION", "MAX_RESULTS_BYTES"]
 
 FORMAT = "bench-results"
@@ -660,16 +660,34 @@ def validate_results(obj: Any, where: str = "results.json") -> dict[str, Any]:
     return obj
 
 
-def read_results(path: str | Path) -> dict[str, Any]:
-    """Read and check a results.json (strict JSON: no NaN/Infinity, bounded size and depth)."""
-    from benchtwin.schema import SchemaError, loads_json, read_input_text
+def read_results_text(path: str | Path) -> str:
+    """A results file's text, read as every input is (benchtwin.schema: a regular file, bounded
+    size, UTF-8); a ResultsError names the file."""
+    from benchtwin.schema import SchemaError, read_input_text
 
-    p = Path(path)
     try:
-        obj = loads_json(read_input_text(p, max_bytes=MAX_RESULTS_BYTES, what="results file"), str(p))
+        return read_input_text(Path(path), max_bytes=MAX_RESULTS_BYTES, what="results file")
     except SchemaError as exc:
         raise ResultsError(str(exc)) from None
-    return validate_results(obj, str(p))
+
+
+def parse_results(text: str, where: str = "results.json") -> dict[str, Any]:
+    """A results.json's text parsed (strict JSON: no NaN/Infinity, no key twice, bounded depth) and
+    checked by this format (:func:`validate_results`); a ResultsError names ``where`` and the key."""
+    from benchtwin.schema import SchemaError, loads_json
+
+    try:
+        obj = loads_json(text, where)
+    except SchemaError as exc:
+        raise ResultsError(str(exc)) from None
+    return validate_results(obj, where)
+
+
+def read_results(path: str | Path) -> dict[str, Any]:
+    """Read and check a results.json (strict JSON: no NaN/Infinity, bounded size and depth): the one
+    reader of the format (``Results.read`` gives it typed; score, certificate, compare and
+    calibrate-twin read results.json through it)."""
+    return parse_results(read_results_text(path), str(Path(path)))
 
 
 # ----------------------------------------------------------------------------------------------

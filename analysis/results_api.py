@@ -106,6 +106,21 @@ class Results(Mapping[str, Any]):
 
         return cls(read_results(path))
 
+    @classmethod
+    def checked(cls, obj: Any, where: str = "results.json") -> Results:
+        """A parsed results.json, checked by the format (``validate_results``: a ResultsError names
+        ``where`` and the key)."""
+        from benchtwin.analysis.results import validate_results
+
+        return cls(validate_results(obj, where))
+
+    @classmethod
+    def parse(cls, text: str, where: str = "results.json") -> Results:
+        """A results.json's text (already read as an input: ``read_results_text``), checked by the format."""
+        from benchtwin.analysis.results import parse_results
+
+        return cls(parse_results(text, where))
+
     def to_json(self) -> dict[str, Any]:
         """What results.json holds (plain lists, non-finite numbers as None)."""
         from benchtwin.jsonable import to_json

@@ -40,13 +40,15 @@ from __future__ import annotations
 import json
 import math
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from benchtwin.analysis.radial_motion import disk_weights
-from benchtwin.analysis.results import ResultsError, read_results
+from benchtwin.analysis.results import ResultsError
+from benchtwin.analysis.results_api import Results
 from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["CalibrationInputError", "calibrate_twin", "learn", "dump_toml"]
@@ -58,16 +60,16 @@ class CalibrationInputError(ValueError):
 
 # ----------------------------------------------------------------------------- inputs
 
-def _read_results(path: Path) -> dict[str, Any]:
-    """results.json read and checked by the format's reader (analysis.results.read_results): its
-    error names the file and the key (exit 2)."""
+def _read_results(path: Path) -> Results:
+    """results.json read and checked by the format's one reader (``Results.read``,
+    analysis.results.read_results): its error names the file and the key (exit 2)."""
     try:
-        return read_results(path)
+        return Results.read(path)
     except ResultsError as exc:
         raise CalibrationInputError(str(exc)) from None
 
 
-def _need(res: dict[str, Any], key: str, where: Path) -> Any:
+def _need(res: Mapping[str, Any], key: str, where: Path) -> Any:
     v = res.get(key)
     if v is None:
         raise CalibrationInputError(f"{where}: key {key!r} missing; calibrate-twin needs a bench dataset "
@@ -88,7 +90,7 @@ def locate(path: Path, results: Path | None = None) -> tuple[Path, Path | None]:
         for cand in (path / "results.json", path.parent / "results.json"):
             if cand.is_file():
                 try:
-                    ds = read_results(cand).get("dataset")
+                    ds = Results.read(cand).get("dataset")
                 except ResultsError:
                     continue  # not a results file of this dataset's: look further, or analyse it afresh
                 if ds and Path(ds).resolve() == path.resolve():
@@ -103,7 +105,7 @@ def locate(path: Path, results: Path | None = None) -> tuple[Path, Path | None]:
     raise CalibrationInputError(f"{path}: neither a dataset (manifest.json) nor a results folder (results.json)")
 
 
-def analysed(dataset: Path, results: Path | None, workdir: Path, progress: bool = False) -> dict[str, Any]:
+def analysed(dataset: Path, results: Path | None, workdir: Path, progress: bool = False) -> Results:
     """results.json of the dataset: the given one, or close-loop run into ``workdir``."""
     if results is not None:
         return _read_results(results)
@@ -267,7 +269,7 @@ def _eff_u(e: dict[str, Any], name: str) -> float:
     return float((e.get("u") or {}).get(name, float("nan")))
 
 
-def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order: int = 10) -> tuple[
+def learn(ds: Any, res: Mapping[str, Any], raw: dict[str, Any], where: Path, order: int = 10) -> tuple[
         dict[str, Any], dict[tuple[str, str], str], list[str]]:
     """The measured bench into the scenario ``raw`` (edited in place): returns (raw, comments
     {(section, key): text}, notes). ``res`` is the results.json of the dataset ``ds``."""
@@ -412,7 +414,7 @@ def learn(ds: Any, res: dict[str, Any], raw: dict[str, Any], where: Path, order:
     return raw, comments, notes
 
 
-def _division_error_for_twin(eff: dict[str, Any], res: dict[str, Any], e_um: float, theta0_deg: float, r_mm: float,
+def _division_error_for_twin(eff: dict[str, Any], res: Mapping[str, Any], e_um: float, theta0_deg: float, r_mm: float,
                              dx_params: np.ndarray | None, order: int, notes: list[str]) -> dict[str, Any]:
     """The disk's division harmonics as the calibrated twin needs them: the measured encoder curve
     (the corrected one, docs/effects.md) minus what the twin itself will produce from the fitted

@@ -53,6 +53,8 @@ from typing import Any
 from lxml import etree
 
 from benchtwin import __version__
+from benchtwin.analysis.results import ResultsError
+from benchtwin.analysis.results_api import Results
 from benchtwin.schema import Key, SchemaError, check_table, load_toml_file, loads_json, read_input_text
 
 DCC_NS = "https://ptb.de/dcc"
@@ -415,32 +417,21 @@ def load_lab(path: str | Path | None, today: str) -> LabFile:
 # ----------------------------------------------------------------------------- results.json
 
 
-def load_results(path: str | Path) -> dict[str, Any]:
-    """results.json by the one JSON reader (benchtwin.schema: a regular file, bounded size, strict
-    JSON) and checked by its format (analysis.results.validate_results: the type of every key)."""
-    from benchtwin.analysis.results import MAX_RESULTS_BYTES, ResultsError, validate_results
-
+def load_results(path: str | Path) -> Results:
+    """results.json by the format's one reader (``Results.read``, analysis.results.read_results: a
+    regular file, bounded size, strict JSON, the type of every key), then what a certificate needs:
+    the encoder error curve, and every number within its unit's range."""
     p = Path(path)
     if not p.exists() and not p.is_symlink():
         raise CertificateInputError(f"{p}: results file not found")
     try:
-        text = read_input_text(p, max_bytes=MAX_RESULTS_BYTES, what="results file")
-    except SchemaError as exc:
+        res = Results.read(p)
+    except ResultsError as exc:
         raise CertificateInputError(str(exc)) from None
-    try:
-        res = loads_json(text, str(p))
-    except SchemaError as exc:
-        raise CertificateInputError(f"{p}: not a JSON file ({str(exc).removeprefix(str(p) + ': ')})") from None
-    if not isinstance(res, dict) or res.get("format") != "bench-results":
-        raise CertificateInputError(f"{p}: key 'format' must be 'bench-results' (the results.json of `benchtwin analyze`)")
     if not isinstance(res.get("encoder_error_arcsec"), Mapping):
         raise CertificateInputError(
             f"{p}: key 'encoder_error_arcsec' is required: a certificate states the encoder error, which needs the "
             "polygon measurement (polygon.csv) in the dataset")
-    try:
-        validate_results(res, str(p))
-    except ResultsError as exc:
-        raise CertificateInputError(str(exc)) from None
     _check_ranges(res, str(p))
     return res
 
@@ -823,16 +814,51 @@ def effects_statement(res: Mapping[str, Any]) -> str:
 
 def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[str, Any] | None = None,
                       src: str = "results.json") -> etree._ElementTree:
-    """The DCC as an lxml tree (pure: no I/O). ``res``: results.json; ``manifest``: the dataset's."""
+    """The DCC as an lxml tree (pure: no I/O). ``res``: results.json; ``manifest``: the dataset's.
+    In the DCC's order: the administrative data (software, core data, item, laboratory and persons,
+    statements), then the measurement result (methods, software, equipment, influence conditions,
+    and one result per quantity)."""
     lang = lab.language
     man = manifest or {}
     root = etree.Element(f"{{{DCC_NS}}}digitalCalibrationCertificate", nsmap=NSMAP, schemaVersion=SCHEMA_VERSION)
     adm = _el(root, "administrativeData")
-    sw = _el(_el(adm, "dccSoftware"), "software")
+    _software(_el(adm, "dccSoftware"), lang)
+    _core_data(adm, lab, lang)
+    _items(adm, lab, lang)
+    _laboratory_and_persons(adm, lab, lang)
+    curve = encoder_curve(res, src)
+    _statements(adm, res, lab, man, curve["cal"])
+
+    # ----------------------------------------------------------------- measurement results
+    mr = _el(_el(root, "measurementResults"), "measurementResult")
+    _text(mr, "name", "Angle calibration of a rotary encoder", lang)
+    _used_methods(mr, res, lang)
+    _software(_el(mr, "usedSoftware"), lang)
+    # an imported table names no instrument and no environment: the lab file's (its bench's) are not
+    # claimed for it (said in a statement)
+    imported = res.get("kind") == "error-curve"
+    _measuring_equipment(mr, man, lab, imported)
+    _influence_conditions(mr, man, lab, imported)
+    results = _el(mr, "results")
+    _encoder_error_result(results, res, curve, lang)
+    _selfcal_result(results, res, src, lang)
+    _pitch_result(results, res, src, lang)
+    _eccentricity_result(results, res, src, lang)
+    _radial_motion_result(results, res, src, lang)
+    _iso230_2_result(results, res, src, lang)
+    _arc_periods_result(results, res, src, lang)
+    _effects_result(results, res, lang)
+    return etree.ElementTree(root)
+
+
+def _software(parent: etree._Element, lang: str) -> None:
+    sw = _el(parent, "software")
     _text(sw, "name", "benchtwin", lang)
     _el(sw, "release", __version__)
     _el(sw, "type", "application")
 
+
+def _core_data(adm: etree._Element, lab: LabFile, lang: str) -> None:
     core = _el(adm, "coreData")
     _el(core, "countryCodeISO3166_1", lab.country)
     _el(core, "usedLangCodeISO639_1", lang)
@@ -844,6 +870,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
     _el(core, "endPerformanceDate", lab.end_date)
     _el(core, "performanceLocation", lab.location)
 
+
+def _items(adm: etree._Element, lab: LabFile, lang: str) -> None:
     items = _el(adm, "items")
     item = _el(items, "item")
     _text(item, "name", lab.item["name"], lang)
@@ -864,6 +892,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
         _el(ident, "value", lab.item["customer_id"])
         _text(ident, "name", "customer's inventory number", lang)
 
+
+def _laboratory_and_persons(adm: etree._Element, lab: LabFile, lang: str) -> None:
     cl = _el(adm, "calibrationLaboratory")
     if lab.laboratory_code:
         _el(cl, "calibrationLaboratoryCode", lab.laboratory_code)
@@ -878,10 +908,14 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             _el(rp, "mainSigner", "true")
     _contact_xml(adm, "customer", lab.customer, lang)
 
+
+def _statements(adm: etree._Element, res: Mapping[str, Any], lab: LabFile, man: Mapping[str, Any],
+                cal: Any) -> None:
+    """Where the values come from (imported, simulated, measured), what is not stated, the
+    uncertainty's convention, the identified effects and the analysis's notes."""
+    lang = lab.language
     st = _el(adm, "statements")
     source = str(res.get("source", man.get("source", "unknown")))
-    curve = encoder_curve(res, src)
-    cal = curve["cal"]
     if res.get("kind") == "error-curve":
         imp = res.get("imported_from") or {}
         _statement(st, "The values are an imported measured error curve, not a measurement made with benchtwin: table "
@@ -910,9 +944,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
     for n in res.get("notes") or []:
         _statement(st, str(n), lang, "benchtwin_note")
 
-    # ----------------------------------------------------------------- measurement results
-    mr = _el(_el(root, "measurementResults"), "measurementResult")
-    _text(mr, "name", "Angle calibration of a rotary encoder", lang)
+
+def _used_methods(mr: etree._Element, res: Mapping[str, Any], lang: str) -> None:
     um = _el(mr, "usedMethods")
     for name, ref, desc, norm, reference in _methods_used(res):
         m = _el(um, "usedMethod", refType=ref)
@@ -922,14 +955,10 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             _el(m, "norm", norm)
         if reference:
             _el(m, "reference", reference)
-    usw = _el(_el(mr, "usedSoftware"), "software")
-    _text(usw, "name", "benchtwin", lang)
-    _el(usw, "release", __version__)
-    _el(usw, "type", "application")
 
-    imported = res.get("kind") == "error-curve"
-    # an imported table names no instrument and no environment: the lab file's (its bench's) are not
-    # claimed for it (said in a statement)
+
+def _measuring_equipment(mr: etree._Element, man: Mapping[str, Any], lab: LabFile, imported: bool) -> None:
+    lang = lab.language
     equipment = _equipment(man, lab) if not imported else []
     if equipment:
         me = _el(mr, "measuringEquipments")
@@ -951,6 +980,10 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
                 _el(i, "issuer", "manufacturer")
                 _el(i, "value", e["serial"])
 
+
+def _influence_conditions(mr: etree._Element, man: Mapping[str, Any], lab: LabFile, imported: bool) -> None:
+    """The environment of the manifest, else of the lab file (not for an imported table)."""
+    lang = lab.language
     env = dict(man.get("environment") or {}) if isinstance(man.get("environment"), Mapping) else {}
     env_src = "the dataset manifest"
     if not env and lab.environment and not imported:
@@ -970,7 +1003,11 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             q = _quantity(_el(c, "data"), base.replace("_", " "), lang)
             _real(q, base, float(env[k]), unit, K_DEFAULT * float(u) if u else None, K_DEFAULT, P_DEFAULT)
 
-    results = _el(mr, "results")
+
+def _encoder_error_result(results: etree._Element, res: Mapping[str, Any], curve: Mapping[str, Any],
+                          lang: str) -> None:
+    """The encoder error at every calibrated angle, the reference angle and the corrections applied."""
+    cal = curve["cal"]
     corr = [c for c in (res.get(cal.key) or {}).get("corrections_applied") or [] if isinstance(c, Mapping)]
     corr_s = ("Corrections applied: " + "; ".join(
         f"{c.get('effect')} ({float(c['rms_arcsec']):.3f} arcsec RMS)" if isinstance(c.get("rms_arcsec"), (int, float))
@@ -991,6 +1028,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
     _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"], curve["k"], curve["p"],
                distribution=curve["distribution"])
 
+
+def _selfcal_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
     sc = res.get("selfcal_error_arcsec")
     if isinstance(sc, Mapping) and sc.get("value"):
         w = f"{src}: selfcal_error_arcsec"
@@ -1007,6 +1046,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
                    _series(w, sc, "value", len(th)), DSI_UNITS["arcsec"],
                    [K_DEFAULT * u for u in _series(w, sc, "u", len(th), positive=True)])
 
+
+def _pitch_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
     if res.get("polygon_pitch_deviation_arcsec"):
         beta = _series(src, res, "polygon_pitch_deviation_arcsec")
         u_beta = _series(src, res, "polygon_pitch_deviation_u_arcsec", len(beta), positive=True)
@@ -1020,6 +1061,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
         _real_list(_quantity(lst, "pitch deviation", lang, "benchtwin_pitchDeviationValue"), None, beta,
                    DSI_UNITS["arcsec"], [K_DEFAULT * u for u in u_beta])
 
+
+def _eccentricity_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
     if res.get("eccentricity_um") is not None:
         d = _result(results, "Installation eccentricity", lang, "benchtwin_eccentricity",
                     "Eccentricity of the grating relative to the axis from the CCD images of its edge (Jia eqs. 10-12). "
@@ -1032,6 +1075,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
         _real(q, "theta0", _number(src, res, "eccentricity_phase_deg"), DSI_UNITS["deg"],
               K_DEFAULT * _number(src, res, "eccentricity_phase_u_deg", positive=True), K_DEFAULT, P_DEFAULT)
 
+
+def _radial_motion_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
     rem = res.get("radial_error_motion")
     if isinstance(rem, Mapping) and rem.get("locations"):
         cond = _iso230_7_conditions(rem)
@@ -1059,9 +1104,8 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
             if isinstance(bw, Mapping) and isinstance(acq, Mapping):
                 _iso230_7_influence(lst, bw, acq, lang)
 
-    _iso230_2_result(results, res, src, lang)
-    _arc_periods_result(results, res, src, lang)
 
+def _effects_result(results: etree._Element, res: Mapping[str, Any], lang: str) -> None:
     eff = res.get("identified_effects") or []
     if eff:
         d = _result(results, "Identified effects", lang, "benchtwin_identifiedEffects", effects_statement(res))
@@ -1074,7 +1118,6 @@ def build_certificate(res: Mapping[str, Any], lab: LabFile, manifest: Mapping[st
                 q = _quantity(lst, base, lang)
                 _real(q, pk, float(pv), unit, K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None,
                       K_DEFAULT, P_DEFAULT)
-    return etree.ElementTree(root)
 
 
 def _iso230_7_influence(lst: etree._Element, bw: Mapping[str, Any], acq: Mapping[str, Any], lang: str) -> None:

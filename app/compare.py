@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from benchtwin.analysis.results import ResultsError, read_results
+from benchtwin.analysis.results import ResultsError
+from benchtwin.analysis.results_api import Results
 
 __all__ = ["CompareInputError", "compare", "compare_results", "format_comparison"]
 
@@ -33,7 +35,7 @@ class CompareInputError(ValueError):
     """An input compare cannot read (exit 2)."""
 
 
-def _results_of(path: Path, workdir: Path) -> dict[str, Any]:
+def _results_of(path: Path, workdir: Path) -> Results:
     path = Path(path)
     if (path / "results.json").is_file() and not (path / "manifest.json").is_file():
         f = path / "results.json"
@@ -46,7 +48,7 @@ def _results_of(path: Path, workdir: Path) -> dict[str, Any]:
     else:
         raise CompareInputError(f"{path}: neither a dataset (manifest.json) nor a results folder (results.json)")
     try:
-        return read_results(f)  # the format's reader: its error names the file and the key (exit 2)
+        return Results.read(f)  # the format's one reader: its error names the file and the key (exit 2)
     except ResultsError as exc:
         raise CompareInputError(str(exc)) from None
 
@@ -79,7 +81,7 @@ def _en(a: float | None, ua: float | None, b: float | None, ub: float | None, pe
             "E_n": abs(d) / u if u > 0 else float("inf")}
 
 
-def compare_results(ra: dict[str, Any], rb: dict[str, Any]) -> dict[str, Any]:
+def compare_results(ra: Mapping[str, Any], rb: Mapping[str, Any]) -> dict[str, Any]:
     """The comparison of two results.json (A the reference, usually the bench)."""
     out: dict[str, Any] = {}
     for key, label in (("encoder_error_arcsec", "alpha"), ("encoder_error_corrected_arcsec", "alpha_corrected")):

@@ -64,8 +64,9 @@ def read_results(path: str | Path) -> dict[str, Any]:
     (``benchtwin.schema``: a regular file, bounded size, UTF-8, strict JSON: no NaN, no number
     that overflows, no key twice); the project's results.json is checked by its format's reader
     (analysis.results). Exit-2 errors name file, row and key."""
-    from benchtwin.analysis.results import MAX_RESULTS_BYTES, ResultsError, validate_results
-    from benchtwin.schema import SchemaError, loads_json, read_input_text
+    from benchtwin.analysis.results import ResultsError, read_results_text
+    from benchtwin.analysis.results_api import Results
+    from benchtwin.schema import SchemaError, loads_json
 
     path = Path(path)
     if path.is_dir():
@@ -74,15 +75,15 @@ def read_results(path: str | Path) -> dict[str, Any]:
         raise InputError(f"{path}: no such results file (expected results.json, a minimal results .json "
                          f"or .csv; docs/scoring.md)")
     try:
-        text = read_input_text(path, max_bytes=MAX_RESULTS_BYTES, what="results file")
-    except SchemaError as exc:
+        text = read_results_text(path)
+    except ResultsError as exc:
         raise InputError(str(exc)) from None
     if path.suffix.lower() == ".csv" or (text.lstrip()[:1] not in ("{", "[") and "quantity" in text[:200]):
         return results_from_csv(text, str(path))
     try:
         raw = loads_json(text, str(path))
         if isinstance(raw, Mapping) and raw.get("format") == "bench-results":
-            validate_results(raw, str(path))
+            raw = Results.checked(raw, str(path))  # the project's results.json: the format's one reader
     except (SchemaError, ResultsError) as exc:
         raise InputError(str(exc)) from None
     return canonical_results(raw, str(path))
