@@ -53,7 +53,7 @@ from typing import Any
 from lxml import etree
 
 from benchtwin import __version__
-from benchtwin.analysis.results import ResultsError
+from benchtwin.analysis.results import ResultsError, read_results_text
 from benchtwin.analysis.results_api import Results
 from benchtwin.schema import Key, SchemaError, check_table, load_toml_file, loads_json, read_input_text
 
@@ -418,14 +418,22 @@ def load_lab(path: str | Path | None, today: str) -> LabFile:
 
 
 def load_results(path: str | Path) -> Results:
-    """results.json by the format's one reader (``Results.read``, analysis.results.read_results: a
-    regular file, bounded size, strict JSON, the type of every key), then what a certificate needs:
-    the encoder error curve, and every number within its unit's range."""
+    """results.json by the format's one reader (analysis.results: ``read_results_text``, a regular
+    file of bounded size; strict JSON; ``Results.checked``, the type of every key), then what a
+    certificate needs: the encoder error curve, and every number within its unit's range."""
     p = Path(path)
     if not p.exists() and not p.is_symlink():
         raise CertificateInputError(f"{p}: results file not found")
     try:
-        res = Results.read(p)
+        text = read_results_text(p)
+    except ResultsError as exc:
+        raise CertificateInputError(str(exc)) from None
+    try:
+        obj = loads_json(text, str(p))
+    except SchemaError as exc:
+        raise CertificateInputError(f"{p}: not a JSON file ({str(exc).removeprefix(str(p) + ': ')})") from None
+    try:
+        res = Results.checked(obj, str(p))
     except ResultsError as exc:
         raise CertificateInputError(str(exc)) from None
     if not isinstance(res.get("encoder_error_arcsec"), Mapping):
