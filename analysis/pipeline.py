@@ -64,8 +64,9 @@ def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
 
     t = RadialMotionTable.from_table(ds.table("radial_motion"))
     b = BenchGeometry.from_manifest(ds.bench)
+    L1_mm, L2_mm = b.sphere_distances_mm
     rm = radial_motion(
-        t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um, b.L1_mm, b.L2_mm,
+        t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um, L1_mm, L2_mm,
         probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um, order=order,
     )
     # with the ISO 230-7 values and polar plots (issue 20)
@@ -78,7 +79,8 @@ def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]
 
     t = RadialMotionTable.from_table(ds.table("radial_motion"))
     b = BenchGeometry.from_manifest(ds.bench)
-    return radial_error_motion(t.rep, t.theta_deg, t.probes(), b.L1_mm, b.L2_mm, rm=rm, order=order)
+    L1_mm, L2_mm = b.sphere_distances_mm
+    return radial_error_motion(t.rep, t.theta_deg, t.probes(), L1_mm, L2_mm, rm=rm, order=order)
 
 
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every
@@ -191,7 +193,7 @@ def _ccd_edges(ds: Dataset, geo: BenchGeometry, frames: _FrameCheck, progress: b
     from benchtwin.analysis import eccentricity as ecc
     from benchtwin.analysis.parallel import ordered_map
 
-    period_um = geo.grating_period_um
+    period_um = geo.grating_period
     meta: list[tuple[float, str]] = []  # (theta, file) per frame, in index order
 
     def sweep_frames() -> Iterator[tuple[np.ndarray, float, str]]:
@@ -382,10 +384,13 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
     try:
         # the budget's other type B inputs go by their results.json names, which are analyze_polygon's
         out = analyze_polygon(
-            dict(table) if table is not None else polygon_table(ds), b.polygon_faces, heads,
+            dict(table) if table is not None else polygon_table(ds), b.faces, heads,
             b.heads_deg if heads is not None else None, np.asarray(cert, dtype=float) if cert is not None else None,
+            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
             ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
-            **{name: bi["value"] for name, bi in inputs.items()},
+            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
+            ac_traceability_k=inputs["ac_traceability_k"]["value"],
+            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
         )
         declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
                                           source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")
@@ -406,7 +411,7 @@ def step_iso230_2_polygon(ds: Dataset, pol: PolygonAnalysis) -> dict[str, Any] |
     if direction is None or len(set(direction)) < 2:
         return None
     table = sa.tabulate_polygon(t.shift_deg, t.start_face, t.step, t.ac_arcsec,
-                                BenchGeometry.from_manifest(ds.bench).polygon_faces, theta_deg=t.theta_deg, rep=t.rep,
+                                BenchGeometry.from_manifest(ds.bench).faces, theta_deg=t.theta_deg, rep=t.rep,
                                 direction=direction)
     got = runs_from_polygon(table, np.asarray(pol.pitch_deviation_arcsec, dtype=float))
     if got is None:
@@ -939,7 +944,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     radial = None
     if a.rm is not None:
         t = RadialMotionTable.from_table(ds.table("radial_motion"))
-        radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, geo.L1_mm, geo.L2_mm,
+        radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, *geo.sphere_distances_mm,
                               top_x_um=t.probe_top_x_um, bottom_x_um=t.probe_bottom_x_um, rep=t.rep)
     notes = []
     sc_cal = pol.selfcal
@@ -953,7 +958,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in polygon_table(ds).items()}
     ev = evidence_from_polygon(
         poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), a.model,
-        n_faces=geo.polygon_faces, u_arcsec=float(u_read), radial=radial,
+        n_faces=geo.faces, u_arcsec=float(u_read), radial=radial,
         selfcal_theta_deg=sc_cal.theta_deg if sc_cal else None,
         selfcal_value_arcsec=sc_cal.value if sc_cal else None,
         selfcal_u_arcsec=np.asarray(sc_cal.u) if sc_cal else None,
@@ -965,7 +970,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     )
     ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(PolygonReadings.from_table(poly).ac_arcsec,
                                                                       dtype=float) ** 2,
-                                                cast(int, geo.polygon_faces))
+                                                geo.faces)
     ev.add_eccentricity_uncertainty(ecc.e_um, ecc.theta0_deg, ecc.u_e_um, ecc.u_theta0_deg)
     return ev, poly, u_eps, notes
 

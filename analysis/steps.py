@@ -376,6 +376,27 @@ class BenchGeometry:
         """The optical radius r in µm (Jia eq. 5)."""
         return self.optical_radius_mm * 1000.0
 
+    @property
+    def sphere_distances_mm(self) -> tuple[float, float]:
+        """(L1, L2): the test spheres' distances the radial motion needs (Jia eqs. 6–8)."""
+        if self.L1_mm is None or self.L2_mm is None:
+            raise ValueError("the manifest's bench block needs L1_mm and L2_mm for the radial motion (Jia eqs. 6-8)")
+        return self.L1_mm, self.L2_mm
+
+    @property
+    def grating_period(self) -> float:
+        """The grating's period in µm, the CCD images' scale (Jia eq. 13)."""
+        if self.grating_period_um is None:
+            raise ValueError("the manifest's bench block needs grating_period_um for the CCD images (Jia eq. 13)")
+        return self.grating_period_um
+
+    @property
+    def faces(self) -> int:
+        """The polygon's number of faces N (Hsieh eqs. 1–7)."""
+        if self.polygon_faces is None:
+            raise ValueError("the manifest's bench block needs polygon_faces for polygon.csv (Hsieh eqs. 1-7)")
+        return self.polygon_faces
+
 
 @dataclass(frozen=True, eq=False)
 class RadialMotionTable:
@@ -466,8 +487,13 @@ class ModelComparison:
         if u_arcsec is not None:
             out["u_rms_arcsec"] = u_arcsec
         if stats is not None:
-            out.update(n_params=stats.n_params, dof=stats.dof, chi2=stats.chi2, p_value=stats.p_value,
-                       loo_rms_arcsec=stats.loo_rms_arcsec, chi2_u=CHI2_YARDSTICK)
+            out["n_params"] = stats.n_params
+            out["dof"] = stats.dof
+            out["chi2"] = stats.chi2
+            # None (null in results.json) where the fit leaves no dof / no leave-one-out fit (ResidualSummary)
+            out["p_value"] = cast(float, stats.p_value)
+            out["loo_rms_arcsec"] = cast(float, stats.loo_rms_arcsec)
+            out["chi2_u"] = CHI2_YARDSTICK
             advice = sampling_advice(out["n_points"], out["n_params"])
             if advice is not None:
                 out["sampling_note"] = advice
@@ -482,8 +508,7 @@ class ModelComparison:
         if with_measured:
             return Comparison(theta_deg=self.theta_deg, measured_arcsec=self.measured_arcsec,
                               model_arcsec=self.model_arcsec, residual_arcsec=self.residual_arcsec)
-        return Comparison(theta_deg=self.theta_deg, model_arcsec=self.model_arcsec,  # type: ignore[typeddict-item]
-                          residual_arcsec=self.residual_arcsec)
+        return Comparison(theta_deg=self.theta_deg, model_arcsec=self.model_arcsec, residual_arcsec=self.residual_arcsec)
 
 
 @dataclass(frozen=True, eq=False)
