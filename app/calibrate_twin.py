@@ -37,7 +37,6 @@ file's header and in docs/calibrate-twin.md; those values stay the base scenario
 
 from __future__ import annotations
 
-import json
 import math
 import tempfile
 from pathlib import Path
@@ -47,6 +46,7 @@ import numpy as np
 
 from benchtwin.analysis.radial_motion import disk_weights
 from benchtwin.analysis.results import ResultsError, read_results
+from benchtwin.schema import dumps_toml as dump_toml  # the one TOML writer
 from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["CalibrationInputError", "calibrate_twin", "learn", "dump_toml"]
@@ -586,49 +586,6 @@ _EFFECTS = {"graduation_error": _graduation, "ac_scale": _ac_scale, "ac_drift": 
             "torsion_hysteresis": _torsion, "optical_radius": _optical_radius, "tilt_abbe": _tilt_abbe,
             "ccd_pixel_scale": _ccd_scale, "interpolation_error": _interpolation,
             "sphere_form": _sphere_form}
-
-
-# ----------------------------------------------------------------------------- TOML out
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def dump_toml(raw: dict[str, Any], comments: dict[tuple[str, str], str], header: list[str]) -> str:
-    """The scenario as TOML, a comment beside each value that has one (fitted values: u and data)."""
-    lines = [f"# {h}" if h else "#" for h in header] + [""]
-
-    def section(name: str, table: dict[str, Any]) -> None:
-        plain = {k: v for k, v in table.items() if not isinstance(v, dict)}
-        subs = {k: v for k, v in table.items() if isinstance(v, dict)}
-        if plain or not subs:
-            lines.append(f"[{name}]")
-            for k, v in plain.items():
-                text = f"{k} = {_toml_value(v)}"
-                c = comments.get((name, k))
-                lines.append(f"{text}  # {c}" if c else text)
-            lines.append("")
-        for k, v in subs.items():
-            section(f"{name}.{k}", v)
-
-    for name, table in raw.items():
-        if isinstance(table, dict):
-            section(name, table)
-        else:
-            lines.insert(len(header) + 1, f"{name} = {_toml_value(table)}")
-    return "\n".join(lines)
 
 
 # ----------------------------------------------------------------------------- the command
