@@ -91,27 +91,10 @@ from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import Hidden, TrueScenario
 from .pose import BenchPose, BodyPose
+from .streams import stream_rng as _rng  # the one stream table (seeded: one stream per quantity)
 from .thermal import Thermal
 
 TWO_PI = 2.0 * math.pi
-
-# Seeded random streams: one independent stream per generated quantity, so adding a quantity
-# never changes the others for a given scenario seed.
-_STREAM = {
-    "polygon_pitch": 1,
-    "polygon_eccentricity_phase": 2,
-    "unbalance_phase": 3,
-    "cage_lobes": 4,
-    "sphere_form": 5,
-    "rep_cage_phase": 6,
-    "rep_async": 7,
-    "ball_set": 8,
-    "cage_slip": 9,
-    "cage_start": 10,
-    "thermal_phase": 11,
-    "thermal_axis_azimuth": 12,
-    "thermal_cycle_phase": 13,
-}
 
 # Joints of the model in the order of the solve vector q (names in models/bench.xml).
 JOINTS = ("radial_x", "radial_y", "tilt_x", "tilt_y", "spin", "shaft_twist")
@@ -133,10 +116,6 @@ ASYNC_COMPONENTS = 24                # random components per bearing, axis, rep
 ASYNC_FREQ_RANGE = (0.5, 30.0)       # cycles per revolution, non-integer (drawn uniformly)
 SPHERE_FORM_ORDERS = tuple(range(2, 16))
 AXIS_AVERAGE_POINTS = 64             # poses per revolution for the axis-average-line centring
-
-
-def _rng(seed: int, stream: str, *more: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAM[stream], *more]))
 
 
 def _opt(sc, section: str, key: str, default):

@@ -40,6 +40,10 @@ from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
 from benchtwin.hw.interfaces import MOVE_NOT_HELD, SoftLimitError, StageMove, StagePosition
 from benchtwin.twin.pose import BenchPose, BodyPose
+from benchtwin.twin.streams import INSTRUMENT_STREAMS as SIM_STREAMS  # noqa: F401 - simulate.py reads it here
+from benchtwin.twin.streams import rng_from_key as sim_rng_from_key
+from benchtwin.twin.streams import stream_key as sim_rng_key
+from benchtwin.twin.streams import stream_rng as sim_rng
 from benchtwin.units import ARCSEC
 
 if TYPE_CHECKING:
@@ -48,36 +52,6 @@ if TYPE_CHECKING:
 TWO_PI = 2.0 * math.pi
 #: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
 SIM_OFFSET_CACHE_SIZE = 8192
-
-# Random streams of the instruments (ids far from the physics' 1…7; each quantity its own stream).
-SIM_STREAMS = {
-    "probe_noise": 101,
-    "probe_linearity": 102,
-    "encoder_noise": 103,
-    "encoder_graduation": 104,
-    "encoder_interpolation": 105,
-    "ac_noise": 106,
-    "ac_accuracy": 107,
-    "polygon_setup": 108,
-    "ccd": 109,
-    "servo": 110,
-}
-
-
-def sim_rng(seed: int, stream: str, *keys: int) -> np.random.Generator:
-    """An independent generator for (seed, stream, keys…)."""
-    return sim_rng_from_key(sim_rng_key(seed, stream, *keys))
-
-
-def sim_rng_key(seed: int, stream: str, *keys: int) -> tuple[int, ...]:
-    """The entropy of ``sim_rng(seed, stream, keys…)``: a plain tuple, for a draw made elsewhere
-    (twin/instruments/settle_ahead.py: the servo's noise of a settle computed in a worker)."""
-    return (int(seed), SIM_STREAMS[stream], *map(int, keys))
-
-
-def sim_rng_from_key(key: tuple[int, ...]) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence(list(key)))
-
 
 def sim_rz(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
