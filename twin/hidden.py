@@ -148,6 +148,13 @@ def _lobes(lobes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.array([float(l["phase"]) for l in lobes]))
 
 
+def hidden_for(sc: Any, hidden: "Hidden | None" = None) -> "Hidden":
+    """The one place a ``Hidden`` is built: ``hidden`` when given (the bench's, built once per
+    bench: ``Bench.hidden``, which every instrument of ``simulate.sim_build`` shares), else the
+    scenario's (``Hidden.from_scenario``: an instrument made without its bench's)."""
+    return Hidden.from_scenario(sc) if hidden is None else hidden
+
+
 class Hidden:
     """The hidden effects of one scenario, as the twin's modules consult them. Every accessor
     returns the neutral value (0, 1, empty) for an effect that is not listed."""
@@ -433,4 +440,4 @@ class TrueScenario:
         return getattr(self._sc, name)
 
 
-__all__ = ["Hidden", "hidden_of", "TrueScenario", "HIDDEN_STREAMS", "AC_DATASHEET", "heydemann_phase_error_rad"]
+__all__ = ["Hidden", "hidden_for", "hidden_of", "TrueScenario", "HIDDEN_STREAMS", "AC_DATASHEET", "heydemann_phase_error_rad"]

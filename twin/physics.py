@@ -89,7 +89,7 @@ from benchtwin.units import ARCSEC
 from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
-from .hidden import Hidden, TrueScenario
+from .hidden import TrueScenario, hidden_for
 from .pose import BenchPose, BodyPose
 from .streams import stream_rng as _rng  # the one stream table (seeded: one stream per quantity)
 from .thermal import Thermal
@@ -201,7 +201,7 @@ class Bench:
                              "two bearings at one place cannot hold the shaft's tilt")
         self.n_faces = int(b["polygon_faces"])
         # [hidden] effects (twin/hidden.py): true values the dataset does not declare.
-        self.hidden = Hidden.from_scenario(sc)
+        self.hidden = hidden_for(sc)
         self.friction_torque_Nm = float(br["friction_torque"]) + self.hidden.extra_friction_torque_Nm
         self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))
         self.async_cage_fraction = float(_opt(sc, "bearings", "async_cage_fraction", 0.5))

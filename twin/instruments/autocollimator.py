@@ -77,12 +77,12 @@ class SimAutocollimator:
                           hidden: Any = None) -> "SimAutocollimator":
         """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
         from the scenario."""
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
 
         a = sc["instruments"]["autocollimator"]
         obj = cls(name, state, resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
                   noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        hidden = hidden_for(sc, hidden)
         obj.hidden = hidden if ("ac_scale" in hidden.effects or "ac_drift" in hidden.effects) else None
         obj.optics = hidden.ac_optics()
         return obj

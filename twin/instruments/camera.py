@@ -60,13 +60,13 @@ class SimCamera:
         from the scenario."""
         import dataclasses
 
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
         from benchtwin.twin.render import GratingSpec, SensorParams
 
         b = sc["bench"]
         sensor = SensorParams.from_section(sc["instruments"]["ccd"])
         grating = GratingSpec.from_bench(b)
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        hidden = hidden_for(sc, hidden)
         if "ccd_pixel_scale" in hidden.effects:
             # true pixel ≠ nominal (camera.pixel_pitch_m stays the nominal: the manifest's value);
             # true grating period at the edge ≠ datasheet, same line count (larger ruling radius)

@@ -112,10 +112,10 @@ class SimEncoder:
                           hidden: Any = None) -> "SimEncoder":
         """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
         from the scenario."""
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
 
         b, enc = sc["bench"], sc["instruments"]["encoder"]
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        hidden = hidden_for(sc, hidden)
         # hidden.optical_radius: the heads sit at the TRUE radius (the manifest keeps the nominal)
         obj = cls(name, state, heads_rad=[float(h) for h in b["heads"]],
                   radius_m=float(b["optical_radius"]) * hidden.optical_radius_factor,
