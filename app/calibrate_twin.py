@@ -425,7 +425,7 @@ def _division_error_for_twin(eff: dict[str, Any], res: dict[str, Any], e_um: flo
     orders = sorted({int(k[1:].split("_")[0]) for k in eff["params"] if k.startswith(("a", "b")) and k.endswith("_arcsec")})
     if not isinstance(c, dict) or not orders:
         return eff
-    from benchtwin.analysis.fourier import design_matrix
+    from benchtwin.analysis.fourier import design_matrix, harmonic_columns
 
     th = np.asarray(c["theta_deg"], dtype=float)
     y = np.asarray(c["value"], dtype=float)
@@ -434,7 +434,7 @@ def _division_error_for_twin(eff: dict[str, Any], res: dict[str, Any], e_um: flo
     y = y - np.degrees(np.arcsin(e_um / r_um * np.sin(np.radians(th - theta0_deg)))) * 3600.0
     if dx_params is not None:
         y = y + (design_matrix(th, order) @ dx_params) / r_um * ARCSEC_PER_RAD
-    cols = [np.ones_like(th)] + [f(k * np.radians(th)) for k in orders for f in (np.sin, np.cos)]
+    cols = [np.ones_like(th), harmonic_columns(th, orders)[0]]   # [1, sin kθ, cos kθ, …] (fourier.py)
     X = np.column_stack(cols) / u[:, None]
     if X.shape[0] <= X.shape[1]:
         return eff
