@@ -111,13 +111,20 @@ def resolve_inside(root: str | Path, rel: str, where: str) -> Path:
     root_r = Path(root).resolve()
     p = check_relative_name(rel, where)
     full = root_r / p
-    try:
-        real = full.resolve()
-    except (OSError, RuntimeError):
-        raise SchemaError(f"{where}: file {rel!r}: cannot be resolved (symlink loop?)") from None
-    if real != root_r and root_r not in real.parents:
-        raise SchemaError(f"{where}: file {rel!r} leaves the dataset (a symlink pointing outside it)")
+    _check_inside(root_r, full, f"{where}: file {rel!r}: cannot be resolved (symlink loop?)",
+                  f"{where}: file {rel!r} leaves the dataset (a symlink pointing outside it)")
     return full
+
+
+def _check_inside(root_r: Path, path: Path, unresolved: str, outside: str) -> None:
+    """``path``, symlinks followed, is ``root_r`` (resolved) or lies inside it; else SchemaError
+    with the message ``unresolved`` (a symlink loop) or ``outside``."""
+    try:
+        real = path.resolve()
+    except (OSError, RuntimeError):
+        raise SchemaError(unresolved) from None
+    if real != root_r and root_r not in real.parents:
+        raise SchemaError(outside)
 
 
 def read_input_text(path: str | Path, *, max_bytes: int = MAX_INPUT_BYTES, what: str = "file",
@@ -126,13 +133,8 @@ def read_input_text(path: str | Path, *, max_bytes: int = MAX_INPUT_BYTES, what:
     (symlinks resolved) must lie inside it. Errors name the file and never echo its content."""
     p = Path(path)
     if root is not None:
-        root_r = Path(root).resolve()
-        try:
-            real = p.resolve()
-        except (OSError, RuntimeError):
-            raise SchemaError(f"{p}: cannot be resolved (symlink loop?)") from None
-        if real != root_r and root_r not in real.parents:
-            raise SchemaError(f"{p}: a symlink that leaves the dataset; expected a regular file inside it")
+        _check_inside(Path(root).resolve(), p, f"{p}: cannot be resolved (symlink loop?)",
+                      f"{p}: a symlink that leaves the dataset; expected a regular file inside it")
     try:
         st = os.stat(p)
     except FileNotFoundError:
