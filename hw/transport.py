@@ -232,18 +232,26 @@ class SocketTransport(_BufferedReads):
             raise TransportClosed(f"{self.name}: {exc}") from exc
         if not r:
             return False
+        self._buf += self._recv()
+        return True
+
+    def _recv(self) -> bytes:
+        """What has arrived (b"": nothing after all). Raises ``TransportClosed`` when the connection
+        is lost or the instrument closed it."""
         try:
             chunk = self.sock.recv(4096)
         except BlockingIOError:
-            return True
+            return b""
         except OSError as exc:
-            self.is_open = False
-            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+            raise self._lost(exc) from exc
         if not chunk:
             self.is_open = False
             raise TransportClosed(f"{self.name}: the instrument closed the connection")
-        self._buf += chunk
-        return True
+        return chunk
+
+    def _lost(self, exc: OSError) -> TransportClosed:
+        self.is_open = False
+        return TransportClosed(f"{self.name}: connection lost: {exc}")
 
     def _deadline(self) -> float | None:
         return None if self.timeout is None else time.monotonic() + float(self.timeout)
@@ -254,8 +262,7 @@ class SocketTransport(_BufferedReads):
             self.sock.setblocking(True)
             self.sock.sendall(bytes(data))
         except OSError as exc:
-            self.is_open = False
-            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+            raise self._lost(exc) from exc
         finally:
             if self.is_open:
                 self.sock.setblocking(False)
@@ -264,20 +271,13 @@ class SocketTransport(_BufferedReads):
     def reset_input_buffer(self) -> None:
         self._check()
         self._buf = b""
-        while True:
+        while True:   # drain what has arrived
             try:
                 r, _, _ = select.select([self.sock], [], [], 0)
-                if not r:
-                    return
-                chunk = self.sock.recv(4096)
-            except BlockingIOError:
-                return
             except OSError as exc:
-                self.is_open = False
-                raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
-            if not chunk:
-                self.is_open = False
-                raise TransportClosed(f"{self.name}: the instrument closed the connection")
+                raise self._lost(exc) from exc
+            if not r or not self._recv():
+                return
 
     def close(self) -> None:
         if self.is_open:
