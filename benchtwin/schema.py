@@ -39,7 +39,7 @@ from typing import Any
 
 __all__ = ["SchemaError", "csv_rows", "MAX_DEPTH", "MAX_NUMBER_CHARS", "MAX_CELL_CHARS", "MAX_INPUT_BYTES",
            "parse_float", "parse_int", "is_number", "read_input_text", "resolve_inside", "check_relative_name", "loads_json",
-           "loads_toml", "load_toml_file", "Key", "check_table", "check_version", "nesting_depth", "toml_value",
+           "loads_toml", "load_toml_file", "Key", "check_table", "check_version", "nesting_depth", "leaves", "toml_value",
            "dumps_toml"]
 
 MAX_DEPTH = 32            # nesting of JSON/TOML inputs: the deepest real file (a study) has 4
@@ -298,8 +298,10 @@ def _depth(x: Any) -> int:
     return best
 
 
-def _check_toml_values(x: Any, where: str, path: str) -> None:
-    """TOML accepts nan, inf and arbitrarily large integers; no input of the project means them."""
+def leaves(x: Any, path: str = "") -> Iterator[tuple[Any, str]]:
+    """The values of nested tables and lists that are neither, each with its key path
+    (``a.b[2].c``), iteratively (no recursion limit): what a check of every value of a parsed
+    input walks."""
     stack = [(x, path)]
     while stack:
         v, p = stack.pop()
@@ -307,7 +309,14 @@ def _check_toml_values(x: Any, where: str, path: str) -> None:
             stack.extend((c, f"{p}.{k}" if p else str(k)) for k, c in v.items())
         elif isinstance(v, list):
             stack.extend((c, f"{p}[{i}]") for i, c in enumerate(v))
-        elif isinstance(v, float) and not math.isfinite(v):
+        else:
+            yield v, p
+
+
+def _check_toml_values(x: Any, where: str, path: str) -> None:
+    """TOML accepts nan, inf and arbitrarily large integers; no input of the project means them."""
+    for v, p in leaves(x, path):
+        if isinstance(v, float) and not math.isfinite(v):
             raise SchemaError(f"{where}: key {p}: expected a finite number, got {v}")
         elif isinstance(v, int) and not isinstance(v, bool) and not -INT64_MAX - 1 <= v <= INT64_MAX:
             raise SchemaError(f"{where}: key {p}: integer out of the 64-bit range")
