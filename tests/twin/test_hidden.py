@@ -189,7 +189,7 @@ def test_tilt_abbe_moves_the_spheres_not_the_disk():
     # along the shaft, which shifts the balls' load zone: 0.014″ at the disk (0 on a path bearing)
     assert peak(d["alpha"]) < 0.02
     assert peak(d["probe_top"]) > 0.02                 # the top sphere sits 10 mm further from the disk
-    assert peak(d["ac"]) < 0.011
+    assert peak(d["ac"]) < 0.021                    # the same 0.014″, read at 0.005″ resolution
 
 
 def test_ac_drift_grows_with_time_in_the_autocollimator_only():
