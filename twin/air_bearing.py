@@ -91,6 +91,8 @@ P_AMBIENT_PA = 101_325.0
 DISCHARGE_COEFFICIENT = 0.8
 #: form orders generated for the journal (as twin/bearing.py: the sector sums select, not we)
 MAX_FORM_ORDER = 40
+#: a transferred form term below this (m) is the sector sums' rounding, not evaluated per pose
+FORM_TERM_FLOOR_M = 1e-18
 #: the random supply-pressure part: components and their period band (s)
 SUPPLY_NOISE_COMPONENTS = 24
 SUPPLY_NOISE_PERIODS_S = (5.0, 600.0)
@@ -428,8 +430,13 @@ class AirBearings:
             p = np.concatenate([[p1], p])
             P, Q = self.journal.form_transfer(k)
             for axis in (0, 1):
-                out.append((k, p, 2 * i + axis, a * P[:, axis], False))
-                out.append((k, p, 2 * i + axis, a * Q[:, axis], True))
+                for M, use_sin in ((P, False), (Q, True)):
+                    amp = a * M[:, axis]
+                    # the sector sums leave the orders k ≢ ±1 (mod N) at rounding (~1e-24 m): not
+                    # evaluated at every pose (the sums decided, this only skips their zeros)
+                    keep = np.abs(amp) > FORM_TERM_FLOOR_M
+                    if keep.any():
+                        out.append((k[keep], p[keep], 2 * i + axis, amp[keep], use_sin))
         return out
 
     def offsets_m(self, theta_rad: float) -> np.ndarray:
