@@ -173,3 +173,13 @@ def test_air_bench_moves_in_time_under_a_radial_load():
         b0.pose_at(0.5, t_s=t)
         q.append(b0.data.qpos[:2].copy())
     assert np.allclose(q[0], q[1], rtol=0, atol=1e-14) and p[0] == pytest.approx(p[1], abs=1e-14)
+
+
+def test_bad_air_geometry_names_the_key():
+    from twin.scenario import ScenarioError, load_scenario
+
+    sc = load_scenario("scenarios/hsieh2022.toml")
+    with pytest.raises(ScenarioError, match="bearings.thrust_"):
+        sc.with_overrides({"bearings.thrust_feed_radius": "70 mm"})
+    with pytest.raises(ScenarioError, match="bearings.air_clearance"):
+        sc.with_overrides({"bearings.air_clearance": "90 um", "bearings.air_journal_diameter": "5 mm"})
