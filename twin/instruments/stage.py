@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -164,16 +165,29 @@ class SimBenchState:
         return self.pose
 
 
+@dataclass(frozen=True)
+class StageSpec:
+    """The twin stage's motion and stop: speed (deg/s), acceleration (deg/s²), settle time (s),
+    the tolerance of a stop on head 1's reading (arcsec), the search's iterations at most, and the
+    soft limits (deg; None: none)."""
+
+    speed_deg_s: float = 20.0
+    accel_deg_s2: float = 40.0
+    settle_s: float = 0.0
+    tol_arcsec: float = 1e-6
+    max_iter: int = 20
+    soft_limits_deg: tuple[float, float] | None = None
+
+
 class SimRotaryStage:
     """``RotaryStage`` of the twin: stops where head 1 of ``encoder`` reads the target."""
 
     kind = "stage"
 
-    def __init__(self, name: str, state: SimBenchState, encoder: Any, speed_deg_s: float = 20.0,
-                 accel_deg_s2: float = 40.0, settle_s: float = 0.0, tol_arcsec: float = 1e-6,
-                 max_iter: int = 20, soft_limits_deg: tuple[float, float] | None = None,
+    def __init__(self, name: str, state: SimBenchState, encoder: Any, spec: StageSpec = StageSpec(),
                  servo: Any = None, secant: bool = False):
         self.name = name
+        self.spec = spec
         # The search for the command at which head 1 reads the target: the fixed point (the
         # command corrected by the reading's error, slope 1) or, with ``secant``, the secant of the
         # last two poses (the slope 1 − ε of reading vs command, ε the torsional lag's and α's
@@ -190,11 +204,12 @@ class SimRotaryStage:
         self.sim_ahead: Any = None
         self.state = state
         self.encoder = encoder
-        self.speed_deg_s = float(speed_deg_s)
-        self.accel_deg_s2 = float(accel_deg_s2)
-        self.settle_s = float(settle_s)
-        self.tol_rad = float(tol_arcsec) * ARCSEC
-        self.max_iter = int(max_iter)
+        self.speed_deg_s = float(spec.speed_deg_s)
+        self.accel_deg_s2 = float(spec.accel_deg_s2)
+        self.settle_s = float(spec.settle_s)
+        self.tol_rad = float(spec.tol_arcsec) * ARCSEC
+        self.max_iter = int(spec.max_iter)
+        soft_limits_deg = spec.soft_limits_deg
         if soft_limits_deg is not None and not float(soft_limits_deg[0]) < float(soft_limits_deg[1]):
             raise ValueError(f"{name}: soft_limits_deg must be (low, high) with low < high, got {soft_limits_deg}")
         self.soft_limits_deg = None if soft_limits_deg is None else (float(soft_limits_deg[0]),
