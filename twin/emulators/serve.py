@@ -45,7 +45,7 @@ from .pty import PtyServer
 from .tcp import TcpServer
 from .tesa import TesaEmulator
 from .triangle import TriAngleEmulator
-from .zaber import ZaberEmulator
+from .zaber import ZaberDeviceSpec, ZaberEmulator
 
 __all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
 
@@ -64,7 +64,7 @@ def build_emulators(sc: Any, backend: EmulatedBench, autocollimator: str = "elco
     pr_dec = decimals_for(float(ins["probe"]["resolution"]) * 1e6, 2, 4)
     emus: dict[str, Any] = {
         "encoder": HeidenhainEmulator("encoder", backend, "encoder", decimals=6),
-        "stage": ZaberEmulator("stage", backend, MICROSTEPS_PER_DEG),
+        "stage": ZaberEmulator("stage", backend, ZaberDeviceSpec(microsteps_per_deg=MICROSTEPS_PER_DEG)),
     }
     if autocollimator == "elcomat":
         emus["autocollimator"] = ElcomatEmulator("autocollimator", backend, "autocollimator", ac_dec)
