@@ -61,7 +61,7 @@ from benchtwin.forkcall import ForkCall
 from benchtwin.fsio import OutputError, locked_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
-from benchtwin.hw.acquisition.runner import Runner, SimClock
+from benchtwin.hw.acquisition.runner import Runner, RunnerSettings, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.drive import DriveServo
@@ -169,12 +169,12 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
     if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
         m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
         m["bench"]["autocollimator_accuracy_arcsec"] = float(ac["accuracy"]) / ARCSEC
-    if (bench is not None and getattr(bench, "ball_sets", None)
-            and int(sc["procedure"].get("continuous_revolutions") or 0) > 0):
+    ball_sets = getattr(bench, "ball_sets", None) if bench is not None else None
+    if ball_sets and int(sc["procedure"].get("continuous_revolutions") or 0) > 0:
         # the bearings' nominal kinematic orders (catalogue geometry: Z, Dw, Dpw, contact angle;
         # Harris ch. 7), declared for the continuous run's spectrum (report: ISO 230-7 section)
         m["bench"]["bearing_kinematic_orders"] = {
-            f"{k} ({s_})": float(v) for s_, set_ in sorted(bench.ball_sets.items())
+            f"{k} ({s_})": float(v) for s_, set_ in sorted(ball_sets.items())
             for k, v in set_.kinematic_orders().items()}
     if bench is not None and bench.hidden.writes_certificate:
         # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
@@ -461,11 +461,13 @@ def _run_and_write(sc: Any, opts: _RunOptions, run: _BuiltRun) -> tuple[Path, Fo
     if opts.live is not None:
         opts.live.start(len(run.steps))
     job: ForkCall | None = None
-    runner_cls = Runner if pipe is None else _FrameGatedRunner
-    runner = runner_cls(run.inst, run.state.clock, journal=opts.out / JOURNAL, on_step=obs.on_step,
-                        on_row=obs.on_row, fsync=False)
-    if pipe is not None:
-        runner.frames = pipe
+    settings = RunnerSettings(on_step=obs.on_step, on_row=obs.on_row, fsync=False)
+    gated: _FrameGatedRunner | None = None
+    if pipe is None:
+        runner = Runner(run.inst, run.state.clock, opts.out / JOURNAL, settings)
+    else:
+        runner = gated = _FrameGatedRunner(run.inst, run.state.clock, opts.out / JOURNAL, settings)
+        gated.frames = pipe
     ok = False
     try:
         try:
@@ -476,8 +478,8 @@ def _run_and_write(sc: Any, opts: _RunOptions, run: _BuiltRun) -> tuple[Path, Fo
                 cam.close()
         _continuous(sc, writer, run)
         job = _truth_after_run(sc, writer, rows, run, obs.truth, opts.truth_dir)
-        if pipe is not None:
-            runner.drain()    # the last frames written, then the journal lines held behind them
+        if gated is not None:
+            gated.drain()     # the last frames written, then the journal lines held behind them
         ok = True
     finally:
         if pipe is not None:
@@ -610,10 +612,11 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
     pose, at its own time), O(1). (shaft angle, head 1's exact reading, axis δX/δY in the disk
     plane, disk centre x/y, top and bottom sphere centres x/y, twist[, AC exact x, y, face seen,
     polygon setup error]) — rad and m."""
-    p = st.pose
-    x0 = float(stage.last_exact[0] if stage.last_pose is p else enc.sim_exact_readings(p)[0])
+    p = st.posed()
+    last = stage.last_exact
+    x0 = float(last[0] if last is not None and stage.last_pose is p else enc.sim_exact_readings(p)[0])
     ax = p.extra["axis_disk_plane_m"]
-    out = (float(p.shaft_angle_rad), x0, float(ax[0]), float(ax[1]), float(p.disk.pos[0]), float(p.disk.pos[1]),
+    out: tuple = (float(p.shaft_angle_rad), x0, float(ax[0]), float(ax[1]), float(p.disk.pos[0]), float(p.disk.pos[1]),
            float(p.sphere_top.pos[0]), float(p.sphere_top.pos[1]), float(p.sphere_bottom.pos[0]),
            float(p.sphere_bottom.pos[1]), float(p.extra.get("twist_disk_to_polygon_rad", 0.0)))
     if ac is not None:

@@ -205,7 +205,7 @@ def _geometry_section(node: Any, where: str) -> dict[str, Any]:
     for k in _GEOMETRY_REQUIRED:
         if k not in g:
             raise BenchFileError(f"{where}: [geometry]: missing key '{k}' (expected "
-                                 f"{'an integer' if _GEOMETRY[k] is None else 'a quantity of dimension ' + _GEOMETRY[k]})")
+                                 f"{'an integer' if _GEOMETRY[k] is None else f'a quantity of dimension {_GEOMETRY[k]}'})")
     geo: dict[str, Any] = {
         "optical_radius_mm": _fmt(_q(g["optical_radius"], "length", where, "geometry.optical_radius") * 1e3),
         "L1_mm": _fmt(_q(g["L1"], "length", where, "geometry.L1") * 1e3),
@@ -472,7 +472,7 @@ def iter_procedure(cfg: BenchConfig) -> Iterator:
 
 # --------------------------------------------------------------------------- instruments
 
-def _driver_class(name: str) -> type:
+def _driver_class(name: str) -> Any:
     mod, cls = DRIVERS[name]
     return getattr(importlib.import_module(mod), cls)
 
@@ -527,7 +527,7 @@ def open_instruments(cfg: BenchConfig, *, sleep: Callable[[float], None] | None 
     return out, [p for p, _ in shared.values()]
 
 
-def _open_camera(cls: type, name: str, sec: Mapping[str, Any], where: str, clock: Any) -> Any:
+def _open_camera(cls: Any, name: str, sec: Mapping[str, Any], where: str, clock: Any) -> Any:
     """A camera driver (not serial): a watched folder polls with real sleeps (waiting for a file,
     not a device backoff, so ``driver_sleep_scale`` does not apply)."""
     kw: dict[str, Any] = dict(sec["options"])

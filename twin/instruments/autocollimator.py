@@ -128,7 +128,8 @@ class SimAutocollimator:
         pose = self.state.pose if pose is None else pose
         psi = self.azimuth_rad
         th = getattr(self.state.bench, "thermal", None)
-        if th is not None and getattr(th, "acs_m_K", 0.0):
+        acs_m_K = getattr(th, "acs_m_K", 0.0) if th is not None else 0.0
+        if th is not None and acs_m_K:
             psi = psi + th.autocollimator_stand_yaw_rad(pose.t_s)
         a = np.array([math.cos(psi), math.sin(psi), 0.0])
         n = self.sim_face_normals_lab(pose)

@@ -18,7 +18,7 @@ states the image's shape, dtype and backend, and ``image`` is None (the worker w
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -115,7 +115,7 @@ class SimCamera:
         unchanged)."""
         from benchtwin.twin.pose import BodyPose
 
-        p = self.state.pose if pose is None else pose
+        p = self.state.posed(pose)
         th = getattr(self.state.bench, "thermal", None)
         d = th.microscope_stand_drift_m(p.t_s) if th is not None else 0.0
         vr, vt = self.vibration_m()
@@ -149,9 +149,10 @@ class SimCamera:
             backend = self.pipeline.backend()
             self.last_truth = {**self.sim_frame_truth(), "backend": backend}
             c = self.camera
-            return {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
-                    "image_shape": [int(c.height_px), int(c.width_px)],
-                    "image_dtype": str(np.dtype(self.sensor.dtype))}
+            # (no image: the reading is a CameraFrame without its image, and with its shape and dtype)
+            return cast(CameraFrame, {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
+                                      "image_shape": [int(c.height_px), int(c.width_px)],
+                                      "image_dtype": str(np.dtype(self.sensor.dtype))})
         frame = self.renderer.render(self.disk_seen(st.pose), self.grating, self.camera, self.sensor,
                                      st.rng("ccd", self.key))
         tr = frame.truth

@@ -119,7 +119,7 @@ class SimEncoder:
             zip(self.interpolation["amplitude_rad"], self.interpolation["phase_rad"]), start=1) if a]
         # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
         self.hidden = None
-        self._head_points = None
+        self._head_points: tuple | None = None
         # (pose, exact readings) of the stage's last stop: read() there reuses them (the servo's
         # last evaluation of the same pose); set by SimRotaryStage.move_to.
         self.sim_last_exact: tuple | None = None
@@ -273,7 +273,7 @@ class SimEncoder:
     def sim_exact_readings(self, pose: BenchPose | None = None) -> np.ndarray:
         """Readings (rad) of every head from the exact geometry, graduation and interpolation
         errors included; no noise, no quantisation."""
-        pose = self.state.pose if pose is None else pose
+        pose = self.state.posed(pose)
         g = self.sim_graduation_value(self.sim_head_body_angles(pose), pose.t_s)
         phi = pose.shaft_angle_rad
         if self.hidden is not None:

@@ -105,6 +105,13 @@ class SimBenchState:
         if "polygon_start_face" in ctx:
             self.set_polygon_mounting(int(ctx["polygon_start_face"]), math.radians(float(ctx.get("shift_deg", 0.0))))
 
+    def posed(self, pose: BenchPose | None = None) -> BenchPose:
+        """``pose``, else the bench's current pose (RuntimeError before the bench is first posed)."""
+        p = self.pose if pose is None else pose
+        if p is None:
+            raise RuntimeError("the bench has not been posed yet")
+        return p
+
     def on_step(self, i: int, step: Any, context: dict, replay: bool) -> None:
         """Runner hook: key the noise streams by step index; apply the context of Marks."""
         self.step_index = int(i)
@@ -151,7 +158,7 @@ class SimBenchState:
     def polygon_pose(self, pose: BenchPose | None = None) -> BodyPose:
         """The polygon as clamped now: the physics' polygon frame turned by the mounting angle
         about its own axis."""
-        p = self.pose if pose is None else pose
+        p = self.posed(pose)
         return BodyPose(pos=p.polygon.pos, R=p.polygon.R @ sim_rz(self.polygon_mounting_rad))
 
     # ------------------------------------------------------------------ posing
@@ -304,10 +311,10 @@ class SimRotaryStage:
         # Warm start: the offset between command and reading found the last time this target was
         # approached in this rep and direction (the polygon runs come back to the same stops for
         # every start face: the first pose usually holds), else the previous stop's offset.
-        key = (target_deg, st.rep, st.direction)
-        offset = self._offsets.get(key)
+        warm = (target_deg, st.rep, st.direction)
+        offset = self._offsets.get(warm)
         if offset is not None:
-            self._offsets.move_to_end(key)
+            self._offsets.move_to_end(warm)
         else:
             offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
         cmd = target + offset
@@ -329,7 +336,7 @@ class SimRotaryStage:
         else:
             raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
         self.last_iterations = it
-        self._offsets[key] = cmd - target
+        self._offsets[warm] = cmd - target
         if len(self._offsets) > SIM_OFFSET_CACHE_SIZE:
             self._offsets.popitem(last=False)
         self.last_pose, self.last_exact = pose, x
