@@ -381,14 +381,14 @@ def test_polygon_readings_obey_hsieh_eq3_on_a_rigid_bench():
 # --------------------------------------------------------------------------- camera
 
 def test_camera_capture_shape_and_truth():
-    from benchtwin.twin.instruments.camera import SimCamera
+    from benchtwin.twin.instruments.camera import CcdOptics, SimCamera
     from benchtwin.twin.render import GratingSpec, SensorParams
 
     st = SimBenchState(seed=4, pose=eccentric_pose(0.2, 7.1e-6, math.radians(192.08)))
     sensor = SensorParams(width_px=256, height_px=192, dust_count=0, scratch_count=0)
     cam = sensor.camera(math.pi)
     grating = GratingSpec(period_m=20e-6, duty=0.5, line_length_m=1.2e-3, edge_radius_m=22.5e-3)
-    with SimCamera("ccd", st, grating, cam, sensor, backend="analytic") as c:
+    with SimCamera("ccd", st, CcdOptics(grating, cam, sensor), backend="analytic") as c:
         assert isinstance(c, INSTRUMENT_KINDS["camera"])
         r = c.capture()
         geo = c.sim_frame_truth()

@@ -18,6 +18,7 @@ states the image's shape, dtype and backend, and ``image`` is None (the worker w
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
@@ -30,18 +31,32 @@ from .stage import SimBenchState
 VIBRATION_SUBSTREAM = 1
 
 
+@dataclass(frozen=True)
+class CcdOptics:
+    """What the CCD microscope sees and how: the disk's grating (``render.GratingSpec``), the camera's
+    geometry (``render.Camera``: pose, pixels) and its sensor (``render.SensorParams``: noise, bit
+    depth)."""
+
+    grating: Any
+    camera: Any
+    sensor: Any
+
+
 class SimCamera:
-    """``Camera`` of the twin. Use as a context manager (or call ``close``) to release GL."""
+    """``Camera`` of the twin. Use as a context manager (or call ``close``) to release GL.
+    ``backend``: the renderer's ("auto", "pyrender", "analytic"), or ``renderer`` itself; ``key``:
+    its noise stream's."""
 
     kind = "camera"
 
-    def __init__(self, name: str, state: SimBenchState, grating: Any, camera: Any, sensor: Any,
-                 backend: str = "auto", renderer: Any = None, key: int = 0):
+    def __init__(self, name: str, state: SimBenchState, optics: CcdOptics, backend: str = "auto",
+                 renderer: Any = None, key: int = 0):
         from benchtwin.twin.render import Renderer
 
         self.name = name
         self.state = state
-        self.grating, self.camera, self.sensor = grating, camera, sensor
+        self.optics = optics
+        self.grating, self.camera, self.sensor = optics.grating, optics.camera, optics.sensor
         self.backend = backend
         self._own = renderer is None
         self.renderer = Renderer(backend) if renderer is None else renderer
@@ -75,7 +90,7 @@ class SimCamera:
             grating = dataclasses.replace(grating, period_m=grating.period_m * s,
                                           edge_radius_m=grating.edge_radius_m * s)
         camera = sensor.camera(float(b["ccd_position"]), tangential=tangential)
-        cam = cls(name, state, grating, camera, sensor, backend=backend)
+        cam = cls(name, state, CcdOptics(grating, camera, sensor), backend=backend)
         from benchtwin.twin.vibration import StandVibration
 
         cam.vibration = StandVibration.from_section(sc.get("vibration") if hasattr(sc, "get") else None)
