@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +48,7 @@ from .tesa import TesaEmulator
 from .triangle import TriAngleEmulator
 from .zaber import ZaberDeviceSpec, ZaberEmulator
 
-__all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
+__all__ = ["EmulationSession", "SessionOptions", "build_emulators", "bench_file_text"]
 
 MICROSTEPS_PER_DEG = 1000.0
 
@@ -170,11 +171,32 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     return "\n".join(lines)
 
 
+@dataclass(frozen=True)
+class SessionOptions:
+    """An emulation session's instruments and ports: the autocollimator's protocol ("elcomat" or
+    "triangle"), the probes' ("millimar" or "tesa"), the emulators' read timeout (s), the CCD
+    camera's renderer (None: no camera), and TCP sockets instead of pseudo-terminals (from
+    ``tcp_base_port``; 0: any free port)."""
+
+    autocollimator: str = "elcomat"
+    probes: str = "millimar"
+    timeout_s: float = 0.25
+    camera: str | None = None
+    tcp: bool = False
+    tcp_base_port: int = 0
+
+
 class EmulationSession:
     """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
 
-    def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
-                 timeout_s: float = 0.25, camera: str | None = None, tcp: bool = False, tcp_base_port: int = 0):
+    def __init__(self, sc: Any, faults: Any = None, options: SessionOptions | None = None, **kw: Any):
+        """``faults``: the fault plan; ``options`` (a ``SessionOptions``), or its fields as keywords."""
+        if options is not None and kw:
+            raise TypeError("EmulationSession: give options or its fields as keywords, not both")
+        options = options if options is not None else SessionOptions(**kw)
+        autocollimator, probes, camera = options.autocollimator, options.probes, options.camera
+        timeout_s, tcp, tcp_base_port = options.timeout_s, options.tcp, options.tcp_base_port
+        self.options = options
         self.sc = sc
         self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG, camera_backend=camera)
         self.camera = FolderCameraEmulator("ccd") if camera is not None else None
