@@ -52,14 +52,11 @@ def _progress(enabled: bool, total: int, desc: str):
 
 def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
     """Radial error motion from the two test spheres (Jia eqs. 6-9), with its ISO 230-7 values."""
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     t = ds.table("radial_motion")
     b = ds.bench
-    rm = radial_motion(
-        t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-        probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"), order=order,
-    )
+    rm = radial_motion(ProbeReadings.from_table(t), SphereSpacing(b["L1_mm"], b["L2_mm"]), RadialOptions(order=order))
     # with the ISO 230-7 values and polar plots (issue 20)
     return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order))
 

@@ -175,13 +175,11 @@ def _procedure_from_dataset(raw: dict[str, Any], ds: Any, comments: dict) -> Non
 def _radial(ds: Any, order: int) -> dict[str, Any] | None:
     if not ds.has("radial_motion"):
         return None
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     t = ds.table("radial_motion")
     b = ds.bench
-    return radial_motion(t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-                         probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"),
-                         order=order)
+    return radial_motion(ProbeReadings.from_table(t), SphereSpacing(b["L1_mm"], b["L2_mm"]), RadialOptions(order=order))
 
 
 def _quadrature_on_grid(theta_deg: np.ndarray, y: np.ndarray, order: int) -> np.ndarray:

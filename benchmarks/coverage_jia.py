@@ -266,14 +266,15 @@ def score(raw: dict[str, Any]) -> dict[str, Any]:
     from benchtwin.analysis.eccentricity import with_async_motion
     from benchtwin.analysis.error_model import error_model_from_results as efr
     from benchtwin.analysis.error_model import jia_error_model
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     a, t, order = raw["measured"], raw["truth"], raw["order"]
     ts = t["sync"]
     rad = a["radial"]
     # as pipeline.step_radial_motion calls it
-    rm = radial_motion(np.asarray(rad["rep"]), np.asarray(rad["theta_deg"]), np.asarray(rad["probe_top_um"]),
-                       np.asarray(rad["probe_bottom_um"]), rad["L1_mm"], rad["L2_mm"], order=order)
+    rm = radial_motion(ProbeReadings(np.asarray(rad["rep"]), np.asarray(rad["theta_deg"]), np.asarray(rad["probe_top_um"]),
+                                     np.asarray(rad["probe_bottom_um"])),
+                       SphereSpacing(rad["L1_mm"], rad["L2_mm"]), RadialOptions(order=order))
     ec_fit = eccentricity_estimate(a, order)
     ec = with_async_motion(ec_fit, rm["u_h1_async_um"], rm["u_h1_async_dof"])  # as the pipeline does
     grid = np.asarray(rm["theta_deg"], dtype=float)

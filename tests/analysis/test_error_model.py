@@ -164,15 +164,15 @@ def test_figures_jia_smoke():
     from matplotlib.figure import Figure
 
     from benchtwin.analysis.eccentricity import eccentricity_from_dref
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
     from benchtwin.analysis.report.figures_jia import fig_comparison, fig_dref, fig_predicted_error, fig_radial_motion
 
     rng = np.random.default_rng(0)
     th = np.tile(np.arange(0, 360, 2.0), 3)
     rep = np.repeat([0, 1, 2], 180)
     t = np.radians(th)
-    rm = radial_motion(rep, th, 3 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.01, th.size),
-                       4 * np.sin(t) + 0.1 * np.cos(3 * t), 6.81, 122.96)
+    rm = radial_motion(ProbeReadings(rep, th, 3 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.01, th.size),
+                                     4 * np.sin(t) + 0.1 * np.cos(3 * t)), SphereSpacing(6.81, 122.96))
     fig = fig_radial_motion(rm)
     assert isinstance(fig, Figure) and len(fig.axes[0].lines) == 3 + 3 * 3
     thc = np.arange(60) * 6.0
@@ -196,10 +196,10 @@ def test_error_model_from_results_dicts():
     rng = np.random.default_rng(3)
     t = np.radians(th)
     rm_in = dict(rep=rep, theta_deg=th, probe_top_um=2 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.02, th.size),
-                 probe_bottom_um=1 + 0.1 * np.cos(3 * t) + rng.normal(0, 0.02, th.size), L1_mm=6.81, L2_mm=122.96)
-    from benchtwin.analysis.radial_motion import radial_motion
+                 probe_bottom_um=1 + 0.1 * np.cos(3 * t) + rng.normal(0, 0.02, th.size))
+    from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
 
-    rm = radial_motion(**rm_in)
+    rm = radial_motion(ProbeReadings(**rm_in), SphereSpacing(6.81, 122.96))
     ecc = {"e_um": E_UM, "theta0_deg": TH0, "e_u_um": 0.24, "theta0_u_deg": 1.13, "cov_e_theta0": 0.0}
     q = np.arange(0, 360, 10.0)
     models = {k: error_model_from_results(ecc, rm, R_UM, dY_uncertainty=k) for k in ("range", "range_mean", "gum", "none")}
