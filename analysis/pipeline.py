@@ -328,8 +328,11 @@ def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, BudgetInput], list[s
 def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> PolygonAnalysis:
     """The shift-angle analysis of ``polygon_table(ds)``, or of ``table`` (the same rows with corrected
     autocollimator readings: :func:`reading_corrections`)."""
-    from benchtwin.analysis.hsieh_pipeline import analyze_polygon
+    from dataclasses import replace
+
+    from benchtwin.analysis.hsieh_pipeline import HeadsData, PolygonOptions, analyze_polygon
     from benchtwin.analysis.shift_angle import PolygonDataError
+    from benchtwin.analysis.uncertainty import HSIEH2022_TYPE_B
 
     b = ds.bench
     heads = ds.table("heads") if ds.has("heads") else None
@@ -338,13 +341,15 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
     inputs, input_notes = budget_inputs(b)
     try:
         out = analyze_polygon(
-            dict(table) if table is not None else polygon_table(ds), b["polygon_faces"], heads, b.get("heads_deg") if heads is not None else None,
-            np.asarray(cert, dtype=float) if cert is not None else None,
-            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
-            ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
-            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
-            ac_traceability_k=inputs["ac_traceability_k"]["value"],
-            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
+            dict(table) if table is not None else polygon_table(ds), b["polygon_faces"],
+            HeadsData(heads, b.get("heads_deg")) if heads is not None else None,
+            type_b=replace(
+                HSIEH2022_TYPE_B, encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
+                ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
+                ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
+                ac_traceability_k=inputs["ac_traceability_k"]["value"],
+                setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"]),
+            options=PolygonOptions(certificate_beta_arcsec=np.asarray(cert, dtype=float) if cert is not None else None),
         )
         declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
                                           source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")

@@ -7,6 +7,7 @@ is about that), β (Σβ = 0) and U_j(S); every random draw uses an explicit see
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from scipy import stats
 
 from benchtwin.analysis import selfcal as sc
 from benchtwin.analysis import shift_angle as sa
-from benchtwin.analysis.hsieh_pipeline import analyze_polygon, fourier_resample_arcsec
+from benchtwin.analysis.hsieh_pipeline import HSIEH2022_TYPE_B, HeadsData, analyze_polygon, fourier_resample_arcsec
 from tests.synthetic.polygon import synthesize_readings
 
 
@@ -409,7 +410,8 @@ def test_analyze_polygon_end_to_end_json_ready():
     alpha = make_alpha({2: (1.0314, -2.4233), 3: (0.3, 0.5), 5: (0.1, 0.1), 24: (0.02, 0.3)})
     cols = synthesize_readings(alpha, beta, setup_fn(41), np.arange(15.0), n_rep=3, noise_arcsec=0.02, rng=rng)
     heads = _heads_columns(alpha, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.005, rng, n_rep=2)
-    r = analyze_polygon(cols, N, heads, sc.SELFA_HEADS_DEG, selfcal_sets=sc.SELFA_SETS, encoder_resolution_arcsec=0.04)
+    r = analyze_polygon(cols, N, HeadsData(heads, sc.SELFA_HEADS_DEG, sc.SELFA_SETS),
+                        type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.04))
     json.dumps(r, allow_nan=False)
     for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                 "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget"):
@@ -426,7 +428,7 @@ def test_analyze_polygon_end_to_end_json_ready():
     assert r["budget"][-1]["kind"] == "combined"
     assert r["budget_summary"]["k"] > 1.96
     # without heads
-    r2 = analyze_polygon(cols, N, None, None)
+    r2 = analyze_polygon(cols, N, None)
     assert r2["en_max"] is None and r2["selfcal_error_arcsec"] is None
 
 
@@ -439,7 +441,7 @@ def test_analyze_polygon_detects_disagreement():
     other = make_alpha({2: (1.5, 0.0)})
     cols = synthesize_readings(alpha, beta, setup_fn(43), [0.0, 5.0, 10.0], n_rep=3, noise_arcsec=0.01, rng=rng)
     heads = _heads_columns(other, np.arange(360.0), [0.0, 120.0, 240.0], 0.005, rng, n_rep=3)
-    r = analyze_polygon(cols, N, heads, [0.0, 120.0, 240.0])
+    r = analyze_polygon(cols, N, HeadsData(heads, [0.0, 120.0, 240.0]))
     assert r["en_max"] > 1.0
 
 
@@ -463,7 +465,7 @@ def test_figures_render(tmp_path):
     alpha = make_alpha({2: (1.0, 0.2), 3: (0.2, 0.0)})
     cols = synthesize_readings(alpha, make_beta(N, 44), setup_fn(45), [0.0, 10.0, 20.0])
     heads = _heads_columns(alpha, np.arange(0, 360.0, 2.0), [0.0, 90.0, 180.0, 270.0], 0.005, rng)
-    r = analyze_polygon(cols, N, heads, [0.0, 90.0, 180.0, 270.0])
+    r = analyze_polygon(cols, N, HeadsData(heads, [0.0, 90.0, 180.0, 270.0]))
     for fn in (fh.figure_pitch_deviation, fh.figure_alpha_at_shifts, fh.figure_curve_fits,
                fh.figure_selfcal_vs_shift_angle, fh.figure_difference):
         fig = fn(r)
