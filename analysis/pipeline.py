@@ -844,8 +844,8 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
                 pol: PolygonAnalysis, model: Any, paths: dict[str, str], out: Path | None) -> tuple[Any, TraceOutcome]:
     """Jia's residual → significance, signature, effect selection (analysis.tracing), then the
     chosen effect joins the model and the comparison is redone (before/after)."""
-    from benchtwin.analysis.error_model import (compare_with_measured, eccentricity_term, error_model_from_results,
-                                                refine_eccentricity)
+    from benchtwin.analysis.error_model import (EccentricityEstimate, compare_with_measured, eccentricity_term,
+                                                error_model_from_results, refine_eccentricity)
     from benchtwin.analysis.tracing import RadialMotion, add_to_error_model, evidence_from_polygon, save_model, trace
 
     b = ds.bench
@@ -927,9 +927,8 @@ def _close_loop(ds: Dataset, results: BenchResults, rm: RadialMotionResult | Non
             base = dict(model2.terms)
             cols, col_names = traced_columns(tr.model_file, base, th_c)
             u_k1, k1_source = k1_prior(tr.detail.get("signature") or {})
-            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], u_c, d["e_um"], d["theta0_deg"], d["e_u_um"],
-                                      d["theta0_u_deg"], r_um, d.get("cov_e_theta0", 0.0), u_k1_arcsec=u_k1,
-                                      columns=cols)
+            ref = refine_eccentricity(th_c, cmp2["residual_arcsec"], u_c, EccentricityEstimate.from_results(d), r_um,
+                                      u_k1_arcsec=u_k1, columns=cols)
             fit = ref.pop("fit")
             ref.pop("residual_arcsec")
             ref["k1_prior"] = {"u_arcsec": u_k1, "u_um": u_k1 * ARCSEC * r_um, "source": k1_source}

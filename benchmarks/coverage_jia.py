@@ -265,7 +265,7 @@ def score(raw: dict[str, Any]) -> dict[str, Any]:
     with the analysis code as it is now (the raw record holds only measurements and truth)."""
     from benchtwin.analysis.eccentricity import with_async_motion
     from benchtwin.analysis.error_model import error_model_from_results as efr
-    from benchtwin.analysis.error_model import jia_error_model
+    from benchtwin.analysis.error_model import EccentricityEstimate, RadialCurve, jia_error_model
     from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     a, t, order = raw["measured"], raw["truth"], raw["order"]
@@ -288,7 +288,7 @@ def score(raw: dict[str, Any]) -> dict[str, Any]:
     qa = ANGLES_DEG.astype(int)
     m_pipe = efr(ec, rm, r_um)  # the pipeline's call (results.json model_prediction_arcsec)
     m_gum = efr(ec, rm, r_um, dY_uncertainty="gum")
-    m_true = jia_error_model(ts["e_um"], ts["theta0_deg"], r_um, grid, np.asarray(ts["dY_um"]))
+    m_true = jia_error_model(EccentricityEstimate(ts["e_um"], ts["theta0_deg"]), r_um, RadialCurve(grid, np.asarray(ts["dY_um"])))
     pred, ptrue = m_pipe.predict(q), m_true.predict(q)
     alpha = np.interp(q, t["alpha_theta_deg"], t["alpha_arcsec"], period=360.0)
     dY, u_gum = np.asarray(rm["dY_um"]), np.asarray(rm["u_dY_gum_theta_um"])
