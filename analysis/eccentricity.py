@@ -78,6 +78,8 @@ from benchtwin.analysis.frame_levels import (binary_above, binary_below, integer
 
 __all__ = [
     "ImageAnalysisError",
+    "ImageOptions",
+    "CcdSweep",
     "LineEdges",
     "to_grey",
     "otsu_threshold",
@@ -99,6 +101,42 @@ __all__ = [
 ]
 
 MIN_LINES = 5
+
+
+@dataclass(frozen=True)
+class ImageOptions:
+    """How a CCD frame is read (module docstring), one object for every image function.
+
+    ``half_window_px``: the sub-pixel edge window's half width (px); ``edge_method``: ``"area"`` or
+    ``"crossing"``; ``min_area_frac``: parts below this fraction of the median line area are dust;
+    ``min_lines``: the fewest usable line ends; ``reject_outliers``: contaminated line ends are
+    rejected (else they fail the frame); ``u_px``: the edge points' standard uncertainty for the
+    circle fit (px; None: from its residuals); ``count_periods``: the periods counted along a column
+    for the paper's pixel scale (eq. 13).
+    """
+
+    half_window_px: int = 6
+    edge_method: str = "area"
+    min_area_frac: float = 0.3
+    min_lines: int = MIN_LINES
+    reject_outliers: bool = True
+    u_px: float | None = None
+    count_periods: int = 3
+
+
+@dataclass(frozen=True)
+class CcdSweep:
+    """What a sweep's eccentricity needs besides its images: the pixel scale (``um_per_px``, or the
+    grating ``period_um`` at the edge radius to measure it), the reference point R (px; None: the
+    image centre), the camera's azimuth (deg), the Fourier order of eq. 11 and a known edge radius
+    (px; None: fitted)."""
+
+    period_um: float | None = None
+    um_per_px: float | None = None
+    reference_px: Sequence[float] | None = None
+    camera_azimuth_deg: float = 180.0
+    order: int = 10
+    radius_px: float | None = None
 
 
 class ImageAnalysisError(ValueError):
@@ -584,15 +622,15 @@ def _measure_end(grey: np.ndarray, ys: np.ndarray, xb: np.ndarray, hw: int, lev:
     return x_mid, y_cent, float(np.mean(cs)), n_rows, sc, G, C
 
 
-def edge_details(image: np.ndarray, name: str | int | None = None, half_window_px: int = 6,
-                 edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES,
-                 reject_outliers: bool = True, expect_polarity: str | None = None) -> LineEdges:
+def edge_details(image: np.ndarray, name: str | int | None = None, options: ImageOptions | None = None,
+                 expect_polarity: str | None = None) -> LineEdges:
     """Sub-pixel middle points of the outer edge of each graduation line, with details.
 
-    See the module docstring for the method. With ``reject_outliers`` line ends whose height (rows
-    reaching the end) is outside 0.5…1.5 × the median are rejected as contaminated
-    (``rejected_ends_px``). Raises ImageAnalysisError for blank, saturated or black frames, frames
-    without a grating, and frames with fewer than ``min_lines`` usable line ends.
+    See the module docstring for the method and :class:`ImageOptions` for ``options``. With
+    ``reject_outliers`` line ends whose height (rows reaching the end) is outside 0.5…1.5 × the
+    median are rejected as contaminated (``rejected_ends_px``). Raises ImageAnalysisError for blank,
+    saturated or black frames, frames without a grating, and frames with fewer than ``min_lines``
+    usable line ends.
     ``expect_polarity``: the polarity the lines probably have (the sweep's so far), which orders the
     labelling work only (:func:`segment_lines`: the choice is the frame's own either way).
 
@@ -600,11 +638,13 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
     per end :func:`_measure_end` (:func:`_full_rows`, :func:`_row_edges`, :func:`_centre_row`,
     :func:`_edge_at`).
     """
+    opt = options if options is not None else ImageOptions()
+    edge_method, min_lines, reject_outliers = opt.edge_method, opt.min_lines, opt.reject_outliers
     if edge_method not in ("area", "crossing"):
         raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
     grey, t = _frame_levels(image, name)
-    seg = segment_lines(grey, name, min_area_frac, expect_polarity=expect_polarity, threshold=t)
-    hw = int(half_window_px)
+    seg = segment_lines(grey, name, opt.min_area_frac, expect_polarity=expect_polarity, threshold=t)
+    hw = int(opt.half_window_px)
     lev = 6  # pixels used for each level, beyond the edge window
     ends = _line_ends(seg, hw, lev)
     # an end much shorter or taller than the typical line width is contaminated (a speck on the end,
@@ -636,9 +676,9 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
                      np.asarray(rejected, dtype=float).reshape(-1, 2))
 
 
-def edge_points(image: np.ndarray, name: str | int | None = None, **kw) -> np.ndarray:
+def edge_points(image: np.ndarray, name: str | int | None = None, options: ImageOptions | None = None) -> np.ndarray:
     """(N, 2) sub-pixel middle points (x, y) in px of the outer edge of each graduation line."""
-    return edge_details(image, name, **kw).points_px
+    return edge_details(image, name, options).points_px
 
 
 # --------------------------------------------------------------------------- circle fit
@@ -738,8 +778,7 @@ def _dref_from_circle(cx: float, cy: float, r: float, cov: np.ndarray, reference
 
 
 def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
-             name: str | int | None = None, u_px: float | None = None, reject_outliers: bool = True,
-             min_lines: int = MIN_LINES, edges: LineEdges | None = None, **edge_kw) -> dict:
+             name: str | int | None = None, edges: LineEdges | None = None, options: ImageOptions | None = None) -> dict:
     """Jia's d_ref = l − r_fitting (px) of one image: edge points → circle → distance to R.
 
     ``reference_px``: the reference point R (default: the image centre (W/2, H/2), (1024, 768) for
@@ -753,15 +792,18 @@ def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = No
     points_px, residual_rms_px, n_lines, polarity, reference_px, edges (LineEdges),
     rejected_points_px.
 
-    ``edges``: this image's :func:`edge_details` (found once per frame, with the same
-    ``min_lines``/``reject_outliers``/``edge_kw``), so a caller that needs the edges for the pixel
+    ``options``: :class:`ImageOptions` (``u_px``, ``reject_outliers``, ``min_lines`` and the edge
+    finding's). ``edges``: this image's :func:`edge_details` (found once per frame, with the same
+    ``options``), so a caller that needs the edges for the pixel
     scale and for d_ref does not find them twice; by default they are found here. With ``edges``
     and ``reference_px`` given, ``image`` is not used (may be None).
     """
+    opt = options if options is not None else ImageOptions()
+    u_px, reject_outliers, min_lines = opt.u_px, opt.reject_outliers, opt.min_lines
     if edges is not None:
         ed = edges
     elif image is not None:
-        ed = edge_details(image, name, min_lines=min_lines, reject_outliers=reject_outliers, **edge_kw)
+        ed = edge_details(image, name, opt)
     else:
         raise ValueError("d_ref_px: give the image or its edges")
     if reference_px is None:
@@ -918,10 +960,10 @@ def _counted_scale(image: np.ndarray, name: str | int | None, ed: LineEdges, per
 
 def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None = None,
                    period_radius_um: float | None = None, edge_radius_um: float | None = None,
-                   periods: int = 3, edges: LineEdges | None = None, **edge_kw) -> dict:
+                   edges: LineEdges | None = None, options: ImageOptions | None = None) -> dict:
     """Object-side pixel size (µm/px) from the grating period (Jia eq. 13 and a better estimate).
 
-    - ``um_per_px_count``: the paper's way: the pixels over ``periods`` (3) periods, counted as an
+    - ``um_per_px_count``: the paper's way: the pixels over ``options.count_periods`` (3) periods, counted as an
       integer along a column near the edge (``m_p_px``, Jia: 90 px → 0.667 µm/px); the median over
       all runs of 3 periods in the column;
     - ``um_per_px`` (recommended): the middle points of the line ends lie on the edge circle, so the
@@ -945,19 +987,21 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     Extra keys: ``n_lines`` (line ends used), ``line_index`` (their integer indices),
     ``rejected_spacing_px``, ``spacing_residual_rms_px``.
 
-    ``edges``: this image's :func:`edge_details`, if already found (see :func:`d_ref_px`).
+    ``edges``: this image's :func:`edge_details`, if already found (see :func:`d_ref_px`);
+    ``options``: :class:`ImageOptions`.
 
     Stages: :func:`_period_at_edge`, :func:`d_ref_px`, :func:`_pitch_start`, :func:`_regular_pitch`,
     :func:`_pitch_scatter`, :func:`_counted_scale`.
     """
     p_edge = _period_at_edge(period_um, period_radius_um, edge_radius_um)
-    reject = bool(edge_kw.get("reject_outliers", True))
-    res = d_ref_px(image, None, name=name, edges=edges, **edge_kw)
+    opt = options if options is not None else ImageOptions()
+    reject = bool(opt.reject_outliers)
+    res = d_ref_px(image, None, name=name, edges=edges, options=opt)
     ed: LineEdges = res["edges"]
     r = res["radius_px"]
     P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
     n_pts = P.shape[0]
-    need = max(int(edge_kw.get("min_lines", MIN_LINES)), (n_pts + 2) // 2)  # a majority, ≥ min_lines
+    need = max(int(opt.min_lines), (n_pts + 2) // 2)  # a majority, ≥ min_lines
     chords = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
     # position of each line end along the edge: cumulative chord (= arc to (p/R)²/24 ≈ 1e-8). A
     # contaminated point displaced along the edge changes its two chords by ±δ and nobody else's
@@ -969,7 +1013,7 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     pitch_px = float(fit.sol[0])
     um_per_px = p_edge / pitch_px
     u_um = um_per_px * u_slope / pitch_px
-    col, m_p, um_count = _counted_scale(image, name, ed, periods, p_edge)
+    col, m_p, um_count = _counted_scale(image, name, ed, opt.count_periods, p_edge)
     return {
         "um_per_px": um_per_px, "pixel_um": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
         "edge_radius_px": r, "period_at_edge_um": p_edge, "m_p_px": m_p, "um_per_px_count": um_count,
@@ -1227,18 +1271,18 @@ def _d_n_table() -> dict[int, float]:
     return D_N
 
 
-def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], period_um: float | None = None,
-                             um_per_px: float | None = None, reference_px: Sequence[float] | None = None,
-                             camera_azimuth_deg: float = 180.0, order: int = 10, radius_px: float | None = None,
-                             names: Sequence[str] | None = None, **edge_kw) -> dict:
+def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], sweep: CcdSweep,
+                             names: Sequence[str] | None = None, options: ImageOptions | None = None) -> dict:
     """The whole sweep (sec. 4.2): d_ref per image, scale, e and θ0. Pure: images are arrays.
 
-    The scale is ``um_per_px`` if given, else the median of :func:`pixel_scale_um` over the images
-    (needs ``period_um``). Errors name the image (``names[k]`` or its index).
+    The scale is ``sweep.um_per_px`` if given, else the median of :func:`pixel_scale_um` over the
+    images (needs ``sweep.period_um``). Errors name the image (``names[k]`` or its index).
+    ``options``: how each frame is read (:class:`ImageOptions`).
 
     Keys: as :func:`eccentricity_from_dref`, plus theta_deg, dref_px, u_dref_px, dref_um, um_per_px,
     um_per_px_count, per_image (list of d_ref_px dicts without the edge details).
     """
+    opt = options if options is not None else ImageOptions()
     th = np.asarray(theta_deg, dtype=float).ravel()
     if len(images) != th.size:
         raise ValueError(f"{len(images)} images but {th.size} angles")
@@ -1246,20 +1290,20 @@ def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[f
     for k, img in enumerate(images):
         nm = names[k] if names is not None else k
         # the edges once per image, for d_ref and the pixel scale alike
-        ed = edge_details(img, nm, **{k2: v for k2, v in edge_kw.items() if k2 != "u_px"})
-        r = d_ref_px(img, reference_px, radius_px, name=nm, edges=ed, **edge_kw)
+        ed = edge_details(img, nm, opt)
+        r = d_ref_px(img, sweep.reference_px, sweep.radius_px, name=nm, edges=ed, options=opt)
         dpx.append(r["d_ref_px"])
         upx.append(r["u_d_ref_px"])
         per.append({k2: v for k2, v in r.items() if k2 != "edges"})
-        if um_per_px is None:
-            if period_um is None:
+        if sweep.um_per_px is None:
+            if sweep.period_um is None:
                 raise ValueError("give um_per_px or period_um")
-            s = pixel_scale_um(img, period_um, name=nm, edges=ed, **edge_kw)
+            s = pixel_scale_um(img, sweep.period_um, name=nm, edges=ed, options=opt)
             scales.append(s["um_per_px"])
             counts.append(s["um_per_px_count"])
-    scale = float(um_per_px) if um_per_px is not None else float(np.median(scales))
+    scale = float(sweep.um_per_px) if sweep.um_per_px is not None else float(np.median(scales))
     dref_um = np.asarray(dpx) * scale
-    out = eccentricity_from_dref(th, dref_um, camera_azimuth_deg, order)
+    out = eccentricity_from_dref(th, dref_um, sweep.camera_azimuth_deg, sweep.order)
     out.update(theta_deg=th, dref_px=np.asarray(dpx), u_dref_px=np.asarray(upx), dref_um=dref_um,
                um_per_px=scale, um_per_px_count=float(np.nanmedian(counts)) if counts else float("nan"),
                per_image=per)
