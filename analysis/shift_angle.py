@@ -63,6 +63,8 @@ from typing import Any
 
 import numpy as np
 
+from benchtwin.analysis.fourier import harmonic_columns
+
 __all__ = [
     "PolygonDataError",
     "PolygonTable",
@@ -975,11 +977,8 @@ def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals
 
 
 def _harmonic_design(theta_deg: np.ndarray, harmonics: Sequence[int]) -> np.ndarray:
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
-    cols = []
-    for k in harmonics:
-        cols += [np.sin(k * th), np.cos(k * th)]
-    return np.column_stack(cols) if cols else np.zeros((th.size, 0))
+    """Columns [sin kθ, cos kθ] of the harmonics (θ in degrees): :func:`.fourier.harmonic_columns`."""
+    return harmonic_columns(theta_deg, harmonics)[0]
 
 
 def fit_harmonic_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, harmonics: Sequence[int] = (2,), *,
