@@ -151,15 +151,13 @@ class HeadsData:
 class PolygonOptions:
     """How :func:`analyze_polygon` estimates β and u(ε), and its budget's coverage and GUM-S1 check.
 
-    ``certificate_beta_arcsec``, ``u_certificate_arcsec``, ``beta_source``: a calibrated polygon's
-    pitch deviations (see :func:`.shift_angle.shift_angle_analysis`); ``u_eps_arcsec``: the standard
+    ``beta``: where β comes from, a calibrated polygon's pitch deviations among them
+    (:class:`.shift_angle.BetaSource`); ``u_eps_arcsec``: the standard
     deviation of ONE reading if known from elsewhere (ν = ∞; None: from the data); ``fit_harmonics``:
     the sec. 3.1 curve-fit check's harmonics; ``p``: coverage probability; ``mc_samples`` draws (0:
     none) seeded by ``mc_seed`` for the GUM-S1 check."""
 
-    certificate_beta_arcsec: np.ndarray | None = None
-    u_certificate_arcsec: np.ndarray | float | None = None
-    beta_source: str = "auto"
+    beta: sa.BetaSource = sa.BetaSource()
     u_eps_arcsec: float | None = None
     fit_harmonics: Sequence[int] = (2,)
     p: float = 0.95
@@ -424,9 +422,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Head
     N = table.n_faces
     notes: list[str] = []
     r = _repeatability(table, opt.u_eps_arcsec, notes)
-    res = sa.shift_angle_analysis(table, certificate_beta_arcsec=opt.certificate_beta_arcsec,
-                                  u_certificate_arcsec=opt.u_certificate_arcsec, beta_source=opt.beta_source,
-                                  s_reading_arcsec=r.s_read_arcsec)
+    res = sa.shift_angle_analysis(table, beta_from=opt.beta, s_reading_arcsec=r.s_read_arcsec)
     notes += res.notes
     th, alpha, u_prop = sa.combined_curve(res)
     fit_rows, setup_residual = _curve_fit_check(res, opt.fit_harmonics, notes)

@@ -331,7 +331,7 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
     from dataclasses import replace
 
     from benchtwin.analysis.hsieh_pipeline import HeadsData, PolygonOptions, analyze_polygon
-    from benchtwin.analysis.shift_angle import PolygonDataError
+    from benchtwin.analysis.shift_angle import BetaSource, PolygonDataError
     from benchtwin.analysis.uncertainty import HSIEH2022_TYPE_B
 
     b = ds.bench
@@ -349,7 +349,7 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
                 ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
                 ac_traceability_k=inputs["ac_traceability_k"]["value"],
                 setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"]),
-            options=PolygonOptions(certificate_beta_arcsec=np.asarray(cert, dtype=float) if cert is not None else None),
+            options=PolygonOptions(beta=BetaSource(certificate_arcsec=np.asarray(cert, dtype=float) if cert is not None else None)),
         )
         declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
                                           source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")
@@ -793,8 +793,7 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
         t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
                                 theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
         src = pol.beta_source
-        res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
-                                      beta_source=src)
+        res = sa.shift_angle_analysis(t, beta_from=sa.BetaSource(src, np.zeros(N) if src == "certificate" else None))
     except (sa.PolygonDataError, ValueError):
         return None
     U = {}

@@ -67,6 +67,7 @@ from benchtwin.analysis.fourier import harmonic_columns
 
 __all__ = [
     "PolygonDataError",
+    "BetaSource",
     "PolygonTable",
     "tabulate_polygon",
     "nominal_theta_deg",
@@ -634,15 +635,24 @@ def require_reference_table(table: PolygonTable, *, certificate: bool,
                            f"{_cells(missing)} (the closure needs all N×N = {N * N})")
 
 
-def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
-                         u_certificate_arcsec: np.ndarray | float | None = None,
-                         u_eps_arcsec: float | None = None, beta_source: str = "auto",
+@dataclass(frozen=True)
+class BetaSource:
+    """Where the polygon's pitch deviations β come from (:func:`shift_angle_analysis`): ``source``
+    "auto", "closure" or "certificate", and a calibrated polygon's certificate (arcsec, N values) with
+    its standard uncertainty (arcsec, one number or N; None: unknown)."""
+
+    source: str = "auto"
+    certificate_arcsec: np.ndarray | None = None
+    u_certificate_arcsec: np.ndarray | float | None = None
+
+
+def shift_angle_analysis(table: PolygonTable, *, beta_from: BetaSource | None = None, u_eps_arcsec: float | None = None,
                          pool_repeatability: bool = True, reference_shift_deg: float | None = None,
                          s_reading_arcsec: float | None = None) -> ShiftAngleResult:
     """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
 
-    β: from the full N×N table at the reference shift (eqs. 5-6; ``beta_source="closure"``) or from a
-    certificate (``"certificate"``); ``"auto"`` uses the closure when the reference table is complete,
+    β (``beta_from``, :class:`BetaSource`): from the full N×N table at the reference shift (eqs. 5-6;
+    ``source="closure"``) or from a certificate (``"certificate"``); ``"auto"`` uses the closure when the reference table is complete,
     else the certificate, else raises :class:`PolygonDataError` naming the missing cells. The reference
     shift is ``reference_shift_deg``, by default S = 0 when there are readings at 0 (the paper), else the
     smallest shift with a complete N×N table (eqs. 5-6 hold at any S). Then, at every shift,
@@ -655,6 +665,8 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     ``s_reading_arcsec`` (the standard deviation of ONE reading, e.g. from :func:`reading_repeatability`)
     overrides both: u(ε) of a cell is s/√n with n the readings averaged in it.
     """
+    bs = beta_from if beta_from is not None else BetaSource()
+    beta_source, certificate_beta_arcsec, u_certificate_arcsec = bs.source, bs.certificate_arcsec, bs.u_certificate_arcsec
     N = table.n_faces
     notes: list[str] = []
     s0 = reference_shift(table, reference_shift_deg)

@@ -203,13 +203,13 @@ def test_certificate_used_when_S0_table_incomplete_and_closure_compared_when_ful
     cols = synthesize_readings(ALPHA, beta, setup_fn(15), [0.0, 10.0])
     keep = (cols["shift_deg"] != 0.0) | (cols["start_face"] == 1)
     part = {k: v[keep] for k, v in cols.items()}
-    _, res = analyse(part, N, certificate_beta_arcsec=beta)
+    _, res = analyse(part, N, beta_from=sa.BetaSource(certificate_arcsec=beta))
     assert res.beta_source == "certificate"
     for s in res.shifts:
         np.testing.assert_allclose(s.alpha_arcsec, ALPHA(s.theta_deg), atol=1e-9)
     with pytest.raises(sa.PolygonDataError, match=r"incomplete Table 1.*start_face=2, step=1"):
         analyse(part, N)
-    _, full = analyse(cols, N, certificate_beta_arcsec=beta + 0.1, beta_source="certificate")
+    _, full = analyse(cols, N, beta_from=sa.BetaSource("certificate", beta + 0.1))
     np.testing.assert_allclose(full.beta_closure_arcsec, beta, atol=1e-9)
 
 
