@@ -416,9 +416,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Head
     need = [c for c in ("shift_deg", "start_face", "step", "ac_arcsec") if c not in columns]
     if need:
         raise sa.PolygonDataError(f"polygon columns missing: {need} (has {sorted(columns)})")
-    table = sa.tabulate_polygon(columns["shift_deg"], columns["start_face"], columns["step"], columns["ac_arcsec"],
-                                n_faces, theta_deg=columns.get("theta_deg"), rep=columns.get("rep"),
-                                direction=columns.get("direction"))
+    table = sa.tabulate_polygon(columns, n_faces)
     N = table.n_faces
     notes: list[str] = []
     r = _repeatability(table, opt.u_eps_arcsec, notes)

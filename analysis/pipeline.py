@@ -368,9 +368,7 @@ def step_iso230_2_polygon(ds: Dataset, pol: PolygonAnalysis) -> dict[str, Any] |
     t = polygon_table(ds)
     if "direction" not in t or len(set(np.asarray(t["direction"]).astype(str))) < 2:
         return None
-    table = sa.tabulate_polygon(t["shift_deg"], t["start_face"], t["step"], t["ac_arcsec"], ds.bench["polygon_faces"],
-                                theta_deg=t.get("theta_deg"), rep=t.get("rep"),
-                                direction=np.asarray(t["direction"]).astype(str))
+    table = sa.tabulate_polygon({**t, "direction": np.asarray(t["direction"]).astype(str)}, ds.bench["polygon_faces"])
     got = runs_from_polygon(table, np.asarray(pol.pitch_deviation_arcsec, dtype=float))
     if got is None:
         return None
@@ -790,8 +788,7 @@ def reading_response(poly: dict[str, Any], pol: PolygonAnalysis, d: np.ndarray, 
 
     N = int(n_faces)
     try:
-        t = sa.tabulate_polygon(poly["shift_deg"], poly["start_face"], poly["step"], d, N,
-                                theta_deg=poly.get("theta_deg"), rep=poly.get("rep"), direction=poly.get("direction"))
+        t = sa.tabulate_polygon({**poly, "ac_arcsec": d}, N)
         src = pol.beta_source
         res = sa.shift_angle_analysis(t, beta_from=sa.BetaSource(src, np.zeros(N) if src == "certificate" else None))
     except (sa.PolygonDataError, ValueError):

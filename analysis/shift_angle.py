@@ -177,18 +177,26 @@ class PolygonTable:
         return bool(np.all(np.isfinite(self.eps_arcsec[_shift_key(shift_deg)])))
 
 
-def _polygon_columns(shift_deg: np.ndarray, start_face: np.ndarray, step: np.ndarray, ac_arcsec: np.ndarray,
-                     optional: Mapping[str, np.ndarray | None]) -> dict[str, np.ndarray]:
+#: The polygon table's columns :func:`tabulate_polygon` needs; and those it uses when present.
+POLYGON_COLUMNS = ("shift_deg", "start_face", "step", "ac_arcsec")
+POLYGON_OPTIONAL_COLUMNS = ("theta_deg", "rep", "direction")
+
+
+def _polygon_columns(columns: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """The columns as flat arrays of one length, the numeric ones finite floats (PolygonDataError
-    naming the rows and the column otherwise); ``optional``: theta_deg, rep, direction (None: absent)."""
+    naming the rows and the column otherwise); theta_deg, rep, direction when present (None: absent);
+    other columns are not used."""
+    missing = [c for c in POLYGON_COLUMNS if c not in columns]
+    if missing:
+        raise PolygonDataError(f"polygon columns missing: {missing} (has {sorted(columns)})")
     cols: dict[str, np.ndarray] = {
-        "shift_deg": np.asarray(shift_deg, dtype=float).ravel(),
-        "start_face": np.asarray(start_face).ravel(),
-        "step": np.asarray(step).ravel(),
-        "ac_arcsec": np.asarray(ac_arcsec, dtype=float).ravel(),
+        "shift_deg": np.asarray(columns["shift_deg"], dtype=float).ravel(),
+        "start_face": np.asarray(columns["start_face"]).ravel(),
+        "step": np.asarray(columns["step"]).ravel(),
+        "ac_arcsec": np.asarray(columns["ac_arcsec"], dtype=float).ravel(),
     }
-    for name in ("theta_deg", "rep", "direction"):
-        v = optional.get(name)
+    for name in POLYGON_OPTIONAL_COLUMNS:
+        v = columns.get(name)
         if v is not None:
             cols[name] = np.asarray(v, dtype=float).ravel() if name == "theta_deg" else np.asarray(v).ravel()
     n = cols["shift_deg"].size
@@ -292,13 +300,14 @@ def _shift_table(N: int, f: np.ndarray, i: np.ndarray, a: np.ndarray, runs_by: t
     return mean, sdev, cnt, runs_s
 
 
-def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.ndarray, ac_arcsec: np.ndarray,
-                     n_faces: int, *, theta_deg: np.ndarray | None = None, rep: np.ndarray | None = None,
-                     direction: np.ndarray | None = None) -> PolygonTable:
+def tabulate_polygon(columns: Mapping[str, Any], n_faces: int) -> PolygonTable:
     """Build Table 1 (eq. 3 layout) per shift from the dataset's columns; validate them.
 
-    Raises :class:`PolygonDataError` naming rows (0-based index into the arrays) and the column for:
-    a wrong ``n_faces`` (< 3 or not an integer), columns of different lengths, NaN/inf, start face or
+    ``columns``: the polygon table, ``shift_deg, start_face, step, ac_arcsec`` and, when present,
+    ``theta_deg``, ``rep``, ``direction`` (a column that is None counts as absent; others are not
+    used). Raises :class:`PolygonDataError` naming rows (0-based index into the arrays) and the
+    column for: a wrong ``n_faces`` (< 3 or not an integer), a missing column, columns of different
+    lengths, NaN/inf, start face or
     step not an integer in 1…N, repeated readings without a ``rep``/``direction`` column (or repeated
     (shift, start_face, step, rep, direction)), a ``theta_deg`` more than a quarter pitch away from
     (i−1)·360/N + S, and a start face whose row at a shift misses steps (eq. 7 needs all N; the message
@@ -310,8 +319,7 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
     if isinstance(n_faces, bool) or int(n_faces) != n_faces or n_faces < 3:
         raise PolygonDataError(f"n_faces: expected an integer >= 3, got {n_faces!r}")
     N = int(n_faces)
-    cols = _polygon_columns(shift_deg, start_face, step, ac_arcsec,
-                            {"theta_deg": theta_deg, "rep": rep, "direction": direction})
+    cols = _polygon_columns(columns)
     n = cols["shift_deg"].size
     _check_faces_and_steps(cols, N)
     face = cols["start_face"].astype(int)

@@ -53,8 +53,7 @@ def setup_fn(seed: int):
 
 
 def analyse(cols, N, **kw):
-    tab = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                              theta_deg=cols.get("theta_deg"), rep=cols.get("rep"))
+    tab = sa.tabulate_polygon({k: v for k, v in cols.items() if k != "direction"}, N)
     return tab, sa.shift_angle_analysis(tab, **kw)
 
 
@@ -282,8 +281,7 @@ def full_cols(N=6, shifts=(0.0, 5.0)):
 
 
 def tab_of(cols, N=6, **kw):
-    return sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                               theta_deg=cols.get("theta_deg"), rep=cols.get("rep"), **kw)
+    return sa.tabulate_polygon({**{k: v for k, v in cols.items() if k != "direction"}, **kw}, N)
 
 
 def test_error_missing_reading_names_cell():
@@ -526,8 +524,7 @@ def _runs(N, shifts, reps, sigma, h_fn, seed, alpha=ALPHA):
             c["direction"] = np.array([d] * n, dtype=object)
             parts.append(c)
     cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    tab = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                              theta_deg=cols["theta_deg"], rep=cols["rep"], direction=cols["direction"])
+    tab = sa.tabulate_polygon(cols, N)
     return cols, tab, beta
 
 
@@ -551,8 +548,7 @@ def test_reading_repeatability_from_the_model_residuals_not_from_direction_pairs
     # a missing reading drops that run-row (and says so)
     keep = ~((cols["shift_deg"] == 0.0) & (cols["start_face"] == 3) & (cols["step"] == 4) & (cols["rep"] == 1)
              & (cols["direction"] == "forward"))
-    t2 = sa.tabulate_polygon(cols["shift_deg"][keep], cols["start_face"][keep], cols["step"][keep],
-                             cols["ac_arcsec"][keep], N, rep=cols["rep"][keep], direction=cols["direction"][keep])
+    t2 = sa.tabulate_polygon({k: v[keep] for k, v in cols.items() if k != "theta_deg"}, N)
     r2 = sa.reading_repeatability(t2)
     assert r2.dropped == [(0.0, 1, "forward", 3)] and r2.dof == rep.dof - (N - 1)
 
@@ -577,8 +573,8 @@ def test_direction_difference_separates_theta_dependent_hysteresis_from_noise():
     assert dd["p_value"] < 1e-6
     assert dd["rms_systematic"] == pytest.approx(0.1 / np.sqrt(2), rel=0.15)  # Δ = 2·0.05·sin(3θ)
     # one direction only: nothing to compare
-    one = sa.tabulate_polygon(*(c for c in (np.zeros(9), np.repeat(np.arange(1, 4), 3), np.tile(np.arange(1, 4), 3),
-                                            np.arange(9.0))), 3)
+    one = sa.tabulate_polygon(dict(zip(sa.POLYGON_COLUMNS, (np.zeros(9), np.repeat(np.arange(1, 4), 3),
+                                                            np.tile(np.arange(1, 4), 3), np.arange(9.0)))), 3)
     assert sa.direction_difference(one, np.zeros(3), 0.01) is None
 
 
