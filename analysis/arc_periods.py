@@ -224,24 +224,9 @@ def _joint_fit(theta, y, w, T, ks: list[float], u_given: bool) -> dict[str, Any]
     return {"beta": beta, "cov": inv * scale, "chi2": chi2, "dof": dof, "n_trend": nt, "scale": scale}
 
 
-def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_elements: Any = None) -> dict[str, Any]:
-    """The periodic components of an arc (module docstring). ``u_arcsec``: per point standard
-    uncertainties from outside the fit (None: unit weights, covariance scaled by the residual);
-    ``drive_elements``: the manifest's declaration (or None). Returns ``{"periods": [...], "scan":
-    {...}}``; each period: period_deg, u_period_deg, amplitude_arcsec, u (of the amplitude),
-    phase_deg, u_phase_deg, false_alarm, power, n_periods_covered, dof (of the u's: residual degrees of
-    freedom when u is scaled by the residual, None when given), alias_periods_deg, drive_element."""
-    declared = _read_candidates(drive_elements)
-    th = np.asarray(theta_deg, dtype=float).ravel()
-    y = np.asarray(value_arcsec, dtype=float).ravel()
-    o = np.argsort(th)
-    th, y = th[o], y[o]
-    u_given = u_arcsec is not None
-    w = (1.0 / np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape)[o]) if u_given else np.ones_like(th)
-    n = th.size
-    arc = float(th[-1] - th[0])
-    steps = np.diff(th)
-    scan: dict[str, Any] = {
+def _scan_header(n: int, arc: float, u_given: bool) -> dict[str, Any]:
+    """The scan's description (method, false-alarm method, trend degree, points, arc, u source)."""
+    return {
         "method": (f"generalised least-squares periodogram (Zechmeister & Kürster 2009) with a degree-{TREND_DEGREE} "
                    "trend fitted jointly; power (χ²_null − χ²_P)/χ²_null"),
         "false_alarm_method": ("analytic: Baluev 2008 eq. 6 (alias-free approximation of the Davies upper bound), "
@@ -250,10 +235,11 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
         "u_source": "given (weights and absolute covariance)" if u_given else
                     "none: unit weights, covariance scaled by the residual (type A)",
         "periods_found": 0}
-    if n < TREND_DEGREE + 1 + 3 + MIN_DOF or arc <= 0 or np.any(steps <= 0):
-        scan["reason"] = (f"{n} distinct angles: a period with a degree-{TREND_DEGREE} trend needs at least "
-                          f"{TREND_DEGREE + 1 + 3 + MIN_DOF}")
-        return {"periods": [], "scan": scan}
+
+
+def _frequency_grid(steps: np.ndarray, arc: float, scan: dict[str, Any]) -> tuple[np.ndarray, float, float, bool]:
+    """The trial frequencies (1/deg) from one period over the arc to the closest angles' Nyquist
+    (at most MAX_TRIALS, OVERSAMPLE per 1/arc): (grid, spacing, f_max, regular θ grid); notes in ``scan``."""
     step_min = float(np.min(steps))
     regular = bool(np.ptp(steps) <= 1e-6 * float(np.median(steps)))
     f_min, f_max = 1.0 / arc, 1.0 / (2.0 * step_min)
@@ -265,7 +251,29 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
     grid = np.arange(f_min, f_max + 0.5 * df, df)
     scan.update(period_min_deg=1.0 / f_max, period_max_deg=arc, regular_grid=regular, step_min_deg=step_min,
                 n_trial_periods=int(grid.size))
-    T = _trend_columns(th, 0.5 * (th[0] + th[-1]), 0.5 * arc)
+    return grid, df, f_max, regular
+
+
+def _refine_together(data: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], ks: list[float], df: float) -> None:
+    """The orders found so far (cycles/turn, in place), refined together: each in turn, its neighbours held."""
+    th, y, w, T = data
+    for _ in range(2 if len(ks) > 1 else 0):
+        for j in range(len(ks)):
+            others = ks[:j] + ks[j + 1:]
+            fj = ks[j] / 360.0
+            r = minimize_scalar(lambda f, o=others: _chi2(th, y, w, T, o + [360.0 * f]),
+                                bounds=(fj - df, fj + df), method="bounded", options={"xatol": 1e-6 * df})
+            if r.fun < _chi2(th, y, w, T, ks):
+                ks[j] = 360.0 * float(r.x)
+
+
+def _find_periods(data: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], grid: np.ndarray, df: float,
+                  f_max: float, scan: dict[str, Any]) -> tuple[list[float], list[tuple[float, float]], Any]:
+    """Periods one at a time while the best one's false alarm (Baluev 2008) is below P_SIG and MIN_DOF
+    residual dof remain: (orders in cycles/turn, (false alarm, power) each, the first periodogram's
+    power or None); the reason the search stopped goes into ``scan``."""
+    th, y, w, T = data
+    n = th.size
     ks: list[float] = []
     fap_list: list[tuple[float, float]] = []
     chi2_null = _chi2(th, y, w, T, ks)
@@ -290,41 +298,76 @@ def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_element
             break
         ks.append(360.0 * f_best)
         fap_list.append((fap, z))
-        # the orders found so far, refined together (each in turn, its neighbours held)
-        for _ in range(2 if len(ks) > 1 else 0):
-            for j in range(len(ks)):
-                others = ks[:j] + ks[j + 1:]
-                fj = ks[j] / 360.0
-                r = minimize_scalar(lambda f, o=others: _chi2(th, y, w, T, o + [360.0 * f]),
-                                    bounds=(fj - df, fj + df), method="bounded", options={"xatol": 1e-6 * df})
-                if r.fun < _chi2(th, y, w, T, ks):
-                    ks[j] = 360.0 * float(r.x)
+        _refine_together(data, ks, df)
         chi2_null = _chi2(th, y, w, T, ks)
+    return ks, fap_list, power_first
+
+
+def _period_rows(fit: dict[str, Any], ks: list[float], fap_list: list[tuple[float, float]], arc: float,
+                 grid_info: tuple[float, bool], u_given: bool, declared: Any) -> list[dict[str, Any]]:
+    """One row per period found from the joint fit: period, amplitude and phase with u, false alarm,
+    power, periods covered, dof, alias periods on a regular grid and the drive element it may be
+    (``grid_info`` = (median step in deg, regular grid))."""
+    nt, cov, beta = fit["n_trend"], fit["cov"], fit["beta"]
+    median_step, regular = grid_info
+    nk = len(ks)
+    periods: list[dict[str, Any]] = []
+    for i, k in enumerate(ks):
+        ia, ib = nt + 2 * i, nt + 2 * i + 1
+        ap = amplitude_phase_ab(beta[ia], beta[ib], cov[np.ix_([ia, ib], [ia, ib])])
+        ik = nt + 2 * nk + i
+        u_k = float(math.sqrt(max(cov[ik, ik], 0.0)))
+        P = 360.0 / k
+        u_P = 360.0 * u_k / k ** 2
+        periods.append({
+            "period_deg": P, "u_period_deg": u_P, "amplitude_arcsec": ap["amplitude"], "u": ap["u_amplitude"],
+            "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "false_alarm": fap_list[i][0],
+            "power": fap_list[i][1], "n_periods_covered": arc / P,
+            "dof": None if u_given else int(fit["dof"]),
+            "alias_periods_deg": _aliases(P, median_step, regular),
+            "drive_element": drive_candidates(P, u_P, declared)})
+        if periods[-1]["alias_periods_deg"]:
+            periods[-1]["drive_element"]["note"] += (
+                "; on this regular grid the alias periods " + ", ".join(
+                    f"{a:.4g}°" for a in periods[-1]["alias_periods_deg"]) + " fit the points equally well")
+    return periods
+
+
+def analyze_arc_periods(theta_deg, value_arcsec, u_arcsec=None, *, drive_elements: Any = None) -> dict[str, Any]:
+    """The periodic components of an arc (module docstring). ``u_arcsec``: per point standard
+    uncertainties from outside the fit (None: unit weights, covariance scaled by the residual);
+    ``drive_elements``: the manifest's declaration (or None). Returns ``{"periods": [...], "scan":
+    {...}}``; each period: period_deg, u_period_deg, amplitude_arcsec, u (of the amplitude),
+    phase_deg, u_phase_deg, false_alarm, power, n_periods_covered, dof (of the u's: residual degrees of
+    freedom when u is scaled by the residual, None when given), alias_periods_deg, drive_element.
+
+    Stages: :func:`_scan_header`, :func:`_frequency_grid`, :func:`_find_periods` (with
+    :func:`_refine_together`), the joint fit, :func:`_period_rows`."""
+    declared = _read_candidates(drive_elements)
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    y = np.asarray(value_arcsec, dtype=float).ravel()
+    o = np.argsort(th)
+    th, y = th[o], y[o]
+    u_given = u_arcsec is not None
+    w = (1.0 / np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape)[o]) if u_given else np.ones_like(th)
+    n = th.size
+    arc = float(th[-1] - th[0])
+    steps = np.diff(th)
+    scan = _scan_header(n, arc, u_given)
+    if n < TREND_DEGREE + 1 + 3 + MIN_DOF or arc <= 0 or np.any(steps <= 0):
+        scan["reason"] = (f"{n} distinct angles: a period with a degree-{TREND_DEGREE} trend needs at least "
+                          f"{TREND_DEGREE + 1 + 3 + MIN_DOF}")
+        return {"periods": [], "scan": scan}
+    grid, df, f_max, regular = _frequency_grid(steps, arc, scan)
+    T = _trend_columns(th, 0.5 * (th[0] + th[-1]), 0.5 * arc)
+    ks, fap_list, power_first = _find_periods((th, y, w, T), grid, df, f_max, scan)
     if power_first is not None:
         scan["periodogram"] = {"period_deg": 1.0 / grid, "power": power_first}
     periods: list[dict[str, Any]] = []
     if ks:
         fit = _joint_fit(th, y, w, T, ks, u_given)
-        nt, cov, beta = fit["n_trend"], fit["cov"], fit["beta"]
-        nk = len(ks)
-        for i, k in enumerate(ks):
-            ia, ib = nt + 2 * i, nt + 2 * i + 1
-            ap = amplitude_phase_ab(beta[ia], beta[ib], cov[np.ix_([ia, ib], [ia, ib])])
-            ik = nt + 2 * nk + i
-            u_k = float(math.sqrt(max(cov[ik, ik], 0.0)))
-            P = 360.0 / k
-            u_P = 360.0 * u_k / k ** 2
-            periods.append({
-                "period_deg": P, "u_period_deg": u_P, "amplitude_arcsec": ap["amplitude"], "u": ap["u_amplitude"],
-                "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "false_alarm": fap_list[i][0],
-                "power": fap_list[i][1], "n_periods_covered": arc / P,
-                "dof": None if u_given else int(fit["dof"]),
-                "alias_periods_deg": _aliases(P, float(np.median(steps)), regular),
-                "drive_element": drive_candidates(P, u_P, declared)})
-            if periods[-1]["alias_periods_deg"]:
-                periods[-1]["drive_element"]["note"] += (
-                    "; on this regular grid the alias periods " + ", ".join(
-                        f"{a:.4g}°" for a in periods[-1]["alias_periods_deg"]) + " fit the points equally well")
+        periods = _period_rows(fit, ks, fap_list, arc, (float(np.median(steps)), regular), u_given, declared)
+        beta, cov = fit["beta"], fit["cov"]
         r = y - _design(th, T, ks) @ beta
         scan.update(residual_rms_arcsec=float(np.sqrt(np.mean(r ** 2))), chi2=fit["chi2"], dof=int(fit["dof"]),
                     # the trend fitted with the periods (x = (θ − centre)/half-arc: slope = β₁/half-arc)

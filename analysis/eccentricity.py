@@ -68,6 +68,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -77,6 +78,8 @@ from benchtwin.analysis.frame_levels import (binary_above, binary_below, integer
 
 __all__ = [
     "ImageAnalysisError",
+    "ImageOptions",
+    "CcdSweep",
     "LineEdges",
     "to_grey",
     "otsu_threshold",
@@ -98,6 +101,42 @@ __all__ = [
 ]
 
 MIN_LINES = 5
+
+
+@dataclass(frozen=True)
+class ImageOptions:
+    """How a CCD frame is read (module docstring), one object for every image function.
+
+    ``half_window_px``: the sub-pixel edge window's half width (px); ``edge_method``: ``"area"`` or
+    ``"crossing"``; ``min_area_frac``: parts below this fraction of the median line area are dust;
+    ``min_lines``: the fewest usable line ends; ``reject_outliers``: contaminated line ends are
+    rejected (else they fail the frame); ``u_px``: the edge points' standard uncertainty for the
+    circle fit (px; None: from its residuals); ``count_periods``: the periods counted along a column
+    for the paper's pixel scale (eq. 13).
+    """
+
+    half_window_px: int = 6
+    edge_method: str = "area"
+    min_area_frac: float = 0.3
+    min_lines: int = MIN_LINES
+    reject_outliers: bool = True
+    u_px: float | None = None
+    count_periods: int = 3
+
+
+@dataclass(frozen=True)
+class CcdSweep:
+    """What a sweep's eccentricity needs besides its images: the pixel scale (``um_per_px``, or the
+    grating ``period_um`` at the edge radius to measure it), the reference point R (px; None: the
+    image centre), the camera's azimuth (deg), the Fourier order of eq. 11 and a known edge radius
+    (px; None: fitted)."""
+
+    period_um: float | None = None
+    um_per_px: float | None = None
+    reference_px: Sequence[float] | None = None
+    camera_azimuth_deg: float = 180.0
+    order: int = 10
+    radius_px: float | None = None
 
 
 class ImageAnalysisError(ValueError):
@@ -421,47 +460,33 @@ class LineEdges:
     rejected_ends_px: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
 
 
-def edge_details(image: np.ndarray, name: str | int | None = None, half_window_px: int = 6,
-                 edge_method: str = "area", min_area_frac: float = 0.3, min_lines: int = MIN_LINES,
-                 reject_outliers: bool = True, expect_polarity: str | None = None) -> LineEdges:
-    """Sub-pixel middle points of the outer edge of each graduation line, with details.
+def _frame_levels(image: np.ndarray, name: str | int | None) -> tuple[np.ndarray, float | None]:
+    """The frame to segment and Otsu's threshold when it is known already (None: segment_lines finds it).
 
-    See the module docstring for the method. With ``reject_outliers`` line ends whose height (rows
-    reaching the end) is outside 0.5…1.5 × the median are rejected as contaminated
-    (``rejected_ends_px``). Raises ImageAnalysisError for blank, saturated or black frames, frames
-    without a grating, and frames with fewer than ``min_lines`` usable line ends.
-    ``expect_polarity``: the polarity the lines probably have (the sweep's so far), which orders the
-    labelling work only (:func:`segment_lines`: the choice is the frame's own either way).
-    """
-    if edge_method not in ("area", "crossing"):
-        raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
+    An 8/16-bit frame is analysed in its own levels: no float copy of the whole frame; its check and
+    Otsu's threshold from one histogram of the sample (analysis/frame_levels.py), and only the few
+    pixels around each line end are taken as float later. Other frames: grey, checked."""
     levels = integer_frame(image)
-    t: float | None = None
     if levels is not None:
-        # an 8/16-bit frame is analysed in its own levels: no float copy of the whole frame; its
-        # check and Otsu's threshold from one histogram of the sample (analysis/frame_levels.py), and
-        # only the few pixels around each line end are taken as float below
         _check_shape(levels, name)
         full = int(np.iinfo(levels.dtype).max)
         counts = level_counts(_sample(levels), full)
         _check_integer_frame(levels, full, counts, name)
-        t = _otsu_from_counts(counts)
-        grey: np.ndarray = levels
-    else:
-        grey, full_f = to_grey(image, name)
-        check_frame(grey, full_f, name)
-    seg = segment_lines(grey, name, min_area_frac, expect_polarity=expect_polarity, threshold=t)
-    H, W = grey.shape
+        return levels, _otsu_from_counts(counts)
+    grey, full_f = to_grey(image, name)
+    check_frame(grey, full_f, name)
+    return grey, None
 
-    def px(rows, cols) -> np.ndarray:
-        """grey[rows, cols] as float (the frame may be integer levels)."""
-        return np.asarray(grey[rows, cols], dtype=float)
-    hw = int(half_window_px)
-    lev = 6  # pixels used for each level, beyond the edge window
-    pts, cols, nrows, scat, glv, lnv = [], [], [], [], [], []
-    # line ends: the rows where a part reaches its outermost columns. A part may hold several line
-    # ends (neighbouring lines bridged by dust or a scratch further inside the lines): the end rows
-    # are split into runs of consecutive rows, one run per line end
+
+def _px(grey: np.ndarray, rows: Any, cols: Any) -> np.ndarray:
+    """grey[rows, cols] as float (the frame may be integer levels)."""
+    return np.asarray(grey[rows, cols], dtype=float)
+
+
+def _line_ends(seg: Segmentation, hw: int, lev: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Line ends: the rows where a part reaches its outermost columns, with the last line pixel per
+    row. A part may hold several line ends (neighbouring lines bridged by dust or a scratch further
+    inside the lines): the end rows are split into runs of consecutive rows, one run per line end."""
     ends = []
     for lab in seg.lines:
         x0, y0, w, h = (int(seg.stats[lab, i]) for i in range(4))
@@ -479,98 +504,171 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
         brk = np.flatnonzero(np.diff(rows) > 1) + 1
         for r_, x_ in zip(np.split(rows, brk), np.split(xb, brk)):
             ends.append((y0 + r_, x_))
+    return ends
+
+
+def _full_rows(grey: np.ndarray, ys: np.ndarray, xb: np.ndarray, hw: int,
+               lev: int) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """The glass level G, the line level per row and the interior rows fully covered by the line (near-
+    full contrast, never the first or last row of the end: a line side crosses those); None if too few."""
+    y_lo, y_hi = int(ys.min()), int(ys.max())
+    g_idx = xb[:, None] + hw + 1 + np.arange(lev)[None, :]
+    c_idx = xb[:, None] - hw - 1 - np.arange(lev)[None, :]
+    G_rows = _median(_px(grey, ys[:, None], g_idx))
+    C_rows = _median(_px(grey, ys[:, None], c_idx))
+    G = float(_median(G_rows))
+    contrast = G - C_rows
+    cmax = np.max(np.abs(contrast))
+    if cmax <= 0:
+        return None
+    inner = (ys > y_lo) & (ys < y_hi)
+    full_rows = inner & (np.abs(contrast) >= 0.95 * cmax)
+    if np.count_nonzero(full_rows) < 3:
+        full_rows = inner & (np.abs(contrast) >= 0.85 * cmax)
+    if np.count_nonzero(full_rows) < 2:
+        return None
+    return G, C_rows, full_rows
+
+
+def _row_edges(grey: np.ndarray, ys_f: np.ndarray, xb_f: np.ndarray, G: float, C_f: np.ndarray, hw: int,
+               edge_method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The sub-pixel edge of each full row from its chrome fraction (1 on the line, 0 on glass):
+    ``area`` sums it, ``crossing`` interpolates its last 0.5 crossing. (rows, edges, line levels) of
+    the rows with an edge; None when fewer than 2."""
+    win = xb_f[:, None] + np.arange(-hw, hw + 1)[None, :]
+    prof = _px(grey, ys_f[:, None], win)
+    f = (G - prof) / (G - C_f)[:, None]  # chrome fraction, 1 on the line, 0 on glass
+    if edge_method == "area":
+        return ys_f, (xb_f - hw - 0.5) + f.sum(axis=1), C_f
+    xe = np.empty(ys_f.size)
+    for k in range(ys_f.size):
+        fk = f[k]
+        below = np.flatnonzero((fk[:-1] >= 0.5) & (fk[1:] < 0.5))
+        if below.size == 0:
+            xe[k] = np.nan
+            continue
+        i = below[-1]
+        xe[k] = win[k, i] + (fk[i] - 0.5) / (fk[i] - fk[i + 1])
+    good = np.isfinite(xe)
+    ys_f, xe, C_f = ys_f[good], xe[good], C_f[good]
+    if ys_f.size < 2:
+        return None
+    return ys_f, xe, C_f
+
+
+def _centre_row(grey: np.ndarray, y_span: tuple[int, int], xe: np.ndarray, levels: tuple[float, float],
+                hw: int, lev: int) -> tuple[float, np.ndarray] | None:
+    """Centre row of the line end: centroid of the chrome fraction across the line, in columns just
+    inside the end. (y, the columns used); None if there are none or a column has no chrome."""
+    H, W = grey.shape
+    y_lo, y_hi = y_span
+    G, C = levels
+    xe_med = float(_median(xe))
+    cs = np.arange(int(round(xe_med)) - hw - lev, int(round(xe_med)) - hw)
+    cs = cs[(cs >= 0) & (cs < W)]
+    if cs.size == 0:
+        return None
+    ya, yb = max(y_lo - 4, 0), min(y_hi + 5, H)
+    yy = np.arange(ya, yb)
+    fc = (G - _px(grey, slice(ya, yb), cs)) / (G - C)
+    wsum = fc.sum(axis=0)
+    if np.any(wsum <= 0):
+        return None
+    return float(np.mean((fc * yy[:, None]).sum(axis=0) / wsum)), cs
+
+
+def _edge_at(ys_f: np.ndarray, xe: np.ndarray, y_cent: float) -> tuple[float, float, int]:
+    """The straight line through the row edges taken at the centre row, after a robust rejection of
+    rows spoilt by dust or a scratch at the line end: (x, RMS scatter about the line, rows used)."""
+    if ys_f.size >= 2 and np.ptp(ys_f) > 0:
+        pf = np.polyfit(ys_f.astype(float), xe, 1)
+        rr = xe - np.polyval(pf, ys_f)
+        sig = 1.4826 * float(_median(np.abs(rr - _median(rr))))
+        good = np.abs(rr) <= max(4.0 * sig, 0.25)
+        if 3 <= np.count_nonzero(good) < good.size:
+            ys_f, xe = ys_f[good], xe[good]
+            pf = np.polyfit(ys_f.astype(float), xe, 1)
+        x_mid = float(np.polyval(pf, y_cent))
+        sc = float(np.sqrt(np.mean((xe - np.polyval(pf, ys_f)) ** 2)))
+    else:
+        x_mid, sc = float(np.mean(xe)), float("nan")
+    return x_mid, sc, int(ys_f.size)
+
+
+def _measure_end(grey: np.ndarray, ys: np.ndarray, xb: np.ndarray, hw: int, lev: int,
+                 edge_method: str) -> tuple[float, ...] | None:
+    """One line end measured: (x_mid, y_centre, centre column, rows used, scatter, glass level, line
+    level), or None when it is not usable (too close to the border, too little contrast, ...)."""
+    W = grey.shape[1]
+    y_lo, y_hi = int(ys.min()), int(ys.max())
+    ok = (xb - hw - lev >= 0) & (xb + hw + lev < W)
+    if np.count_nonzero(ok) < 3:
+        return None
+    ys, xb = ys[ok], xb[ok]
+    full = _full_rows(grey, ys, xb, hw, lev)
+    if full is None:
+        return None
+    G, C_rows, full_rows = full
+    edges = _row_edges(grey, ys[full_rows], xb[full_rows], G, C_rows[full_rows], hw, edge_method)
+    if edges is None:
+        return None
+    ys_f, xe, C_f = edges
+    C = float(_median(C_f))
+    centre = _centre_row(grey, (y_lo, y_hi), xe, (G, C), hw, lev)
+    if centre is None:
+        return None
+    y_cent, cs = centre
+    x_mid, sc, n_rows = _edge_at(ys_f, xe, y_cent)
+    return x_mid, y_cent, float(np.mean(cs)), n_rows, sc, G, C
+
+
+def edge_details(image: np.ndarray, name: str | int | None = None, options: ImageOptions | None = None,
+                 expect_polarity: str | None = None) -> LineEdges:
+    """Sub-pixel middle points of the outer edge of each graduation line, with details.
+
+    See the module docstring for the method and :class:`ImageOptions` for ``options``. With
+    ``reject_outliers`` line ends whose height (rows reaching the end) is outside 0.5…1.5 × the
+    median are rejected as contaminated (``rejected_ends_px``). Raises ImageAnalysisError for blank,
+    saturated or black frames, frames without a grating, and frames with fewer than ``min_lines``
+    usable line ends.
+    ``expect_polarity``: the polarity the lines probably have (the sweep's so far), which orders the
+    labelling work only (:func:`segment_lines`: the choice is the frame's own either way).
+
+    Stages: :func:`_frame_levels`, :func:`segment_lines`, :func:`_line_ends`, the height check, then
+    per end :func:`_measure_end` (:func:`_full_rows`, :func:`_row_edges`, :func:`_centre_row`,
+    :func:`_edge_at`).
+    """
+    opt = options if options is not None else ImageOptions()
+    edge_method, min_lines, reject_outliers = opt.edge_method, opt.min_lines, opt.reject_outliers
+    if edge_method not in ("area", "crossing"):
+        raise ValueError(f"edge_method must be 'area' or 'crossing', got {edge_method!r}")
+    grey, t = _frame_levels(image, name)
+    seg = segment_lines(grey, name, opt.min_area_frac, expect_polarity=expect_polarity, threshold=t)
+    hw = int(opt.half_window_px)
+    lev = 6  # pixels used for each level, beyond the edge window
+    ends = _line_ends(seg, hw, lev)
     # an end much shorter or taller than the typical line width is contaminated (a speck on the end,
     # two ends merged by dust at the end): an outlier, rejected (with ``reject_outliers``)
     heights = np.array([int(e[0][-1] - e[0][0] + 1) for e in ends])
     big = heights[heights >= 3]
     med_h = float(np.median(big)) if big.size else 0.0
-    rejected = []
+    rejected, rows_out = [], []
     for ys, xb in ends:
         y_lo, y_hi = int(ys.min()), int(ys.max())
         if reject_outliers and not (0.5 * med_h <= y_hi - y_lo + 1 <= 1.5 * med_h):
             rejected.append((float(xb.max()), 0.5 * (y_lo + y_hi)))
             continue
-        ok = (xb - hw - lev >= 0) & (xb + hw + lev < W)
-        if np.count_nonzero(ok) < 3:
-            continue
-        ys, xb = ys[ok], xb[ok]
-        g_idx = xb[:, None] + hw + 1 + np.arange(lev)[None, :]
-        c_idx = xb[:, None] - hw - 1 - np.arange(lev)[None, :]
-        G_rows = _median(px(ys[:, None], g_idx))
-        C_rows = _median(px(ys[:, None], c_idx))
-        G = float(_median(G_rows))
-        contrast = G - C_rows
-        cmax = np.max(np.abs(contrast))
-        if cmax <= 0:
-            continue
-        # interior rows (fully covered by the line): near-full contrast, and never the first or last
-        # row of the end (a line side crosses those rows)
-        inner = (ys > y_lo) & (ys < y_hi)
-        full_rows = inner & (np.abs(contrast) >= 0.95 * cmax)
-        if np.count_nonzero(full_rows) < 3:
-            full_rows = inner & (np.abs(contrast) >= 0.85 * cmax)
-        if np.count_nonzero(full_rows) < 2:
-            continue
-        ys_f, xb_f, C_f = ys[full_rows], xb[full_rows], C_rows[full_rows]
-        win = xb_f[:, None] + np.arange(-hw, hw + 1)[None, :]
-        prof = px(ys_f[:, None], win)
-        f = (G - prof) / (G - C_f)[:, None]  # chrome fraction, 1 on the line, 0 on glass
-        if edge_method == "area":
-            xe = (xb_f - hw - 0.5) + f.sum(axis=1)
-        else:
-            xe = np.empty(ys_f.size)
-            for k in range(ys_f.size):
-                fk = f[k]
-                below = np.flatnonzero((fk[:-1] >= 0.5) & (fk[1:] < 0.5))
-                if below.size == 0:
-                    xe[k] = np.nan
-                    continue
-                i = below[-1]
-                xe[k] = win[k, i] + (fk[i] - 0.5) / (fk[i] - fk[i + 1])
-            good = np.isfinite(xe)
-            ys_f, xe, C_f = ys_f[good], xe[good], C_f[good]
-            if ys_f.size < 2:
-                continue
-        # centre row: centroid of the chrome fraction across the line, in columns just inside the end
-        C = float(_median(C_f))
-        xe_med = float(_median(xe))
-        cs = np.arange(int(round(xe_med)) - hw - lev, int(round(xe_med)) - hw)
-        cs = cs[(cs >= 0) & (cs < W)]
-        if cs.size == 0:
-            continue
-        ya, yb = max(y_lo - 4, 0), min(y_hi + 5, H)
-        yy = np.arange(ya, yb)
-        fc = (G - px(slice(ya, yb), cs)) / (G - C)
-        wsum = fc.sum(axis=0)
-        if np.any(wsum <= 0):
-            continue
-        y_cent = float(np.mean((fc * yy[:, None]).sum(axis=0) / wsum))
-        # straight line through the row edges, taken at the centre row
-        if ys_f.size >= 2 and np.ptp(ys_f) > 0:
-            pf = np.polyfit(ys_f.astype(float), xe, 1)
-            # rows spoilt by dust or a scratch at the line end: robust rejection, then refit
-            rr = xe - np.polyval(pf, ys_f)
-            sig = 1.4826 * float(_median(np.abs(rr - _median(rr))))
-            good = np.abs(rr) <= max(4.0 * sig, 0.25)
-            if 3 <= np.count_nonzero(good) < good.size:
-                ys_f, xe = ys_f[good], xe[good]
-                pf = np.polyfit(ys_f.astype(float), xe, 1)
-            x_mid = float(np.polyval(pf, y_cent))
-            sc = float(np.sqrt(np.mean((xe - np.polyval(pf, ys_f)) ** 2)))
-        else:
-            x_mid, sc = float(np.mean(xe)), float("nan")
-        pts.append((x_mid, y_cent))
-        cols.append(float(np.mean(cs)))
-        nrows.append(int(ys_f.size))
-        scat.append(sc)
-        glv.append(G)
-        lnv.append(C)
-    if len(pts) < min_lines:
+        m = _measure_end(grey, ys, xb, hw, lev, edge_method)
+        if m is not None:
+            rows_out.append(m)
+    if len(rows_out) < min_lines:
         raise ImageAnalysisError(
-            f"{_where(name)}: too few edge points: {len(pts)} usable line ends (need ≥ {min_lines}); "
+            f"{_where(name)}: too few edge points: {len(rows_out)} usable line ends (need ≥ {min_lines}); "
             f"{seg.lines.size} parts kept as lines, {len(rejected)} contaminated line ends rejected, {seg.removed_dust} small parts (dust) and "
             f"{seg.removed_border} border-cut parts removed, threshold {seg.threshold:.1f}, "
             f"{seg.polarity} lines; expected radial graduation lines ending inside the field of view")
+    pts = [(m[0], m[1]) for m in rows_out]
+    cols, nrows, scat, glv, lnv = ([m[i] for m in rows_out] for i in range(2, 7))
     order = np.argsort([p[1] for p in pts])
     a = lambda v: np.asarray(v)[order]  # noqa: E731
     return LineEdges(np.asarray(pts, dtype=float)[order], a(cols), a(nrows), a(scat), seg.polarity,
@@ -578,9 +676,9 @@ def edge_details(image: np.ndarray, name: str | int | None = None, half_window_p
                      np.asarray(rejected, dtype=float).reshape(-1, 2))
 
 
-def edge_points(image: np.ndarray, name: str | int | None = None, **kw) -> np.ndarray:
+def edge_points(image: np.ndarray, name: str | int | None = None, options: ImageOptions | None = None) -> np.ndarray:
     """(N, 2) sub-pixel middle points (x, y) in px of the outer edge of each graduation line."""
-    return edge_details(image, name, **kw).points_px
+    return edge_details(image, name, options).points_px
 
 
 # --------------------------------------------------------------------------- circle fit
@@ -680,8 +778,7 @@ def _dref_from_circle(cx: float, cy: float, r: float, cov: np.ndarray, reference
 
 
 def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = None, radius_px: float | None = None,
-             name: str | int | None = None, u_px: float | None = None, reject_outliers: bool = True,
-             min_lines: int = MIN_LINES, edges: LineEdges | None = None, **edge_kw) -> dict:
+             name: str | int | None = None, edges: LineEdges | None = None, options: ImageOptions | None = None) -> dict:
     """Jia's d_ref = l − r_fitting (px) of one image: edge points → circle → distance to R.
 
     ``reference_px``: the reference point R (default: the image centre (W/2, H/2), (1024, 768) for
@@ -695,15 +792,18 @@ def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = No
     points_px, residual_rms_px, n_lines, polarity, reference_px, edges (LineEdges),
     rejected_points_px.
 
-    ``edges``: this image's :func:`edge_details` (found once per frame, with the same
-    ``min_lines``/``reject_outliers``/``edge_kw``), so a caller that needs the edges for the pixel
+    ``options``: :class:`ImageOptions` (``u_px``, ``reject_outliers``, ``min_lines`` and the edge
+    finding's). ``edges``: this image's :func:`edge_details` (found once per frame, with the same
+    ``options``), so a caller that needs the edges for the pixel
     scale and for d_ref does not find them twice; by default they are found here. With ``edges``
     and ``reference_px`` given, ``image`` is not used (may be None).
     """
+    opt = options if options is not None else ImageOptions()
+    u_px, reject_outliers, min_lines = opt.u_px, opt.reject_outliers, opt.min_lines
     if edges is not None:
         ed = edges
     elif image is not None:
-        ed = edge_details(image, name, min_lines=min_lines, reject_outliers=reject_outliers, **edge_kw)
+        ed = edge_details(image, name, opt)
     else:
         raise ValueError("d_ref_px: give the image or its edges")
     if reference_px is None:
@@ -747,37 +847,9 @@ def d_ref_px(image: np.ndarray | None, reference_px: Sequence[float] | None = No
     }
 
 
-def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None = None,
-                   period_radius_um: float | None = None, edge_radius_um: float | None = None,
-                   periods: int = 3, edges: LineEdges | None = None, **edge_kw) -> dict:
-    """Object-side pixel size (µm/px) from the grating period (Jia eq. 13 and a better estimate).
-
-    - ``um_per_px_count``: the paper's way: the pixels over ``periods`` (3) periods, counted as an
-      integer along a column near the edge (``m_p_px``, Jia: 90 px → 0.667 µm/px); the median over
-      all runs of 3 periods in the column;
-    - ``um_per_px`` (recommended): the middle points of the line ends lie on the edge circle, so the
-      distance between neighbours along the edge is the period at the edge radius, exactly (the line
-      centres are measured a few px inside the end and moved along their radial line to the edge,
-      see :func:`d_ref_px`). Cumulative chord length (= arc length to 1e-8) fitted linearly against
-      the line index (missing lines allowed) gives the pitch in px, independent of the fitted
-      centre and radius (which are poorly determined on a short arc). Robust: the indices come from
-      the majority of regular spacings, line ends off the integer grid by > 0.2 pitch or off the
-      line by > max(5 robust σ, 0.05 px) are rejected (``rejected_spacing_px``), one end per index;
-      ImageAnalysisError ("line spacing is irregular") if fewer than a majority of the ends, or
-      fewer than ``min_lines``, remain.
-      ``u_um_per_px``: its standard uncertainty from that linear fit. ``pixel_um`` is an alias of
-      ``um_per_px`` (the manifest's ``ccd.pixel_um`` name).
-
-    ``period_um`` is the period at the edge radius (the twin's and Jia's convention: the twin draws
-    ``N = round(2π·R_edge/period)`` lines; see the module docstring), unless ``period_radius_um``
-    says at which radius it is specified; then ``edge_radius_um`` (the scale edge radius) is needed
-    to refer it to the edge.
-
-    Extra keys: ``n_lines`` (line ends used), ``line_index`` (their integer indices),
-    ``rejected_spacing_px``, ``spacing_residual_rms_px``.
-
-    ``edges``: this image's :func:`edge_details`, if already found (see :func:`d_ref_px`).
-    """
+def _period_at_edge(period_um: float, period_radius_um: float | None, edge_radius_um: float | None) -> float:
+    """The grating period at the edge radius (µm): ``period_um`` itself, or referred from the radius
+    ``period_radius_um`` where it is specified to the edge radius."""
     if not period_um > 0:
         raise ValueError(f"period_um must be > 0, got {period_um}")
     p_edge = float(period_um)
@@ -785,27 +857,36 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
         if edge_radius_um is None:
             raise ValueError("period_radius_um given: edge_radius_um is needed to refer the period to the edge")
         p_edge = period_um * edge_radius_um / period_radius_um
-    reject = bool(edge_kw.get("reject_outliers", True))
-    res = d_ref_px(image, None, name=name, edges=edges, **edge_kw)
-    ed: LineEdges = res["edges"]
-    r = res["radius_px"]
-    P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
-    n_pts = P.shape[0]
-    need = max(int(edge_kw.get("min_lines", MIN_LINES)), (n_pts + 2) // 2)  # a majority, ≥ min_lines
-    chords = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
-    # position of each line end along the edge: cumulative chord (= arc to (p/R)²/24 ≈ 1e-8). A
-    # contaminated point displaced along the edge changes its two chords by ±δ and nobody else's
-    # position; a point between two lines (two ends merged) sits at a half-integer index
-    s = np.concatenate([[0.0], np.cumsum(chords)])
-    # pitch start: the median chord, refined over the chords that are a whole number of pitches
+    return p_edge
+
+
+def _pitch_start(chords: np.ndarray) -> float:
+    """Pitch start (px): the median chord, refined over the chords that are a whole number of pitches."""
     step = float(np.median(chords))
     k = np.round(chords / step)
     ok = (k >= 1) & (np.abs(chords / np.maximum(k, 1) - step) < 0.1 * step)
     if np.count_nonzero(ok) >= 2:
         step = float(np.median(chords[ok] / k[ok]))
-    # index of each line end: nearest integer to s/step after removing the common phase; then a
-    # robust straight-line fit s = pitch·n + s0 (outliers: > 0.2 pitch off the integer grid, or
-    # > max(5 robust σ, 0.05 px) off the line; one line end per index)
+    return step
+
+
+@dataclass(frozen=True)
+class _PitchFit:
+    """The robust straight-line fit s = pitch·n + s0 of the line ends' positions along the edge."""
+
+    inliers: np.ndarray    # the line ends used
+    index: np.ndarray      # each end's integer index (float)
+    A: np.ndarray          # the design matrix [n, 1] of the inliers
+    sol: np.ndarray        # (pitch px, s0 px)
+
+
+def _regular_pitch(s: np.ndarray, step: float, need: int, reject: bool, name: str | int | None,
+                   chords: np.ndarray) -> _PitchFit:
+    """Index of each line end: nearest integer to s/step after removing the common phase; then a
+    robust straight-line fit s = pitch·n + s0 (outliers: > 0.2 pitch off the integer grid, or
+    > max(5 robust σ, 0.05 px) off the line; one line end per index), iterated to a fixed point.
+    ImageAnalysisError when fewer than ``need`` (a majority; all without ``reject``) remain."""
+    n_pts = s.size
     ph = np.angle(np.mean(np.exp(2j * np.pi * s / step))) / (2 * np.pi)
     pitch, s0 = step, ph * step
     inl = np.ones(n_pts, bool)
@@ -834,9 +915,17 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
         inl, pitch, s0 = new_inl, float(sol[0]), float(sol[1])
         if done:
             break
+    return _PitchFit(inl, idx, A, sol)
+
+
+def _pitch_scatter(s: np.ndarray, fit: _PitchFit, name: str | int | None, chords: np.ndarray) -> tuple[float, float]:
+    """(RMS of the used ends about the pitch line in px, u of the pitch in px); ImageAnalysisError when
+    the scatter exceeds 1 % of the pitch (a grating's ends scatter by ~0.02 px, not by px)."""
+    inl, A, sol = fit.inliers, fit.A, fit.sol
+    pitch = float(sol[0])
     resid = s[inl] - A @ sol
     rms = float(np.sqrt(np.mean(resid**2)))
-    if rms > 0.01 * pitch:  # a grating's ends scatter by ~0.02 px about the pitch line, not by px
+    if rms > 0.01 * pitch:
         raise ImageAnalysisError(
             f"{_where(name)}: line spacing is irregular: the {int(np.count_nonzero(inl))} line ends used scatter "
             f"by {rms:.2f} px (RMS) about a regular pitch of {pitch:.2f} px (allowed ≤ 1 % of the pitch); "
@@ -847,10 +936,13 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
         u_slope = math.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0])
     else:
         u_slope = float("nan")
-    pitch_px = float(sol[0])
-    um_per_px = p_edge / pitch_px
-    u_um = um_per_px * u_slope / pitch_px
-    # the paper's count along one column, a little inside the line ends
+    return rms, u_slope
+
+
+def _counted_scale(image: np.ndarray, name: str | int | None, ed: LineEdges, periods: int,
+                   p_edge: float) -> tuple[int, int, float]:
+    """The paper's count (Jia eq. 13) along one column a little inside the line ends: (column, pixels
+    over ``periods`` periods (median over the runs), µm/px; 0 and NaN without enough lines)."""
     img = np.asarray(image)
     _check_shape(img, name)
     col = int(round(float(np.median(ed.points_px[:, 0])) - 10))
@@ -862,13 +954,70 @@ def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None =
     if starts.size > periods:
         runs = starts[periods:] - starts[:-periods]
         m_p = int(np.median(runs))
-        um_count = periods * p_edge / m_p
-    else:
-        m_p, um_count = 0, float("nan")
+        return col, m_p, periods * p_edge / m_p
+    return col, 0, float("nan")
+
+
+def pixel_scale_um(image: np.ndarray, period_um: float, name: str | int | None = None,
+                   period_radius_um: float | None = None, edge_radius_um: float | None = None,
+                   edges: LineEdges | None = None, options: ImageOptions | None = None) -> dict:
+    """Object-side pixel size (µm/px) from the grating period (Jia eq. 13 and a better estimate).
+
+    - ``um_per_px_count``: the paper's way: the pixels over ``options.count_periods`` (3) periods, counted as an
+      integer along a column near the edge (``m_p_px``, Jia: 90 px → 0.667 µm/px); the median over
+      all runs of 3 periods in the column;
+    - ``um_per_px`` (recommended): the middle points of the line ends lie on the edge circle, so the
+      distance between neighbours along the edge is the period at the edge radius, exactly (the line
+      centres are measured a few px inside the end and moved along their radial line to the edge,
+      see :func:`d_ref_px`). Cumulative chord length (= arc length to 1e-8) fitted linearly against
+      the line index (missing lines allowed) gives the pitch in px, independent of the fitted
+      centre and radius (which are poorly determined on a short arc). Robust: the indices come from
+      the majority of regular spacings, line ends off the integer grid by > 0.2 pitch or off the
+      line by > max(5 robust σ, 0.05 px) are rejected (``rejected_spacing_px``), one end per index;
+      ImageAnalysisError ("line spacing is irregular") if fewer than a majority of the ends, or
+      fewer than ``min_lines``, remain.
+      ``u_um_per_px``: its standard uncertainty from that linear fit. ``pixel_um`` is an alias of
+      ``um_per_px`` (the manifest's ``ccd.pixel_um`` name).
+
+    ``period_um`` is the period at the edge radius (the twin's and Jia's convention: the twin draws
+    ``N = round(2π·R_edge/period)`` lines; see the module docstring), unless ``period_radius_um``
+    says at which radius it is specified; then ``edge_radius_um`` (the scale edge radius) is needed
+    to refer it to the edge.
+
+    Extra keys: ``n_lines`` (line ends used), ``line_index`` (their integer indices),
+    ``rejected_spacing_px``, ``spacing_residual_rms_px``.
+
+    ``edges``: this image's :func:`edge_details`, if already found (see :func:`d_ref_px`);
+    ``options``: :class:`ImageOptions`.
+
+    Stages: :func:`_period_at_edge`, :func:`d_ref_px`, :func:`_pitch_start`, :func:`_regular_pitch`,
+    :func:`_pitch_scatter`, :func:`_counted_scale`.
+    """
+    p_edge = _period_at_edge(period_um, period_radius_um, edge_radius_um)
+    opt = options if options is not None else ImageOptions()
+    reject = bool(opt.reject_outliers)
+    res = d_ref_px(image, None, name=name, edges=edges, options=opt)
+    ed: LineEdges = res["edges"]
+    r = res["radius_px"]
+    P = res["points_px"]  # middle points of the line ends, on the edge circle, sorted by y
+    n_pts = P.shape[0]
+    need = max(int(opt.min_lines), (n_pts + 2) // 2)  # a majority, ≥ min_lines
+    chords = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
+    # position of each line end along the edge: cumulative chord (= arc to (p/R)²/24 ≈ 1e-8). A
+    # contaminated point displaced along the edge changes its two chords by ±δ and nobody else's
+    # position; a point between two lines (two ends merged) sits at a half-integer index
+    s = np.concatenate([[0.0], np.cumsum(chords)])
+    fit = _regular_pitch(s, _pitch_start(chords), need, reject, name, chords)
+    rms, u_slope = _pitch_scatter(s, fit, name, chords)
+    inl = fit.inliers
+    pitch_px = float(fit.sol[0])
+    um_per_px = p_edge / pitch_px
+    u_um = um_per_px * u_slope / pitch_px
+    col, m_p, um_count = _counted_scale(image, name, ed, opt.count_periods, p_edge)
     return {
         "um_per_px": um_per_px, "pixel_um": um_per_px, "u_um_per_px": u_um, "pitch_px": pitch_px, "pitch_angle_rad": pitch_px / r,
         "edge_radius_px": r, "period_at_edge_um": p_edge, "m_p_px": m_p, "um_per_px_count": um_count,
-        "count_column_px": col, "n_lines": int(np.count_nonzero(inl)), "line_index": idx[inl].astype(int),
+        "count_column_px": col, "n_lines": int(np.count_nonzero(inl)), "line_index": fit.index[inl].astype(int),
         "rejected_spacing_px": P[~inl], "spacing_residual_rms_px": rms,
     }
 
@@ -1122,18 +1271,18 @@ def _d_n_table() -> dict[int, float]:
     return D_N
 
 
-def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], period_um: float | None = None,
-                             um_per_px: float | None = None, reference_px: Sequence[float] | None = None,
-                             camera_azimuth_deg: float = 180.0, order: int = 10, radius_px: float | None = None,
-                             names: Sequence[str] | None = None, **edge_kw) -> dict:
+def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[float], sweep: CcdSweep,
+                             names: Sequence[str] | None = None, options: ImageOptions | None = None) -> dict:
     """The whole sweep (sec. 4.2): d_ref per image, scale, e and θ0. Pure: images are arrays.
 
-    The scale is ``um_per_px`` if given, else the median of :func:`pixel_scale_um` over the images
-    (needs ``period_um``). Errors name the image (``names[k]`` or its index).
+    The scale is ``sweep.um_per_px`` if given, else the median of :func:`pixel_scale_um` over the
+    images (needs ``sweep.period_um``). Errors name the image (``names[k]`` or its index).
+    ``options``: how each frame is read (:class:`ImageOptions`).
 
     Keys: as :func:`eccentricity_from_dref`, plus theta_deg, dref_px, u_dref_px, dref_um, um_per_px,
     um_per_px_count, per_image (list of d_ref_px dicts without the edge details).
     """
+    opt = options if options is not None else ImageOptions()
     th = np.asarray(theta_deg, dtype=float).ravel()
     if len(images) != th.size:
         raise ValueError(f"{len(images)} images but {th.size} angles")
@@ -1141,20 +1290,20 @@ def eccentricity_from_images(images: Sequence[np.ndarray], theta_deg: Sequence[f
     for k, img in enumerate(images):
         nm = names[k] if names is not None else k
         # the edges once per image, for d_ref and the pixel scale alike
-        ed = edge_details(img, nm, **{k2: v for k2, v in edge_kw.items() if k2 != "u_px"})
-        r = d_ref_px(img, reference_px, radius_px, name=nm, edges=ed, **edge_kw)
+        ed = edge_details(img, nm, opt)
+        r = d_ref_px(img, sweep.reference_px, sweep.radius_px, name=nm, edges=ed, options=opt)
         dpx.append(r["d_ref_px"])
         upx.append(r["u_d_ref_px"])
         per.append({k2: v for k2, v in r.items() if k2 != "edges"})
-        if um_per_px is None:
-            if period_um is None:
+        if sweep.um_per_px is None:
+            if sweep.period_um is None:
                 raise ValueError("give um_per_px or period_um")
-            s = pixel_scale_um(img, period_um, name=nm, edges=ed, **edge_kw)
+            s = pixel_scale_um(img, sweep.period_um, name=nm, edges=ed, options=opt)
             scales.append(s["um_per_px"])
             counts.append(s["um_per_px_count"])
-    scale = float(um_per_px) if um_per_px is not None else float(np.median(scales))
+    scale = float(sweep.um_per_px) if sweep.um_per_px is not None else float(np.median(scales))
     dref_um = np.asarray(dpx) * scale
-    out = eccentricity_from_dref(th, dref_um, camera_azimuth_deg, order)
+    out = eccentricity_from_dref(th, dref_um, sweep.camera_azimuth_deg, sweep.order)
     out.update(theta_deg=th, dref_px=np.asarray(dpx), u_dref_px=np.asarray(upx), dref_um=dref_um,
                um_per_px=scale, um_per_px_count=float(np.nanmedian(counts)) if counts else float("nan"),
                per_image=per)

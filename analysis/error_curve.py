@@ -122,12 +122,10 @@ def _hysteresis(dirs: dict) -> dict[str, Any] | None:
     return out
 
 
-def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) -> dict[str, Any]:
-    """Analyse a lone error curve (see the module docstring). ``direction``: per point "forward" /
-    "backward" (or None: one direction); ``u_arcsec``: per point standard uncertainty (or None).
-    Returns a JSON-ready dict (arrays as numpy arrays): coverage, closure, hysteresis, u, harmonics,
-    residual, ambiguous, identified_effects (always empty: a lone curve identifies no cause),
-    unexplained, status, notes."""
+def _checked_curve(theta_deg: Any, error_arcsec: Any, direction: Any,
+                   u_arcsec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """(θ, error, direction or None when one direction, u per point or None) as flat arrays;
+    ValueError on mismatched lengths or fewer than 3 points."""
     th = np.asarray(theta_deg, dtype=float).ravel()
     err = np.asarray(error_arcsec, dtype=float).ravel()
     if th.size != err.size:
@@ -138,119 +136,119 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
     if dirn is not None and set(dirn) <= {"forward"}:
         dirn = None
     u = None if u_arcsec is None else np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape).copy()
-    thm = np.mod(th, 360.0)
-    cov = coverage(thm)
-    dirs = _by_direction(thm, err, dirn, u)
-    notes: list[str] = []
-    out: dict[str, Any] = {"kind": "error-curve", "n_points": int(th.size), "directions": sorted(dirs),
-                           "coverage": cov, "coverage_deg": cov["coverage_deg"], "identified_effects": [],
-                           "notes": notes}
-    hyst = _hysteresis(dirs)
-    out["hysteresis"] = hyst
-    # the direction mean at every angle (a point measured in one direction only stands for itself)
-    keys = np.round(thm, 9)
-    uniq, inv = np.unique(keys, return_inverse=True)
-    cnt = np.bincount(inv)
-    mean = np.bincount(inv, weights=err) / cnt
-    theta_u = uniq
-    # ---- u of one point of the mean curve
+    return th, err, dirn, u
+
+
+def _point_u(u: np.ndarray | None, inv: np.ndarray, cnt: np.ndarray, mean: np.ndarray, theta_u: np.ndarray,
+             hyst: dict[str, Any] | None, cov: dict[str, Any]) -> tuple[np.ndarray, str, float]:
+    """u of one point of the direction-mean curve (arcsec): given, else type A from the two directions,
+    else from the residual of a low-order series (full turn) or a quadratic (arc). (u, source, dof)."""
     if u is not None:
         u_mean = np.sqrt(np.bincount(inv, weights=u ** 2)) / cnt
-        u_src = "given per point (u_arcsec)"
-        u_dof = math.inf
-    elif hyst and hyst.get("available") and hyst["n_angles"] >= 3:
+        return u_mean, "given per point (u_arcsec)", math.inf
+    if hyst and hyst.get("available") and hyst["n_angles"] >= 3:
         s_pt = hyst["sd_about_mean_arcsec"] * math.sqrt(2.0)  # sd of (f − b) is √2·s_point; half-diff sd = s_point/√2
-        u_mean = s_pt / np.sqrt(cnt)
         u_src = ("type A from the two directions: the scatter of (forward − backward) about its mean, /√2 per point "
                  "(a non-constant hysteresis counts as non-repeatability: conservative)")
-        u_dof = hyst["n_angles"] - 1
+        return s_pt / np.sqrt(cnt), u_src, hyst["n_angles"] - 1
+    n_u = theta_u.size
+    K0 = max(1, (n_u - 1) // 4)
+    u_dof: float
+    if cov["full_turn"] and n_u >= 2 * K0 + 1 + MIN_DOF:
+        f0 = fit_fourier(theta_u, mean, K0)
+        s_pt = f0.sigma
+        u_src = f"type A from the residual of a Fourier series of order {K0} (content above it counted as noise)"
+        u_dof = f0.dof
     else:
-        K0 = max(1, (uniq.size - 1) // 4)
-        if cov["full_turn"] and uniq.size >= 2 * K0 + 1 + MIN_DOF:
-            f0 = fit_fourier(theta_u, mean, K0)
-            s_pt = f0.sigma
-            u_src = f"type A from the residual of a Fourier series of order {K0} (content above it counted as noise)"
-            u_dof = f0.dof
-        else:
-            c = np.polyfit(theta_u, mean, 2)
-            r = mean - np.polyval(c, theta_u)
-            u_dof = max(uniq.size - 3, 1)
-            s_pt = float(math.sqrt(np.sum(r ** 2) / u_dof))
-            u_src = "type A from the residual of a quadratic over the arc (content beyond it counted as noise)"
-        u_mean = np.full(uniq.size, max(s_pt, 1e-12))
-    out["u_point"] = {"u_arcsec": float(np.sqrt(np.mean(u_mean ** 2))), "source": u_src,
-                      "dof": None if not math.isfinite(u_dof) else int(u_dof)}
-    out["mean_curve"] = {"theta_deg": theta_u, "value_arcsec": mean, "u_arcsec": u_mean, "n_directions": cnt}
-    amb: list[dict[str, Any]] = []
-    if not cov["full_turn"]:
-        # ---- an arc: no closure, no harmonics of the turn; the trend over the arc
-        out["closure"] = {"state": "not applicable", "reason": f"an arc of {cov['coverage_deg']:.1f}° is not a turn: "
-                          "it does not close and carries no harmonics of the turn"}
-        out["harmonics"] = []
-        x = (theta_u - theta_u.mean())
-        A = np.column_stack([np.ones_like(x), x, x ** 2])
-        w = 1.0 / u_mean
-        beta, *_ = np.linalg.lstsq(A * w[:, None], mean * w, rcond=None)
-        C = np.linalg.inv((A * w[:, None]).T @ (A * w[:, None]))
-        r = mean - A @ beta
-        chi2 = float(np.sum((r / u_mean) ** 2))
-        dof = max(uniq.size - 3, 1)
-        out["trend"] = {"slope_arcsec_per_deg": float(beta[1]), "u_slope": float(math.sqrt(C[1, 1])),
-                        "curvature_arcsec_per_deg2": float(beta[2]), "u_curvature": float(math.sqrt(C[2, 2])),
-                        "about_deg": float(theta_u.mean()),
-                        "note": "a slope over an arc is a scale error of the encoder or of the reference, or the "
-                                "start of a low harmonic: an arc cannot tell them apart"}
-        out["residual"] = {"rms_arcsec": float(np.sqrt(np.mean(r ** 2))), "pv_arcsec": float(np.ptp(mean)),
-                           "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
-        # only against a u from outside the fit (given, or from the two directions) can χ² tell anything
-        sig_left = not u_src.startswith("type A from the residual") and out["residual"]["p_value"] < P_SIG
-        out["unexplained"] = bool(sig_left)
-        out["status"] = "arc"
-        notes.append(out["closure"]["reason"])
-        out["ambiguous"] = amb
-        return out
-    # ---- closure state (full turn)
+        c = np.polyfit(theta_u, mean, 2)
+        r = mean - np.polyval(c, theta_u)
+        u_dof = max(n_u - 3, 1)
+        s_pt = float(math.sqrt(np.sum(r ** 2) / u_dof))
+        u_src = "type A from the residual of a quadratic over the arc (content beyond it counted as noise)"
+    return np.full(n_u, max(s_pt, 1e-12)), u_src, u_dof
+
+
+def _arc_outputs(cov: dict[str, Any], theta_u: np.ndarray, mean: np.ndarray, u_mean: np.ndarray,
+                 u_src: str) -> dict[str, Any]:
+    """An arc: no closure, no harmonics of the turn; the trend over the arc (weighted quadratic) and
+    χ² of what is left (meaningful only against a u from outside the fit)."""
+    out: dict[str, Any] = {}
+    out["closure"] = {"state": "not applicable", "reason": f"an arc of {cov['coverage_deg']:.1f}° is not a turn: "
+                      "it does not close and carries no harmonics of the turn"}
+    out["harmonics"] = []
+    x = (theta_u - theta_u.mean())
+    A = np.column_stack([np.ones_like(x), x, x ** 2])
+    w = 1.0 / u_mean
+    beta, *_ = np.linalg.lstsq(A * w[:, None], mean * w, rcond=None)
+    C = np.linalg.inv((A * w[:, None]).T @ (A * w[:, None]))
+    r = mean - A @ beta
+    chi2 = float(np.sum((r / u_mean) ** 2))
+    dof = max(theta_u.size - 3, 1)
+    out["trend"] = {"slope_arcsec_per_deg": float(beta[1]), "u_slope": float(math.sqrt(C[1, 1])),
+                    "curvature_arcsec_per_deg2": float(beta[2]), "u_curvature": float(math.sqrt(C[2, 2])),
+                    "about_deg": float(theta_u.mean()),
+                    "note": "a slope over an arc is a scale error of the encoder or of the reference, or the "
+                            "start of a low harmonic: an arc cannot tell them apart"}
+    out["residual"] = {"rms_arcsec": float(np.sqrt(np.mean(r ** 2))), "pv_arcsec": float(np.ptp(mean)),
+                       "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
+    # only against a u from outside the fit (given, or from the two directions) can χ² tell anything
+    sig_left = not u_src.startswith("type A from the residual") and out["residual"]["p_value"] < P_SIG
+    out["unexplained"] = bool(sig_left)
+    out["status"] = "arc"
+    return out
+
+
+def _closure(cov: dict[str, Any], theta_u: np.ndarray, mean: np.ndarray, u_mean: np.ndarray,
+             dirs: dict[str, Any]) -> dict[str, Any]:
+    """The closure state of a full turn: zero at the start, zero mean, or offset; the weighted mean
+    (arcsec) that is removed."""
     first = float(mean[np.argmin(np.abs(((theta_u - cov["start_deg"]) + 180.0) % 360.0 - 180.0))])
     zero_start = all(abs(float(d["error_arcsec"][0])) <= ZERO_TOL_ARCSEC for d in dirs.values())
     m0 = float(np.sum(mean / u_mean ** 2) / np.sum(1.0 / u_mean ** 2))
     u_m0 = float(1.0 / math.sqrt(np.sum(1.0 / u_mean ** 2)))
     state = ("relative to the start (zero at the first angle)" if zero_start
              else "closed (zero mean)" if abs(m0) <= 2 * u_m0 else "offset (neither zero at the start nor zero mean)")
-    out["closure"] = {"state": state, "mean_arcsec": m0, "u_mean_arcsec": u_m0, "first_value_arcsec": first,
-                      "closed": bool(abs(m0) <= 2 * u_m0), "applied": "the mean over the turn is removed: a full "
-                      "turn determines the error only up to a constant (circle closure, Hsieh 2022 eq. 2)"}
-    y = mean - m0
-    # ---- harmonics
-    K = int(min(10, (uniq.size - 1) // 2 - 1))
-    while K >= 1 and uniq.size < 2 * K + 1 + MIN_DOF:
+    return {"state": state, "mean_arcsec": m0, "u_mean_arcsec": u_m0, "first_value_arcsec": first,
+            "closed": bool(abs(m0) <= 2 * u_m0), "applied": "the mean over the turn is removed: a full "
+            "turn determines the error only up to a constant (circle closure, Hsieh 2022 eq. 2)"}
+
+
+def _harmonics(theta_u: np.ndarray, y: np.ndarray, u_mean: np.ndarray,
+               notes: list[str]) -> tuple[list[dict[str, Any]], np.ndarray, dict[str, Any] | None]:
+    """Harmonics 1…K (K ≤ 10, with MIN_DOF residual dof) of the closed curve, each tested at P_SIG/K
+    (Bonferroni): (rows, the curve minus its significant harmonics, the fit's χ² row or None)."""
+    n_u = theta_u.size
+    K = int(min(10, (n_u - 1) // 2 - 1))
+    while K >= 1 and n_u < 2 * K + 1 + MIN_DOF:
         K -= 1
     harm: list[dict[str, Any]] = []
     resid = y
-    if K >= 1:
-        fit = fit_fourier(theta_u, y, K, u=u_mean)
-        crit = float(chi2_isf(P_SIG / K, 2))
-        for k in range(1, K + 1):
-            ap = amplitude_phase(fit, k)
-            try:
-                q = float(np.array([ap["a"], ap["b"]]) @ np.linalg.solve(ap["cov_ab"], np.array([ap["a"], ap["b"]])))
-            except np.linalg.LinAlgError:
-                q = 0.0
-            harm.append({"k": k, "amplitude_arcsec": ap["amplitude"], "u_arcsec": ap["u_amplitude"],
-                         "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "a_arcsec": ap["a"],
-                         "b_arcsec": ap["b"], "chi2": q, "p_value": float(chi2_sf(q, 2)),
-                         "significant": bool(q > crit)})
-        sig_k = [h["k"] for h in harm if h["significant"]]
-        if sig_k:
-            resid = y - fit(theta_u, sig_k)
-        chi2_all = float(np.sum((fit.residual / u_mean) ** 2))
-        out["fit"] = {"order": K, "chi2": chi2_all, "dof": int(fit.dof),
-                      "p_value": float(chi2_sf(chi2_all, max(fit.dof, 1)))}
-    else:
+    if K < 1:
         notes.append("too few angles for any harmonic with residual degrees of freedom")
-    out["harmonics"] = harm
+        return harm, resid, None
+    fit = fit_fourier(theta_u, y, K, u=u_mean)
+    crit = float(chi2_isf(P_SIG / K, 2))
+    for k in range(1, K + 1):
+        ap = amplitude_phase(fit, k)
+        try:
+            q = float(np.array([ap["a"], ap["b"]]) @ np.linalg.solve(ap["cov_ab"], np.array([ap["a"], ap["b"]])))
+        except np.linalg.LinAlgError:
+            q = 0.0
+        harm.append({"k": k, "amplitude_arcsec": ap["amplitude"], "u_arcsec": ap["u_amplitude"],
+                     "phase_deg": ap["phase_deg"], "u_phase_deg": ap["u_phase_deg"], "a_arcsec": ap["a"],
+                     "b_arcsec": ap["b"], "chi2": q, "p_value": float(chi2_sf(q, 2)),
+                     "significant": bool(q > crit)})
     sig_k = [h["k"] for h in harm if h["significant"]]
-    out["significant_harmonics"] = sig_k
-    # ---- what a lone curve cannot separate
+    if sig_k:
+        resid = y - fit(theta_u, sig_k)
+    chi2_all = float(np.sum((fit.residual / u_mean) ** 2))
+    fit_row = {"order": K, "chi2": chi2_all, "dof": int(fit.dof), "p_value": float(chi2_sf(chi2_all, max(fit.dof, 1)))}
+    return harm, resid, fit_row
+
+
+def _ambiguities(sig_k: list[int], hyst: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """What a lone curve cannot separate, with the measurement that would."""
+    amb: list[dict[str, Any]] = []
     if 1 in sig_k:
         amb.append({"names": ["eccentricity", "graduation_error (order 1)"], "harmonics": [1],
                     "separating_measurement": "measure the scale's eccentricity on the axis (CCD, Jia sec. 4.2, eq. 3) "
@@ -267,20 +265,72 @@ def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) 
         amb.append({"names": ["torsion_hysteresis", "backlash of the drive or the reference"], "harmonics": [],
                     "separating_measurement": "measure both directions with a reference coupled directly to the "
                                               "encoder's shaft, at two drive torques"})
-    out["ambiguous"] = amb
-    # ---- what is left: the residual after the significant harmonics (and the constant hysteresis,
-    # which the direction mean already cancels)
+    return amb
+
+
+def _what_is_left(resid: np.ndarray, u_mean: np.ndarray, n_sig: int,
+                  hyst: dict[str, Any] | None) -> tuple[dict[str, Any], list[str]]:
+    """The residual after the significant harmonics (and the constant hysteresis, which the direction
+    mean already cancels) against u: its row and the reasons it is unexplained (empty: none)."""
     chi2 = float(np.sum((resid / u_mean) ** 2))
-    dof = int(max(uniq.size - 1 - 2 * len(sig_k), 1))
+    dof = int(max(resid.size - 1 - 2 * n_sig, 1))
     p = float(chi2_sf(chi2, dof))
-    out["residual"] = {"rms_arcsec": float(np.sqrt(np.mean(resid ** 2))), "pv_arcsec": float(np.ptp(resid)),
-                       "chi2": chi2, "dof": dof, "p_value": p,
-                       "note": "direction mean minus its constant and its significant harmonics, against u"}
+    row = {"rms_arcsec": float(np.sqrt(np.mean(resid ** 2))), "pv_arcsec": float(np.ptp(resid)),
+           "chi2": chi2, "dof": dof, "p_value": p,
+           "note": "direction mean minus its constant and its significant harmonics, against u"}
     left = []
     if p < P_SIG:
         left.append(f"χ² of what is left: {chi2:.1f} for {dof} dof (p = {p:.2g})")
     if hyst and hyst.get("available") and hyst.get("p_constant") is not None and hyst["p_constant"] < P_SIG:
         left.append("a direction difference that is not constant")
+    return row, left
+
+
+def analyze_error_curve(theta_deg, error_arcsec, direction=None, u_arcsec=None) -> dict[str, Any]:
+    """Analyse a lone error curve (see the module docstring). ``direction``: per point "forward" /
+    "backward" (or None: one direction); ``u_arcsec``: per point standard uncertainty (or None).
+    Returns a JSON-ready dict (arrays as numpy arrays): coverage, closure, hysteresis, u, harmonics,
+    residual, ambiguous, identified_effects (always empty: a lone curve identifies no cause),
+    unexplained, status, notes.
+
+    Stages: :func:`_checked_curve`, the direction mean, :func:`_point_u`; an arc: :func:`_arc_outputs`;
+    a full turn: :func:`_closure`, :func:`_harmonics`, :func:`_ambiguities`, :func:`_what_is_left`."""
+    th, err, dirn, u = _checked_curve(theta_deg, error_arcsec, direction, u_arcsec)
+    thm = np.mod(th, 360.0)
+    cov = coverage(thm)
+    dirs = _by_direction(thm, err, dirn, u)
+    notes: list[str] = []
+    out: dict[str, Any] = {"kind": "error-curve", "n_points": int(th.size), "directions": sorted(dirs),
+                           "coverage": cov, "coverage_deg": cov["coverage_deg"], "identified_effects": [],
+                           "notes": notes}
+    hyst = _hysteresis(dirs)
+    out["hysteresis"] = hyst
+    # the direction mean at every angle (a point measured in one direction only stands for itself)
+    keys = np.round(thm, 9)
+    uniq, inv = np.unique(keys, return_inverse=True)
+    cnt = np.bincount(inv)
+    mean = np.bincount(inv, weights=err) / cnt
+    theta_u = uniq
+    u_mean, u_src, u_dof = _point_u(u, inv, cnt, mean, theta_u, hyst, cov)
+    out["u_point"] = {"u_arcsec": float(np.sqrt(np.mean(u_mean ** 2))), "source": u_src,
+                      "dof": None if not math.isfinite(u_dof) else int(u_dof)}
+    out["mean_curve"] = {"theta_deg": theta_u, "value_arcsec": mean, "u_arcsec": u_mean, "n_directions": cnt}
+    if not cov["full_turn"]:
+        out.update(_arc_outputs(cov, theta_u, mean, u_mean, u_src))
+        notes.append(out["closure"]["reason"])
+        out["ambiguous"] = []
+        return out
+    out["closure"] = _closure(cov, theta_u, mean, u_mean, dirs)
+    y = mean - out["closure"]["mean_arcsec"]
+    harm, resid, fit_row = _harmonics(theta_u, y, u_mean, notes)
+    if fit_row is not None:
+        out["fit"] = fit_row
+    out["harmonics"] = harm
+    sig_k = [h["k"] for h in harm if h["significant"]]
+    out["significant_harmonics"] = sig_k
+    amb = _ambiguities(sig_k, hyst)
+    out["ambiguous"] = amb
+    out["residual"], left = _what_is_left(resid, u_mean, len(sig_k), hyst)
     out["left"] = left
     out["unexplained"] = bool(left)
     out["status"] = ("unexplained" if left else "ambiguous" if amb else "no_significant_residual")

@@ -30,8 +30,9 @@ comparing; the residual is measured − model. Jia: residual within ±6″, 9 % 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +48,8 @@ __all__ = [
     "integral_design_matrix",
     "periodic_integral",
     "jia_error_model",
+    "EccentricityEstimate",
+    "RadialCurve",
     "error_model_from_results",
     "compare_with_measured",
     "refine_eccentricity",
@@ -283,17 +286,46 @@ def radial_motion_u_gum(rm: dict, r_um: float) -> TermFn:
     return u_fn
 
 
-def jia_error_model(e_um: float, theta0_deg: float, r_um: float, theta_grid_deg: np.ndarray | None = None,
-                    dY_um: np.ndarray | None = None, u_e_um: float = 0.0, u_theta0_deg: float = 0.0,
-                    u_dY_um: float | np.ndarray = 0.0, u_r_um: float = 0.0, cov_e_theta0: float = 0.0,
-                    dY_correlated: bool = False) -> ErrorModel:
+@dataclass(frozen=True)
+class EccentricityEstimate:
+    """(e, θ0) of Jia eq. 3 (µm, deg) with their standard uncertainties and covariance (µm·deg, from
+    the Fourier fit of eq. 11): the CCD's eccentricity as eq. 5 and :func:`refine_eccentricity` use it."""
+
+    e_um: float
+    theta0_deg: float
+    u_e_um: float = 0.0
+    u_theta0_deg: float = 0.0
+    cov_e_theta0_um_deg: float = 0.0
+
+    @classmethod
+    def from_results(cls, ecc: Mapping[str, Any]) -> EccentricityEstimate:
+        """From the dict of :func:`benchtwin.analysis.eccentricity.eccentricity_from_dref` (``e_um``,
+        ``theta0_deg``, ``e_u_um``, ``theta0_u_deg``, ``cov_e_theta0``; the last three 0 when absent)."""
+        return cls(ecc["e_um"], ecc["theta0_deg"], ecc.get("e_u_um", 0.0), ecc.get("theta0_u_deg", 0.0),
+                   ecc.get("cov_e_theta0", 0.0))
+
+
+@dataclass(frozen=True)
+class RadialCurve:
+    """The disk's radial motion δY (µm, eq. 9) on a θ grid (deg) for eq. 5's radial-motion term, with
+    its standard uncertainty (µm, one number or per grid point) and whether that u is correlated over
+    θ (:func:`radial_motion_term`)."""
+
+    theta_grid_deg: np.ndarray
+    dY_um: np.ndarray
+    u_dY_um: float | np.ndarray = 0.0
+    correlated: bool = False
+
+
+def jia_error_model(ecc: EccentricityEstimate, r_um: float, radial: RadialCurve | None = None,
+                    u_r_um: float = 0.0) -> ErrorModel:
     """Jia eq. 5 as an :class:`ErrorModel` with terms "eccentricity" and (if δY given) "radial_motion"."""
     m = ErrorModel(r_um, u_r_um)
-    m.add_term("eccentricity", eccentricity_term(e_um, theta0_deg, r_um, u_e_um, u_theta0_deg, cov_e_theta0))
-    if dY_um is not None:
-        if theta_grid_deg is None:
-            raise ValueError("dY_um given without theta_grid_deg")
-        m.add_term("radial_motion", radial_motion_term(theta_grid_deg, dY_um, r_um, u_dY_um, dY_correlated))
+    m.add_term("eccentricity", eccentricity_term(ecc.e_um, ecc.theta0_deg, r_um, ecc.u_e_um, ecc.u_theta0_deg,
+                                                 ecc.cov_e_theta0_um_deg))
+    if radial is not None:
+        m.add_term("radial_motion", radial_motion_term(radial.theta_grid_deg, radial.dY_um, r_um, radial.u_dY_um,
+                                                       radial.correlated))
     return m
 
 
@@ -321,9 +353,8 @@ def error_model_from_results(ecc: dict, rm: dict | None, r_um: float, u_r_um: fl
             pass  # the covariance propagation replaces the per-point u below
         elif dY_uncertainty != "none":
             raise ValueError(f"dY_uncertainty must be 'range', 'range_mean', 'gum' or 'none', got {dY_uncertainty!r}")
-    m = jia_error_model(ecc["e_um"], ecc["theta0_deg"], r_um, grid, dY, u_e_um=ecc.get("e_u_um", 0.0),
-                        u_theta0_deg=ecc.get("theta0_u_deg", 0.0), u_dY_um=u_dY, u_r_um=u_r_um,
-                        cov_e_theta0=ecc.get("cov_e_theta0", 0.0), dY_correlated=dY_correlated)
+    radial = None if grid is None or dY is None else RadialCurve(grid, dY, u_dY, dY_correlated)
+    m = jia_error_model(EccentricityEstimate.from_results(ecc), r_um, radial, u_r_um)
     if rm is not None and dY_uncertainty == "gum":
         m.terms["radial_motion"].u_fn = radial_motion_u_gum(rm, r_um)
         m.terms["radial_motion"].info["u"] = "gum: covariance of the synchronous δY, through the integral"
@@ -444,12 +475,94 @@ def sampling_advice(n_points: int, n_params: int) -> str | None:
             f"prediction then says how well the model predicts a stop it was not fitted to")
 
 
+@dataclass(frozen=True)
+class _Refit:
+    """The joint fit of :func:`refine_eccentricity`: the stops (rad), residuals, weights, the linear
+    columns, whether the k = 1 graduation term is fitted, r, the CCD's (e, θ0 rad) with covariance P,
+    the CCD's eq. 3 term at the stops and the parameter count."""
+
+    th: np.ndarray
+    res: np.ndarray
+    w: np.ndarray
+    C: np.ndarray
+    k1: bool
+    u_k1_arcsec: float
+    r_um: float
+    m0: np.ndarray
+    P: np.ndarray
+    f0: np.ndarray
+    n_par: int
+
+
+def _refit_design(p: _Refit, x: np.ndarray) -> np.ndarray:
+    """Arcsec per unit of each parameter at the stops: e [µm], θ0 [rad], (a1, b1) [″], c [″], δp."""
+    de, dt = eccentricity_sensitivities(p.th, x[0], x[1], p.r_um)
+    cols = [de / ARCSEC, dt / ARCSEC] + ([np.sin(p.th), np.cos(p.th)] if p.k1 else []) + [np.ones_like(p.th)]
+    return np.column_stack(cols + [p.C])
+
+
+def _refit_model(p: _Refit, x: np.ndarray) -> np.ndarray:
+    """The modelled residual at the stops: ecc(e, θ0) − ecc(e_ccd, θ0_ccd) + the linear terms."""
+    lin = _refit_design(p, x)[:, 2:] @ x[2:]
+    return eccentricity_term(x[0], math.degrees(x[1]), p.r_um)(p.th) - p.f0 + lin
+
+
+def _refit_precision(p: _Refit, prior_ccd: bool) -> np.ndarray:
+    """The priors' precision matrix: the CCD's (e, θ0) (with ``prior_ccd``) and the k = 1 term's."""
+    L = np.zeros((p.n_par, p.n_par))
+    if prior_ccd:
+        L[:2, :2] = np.linalg.inv(p.P)
+    if p.k1:
+        L[2, 2] = L[3, 3] = 1.0 / float(p.u_k1_arcsec) ** 2
+    return L
+
+
+def _gauss_newton(p: _Refit, prior_ccd: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Non-linear in θ0 (and e·θ0): Gauss-Newton from the CCD's values, to convergence (a δθ0 of
+    degrees leaves e·δθ0² ≈ 0.01 µm in one linear step); the other parameters are linear.
+    (x, covariance, Jacobian, prior precision)."""
+    L = _refit_precision(p, prior_ccd)
+    x0 = np.concatenate([p.m0, np.zeros(p.n_par - 2)])
+    x = x0.copy()
+    for _ in range(50):
+        J = _refit_design(p, x)
+        A = J.T @ (J * p.w[:, None]) + L
+        g = J.T @ (p.w * (p.res - _refit_model(p, x))) - L @ (x - x0)
+        step = np.linalg.lstsq(A, g, rcond=None)[0]
+        x = x + step
+        if abs(step[0]) <= 1e-12 * max(1.0, abs(x[0])) and abs(step[1]) <= 1e-14:
+            break
+    J = _refit_design(p, x)
+    return x, np.linalg.pinv(J.T @ (J * p.w[:, None]) + L), J, L
+
+
+def _refit_problem(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_arcsec: np.ndarray | float,
+                   ccd: EccentricityEstimate, r_um: float, extra: tuple[float, np.ndarray | None]
+                   ) -> tuple[_Refit, np.ndarray]:
+    """The checked inputs as a :class:`_Refit` (``extra`` = (u_k1_arcsec, columns)) and u per stop."""
+    u_k1_arcsec, columns = extra
+    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
+    res = np.asarray(residual_arcsec, dtype=float).ravel()
+    u_in = np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape)
+    if th.size < 4 or res.size != th.size or not np.all(np.isfinite(u_in)) or not np.all(u_in > 0):
+        raise ValueError("refine_eccentricity: need ≥ 4 points with finite residuals and positive u")
+    C = np.zeros((th.size, 0)) if columns is None else np.asarray(columns, dtype=float).reshape(th.size, -1)
+    k1 = float(u_k1_arcsec) > 0.0
+    r = float(r_um)
+    m0 = np.array([float(ccd.e_um), math.radians(ccd.theta0_deg)])
+    w = 1.0 / u_in ** 2
+    f0 = eccentricity_term(m0[0], math.degrees(m0[1]), r)(th)
+    n_par = 2 + (2 if k1 else 0) + 1 + C.shape[1]
+    c = math.radians(ccd.cov_e_theta0_um_deg)
+    P = np.array([[ccd.u_e_um ** 2, c], [c, math.radians(ccd.u_theta0_deg) ** 2]])
+    return _Refit(th, res, w, C, k1, u_k1_arcsec, r, m0, P, f0, n_par), u_in
+
+
 def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_arcsec: np.ndarray | float,
-                        e_um: float, theta0_deg: float, u_e_um: float, u_theta0_deg: float, r_um: float,
-                        cov_e_theta0: float = 0.0, *, u_k1_arcsec: float = 0.0,
+                        ccd: EccentricityEstimate, r_um: float, *, u_k1_arcsec: float = 0.0,
                         columns: np.ndarray | None = None) -> dict:
-    """(e, θ0) from the CCD (Jia eqs. 11-12) combined with the first harmonic that a comparison with
-    a measured α (polygon + autocollimator) still shows after the model, fitted jointly with the
+    """(e, θ0) from the CCD (Jia eqs. 11-12; ``ccd``) combined with the first harmonic that a comparison
+    with a measured α (polygon + autocollimator) still shows after the model, fitted jointly with the
     comparison's constant, a first-order graduation term and further linear ``columns``.
 
     The residual r_i = α_i − model_i at the stops is modelled as
@@ -476,72 +589,23 @@ def refine_eccentricity(theta_deg: np.ndarray, residual_arcsec: np.ndarray, u_ar
     """
     from benchtwin.analysis.distributions import chi2_sf
 
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
-    res = np.asarray(residual_arcsec, dtype=float).ravel()
-    u_in = np.broadcast_to(np.asarray(u_arcsec, dtype=float), th.shape)
-    if th.size < 4 or res.size != th.size or not np.all(np.isfinite(u_in)) or not np.all(u_in > 0):
-        raise ValueError("refine_eccentricity: need ≥ 4 points with finite residuals and positive u")
-    C = np.zeros((th.size, 0)) if columns is None else np.asarray(columns, dtype=float).reshape(th.size, -1)
-    k1 = float(u_k1_arcsec) > 0.0
-    r = float(r_um)
-    m0 = np.array([float(e_um), math.radians(theta0_deg)])
-    w = 1.0 / u_in ** 2
-    f0 = eccentricity_term(m0[0], math.degrees(m0[1]), r)(th)
-
-    def design(x):   # arcsec per unit: e [µm], θ0 [rad], (a1, b1) [″], c [″], δp
-        de, dt = eccentricity_sensitivities(th, x[0], x[1], r)
-        cols = [de / ARCSEC, dt / ARCSEC] + ([np.sin(th), np.cos(th)] if k1 else []) + [np.ones_like(th)]
-        return np.column_stack(cols + [C])
-
-    def model(x):
-        lin = design(x)[:, 2:] @ x[2:]
-        return eccentricity_term(x[0], math.degrees(x[1]), r)(th) - f0 + lin
-
-    n_par = 2 + (2 if k1 else 0) + 1 + C.shape[1]
-    c = math.radians(cov_e_theta0)
-    P = np.array([[u_e_um ** 2, c], [c, math.radians(u_theta0_deg) ** 2]])
-    x0 = np.concatenate([m0, np.zeros(n_par - 2)])
-
-    def precision(prior_ccd: bool) -> np.ndarray:
-        L = np.zeros((n_par, n_par))
-        if prior_ccd:
-            L[:2, :2] = np.linalg.inv(P)
-        if k1:
-            L[2, 2] = L[3, 3] = 1.0 / float(u_k1_arcsec) ** 2
-        return L
-
-    def gauss_newton(prior_ccd: bool):
-        # non-linear in θ0 (and e·θ0): Gauss-Newton from the CCD's values, to convergence (a δθ0 of
-        # degrees leaves e·δθ0² ≈ 0.01 µm in one linear step); the other parameters are linear
-        L = precision(prior_ccd)
-        x = x0.copy()
-        for _ in range(50):
-            J = design(x)
-            A = J.T @ (J * w[:, None]) + L
-            g = J.T @ (w * (res - model(x))) - L @ (x - x0)
-            step = np.linalg.lstsq(A, g, rcond=None)[0]
-            x = x + step
-            if abs(step[0]) <= 1e-12 * max(1.0, abs(x[0])) and abs(step[1]) <= 1e-14:
-                break
-        J = design(x)
-        return x, np.linalg.pinv(J.T @ (J * w[:, None]) + L), J, L
-
-    x, cov, J, L = gauss_newton(True)
-    xc, Cc, _, _ = gauss_newton(False)
-    d = xc[:2] - m0
-    chi2 = float(d @ np.linalg.solve(P + Cc[:2, :2], d))
-    resid = res - model(x)
+    p, u_in = _refit_problem(theta_deg, residual_arcsec, u_arcsec, ccd, r_um, (u_k1_arcsec, columns))
+    x, cov, J, L = _gauss_newton(p, True)
+    xc, Cc, _, _ = _gauss_newton(p, False)
+    d = xc[:2] - p.m0
+    chi2 = float(d @ np.linalg.solve(p.P + Cc[:2, :2], d))
+    resid = p.res - _refit_model(p, x)
     out = {"e_um": float(x[0]), "theta0_deg": float(math.degrees(x[1])),
            "u_e_um": float(math.sqrt(cov[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(cov[1, 1]))),
            "cov_e_theta0": float(math.degrees(cov[0, 1])),
            "comparison": {"e_um": float(xc[0]), "theta0_deg": float(math.degrees(xc[1])),
                           "u_e_um": float(math.sqrt(Cc[0, 0])), "u_theta0_deg": float(math.degrees(math.sqrt(Cc[1, 1])))},
-           "ccd": {"e_um": float(e_um), "theta0_deg": float(theta0_deg), "u_e_um": float(u_e_um),
-                   "u_theta0_deg": float(u_theta0_deg)},
-           "chi2": chi2, "dof": 2, "p_value": float(chi2_sf(chi2, 2)), "n_points": int(th.size),
-           "column_params": x[n_par - C.shape[1]:].tolist(), "residual_arcsec": resid,
+           "ccd": {"e_um": float(ccd.e_um), "theta0_deg": float(ccd.theta0_deg), "u_e_um": float(ccd.u_e_um),
+                   "u_theta0_deg": float(ccd.u_theta0_deg)},
+           "chi2": chi2, "dof": 2, "p_value": float(chi2_sf(chi2, 2)), "n_points": int(p.th.size),
+           "column_params": x[p.n_par - p.C.shape[1]:].tolist(), "residual_arcsec": resid,
            "fit": fit_statistics(J, resid, u_in, L)}
-    if k1:
+    if p.k1:
         out["k1_arcsec"] = {"a1": float(x[2]), "b1": float(x[3]), "u_a1": float(math.sqrt(cov[2, 2])),
                             "u_b1": float(math.sqrt(cov[3, 3])), "u_prior": float(u_k1_arcsec)}
     return out

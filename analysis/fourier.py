@@ -62,16 +62,19 @@ def param_index(harmonic: int) -> tuple[int, ...]:
 
 
 def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[float], prefix: str = "",
-                     unit: str = "arcsec") -> tuple[np.ndarray, list[str]]:
+                     unit: str = "arcsec", cos_first: bool = False) -> tuple[np.ndarray, list[str]]:
     """Columns ``[sin k₁θ, cos k₁θ, sin k₂θ, cos k₂θ, ...]`` for the harmonics ``ks`` (θ in degrees;
     n × 2·len(ks)) and their names ``{prefix}a{k}_{unit}`` / ``{prefix}b{k}_{unit}``: the terms of
-    eq. 6 of the orders listed, the one place this module builds them. An order need not be an
-    integer: k = 360°/P is a period P over an arc (analysis/arc_periods.py)."""
+    eq. 6 of the orders listed, the one place the package builds them. An order need not be an
+    integer: k = 360°/P is a period P over an arc (analysis/arc_periods.py). ``cos_first``: each
+    pair as ``[cos kθ, sin kθ]`` (ISO 230-7's a cos θ + b sin θ), names likewise."""
     th = np.deg2rad(np.asarray(theta_deg, dtype=float)).ravel()
     cols, names = [], []
     for k in ks:
-        cols += [np.sin(k * th), np.cos(k * th)]
-        names += [f"{prefix}a{k}_{unit}", f"{prefix}b{k}_{unit}"]
+        pair = [np.sin(k * th), np.cos(k * th)]
+        pair_names = [f"{prefix}a{k}_{unit}", f"{prefix}b{k}_{unit}"]
+        cols += pair[::-1] if cos_first else pair
+        names += pair_names[::-1] if cos_first else pair_names
     X = np.column_stack(cols) if cols else np.zeros((th.size, 0))
     return X, names
 

@@ -53,6 +53,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -62,8 +63,9 @@ from benchtwin.jsonable import to_json
 from . import selfcal as sc
 from . import shift_angle as sa
 from . import uncertainty as un
+from .uncertainty import HSIEH2022_TYPE_B
 
-__all__ = ["analyze_polygon", "fourier_resample_arcsec"]
+__all__ = ["analyze_polygon", "fourier_resample_arcsec", "HeadsData", "PolygonOptions", "HSIEH2022_TYPE_B"]
 
 
 # plain JSON types, non-finite floats -> null (benchtwin/jsonable.py)
@@ -134,42 +136,52 @@ def _heads_repeatability(ht: Mapping[str, np.ndarray]) -> tuple[np.ndarray | Non
     return sp / np.sqrt(np.maximum(ht["n_rep"], 1).astype(float)), sp, dof
 
 
-def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapping[str, np.ndarray] | None = None,
-                    heads_deg: Sequence[float] | None = None, certificate_beta_arcsec: np.ndarray | None = None, *,
-                    u_certificate_arcsec: np.ndarray | float | None = None, beta_source: str = "auto",
-                    u_eps_arcsec: float | None = None, fit_harmonics: Sequence[int] = (2,),
-                    selfcal_sets: Mapping[str, Sequence[int]] | None = None,
-                    ac_resolution_arcsec: float = 0.001, ac_traceability_U_arcsec: float = 0.01,
-                    ac_traceability_k: float = 2.0, ac_error_half_width_arcsec: float = 0.05,
-                    encoder_resolution_arcsec: float = 0.0, setup_misalignment_arcsec: float = 0.05,
-                    type_b_relative: float = 0.10, p: float = 0.95, mc_samples: int = 100_000,
-                    mc_seed: int = 20220516) -> dict[str, Any]:
-    """Analyse a polygon table (and optionally a heads table) with the Hsieh 2022 methods.
+@dataclass(frozen=True)
+class HeadsData:
+    """The self-calibration input of :func:`analyze_polygon`: the heads table (``theta_deg, head,
+    delta_arcsec`` + ``rep``, ``direction``), the heads' azimuths from head 1 (deg) and the head sets
+    of eq. 9 (None: the maximal equally spaced sets, :func:`.selfcal.equally_spaced_sets`)."""
 
-    ``columns``: ``shift_deg, start_face, step, ac_arcsec`` (+ ``theta_deg``, ``t_s``, ``rep``,
-    ``direction``; ``t_s`` is not used). ``heads``: ``theta_deg, head, delta_arcsec`` (+ ``rep``,
-    ``direction``) with ``heads_deg`` the azimuths of the heads from head 1. ``certificate_beta_arcsec``:
-    pitch deviations of a calibrated polygon (used per ``beta_source``; see
-    :func:`.shift_angle.shift_angle_analysis`). ``u_eps_arcsec``: the standard deviation of ONE reading,
-    if known from elsewhere (ν = ∞); by default it is estimated from the data
-    (:func:`.shift_angle.reading_repeatability`). ``selfcal_sets``: head sets for eq. 9; by default the
-    maximal equally spaced sets among the heads (:func:`.selfcal.equally_spaced_sets`). Budget
-    parameters in arcsec (defaults from Hsieh sec. 3.3: ELCOMAT 3000 resolution 0.001″, traceability
-    U = 0.01″ (k = 2), maximum error 0.05″, setup misalignment 0.05″; the encoder resolution comes from
-    the bench, 0 if unknown). ``mc_samples`` draws for the GUM-S1 check of the budget (0: none),
-    seeded by ``mc_seed``.
+    table: Mapping[str, np.ndarray]
+    heads_deg: Sequence[float] | None
+    sets: Mapping[str, Sequence[int]] | None = None
 
-    Raises :class:`.shift_angle.PolygonDataError` for unusable polygon readings.
-    """
-    need = [c for c in ("shift_deg", "start_face", "step", "ac_arcsec") if c not in columns]
-    if need:
-        raise sa.PolygonDataError(f"polygon columns missing: {need} (has {sorted(columns)})")
-    table = sa.tabulate_polygon(columns["shift_deg"], columns["start_face"], columns["step"], columns["ac_arcsec"],
-                                n_faces, theta_deg=columns.get("theta_deg"), rep=columns.get("rep"),
-                                direction=columns.get("direction"))
-    N = table.n_faces
-    notes: list[str] = []
-    # ---- u(ε): the repeatability of one reading
+
+@dataclass(frozen=True)
+class PolygonOptions:
+    """How :func:`analyze_polygon` estimates β and u(ε), and its budget's coverage and GUM-S1 check.
+
+    ``beta``: where β comes from, a calibrated polygon's pitch deviations among them
+    (:class:`.shift_angle.BetaSource`); ``u_eps_arcsec``: the standard
+    deviation of ONE reading if known from elsewhere (ν = ∞; None: from the data); ``fit_harmonics``:
+    the sec. 3.1 curve-fit check's harmonics; ``p``: coverage probability; ``mc_samples`` draws (0:
+    none) seeded by ``mc_seed`` for the GUM-S1 check."""
+
+    beta: sa.BetaSource = sa.BetaSource()
+    u_eps_arcsec: float | None = None
+    fit_harmonics: Sequence[int] = (2,)
+    p: float = 0.95
+    mc_samples: int = 100_000
+    mc_seed: int = 20220516
+
+
+@dataclass(frozen=True)
+class _Repeatability:
+    """u(ε) of one reading (arcsec) with its dof and source, and the table's scatter figures."""
+
+    s_read_arcsec: float | None
+    dof: float
+    source: str
+    fit: Any                  # sa.reading_repeatability's result
+    n_rep_min: int
+    sd_all_arcsec: np.ndarray
+    closure_s_arcsec: float
+    closure_dof: int
+
+
+def _repeatability(table: Any, u_eps_arcsec: float | None, notes: list[str]) -> _Repeatability:
+    """The repeatability of one reading (sec. 3.3 (1)): given, or from the residuals of eq. 3 fitted
+    to every reading (:func:`.shift_angle.reading_repeatability`); notes appended to ``notes``."""
     n_rep_min = int(min(int(table.n_rep[s][table.n_rep[s] > 0].min()) for s in table.shifts_deg))
     sd_all = np.concatenate([table.sd_arcsec[s][np.isfinite(table.sd_arcsec[s])] for s in table.shifts_deg])
     closure_s, closure_nu = (float("nan"), 0)
@@ -181,6 +193,7 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     if rep.dropped:
         notes.append(f"repeatability: {len(rep.dropped)} run-rows with a missing reading left out "
                      f"(shift, rep, direction, start face): {rep.dropped[:5]}")
+    s_read: float | None
     if u_eps_arcsec is not None:
         s_read, dof_rep, u_src = float(u_eps_arcsec), math.inf, "given u_eps_arcsec (one reading)"
     elif rep.dof > 0 and math.isfinite(rep.s_arcsec):
@@ -191,22 +204,23 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         s_read, dof_rep, u_src = None, math.inf, "none (no residual degrees of freedom)"
         notes.append("no residual degrees of freedom for the repeatability of ε (one run, no full table) and no "
                      "u_eps_arcsec: statistical u unavailable")
-    res = sa.shift_angle_analysis(table, certificate_beta_arcsec=certificate_beta_arcsec,
-                                  u_certificate_arcsec=u_certificate_arcsec, beta_source=beta_source,
-                                  s_reading_arcsec=s_read)
-    notes += res.notes
-    th, alpha, u_prop = sa.combined_curve(res)
-    # ---- sec. 3.1 curve-fit check
+    return _Repeatability(s_read, dof_rep, u_src, rep, n_rep_min, sd_all, closure_s, closure_nu)
+
+
+def _curve_fit_check(res: Any, fit_harmonics: Sequence[int], notes: list[str]) -> tuple[list[dict[str, Any]], float]:
+    """Sec. 3.1's curve-fit check of the setup errors: its rows and the largest |difference| (arcsec)."""
     try:
         fit_rows = sa.setup_error_by_curve_fit(res, fit_harmonics)
-        setup_residual = max(abs(r["diff_arcsec"]) for r in fit_rows)
+        return fit_rows, max(abs(r["diff_arcsec"]) for r in fit_rows)
     except ValueError as exc:  # e.g. a harmonic aliasing onto the offset
-        fit_rows, setup_residual = [], 0.0
         notes.append(f"curve-fit check skipped: {exc}")
-    # ---- direction difference and the paper's scatter of α over the repetitions
-    dd = sa.direction_difference(table, res.beta_arcsec, s_read) if s_read is not None else None
-    by_rep = sa.alpha_scatter_by_rep(table, res.beta_arcsec)
-    # ---- budget (sec. 3.3): worst case over θ of the statistical parts
+        return [], 0.0
+
+
+def _data_budget(res: Any, r: _Repeatability, n_faces: int, setup_residual: float, dd: dict[str, Any] | None,
+                 type_b: un.TypeBInputs) -> un.UncertaintyBudget:
+    """The budget (sec. 3.3) with the pooled repeatability: the worst case over θ of the statistical
+    parts, β's sensitivity from the estimator's Jacobian, the direction difference as row (9)."""
     u_e = np.concatenate([s.u_alpha_eps_arcsec for s in res.shifts])
     u_b = np.concatenate([s.u_alpha_beta_arcsec for s in res.shifts])
     u_rep_alpha = float(np.nanmax(u_e)) if np.any(np.isfinite(u_e)) else 0.0
@@ -214,46 +228,75 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
     c_beta = None
     if u_rep_beta > 0 and np.any(np.isfinite(u_b)) and np.nanmax(u_b) > 0:
         c_beta = float(np.nanmax(u_b)) / u_rep_beta
-    dof_beta = dof_rep if res.beta_source == "closure" else math.inf
-    budget = un.shift_angle_budget(u_repeat_alpha=u_rep_alpha, dof_repeat_alpha=dof_rep, n_faces=N,
-                                   u_repeat_beta=u_rep_beta, dof_repeat_beta=dof_beta,
-                                   ac_resolution=ac_resolution_arcsec, ac_traceability_U=ac_traceability_U_arcsec,
-                                   ac_traceability_k=ac_traceability_k, ac_error_half_width=ac_error_half_width_arcsec,
-                                   encoder_resolution=encoder_resolution_arcsec, setup_residual=setup_residual,
-                                   setup_misalignment=setup_misalignment_arcsec, type_b_relative=type_b_relative,
-                                   sensitivity_beta=c_beta,
-                                   direction_difference=dd["rms_systematic"] if dd is not None else None)
-    budget.p = p
-    stat_names = {"Repeatability of angle error measurement", "Repeatability of the pitch angle deviation measurement"}
-    u_typeb = math.sqrt(sum(c.contribution**2 for c in budget.contributions if c.name not in stat_names))
-    u_prop0 = np.where(np.isfinite(u_prop), u_prop, 0.0)
-    u_tot = np.sqrt(u_prop0**2 + u_typeb**2)
-    k = budget.k
-    # the paper's own way (sec. 3.3 (1), (7)): the largest sd over the repetitions of the whole method,
-    # /√n, with n − 1 dof — a worst case over θ (biased high: the maximum of many sample sds), shown
-    # beside the pooled budget; with it E_n is also given as the paper computes U (one U for all θ).
-    budget_paper = None
-    if by_rep is not None:
-        nr = by_rep["n_reps"]
-        nb = by_rep["n_reps_beta"]
-        budget_paper = un.shift_angle_budget(
-            u_repeat_alpha=by_rep["max_sd"] / math.sqrt(nr), dof_repeat_alpha=nr - 1, n_faces=N,
-            u_repeat_beta=by_rep["max_sd_beta"] / math.sqrt(nb) if nb >= 2 else 0.0,
-            dof_repeat_beta=max(nb - 1, 1), ac_resolution=ac_resolution_arcsec,
-            ac_traceability_U=ac_traceability_U_arcsec, ac_traceability_k=ac_traceability_k,
-            ac_error_half_width=ac_error_half_width_arcsec, encoder_resolution=encoder_resolution_arcsec,
-            setup_residual=setup_residual, setup_misalignment=setup_misalignment_arcsec,
-            type_b_relative=type_b_relative, title="Combined uncertainty, the paper's repeatability (max sd)")
-        budget_paper.p = p
-    mc_out = None
-    if mc_samples and budget.u_c > 0:
-        mc = budget.monte_carlo(int(mc_samples), rng=np.random.default_rng(mc_seed))
-        v = un.validate_gum_with_mc(0.0, budget.U, mc, budget.u_c, ndig=1)
-        mc_out = {"n": mc.n, "std": mc.std, "shortest": list(mc.shortest), "symmetric": list(mc.symmetric),
-                  "gum_interval": [-budget.U, budget.U], "delta": v["delta"], "validated_1_digit": v["ok"]}
-    out: dict[str, Any] = {
+    dof_beta = r.dof if res.beta_source == "closure" else math.inf
+    inputs = un.ShiftAngleBudgetInputs(
+        u_repeat_alpha_arcsec=u_rep_alpha, dof_repeat_alpha=r.dof, n_faces=n_faces, u_repeat_beta_arcsec=u_rep_beta,
+        dof_repeat_beta=dof_beta, setup_residual_arcsec=setup_residual, sensitivity_beta=c_beta,
+        direction_difference_arcsec=dd["rms_systematic"] if dd is not None else None)
+    return un.shift_angle_budget(inputs, type_b)
+
+
+def _paper_budget(by_rep: dict[str, Any] | None, n_faces: int, setup_residual: float,
+                  type_b: un.TypeBInputs) -> un.UncertaintyBudget | None:
+    """The paper's own way (sec. 3.3 (1), (7)): the largest sd over the repetitions of the whole method,
+    /√n, with n − 1 dof — a worst case over θ (biased high: the maximum of many sample sds), shown
+    beside the pooled budget; with it E_n is also given as the paper computes U (one U for all θ).
+    None with one repetition."""
+    if by_rep is None:
+        return None
+    nr = by_rep["n_reps"]
+    nb = by_rep["n_reps_beta"]
+    inputs = un.ShiftAngleBudgetInputs(
+        u_repeat_alpha_arcsec=by_rep["max_sd"] / math.sqrt(nr), dof_repeat_alpha=nr - 1, n_faces=n_faces,
+        u_repeat_beta_arcsec=by_rep["max_sd_beta"] / math.sqrt(nb) if nb >= 2 else 0.0,
+        dof_repeat_beta=max(nb - 1, 1), setup_residual_arcsec=setup_residual)
+    return un.shift_angle_budget(inputs, type_b, title="Combined uncertainty, the paper's repeatability (max sd)")
+
+
+def _monte_carlo_check(budget: un.UncertaintyBudget, mc_samples: int, mc_seed: int) -> dict[str, Any] | None:
+    """GUM-S1 check of the budget's interval with ``mc_samples`` draws (None when 0 or u_c = 0)."""
+    if not (mc_samples and budget.u_c > 0):
+        return None
+    mc = budget.monte_carlo(int(mc_samples), rng=np.random.default_rng(mc_seed))
+    v = un.validate_gum_with_mc(0.0, budget.U, mc, budget.u_c, ndig=1)
+    return {"n": mc.n, "std": mc.std, "shortest": list(mc.shortest), "symmetric": list(mc.symmetric),
+            "gum_interval": [-budget.U, budget.U], "delta": v["delta"], "validated_1_digit": v["ok"]}
+
+
+def _repeatability_out(table: Any, r: _Repeatability, by_rep: dict[str, Any] | None) -> dict[str, Any]:
+    """The ``repeatability`` key of :func:`analyze_polygon`'s result."""
+    return {"s_reading_arcsec": r.s_read_arcsec, "dof": r.dof if math.isfinite(r.dof) else None,
+            "pooled_sd_eps_arcsec": r.s_read_arcsec,  # the same s (pipeline.py's tracing reads this key)
+            "u_eps_source": r.source, "n_readings": r.fit.n_readings, "n_run_rows": r.fit.n_rows,
+            "max_sd_eps_arcsec": float(np.max(r.sd_all_arcsec)) if r.sd_all_arcsec.size else None,
+            "n_rep_min": r.n_rep_min,
+            "closure_residual_sd_arcsec": r.closure_s_arcsec, "closure_dof": r.closure_dof,
+            "alpha_sd_over_reps_max_arcsec": by_rep["max_sd"] if by_rep else None,
+            "n_reps": by_rep["n_reps"] if by_rep else 1,
+            "theta_offset_max_deg": table.theta_offset_max_deg}
+
+
+def _budget_out(budget: un.UncertaintyBudget, budget_paper: un.UncertaintyBudget | None, u_typeb: float, p: float,
+                mc_out: dict[str, Any] | None) -> dict[str, Any]:
+    """The ``budget``, ``budget_summary`` and ``budget_paper_repeatability`` keys."""
+    return {
+        "budget": budget.table(),
+        "budget_summary": {"u_c": budget.u_c, "nu_eff": budget.nu_eff, "k": budget.k, "U": budget.U, "p": p,
+                           "u_type_b": u_typeb, "sensitivity_beta": budget.contributions[6].sensitivity,
+                           "monte_carlo": mc_out},
+        "budget_paper_repeatability": None if budget_paper is None else
+        {"rows": budget_paper.table(), "u_c": budget_paper.u_c, "nu_eff": budget_paper.nu_eff, "k": budget_paper.k,
+         "U": budget_paper.U},
+    }
+
+
+def _shift_angle_out(table: Any, res: Any, curve: tuple[np.ndarray, ...]) -> dict[str, Any]:
+    """The shift-angle keys of :func:`analyze_polygon`'s result: β, U_j, α per shift and the combined
+    curve ``curve`` = (θ, α, u, u_propagated, U)."""
+    th, alpha, u_tot, u_prop, U = curve
+    return {
         "method": "Hsieh 2022 shift-angle",
-        "n_faces": N,
+        "n_faces": table.n_faces,
         "shifts_deg": table.shifts_deg,
         "beta_source": res.beta_source,
         "reference_shift_deg": res.reference_shift_deg,
@@ -264,90 +307,147 @@ def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: Mapp
         "setup_error_start_faces": {_skey(s.shift_deg): s.start_faces for s in res.shifts},
         "alpha_by_shift_arcsec": {_skey(s.shift_deg): {"theta_deg": s.theta_deg, "value": s.alpha_arcsec,
                                                          "u": s.u_alpha_arcsec} for s in res.shifts},
-        "encoder_error_arcsec": {"theta_deg": th, "value": alpha, "u": u_tot, "u_propagated": u_prop, "U": k * u_tot},
-        "curve_fit": fit_rows,
-        "repeatability": {"s_reading_arcsec": s_read, "dof": dof_rep if math.isfinite(dof_rep) else None,
-                          "pooled_sd_eps_arcsec": s_read,  # the same s (pipeline.py's tracing reads this key)
-                          "u_eps_source": u_src, "n_readings": rep.n_readings, "n_run_rows": rep.n_rows,
-                          "max_sd_eps_arcsec": float(np.max(sd_all)) if sd_all.size else None,
-                          "n_rep_min": n_rep_min,
-                          "closure_residual_sd_arcsec": closure_s, "closure_dof": closure_nu,
-                          "alpha_sd_over_reps_max_arcsec": by_rep["max_sd"] if by_rep else None,
-                          "n_reps": by_rep["n_reps"] if by_rep else 1,
-                          "theta_offset_max_deg": table.theta_offset_max_deg},
-        "direction_difference": None if dd is None else
-        {k_: dd[k_] for k_ in ("directions", "theta_deg", "value", "u", "chi2", "dof", "p_value", "rms",
-                               "rms_systematic", "max_abs", "offset_arcsec")},
-        "budget": budget.table(),
-        "budget_summary": {"u_c": budget.u_c, "nu_eff": budget.nu_eff, "k": k, "U": budget.U, "p": p,
-                           "u_type_b": u_typeb, "sensitivity_beta": budget.contributions[6].sensitivity,
-                           "monte_carlo": mc_out},
-        "budget_paper_repeatability": None if budget_paper is None else
-        {"rows": budget_paper.table(), "u_c": budget_paper.u_c, "nu_eff": budget_paper.nu_eff, "k": budget_paper.k,
-         "U": budget_paper.U},
-        "selfcal_error_arcsec": None,
-        "difference_arcsec": None,
-        "en_max": None,
-        "en_max_paper_budget": None,
+        "encoder_error_arcsec": {"theta_deg": th, "value": alpha, "u": u_tot, "u_propagated": u_prop, "U": U},
     }
+
+
+def _direction_out(dd: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The ``direction_difference`` key (:func:`.shift_angle.direction_difference`; None without u(ε))."""
+    if dd is None:
+        return None
+    return {k_: dd[k_] for k_ in ("directions", "theta_deg", "value", "u", "chi2", "dof", "p_value", "rms",
+                                  "rms_systematic", "max_abs", "offset_arcsec")}
+
+
+def _selfcal(heads: HeadsData, encoder_resolution_arcsec: float, p: float, notes: list[str]) -> tuple[Any, ...]:
+    """Eq. 9 on the heads table: (the self-calibration result, its u per θ, k, dof, s(δ), the sets)."""
+    if heads.heads_deg is None:
+        raise ValueError("heads table given without heads_deg (head azimuths from head 1)")
+    heads_deg = heads.heads_deg
+    tab = heads.table
+    ht = sc.tabulate_heads(tab["theta_deg"], tab["head"], tab["delta_arcsec"], len(heads_deg), rep=tab.get("rep"),
+                           direction=tab.get("direction"))
+    sets: dict[str, Sequence[int]] | None = dict(heads.sets if heads.sets else sc.equally_spaced_sets(heads_deg))
+    if not sets:
+        sets = None
+        notes.append("self-calibration: no equally spaced head sets; every head on its own (its δ also carries "
+                     "the axis' radial error motion, which set averages would cancel)")
+    u_d, s_d, dof_d = _heads_repeatability(ht)
+    scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_d)
+    u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
+    u_self = np.sqrt(scr.u_arcsec**2 + u_res**2)
+    dof_self = dof_d if u_d is not None else scr.dof
+    k_self = un.coverage_factor(dof_self if dof_self >= 1 else math.inf, p)
+    notes += scr.notes
+    return scr, u_self, k_self, dof_self, s_d, sets
+
+
+def _compared_curves(th: np.ndarray, alpha: np.ndarray, scr: Any, N: int,
+                     notes: list[str]) -> tuple[np.ndarray, np.ndarray, str]:
+    """Both methods on the harmonics both see: not the multiples of N (shift-angle, eq. 2), not those
+    the heads cannot see (self-calibration), not the Nyquist term. (shift-angle α, self-cal at θ, note)."""
+    blind_sa = [m for m in range(N, 100_000, N)]
+    drop = sorted(set(blind_sa) | {int(x) for x in scr.unobservable_harmonics})
+    if _full_grid(th):
+        n_sa = th.size
+        alpha_cmp = _drop_harmonics(th, alpha, [m for m in drop if m <= n_sa // 2])
+        mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th),
+                                [m for m in drop if m <= n_sa // 2])
+        cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
+                    f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")
+    else:
+        alpha_cmp = alpha
+        mu_at = fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th, drop_multiples_of=N)
+        cmp_note = (f"shift-angle θ not a full equally spaced grid: self-calibration evaluated at its θ without "
+                    f"the multiples of N = {N}; harmonics the heads cannot see are not removed from the "
+                    f"shift-angle side")
+        notes.append(cmp_note)
+    return alpha_cmp, mu_at, cmp_note
+
+
+def _selfcal_out(heads: HeadsData, curve: tuple[np.ndarray, ...], N: int, budgets: tuple[Any, ...],
+                 encoder_resolution_arcsec: float, notes: list[str]) -> dict[str, Any]:
+    """Self-calibration and the comparison (sec. 3.2, eq. 13): the keys ``selfcal_error_arcsec``,
+    ``selfcal``, ``difference_arcsec``, ``en_max`` (and ``en_max_paper_budget``). ``curve`` = (θ, α,
+    U of α); ``budgets`` = (p, the paper's budget or None)."""
+    th, alpha, U_alpha = curve
+    p, budget_paper = budgets
+    scr, u_self, k_self, dof_self, s_d, sets = _selfcal(heads, encoder_resolution_arcsec, p, notes)
+    alpha_cmp, mu_at, cmp_note = _compared_curves(th, alpha, scr, N, notes)
+    u_self_at = np.interp(th, scr.theta_deg, u_self, period=360.0)
+    diff = alpha_cmp - mu_at
+    en = un.en_number(alpha_cmp, U_alpha, mu_at, k_self * u_self_at)
+    out: dict[str, Any] = {}
+    out["selfcal_error_arcsec"] = {"theta_deg": scr.theta_deg, "value": scr.value_arcsec, "u": u_self,
+                                   "U": k_self * u_self}
+    out["selfcal"] = {"k": k_self, "dof": dof_self, "s_delta_arcsec": s_d,
+                      "sigma_delta_residual_arcsec": scr.sigma_delta_arcsec, "residual_dof": scr.dof,
+                      "head_residual_rms_arcsec": scr.residual_rms_arcsec,
+                      "set_residual_rms_arcsec": scr.set_residual_rms_arcsec, "set_on_grid": scr.set_on_grid,
+                      "unobservable_harmonics": scr.unobservable_harmonics,
+                      "sets": sets, "per_set_arcsec": scr.per_set_arcsec}
+    out["difference_arcsec"] = {"theta_deg": th, "value": diff, "shift_angle_compared": alpha_cmp,
+                                "selfcal_at_theta": mu_at, "en": en, "note": cmp_note,
+                                "removed_from_shift_angle_rms": float(np.sqrt(np.mean((alpha - alpha_cmp) ** 2))),
+                                "max_abs": float(np.max(np.abs(diff)))}
+    out["en_max"] = float(np.max(en))
+    out["difference_arcsec"]["fraction_en_above_1"] = float(np.mean(en > 1.0))
+    if budget_paper is not None:
+        en_p = un.en_number(alpha_cmp, budget_paper.U, mu_at, k_self * u_self_at)
+        out["en_max_paper_budget"] = float(np.max(en_p))
+    return out
+
+
+def analyze_polygon(columns: Mapping[str, np.ndarray], n_faces: int, heads: HeadsData | None = None, *,
+                    type_b: un.TypeBInputs = HSIEH2022_TYPE_B, options: PolygonOptions | None = None) -> dict[str, Any]:
+    """Analyse a polygon table (and optionally a heads table) with the Hsieh 2022 methods.
+
+    ``columns``: ``shift_deg, start_face, step, ac_arcsec`` (+ ``theta_deg``, ``t_s``, ``rep``,
+    ``direction``; ``t_s`` is not used). ``heads``: the heads table with the heads' azimuths and sets
+    (:class:`HeadsData`). ``type_b``: the budget's declared inputs in arcsec (defaults
+    :data:`HSIEH2022_TYPE_B`, Hsieh sec. 3.3: ELCOMAT 3000 resolution 0.001″, traceability U = 0.01″
+    (k = 2), maximum error 0.05″, setup misalignment 0.05″; the encoder resolution comes from the
+    bench, 0 if unknown). ``options``: the certificate of the polygon, u of one reading if known, the
+    curve-fit harmonics, coverage and the GUM-S1 check (:class:`PolygonOptions`).
+
+    Raises :class:`.shift_angle.PolygonDataError` for unusable polygon readings.
+    """
+    opt = options if options is not None else PolygonOptions()
+    need = [c for c in ("shift_deg", "start_face", "step", "ac_arcsec") if c not in columns]
+    if need:
+        raise sa.PolygonDataError(f"polygon columns missing: {need} (has {sorted(columns)})")
+    table = sa.tabulate_polygon(columns, n_faces)
+    N = table.n_faces
+    notes: list[str] = []
+    r = _repeatability(table, opt.u_eps_arcsec, notes)
+    res = sa.shift_angle_analysis(table, beta_from=opt.beta, s_reading_arcsec=r.s_read_arcsec)
+    notes += res.notes
+    th, alpha, u_prop = sa.combined_curve(res)
+    fit_rows, setup_residual = _curve_fit_check(res, opt.fit_harmonics, notes)
+    # direction difference and the paper's scatter of α over the repetitions
+    dd = sa.direction_difference(table, res.beta_arcsec, r.s_read_arcsec) if r.s_read_arcsec is not None else None
+    by_rep = sa.alpha_scatter_by_rep(table, res.beta_arcsec)
+    budget = _data_budget(res, r, N, setup_residual, dd, type_b)
+    budget.p = opt.p
+    stat_names = {"Repeatability of angle error measurement", "Repeatability of the pitch angle deviation measurement"}
+    u_typeb = math.sqrt(sum(c.contribution**2 for c in budget.contributions if c.name not in stat_names))
+    u_prop0 = np.where(np.isfinite(u_prop), u_prop, 0.0)
+    u_tot = np.sqrt(u_prop0**2 + u_typeb**2)
+    k = budget.k
+    budget_paper = _paper_budget(by_rep, N, setup_residual, type_b)
+    if budget_paper is not None:
+        budget_paper.p = opt.p
+    mc_out = _monte_carlo_check(budget, opt.mc_samples, opt.mc_seed)
+    out: dict[str, Any] = _shift_angle_out(table, res, (th, alpha, u_tot, u_prop, k * u_tot))
+    out["curve_fit"] = fit_rows
+    out["repeatability"] = _repeatability_out(table, r, by_rep)
+    out["direction_difference"] = _direction_out(dd)
+    out.update(_budget_out(budget, budget_paper, u_typeb, opt.p, mc_out))
+    out.update(selfcal_error_arcsec=None, difference_arcsec=None, en_max=None, en_max_paper_budget=None)
     if res.beta_closure_arcsec is not None:
         out["certificate_minus_closure_arcsec"] = res.beta_arcsec - res.beta_closure_arcsec
-    # ---- self-calibration and comparison (sec. 3.2, eq. 13)
-    if heads is not None:
-        if heads_deg is None:
-            raise ValueError("heads table given without heads_deg (head azimuths from head 1)")
-        nh = len(heads_deg)
-        ht = sc.tabulate_heads(heads["theta_deg"], heads["head"], heads["delta_arcsec"], nh, rep=heads.get("rep"),
-                               direction=heads.get("direction"))
-        sets = dict(selfcal_sets) if selfcal_sets else sc.equally_spaced_sets(heads_deg)
-        if not sets:
-            sets = None
-            notes.append("self-calibration: no equally spaced head sets; every head on its own (its δ also carries "
-                         "the axis' radial error motion, which set averages would cancel)")
-        u_d, s_d, dof_d = _heads_repeatability(ht)
-        scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_d)
-        u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
-        u_self = np.sqrt(scr.u_arcsec**2 + u_res**2)
-        dof_self = dof_d if u_d is not None else scr.dof
-        k_self = un.coverage_factor(dof_self if dof_self >= 1 else math.inf, p)
-        notes += scr.notes
-        # compare on the harmonics both methods see: not the multiples of N (shift-angle, eq. 2),
-        # not those the heads cannot see (self-calibration), not the Nyquist term
-        blind_sa = [m for m in range(N, 100_000, N)]
-        drop = sorted(set(blind_sa) | {int(x) for x in scr.unobservable_harmonics})
-        if _full_grid(th):
-            n_sa = th.size
-            alpha_cmp = _drop_harmonics(th, alpha, [m for m in drop if m <= n_sa // 2])
-            mu_at = _drop_harmonics(th, fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th),
-                                    [m for m in drop if m <= n_sa // 2])
-            cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
-                        f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")
-        else:
-            alpha_cmp = alpha
-            mu_at = fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th, drop_multiples_of=N)
-            cmp_note = (f"shift-angle θ not a full equally spaced grid: self-calibration evaluated at its θ without "
-                        f"the multiples of N = {N}; harmonics the heads cannot see are not removed from the "
-                        f"shift-angle side")
-            notes.append(cmp_note)
-        u_self_at = np.interp(th, scr.theta_deg, u_self, period=360.0)
-        diff = alpha_cmp - mu_at
-        en = un.en_number(alpha_cmp, k * u_tot, mu_at, k_self * u_self_at)
-        out["selfcal_error_arcsec"] = {"theta_deg": scr.theta_deg, "value": scr.value_arcsec, "u": u_self,
-                                       "U": k_self * u_self}
-        out["selfcal"] = {"k": k_self, "dof": dof_self, "s_delta_arcsec": s_d,
-                          "sigma_delta_residual_arcsec": scr.sigma_delta_arcsec, "residual_dof": scr.dof,
-                          "head_residual_rms_arcsec": scr.residual_rms_arcsec,
-                          "set_residual_rms_arcsec": scr.set_residual_rms_arcsec, "set_on_grid": scr.set_on_grid,
-                          "unobservable_harmonics": scr.unobservable_harmonics,
-                          "sets": sets, "per_set_arcsec": scr.per_set_arcsec}
-        out["difference_arcsec"] = {"theta_deg": th, "value": diff, "shift_angle_compared": alpha_cmp,
-                                    "selfcal_at_theta": mu_at, "en": en, "note": cmp_note,
-                                    "removed_from_shift_angle_rms": float(np.sqrt(np.mean((alpha - alpha_cmp) ** 2))),
-                                    "max_abs": float(np.max(np.abs(diff)))}
-        out["en_max"] = float(np.max(en))
-        out["difference_arcsec"]["fraction_en_above_1"] = float(np.mean(en > 1.0))
-        if budget_paper is not None:
-            en_p = un.en_number(alpha_cmp, budget_paper.U, mu_at, k_self * u_self_at)
-            out["en_max_paper_budget"] = float(np.max(en_p))
+    if heads is not None:  # self-calibration and comparison (sec. 3.2, eq. 13)
+        out.update(_selfcal_out(heads, (th, alpha, k * u_tot), N, (opt.p, budget_paper),
+                                type_b.encoder_resolution_arcsec, notes))
     out["notes"] = notes
     return _json(out)

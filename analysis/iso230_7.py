@@ -47,12 +47,15 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .fourier import harmonic_columns
+
 __all__ = ["remove_fundamental", "error_motion", "radial_error_motion", "spectrum_orders", "bandwidth", "acquisition"]
 
 
 def _design01(theta_deg: np.ndarray) -> np.ndarray:
-    t = np.deg2rad(np.asarray(theta_deg, dtype=float))
-    return np.column_stack([np.ones_like(t), np.cos(t), np.sin(t)])
+    """Columns [1, cos θ, sin θ] (the fundamental of ISO 230-7; analysis/fourier.py builds them)."""
+    X = harmonic_columns(theta_deg, [1], cos_first=True)[0]
+    return np.column_stack([np.ones(X.shape[0]), X])
 
 
 def remove_fundamental(theta_deg: np.ndarray, delta_um: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -60,15 +60,14 @@ def _progress(enabled: bool, total: int, desc: str):
 
 def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
     """Radial error motion from the two test spheres (Jia eqs. 6-9), with its ISO 230-7 values."""
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     t = RadialMotionTable.from_table(ds.table("radial_motion"))
     b = BenchGeometry.from_manifest(ds.bench)
     L1_mm, L2_mm = b.sphere_distances_mm
-    rm = radial_motion(
-        t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um, L1_mm, L2_mm,
-        probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um, order=order,
-    )
+    rm = radial_motion(ProbeReadings(t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um,
+                                     probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um),
+                       SphereSpacing(L1_mm, L2_mm), RadialOptions(order=order))
     # with the ISO 230-7 values and polar plots (issue 20)
     return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order))
 
@@ -373,8 +372,10 @@ def budget_inputs(bench: dict[str, Any]) -> tuple[dict[str, BudgetInput], list[s
 def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> PolygonAnalysis:
     """The shift-angle analysis of ``polygon_table(ds)``, or of ``table`` (the same rows with corrected
     autocollimator readings: :func:`reading_corrections`)."""
-    from benchtwin.analysis.hsieh_pipeline import analyze_polygon
-    from benchtwin.analysis.shift_angle import PolygonDataError
+
+    from benchtwin.analysis.hsieh_pipeline import HeadsData, PolygonOptions, analyze_polygon
+    from benchtwin.analysis.shift_angle import BetaSource, PolygonDataError
+    from benchtwin.analysis.uncertainty import HSIEH2022_TYPE_B
 
     b = BenchGeometry.from_manifest(ds.bench)
     heads = ds.table("heads") if ds.has("heads") else None
@@ -384,13 +385,15 @@ def step_polygon(ds: Dataset, table: Mapping[str, Any] | None = None) -> Polygon
     try:
         # the budget's other type B inputs go by their results.json names, which are analyze_polygon's
         out = analyze_polygon(
-            dict(table) if table is not None else polygon_table(ds), b.faces, heads,
-            b.heads_deg if heads is not None else None, np.asarray(cert, dtype=float) if cert is not None else None,
-            encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
-            ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
-            ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
-            ac_traceability_k=inputs["ac_traceability_k"]["value"],
-            setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"],
+            dict(table) if table is not None else polygon_table(ds), b.faces,
+            HeadsData(heads, b.heads_deg) if heads is not None else None,
+            type_b=replace(
+                HSIEH2022_TYPE_B, encoder_resolution_arcsec=inputs["encoder_resolution_arcsec"]["value"],
+                ac_resolution_arcsec=ac_res, ac_error_half_width_arcsec=ac_acc,
+                ac_traceability_U_arcsec=inputs["ac_traceability_U_arcsec"]["value"],
+                ac_traceability_k=inputs["ac_traceability_k"]["value"],
+                setup_misalignment_arcsec=inputs["setup_misalignment_arcsec"]["value"]),
+            options=PolygonOptions(beta=BetaSource(certificate_arcsec=np.asarray(cert, dtype=float) if cert is not None else None)),
         )
         declared = AutocollimatorDeclared(resolution_arcsec=ac_res, accuracy_arcsec=ac_acc,
                                           source="manifest" if note is None else "assumed (Hsieh 2022 ELCOMAT 3000)")
@@ -410,9 +413,9 @@ def step_iso230_2_polygon(ds: Dataset, pol: PolygonAnalysis) -> dict[str, Any] |
     direction = t.directions()
     if direction is None or len(set(direction)) < 2:
         return None
-    table = sa.tabulate_polygon(t.shift_deg, t.start_face, t.step, t.ac_arcsec,
-                                BenchGeometry.from_manifest(ds.bench).faces, theta_deg=t.theta_deg, rep=t.rep,
-                                direction=direction)
+    table = sa.tabulate_polygon({"shift_deg": t.shift_deg, "start_face": t.start_face, "step": t.step,
+                                 "ac_arcsec": t.ac_arcsec, "theta_deg": t.theta_deg, "rep": t.rep,
+                                 "direction": direction}, BenchGeometry.from_manifest(ds.bench).faces)
     got = runs_from_polygon(table, np.asarray(pol.pitch_deviation_arcsec, dtype=float))
     if got is None:
         return None
@@ -817,11 +820,10 @@ def reading_response(poly: Mapping[str, Any], pol: PolygonAnalysis, d: np.ndarra
     N = int(n_faces)
     p = PolygonReadings.from_table(poly)
     try:
-        t = sa.tabulate_polygon(p.shift_deg, p.start_face, p.step, d, N, theta_deg=p.theta_deg, rep=p.rep,
-                                direction=p.direction)
+        t = sa.tabulate_polygon({"shift_deg": p.shift_deg, "start_face": p.start_face, "step": p.step,
+                                 "ac_arcsec": d, "theta_deg": p.theta_deg, "rep": p.rep, "direction": p.direction}, N)
         src = pol.beta_source
-        res = sa.shift_angle_analysis(t, certificate_beta_arcsec=np.zeros(N) if src == "certificate" else None,
-                                      beta_source=src)
+        res = sa.shift_angle_analysis(t, beta_from=sa.BetaSource(src, np.zeros(N) if src == "certificate" else None))
     except (sa.PolygonDataError, ValueError):
         return None
     U = {}
@@ -1012,14 +1014,16 @@ def _refine_eccentricity(f: _LoopFit, model2: Any, th_c: np.ndarray, cmp2: Model
                          ) -> tuple[RefinedEccentricity, list[tuple[int, str]]]:
     """(e, θ0) and the traced parameters refitted on the stops, with the prior on a first-order
     graduation term (error_model.refine_eccentricity, k1_prior, traced_columns)."""
-    from benchtwin.analysis.error_model import refine_eccentricity
+    from benchtwin.analysis.error_model import EccentricityEstimate, refine_eccentricity
 
     ecc, tr, r_um = f.ecc, f.tr, f.r_um
     u_c = _alpha_u(f.corrected, f.u_eps)
     cols, col_names = traced_columns(tr.model_file, dict(model2.terms), th_c)
     u_k1, k1_source = k1_prior(tr.signature)
-    raw = refine_eccentricity(th_c, cmp2.residual_arcsec, u_c, ecc.e_um, ecc.theta0_deg, ecc.u_e_um,
-                              ecc.u_theta0_deg, r_um, ecc.cov_e_theta0, u_k1_arcsec=u_k1, columns=cols)
+    raw = refine_eccentricity(th_c, cmp2.residual_arcsec, u_c,
+                              EccentricityEstimate(ecc.e_um, ecc.theta0_deg, ecc.u_e_um, ecc.u_theta0_deg,
+                                                   ecc.cov_e_theta0),
+                              r_um, u_k1_arcsec=u_k1, columns=cols)
     ref = RefinedEccentricity.from_refine(
         raw, {"u_arcsec": u_k1, "u_um": u_k1 * ARCSEC * r_um, "source": k1_source},
         [f"{tr.effect_name(i)}.{n}" for i, n in col_names],

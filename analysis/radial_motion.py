@@ -29,8 +29,9 @@ is a right-handed rotation about +Y. µm/mm = mrad, reported in µrad.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,8 @@ from benchtwin.analysis.fourier import (FourierFit, design_matrix, evaluate, eva
                                         fit_harmonics, integrate_harmonics, perturbation_columns)
 
 __all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights", "RadialMotion",
-           "RADIAL_ORDERS", "ASYNC_P", "ASYNC_NOISE_ORDER", "ASYNC_BAND"]
+           "RADIAL_ORDERS", "ASYNC_P", "ASYNC_NOISE_ORDER", "ASYNC_BAND",
+           "ProbeReadings", "SphereSpacing", "RadialOptions"]
 
 #: Harmonic order set of the radial-motion series (eq. 7: orders 2…10; 0 = probe position and
 #: 1 = sphere centring are removed).
@@ -138,7 +140,7 @@ class RadialMotion:
         th = np.asarray(self.theta_deg, dtype=float)
         wt, wb = disk_weights(self.L1_mm, self.L2_mm)  # eq. 9
         raw = {"top_um": self.top_um, "bottom_um": self.bottom_um}
-        if self.has_x:
+        if self.top_x_um is not None and self.bottom_x_um is not None:  # has_x
             raw.update(top_x_um=self.top_x_um, bottom_x_um=self.bottom_x_um)
         for name, y in raw.items():
             # orders 0 and 1 fitted and dropped (eq. 7), orders 2…10 kept, with their type-A u
@@ -210,7 +212,7 @@ class RadialMotion:
             return {}
         th = np.asarray(self.theta_deg, dtype=float)
         raw = {"top_um": self.top_um, "bottom_um": self.bottom_um, "top_x_um": self.top_x_um, "bottom_x_um": self.bottom_x_um}
-        y = sum(w * np.asarray(raw[c], dtype=float) for c, w in self.combos[name].items())
+        y = np.asarray(sum(w * np.asarray(raw[c], dtype=float) for c, w in self.combos[name].items()), dtype=float)
         KB = ASYNC_BAND
         coefs, d2, nd, v = [], 0.0, 0, []
         for r in reps:
@@ -289,34 +291,277 @@ def _check(name: str, a: np.ndarray | None, n: int) -> np.ndarray | None:
     return x
 
 
-def radial_motion(
-    rep: np.ndarray,
-    theta_deg: np.ndarray,
-    probe_top_um: np.ndarray,
-    probe_bottom_um: np.ndarray,
-    L1_mm: float,
-    L2_mm: float,
-    probe_top_x_um: np.ndarray | None = None,
-    probe_bottom_x_um: np.ndarray | None = None,
-    order: int = 10,
-    u_probe_um: float | None = None,
-    u_L1_mm: float = 0.0,
-    u_L2_mm: float = 0.0,
-    grid_deg: np.ndarray | None = None,
-    d_n: float | None = None,
-    keep_residual: bool = False,
-) -> dict:
+@dataclass(frozen=True)
+class ProbeReadings:
+    """The columns of ``radial_motion.csv`` (one row per reading): repetition label, θ (deg) and the
+    sphere probes' readings (µm; the X probes optional, both or neither)."""
+
+    rep: np.ndarray
+    theta_deg: np.ndarray
+    probe_top_um: np.ndarray
+    probe_bottom_um: np.ndarray
+    probe_top_x_um: np.ndarray | None = None
+    probe_bottom_x_um: np.ndarray | None = None
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, np.ndarray]) -> ProbeReadings:
+        """The readings from a dataset's radial_motion table (its column names are the field names)."""
+        return cls(table["rep"], table["theta_deg"], table["probe_top_um"], table["probe_bottom_um"],
+                   probe_top_x_um=table.get("probe_top_x_um"), probe_bottom_x_um=table.get("probe_bottom_x_um"))
+
+
+@dataclass(frozen=True)
+class SphereSpacing:
+    """The lengths of eqs. 8-9 (mm): L1 top sphere → disk, L2 top sphere → bottom sphere, with their
+    standard uncertainties (propagated through eq. 9)."""
+
+    L1_mm: float
+    L2_mm: float
+    u_L1_mm: float = 0.0
+    u_L2_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class RadialOptions:
+    """How :func:`radial_motion` reduces the readings.
+
+    ``order``: Fourier order of eq. 6; ``u_probe_um``: standard uncertainty of one probe reading (µm;
+    None: the residual scatter of each fit); ``grid_deg``: the evaluation grid when the repetitions'
+    angles differ; ``d_n``: the range method's constant (None: :data:`D_N`); ``keep_residual``: keep
+    the readings minus orders 0 and 1 instead of eq. 7's series."""
+
+    order: int = 10
+    u_probe_um: float | None = None
+    grid_deg: np.ndarray | None = None
+    d_n: float | None = None
+    keep_residual: bool = False
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """The validated readings (flat float arrays; the X probes None or both given)."""
+
+    rep: np.ndarray
+    theta_deg: np.ndarray
+    top_um: np.ndarray
+    bottom_um: np.ndarray
+    top_x_um: np.ndarray | None
+    bottom_x_um: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class _Reduction:
+    """What every stage of :func:`radial_motion` shares: the readings' repetitions and angles, the
+    common grid, eq. 7's design matrix on it and the options."""
+
+    rep: np.ndarray            # label of each reading
+    theta_deg: np.ndarray      # angle of each reading
+    reps: np.ndarray           # the distinct labels
+    grid_deg: np.ndarray       # the common evaluation grid
+    G: np.ndarray              # harmonics 2…order on the grid (eq. 7)
+    order: int
+    u_probe_um: float | None
+    keep_residual: bool
+
+
+def _checked_readings(readings: ProbeReadings) -> _Checked:
+    """The readings as flat finite float arrays of one length (ValueError naming the column otherwise)."""
+    rep_a = np.asarray(readings.rep).ravel()
+    n = rep_a.size
+    th = _check("theta_deg", readings.theta_deg, n)
+    top = _check("probe_top_um", readings.probe_top_um, n)
+    bot = _check("probe_bottom_um", readings.probe_bottom_um, n)
+    topx = _check("probe_top_x_um", readings.probe_top_x_um, n)
+    botx = _check("probe_bottom_x_um", readings.probe_bottom_x_um, n)
+    if (topx is None) != (botx is None):
+        raise ValueError("probe_top_x_um and probe_bottom_x_um must be given together")
+    assert th is not None and top is not None and bot is not None
+    return _Checked(rep_a, th, top, bot, topx, botx)
+
+
+def _common_grid(rep_a: np.ndarray, th: np.ndarray, reps: np.ndarray, options: RadialOptions) -> np.ndarray:
+    """The evaluation grid: the measured angles when every repetition has the same set, otherwise
+    ``grid_deg`` or 360 points at 1°. ``keep_residual`` needs the first case."""
+    sets = [np.unique(np.round(th[rep_a == r] % 360.0, 9)) for r in reps]
+    same = all(s.size == sets[0].size and np.allclose(s, sets[0]) for s in sets)
+    if options.grid_deg is not None:
+        grid = np.asarray(options.grid_deg, dtype=float).ravel()
+    elif same:
+        grid = sets[0]
+    else:
+        grid = np.arange(360) * 1.0
+    if options.keep_residual and (options.grid_deg is not None or not same):
+        raise ValueError("keep_residual=True needs every repetition at the same angles (no grid_deg)")
+    return grid
+
+
+def _channel(ctx: _Reduction, values: np.ndarray, label: str) -> tuple[list[FourierFit], np.ndarray]:
+    """One probe's eq. 6 fit per repetition and its curve on the grid (n_reps × n_grid): eq. 7's
+    series, or with ``keep_residual`` the readings minus the fitted orders 0 and 1."""
+    fits: list[FourierFit] = []
+    curves = []
+    th, order = ctx.theta_deg, ctx.order
+    for r in ctx.reps:
+        m = ctx.rep == r
+        try:
+            f = fit_fourier(th[m], values[m], order, ctx.u_probe_um)
+        except ValueError as exc:
+            raise ValueError(f"{label}, repetition {r}: {exc}") from None
+        fits.append(f)
+        if ctx.keep_residual:
+            # data minus the 0th and 1st harmonics, at the measured angles (sorted onto the grid)
+            tm = np.round(th[m] % 360.0, 9)
+            o = np.argsort(tm, kind="stable")
+            tm, vm = tm[o], values[m][o] - (design_matrix(th[m], order, harmonics=(0, 1)) @ f.params)[o]
+            _, first = np.unique(tm, return_index=True)
+            curves.append(vm[first])
+        else:
+            curves.append(ctx.G @ f.params)
+    return fits, np.array(curves)
+
+
+def _point_var(ctx: _Reduction, fl: list[FourierFit], w: float = 1.0) -> float:
+    """w²·(variance of one revolution's curve at a point from the probe noise), mean over θ and reps:
+    gᵀ·cov·g of the series (harmonics 2…order), or σ² itself for the kept residual."""
+    if ctx.keep_residual:
+        return float(np.mean([w**2 * (ctx.u_probe_um if ctx.u_probe_um is not None else f.sigma) ** 2 for f in fl]))
+    return float(np.mean([w**2 * np.mean(np.einsum("ij,jk,ik->i", ctx.G, f.cov, ctx.G)) for f in fl]))
+
+
+def _summary(ctx: _Reduction, fa: list[FourierFit], fb: list[FourierFit], curves: tuple[np.ndarray, ...],
+             weights: tuple[float, float]) -> tuple[dict[str, float], ...]:
+    """ISO 230-7 values with u (:func:`_with_u`) of a probe pair and its disk-plane combination:
+    ``curves`` = (top, bottom, disk) per repetition, ``weights`` = eq. 9's (w_top, w_bottom)."""
+    n = ctx.reps.size
+    w_top, w_bot = weights
+    return (_with_u(error_motion_values(curves[0]), _point_var(ctx, fa), n),
+            _with_u(error_motion_values(curves[1]), _point_var(ctx, fb), n),
+            _with_u(error_motion_values(curves[2]), _point_var(ctx, fa, w_top) + _point_var(ctx, fb, w_bot), n))
+
+
+def _bandwidth(order: int, keep_residual: bool) -> dict[str, Any]:
+    """The orders per revolution the curves hold (2…order, or 2 and up unfiltered), with words."""
+    if keep_residual:
+        return {"lowest_order": 2, "highest_order": None, "filter": "none",
+                "text": "orders 2 and up of the revolution (the readings minus orders 0 and 1, unfiltered)"}
+    return {"lowest_order": 2, "highest_order": int(order), "filter": f"Fourier series of order {order} (Jia eq. 7)",
+            "text": f"orders 2–{order} of the revolution (Jia eq. 7's series of each revolution: motion and "
+                    f"probe noise above order {order} filtered out)"}
+
+
+def _mean_series(fa: list[FourierFit], fb: list[FourierFit], weights: tuple[float, float],
+                 order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean over reps of w_top·(top series) + w_bot·(bottom series), harmonics 2…order: its
+    parameters (µm) and their GUM covariance."""
+    w_top, w_bot = weights
+    keep = np.zeros(2 * order + 1)
+    keep[3:] = 1.0
+    k = len(fa)
+    p = sum(w_top * f.params + w_bot * g.params for f, g in zip(fa, fb)) / k * keep
+    cov = sum(w_top**2 * f.cov + w_bot**2 * g.cov for f, g in zip(fa, fb)) / k**2
+    cov = cov * np.outer(keep, keep)
+    return p, cov
+
+
+def _pair(ctx: _Reduction, top: np.ndarray, bot: np.ndarray, names: tuple[str, str],
+          spacing: SphereSpacing) -> dict[str, Any]:
+    """Both probes of one direction reduced: per-rep fits and curves, their eq. 9 disk-plane
+    combination and eq. 8 tilt (µrad), and the mean series of the combination."""
+    wts = disk_weights(spacing.L1_mm, spacing.L2_mm)
+    fa, top_r = _channel(ctx, top, names[0])
+    fb, bot_r = _channel(ctx, bot, names[1])
+    disk_r = wts[0] * top_r + wts[1] * bot_r
+    tilt_r = (top_r - bot_r) / spacing.L2_mm * 1e3  # µm/mm = mrad → µrad
+    params, cov = _mean_series(fa, fb, wts, ctx.order)
+    mean = disk_r.mean(axis=0)
+    fn = _interp_fn(ctx.grid_deg, mean) if ctx.keep_residual else _series_fn(params, ctx.order)
+    return {"fits": (fa, fb), "top_r": top_r, "bot_r": bot_r, "disk_r": disk_r, "tilt_r": tilt_r,
+            "params": params, "cov": cov, "mean": mean, "fn": fn,
+            "summary": _summary(ctx, fa, fb, (top_r, bot_r, disk_r), wts)}
+
+
+def _gum_u(ctx: _Reduction, y: dict[str, Any],
+           spacing: SphereSpacing) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """GUM variance of the synchronous δY at each θ from the fit covariances (probe noise) and
+    u(L1), u(L2) (and the reading noise the kept residual carries): (var, var_fit, (the L1 term,
+    the L2 term))."""
+    L1, L2 = spacing.L1_mm, spacing.L2_mm
+    w_top, w_bot = disk_weights(L1, L2)
+    var_fit = np.einsum("ij,jk,ik->i", ctx.G, y["cov"], ctx.G)
+    dtop, dbot = y["top_r"].mean(axis=0), y["bot_r"].mean(axis=0)
+    dd_dL1 = (dbot - dtop) / L2  # ∂δY/∂L1
+    dd_dL2 = L1 * (dtop - dbot) / L2**2  # ∂δY/∂L2
+    var_L = ((dd_dL1 * spacing.u_L1_mm) ** 2, (dd_dL2 * spacing.u_L2_mm) ** 2)
+    var = np.nan_to_num(var_fit, nan=0.0) + var_L[0] + var_L[1]
+    if ctx.keep_residual:
+        # the kept residual carries the reading noise itself (σ of each fit, or u_probe_um)
+        def s2(fl: list[FourierFit]) -> float:
+            return float(np.mean([(ctx.u_probe_um if ctx.u_probe_um is not None else f.sigma) ** 2 for f in fl]))
+
+        fa, fb = y["fits"]
+        var = var + (w_top**2 * s2(fa) + w_bot**2 * s2(fb)) / ctx.reps.size
+    if np.all(np.isnan(var_fit)):
+        var = var + np.nan  # no residual dof and no u given: unknown
+    return var, var_fit, var_L
+
+
+def _sync_u(ctx: _Reduction, y: dict[str, Any], var_fit: np.ndarray, var_L: tuple[np.ndarray, np.ndarray],
+            weights: tuple[float, float]) -> dict[str, Any]:
+    """δY as the spindle's synchronous motion (see :func:`_rep_scatter`): the covariance of the mean
+    of n revolutions from the repetitions' scatter, harmonic by harmonic; one revolution: the fit's.
+    Keys ``dY_cov_sync``, ``u_dY_theta_um``, ``u_dY_um`` and :func:`_rep_scatter`'s."""
+    n = ctx.reps.size
+    fa, fb = y["fits"]
+    sc = _rep_scatter(fa, fb, weights[0], weights[1])
+    out: dict[str, Any] = {k: v for k, v in sc.items() if k != "cov_mean"}
+    cov_sync = sc["cov_mean"] if n >= 2 else y["cov"]
+    out["dY_cov_sync"] = cov_sync * np.outer(keep_mask(ctx.order), keep_mask(ctx.order))
+    var_sync = np.nan_to_num(np.einsum("ij,jk,ik->i", ctx.G, out["dY_cov_sync"], ctx.G), nan=np.nan if n < 2 and
+                             np.all(np.isnan(var_fit)) else 0.0)
+    out["u_dY_theta_um"] = np.sqrt(var_sync + var_L[0] + var_L[1])
+    out["u_dY_um"] = float(np.max(out["u_dY_theta_um"]))
+    return out
+
+
+def _range_u(ctx: _Reduction, dY_r: np.ndarray, d_n: float | None) -> dict[str, Any]:
+    """Jia sec. 5's range method on δY per θ (NaN for one revolution): ``u_dY_range_theta_um``,
+    ``u_dY_range_um`` (its maximum) and ``d_n``."""
+    n = int(ctx.reps.size)
+    if n < 2:
+        return {"u_dY_range_theta_um": np.full(ctx.grid_deg.size, np.nan), "u_dY_range_um": float("nan"),
+                "d_n": float("nan")}
+    dn = d_n if d_n is not None else D_N.get(n)
+    if dn is None:
+        raise ValueError(f"no d_n tabulated for {ctx.reps.size} repetitions; pass d_n")
+    u = range_method_u(dY_r, dn)
+    return {"u_dY_range_theta_um": u, "u_dY_range_um": float(np.max(u)), "d_n": dn}
+
+
+def _x_outputs(ctx: _Reduction, x: dict[str, Any], d_n: float) -> dict[str, Any]:
+    """The X probes' keys of :func:`radial_motion` (δX, tilt about Y, the range method on δX)."""
+    topx_r, botx_r, dX_r, tilty_r = x["top_r"], x["bot_r"], x["disk_r"], x["tilt_r"]
+    return dict(
+        delta_top_x_reps_um=topx_r, delta_bottom_x_reps_um=botx_r,
+        delta_top_x_um=topx_r.mean(axis=0), delta_bottom_x_um=botx_r.mean(axis=0),
+        dX_reps_um=dX_r, dX_um=x["mean"], dX_async_um=dX_r - x["mean"],
+        tilt_y_reps_urad=tilty_r, tilt_y_urad=tilty_r.mean(axis=0),
+        dX_params=x["params"], dX_cov=x["cov"], dX_fn=x["fn"],
+        u_dX_range_theta_um=(range_method_u(dX_r, d_n) if ctx.reps.size >= 2 else np.full(ctx.grid_deg.size, np.nan)),
+    )
+
+
+def radial_motion(readings: ProbeReadings, spacing: SphereSpacing, options: RadialOptions | None = None) -> dict:
     """Radial error motion of the spheres and the disk (Jia eqs. 6-9), per repetition and averaged.
 
-    Inputs are the columns of ``radial_motion.csv`` (one row per reading). Each repetition is
-    fitted separately (order ``order``, eq. 6) and its harmonics 2…order kept (eq. 7). Everything
+    ``readings`` are the columns of ``radial_motion.csv`` (one row per reading). Each repetition is
+    fitted separately (order ``options.order``, eq. 6) and its harmonics 2…order kept (eq. 7). Everything
     is then evaluated on a common grid: the measured angles when every repetition has the same set
-    (the usual case), otherwise ``grid_deg`` or, if not given, 360 points at 1°.
+    (the usual case), otherwise ``options.grid_deg`` or, if not given, 360 points at 1°.
 
-    ``u_probe_um``: standard uncertainty of one probe reading; when given it weights the fit and the
-    GUM covariance is absolute, otherwise the residual scatter of each fit is used.
-    ``u_L1_mm``, ``u_L2_mm``: uncertainty of the lengths (propagated through eq. 9).
-    ``keep_residual``: instead of eq. 7's series (harmonics 2…order: content above the order and
+    ``options.u_probe_um``: standard uncertainty of one probe reading; when given it weights the fit and
+    the GUM covariance is absolute, otherwise the residual scatter of each fit is used.
+    ``spacing.u_L1_mm``, ``spacing.u_L2_mm``: uncertainty of the lengths (propagated through eq. 9).
+    ``options.keep_residual``: instead of eq. 7's series (harmonics 2…order: content above the order and
     probe noise are filtered out), keep the data minus the fitted 0th and 1st harmonics (ISO 230-7
     evaluates asynchronous motion unfiltered); needs every repetition at the same angles. ``dY_fn``
     is then the periodic linear interpolant of ``dY_um`` and ``dY_params`` the series part only.
@@ -350,161 +595,39 @@ def radial_motion(
     - with X probes: ``delta_top_x_um``, ``delta_bottom_x_um``, ``dX_um``, ``dX_reps_um``,
       ``dX_async_um``, ``tilt_y_urad``, ``dX_fn``, ``u_dX_range_theta_um``
     """
-    rep_a = np.asarray(rep).ravel()
-    n = rep_a.size
-    th = _check("theta_deg", theta_deg, n)
-    top = _check("probe_top_um", probe_top_um, n)
-    bot = _check("probe_bottom_um", probe_bottom_um, n)
-    topx = _check("probe_top_x_um", probe_top_x_um, n)
-    botx = _check("probe_bottom_x_um", probe_bottom_x_um, n)
-    if (topx is None) != (botx is None):
-        raise ValueError("probe_top_x_um and probe_bottom_x_um must be given together")
-    w_top, w_bot = disk_weights(L1_mm, L2_mm)
-    reps = np.unique(rep_a)
+    opt = options if options is not None else RadialOptions()
+    c = _checked_readings(readings)
+    weights = disk_weights(spacing.L1_mm, spacing.L2_mm)
+    reps = np.unique(c.rep)
     if reps.size == 0:
         raise ValueError("no readings")
+    grid = _common_grid(c.rep, c.theta_deg, reps, opt)
+    G = design_matrix(grid, opt.order, harmonics=range(2, opt.order + 1))  # eq. 7 on the grid
+    ctx = _Reduction(c.rep, c.theta_deg, reps, grid, G, opt.order, opt.u_probe_um, opt.keep_residual)
 
-    # Common evaluation grid.
-    sets = [np.unique(np.round(th[rep_a == r] % 360.0, 9)) for r in reps]
-    if grid_deg is not None:
-        grid = np.asarray(grid_deg, dtype=float).ravel()
-    elif all(s.size == sets[0].size and np.allclose(s, sets[0]) for s in sets):
-        grid = sets[0]
-    else:
-        grid = np.arange(360) * 1.0
-
-    G = design_matrix(grid, order, harmonics=range(2, order + 1))  # eq. 7 on the grid
-    if keep_residual:
-        if grid_deg is not None or not all(s.size == sets[0].size and np.allclose(s, sets[0]) for s in sets):
-            raise ValueError("keep_residual=True needs every repetition at the same angles (no grid_deg)")
-
-    def G01(t_deg: np.ndarray) -> np.ndarray:
-        return design_matrix(t_deg, order, harmonics=(0, 1))
-
-    def per_channel(values: np.ndarray, label: str):
-        fits: list[FourierFit] = []
-        curves = []
-        for r in reps:
-            m = rep_a == r
-            try:
-                f = fit_fourier(th[m], values[m], order, u_probe_um)
-            except ValueError as exc:
-                raise ValueError(f"{label}, repetition {r}: {exc}") from None
-            fits.append(f)
-            if keep_residual:
-                # data minus the 0th and 1st harmonics, at the measured angles (sorted onto the grid)
-                tm = np.round(th[m] % 360.0, 9)
-                o = np.argsort(tm, kind="stable")
-                tm, vm = tm[o], values[m][o] - (G01(th[m]) @ f.params)[o]
-                _, first = np.unique(tm, return_index=True)
-                curves.append(vm[first])
-            else:
-                curves.append(G @ f.params)
-        return fits, np.array(curves)
-
-    out: dict = {"theta_deg": grid, "reps": reps, "n_reps": int(reps.size), "order": order}
-    fits: dict[str, list[FourierFit]] = {}
-    fits["top"], top_r = per_channel(top, "probe_top_um")
-    fits["bottom"], bot_r = per_channel(bot, "probe_bottom_um")
-    dY_r = w_top * top_r + w_bot * bot_r
-    tilt_r = (top_r - bot_r) / L2_mm * 1e3  # µm/mm = mrad → µrad
+    y = _pair(ctx, c.top_um, c.bottom_um, ("probe_top_um", "probe_bottom_um"), spacing)
+    top_r, bot_r, dY_r, tilt_r = y["top_r"], y["bot_r"], y["disk_r"], y["tilt_r"]
+    out: dict[str, Any] = {"theta_deg": grid, "reps": reps, "n_reps": int(reps.size), "order": opt.order}
     out.update(
         delta_top_reps_um=top_r, delta_bottom_reps_um=bot_r,
         delta_top_um=top_r.mean(axis=0), delta_bottom_um=bot_r.mean(axis=0),
-        dY_reps_um=dY_r, dY_um=dY_r.mean(axis=0), dY_async_um=dY_r - dY_r.mean(axis=0),
+        dY_reps_um=dY_r, dY_um=y["mean"], dY_async_um=dY_r - y["mean"],
         tilt_x_reps_urad=tilt_r, tilt_x_urad=tilt_r.mean(axis=0),
     )
-    def point_var(fl: list[FourierFit], w: float = 1.0) -> float:
-        """w²·(variance of one revolution's curve at a point from the probe noise), mean over θ and reps:
-        gᵀ·cov·g of the series (harmonics 2…order), or σ² itself for the kept residual."""
-        if keep_residual:
-            return float(np.mean([w**2 * (u_probe_um if u_probe_um is not None else f.sigma) ** 2 for f in fl]))
-        return float(np.mean([w**2 * np.mean(np.einsum("ij,jk,ik->i", G, f.cov, G)) for f in fl]))
-
-    summary = {"top": _with_u(error_motion_values(top_r), point_var(fits["top"]), reps.size),
-               "bottom": _with_u(error_motion_values(bot_r), point_var(fits["bottom"]), reps.size),
-               "disk": _with_u(error_motion_values(dY_r), point_var(fits["top"], w_top)
-                               + point_var(fits["bottom"], w_bot), reps.size)}
-    out["bandwidth"] = (
-        {"lowest_order": 2, "highest_order": None, "filter": "none",
-         "text": "orders 2 and up of the revolution (the readings minus orders 0 and 1, unfiltered)"} if keep_residual
-        else {"lowest_order": 2, "highest_order": int(order), "filter": f"Fourier series of order {order} (Jia eq. 7)",
-              "text": f"orders 2–{order} of the revolution (Jia eq. 7's series of each revolution: motion and "
-                      f"probe noise above order {order} filtered out)"})
-
-    def mean_series(fa: list[FourierFit], fb: list[FourierFit]):
-        """Mean over reps of w_top·(top series) + w_bot·(bottom series), harmonics 2…order."""
-        keep = np.zeros(2 * order + 1)
-        keep[3:] = 1.0
-        k = len(fa)
-        p = sum(w_top * f.params + w_bot * g.params for f, g in zip(fa, fb)) / k * keep
-        cov = sum(w_top**2 * f.cov + w_bot**2 * g.cov for f, g in zip(fa, fb)) / k**2
-        cov = cov * np.outer(keep, keep)
-        return p, cov
-
-    dY_params, dY_cov = mean_series(fits["top"], fits["bottom"])
-    out["dY_params"], out["dY_cov"] = dY_params, dY_cov
-    out["dY_fn"] = _interp_fn(grid, out["dY_um"]) if keep_residual else _series_fn(dY_params, order)
-
-    # GUM: fit covariance (probe noise) + lengths.
-    var_fit = np.einsum("ij,jk,ik->i", G, dY_cov, G)
-    dtop, dbot = out["delta_top_um"], out["delta_bottom_um"]
-    dd_dL1 = (dbot - dtop) / L2_mm  # ∂δY/∂L1
-    dd_dL2 = L1_mm * (dtop - dbot) / L2_mm**2  # ∂δY/∂L2
-    var = np.nan_to_num(var_fit, nan=0.0) + (dd_dL1 * u_L1_mm) ** 2 + (dd_dL2 * u_L2_mm) ** 2
-    if keep_residual:
-        # the kept residual carries the reading noise itself (σ of each fit, or u_probe_um)
-        def s2(fl: list[FourierFit]) -> float:
-            return float(np.mean([(u_probe_um if u_probe_um is not None else f.sigma) ** 2 for f in fl]))
-
-        var = var + (w_top**2 * s2(fits["top"]) + w_bot**2 * s2(fits["bottom"])) / reps.size
-    if np.all(np.isnan(var_fit)):
-        var = var + np.nan  # no residual dof and no u given: unknown
+    summary = dict(zip(("top", "bottom", "disk"), y["summary"]))
+    out["bandwidth"] = _bandwidth(opt.order, opt.keep_residual)
+    out["dY_params"], out["dY_cov"], out["dY_fn"] = y["params"], y["cov"], y["fn"]
+    var, var_fit, var_L = _gum_u(ctx, y, spacing)
     out["u_dY_gum_theta_um"] = np.sqrt(var)
     out["u_dY_gum_um"] = float(np.max(out["u_dY_gum_theta_um"]))
-    # δY as the spindle's synchronous motion (see _rep_scatter): the covariance of the mean of n
-    # revolutions from the repetitions' scatter, harmonic by harmonic; one revolution: the fit's.
-    sc = _rep_scatter(fits["top"], fits["bottom"], w_top, w_bot)
-    out.update({k: v for k, v in sc.items() if k != "cov_mean"})
-    cov_sync = sc["cov_mean"] if reps.size >= 2 else dY_cov
-    out["dY_cov_sync"] = cov_sync * np.outer(keep_mask(order), keep_mask(order))
-    var_sync = np.nan_to_num(np.einsum("ij,jk,ik->i", G, out["dY_cov_sync"], G), nan=np.nan if reps.size < 2 and
-                             np.all(np.isnan(var_fit)) else 0.0)
-    out["u_dY_theta_um"] = np.sqrt(var_sync + (dd_dL1 * u_L1_mm) ** 2 + (dd_dL2 * u_L2_mm) ** 2)
-    out["u_dY_um"] = float(np.max(out["u_dY_theta_um"]))
-
-    if reps.size >= 2:
-        dn = d_n if d_n is not None else D_N.get(int(reps.size))
-        if dn is None:
-            raise ValueError(f"no d_n tabulated for {reps.size} repetitions; pass d_n")
-        out["u_dY_range_theta_um"] = range_method_u(dY_r, dn)
-        out["u_dY_range_um"] = float(np.max(out["u_dY_range_theta_um"]))
-        out["d_n"] = dn
-    else:
-        out["u_dY_range_theta_um"] = np.full(grid.size, np.nan)
-        out["u_dY_range_um"] = float("nan")
-        out["d_n"] = float("nan")
-
-    if topx is not None and botx is not None:
-        fits["top_x"], topx_r = per_channel(topx, "probe_top_x_um")
-        fits["bottom_x"], botx_r = per_channel(botx, "probe_bottom_x_um")
-        dX_r = w_top * topx_r + w_bot * botx_r
-        tilty_r = (topx_r - botx_r) / L2_mm * 1e3
-        out.update(
-            delta_top_x_reps_um=topx_r, delta_bottom_x_reps_um=botx_r,
-            delta_top_x_um=topx_r.mean(axis=0), delta_bottom_x_um=botx_r.mean(axis=0),
-            dX_reps_um=dX_r, dX_um=dX_r.mean(axis=0), dX_async_um=dX_r - dX_r.mean(axis=0),
-            tilt_y_reps_urad=tilty_r, tilt_y_urad=tilty_r.mean(axis=0),
-        )
-        pX, cX = mean_series(fits["top_x"], fits["bottom_x"])
-        out["dX_params"], out["dX_cov"] = pX, cX
-        out["dX_fn"] = _interp_fn(grid, out["dX_um"]) if keep_residual else _series_fn(pX, order)
-        out["u_dX_range_theta_um"] = (range_method_u(dX_r, out["d_n"]) if reps.size >= 2
-                                      else np.full(grid.size, np.nan))
-        summary.update(top_x=_with_u(error_motion_values(topx_r), point_var(fits["top_x"]), reps.size),
-                       bottom_x=_with_u(error_motion_values(botx_r), point_var(fits["bottom_x"]), reps.size),
-                       disk_x=_with_u(error_motion_values(dX_r), point_var(fits["top_x"], w_top)
-                                      + point_var(fits["bottom_x"], w_bot), reps.size))
+    out.update(_sync_u(ctx, y, var_fit, var_L, weights))
+    out.update(_range_u(ctx, dY_r, opt.d_n))
+    fits: dict[str, list[FourierFit]] = {"top": y["fits"][0], "bottom": y["fits"][1]}
+    if c.top_x_um is not None and c.bottom_x_um is not None:
+        x = _pair(ctx, c.top_x_um, c.bottom_x_um, ("probe_top_x_um", "probe_bottom_x_um"), spacing)
+        fits["top_x"], fits["bottom_x"] = x["fits"]
+        out.update(_x_outputs(ctx, x, out["d_n"]))
+        summary.update(zip(("top_x", "bottom_x", "disk_x"), x["summary"]))
     out["summary"] = summary
     out["fits"] = fits
     return out

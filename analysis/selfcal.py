@@ -103,7 +103,7 @@ def transfer_function(heads_deg: Sequence[float], harmonics: np.ndarray | Sequen
     return 1.0 - np.exp(-1j * np.multiply.outer(k, psi)) @ w
 
 
-def invisible_harmonics(heads_deg: Sequence[float], k_max: int, tol: float = 1e-9) -> np.ndarray:
+def invisible_harmonics(heads_deg: Sequence[float] | np.ndarray, k_max: int, tol: float = 1e-9) -> np.ndarray:
     """Harmonic orders 1…k_max that the heads cannot see at all: k·ψ_j ≡ 0 (mod 360°) for every head.
 
     For a set of NH equally spaced heads these are the multiples of NH. (This is |H_k| = 0 with any
@@ -190,10 +190,11 @@ def equally_spaced_sets(heads_deg: Sequence[float], tol_deg: float = 1e-4) -> di
     found: list[frozenset[int]] = []
     for nh in range(n, 1, -1):
         for base in range(n):
-            idx = [find(psi[base] + m * 360.0 / nh) for m in range(nh)]
-            if any(i is None for i in idx) or len(set(idx)) != nh:
+            found_idx = [find(psi[base] + m * 360.0 / nh) for m in range(nh)]
+            idx = [i for i in found_idx if i is not None]
+            if len(idx) != nh or len(set(idx)) != nh:
                 continue
-            st = frozenset(int(i) for i in idx)
+            st = frozenset(idx)
             if not any(st <= f for f in found):
                 found.append(st)
     out: dict[str, list[int]] = {}
@@ -204,6 +205,232 @@ def equally_spaced_sets(heads_deg: Sequence[float], tol_deg: float = 1e-4) -> di
             name += "'"
         out[name] = h
     return out
+
+
+def _checked_deltas(theta_deg: np.ndarray, heads_deg: Sequence[float],
+                    delta_arcsec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ψ of the heads in deg, the sorted θ grid, the order that sorts θ, δ sorted by θ (n × n_heads));
+    ValueError naming the input otherwise."""
+    psi_deg = np.asarray(heads_deg, dtype=float).ravel()
+    nheads = psi_deg.size
+    if nheads < 2:
+        raise ValueError("need at least 2 heads")
+    if abs(psi_deg[0]) > 1e-12:
+        raise ValueError(f"heads_deg[0] must be 0 (azimuths are measured from head 1), got {psi_deg[0]}")
+    d = np.asarray(delta_arcsec, dtype=float)
+    ths, order = _check_grid(theta_deg)
+    n = ths.size
+    if d.shape != (n, nheads):
+        raise ValueError(f"delta_arcsec: expected shape ({n}, {nheads}) (theta × heads), got {d.shape}")
+    bad = np.argwhere(~np.isfinite(d))
+    if bad.size:
+        raise ValueError(f"delta_arcsec: not finite at (row, head) {[(int(r), int(c) + 1) for r, c in bad[:10]]}")
+    return psi_deg, ths, order, d[order]
+
+
+def _set_matrix(sets: Mapping[str, Sequence[int]] | None, nheads: int) -> tuple[list[str], np.ndarray]:
+    """The sets' names and their averaging matrix over the heads (n_sets × n_heads, eq. 9); default:
+    every head j ≥ 2 with head 1."""
+    if sets is None:
+        sets = {f"head{j}": [1, j] for j in range(2, nheads + 1)}
+    for name, hs in sets.items():
+        badh = [h for h in hs if not 1 <= int(h) <= nheads]
+        if badh:
+            raise ValueError(f"set {name!r}: heads {badh} outside 1…{nheads}")
+    names = list(sets)
+    P = np.zeros((len(names), nheads))  # set-averaging matrix over heads
+    for s, name in enumerate(names):
+        hs = sorted(set(int(h) for h in sets[name]))
+        P[s, [h - 1 for h in hs]] = 1.0 / len(hs)
+    return names, P
+
+
+def _head_variances(u_delta_arcsec: np.ndarray | float | None, order: np.ndarray,
+                    nheads: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """Unit per-head noise variances for the weights (head 1: 0; all alike for exact data) and the
+    given u(δ)² per reading sorted by θ (None when not given)."""
+    n = order.size
+    if u_delta_arcsec is None:
+        var_head = np.ones(nheads)
+        u2 = None
+    else:
+        u2 = np.broadcast_to(np.asarray(u_delta_arcsec, dtype=float), (n, nheads))[order].astype(float) ** 2
+        var_head = u2.mean(axis=0)
+    var_head = var_head.copy()
+    var_head[0] = 0.0
+    if not np.any(var_head[1:] > 0):  # exact data: weigh every head alike
+        var_head[1:] = 1.0
+    return var_head, u2
+
+
+@dataclass(frozen=True)
+class _System:
+    """Eq. 9 in the Fourier domain: per FFT bin (signed harmonic ``kk``) the heads' transfer ``G``
+    (n × heads) and the sets' ``Hs`` (n × sets), the sets' weights ``w`` and per harmonic ``W``,
+    which sets sit on the θ grid, the normal-equation denominators ``den``, the harmonics ``seen``
+    and the estimator ``Q`` (Â_k = Σ_j Q_jk D_jk)."""
+
+    kk: np.ndarray
+    nyq: np.ndarray
+    G: np.ndarray
+    P: np.ndarray
+    Hs: np.ndarray
+    w: np.ndarray
+    W: np.ndarray
+    set_on_grid: np.ndarray
+    mixed: bool
+    grid_sees: np.ndarray
+    den: np.ndarray
+    seen: np.ndarray
+    Q: np.ndarray
+
+
+def _system(n: int, psi_deg: np.ndarray, P: np.ndarray, var_head: np.ndarray, tol: float,
+            prefer_on_grid: bool) -> _System:
+    """Weighted least squares of the sets' eq. 9 per harmonic; with on-grid and off-grid sets mixed
+    (``prefer_on_grid``), the off-grid sets only where no on-grid set sees the harmonic."""
+    nsets, nheads = P.shape
+    # signed harmonic index of each FFT bin
+    kk = np.fft.fftfreq(n, d=1.0 / n).round().astype(int)
+    psi = np.deg2rad(psi_deg)
+    G = 1.0 - np.exp(-1j * np.outer(kk, psi))  # (n, nheads): head j sees a(θ − ψ_j)
+    Hs = G @ P.T  # (n, nsets): H_sk = Σ_j P_sj G_jk = 1 − mean e^{ikψ}
+    var_set = (P**2) @ var_head
+    w = np.where(var_set > 0, 1.0 / np.where(var_set > 0, var_set, 1.0), 0.0)
+    w = w / w.max() if w.max() > 0 else w
+    step = 360.0 / n
+    frac = np.abs(psi_deg / step - np.round(psi_deg / step))
+    head_on_grid = frac < 1e-6
+    set_on_grid = np.array([bool(np.all(head_on_grid[P[s] > 0])) for s in range(nsets)])
+    nyq = (n % 2 == 0) & (np.abs(kk) == n // 2)
+    W = np.broadcast_to(w, (n, nsets)).copy()  # weights per harmonic and set
+    mixed = bool(prefer_on_grid and set_on_grid.any() and not set_on_grid.all())
+    grid_sees = np.zeros(n, dtype=bool)
+    if mixed:
+        den_grid = (np.abs(Hs[:, set_on_grid]) ** 2) @ w[set_on_grid]
+        grid_sees = den_grid > tol**2 * max(w[set_on_grid].sum(), 1e-300)
+        W[np.ix_(grid_sees, ~set_on_grid)] = 0.0
+    den = np.sum(np.abs(Hs) ** 2 * W, axis=1)  # (n,)
+    seen = (den > tol**2 * max(w.sum(), 1e-300)) & (kk != 0) & ~nyq
+    # Q_jk: Â_k = Σ_j Q_jk D_jk
+    Q = np.zeros((n, nheads), dtype=complex)
+    Q[seen] = ((np.conj(Hs[seen]) * W[seen]) @ P) / den[seen, None]
+    return _System(kk, nyq, G, P, Hs, w, W, set_on_grid, mixed, grid_sees, den, seen, Q)
+
+
+def _per_set_estimates(D: np.ndarray, sy: _System, names: list[str], tol: float) -> dict[str, np.ndarray]:
+    """Each set's own estimate of a (eq. 9 alone; the harmonics it cannot see set to 0)."""
+    n = D.shape[0]
+    per_set = {}
+    for s, name in enumerate(names):
+        M = D @ sy.P[s]
+        ok = (np.abs(sy.Hs[:, s]) > tol) & (sy.kk != 0) & ~sy.nyq
+        As = np.zeros(n, dtype=complex)
+        As[ok] = M[ok] / sy.Hs[ok, s]
+        per_set[name] = np.real(np.fft.ifft(As))
+    return per_set
+
+
+@dataclass(frozen=True)
+class _Residuals:
+    """The fit's residuals: σ(δ) with its effective dof, RMS per set and over the heads used, and
+    the per-harmonic pieces the interpolation error (:func:`_interpolation_u`) reuses."""
+
+    sigma: float
+    dof: float
+    set_rms: dict[str, float]
+    head_rms: float
+    live: np.ndarray
+    on_l: np.ndarray
+    keep: np.ndarray
+    Hl: np.ndarray
+    qk: np.ndarray
+    Rres: np.ndarray
+    Rk: np.ndarray
+
+
+def _residuals(d: np.ndarray, D: np.ndarray, A: np.ndarray, sy: _System, names: list[str], tol: float) -> _Residuals:
+    """σ(δ) from the residuals of what the estimate is fitted to, the set averages (eq. 9).
+
+    A set average of equally spaced heads cancels the axis' radial error motion, which a single
+    head's δ does not (module docstring); for the default one-head sets this is the per-head residual.
+    res_set (time domain, all harmonics) is reported per set as a diagnostic. In the Fourier domain,
+    per harmonic k: residuals r_k = R_k·M_k, R_k = I − H_k q_kᵀ (q_k the set weights of Â_k); with
+    unit noise per δ the set averages have covariance Σ = P Pᵀ (head 1: δ ≡ 0), so E[Σ_s |r_ks|²/c_s] ∝
+    tr(R_k Σ R_kᴴ C⁻¹): summed over k, the effective residual dof (n·sets − parameters for plain
+    weighted least squares; exact also where off-grid sets are set aside). k = 0 (the heads' constant
+    offsets) and the Nyquist bin are not noise-only and are left out.
+    """
+    n = d.shape[0]
+    P, Hs, W, den, seen = sy.P, sy.Hs, sy.W, sy.den, sy.seen
+    # residuals of the heads used (per head: also shows errors that are not a property of the disk)
+    used = np.flatnonzero(P.sum(axis=0) > 0)
+    used = used[used > 0]
+    pred = np.real(np.fft.ifft(A[:, None] * sy.G[:, used], axis=0))
+    res = d[:, used] - pred
+    res_set = d @ P.T - np.real(np.fft.ifft(A[:, None] * Hs, axis=0))
+    c_set = np.sum(P[:, 1:] ** 2, axis=1)
+    live = c_set > 0
+    Msk = (D @ P.T)[:, live]
+    Hl, Wl, cl = Hs[:, live], W[:, live], c_set[live]
+    qk = np.zeros_like(Hl)
+    qk[seen] = np.conj(Hl[seen]) * Wl[seen] / den[seen, None]
+    Rres = Msk - Hl * np.sum(qk * Msk, axis=1, keepdims=True)
+    # Only where a set sees the harmonic (|H_sk| > tol): where it does not, eq. 9 makes no claim about
+    # its average — which there still carries what is not a property of the disk (head 1's share of
+    # the axis motion, grid aliasing) without affecting the estimate.
+    # With on-grid and off-grid sets mixed, σ comes from the on-grid sets (exact for samples); the
+    # off-grid sets' excess scatter is their interpolation (aliasing) error, see _interpolation_u.
+    keep = (sy.kk != 0) & ~sy.nyq
+    on_l = sy.set_on_grid[live]
+    vis = (np.abs(Hl) > tol) & keep[:, None]
+    vis_sig = vis & (on_l[None, :] if sy.mixed else True)
+    rss = float(np.sum(np.abs(Rres) ** 2 * vis_sig / cl) / n)
+    Sig = P[live][:, 1:] @ P[live][:, 1:].T
+    Rk = np.eye(int(live.sum()))[None] - Hl[:, :, None] * qk[:, None, :]
+    e_ka = np.einsum("kab,bc,kac->ka", Rk, Sig, np.conj(Rk)).real / cl[None, :]
+    dof = float(np.sum(e_ka * vis_sig))
+    sigma = float(np.sqrt(rss / dof)) if dof > 0 else float("nan")
+    set_rms = {name: float(np.sqrt(np.mean(res_set[:, s_] ** 2))) for s_, name in enumerate(names)}
+    head_rms = float(np.sqrt(np.mean(res**2))) if res.size else float("nan")
+    return _Residuals(sigma, dof, set_rms, head_rms, live, on_l, keep, Hl, qk, Rres, Rk)
+
+
+def _propagated_var(sy: _System, u2: np.ndarray | None, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """var(â(θ_m)) = Σ_j Σ_t h_j[m − t]² u2_j[t] (circular convolution of each head's impulse
+    response with its reading variance; σ² where u(δ) was not given), and that variance (n × heads)."""
+    n, nheads = sy.Q.shape
+    h = np.real(np.fft.ifft(sy.Q, axis=0))  # (n, nheads)
+    if u2 is None:
+        u2 = np.full((n, nheads), sigma**2)
+    u2 = u2.copy()
+    u2[:, 0] = 0.0
+    var = np.real(np.fft.ifft(np.fft.fft(h**2, axis=0) * np.fft.fft(u2, axis=0), axis=0)).sum(axis=1)
+    return var, u2
+
+
+def _interpolation_u(sy: _System, r: _Residuals, u2: np.ndarray, tol: float) -> float:
+    """Interpolation error of off-grid sets (mixed case; 0 otherwise).
+
+    Where on-grid sets carry a harmonic, an off-grid set's residual M_sk − H_sk·Â_k is its own error
+    X_sk plus noise; the mean excess over the noise estimates E|X_s|² per harmonic, which enters Â
+    wherever only off-grid sets see the harmonic. Treated as independent between harmonics (aliased
+    content of different orders): a variance (1/n²)·Σ_k Σ_s |q_sk|²·E|X_s|², the same at every θ.
+    """
+    if not sy.mixed:
+        return 0.0
+    n = u2.shape[0]
+    P, live = sy.P, r.live
+    var_abs = u2.mean(axis=0)
+    Sig_u = (P[live] * var_abs) @ P[live].T
+    noise_ka = n * np.einsum("kab,bc,kac->ka", r.Rk, Sig_u, np.conj(r.Rk)).real
+    X = np.zeros(int(live.sum()))
+    for a in np.flatnonzero(~r.on_l):
+        sel = sy.grid_sees & r.keep & (np.abs(r.Hl[:, a]) > tol)
+        if sel.any():
+            X[a] = max(0.0, float(np.mean(np.abs(r.Rres[sel, a]) ** 2 - noise_ka[sel, a])))
+    only_off = sy.seen & ~sy.grid_sees
+    return float(np.sqrt(np.sum(np.abs(r.qk[only_off]) ** 2 * X[None, :]) / n**2))
 
 
 def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arcsec: np.ndarray, *,
@@ -229,157 +456,37 @@ def selfcal_fourier(theta_deg: np.ndarray, heads_deg: Sequence[float], delta_arc
     multiples of 12). ``False``: all sets by weighted least squares at every harmonic.
 
     Zero noise (``u_delta_arcsec`` all 0, exact data): equal weights per head.
+
+    Stages: :func:`_checked_deltas`, :func:`_set_matrix`, :func:`_head_variances`, :func:`_system`,
+    the estimate Â = Σ_j Q_j D_j, :func:`_per_set_estimates`, :func:`_residuals`,
+    :func:`_propagated_var`, :func:`_interpolation_u`.
     """
-    psi_deg = np.asarray(heads_deg, dtype=float).ravel()
-    nheads = psi_deg.size
-    if nheads < 2:
-        raise ValueError("need at least 2 heads")
-    if abs(psi_deg[0]) > 1e-12:
-        raise ValueError(f"heads_deg[0] must be 0 (azimuths are measured from head 1), got {psi_deg[0]}")
-    d = np.asarray(delta_arcsec, dtype=float)
-    ths, order = _check_grid(theta_deg)
-    n = ths.size
-    if d.shape != (n, nheads):
-        raise ValueError(f"delta_arcsec: expected shape ({n}, {nheads}) (theta × heads), got {d.shape}")
-    bad = np.argwhere(~np.isfinite(d))
-    if bad.size:
-        raise ValueError(f"delta_arcsec: not finite at (row, head) {[(int(r), int(c) + 1) for r, c in bad[:10]]}")
-    d = d[order]
-    if sets is None:
-        sets = {f"head{j}": [1, j] for j in range(2, nheads + 1)}
-    for name, hs in sets.items():
-        badh = [h for h in hs if not 1 <= int(h) <= nheads]
-        if badh:
-            raise ValueError(f"set {name!r}: heads {badh} outside 1…{nheads}")
-    names = list(sets)
-    # unit per-head noise variances (for weights); from u_delta if given
-    if u_delta_arcsec is None:
-        var_head = np.ones(nheads)
-        u2 = None
-    else:
-        u2 = np.broadcast_to(np.asarray(u_delta_arcsec, dtype=float), (n, nheads))[order].astype(float) ** 2
-        var_head = u2.mean(axis=0)
-    var_head = var_head.copy()
-    var_head[0] = 0.0
-    if not np.any(var_head[1:] > 0):  # exact data: weigh every head alike
-        var_head[1:] = 1.0
-    # signed harmonic index of each FFT bin
-    kk = np.fft.fftfreq(n, d=1.0 / n).round().astype(int)
-    psi = np.deg2rad(psi_deg)
-    G = 1.0 - np.exp(-1j * np.outer(kk, psi))  # (n, nheads): head j sees a(θ − ψ_j)
-    P = np.zeros((len(names), nheads))  # set-averaging matrix over heads
-    for s, name in enumerate(names):
-        hs = sorted(set(int(h) for h in sets[name]))
-        P[s, [h - 1 for h in hs]] = 1.0 / len(hs)
-    Hs = G @ P.T  # (n, nsets): H_sk = Σ_j P_sj G_jk = 1 − mean e^{ikψ}
-    var_set = (P**2) @ var_head
-    w = np.where(var_set > 0, 1.0 / np.where(var_set > 0, var_set, 1.0), 0.0)
-    w = w / w.max() if w.max() > 0 else w
-    step = 360.0 / n
-    frac = np.abs(psi_deg / step - np.round(psi_deg / step))
-    head_on_grid = frac < 1e-6
-    set_on_grid = np.array([bool(np.all(head_on_grid[P[s] > 0])) for s in range(len(names))])
-    nyq = (n % 2 == 0) & (np.abs(kk) == n // 2)
-    W = np.broadcast_to(w, (n, len(names))).copy()  # weights per harmonic and set
-    mixed = bool(prefer_on_grid and set_on_grid.any() and not set_on_grid.all())
-    grid_sees = np.zeros(n, dtype=bool)
-    if mixed:
-        den_grid = (np.abs(Hs[:, set_on_grid]) ** 2) @ w[set_on_grid]
-        grid_sees = den_grid > tol**2 * max(w[set_on_grid].sum(), 1e-300)
-        W[np.ix_(grid_sees, ~set_on_grid)] = 0.0
-    den = np.sum(np.abs(Hs) ** 2 * W, axis=1)  # (n,)
-    seen = (den > tol**2 * max(w.sum(), 1e-300)) & (kk != 0) & ~nyq
-    # Q_jk: Â_k = Σ_j Q_jk D_jk
-    Q = np.zeros((n, nheads), dtype=complex)
-    Q[seen] = ((np.conj(Hs[seen]) * W[seen]) @ P) / den[seen, None]
+    psi_deg, ths, order, d = _checked_deltas(theta_deg, heads_deg, delta_arcsec)
+    n, nheads = d.shape
+    names, P = _set_matrix(sets, nheads)
+    var_head, u2 = _head_variances(u_delta_arcsec, order, nheads)
+    sy = _system(n, psi_deg, P, var_head, tol, prefer_on_grid)
     D = np.fft.fft(d, axis=0)
-    A = np.sum(Q * D, axis=1)
+    A = np.sum(sy.Q * D, axis=1)
     value = np.real(np.fft.ifft(A))
-    # per-set estimates
-    per_set = {}
-    for s, name in enumerate(names):
-        M = D @ P[s]
-        ok = (np.abs(Hs[:, s]) > tol) & (kk != 0) & ~nyq
-        As = np.zeros(n, dtype=complex)
-        As[ok] = M[ok] / Hs[ok, s]
-        per_set[name] = np.real(np.fft.ifft(As))
-    # residuals of the heads used
-    used = np.flatnonzero(P.sum(axis=0) > 0)
-    used = used[used > 0]
-    pred = np.real(np.fft.ifft(A[:, None] * G[:, used], axis=0))
-    res = d[:, used] - pred  # per head: also shows errors that are not a property of the disk
-    # σ(δ) from the residuals of what the estimate is fitted to, the set averages (eq. 9): a set average
-    # of equally spaced heads cancels the axis' radial error motion, which a single head's δ does not
-    # (docs: module docstring); for the default one-head sets this is the per-head residual.
-    # res_set (time domain, all harmonics) is reported per set as a diagnostic.
-    # In the Fourier domain, per harmonic k: residuals r_k = R_k·M_k, R_k = I − H_k q_kᵀ (q_k the set
-    # weights of Â_k); with unit noise per δ the set averages have covariance Σ = P Pᵀ (head 1: δ ≡ 0),
-    # so E[Σ_s |r_ks|²/c_s] ∝ tr(R_k Σ R_kᴴ C⁻¹): summed over k, the effective residual dof (n·sets −
-    # parameters for plain weighted least squares; exact also where off-grid sets are set aside).
-    # k = 0 (the heads' constant offsets) and the Nyquist bin are not noise-only and are left out.
-    res_set = d @ P.T - np.real(np.fft.ifft(A[:, None] * Hs, axis=0))
-    c_set = np.sum(P[:, 1:] ** 2, axis=1)
-    live = c_set > 0
-    Msk = (D @ P.T)[:, live]
-    Hl, Wl, cl = Hs[:, live], W[:, live], c_set[live]
-    qk = np.zeros_like(Hl)
-    qk[seen] = np.conj(Hl[seen]) * Wl[seen] / den[seen, None]
-    Rres = Msk - Hl * np.sum(qk * Msk, axis=1, keepdims=True)
-    # Only where a set sees the harmonic (|H_sk| > tol): where it does not, eq. 9 makes no claim about
-    # its average — which there still carries what is not a property of the disk (head 1's share of
-    # the axis motion, grid aliasing) without affecting the estimate.
-    # With on-grid and off-grid sets mixed, σ comes from the on-grid sets (exact for samples); the
-    # off-grid sets' excess scatter is their interpolation (aliasing) error, see u_model below.
-    keep = (kk != 0) & ~nyq
-    on_l = set_on_grid[live]
-    vis = (np.abs(Hl) > tol) & keep[:, None]
-    vis_sig = vis & (on_l[None, :] if mixed else True)
-    rss = float(np.sum(np.abs(Rres) ** 2 * vis_sig / cl) / n)
-    Sig = P[live][:, 1:] @ P[live][:, 1:].T
-    Rk = np.eye(int(live.sum()))[None] - Hl[:, :, None] * qk[:, None, :]
-    e_ka = np.einsum("kab,bc,kac->ka", Rk, Sig, np.conj(Rk)).real / cl[None, :]
-    dof = float(np.sum(e_ka * vis_sig))
-    sigma = float(np.sqrt(rss / dof)) if dof > 0 else float("nan")
-    set_rms = {name: float(np.sqrt(np.mean(res_set[:, s_] ** 2))) for s_, name in enumerate(names)}
-    # propagation: impulse response per head
-    h = np.real(np.fft.ifft(Q, axis=0))  # (n, nheads)
-    if u2 is None:
-        u2 = np.full((n, nheads), sigma**2)
-    u2 = u2.copy()
-    u2[:, 0] = 0.0
-    # var(â(θ_m)) = Σ_j Σ_t h_j[m − t]² u2_j[t]  (circular convolution)
-    var = np.real(np.fft.ifft(np.fft.fft(h**2, axis=0) * np.fft.fft(u2, axis=0), axis=0)).sum(axis=1)
-    # Interpolation error of off-grid sets (mixed case): where on-grid sets carry a harmonic, an off-grid
-    # set's residual M_sk − H_sk·Â_k is its own error X_sk plus noise; the mean excess over the noise
-    # estimates E|X_s|² per harmonic, which enters Â wherever only off-grid sets see the harmonic.
-    # Treated as independent between harmonics (aliased content of different orders): a variance
-    # (1/n²)·Σ_k Σ_s |q_sk|²·E|X_s|², the same at every θ.
-    u_model = 0.0
-    if mixed:
-        var_abs = u2.mean(axis=0)
-        Sig_u = (P[live] * var_abs) @ P[live].T
-        noise_ka = n * np.einsum("kab,bc,kac->ka", Rk, Sig_u, np.conj(Rk)).real
-        X = np.zeros(int(live.sum()))
-        for a in np.flatnonzero(~on_l):
-            sel = grid_sees & keep & (np.abs(Hl[:, a]) > tol)
-            if sel.any():
-                X[a] = max(0.0, float(np.mean(np.abs(Rres[sel, a]) ** 2 - noise_ka[sel, a])))
-        only_off = seen & ~grid_sees
-        u_model = float(np.sqrt(np.sum(np.abs(qk[only_off]) ** 2 * X[None, :]) / n**2))
+    per_set = _per_set_estimates(D, sy, names, tol)
+    r = _residuals(d, D, A, sy, names, tol)
+    var, u2 = _propagated_var(sy, u2, r.sigma)
+    u_model = _interpolation_u(sy, r, u2, tol)
+    if sy.mixed:
         var = var + u_model**2
     u = np.sqrt(np.maximum(var, 0.0))
     kpos = np.arange(0, n // 2 + 1)
-    H_out = {name: Hs[kpos, s] for s, name in enumerate(names)}
-    inv_k = kpos[1:][~seen[1:n // 2 + 1]]
+    H_out = {name: sy.Hs[kpos, s] for s, name in enumerate(names)}
+    inv_k = kpos[1:][~sy.seen[1:n // 2 + 1]]
     if n % 2 == 0:
         inv_k = inv_k[inv_k < n // 2]  # the Nyquist bin is never estimated; not listed
     by_set = {name: invisible_harmonics(psi_deg[np.flatnonzero(P[s])], max(n // 2 - 1, 1)) for s, name in enumerate(names)}
     notes = []
     if inv_k.size:
         notes.append(f"harmonics not observable by the heads used (set to 0): {inv_k.tolist()}")
-    return SelfCalResult(ths, value, u, per_set, kpos, H_out, inv_k, by_set, sigma, dof,
-                         float(np.sqrt(np.mean(res**2))) if res.size else float("nan"), notes, set_rms,
-                         {name: bool(set_on_grid[s_]) for s_, name in enumerate(names)}, u_model)
+    return SelfCalResult(ths, value, u, per_set, kpos, H_out, inv_k, by_set, r.sigma, r.dof, r.head_rms, notes,
+                         r.set_rms, {name: bool(sy.set_on_grid[s_]) for s_, name in enumerate(names)}, u_model)
 
 
 def tabulate_heads(theta_deg: np.ndarray, head: np.ndarray, delta_arcsec: np.ndarray, n_heads: int, *,

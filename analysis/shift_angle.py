@@ -57,13 +57,17 @@ Decisions where the paper is silent
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from benchtwin.analysis.fourier import harmonic_columns
+
 __all__ = [
     "PolygonDataError",
+    "BetaSource",
     "PolygonTable",
     "tabulate_polygon",
     "nominal_theta_deg",
@@ -173,33 +177,28 @@ class PolygonTable:
         return bool(np.all(np.isfinite(self.eps_arcsec[_shift_key(shift_deg)])))
 
 
-def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.ndarray, ac_arcsec: np.ndarray,
-                     n_faces: int, *, theta_deg: np.ndarray | None = None, rep: np.ndarray | None = None,
-                     direction: np.ndarray | None = None) -> PolygonTable:
-    """Build Table 1 (eq. 3 layout) per shift from the dataset's columns; validate them.
+#: The polygon table's columns :func:`tabulate_polygon` needs; and those it uses when present.
+POLYGON_COLUMNS = ("shift_deg", "start_face", "step", "ac_arcsec")
+POLYGON_OPTIONAL_COLUMNS = ("theta_deg", "rep", "direction")
 
-    Raises :class:`PolygonDataError` naming rows (0-based index into the arrays) and the column for:
-    a wrong ``n_faces`` (< 3 or not an integer), columns of different lengths, NaN/inf, start face or
-    step not an integer in 1…N, repeated readings without a ``rep``/``direction`` column (or repeated
-    (shift, start_face, step, rep, direction)), a ``theta_deg`` more than a quarter pitch away from
-    (i−1)·360/N + S, and a start face whose row at a shift misses steps (eq. 7 needs all N; the message
-    suggests a wrong face count when every row stops at the same step).
-    """
-    if isinstance(n_faces, bool) or int(n_faces) != n_faces or n_faces < 3:
-        raise PolygonDataError(f"n_faces: expected an integer >= 3, got {n_faces!r}")
-    N = int(n_faces)
+
+def _polygon_columns(columns: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The columns as flat arrays of one length, the numeric ones finite floats (PolygonDataError
+    naming the rows and the column otherwise); theta_deg, rep, direction when present (None: absent);
+    other columns are not used."""
+    missing = [c for c in POLYGON_COLUMNS if c not in columns]
+    if missing:
+        raise PolygonDataError(f"polygon columns missing: {missing} (has {sorted(columns)})")
     cols: dict[str, np.ndarray] = {
-        "shift_deg": np.asarray(shift_deg, dtype=float).ravel(),
-        "start_face": np.asarray(start_face).ravel(),
-        "step": np.asarray(step).ravel(),
-        "ac_arcsec": np.asarray(ac_arcsec, dtype=float).ravel(),
+        "shift_deg": np.asarray(columns["shift_deg"], dtype=float).ravel(),
+        "start_face": np.asarray(columns["start_face"]).ravel(),
+        "step": np.asarray(columns["step"]).ravel(),
+        "ac_arcsec": np.asarray(columns["ac_arcsec"], dtype=float).ravel(),
     }
-    if theta_deg is not None:
-        cols["theta_deg"] = np.asarray(theta_deg, dtype=float).ravel()
-    if rep is not None:
-        cols["rep"] = np.asarray(rep).ravel()
-    if direction is not None:
-        cols["direction"] = np.asarray(direction).ravel()
+    for name in POLYGON_OPTIONAL_COLUMNS:
+        v = columns.get(name)
+        if v is not None:
+            cols[name] = np.asarray(v, dtype=float).ravel() if name == "theta_deg" else np.asarray(v).ravel()
     n = cols["shift_deg"].size
     bad_len = {k: v.size for k, v in cols.items() if v.size != n}
     if bad_len:
@@ -217,20 +216,25 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
         if bad.size:
             raise PolygonDataError(f"{_rows(bad)}, column {name!r}: not a finite number (NaN or inf)")
         cols[name] = v
+    return cols
+
+
+def _check_faces_and_steps(cols: Mapping[str, np.ndarray], N: int) -> None:
+    """Start face and step must be integers in 1…N."""
     for name in ("start_face", "step"):
         v = cols[name]
         bad = np.flatnonzero((v != np.round(v)) | (v < 1) | (v > N))
         if bad.size:
             raise PolygonDataError(f"{_rows(bad)}, column {name!r}: expected an integer in 1…{N} (n_faces={N}), "
                                    f"got {v[bad[:_MAX_LISTED]].tolist()}")
-    face = cols["start_face"].astype(int)
-    stp = cols["step"].astype(int)
-    shifts = np.array([_shift_key(s) for s in cols["shift_deg"]])
-    # repeated readings
+
+
+def _check_repeats(cols: Mapping[str, np.ndarray], shifts: np.ndarray, face: np.ndarray, stp: np.ndarray) -> None:
+    """No reading twice: (shift, start face, step) plus rep and direction where those columns exist."""
     key_cols = ["rep"] if "rep" in cols else []
     key_cols += ["direction"] if "direction" in cols else []
     seen: dict[tuple, int] = {}
-    for r in range(n):
+    for r in range(shifts.size):
         key = (shifts[r], face[r], stp[r]) + tuple(cols[c][r] for c in key_cols)
         if key in seen:
             what = f"shift_deg={shifts[r]:g}, start_face={face[r]}, step={stp[r]}"
@@ -239,17 +243,90 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
             raise PolygonDataError(f"rows {seen[key]} and {r}, columns shift_deg/start_face/step"
                                    f"{'/' + '/'.join(key_cols) if key_cols else ''}: duplicated reading ({what}){hint}")
         seen[key] = r
-    # theta consistency
-    off_max = float("nan")
-    if "theta_deg" in cols:
-        nominal = (stp - 1) * 360.0 / N + shifts
-        off = np.abs(np.mod(cols["theta_deg"] - nominal + 180.0, 360.0) - 180.0)
-        bad = np.flatnonzero(off > 0.25 * 360.0 / N)
-        if bad.size:
-            raise PolygonDataError(
-                f"{_rows(bad)}, column 'theta_deg': more than a quarter pitch from (step−1)·360/N + shift_deg "
-                f"with N={N} (offsets up to {off[bad].max():.4g} deg): wrong face count or step numbering?")
-        off_max = float(off.max())
+
+
+def _theta_offset_max(cols: Mapping[str, np.ndarray], shifts: np.ndarray, stp: np.ndarray, N: int) -> float:
+    """The largest |θ − ((step − 1)·360/N + S)| in deg (NaN without θ); PolygonDataError beyond a
+    quarter pitch."""
+    if "theta_deg" not in cols:
+        return float("nan")
+    nominal = (stp - 1) * 360.0 / N + shifts
+    off = np.abs(np.mod(cols["theta_deg"] - nominal + 180.0, 360.0) - 180.0)
+    bad = np.flatnonzero(off > 0.25 * 360.0 / N)
+    if bad.size:
+        raise PolygonDataError(
+            f"{_rows(bad)}, column 'theta_deg': more than a quarter pitch from (step−1)·360/N + shift_deg "
+            f"with N={N} (offsets up to {off[bad].max():.4g} deg): wrong face count or step numbering?")
+    return float(off.max())
+
+
+def _check_full_rows(s: float, cnt: np.ndarray) -> None:
+    """Every start face present at a shift must have its full row (eq. 7); the message suggests a
+    wrong face count when every row stops at the same step."""
+    N = cnt.shape[0]
+    present = np.flatnonzero(cnt.sum(axis=1) > 0)
+    missing = [(int(j) + 1, int(k) + 1) for j in present for k in range(N) if cnt[j, k] == 0]
+    if missing:
+        last = {int(j) + 1: int(np.flatnonzero(cnt[j] > 0).max()) + 1 for j in present}
+        hint = ""
+        if len(set(last.values())) == 1 and next(iter(last.values())) < N:
+            hint = (f"; every start face stops at step {next(iter(last.values()))}: "
+                    f"wrong face count (n_faces={N})?")
+        raise PolygonDataError(f"shift_deg={s:g}: columns start_face/step: missing readings {_cells(missing)} "
+                               f"(each start face needs steps 1…{N}){hint}")
+
+
+def _shift_table(N: int, f: np.ndarray, i: np.ndarray, a: np.ndarray, runs_by: tuple[np.ndarray, np.ndarray]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[tuple, np.ndarray]]:
+    """One shift's Table 1 from its readings (0-based start face ``f``, step ``i``, reading ``a``):
+    the mean over repeats per cell, their sd (NaN below 2), the count, and each run's own table keyed
+    by (rep, direction) (``runs_by``: those columns)."""
+    rk, dk = runs_by
+    runs_s: dict[tuple, np.ndarray] = {}
+    for key in sorted(set(zip(rk.tolist(), dk.tolist()))):
+        mm = (rk == key[0]) & (dk == key[1])
+        t = np.full((N, N), np.nan)
+        t[f[mm], i[mm]] = a[mm]
+        runs_s[key] = t
+    cnt = np.zeros((N, N), dtype=int)
+    sm = np.zeros((N, N))
+    np.add.at(cnt, (f, i), 1)
+    np.add.at(sm, (f, i), a)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, sm / np.maximum(cnt, 1), np.nan)
+    ss = np.zeros((N, N))
+    np.add.at(ss, (f, i), (a - mean[f, i]) ** 2)
+    sdev = np.where(cnt > 1, np.sqrt(ss / np.maximum(cnt - 1, 1)), np.nan)
+    return mean, sdev, cnt, runs_s
+
+
+def tabulate_polygon(columns: Mapping[str, Any], n_faces: int) -> PolygonTable:
+    """Build Table 1 (eq. 3 layout) per shift from the dataset's columns; validate them.
+
+    ``columns``: the polygon table, ``shift_deg, start_face, step, ac_arcsec`` and, when present,
+    ``theta_deg``, ``rep``, ``direction`` (a column that is None counts as absent; others are not
+    used). Raises :class:`PolygonDataError` naming rows (0-based index into the arrays) and the
+    column for: a wrong ``n_faces`` (< 3 or not an integer), a missing column, columns of different
+    lengths, NaN/inf, start face or
+    step not an integer in 1…N, repeated readings without a ``rep``/``direction`` column (or repeated
+    (shift, start_face, step, rep, direction)), a ``theta_deg`` more than a quarter pitch away from
+    (i−1)·360/N + S, and a start face whose row at a shift misses steps (eq. 7 needs all N; the message
+    suggests a wrong face count when every row stops at the same step).
+
+    Stages: :func:`_polygon_columns`, :func:`_check_faces_and_steps`, :func:`_check_repeats`,
+    :func:`_theta_offset_max`, then per shift :func:`_shift_table` and :func:`_check_full_rows`.
+    """
+    if isinstance(n_faces, bool) or int(n_faces) != n_faces or n_faces < 3:
+        raise PolygonDataError(f"n_faces: expected an integer >= 3, got {n_faces!r}")
+    N = int(n_faces)
+    cols = _polygon_columns(columns)
+    n = cols["shift_deg"].size
+    _check_faces_and_steps(cols, N)
+    face = cols["start_face"].astype(int)
+    stp = cols["step"].astype(int)
+    shifts = np.array([_shift_key(s) for s in cols["shift_deg"]])
+    _check_repeats(cols, shifts, face, stp)
+    off_max = _theta_offset_max(cols, shifts, stp, N)
     # aggregate
     uniq = np.unique(shifts)
     eps, sd, nrep, runs = {}, {}, {}, {}
@@ -257,34 +334,8 @@ def tabulate_polygon(shift_deg: np.ndarray, start_face: np.ndarray, step: np.nda
     dir_col = cols["direction"].astype(str) if "direction" in cols else np.full(n, "", dtype=object)
     for s in uniq:
         m = shifts == s
-        f, i, a = face[m] - 1, stp[m] - 1, cols["ac_arcsec"][m]
-        rk, dk = rep_col[m], dir_col[m]
-        runs_s: dict[tuple, np.ndarray] = {}
-        for key in sorted(set(zip(rk.tolist(), dk.tolist()))):
-            mm = (rk == key[0]) & (dk == key[1])
-            t = np.full((N, N), np.nan)
-            t[f[mm], i[mm]] = a[mm]
-            runs_s[key] = t
-        cnt = np.zeros((N, N), dtype=int)
-        sm = np.zeros((N, N))
-        np.add.at(cnt, (f, i), 1)
-        np.add.at(sm, (f, i), a)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(cnt > 0, sm / np.maximum(cnt, 1), np.nan)
-        ss = np.zeros((N, N))
-        np.add.at(ss, (f, i), (a - mean[f, i]) ** 2)
-        sdev = np.where(cnt > 1, np.sqrt(ss / np.maximum(cnt - 1, 1)), np.nan)
-        # every start face present must have its full row (eq. 7)
-        present = np.flatnonzero(cnt.sum(axis=1) > 0)
-        missing = [(int(j) + 1, int(k) + 1) for j in present for k in range(N) if cnt[j, k] == 0]
-        if missing:
-            last = {int(j) + 1: int(np.flatnonzero(cnt[j] > 0).max()) + 1 for j in present}
-            hint = ""
-            if len(set(last.values())) == 1 and next(iter(last.values())) < N:
-                hint = (f"; every start face stops at step {next(iter(last.values()))}: "
-                        f"wrong face count (n_faces={N})?")
-            raise PolygonDataError(f"shift_deg={s:g}: columns start_face/step: missing readings {_cells(missing)} "
-                                   f"(each start face needs steps 1…{N}){hint}")
+        mean, sdev, cnt, runs_s = _shift_table(N, face[m] - 1, stp[m] - 1, cols["ac_arcsec"][m], (rep_col[m], dir_col[m]))
+        _check_full_rows(s, cnt)
         eps[float(s)], sd[float(s)], nrep[float(s)], runs[float(s)] = mean, sdev, cnt, runs_s
     return PolygonTable(N, uniq.astype(float), eps, sd, nrep, off_max, runs)
 
@@ -514,7 +565,7 @@ def _certificate(beta_cert: np.ndarray, N: int, u_cert: np.ndarray | float | Non
 def cross_calibrate_with_certificate(eps_row_arcsec: np.ndarray, certificate_beta_arcsec: np.ndarray,
                                      start_face: int = 1, shift_deg: float = 0.0, *,
                                      u_eps_arcsec: np.ndarray | float | None = None,
-                                     u_certificate_arcsec: np.ndarray | float | None = None) -> dict[str, np.ndarray]:
+                                     u_certificate_arcsec: np.ndarray | float | None = None) -> dict[str, Any]:
     """Traditional cross-calibration with a calibrated polygon: one start face, β from a certificate.
 
     eq. 3 with known β and U from eq. 7. The certificate is made to close (Σβ = 0, eq. 1) by subtracting
@@ -523,8 +574,8 @@ def cross_calibrate_with_certificate(eps_row_arcsec: np.ndarray, certificate_bet
     e = np.atleast_2d(np.asarray(eps_row_arcsec, dtype=float))
     N = e.shape[1]
     b, cov, mean = _certificate(certificate_beta_arcsec, N, u_certificate_arcsec)
-    res = encoder_error_arcsec(e, [start_face] * e.shape[0], b, shift_deg, u_eps_arcsec=u_eps_arcsec,
-                               cov_beta_arcsec2=cov)
+    res: dict[str, Any] = encoder_error_arcsec(e, [start_face] * e.shape[0], b, shift_deg,
+                                               u_eps_arcsec=u_eps_arcsec, cov_beta_arcsec2=cov)
     res["certificate_mean_arcsec"] = mean
     res["beta"] = b
     return res
@@ -592,15 +643,24 @@ def require_reference_table(table: PolygonTable, *, certificate: bool,
                            f"{_cells(missing)} (the closure needs all N×N = {N * N})")
 
 
-def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.ndarray | None = None,
-                         u_certificate_arcsec: np.ndarray | float | None = None,
-                         u_eps_arcsec: float | None = None, beta_source: str = "auto",
+@dataclass(frozen=True)
+class BetaSource:
+    """Where the polygon's pitch deviations β come from (:func:`shift_angle_analysis`): ``source``
+    "auto", "closure" or "certificate", and a calibrated polygon's certificate (arcsec, N values) with
+    its standard uncertainty (arcsec, one number or N; None: unknown)."""
+
+    source: str = "auto"
+    certificate_arcsec: np.ndarray | None = None
+    u_certificate_arcsec: np.ndarray | float | None = None
+
+
+def shift_angle_analysis(table: PolygonTable, *, beta_from: BetaSource | None = None, u_eps_arcsec: float | None = None,
                          pool_repeatability: bool = True, reference_shift_deg: float | None = None,
                          s_reading_arcsec: float | None = None) -> ShiftAngleResult:
     """The shift-angle method over every shift of a :class:`PolygonTable` (sec. 2.1-2.2, 3.1).
 
-    β: from the full N×N table at the reference shift (eqs. 5-6; ``beta_source="closure"``) or from a
-    certificate (``"certificate"``); ``"auto"`` uses the closure when the reference table is complete,
+    β (``beta_from``, :class:`BetaSource`): from the full N×N table at the reference shift (eqs. 5-6;
+    ``source="closure"``) or from a certificate (``"certificate"``); ``"auto"`` uses the closure when the reference table is complete,
     else the certificate, else raises :class:`PolygonDataError` naming the missing cells. The reference
     shift is ``reference_shift_deg``, by default S = 0 when there are readings at 0 (the paper), else the
     smallest shift with a complete N×N table (eqs. 5-6 hold at any S). Then, at every shift,
@@ -613,6 +673,8 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
     ``s_reading_arcsec`` (the standard deviation of ONE reading, e.g. from :func:`reading_repeatability`)
     overrides both: u(ε) of a cell is s/√n with n the readings averaged in it.
     """
+    bs = beta_from if beta_from is not None else BetaSource()
+    beta_source, certificate_beta_arcsec, u_certificate_arcsec = bs.source, bs.certificate_arcsec, bs.u_certificate_arcsec
     N = table.n_faces
     notes: list[str] = []
     s0 = reference_shift(table, reference_shift_deg)
@@ -641,8 +703,10 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         beta_closure, ub, cb = pitch_deviation_arcsec(table.eps_arcsec[s0], u0)
     if src == "closure":
         require_reference_table(table, certificate=False, reference_shift_deg=reference_shift_deg)
+        assert beta_closure is not None  # the complete reference table gave it (required just above)
         beta, u_beta, cov_beta = beta_closure, ub, cb
     else:
+        assert certificate_beta_arcsec is not None  # src == "certificate" requires it (checked above)
         beta, cov_beta, mean = _certificate(certificate_beta_arcsec, N, u_certificate_arcsec)
         u_beta = np.sqrt(np.diag(cov_beta)) if u_certificate_arcsec is not None else np.full(N, np.nan)
         if abs(mean) > 0:
@@ -656,7 +720,7 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
         u_rows = None if uc is None else uc[faces - 1]
         res = encoder_error_arcsec(e, faces, beta, s)
         Je, Jb, Ke, Kb = _alpha_jacobians(faces, N)
-        cb = cov_beta if np.all(np.isfinite(cov_beta)) else None
+        cov_b = cov_beta if np.all(np.isfinite(cov_beta)) else None
         if src == "closure" and s == s0 and u_rows is not None:
             # same readings give β and α: total Jacobian w.r.t. the full table
             u2 = u_rows.ravel() ** 2  # faces == 1…N here (full table)
@@ -675,10 +739,10 @@ def shift_angle_analysis(table: PolygonTable, *, certificate_beta_arcsec: np.nda
                 cov_u += (Ke * u2) @ Ke.T
                 u_e = np.sqrt(np.diag(ce))
                 ok = True
-            if cb is not None:
-                cbb = Jb @ cb @ Jb.T
+            if cov_b is not None:
+                cbb = Jb @ cov_b @ Jb.T
                 cov_a += cbb
-                cov_u += Kb @ cb @ Kb.T
+                cov_u += Kb @ cov_b @ Kb.T
                 u_b = np.sqrt(np.maximum(np.diag(cbb), 0.0))
                 ok = True
             if not ok:
@@ -933,15 +997,12 @@ def combined_curve(result: ShiftAngleResult | Sequence[ShiftResult], *, decimals
 
 
 def _harmonic_design(theta_deg: np.ndarray, harmonics: Sequence[int]) -> np.ndarray:
-    th = np.deg2rad(np.asarray(theta_deg, dtype=float).ravel())
-    cols = []
-    for k in harmonics:
-        cols += [np.sin(k * th), np.cos(k * th)]
-    return np.column_stack(cols) if cols else np.zeros((th.size, 0))
+    """Columns [sin kθ, cos kθ] of the harmonics (θ in degrees): :func:`.fourier.harmonic_columns`."""
+    return harmonic_columns(theta_deg, harmonics)[0]
 
 
 def fit_harmonic_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, harmonics: Sequence[int] = (2,), *,
-                        fixed_coef: np.ndarray | None = None) -> dict[str, object]:
+                        fixed_coef: np.ndarray | None = None) -> dict[str, Any]:
     """Least squares y(θ) = U + Σ_k (a_k sin kθ + b_k cos kθ) (sec. 3.1, generalised to K harmonics).
 
     With ``fixed_coef`` (the ``coef`` of an earlier fit, ``[a_k1, b_k1, a_k2, …]``) only U is fitted,
@@ -980,7 +1041,8 @@ def fit_sine2_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, *, A_arcsec: f
     """
     if (A_arcsec is None) != (B_rad is None):
         raise ValueError("give both A_arcsec and B_rad, or neither")
-    fixed = None if A_arcsec is None else np.array([A_arcsec * math.cos(B_rad), A_arcsec * math.sin(B_rad)])
+    fixed = None if A_arcsec is None or B_rad is None else np.array([A_arcsec * math.cos(B_rad),
+                                                                     A_arcsec * math.sin(B_rad)])
     f = fit_harmonic_offset(theta_deg, y_arcsec, (2,), fixed_coef=fixed)
     a, b = f["coef"]
     return {"A_arcsec": float(math.hypot(a, b)), "B_rad": float(math.atan2(b, a)), "U_arcsec": f["U"],
@@ -988,7 +1050,7 @@ def fit_sine2_offset(theta_deg: np.ndarray, y_arcsec: np.ndarray, *, A_arcsec: f
 
 
 def setup_error_by_curve_fit(result: ShiftAngleResult, harmonics: Sequence[int] = (2,), *,
-                             reference_shift_deg: float | None = None) -> list[dict[str, float]]:
+                             reference_shift_deg: float | None = None) -> list[dict[str, Any]]:
     """Cross-check of U (sec. 3.1): fit U + harmonics to y_i = ε_ij − B_ij = α(θ_i) + U_j at the reference
     shift (start face = the first measured there), then at every shift and start face fit only U with the
     shape fixed (reference: the result's reference shift). Returns rows ``shift_deg, start_face, U_fit_arcsec, U_eq7_arcsec, diff_arcsec`` (+ the

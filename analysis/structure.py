@@ -250,9 +250,7 @@ def _polygon(cols: Mapping[str, np.ndarray], where: str, bench: Mapping[str, Any
     # the analysis' own tabulation and its reference table (eqs. 5-6), named by file row
     cert = bench.get("polygon_certificate_arcsec")
     try:
-        table = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                                    theta_deg=cols.get("theta_deg"), rep=cols.get("rep"),
-                                    direction=cols.get("direction"))
+        table = sa.tabulate_polygon(cols, N)
         sa.require_reference_table(table, certificate=cert is not None)
     except sa.PolygonDataError as exc:
         raise DatasetError(f"{where}: {exc} (array index i is file row i + 2)") from None

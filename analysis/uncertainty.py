@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import GTC
 import numpy as np
@@ -43,6 +44,9 @@ __all__ = [
     "coverage_interval_symmetric",
     "validate_gum_with_mc",
     "shift_angle_budget",
+    "ShiftAngleBudgetInputs",
+    "TypeBInputs",
+    "HSIEH2022_TYPE_B",
     "hsieh2022_table3_budget",
 ]
 
@@ -272,7 +276,7 @@ class UncertaintyBudget:
                 continue
             name = ("  " if r["kind"] == "member" else "") + str(r["name"])
             lines.append(f"{name[:56]:<56} {r['u']:>8.4f}{u} {r['sensitivity']:>9.4g} {r['contribution']:>8.4f}{u} "
-                         f"{dof_s(float(r['dof'])):>6}")
+                         f"{dof_s(float(cast(float, r['dof']))):>6}")
         lines.append("-" * len(head))
         nu = self.nu_eff
         nu_s = dof_s(math.floor(nu) if (self.truncate_dof and math.isfinite(nu)) else nu)
@@ -365,49 +369,93 @@ def validate_gum_with_mc(y: float, U: float, mc: MCResult, u_c: float, *, ndig: 
 # --------------------------------------------------------------------------- Hsieh 2022 sec. 3.3
 
 
-def shift_angle_budget(*, u_repeat_alpha: float, dof_repeat_alpha: float, n_faces: int,
-                       u_repeat_beta: float = 0.0, dof_repeat_beta: float = INF,
-                       ac_resolution: float = 0.0, ac_traceability_U: float = 0.0, ac_traceability_k: float = 2.0,
-                       ac_error_half_width: float = 0.0, encoder_resolution: float = 0.0,
-                       setup_residual: float = 0.0, setup_misalignment: float = 0.0,
-                       type_b_relative: float = 0.10, title: str = "Combined uncertainty for shift-angle method",
-                       sensitivity_beta: float | None = None, direction_difference: float | None = None,
-                       dof_direction: float | None = None) -> UncertaintyBudget:
+@dataclass(frozen=True)
+class TypeBInputs:
+    """The declared type-B inputs of the shift-angle budget (Hsieh 2022 sec. 3.3 items (2)-(5), (8)),
+    arcsec: autocollimator resolution r (→ r/(2√3)), traceability U with its k (→ U/k, ν = ∞), angle
+    error half-width a (→ a/√3), encoder resolution r (→ r/(2√3)), polygon setup misalignment m
+    (→ m/(2√3)); ``type_b_relative``: the relative uncertainty of the type-B u's (10 % → ν = 50,
+    GUM G.4.2)."""
+
+    ac_resolution_arcsec: float = 0.0
+    ac_traceability_U_arcsec: float = 0.0
+    ac_traceability_k: float = 2.0
+    ac_error_half_width_arcsec: float = 0.0
+    encoder_resolution_arcsec: float = 0.0
+    setup_misalignment_arcsec: float = 0.0
+    type_b_relative: float = 0.10
+
+
+#: Hsieh 2022 sec. 3.3's declared inputs: ELCOMAT 3000 resolution 0.001″, traceability U = 0.01″
+#: (k = 2), maximum error 0.05″, setup misalignment 0.05″; the encoder resolution comes from the
+#: bench (0 if unknown).
+HSIEH2022_TYPE_B = TypeBInputs(ac_resolution_arcsec=0.001, ac_traceability_U_arcsec=0.01, ac_traceability_k=2.0,
+                               ac_error_half_width_arcsec=0.05, encoder_resolution_arcsec=0.0,
+                               setup_misalignment_arcsec=0.05, type_b_relative=0.10)
+
+
+@dataclass(frozen=True)
+class ShiftAngleBudgetInputs:
+    """What the data give the shift-angle budget (arcsec): (1) the repeatability of α with its dof,
+    (6) the residual setup-error calculation d (eq. 7 vs curve fit), (7) the repeatability of β with
+    its dof and sensitivity (None: eq. 11's 1/n − 8/(9n²)), and (9) the direction difference Δ with
+    its dof (None: no row; dof None: as type B)."""
+
+    u_repeat_alpha_arcsec: float
+    dof_repeat_alpha: float
+    n_faces: int
+    u_repeat_beta_arcsec: float = 0.0
+    dof_repeat_beta: float = INF
+    setup_residual_arcsec: float = 0.0
+    sensitivity_beta: float | None = None
+    direction_difference_arcsec: float | None = None
+    dof_direction: float | None = None
+
+
+def shift_angle_budget(inputs: ShiftAngleBudgetInputs, type_b: TypeBInputs | None = None, *,
+                       title: str = "Combined uncertainty for shift-angle method") -> UncertaintyBudget:
     """The budget of α for the shift-angle method, Hsieh 2022 sec. 3.3 items (1)-(8), eq. 10, Table 3.
 
-    Group "measured value uncertainty, ε" (sensitivity 1): (1) repeatability ``u_repeat_alpha``
+    Group "measured value uncertainty, ε" (sensitivity 1): (1) repeatability ``u_repeat_alpha_arcsec``
     (type A, its dof); (2) AC resolution r → r/(2√3); (3) AC traceability U/k (ν = ∞: relative
     uncertainty 0 %, as the text says; the Table prints 50, which changes nothing visible);
     (4) AC angle error, rectangular half-width a → a/√3; (5) encoder resolution r → r/(2√3);
     (6) residual setup-error calculation d (eq. 7 vs curve fit) → d/(2√3). Then (7) repeatability of β
     with sensitivity 1/n − 8/(9n²) (eq. 11) and (8) the polygon setup error (misalignment m → m/(2√3)).
-    Type-B dofs from ``type_b_relative`` (10 % → 50, GUM G.4.2). Inputs in arcsec.
+    Type-B dofs from ``type_b.type_b_relative`` (10 % → 50, GUM G.4.2). Inputs in arcsec; ``type_b``
+    None: all type-B inputs 0 (:class:`TypeBInputs`).
 
-    ``sensitivity_beta`` replaces eq. 11 where the estimator's own sensitivity is known (the data
-    pipeline takes it from the Jacobian of α with respect to β). ``direction_difference``: the part of
-    α(forward) − α(backward) that the repeatability does not explain (hysteresis that depends on θ);
-    the direction-averaged α lies midway, so a reading in one direction is off by up to half of it:
-    (9) rectangular of half-width Δ/2, u = Δ/(2√3), ν from ``dof_direction`` (default as type B).
-    Omitted (not even a zero row) when None.
+    ``inputs.sensitivity_beta`` replaces eq. 11 where the estimator's own sensitivity is known (the data
+    pipeline takes it from the Jacobian of α with respect to β). ``inputs.direction_difference_arcsec``:
+    the part of α(forward) − α(backward) that the repeatability does not explain (hysteresis that
+    depends on θ); the direction-averaged α lies midway, so a reading in one direction is off by up to
+    half of it: (9) rectangular of half-width Δ/2, u = Δ/(2√3), ν from ``dof_direction`` (default as
+    type B). Omitted (not even a zero row) when None.
     """
-    nu_b = dof_from_relative_uncertainty(type_b_relative)
+    d, tb = inputs, (type_b if type_b is not None else TypeBInputs())
+    nu_b = dof_from_relative_uncertainty(tb.type_b_relative)
     rt3 = math.sqrt(3.0)
     g = "measured value uncertainty, ε"
     b = UncertaintyBudget(title=title)
-    b.add("Repeatability of angle error measurement", u_repeat_alpha, 1.0, dof_repeat_alpha, group=g, distribution="t")
-    b.add("Resolution of the autocollimator", ac_resolution / (2 * rt3), 1.0, nu_b, group=g, distribution="rectangular")
-    b.add("Traceability of the autocollimator", ac_traceability_U / ac_traceability_k, 1.0, INF, group=g)
-    b.add("Angle error of autocollimator", ac_error_half_width / rt3, 1.0, nu_b, group=g, distribution="rectangular")
-    b.add("Resolution of the rotary encoder", encoder_resolution / (2 * rt3), 1.0, nu_b, group=g,
+    b.add("Repeatability of angle error measurement", d.u_repeat_alpha_arcsec, 1.0, d.dof_repeat_alpha, group=g,
+          distribution="t")
+    b.add("Resolution of the autocollimator", tb.ac_resolution_arcsec / (2 * rt3), 1.0, nu_b, group=g,
           distribution="rectangular")
-    b.add("Residual setup error calculation", setup_residual / (2 * rt3), 1.0, nu_b, group=g, distribution="rectangular")
-    c_beta = estler_sensitivity(n_faces) if sensitivity_beta is None else float(sensitivity_beta)
-    b.add("Repeatability of the pitch angle deviation measurement", u_repeat_beta, c_beta,
-          dof_repeat_beta, distribution="t")
-    b.add("setup error uncertainty", setup_misalignment / (2 * rt3), 1.0, nu_b, distribution="rectangular")
-    if direction_difference is not None:
-        b.add("Direction difference (forward − backward)", abs(float(direction_difference)) / (2 * rt3), 1.0,
-              nu_b if dof_direction is None else dof_direction, distribution="rectangular")
+    b.add("Traceability of the autocollimator", tb.ac_traceability_U_arcsec / tb.ac_traceability_k, 1.0, INF,
+          group=g)
+    b.add("Angle error of autocollimator", tb.ac_error_half_width_arcsec / rt3, 1.0, nu_b, group=g,
+          distribution="rectangular")
+    b.add("Resolution of the rotary encoder", tb.encoder_resolution_arcsec / (2 * rt3), 1.0, nu_b, group=g,
+          distribution="rectangular")
+    b.add("Residual setup error calculation", d.setup_residual_arcsec / (2 * rt3), 1.0, nu_b, group=g,
+          distribution="rectangular")
+    c_beta = estler_sensitivity(d.n_faces) if d.sensitivity_beta is None else float(d.sensitivity_beta)
+    b.add("Repeatability of the pitch angle deviation measurement", d.u_repeat_beta_arcsec, c_beta,
+          d.dof_repeat_beta, distribution="t")
+    b.add("setup error uncertainty", tb.setup_misalignment_arcsec / (2 * rt3), 1.0, nu_b, distribution="rectangular")
+    if d.direction_difference_arcsec is not None:
+        b.add("Direction difference (forward − backward)", abs(float(d.direction_difference_arcsec)) / (2 * rt3), 1.0,
+              nu_b if d.dof_direction is None else d.dof_direction, distribution="rectangular")
     return b
 
 

@@ -37,10 +37,10 @@ file's header and in docs/calibrate-twin.md; those values stay the base scenario
 
 from __future__ import annotations
 
-import json
 import math
 import tempfile
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,7 @@ import numpy as np
 from benchtwin.analysis.radial_motion import disk_weights
 from benchtwin.analysis.results import ResultsError
 from benchtwin.analysis.results_api import Results
+from benchtwin.schema import dumps_toml as dump_toml  # the one TOML writer
 from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["CalibrationInputError", "calibrate_twin", "learn", "dump_toml"]
@@ -176,13 +177,11 @@ def _procedure_from_dataset(raw: dict[str, Any], ds: Any, comments: dict) -> Non
 def _radial(ds: Any, order: int) -> dict[str, Any] | None:
     if not ds.has("radial_motion"):
         return None
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     t = ds.table("radial_motion")
     b = ds.bench
-    return radial_motion(t["rep"], t["theta_deg"], t["probe_top_um"], t["probe_bottom_um"], b["L1_mm"], b["L2_mm"],
-                         probe_top_x_um=t.get("probe_top_x_um"), probe_bottom_x_um=t.get("probe_bottom_x_um"),
-                         order=order)
+    return radial_motion(ProbeReadings.from_table(t), SphereSpacing(b["L1_mm"], b["L2_mm"]), RadialOptions(order=order))
 
 
 def _quadrature_on_grid(theta_deg: np.ndarray, y: np.ndarray, order: int) -> np.ndarray:
@@ -269,153 +268,207 @@ def _eff_u(e: dict[str, Any], name: str) -> float:
     return float((e.get("u") or {}).get(name, float("nan")))
 
 
+@dataclass
+class _Learning:
+    """What ``learn``'s stages share: the comments written beside the keys, the notes, the effects
+    close-loop identified (by name), the radial-motion fits (None without radial_motion.csv) and the
+    replayed δX's Fourier parameters (design_matrix order; None: no δX replayed)."""
+
+    comments: dict[tuple[str, str], str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    identified: dict[str, Any] = field(default_factory=dict)
+    rm: dict[str, Any] | None = None
+    dx_params: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class _TwinMotion:
+    """What the calibrated twin will itself produce on the encoder: the fitted eccentricity (µm) and
+    its phase (deg), on the optical radius (mm), and the replayed δX (Fourier parameters in µm, at
+    harmonics up to ``order``; None: no δX)."""
+
+    eccentricity_um: float
+    theta0_deg: float
+    optical_radius_mm: float
+    dx_params_um: np.ndarray | None
+    order: int
+
+
 def learn(ds: Any, res: Mapping[str, Any], raw: dict[str, Any], where: Path, order: int = 10) -> tuple[
         dict[str, Any], dict[tuple[str, str], str], list[str]]:
     """The measured bench into the scenario ``raw`` (edited in place): returns (raw, comments
     {(section, key): text}, notes). ``res`` is the results.json of the dataset ``ds``."""
-    comments: dict[tuple[str, str], str] = {}
-    notes: list[str] = []
+    lr = _Learning(identified={x["name"]: x for x in res.get("identified_effects") or []})
+    e_true, ph = _learn_eccentricity(res, raw, where, lr)
+    _learn_radial(ds, res, raw, order, lr)
+    # --- identified effects as physical causes
+    if "graduation_error" in lr.identified:
+        motion = _TwinMotion(e_true, ph, float(ds.bench["optical_radius_mm"]), lr.dx_params, order)
+        lr.identified["graduation_error"] = _division_error_for_twin(lr.identified["graduation_error"], res, motion,
+                                                                     lr.notes)
+    _learn_effects(res, raw, lr)
+    return raw, lr.comments, lr.notes
+
+
+def _learn_eccentricity(res: Mapping[str, Any], raw: dict[str, Any], where: Path, lr: _Learning) -> tuple[float, float]:
+    """Eccentricity (Jia eqs. 10-13, CCD) into [errors]: returns (e in µm, × (1 + s) of a traced
+    ccd_pixel_scale; its phase in deg as results.json gives it)."""
     rj = "results.json"
-    # --- eccentricity (Jia eqs. 10-13, CCD)
     e = float(_need(res, "eccentricity_um", where))
     ue = float(res.get("eccentricity_u_um", float("nan")))
     ph = float(_need(res, "eccentricity_phase_deg", where))
     uph = float(res.get("eccentricity_phase_u_deg", float("nan")))
     n_img = int((res.get("ccd") or {}).get("n_images", 0))
     err = raw.setdefault("errors", {})
-    identified = {x["name"]: x for x in res.get("identified_effects") or []}
-    if "ccd_pixel_scale" in identified:
+    if "ccd_pixel_scale" in lr.identified:
         # the period at the scale edge differs from the datasheet by s: the measured e is e_true/(1 + s)
-        s = float(identified["ccd_pixel_scale"]["params"]["scale_error_pct"]) / 100.0
+        s = float(lr.identified["ccd_pixel_scale"]["params"]["scale_error_pct"]) / 100.0
         e_true = e * (1.0 + s)
-        notes.append(f"ccd_pixel_scale: e corrected by (1 + s) = {1 + s:.6f} (grating period error at the scale edge)")
+        lr.notes.append(f"ccd_pixel_scale: e corrected by (1 + s) = {1 + s:.6f} (grating period error at the scale edge)")
     else:
         e_true = e
     err["eccentricity"] = _q(e_true, "um")
-    comments[("errors", "eccentricity")] = (f"u = {ue:.2g} um, from {n_img} CCD frames ({rj} eccentricity_um"
-                                            f"{', × (1 + s) of ccd_pixel_scale' if e_true != e else ''})")
+    lr.comments[("errors", "eccentricity")] = (f"u = {ue:.2g} um, from {n_img} CCD frames ({rj} eccentricity_um"
+                                               f"{', × (1 + s) of ccd_pixel_scale' if e_true != e else ''})")
     err["theta0"] = _q(ph % 360.0, "deg")
-    comments[("errors", "theta0")] = f"u = {uph:.2g} deg, from {n_img} CCD frames ({rj} eccentricity_phase_deg)"
+    lr.comments[("errors", "theta0")] = f"u = {uph:.2g} deg, from {n_img} CCD frames ({rj} eccentricity_phase_deg)"
+    return e_true, ph
 
-    # --- radial error motion (Jia eqs. 6-9): replayed as [motion_table]
+
+def _learn_radial(ds: Any, res: Mapping[str, Any], raw: dict[str, Any], order: int, lr: _Learning) -> None:
+    """Radial error motion (Jia eqs. 6-9), replayed as [motion_table] (the bearings' own motion
+    replaced), and the bearings' asynchronous motion."""
+    rj = "results.json"
     br = raw.setdefault("bearings", {})
-    rm = _radial(ds, order)
-    tang = identified.get("tangential_motion")
-    dx_params: np.ndarray | None = None   # the replayed δX (design_matrix order), for the division error
-    if rm is not None:
-        th = np.asarray(rm["theta_deg"], dtype=float)
-        w_top, w_bot = disk_weights(float(ds.bench["L1_mm"]), float(ds.bench["L2_mm"]))
-        L2 = float(ds.bench["L2_mm"])
-        f = rm["fits"]
-        # only the harmonics measured above the probes' noise are replayed (a null bench stays null)
-        dY, kY = _significant_curve(th, f["top"], f["bottom"], w_top, w_bot, order)
-        # ε_X = −(δ_top − δ_bot)/L2: eq. 8 (radial_motion.py) is a rotation about −X; µm/mm = mrad → µrad
-        tilt_x, kTx = _significant_curve(th, f["top"], f["bottom"], -1e3 / L2, 1e3 / L2, order)
-        form = identified.get("sphere_form")
-        if form is not None:
-            # a traced form error is part of the sphere's reading, not motion: out of the table, into
-            # the sphere ([hidden.sphere_form], _sphere_form)
-            ft, fb = (_form_curve(th, form, s_, f[s_]) for s_ in ("top", "bottom"))
-            dY = dY - (w_top * ft + w_bot * fb)
-            tilt_x = tilt_x + (ft - fb) / L2 * 1e3
-            notes.append("sphere_form: the traced form removed from the motion table (it is the sphere's, not the axis's)")
-        has_x = "top_x" in f
-        u_dy = float(np.nanmax(rm["u_dY_theta_um"]))
-        reps = int(rm["n_reps"])
-        src = f"{reps} revolution{'s' if reps > 1 else ''} × {th.size} positions of radial_motion.csv"
-        if has_x:
-            dX, kX = _significant_curve(th, f["top_x"], f["bottom_x"], w_top, w_bot, order)
-            dx_params = _significant_series(f["top_x"], f["bottom_x"], w_top, w_bot, order)[0]
-            tilt_y, kTy = _significant_curve(th, f["top_x"], f["bottom_x"], 1e3 / L2, -1e3 / L2, order)
-            u_dx = float(np.nanmax(rm.get("u_dX_range_theta_um", [np.nan])))
-            dx_src = f"δX from the X probes (eq. 9 on X), harmonics {kX or 'none'} significant, u ≤ {u_dx:.2g} um"
-            if tang is not None:
-                notes.append("tangential_motion: identified; with X probes it is the measured δX, already in "
-                             "motion_table.dx (the twin's head reads −δX/r from the posed disk)")
-        else:
-            tilt_y, kTy = np.zeros_like(th), []
-            if tang is not None:
-                # the traced whirl: δX = p·δY + q·H[δY] (analysis/effects/tangential_motion.py, no X probes)
-                p = float(tang["params"].get("inphase_gain", 0.0))
-                q = float(tang["params"].get("quadrature_gain", 0.0))
-                dX = p * dY + q * _quadrature_on_grid(th, dY, order)
-                from benchtwin.analysis.fourier import design_matrix
+    rm = lr.rm = _radial(ds, order)
+    if rm is None:
+        lr.notes.append("no radial_motion.csv: the bearings are kept from the base scenario")
+        return
+    th = np.asarray(rm["theta_deg"], dtype=float)
+    w_top, w_bot = disk_weights(float(ds.bench["L1_mm"]), float(ds.bench["L2_mm"]))
+    L2 = float(ds.bench["L2_mm"])
+    f = rm["fits"]
+    # only the harmonics measured above the probes' noise are replayed (a null bench stays null)
+    dY, kY = _significant_curve(th, f["top"], f["bottom"], w_top, w_bot, order)
+    # ε_X = −(δ_top − δ_bot)/L2: eq. 8 (radial_motion.py) is a rotation about −X; µm/mm = mrad → µrad
+    tilt_x, kTx = _significant_curve(th, f["top"], f["bottom"], -1e3 / L2, 1e3 / L2, order)
+    form = lr.identified.get("sphere_form")
+    if form is not None:
+        # a traced form error is part of the sphere's reading, not motion: out of the table, into
+        # the sphere ([hidden.sphere_form], _sphere_form)
+        ft, fb = (_form_curve(th, form, s_, f[s_]) for s_ in ("top", "bottom"))
+        dY = dY - (w_top * ft + w_bot * fb)
+        tilt_x = tilt_x + (ft - fb) / L2 * 1e3
+        lr.notes.append("sphere_form: the traced form removed from the motion table (it is the sphere's, not the axis's)")
+    has_x = "top_x" in f
+    u_dy = float(np.nanmax(rm["u_dY_theta_um"]))
+    reps = int(rm["n_reps"])
+    src = f"{reps} revolution{'s' if reps > 1 else ''} × {th.size} positions of radial_motion.csv"
+    dX, tilt_y, kTy, dx_src = _learn_x_motion(th, f, dY, (w_top, w_bot, L2), order, lr)
+    raw["motion_table"] = {
+        "theta": [_q(t, "deg", 9) for t in th],
+        "dx": [_q(v, "um", 5) for v in dX],
+        "dy": [_q(v, "um", 5) for v in dY],
+        "tilt_x": [_q(v, "urad", 5) for v in tilt_x],
+        "tilt_y": [_q(v, "urad", 5) for v in tilt_y],
+    }
+    comments = lr.comments
+    comments[("motion_table", "theta")] = f"synchronous radial error motion of the disk plane, harmonics 2…{order}, from {src}"
+    comments[("motion_table", "dy")] = (f"harmonics {kY or 'none'} significant (χ²₂, p = {1 - SIGNIFICANCE_P:g}); "
+                                        f"u ≤ {u_dy:.2g} um ({rj} radial_motion.u_dY_um), Jia eq. 9")
+    comments[("motion_table", "dx")] = dx_src
+    comments[("motion_table", "tilt_x")] = f"ε_X = −(δ_top − δ_bot)/L2 (Jia eq. 8 is about −X), harmonics {kTx or 'none'}"
+    comments[("motion_table", "tilt_y")] = (f"(δX_top − δX_bot)/L2 from the X probes, harmonics {kTy or 'none'}" if has_x else
+                                            "0: not observable without X probes")
+    br["type"] = "path"
+    comments[("bearings", "type")] = "the measured motion table replaces the bearings' own motion (twin/physics.py)"
+    for k in ("waviness_top", "waviness_bottom"):
+        br[k] = []
+        comments[("bearings", k)] = "replaced by [motion_table]"
+    _learn_async(res, raw, reps, lr)
 
-                dx_params = np.linalg.lstsq(design_matrix(th, order), dX, rcond=None)[0]
-                dx_src = (f"δX = p·δY + q·H[δY] of the traced tangential_motion, p = {p:.3g} (u {_eff_u(tang, 'inphase_gain'):.2g}),"
-                          f" q = {q:.3g} (u {_eff_u(tang, 'quadrature_gain'):.2g})")
-            else:
-                dX = np.zeros_like(th)
-                dx_src = "δX = 0: not observable without X probes (docs/calibrate-twin.md)"
-                notes.append("no X probes: the X motion of the axis is not measured and is set to 0")
-        raw["motion_table"] = {
-            "theta": [_q(t, "deg", 9) for t in th],
-            "dx": [_q(v, "um", 5) for v in dX],
-            "dy": [_q(v, "um", 5) for v in dY],
-            "tilt_x": [_q(v, "urad", 5) for v in tilt_x],
-            "tilt_y": [_q(v, "urad", 5) for v in tilt_y],
-        }
-        comments[("motion_table", "theta")] = f"synchronous radial error motion of the disk plane, harmonics 2…{order}, from {src}"
-        comments[("motion_table", "dy")] = (f"harmonics {kY or 'none'} significant (χ²₂, p = {1 - SIGNIFICANCE_P:g}); "
-                                            f"u ≤ {u_dy:.2g} um ({rj} radial_motion.u_dY_um), Jia eq. 9")
-        comments[("motion_table", "dx")] = dx_src
-        comments[("motion_table", "tilt_x")] = f"ε_X = −(δ_top − δ_bot)/L2 (Jia eq. 8 is about −X), harmonics {kTx or 'none'}"
-        comments[("motion_table", "tilt_y")] = (f"(δX_top − δX_bot)/L2 from the X probes, harmonics {kTy or 'none'}" if has_x else
-                                                "0: not observable without X probes")
-        br["type"] = "path"
-        comments[("bearings", "type")] = "the measured motion table replaces the bearings' own motion (twin/physics.py)"
-        for k in ("waviness_top", "waviness_bottom"):
-            br[k] = []
-            comments[("bearings", k)] = "replaced by [motion_table]"
-        am = (res.get("residual_test") or {}).get("async_motion") or {}
-        if am.get("sigma_um") is not None:
-            s_disk = float(am["sigma_um"])   # band 1…10, the probes' noise removed (F test; analysis/tracing/)
-            bench = raw.get("bench", {})
-            from benchtwin.units import parse_quantity
 
-            zt = parse_quantity(bench["bearing_top_z"], "length")
-            zb = parse_quantity(bench["bearing_bottom_z"], "length")
-            # the rigid shaft carries the bearings' independent motions to the disk plane (z = 0)
-            # with the lever weights of the two seats: w_top = −z_b/(z_t − z_b), w_bot = z_t/(z_t − z_b)
-            w_t, w_b = -zb / (zt - zb), zt / (zt - zb)
-            s_b = s_disk / math.hypot(w_t, w_b)
-            br["async_rms"] = _q(s_b, "um", 4)
-            how = ("above the probes' noise" if am.get("significant") else
-                   f"scatter {float(am.get('scatter_um', 0)):.2g} um not above the probes' noise "
-                   f"{float(am.get('noise_in_band_um', 0)):.2g} um (F test): 0")
-            comments[("bearings", "async_rms")] = (
-                f"from {rj} residual_test.async_motion.sigma_um = {s_disk:.2g} um at the disk plane ({how}; "
-                f"{int(am.get('n_reps', reps))} revolutions), per bearing and axis")
-        else:
-            notes.append("one revolution: the asynchronous motion is not measured; bearings.async_rms kept from the base")
-    else:
-        notes.append("no radial_motion.csv: the bearings are kept from the base scenario")
+def _learn_x_motion(th: np.ndarray, f: dict[str, Any], dY: np.ndarray, lever: tuple[float, float, float],
+                    order: int, lr: _Learning) -> tuple[np.ndarray, np.ndarray, list, str]:
+    """The X motion of the disk plane: measured by the X probes, else the traced tangential motion's
+    whirl, else 0. ``lever``: (w_top, w_bot, L2 in mm). Returns (δX µm, tilt_y µrad, tilt_y's
+    significant harmonics, the comment on δX); sets ``lr.dx_params``."""
+    w_top, w_bot, L2 = lever
+    tang = lr.identified.get("tangential_motion")
+    if "top_x" in f:
+        dX, kX = _significant_curve(th, f["top_x"], f["bottom_x"], w_top, w_bot, order)
+        lr.dx_params = _significant_series(f["top_x"], f["bottom_x"], w_top, w_bot, order)[0]
+        tilt_y, kTy = _significant_curve(th, f["top_x"], f["bottom_x"], 1e3 / L2, -1e3 / L2, order)
+        u_dx = float(np.nanmax(lr.rm.get("u_dX_range_theta_um", [np.nan]))) if lr.rm is not None else float("nan")
+        dx_src = f"δX from the X probes (eq. 9 on X), harmonics {kX or 'none'} significant, u ≤ {u_dx:.2g} um"
+        if tang is not None:
+            lr.notes.append("tangential_motion: identified; with X probes it is the measured δX, already in "
+                            "motion_table.dx (the twin's head reads −δX/r from the posed disk)")
+        return dX, tilt_y, kTy, dx_src
+    if tang is not None:
+        # the traced whirl: δX = p·δY + q·H[δY] (analysis/effects/tangential_motion.py, no X probes)
+        p = float(tang["params"].get("inphase_gain", 0.0))
+        q = float(tang["params"].get("quadrature_gain", 0.0))
+        dX = p * dY + q * _quadrature_on_grid(th, dY, order)
+        from benchtwin.analysis.fourier import design_matrix
 
-    # --- identified effects as physical causes
-    if "graduation_error" in identified:
-        identified["graduation_error"] = _division_error_for_twin(
-            identified["graduation_error"], res, e_true, ph, float(ds.bench["optical_radius_mm"]), dx_params, order, notes)
+        lr.dx_params = np.linalg.lstsq(design_matrix(th, order), dX, rcond=None)[0]
+        dx_src = (f"δX = p·δY + q·H[δY] of the traced tangential_motion, p = {p:.3g} (u {_eff_u(tang, 'inphase_gain'):.2g}),"
+                  f" q = {q:.3g} (u {_eff_u(tang, 'quadrature_gain'):.2g})")
+        return dX, np.zeros_like(th), [], dx_src
+    lr.notes.append("no X probes: the X motion of the axis is not measured and is set to 0")
+    return np.zeros_like(th), np.zeros_like(th), [], "δX = 0: not observable without X probes (docs/calibrate-twin.md)"
+
+
+def _learn_async(res: Mapping[str, Any], raw: dict[str, Any], reps: int, lr: _Learning) -> None:
+    """The bearings' asynchronous motion (bearings.async_rms) from the residual test's band 1…10,
+    carried from the disk plane to the two seats; kept from the base after one revolution."""
+    am = (res.get("residual_test") or {}).get("async_motion") or {}
+    if am.get("sigma_um") is None:
+        lr.notes.append("one revolution: the asynchronous motion is not measured; bearings.async_rms kept from the base")
+        return
+    s_disk = float(am["sigma_um"])   # band 1…10, the probes' noise removed (F test; analysis/tracing/)
+    bench = raw.get("bench", {})
+    from benchtwin.units import parse_quantity
+
+    zt = parse_quantity(bench["bearing_top_z"], "length")
+    zb = parse_quantity(bench["bearing_bottom_z"], "length")
+    # the rigid shaft carries the bearings' independent motions to the disk plane (z = 0)
+    # with the lever weights of the two seats: w_top = −z_b/(z_t − z_b), w_bot = z_t/(z_t − z_b)
+    w_t, w_b = -zb / (zt - zb), zt / (zt - zb)
+    s_b = s_disk / math.hypot(w_t, w_b)
+    raw["bearings"]["async_rms"] = _q(s_b, "um", 4)
+    how = ("above the probes' noise" if am.get("significant") else
+           f"scatter {float(am.get('scatter_um', 0)):.2g} um not above the probes' noise "
+           f"{float(am.get('noise_in_band_um', 0)):.2g} um (F test): 0")
+    lr.comments[("bearings", "async_rms")] = (
+        f"from results.json residual_test.async_motion.sigma_um = {s_disk:.2g} um at the disk plane ({how}; "
+        f"{int(am.get('n_reps', reps))} revolutions), per bearing and axis")
+
+
+def _learn_effects(res: Mapping[str, Any], raw: dict[str, Any], lr: _Learning) -> None:
+    """The identified effects as physical causes ([hidden.*] and the keys they set); the ambiguous
+    and unexplained ones noted."""
     hidden = raw.setdefault("hidden", {})
-    for name, eff in identified.items():
+    for name, eff in lr.identified.items():
         fn = _EFFECTS.get(name)
         if fn is None:
-            notes.append(f"{name}: identified, but has no physical counterpart calibrate-twin can set; not transferred")
+            lr.notes.append(f"{name}: identified, but has no physical counterpart calibrate-twin can set; not transferred")
             continue
         if name == "sphere_form":
-            _sphere_form(eff, raw, hidden, comments, notes, fits=rm["fits"] if rm is not None else None)
+            _sphere_form(eff, raw, hidden, lr.comments, lr.notes, fits=lr.rm["fits"] if lr.rm is not None else None)
         else:
-            fn(eff, raw, hidden, comments, notes)
+            fn(eff, raw, hidden, lr.comments, lr.notes)
     for x in res.get("ambiguous") or []:
-        notes.append(f"ambiguous (not transferred): {x}")
+        lr.notes.append(f"ambiguous (not transferred): {x}")
     if res.get("unexplained"):
-        notes.append("the close-loop residual stayed unexplained: the twin does not reproduce that part")
+        lr.notes.append("the close-loop residual stayed unexplained: the twin does not reproduce that part")
     if not hidden:
         raw.pop("hidden")
-    return raw, comments, notes
 
 
-def _division_error_for_twin(eff: dict[str, Any], res: Mapping[str, Any], e_um: float, theta0_deg: float, r_mm: float,
-                             dx_params: np.ndarray | None, order: int, notes: list[str]) -> dict[str, Any]:
+def _division_error_for_twin(eff: dict[str, Any], res: Mapping[str, Any], motion: _TwinMotion,
+                             notes: list[str]) -> dict[str, Any]:
     """The disk's division harmonics as the calibrated twin needs them: the measured encoder curve
     (the corrected one, docs/effects.md) minus what the twin itself will produce from the fitted
     eccentricity (sin α = (e/r)·sin(θ − θ0), exact for the head on +Y, encoder_head.py) and from the
@@ -423,20 +476,21 @@ def _division_error_for_twin(eff: dict[str, Any], res: Mapping[str, Any], e_um: 
     identified. The close-loop's own a_k, b_k are fitted to the residual of Jia's model, whose ∫δY dθ/r
     holds only 1/k of a k-lobed whirl's −δX/r: taken as they are, the twin would play the missing
     (1 − 1/k) twice, once as motion and once as division error."""
+    e_um, theta0_deg, dx_params = motion.eccentricity_um, motion.theta0_deg, motion.dx_params_um
     c = res.get("encoder_error_corrected_arcsec") or res.get("encoder_error_arcsec")
     orders = sorted({int(k[1:].split("_")[0]) for k in eff["params"] if k.startswith(("a", "b")) and k.endswith("_arcsec")})
     if not isinstance(c, dict) or not orders:
         return eff
-    from benchtwin.analysis.fourier import design_matrix
+    from benchtwin.analysis.fourier import design_matrix, harmonic_columns
 
     th = np.asarray(c["theta_deg"], dtype=float)
     y = np.asarray(c["value"], dtype=float)
     u = np.ones_like(y) if c.get("u") is None else np.asarray(c["u"], dtype=float)
-    r_um = r_mm * 1e3
+    r_um = motion.optical_radius_mm * 1e3
     y = y - np.degrees(np.arcsin(e_um / r_um * np.sin(np.radians(th - theta0_deg)))) * 3600.0
     if dx_params is not None:
-        y = y + (design_matrix(th, order) @ dx_params) / r_um * ARCSEC_PER_RAD
-    cols = [np.ones_like(th)] + [f(k * np.radians(th)) for k in orders for f in (np.sin, np.cos)]
+        y = y + (design_matrix(th, motion.order) @ dx_params) / r_um * ARCSEC_PER_RAD
+    cols = [np.ones_like(th), harmonic_columns(th, orders)[0]]   # [1, sin kθ, cos kθ, …] (fourier.py)
     X = np.column_stack(cols) / u[:, None]
     if X.shape[0] <= X.shape[1]:
         return eff
@@ -588,49 +642,6 @@ _EFFECTS = {"graduation_error": _graduation, "ac_scale": _ac_scale, "ac_drift": 
             "torsion_hysteresis": _torsion, "optical_radius": _optical_radius, "tilt_abbe": _tilt_abbe,
             "ccd_pixel_scale": _ccd_scale, "interpolation_error": _interpolation,
             "sphere_form": _sphere_form}
-
-
-# ----------------------------------------------------------------------------- TOML out
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def dump_toml(raw: dict[str, Any], comments: dict[tuple[str, str], str], header: list[str]) -> str:
-    """The scenario as TOML, a comment beside each value that has one (fitted values: u and data)."""
-    lines = [f"# {h}" if h else "#" for h in header] + [""]
-
-    def section(name: str, table: dict[str, Any]) -> None:
-        plain = {k: v for k, v in table.items() if not isinstance(v, dict)}
-        subs = {k: v for k, v in table.items() if isinstance(v, dict)}
-        if plain or not subs:
-            lines.append(f"[{name}]")
-            for k, v in plain.items():
-                text = f"{k} = {_toml_value(v)}"
-                c = comments.get((name, k))
-                lines.append(f"{text}  # {c}" if c else text)
-            lines.append("")
-        for k, v in subs.items():
-            section(f"{name}.{k}", v)
-
-    for name, table in raw.items():
-        if isinstance(table, dict):
-            section(name, table)
-        else:
-            lines.insert(len(header) + 1, f"{name} = {_toml_value(table)}")
-    return "\n".join(lines)
 
 
 # ----------------------------------------------------------------------------- the command

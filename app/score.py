@@ -812,11 +812,11 @@ def _uniform_full_circle(theta_deg: np.ndarray) -> bool:
 
 def _drop_harmonics(theta_deg: np.ndarray, y: np.ndarray, orders: Sequence[int]) -> np.ndarray:
     """y with its mean and the given harmonics removed (least squares on the points' angles)."""
-    th = np.radians(theta_deg)
-    cols = [np.ones_like(th)]
-    for k in sorted(set(int(k) for k in orders if 0 < k < th.size / 2)):
-        cols += [np.cos(k * th), np.sin(k * th)]
-    A = np.column_stack(cols)
+    from benchtwin.analysis.fourier import harmonic_columns
+
+    th = np.asarray(theta_deg, dtype=float)
+    ks = sorted(set(int(k) for k in orders if 0 < k < th.size / 2))
+    A = np.column_stack([np.ones(th.size), harmonic_columns(th, ks, cos_first=True)[0]])   # [1, cos kθ, sin kθ, …]
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     return y - A @ coef
 

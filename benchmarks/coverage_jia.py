@@ -265,15 +265,16 @@ def score(raw: dict[str, Any]) -> dict[str, Any]:
     with the analysis code as it is now (the raw record holds only measurements and truth)."""
     from benchtwin.analysis.eccentricity import with_async_motion
     from benchtwin.analysis.error_model import error_model_from_results as efr
-    from benchtwin.analysis.error_model import jia_error_model
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.error_model import EccentricityEstimate, RadialCurve, jia_error_model
+    from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
     a, t, order = raw["measured"], raw["truth"], raw["order"]
     ts = t["sync"]
     rad = a["radial"]
     # as pipeline.step_radial_motion calls it
-    rm = radial_motion(np.asarray(rad["rep"]), np.asarray(rad["theta_deg"]), np.asarray(rad["probe_top_um"]),
-                       np.asarray(rad["probe_bottom_um"]), rad["L1_mm"], rad["L2_mm"], order=order)
+    rm = radial_motion(ProbeReadings(np.asarray(rad["rep"]), np.asarray(rad["theta_deg"]), np.asarray(rad["probe_top_um"]),
+                                     np.asarray(rad["probe_bottom_um"])),
+                       SphereSpacing(rad["L1_mm"], rad["L2_mm"]), RadialOptions(order=order))
     ec_fit = eccentricity_estimate(a, order)
     ec = with_async_motion(ec_fit, rm["u_h1_async_um"], rm["u_h1_async_dof"])  # as the pipeline does
     grid = np.asarray(rm["theta_deg"], dtype=float)
@@ -287,7 +288,7 @@ def score(raw: dict[str, Any]) -> dict[str, Any]:
     qa = ANGLES_DEG.astype(int)
     m_pipe = efr(ec, rm, r_um)  # the pipeline's call (results.json model_prediction_arcsec)
     m_gum = efr(ec, rm, r_um, dY_uncertainty="gum")
-    m_true = jia_error_model(ts["e_um"], ts["theta0_deg"], r_um, grid, np.asarray(ts["dY_um"]))
+    m_true = jia_error_model(EccentricityEstimate(ts["e_um"], ts["theta0_deg"]), r_um, RadialCurve(grid, np.asarray(ts["dY_um"])))
     pred, ptrue = m_pipe.predict(q), m_true.predict(q)
     alpha = np.interp(q, t["alpha_theta_deg"], t["alpha_arcsec"], period=360.0)
     dY, u_gum = np.asarray(rm["dY_um"]), np.asarray(rm["u_dY_gum_theta_um"])

@@ -42,7 +42,9 @@ def truth_alpha(ds: Path, theta: np.ndarray) -> np.ndarray:
 
 def run(seed: int, ac_noise: float | None, reps: int | None, work: Path) -> dict:
     from benchtwin.analysis.dataset import open_dataset
-    from benchtwin.analysis.hsieh_pipeline import _drop_harmonics, analyze_polygon
+    from dataclasses import replace
+
+    from benchtwin.analysis.hsieh_pipeline import HSIEH2022_TYPE_B, HeadsData, _drop_harmonics, analyze_polygon
     from benchtwin.twin.scenario import load_scenario
     from benchtwin.twin.simulate import simulate
 
@@ -56,8 +58,8 @@ def run(seed: int, ac_noise: float | None, reps: int | None, work: Path) -> dict
     path = simulate(sc, work / f"s{seed}", progress=False, backend="analytic")
     ds = open_dataset(path)
     b = ds.bench
-    r = analyze_polygon(ds.table("polygon"), b["polygon_faces"], ds.table("heads"), b["heads_deg"],
-                        encoder_resolution_arcsec=b["encoder_resolution_arcsec"])
+    r = analyze_polygon(ds.table("polygon"), b["polygon_faces"], HeadsData(ds.table("heads"), b["heads_deg"]),
+                        type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=b["encoder_resolution_arcsec"]))
     N = r["n_faces"]
     th = np.array(r["encoder_error_arcsec"]["theta_deg"])
     T = truth_alpha(path, th)

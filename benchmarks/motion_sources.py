@@ -106,6 +106,10 @@ REFS: dict[tuple[str, str, str], str] = {
         "derived: cantilever with tip mass (twin/vibration.py) of an ASSUMED column, camera and arm",
     ("hsieh2022", "thermal.ambient_amplitude", "1 K"): "Hsieh 2022 sec. 3 (20 ± 1 °C)",
     ("hidden/null_paper", "bearings.async_rms", "0.06 um"): "Jia 2019 fig. 13 (0.3 µm range over 3 reps)",
+    ("hsieh2022", "bearings.air_orifice_diameter", "0.15 mm"):
+        "sized with the sector model: pressure ratio 0.66 at the 8 µm gap, at the model's stiffness maximum "
+        "(0.1/0.15/0.2 mm give 117/116/106 N/µm; the restrictor design rule of Powell 1970 ch. 5)",
+    ("hsieh2022", "bearings.air_discharge_coefficient", "0.8"): "Powell 1970 ch. 2 (0.6–0.85 measured); 0.8 an ASSUMPTION",
     ("hidden/thermal_growth", "hidden.thermal_growth.cte_mismatch", "15 ppm/K"):
         "CTEs of aluminium 23 and glass 8 ppm/K (the file's comment)",
 }
@@ -152,6 +156,13 @@ def bench_rows(path: Path) -> list[Row]:
     rows: list[Row] = []
     br, th, hid = sc["bearings"], sc["thermal"], sc.hidden
     tm = hid.get("tangential_motion", {})
+    if br["type"] == "path":
+        prov = str(br["path_provenance"]) or "none stated: a synthetic path"
+        rows.append(Row(
+            "path bearing: the REPLAY of a given rolling path (not a bearing model)",
+            "the bearings are springs whose rest positions follow the file's path "
+            + ("(its [motion_table])" if "motion_table" in sc else "(its waviness lobes and async_rms)"),
+            "—", f"provenance (`bearings.path_provenance`): {prov}", KEY_ANGLE))
     if br["type"] == "path" and "motion_table" not in sc:
         wav = {s: list(br[f"waviness_{s}"]) for s in ("top", "bottom")}
         if any(wav.values()):
@@ -189,6 +200,8 @@ def bench_rows(path: Path) -> list[Row]:
                 f"per axis √(1−{f:g})·async_rms = {_um(math.sqrt(1 - f) * a)} per bearing",
                 src("bearings.async_rms", "bearings.async_cage_fraction"),
                 f"{KEY_ANGLE}, drawn per rep index; not time"))
+    if br["type"] == "air":
+        rows += _air_rows(sc, br, src)
     if br["type"] == "ball":
         kia, _kea, w2 = RACE_GRADES[br["grade"]]
         ws = float(br["waviness_scale"])
@@ -274,6 +287,60 @@ def bench_rows(path: Path) -> list[Row]:
         rows.append(Row("autocollimator drift_rate", "zero drift rate·t (twin/instruments/autocollimator.py)",
                         f"{dr / ARCSEC * 3600:.3g}″/h", src("instruments.autocollimator.drift_rate"), KEY_TIME))
     return rows
+
+
+def _air_rows(sc, br, src) -> list[Row]:
+    """Aerostatic journals (twin/air_bearing.py): stiffness, form through the film, supply."""
+    from twin.air_bearing import P_AMBIENT_PA, AerostaticJournal
+
+    j = AerostaticJournal(
+        diameter_m=float(br["air_journal_diameter"]), length_m=float(br["air_journal_length"]),
+        clearance_m=float(br["air_clearance"]), supply_pressure_Pa=P_AMBIENT_PA + float(br["air_supply_pressure"]),
+        feed_holes=int(br["air_feed_holes"]), rows=int(br["air_feed_rows"]), restrictor=str(br["air_restrictor"]),
+        orifice_diameter_m=float(br["air_orifice_diameter"]),
+        discharge_coefficient=float(br["air_discharge_coefficient"]),
+        porous_permeability_m2=float(br["air_porous_permeability"]),
+        porous_thickness_m=float(br["air_porous_thickness"]), porous_area_m2=float(br["air_porous_area"]))
+    n = j.feed_holes
+    k0 = j.stiffness_N_m()
+    out = [Row(
+        "air bearings: film stiffness",
+        f"two aerostatic journals, {n} {br['air_restrictor']} feeds × {j.rows} rows, sector method (twin/air_bearing.py: "
+        "restrictor flow = land flow per sector, Powell 1970, Stout & Barrue 1977); sets the bearings' "
+        "radial and tilt stiffness (not `radial_stiffness`)",
+        f"D {j.diameter_m * 1e3:g} mm, L {j.length_m * 1e3:g} mm, gap {j.clearance_m * 1e6:g} µm, supply "
+        f"{float(br['air_supply_pressure']) / 1e5:g} bar: K = {k0 / 1e6:.3g} N/µm, pressure ratio {j.pressure_ratio():.2f}",
+        src("bearings.air_journal_diameter", "bearings.air_clearance", "bearings.air_supply_pressure",
+            "bearings.air_orifice_diameter") + "; the laws: Powell 1970 ch. 2–5",
+        "— (a stiffness)")]
+    rnd, ro = float(br["journal_roundness"]), float(br["journal_runout"])
+    if rnd > 0 or ro > 0:
+        out.append(Row(
+            "air bearings: journal form through the film",
+            "each feed sector sees the boxcar mean of the journal's form over its 2π/N (G(k) = sin(kπ/N)/(kπ/N)); "
+            "the sector sums move the journal only at orders k ≡ ±1 (mod N): forward at qN+1, backward at qN−1, "
+            "by G(k)/G(1) ≈ 1/k; order 1 (run-out) 1:1. No whirl direction imposed",
+            f"roundness {_um(rnd)} P-V (orders 2…40 ∝ 1/k), run-out {_um(ro)}; orders {n - 1}/{n + 1} pass "
+            f"1/{n - 1}, 1/{n + 1}",
+            src("bearings.journal_roundness", "bearings.journal_runout")
+            + "; averaging: sector method (Stout & Barrue 1977), weighting as Shamoto et al. 2000 (CIRP Annals 49/1)",
+            f"{KEY_ANGLE} (synchronous)"))
+    rp, rn = float(br["supply_ripple"]), float(br["supply_noise"])
+    if rp > 0 or rn > 0:
+        g = sc["bench"]["gravity_direction"]
+        radial = g not in ("-z", "+z", "none") or float(br["unbalance"]) > 0
+        dk = (j.stiffness_N_m(1.01 * j.supply_pressure_Pa) - j.stiffness_N_m(0.99 * j.supply_pressure_Pa)) / 0.02
+        out.append(Row(
+            "air bearings: supply-pressure fluctuation (asynchronous)",
+            "p_s(t) → K(t): a journal under a static radial load W moves by W·(1/K(t) − 1/K₀) along it "
+            "(twin/air_bearing.py `supply_offsets_m`)"
+            + ("" if radial else "; this bench's axis is vertical with no unbalance: no radial load, so no radial "
+               "motion (the thrust bearing's axial motion is not a degree of freedom of the bench)"),
+            f"ripple ±{rp * 100:g} % over {_minutes(float(br['supply_ripple_period']))}, noise {rn * 100:g} % rms; "
+            f"dK/K per dp/p = {dk / k0:.2f}",
+            src("bearings.supply_ripple", "bearings.supply_ripple_period", "bearings.supply_noise"),
+            KEY_TIME))
+    return out
 
 
 def _thermal_rows(sc, th: dict, hid: dict, src) -> list[Row]:

@@ -189,12 +189,12 @@ def main(argv: list[str] | None = None) -> int:
     analysis = ""
     if not args.no_analysis:
         try:
-            from benchtwin.analysis.eccentricity import eccentricity_from_images
+            from benchtwin.analysis.eccentricity import CcdSweep, eccentricity_from_images
 
             for backend, (_, images, _m) in sweeps.items():
                 t0 = time.perf_counter()
-                res = eccentricity_from_images(images, thetas, um_per_px=camera.pixel_pitch_m * 1e6,
-                                               reference_px=camera.reference_px)
+                res = eccentricity_from_images(images, thetas, CcdSweep(um_per_px=camera.pixel_pitch_m * 1e6,
+                                                                        reference_px=camera.reference_px))
                 ta = time.perf_counter() - t0
                 e_um = res.get("e_um", res.get("e"))
                 th_deg = res.get("theta0_deg", res.get("theta0"))

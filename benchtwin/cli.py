@@ -96,6 +96,18 @@ def _is_results_file(path: Path) -> bool:
         return False
 
 
+def _validate_fault_plan(path: Path) -> dict[str, Any]:
+    """``validate`` of an emulator fault plan (TOML with [[faults]], or JSON)."""
+    from benchtwin.twin.emulators.pty import load_fault_plan
+
+    try:
+        n = len(load_fault_plan(path))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
+            "message": f"{path}: valid fault plan ({n} faults)"}
+
+
 def _validate_other_file(path: Path) -> dict[str, Any] | None:
     """results.json (analysis/results.py), a study file ([study]), a bench file ([instruments]) or a
     fault plan ([[faults]] / .json),
@@ -114,14 +126,7 @@ def _validate_other_file(path: Path) -> dict[str, Any] | None:
                 "message": f"{path}: valid results ({res['format']} v{res['version']}, {len(res)} keys; "
                            "docs/results-format.md)"}
     if path.suffix == ".json" and path.is_file():
-        from benchtwin.twin.emulators.pty import load_fault_plan
-
-        try:
-            n = len(load_fault_plan(path))
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
-        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
-                "message": f"{path}: valid fault plan ({n} faults)"}
+        return _validate_fault_plan(path)
     try:
         top = set(load_toml_file(path))
     except SchemaError:
@@ -141,14 +146,7 @@ def _validate_other_file(path: Path) -> dict[str, Any] | None:
         return {"ok": True, "kind": "bench", "path": str(path), "name": cfg.name,
                 "instruments": sorted(cfg.instruments), "message": f"{path}: valid bench file {cfg.name!r}"}
     if "faults" in top:
-        from benchtwin.twin.emulators.pty import load_fault_plan
-
-        try:
-            n = len(load_fault_plan(path))
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
-        return {"ok": True, "kind": "fault_plan", "path": str(path), "faults": n,
-                "message": f"{path}: valid fault plan ({n} faults)"}
+        return _validate_fault_plan(path)
     return None
 
 

@@ -14,7 +14,9 @@ Every reader of the project goes through this module (issue #13, docs/reliabilit
   (checked before parsing, so a hostile file cannot reach Python's recursion limit), JSON without
   ``NaN``/``Infinity`` constants;
 - **declarative checks** (``Key`` / ``check_table``): a table's known keys with kind, range and
-  choices, unknown keys rejected, one optional ``version`` key (missing = 1, unknown = error).
+  choices, unknown keys rejected, one optional ``version`` key (missing = 1, unknown = error);
+- **TOML out** (``toml_value`` / ``dumps_toml``): the one TOML writer (a calibrated scenario, the
+  emulator's bench file and its ``[[procedure]]`` tables), so what is written reads back here.
 
 The module imports nothing of the project, so every layer (analysis, twin, hw, app) can use it.
 """
@@ -25,6 +27,7 @@ import csv
 import io
 import json
 import math
+import numbers
 import os
 import re
 import stat
@@ -36,7 +39,8 @@ from typing import Any
 
 __all__ = ["SchemaError", "csv_rows", "MAX_DEPTH", "MAX_NUMBER_CHARS", "MAX_CELL_CHARS", "MAX_INPUT_BYTES",
            "parse_float", "parse_int", "is_number", "read_input_text", "resolve_inside", "check_relative_name", "loads_json",
-           "loads_toml", "load_toml_file", "Key", "check_table", "check_version", "nesting_depth"]
+           "loads_toml", "load_toml_file", "Key", "check_table", "check_version", "nesting_depth", "leaves", "toml_value",
+           "dumps_toml"]
 
 MAX_DEPTH = 32            # nesting of JSON/TOML inputs: the deepest real file (a study) has 4
 MAX_NUMBER_CHARS = 64     # the longest float repr is 24 characters
@@ -107,13 +111,20 @@ def resolve_inside(root: str | Path, rel: str, where: str) -> Path:
     root_r = Path(root).resolve()
     p = check_relative_name(rel, where)
     full = root_r / p
-    try:
-        real = full.resolve()
-    except (OSError, RuntimeError):
-        raise SchemaError(f"{where}: file {rel!r}: cannot be resolved (symlink loop?)") from None
-    if real != root_r and root_r not in real.parents:
-        raise SchemaError(f"{where}: file {rel!r} leaves the dataset (a symlink pointing outside it)")
+    _check_inside(root_r, full, f"{where}: file {rel!r}: cannot be resolved (symlink loop?)",
+                  f"{where}: file {rel!r} leaves the dataset (a symlink pointing outside it)")
     return full
+
+
+def _check_inside(root_r: Path, path: Path, unresolved: str, outside: str) -> None:
+    """``path``, symlinks followed, is ``root_r`` (resolved) or lies inside it; else SchemaError
+    with the message ``unresolved`` (a symlink loop) or ``outside``."""
+    try:
+        real = path.resolve()
+    except (OSError, RuntimeError):
+        raise SchemaError(unresolved) from None
+    if real != root_r and root_r not in real.parents:
+        raise SchemaError(outside)
 
 
 def read_input_text(path: str | Path, *, max_bytes: int = MAX_INPUT_BYTES, what: str = "file",
@@ -122,13 +133,8 @@ def read_input_text(path: str | Path, *, max_bytes: int = MAX_INPUT_BYTES, what:
     (symlinks resolved) must lie inside it. Errors name the file and never echo its content."""
     p = Path(path)
     if root is not None:
-        root_r = Path(root).resolve()
-        try:
-            real = p.resolve()
-        except (OSError, RuntimeError):
-            raise SchemaError(f"{p}: cannot be resolved (symlink loop?)") from None
-        if real != root_r and root_r not in real.parents:
-            raise SchemaError(f"{p}: a symlink that leaves the dataset; expected a regular file inside it")
+        _check_inside(Path(root).resolve(), p, f"{p}: cannot be resolved (symlink loop?)",
+                      f"{p}: a symlink that leaves the dataset; expected a regular file inside it")
     try:
         st = os.stat(p)
     except FileNotFoundError:
@@ -292,8 +298,10 @@ def _depth(x: Any) -> int:
     return best
 
 
-def _check_toml_values(x: Any, where: str, path: str) -> None:
-    """TOML accepts nan, inf and arbitrarily large integers; no input of the project means them."""
+def leaves(x: Any, path: str = "") -> Iterator[tuple[Any, str]]:
+    """The values of nested tables and lists that are neither, each with its key path
+    (``a.b[2].c``), iteratively (no recursion limit): what a check of every value of a parsed
+    input walks."""
     stack = [(x, path)]
     while stack:
         v, p = stack.pop()
@@ -301,7 +309,14 @@ def _check_toml_values(x: Any, where: str, path: str) -> None:
             stack.extend((c, f"{p}.{k}" if p else str(k)) for k, c in v.items())
         elif isinstance(v, list):
             stack.extend((c, f"{p}[{i}]") for i, c in enumerate(v))
-        elif isinstance(v, float) and not math.isfinite(v):
+        else:
+            yield v, p
+
+
+def _check_toml_values(x: Any, where: str, path: str) -> None:
+    """TOML accepts nan, inf and arbitrarily large integers; no input of the project means them."""
+    for v, p in leaves(x, path):
+        if isinstance(v, float) and not math.isfinite(v):
             raise SchemaError(f"{where}: key {p}: expected a finite number, got {v}")
         elif isinstance(v, int) and not isinstance(v, bool) and not -INT64_MAX - 1 <= v <= INT64_MAX:
             raise SchemaError(f"{where}: key {p}: integer out of the 64-bit range")
@@ -312,6 +327,61 @@ def _check_toml_values(x: Any, where: str, path: str) -> None:
 def load_toml_file(path: str | Path, what: str = "TOML file", max_bytes: int = MAX_INPUT_BYTES) -> dict[str, Any]:
     """``read_input_text`` + ``loads_toml``: the one way a TOML input file is opened."""
     return loads_toml(read_input_text(path, max_bytes=max_bytes, what=what), str(path))
+
+
+# --------------------------------------------------------------------------- TOML out
+
+def toml_value(v: Any, unit: str | None = None) -> str:
+    """``v`` as a TOML value: booleans, integers, floats (``repr``: read back to the bit), strings
+    (JSON-escaped, which TOML's basic strings read alike), inline tables and arrays. With ``unit``,
+    a number (or each number of a sequence) is a quantity string, ``"1.5 deg"`` (12 significant
+    digits), as the scenario and bench formats write quantities."""
+    if unit is not None:
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(toml_value(x, unit) for x in v) + "]"
+        return json.dumps(f"{float(v):.12g} {unit}", ensure_ascii=False)
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, numbers.Integral):
+        return str(int(v))
+    if isinstance(v, numbers.Real):
+        return repr(float(v))
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def dumps_toml(raw: Mapping[str, Any], comments: Mapping[tuple[str, str], str] | None = None,
+               header: Sequence[str] = ()) -> str:
+    """A document as TOML: ``header`` as comment lines, top-level values after it, a ``[table]``
+    (and ``[table.sub]``) for each table, and a comment beside each value that has one in
+    ``comments`` (keyed by (table, key))."""
+    comments = comments or {}
+    lines = [f"# {h}" if h else "#" for h in header] + [""]
+
+    def section(name: str, table: Mapping[str, Any]) -> None:
+        plain = {k: v for k, v in table.items() if not isinstance(v, dict)}
+        subs = {k: v for k, v in table.items() if isinstance(v, dict)}
+        if plain or not subs:
+            lines.append(f"[{name}]")
+            for k, v in plain.items():
+                text = f"{k} = {toml_value(v)}"
+                c = comments.get((name, k))
+                lines.append(f"{text}  # {c}" if c else text)
+            lines.append("")
+        for k, v in subs.items():
+            section(f"{name}.{k}", v)
+
+    for name, table in raw.items():
+        if isinstance(table, dict):
+            section(name, table)
+        else:
+            lines.insert(len(header) + 1, f"{name} = {toml_value(table)}")
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- declarative checks

@@ -63,6 +63,12 @@ _UNITS: dict[str, tuple[float, str]] = {
     "kg*m": (1.0, "unbalance"),
     "g*mm": (1e-6, "unbalance"),
     "kg*m^2": (1.0, "inertia"),
+    # air bearings (twin/air_bearing.py): gauge pressures, a porous restrictor's permeability
+    "Pa": (1.0, "pressure"),
+    "kPa": (1e3, "pressure"),
+    "MPa": (1e6, "pressure"),
+    "bar": (1e5, "pressure"),
+    "m^2": (1.0, "area"),
     # drift rates
     "arcsec/s": (ARCSEC, "angular_speed"),
     "arcsec/h": (ARCSEC / 3600.0, "angular_speed"),

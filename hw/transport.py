@@ -142,7 +142,56 @@ def open_transport(spec: str | Mapping[str, Any], *, baudrate: int = 9600, bytes
                                  rtscts=bool(settings["rtscts"]))
 
 
-class SocketTransport:
+class _BufferedReads:
+    """``read``/``read_until``/``readline``/``in_waiting`` of a transport over its byte buffer
+    ``_buf``, which ``_fill`` tops up until a deadline (a socket: the bytes as they arrive; a
+    transcript: its response is queued on the write, so ``_fill`` has nothing more: reads never
+    wait). pyserial's semantics: a read returns what arrived by the timeout."""
+
+    _buf = b""
+
+    def _check(self) -> None:  # pragma: no cover - each transport says when it is closed
+        raise NotImplementedError
+
+    def _fill(self, deadline: float | None) -> bool:
+        """Wait for more bytes until ``deadline``; False when none can come."""
+        return False
+
+    def _deadline(self) -> float | None:
+        return None
+
+    def read(self, size: int = 1) -> bytes:
+        self._check()
+        deadline = self._deadline()
+        while len(self._buf) < size and self._fill(deadline):
+            pass
+        out, self._buf = self._buf[:size], self._buf[size:]
+        return out
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        self._check()
+        deadline = self._deadline()
+        while True:
+            idx = self._buf.find(expected)
+            if idx >= 0 or (size is not None and 0 <= size <= len(self._buf)):
+                break
+            if not self._fill(deadline):
+                break
+        end = len(self._buf) if idx < 0 else idx + len(expected)
+        if size is not None and size >= 0:
+            end = min(end, size)
+        out, self._buf = self._buf[:end], self._buf[end:]
+        return out
+
+    def readline(self, size: int | None = -1) -> bytes:
+        return self.read_until(b"\n", None if size is None or size < 0 else size)
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self._buf)
+
+
+class SocketTransport(_BufferedReads):
     """The ``Transport`` contract over a TCP connection (see the module docstring).
 
     ``SocketTransport.open("tcp://127.0.0.1:55550", timeout=0.5)`` connects (``serial.SerialException``
@@ -183,47 +232,29 @@ class SocketTransport:
             raise TransportClosed(f"{self.name}: {exc}") from exc
         if not r:
             return False
+        self._buf += self._recv()
+        return True
+
+    def _recv(self) -> bytes:
+        """What has arrived (b"": nothing after all). Raises ``TransportClosed`` when the connection
+        is lost or the instrument closed it."""
         try:
             chunk = self.sock.recv(4096)
         except BlockingIOError:
-            return True
+            return b""
         except OSError as exc:
-            self.is_open = False
-            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+            raise self._lost(exc) from exc
         if not chunk:
             self.is_open = False
             raise TransportClosed(f"{self.name}: the instrument closed the connection")
-        self._buf += chunk
-        return True
+        return chunk
+
+    def _lost(self, exc: OSError) -> TransportClosed:
+        self.is_open = False
+        return TransportClosed(f"{self.name}: connection lost: {exc}")
 
     def _deadline(self) -> float | None:
         return None if self.timeout is None else time.monotonic() + float(self.timeout)
-
-    def read(self, size: int = 1) -> bytes:
-        self._check()
-        deadline = self._deadline()
-        while len(self._buf) < size and self._fill(deadline):
-            pass
-        out, self._buf = self._buf[:size], self._buf[size:]
-        return out
-
-    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
-        self._check()
-        deadline = self._deadline()
-        while True:
-            idx = self._buf.find(expected)
-            if idx >= 0 or (size is not None and 0 <= size <= len(self._buf)):
-                break
-            if not self._fill(deadline):
-                break
-        end = len(self._buf) if idx < 0 else idx + len(expected)
-        if size is not None and size >= 0:
-            end = min(end, size)
-        out, self._buf = self._buf[:end], self._buf[end:]
-        return out
-
-    def readline(self, size: int | None = -1) -> bytes:
-        return self.read_until(b"\n", None if size is None or size < 0 else size)
 
     def write(self, data: bytes) -> int:
         self._check()
@@ -231,8 +262,7 @@ class SocketTransport:
             self.sock.setblocking(True)
             self.sock.sendall(bytes(data))
         except OSError as exc:
-            self.is_open = False
-            raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
+            raise self._lost(exc) from exc
         finally:
             if self.is_open:
                 self.sock.setblocking(False)
@@ -241,24 +271,13 @@ class SocketTransport:
     def reset_input_buffer(self) -> None:
         self._check()
         self._buf = b""
-        while True:
+        while True:   # drain what has arrived
             try:
                 r, _, _ = select.select([self.sock], [], [], 0)
-                if not r:
-                    return
-                chunk = self.sock.recv(4096)
-            except BlockingIOError:
-                return
             except OSError as exc:
-                self.is_open = False
-                raise TransportClosed(f"{self.name}: connection lost: {exc}") from exc
-            if not chunk:
-                self.is_open = False
-                raise TransportClosed(f"{self.name}: the instrument closed the connection")
-
-    @property
-    def in_waiting(self) -> int:
-        return len(self._buf)
+                raise self._lost(exc) from exc
+            if not r or not self._recv():
+                return
 
     def close(self) -> None:
         if self.is_open:
@@ -312,7 +331,7 @@ def load_transcript(source: str | Path | list[dict[str, Any]]) -> list[dict[str,
     return out
 
 
-class ReplayTransport:
+class ReplayTransport(_BufferedReads):
     """Serves a transcript in strict order; see the module docstring for the format.
 
     Writes accumulate until they make up the next entry's request (a write that stops being a prefix
@@ -330,13 +349,13 @@ class ReplayTransport:
         self.timeout = timeout
         self.pos = 0
         self._pending = b""
-        self._inbuf = b""
+        self._buf = b""
         self.is_open = True
         self.written: list[bytes] = []
 
     # --- pyserial subset -------------------------------------------------------------------------
     def write(self, data: bytes) -> int:
-        self._check_open()
+        self._check()
         data = bytes(data)
         self.written.append(data)
         self._pending += data
@@ -355,35 +374,14 @@ class ReplayTransport:
             self.pos += 1
             if entry.get("error") == "disconnect":
                 self.is_open = False
-                self._inbuf = b""
+                self._buf = b""
                 raise TransportClosed(f"{self.name}: instrument disconnected (transcript entry {self.pos - 1})")
-            self._inbuf += text_to_bytes(entry.get("response", ""))
+            self._buf += text_to_bytes(entry.get("response", ""))
         return len(data)
 
-    def read(self, size: int = 1) -> bytes:
-        self._check_open()
-        out, self._inbuf = self._inbuf[:size], self._inbuf[size:]
-        return out
-
-    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
-        self._check_open()
-        idx = self._inbuf.find(expected)
-        end = len(self._inbuf) if idx < 0 else idx + len(expected)
-        if size is not None and size >= 0:
-            end = min(end, size)
-        out, self._inbuf = self._inbuf[:end], self._inbuf[end:]
-        return out
-
-    def readline(self, size: int | None = -1) -> bytes:
-        return self.read_until(b"\n", None if size is None or size < 0 else size)
-
     def reset_input_buffer(self) -> None:
-        self._check_open()
-        self._inbuf = b""
-
-    @property
-    def in_waiting(self) -> int:
-        return len(self._inbuf)
+        self._check()
+        self._buf = b""
 
     def close(self) -> None:
         self.is_open = False
@@ -398,7 +396,7 @@ class ReplayTransport:
         self.pos += 1
         self.is_open = True
         self._pending = b""
-        self._inbuf = b""
+        self._buf = b""
         return self
 
     def assert_done(self) -> None:
@@ -424,7 +422,7 @@ class ReplayTransport:
     def _where(self) -> str:
         return f"{self.name} ({self.source}), entry {self.pos}: "
 
-    def _check_open(self) -> None:
+    def _check(self) -> None:
         if not self.is_open:
             raise TransportClosed(f"{self.name}: port is closed (disconnected)")
 

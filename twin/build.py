@@ -88,11 +88,36 @@ def build_model(sc, place: Placement) -> tuple[mujoco.MjModel, dict]:
     b, br = sc["bench"], sc["bearings"]
     spec = mujoco.MjSpec.from_file(str(template_path()))
     spec.option.gravity = gravity_vector(b["gravity_direction"])
-
     z_top, z_bot = b["bearing_top_z"], b["bearing_bottom_z"]
-    L1, L2, z_poly = b["L1"], b["L2"], b["polygon_z"]
+    _set_bearings(spec, br, z_top, z_bot)
+    _set_drive(spec, br)
+    parts = _set_rotating_parts(spec, b, place)
+    shaft = _set_shaft(spec, b, parts, z_top, z_bot)
+    model = spec.compile()
+    geometry = {
+        "bearing_top_z_m": z_top,
+        "bearing_bottom_z_m": z_bot,
+        "sphere_top_z_m": parts["sphere_top_z_m"],
+        "sphere_bottom_z_m": parts["sphere_bottom_z_m"],
+        "polygon_z_m": parts["polygon_z_m"],
+        "sphere_radius_m": SPHERE_RADIUS_M,
+        "disk_radius_m": parts["disk_radius_m"],
+        "disk_thickness_m": DISK_THICKNESS_M,
+        "polygon_inscribed_radius_m": POLYGON_INSCRIBED_RADIUS_M,
+        "polygon_height_m": POLYGON_HEIGHT_M,
+        "shaft_radius_m": SHAFT_RADIUS_M,
+        "shaft_cylinder_mass_kg": shaft["shaft_cylinder_mass_kg"],
+        "unbalance_mass_kg": parts["unbalance_mass_kg"],
+        "unbalance_radius_m": UNBALANCE_RADIUS_M,
+        "rotating_mass_kg": shaft["rotating_mass_kg"],
+        "gravity_m_s2": spec.option.gravity.tolist(),
+    }
+    return model, geometry
 
-    # --- bearings: four fixed tendons, rebuilt with this scenario's axial positions -------------
+
+def _set_bearings(spec: mujoco.MjSpec, br, z_top: float, z_bot: float) -> None:
+    """The bearings: four fixed tendons, rebuilt with this scenario's axial positions, their sites
+    and housings, and the two bearings' moment stiffness (in parallel on the shaft tilt)."""
     for name in BEARING_TENDONS:
         spec.delete(spec.tendon(name))
     for which, z in (("top", z_top), ("bottom", z_bot)):
@@ -118,7 +143,9 @@ def build_model(sc, place: Placement) -> tuple[mujoco.MjModel, dict]:
     for j in ("tilt_x", "tilt_y"):
         spec.joint(j).stiffness = [2.0 * br["tilt_stiffness"], 0.0, 0.0]
 
-    # --- torsion and drive ---------------------------------------------------------------------
+
+def _set_drive(spec: mujoco.MjSpec, br) -> None:
+    """Torsion and drive: the spin joint's friction, the shaft's and the drive's torsional stiffness."""
     spec.joint("spin").frictionloss = br["friction_torque"]
     spec.joint("shaft_twist").stiffness = [br["shaft_torsional_stiffness"], 0.0, 0.0]
     act = spec.actuator("drive")
@@ -126,7 +153,10 @@ def build_model(sc, place: Placement) -> tuple[mujoco.MjModel, dict]:
     act.gainprm[0] = kp
     act.biasprm[1] = -kp
 
-    # --- rotating parts ------------------------------------------------------------------------
+
+def _set_rotating_parts(spec: mujoco.MjSpec, b, place: Placement) -> dict[str, float]:
+    """The rotating parts placed: disk, spheres, unbalance, polygon. Returns their heights (m), the
+    disk's radius (m) and the unbalance point mass (kg)."""
     r = b["optical_radius"]
     disk = spec.body("disk")
     disk.pos = place.disk_offset_m
@@ -137,6 +167,7 @@ def build_model(sc, place: Placement) -> tuple[mujoco.MjModel, dict]:
     gd.mass = DISK_MASS_KG
     spec.site("head_1").pos = [0, r, 0]
 
+    L1, L2, z_poly = b["L1"], b["L2"], b["polygon_z"]
     z_sph_top, z_sph_bot = L1, L1 - L2
     spec.body("sphere_top").pos = place.sphere_top_offset_m + [0, 0, z_sph_top]
     spec.body("sphere_bottom").pos = place.sphere_bottom_offset_m + [0, 0, z_sph_bot]
@@ -158,35 +189,22 @@ def build_model(sc, place: Placement) -> tuple[mujoco.MjModel, dict]:
     gp = spec.geom("polygon")
     gp.size = [POLYGON_INSCRIBED_RADIUS_M, 0.5 * POLYGON_HEIGHT_M, 0]
     gp.mass = POLYGON_MASS_KG
+    return {"sphere_top_z_m": z_sph_top, "sphere_bottom_z_m": z_sph_bot, "polygon_z_m": z_poly,
+            "disk_radius_m": disk_radius, "unbalance_mass_kg": m_unb}
 
-    # Shaft cylinder from above the top sphere down to below the polygon; its mass is what is
-    # left of bench.shaft_mass (the whole rotating assembly) after the other parts.
+
+def _set_shaft(spec: mujoco.MjSpec, b, parts: dict[str, float], z_top: float, z_bot: float) -> dict[str, float]:
+    """The shaft cylinder from above the top sphere down to below the polygon; its mass is what is
+    left of bench.shaft_mass (the whole rotating assembly) after the other parts. Returns its mass
+    and the rotating mass (kg)."""
+    z_sph_top, z_sph_bot, z_poly = parts["sphere_top_z_m"], parts["sphere_bottom_z_m"], parts["polygon_z_m"]
     z_hi = max(z_sph_top, 0.0) + SHAFT_TOP_MARGIN_M
     z_lo = min(z_poly, z_sph_bot, z_bot, z_top) - SHAFT_BOTTOM_MARGIN_M
-    others = (DISK_MASS_KG + 2 * SPHERE_MASS_KG + m_unb + POLYGON_MASS_KG + POLYGON_SECTION_MASS_KG)
+    others = (DISK_MASS_KG + 2 * SPHERE_MASS_KG + parts["unbalance_mass_kg"] + POLYGON_MASS_KG
+              + POLYGON_SECTION_MASS_KG)
     m_shaft = max(b["shaft_mass"] - others, 0.1 * b["shaft_mass"])
     gs = spec.geom("shaft")
     gs.size = [SHAFT_RADIUS_M, 0.5 * (z_hi - z_lo), 0]
     gs.pos = [0, 0, 0.5 * (z_hi + z_lo)]
     gs.mass = m_shaft
-
-    model = spec.compile()
-    geometry = {
-        "bearing_top_z_m": z_top,
-        "bearing_bottom_z_m": z_bot,
-        "sphere_top_z_m": z_sph_top,
-        "sphere_bottom_z_m": z_sph_bot,
-        "polygon_z_m": z_poly,
-        "sphere_radius_m": SPHERE_RADIUS_M,
-        "disk_radius_m": disk_radius,
-        "disk_thickness_m": DISK_THICKNESS_M,
-        "polygon_inscribed_radius_m": POLYGON_INSCRIBED_RADIUS_M,
-        "polygon_height_m": POLYGON_HEIGHT_M,
-        "shaft_radius_m": SHAFT_RADIUS_M,
-        "shaft_cylinder_mass_kg": m_shaft,
-        "unbalance_mass_kg": m_unb,
-        "unbalance_radius_m": UNBALANCE_RADIUS_M,
-        "rotating_mass_kg": float(m_shaft + others),
-        "gravity_m_s2": spec.option.gravity.tolist(),
-    }
-    return model, geometry
+    return {"shaft_cylinder_mass_kg": m_shaft, "rotating_mass_kg": float(m_shaft + others)}

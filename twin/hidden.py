@@ -121,10 +121,9 @@ from benchtwin.units import ARCSEC
 
 from .instruments.ac_optics import FOCAL_LENGTH_M, AutocollimatorOptics
 from .instruments.graduation import brownian_bridge, dirichlet_factor, eccentric_ruling, harmonics, remove_orders
+from .streams import HIDDEN_STREAMS, stream_rng  # the one stream table (HIDDEN_STREAMS: re-exported)
 
 TWO_PI = 2.0 * math.pi
-HIDDEN_STREAMS = {"polygon_pitch_pattern": 201, "graduation_walk": 202, "graduation_form": 203,
-                  "ac_room_phase": 204}
 
 #: the autocollimator's data-sheet ranges the hidden suite keeps to (TRIOPTICS TriAngle US 300-57,
 #: MÖLLER-WEDEL ELCOMAT 3000: f = 300 mm; ASSUMPTION for the bounds: the objective's focal length
@@ -149,6 +148,13 @@ def _lobes(lobes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.array([float(l["phase"]) for l in lobes]))
 
 
+def hidden_for(sc: Any, hidden: "Hidden | None" = None) -> "Hidden":
+    """The one place a ``Hidden`` is built: ``hidden`` when given (the bench's, built once per
+    bench: ``Bench.hidden``, which every instrument of ``simulate.sim_build`` shares), else the
+    scenario's (``Hidden.from_scenario``: an instrument made without its bench's)."""
+    return Hidden.from_scenario(sc) if hidden is None else hidden
+
+
 class Hidden:
     """The hidden effects of one scenario, as the twin's modules consult them. Every accessor
     returns the neutral value (0, 1, empty) for an effect that is not listed."""
@@ -171,7 +177,7 @@ class Hidden:
         self._race_x = _lobes((self.effects.get("tangential_motion") or {}).get("x_lobes"))
         acd = self.effects.get("ac_drift") or {}
         self._ac_room_phase = (float(acd["room_phase"]) if acd.get("room_phase") is not None else float(
-            np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["ac_room_phase"]])).uniform(0, TWO_PI)))
+            stream_rng(self.seed, "ac_room_phase").uniform(0, TWO_PI)))
 
     @classmethod
     def from_scenario(cls, sc: Any) -> "Hidden":
@@ -236,7 +242,7 @@ class Hidden:
         rms = self._p("polygon_pitch_ignored", "rms")
         if rms == 0.0:
             return np.zeros(n_faces)
-        r = np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["polygon_pitch_pattern"]]))
+        r = stream_rng(self.seed, "polygon_pitch_pattern")
         x = r.normal(0.0, 1.0, n_faces)
         x -= x.mean()
         return x * (rms / math.sqrt(np.mean(x**2)))
@@ -271,7 +277,7 @@ class Hidden:
             out = out + harmonics(n, ko, ao, po)
         walk_rms = float(e.get("ruling_walk_rms", 0.0))
         if walk_rms:
-            r = np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["graduation_walk"]]))
+            r = stream_rng(self.seed, "graduation_walk")
             w = remove_orders(brownian_bridge(n, r), (0, 1))
             out = out + w * (walk_rms / math.sqrt(np.mean(w**2)))
         ecc = float(e.get("ruling_eccentricity", 0.0))
@@ -291,7 +297,7 @@ class Hidden:
         k = np.arange(2, int(e.get("form_max_order", 200)) + 1, dtype=float)
         a = k ** (-float(e.get("form_slope", 1.5)))
         a *= rms / math.sqrt(0.5 * float(np.sum(a * a)))
-        r = np.random.default_rng(np.random.SeedSequence([self.seed, HIDDEN_STREAMS["graduation_form"]]))
+        r = stream_rng(self.seed, "graduation_form")
         return k, a, r.uniform(0.0, TWO_PI, k.size)
 
     def thermal_lobe_rad_per_K(self, radius_m: float) -> float:
@@ -434,4 +440,4 @@ class TrueScenario:
         return getattr(self._sc, name)
 
 
-__all__ = ["Hidden", "hidden_of", "TrueScenario", "HIDDEN_STREAMS", "AC_DATASHEET", "heydemann_phase_error_rad"]
+__all__ = ["Hidden", "hidden_for", "hidden_of", "TrueScenario", "HIDDEN_STREAMS", "AC_DATASHEET", "heydemann_phase_error_rad"]

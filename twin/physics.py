@@ -27,8 +27,14 @@ axis average line as reference):
   another ball configuration: the asynchronous error motion. Quasi-static: the bearings' radial
   modes are at ~1.6 kHz, the drive settles in ms, the stops last 0.5 s; a test integrates the same
   model with mj_step and finds the static pose.
-- Rolling-path offsets of ``bearings.type = "path"`` (per bearing, lab x/y; an air bearing or a
-  replayed motion table — the only model before the ball sets):
+- Bearings of ``bearings.type = "air"`` (twin/air_bearing.py; Powell 1970, Stout & Barrue 1977):
+  aerostatic journals. The tendon springs take the film's stiffness computed from supply
+  pressure, gap and restrictors; their rest positions are the unloaded journal centres the
+  journals' form gives through the film's averaging (a sum over the feed sectors: no whirl
+  direction imposed), and the supply pressure's fluctuation moves the loaded journals in TIME
+  (added to the housings' time-keyed offsets, like the thermal drift).
+- Rolling-path offsets of ``bearings.type = "path"`` (per bearing, lab x/y; the REPLAY of a given
+  rolling path or a measured motion table, not a bearing model; never the default):
   * race waviness ``waviness_top/bottom``: lobes of the rotating (inner) race, synchronous with
     the shaft. A lobe {order k, amplitude a, phase ψ} moves the rolling-path centre by
     a·(cos(kθ − ψ), sin(kθ − ψ)) at shaft angle θ: a whirl at k cycles/rev (ISO 230-7 polar
@@ -86,32 +92,16 @@ import numpy as np
 
 from benchtwin.units import ARCSEC
 
+from .air_bearing import AirBearings, build_air_bearings
 from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
-from .hidden import Hidden, TrueScenario
+from .hidden import TrueScenario, hidden_for
 from .pose import BenchPose, BodyPose
+from .streams import stream_rng as _rng  # the one stream table (seeded: one stream per quantity)
 from .thermal import Thermal
 
 TWO_PI = 2.0 * math.pi
-
-# Seeded random streams: one independent stream per generated quantity, so adding a quantity
-# never changes the others for a given scenario seed.
-_STREAM = {
-    "polygon_pitch": 1,
-    "polygon_eccentricity_phase": 2,
-    "unbalance_phase": 3,
-    "cage_lobes": 4,
-    "sphere_form": 5,
-    "rep_cage_phase": 6,
-    "rep_async": 7,
-    "ball_set": 8,
-    "cage_slip": 9,
-    "cage_start": 10,
-    "thermal_phase": 11,
-    "thermal_axis_azimuth": 12,
-    "thermal_cycle_phase": 13,
-}
 
 # Joints of the model in the order of the solve vector q (names in models/bench.xml).
 JOINTS = ("radial_x", "radial_y", "tilt_x", "tilt_y", "spin", "shaft_twist")
@@ -133,10 +123,6 @@ ASYNC_COMPONENTS = 24                # random components per bearing, axis, rep
 ASYNC_FREQ_RANGE = (0.5, 30.0)       # cycles per revolution, non-integer (drawn uniformly)
 SPHERE_FORM_ORDERS = tuple(range(2, 16))
 AXIS_AVERAGE_POINTS = 64             # poses per revolution for the axis-average-line centring
-
-
-def _rng(seed: int, stream: str, *more: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAM[stream], *more]))
 
 
 def _opt(sc, section: str, key: str, default):
@@ -222,7 +208,7 @@ class Bench:
                              "two bearings at one place cannot hold the shaft's tilt")
         self.n_faces = int(b["polygon_faces"])
         # [hidden] effects (twin/hidden.py): true values the dataset does not declare.
-        self.hidden = Hidden.from_scenario(sc)
+        self.hidden = hidden_for(sc)
         self.friction_torque_Nm = float(br["friction_torque"]) + self.hidden.extra_friction_torque_Nm
         self.cage_ratio = float(_opt(sc, "bearings", "cage_ratio", 0.4))
         self.async_cage_fraction = float(_opt(sc, "bearings", "async_cage_fraction", 0.5))
@@ -230,11 +216,13 @@ class Bench:
         # Shaft speed while measuring: 0 = stop-and-go (quasi-static stops, the default).
         self.speed_rad_s = float(_opt(sc, "bench", "speed", 0.0))
         # Bearing model: "ball" = rolling-element sets (twin/bearing.py, Hertzian contact forces);
-        # "path" = a journal on a given rolling path (air bearing, or a replayed motion table).
-        self.bearing_type = str(_opt(sc, "bearings", "type", "path"))
+        # "air" = aerostatic journals (twin/air_bearing.py); "path" = the replay of a given rolling
+        # path or a measured motion table (not a bearing model).
+        self.bearing_type = str(_opt(sc, "bearings", "type", "ball"))
         if sc.get("motion_table") if hasattr(sc, "get") else None:
             self.bearing_type = "path"          # a measured motion replaces the bearings' own
         self.ball_sets: dict[str, BallSet] | None = None
+        self.air_bearings: AirBearings | None = None
         self.cage_slip = float(_opt(sc, "bearings", "cage_slip", 0.0))
 
         self._generate(sc)
@@ -271,6 +259,11 @@ class Bench:
             # damping (dynamic runs) and measure the journal displacement.
             for n in BEARING_TENDONS:
                 m.tendon_stiffness[m.tendon(n).id] = 0.0
+        if self.air_bearings is not None:   # the film's stiffness, not bearings.radial_stiffness
+            for n in BEARING_TENDONS:
+                m.tendon_stiffness[m.tendon(n).id] = self.air_bearings.K0
+            for n in ("tilt_x", "tilt_y"):
+                m.jnt_stiffness[m.joint(n).id] = 2.0 * self.air_bearings.tilt_stiffness_Nm_rad
         # Statics: no constraint rows (no contacts, friction is applied as its sliding value).
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         self.data = mujoco.MjData(m)
@@ -409,6 +402,11 @@ class Bench:
                     inner = tuple(np.concatenate([x, y]) for x, y in zip(bs.inner, extra))
                     self.ball_sets[s_] = BallSet(bs.geometry, inner=inner, outer=bs.outer, ball_dd_m=bs.ball_dd_m)
             self.cage_ratio = self.ball_sets["top"].rho
+        elif self.bearing_type == "air":
+            if any(self.hidden.race_waviness_lobes(s_) for s_ in ("top", "bottom")):
+                raise ValueError("hidden.tangential_motion (race waviness) needs ball or path bearings, "
+                                 "not bearings.type = \"air\"")
+            self.air_bearings = build_air_bearings(br, _rng(seed, "air_form"), _rng(seed, "air_supply"))
         # Optional measured motion table: replaces the synchronous waviness.
         self.motion_table = None
         table = sc.get("motion_table") if hasattr(sc, "get") else None
@@ -499,13 +497,16 @@ class Bench:
             (s if use_sin else c)[row] = a
             F.append(f), Ph.append(ph), C.append(c), S.append(s)
 
-        if self.motion_table is None:
+        if self.air_bearings is not None:   # the journals' form through the film (synchronous)
+            for f, ph, row, amp, use_sin in self.air_bearings.offset_terms():
+                add(f, ph, row, amp, use_sin)
+        if self.motion_table is None and self.air_bearings is None:
             for i, s_ in enumerate(("top", "bottom")):
                 k, a, p = self._wav[s_]
                 if k.size:   # a lobe whirls: a·(cos(kθ − ψ), sin(kθ − ψ))
                     add(k, -p, 2 * i, a, False)
                     add(k, -p, 2 * i + 1, a, True)
-        if key[1]:
+        if key[1] and self.air_bearings is None:   # path bearings' synthetic async part only
             rp = self._rep_params(rep)
             for i, s_ in enumerate(("top", "bottom")):
                 k, a, p = self.cage_lobes[s_]   # arg = k·(c·θ + φ_rep) − p
@@ -945,6 +946,10 @@ class Bench:
                 self._drift4_t = np.array([d[0], d[1], d[0], d[1]])
                 self._drift_t, self._drift_src = t, self.thermal
             self._drift4 = self._drift4_t
+        if self.air_bearings is not None and self.air_bearings.supply.active:
+            # the supply pressure at this time: the loaded journals' stiffness (twin/air_bearing.py)
+            base = self._drift4_t if self.thermal.active else np.zeros(4)
+            self._drift4 = base + self.air_bearings.supply_offsets_m(float(t_s), -self._housing_m)
         self._held_torque_Nm = None if bearing_torque_Nm is None else float(bearing_torque_Nm)
         try:
             it = self._solve(float(shaft_angle_rad), direction, int(rep))
@@ -1062,6 +1067,9 @@ class Bench:
         }
         if self.thermal.active or self.thermal.loop_active:
             truth["thermal"] = self.thermal.truth()
+        if self.air_bearings is not None:
+            truth["bearing_type"] = self.bearing_type
+            truth["air_bearings"] = self.air_bearings.truth()
         if self.ball_sets is not None:
             truth["bearing_type"] = self.bearing_type
             truth["ball_sets"] = {k: v.truth() for k, v in self.ball_sets.items()}

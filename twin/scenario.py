@@ -334,6 +334,14 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         raise ScenarioError(f"{where}: bench.scale_edge_radius must be at least bench.optical_radius")
     if b["grating_line_length"] >= b["scale_edge_radius"]:
         raise ScenarioError(f"{where}: bench.grating_line_length must be shorter than bench.scale_edge_radius")
+    br = data["bearings"]
+    if br.get("type") == "air":   # twin/air_bearing.py's geometry, named by key (exit 2, not a traceback)
+        if br["air_clearance"] >= 0.01 * br["air_journal_diameter"]:
+            raise ScenarioError(f"{where}: bearings.air_clearance must be < 1 % of bearings.air_journal_diameter")
+        if br["thrust_outer_radius"] > 0 and not (
+                0 < br["thrust_inner_radius"] < br["thrust_feed_radius"] < br["thrust_outer_radius"]):
+            raise ScenarioError(f"{where}: bearings.thrust_*: expected 0 < thrust_inner_radius < "
+                                "thrust_feed_radius < thrust_outer_radius (or thrust_outer_radius = 0: none)")
     if "vibration" in data:
         v = data["vibration"]
         if not v["floor_low_frequency"] <= v["floor_corner_frequency"] <= v["floor_high_frequency"]:

@@ -77,10 +77,16 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "async_cage_fraction": Field("dimensionless", 0.5, lo=0.0, hi=1.0,
                                      doc="share of async_rms² from cage lobing; the rest is random"),
         "unbalance_phase": Field("angle", None, lo=-360 * DEG, hi=360 * DEG, doc="absent: drawn from the seed"),
-        # Rolling-element sets (twin/bearing.py; docs/physics.md). type = "path" keeps the journal on a
-        # given rolling path (radial_stiffness, waviness_*, async_rms: an air bearing or a replay).
-        "type": Field("str", "path", choices=("path", "ball"),
-                      doc="ball: angular-contact ball sets with Hertzian contact; path: springs on a rolling path"),
+        # The bearing model (docs/physics.md). "ball": rolling-element sets (twin/bearing.py); "air":
+        # aerostatic journals (twin/air_bearing.py); "path": the REPLAY of a given rolling path or
+        # [motion_table] (radial_stiffness, waviness_*, async_rms), not a bearing model: never the
+        # default, and it should say where its motion was measured (path_provenance).
+        "type": Field("str", "ball", choices=("ball", "air", "path"),
+                      doc="ball: angular-contact ball sets with Hertzian contact; air: aerostatic journals "
+                          "(film stiffness from supply pressure, gap and restrictors); path: the replay of a "
+                          "given rolling path / measured motion table"),
+        "path_provenance": Field("str", "", doc="path type: where the replayed motion was measured (instrument, "
+                                               "spindle, date, report); empty: a synthetic path"),
         "balls": Field("int", 12, lo=3, hi=200, doc="Z per bearing (ball type)"),
         "ball_diameter": Field("length", 6.35 * MM, lo=0.1 * MM, hi=0.2, doc="Dw"),
         "pitch_diameter": Field("length", 31 * MM, lo=1 * MM, hi=2.0, doc="Dpw"),
@@ -95,6 +101,32 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "waviness_scale": Field("dimensionless", 1.0, lo=0.0, hi=100.0, doc="scales the grade's race waviness"),
         "cage_slip": Field("dimensionless", 0.0, lo=0.0, hi=0.5,
                            doc="std of the cage's relative slip per start/stop (ball type)"),
+        # Aerostatic journals (type = "air"; twin/air_bearing.py, docs/physics.md "Air bearings").
+        "air_journal_diameter": Field("length", 50 * MM, lo=2 * MM, hi=1.0, doc="journal diameter D"),
+        "air_journal_length": Field("length", 50 * MM, lo=2 * MM, hi=1.0, doc="journal length L"),
+        "air_clearance": Field("length", 8 * UM, lo=1 * UM, hi=100 * UM, doc="radial gap h0 of the centred journal"),
+        "air_supply_pressure": Field("pressure", 5e5, lo=1e4, hi=2e6, doc="supply pressure above ambient (gauge)"),
+        "air_feed_holes": Field("int", 8, lo=3, hi=64, doc="feed holes per row"),
+        "air_feed_rows": Field("int", 2, lo=1, hi=2, doc="1: a central row; 2: rows at L/4 from the ends"),
+        "air_restrictor": Field("str", "orifice", choices=("orifice", "porous"), doc="inherent orifice or porous insert"),
+        "air_orifice_diameter": Field("length", 0.15 * MM, lo=0.01 * MM, hi=2 * MM),
+        "air_discharge_coefficient": Field("dimensionless", 0.8, lo=0.3, hi=1.0, doc="orifice C_d (Powell: 0.6–0.85)"),
+        "air_porous_permeability": Field("area", 1e-15, lo=1e-18, hi=1e-10),
+        "air_porous_thickness": Field("length", 5 * MM, lo=0.1 * MM, hi=0.1),
+        "air_porous_area": Field("area", 2e-5, lo=1e-8, hi=1e-2, doc="face of one porous insert"),
+        "journal_roundness": Field("length", 0.0, lo=0.0, hi=10 * UM,
+                                   doc="peak-to-valley roundness of each journal (orders 2…40)"),
+        "journal_runout": Field("length", 0.0, lo=0.0, hi=10 * UM,
+                                doc="each journal's centring on the shaft (order 1)"),
+        "supply_ripple": Field("dimensionless", 0.0, lo=0.0, hi=0.1,
+                               doc="slow ripple of the supply pressure, relative amplitude"),
+        "supply_ripple_period": Field("time", 300.0, lo=1.0, hi=1e6),
+        "supply_noise": Field("dimensionless", 0.0, lo=0.0, hi=0.1,
+                              doc="random supply-pressure fluctuation, relative rms (periods 5 s…10 min)"),
+        "thrust_inner_radius": Field("length", 0.0, lo=0.0, hi=1.0, doc="0: no thrust bearing stated"),
+        "thrust_outer_radius": Field("length", 0.0, lo=0.0, hi=1.0),
+        "thrust_feed_radius": Field("length", 0.0, lo=0.0, hi=1.0),
+        "thrust_clearance": Field("length", 10 * UM, lo=1 * UM, hi=100 * UM),
     },
     "errors": {
         "eccentricity": Field("length", lo=0.0, hi=5 * MM),

@@ -49,6 +49,7 @@ import shutil
 import tempfile
 import weakref
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any, overload
@@ -60,7 +61,7 @@ from benchtwin.forkcall import ForkCall
 from benchtwin.fsio import OutputError, locked_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
-from benchtwin.hw.acquisition.runner import Runner, SimClock
+from benchtwin.hw.acquisition.runner import Runner, RunnerSettings, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
 from .instruments.drive import DriveServo
@@ -168,12 +169,12 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
     if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
         m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
         m["bench"]["autocollimator_accuracy_arcsec"] = float(ac["accuracy"]) / ARCSEC
-    if (bench is not None and getattr(bench, "ball_sets", None)
-            and int(sc["procedure"].get("continuous_revolutions") or 0) > 0):
+    ball_sets = getattr(bench, "ball_sets", None) if bench is not None else None
+    if ball_sets and int(sc["procedure"].get("continuous_revolutions") or 0) > 0:
         # the bearings' nominal kinematic orders (catalogue geometry: Z, Dw, Dpw, contact angle;
         # Harris ch. 7), declared for the continuous run's spectrum (report: ISO 230-7 section)
         m["bench"]["bearing_kinematic_orders"] = {
-            f"{k} ({s_})": float(v) for s_, set_ in sorted(bench.ball_sets.items())
+            f"{k} ({s_})": float(v) for s_, set_ in sorted(ball_sets.items())
             for k, v in set_.kinematic_orders().items()}
     if bench is not None and bench.hidden.writes_certificate:
         # a calibrated polygon's certificate: the declared polygon's β (Hsieh numbering); the true
@@ -263,7 +264,7 @@ def simulate(sc: Any, out_dir: str | Path | None = None, progress: bool = True, 
         # the lock first, then the check (and --force's clearing): never a live run's folder
         with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
                                complete_marker="manifest.json", owner="simulate", inputs=[getattr(sc, "path", None)]):
-            return _simulate(sc, out, progress, backend, resume, live)[0]
+            return _simulate(sc, _RunOptions(out, progress, backend, resume, live))[0]
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
 
@@ -285,19 +286,53 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     out = Path(out_dir)
     try:
         with locked_output_dir(out, what="dataset folder", owner="simulate", inputs=[getattr(sc, "path", None)]):
-            _, job = _simulate(sc, out, progress, backend, False, None, truth_dir=Path(truth_dir))
+            _, job = _simulate(sc, _RunOptions(out, progress, backend, False, truth_dir=Path(truth_dir)))
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
     assert job is not None
     return out, job
 
 
-def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None = None,
-              truth_dir: Path | None = None) -> tuple[Path, ForkCall | None]:
-    """The run; ``truth_dir`` (``simulate_apart``): the truth goes there, from a forked child."""
+@dataclass(frozen=True)
+class _RunOptions:
+    """How ``_simulate`` runs: the dataset folder, the progress bar, the CCD renderer, a resumed run,
+    the live observer (``simulate --live``) and ``simulate_apart``'s truth folder (None: truth/)."""
+
+    out: Path
+    progress: bool
+    backend: str
+    resume: bool
+    live: Any | None = None
+    truth_dir: Path | None = None
+
+
+@dataclass(frozen=True)
+class _BuiltRun:
+    """The bench ``_simulate`` built for the run: its steps, bench, state and instruments, and the
+    truth's α grid (a call: from its own child, or computed here)."""
+
+    steps: list
+    bench: Bench
+    state: SimBenchState
+    inst: dict
+    alpha_grid: Callable[[], dict[str, list]]
+
+
+@dataclass
+class _RunTruth:
+    """The truth taken during the run, per step index: the readings' (``_reading_truth``), the count
+    the servo holds at each reading (deg) and each frame's, from the posed geometry (never journaled)."""
+
+    rows: dict[int, tuple] = field(default_factory=dict)
+    held_deg: dict[int, float] = field(default_factory=dict)
+    ccd: dict[int, dict] = field(default_factory=dict)
+
+
+def _simulate(sc: Any, opts: _RunOptions) -> tuple[Path, ForkCall | None]:
+    """The run; ``opts.truth_dir`` (``simulate_apart``): the truth goes there, from a forked child."""
     steps = sim_procedure(sc)
     has_ccd = any(isinstance(s, P.Capture) for s in steps)
-    bench, state, inst = sim_build(sc, backend, camera=has_ccd)
+    bench, state, inst = sim_build(sc, opts.backend, camera=has_ccd)
     stage: SimRotaryStage = inst["stage"]
     # The servo's settles of the whole procedure are known from its steps (settle_ahead.py): a
     # worker forked now computes them ahead while the run poses and reads; the same rests either way.
@@ -308,44 +343,47 @@ def _simulate(sc: Any, out: Path, progress: bool, backend: str, resume: bool, li
     # child, after the run (nothing waits for it before the caller's analysis has ended; a grid
     # child here would share the cores with the frames the analysis waits for, issue #17). Its
     # bytes do not depend on where it runs (BENCHTWIN_FORK=0: here, on the copy).
-    alpha_grid = partial(_alpha_grid, sc, copy.deepcopy(bench))
+    alpha_grid: Callable[[], dict[str, list]] = partial(_alpha_grid, sc, copy.deepcopy(bench))
     with contextlib.ExitStack() as stack:
         if ahead is not None:
             stack.enter_context(ahead)      # the settles' worker stopped when the run ends
             stack.callback(setattr, stage, "sim_ahead", None)    # (and the stage settles itself again)
-        if truth_dir is None:               # cancelled if the run fails before it is waited for
+        if opts.truth_dir is None:          # cancelled if the run fails before it is waited for
             alpha_grid = stack.enter_context(ForkCall(alpha_grid, what=f"the truth's α grid of {sc.name}",
                                                       nice=GRID_NICE)).wait
         stage.sim_ahead = ahead
-        return _run_and_write(sc, out, progress, backend, resume, live, truth_dir, steps, bench, state, inst,
-                              alpha_grid)
+        return _run_and_write(sc, opts, _BuiltRun(steps, bench, state, inst, alpha_grid))
 
 
-def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: bool, live: Any | None,
-                   truth_dir: Path | None, steps: list, bench: Bench, state: SimBenchState, inst: dict,
-                   alpha_grid: Callable[[], dict[str, list]]) -> tuple[Path, ForkCall | None]:
-    """``_simulate``'s run of the built bench: the steps, the frames, the tables, the truth."""
-    from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
+def _frame_pipeline(run: _BuiltRun, opts: _RunOptions) -> FramePipeline | None:
+    """The frame workers when the sweep is worth pipelining (``frame_mode``), attached to the camera."""
+    cam = run.inst.get("ccd")
+    if cam is None:
+        return None
+    n_frames = sum(isinstance(s, P.Capture) for s in run.steps)
+    if frame_mode(n_frames, cam.camera.width_px, cam.camera.height_px, live=opts.live is not None) != "pipeline":
+        return None
+    pipe = FramePipeline.start(opts.backend, cam.grating, cam.camera, cam.sensor)
+    cam.pipeline = pipe
+    return pipe
 
-    enc: SimEncoder = inst["encoder"]
-    cam = inst.get("ccd")
-    writer = DatasetWriter(out, _manifest(sc, enc, cam, bench), prepared=True, resume=resume, truth_to=truth_dir)
-    bar = tqdm(total=len(steps), desc=f"simulate {sc.name}", unit="step", disable=not progress, leave=False)
 
-    pipe = None
-    if cam is not None:
-        n_frames = sum(isinstance(s, P.Capture) for s in steps)
-        if frame_mode(n_frames, cam.camera.width_px, cam.camera.height_px, live=live is not None) == "pipeline":
-            pipe = FramePipeline.start(backend, cam.grating, cam.camera, cam.sensor)
-            cam.pipeline = pipe
+class _RunObserver:
+    """The runner's ``on_step`` and ``on_row`` for the twin: the bench's state follows the steps
+    (replayed ones re-done), the truth is taken from the pose the instruments read, the frames are
+    written (by the pipeline when there is one), and the progress bar and the live view watch."""
 
-    stage: SimRotaryStage = inst["stage"]
-    ac: SimAutocollimator = inst["autocollimator"]
-    truth_rows: dict[int, tuple] = {}
-    ccd_truth: dict[int, dict] = {}      # per frame, from the posed geometry (never journaled)
-    held: dict[int, float] = {}          # the count the servo holds at each reading (deg)
+    def __init__(self, run: _BuiltRun, opts: _RunOptions, writer: DatasetWriter, bar: Any,
+                 pipe: FramePipeline | None) -> None:
+        self.state, self.live, self.writer, self.bar, self.pipe = run.state, opts.live, writer, bar, pipe
+        self.stage: SimRotaryStage = run.inst["stage"]
+        self.enc: SimEncoder = run.inst["encoder"]
+        self.ac: SimAutocollimator = run.inst["autocollimator"]
+        self.cam = run.inst.get("ccd")
+        self.truth = _RunTruth()
 
-    def on_step(i, step, context, replay):
+    def on_step(self, i: int, step: Any, context: dict, replay: bool) -> None:
+        state, stage = self.state, self.stage
         state.on_step(i, step, context, replay)
         if replay:
             # Resume: re-do the journaled step's effect on the bench (moves and waits; readings and
@@ -359,57 +397,89 @@ def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: boo
         else:
             stage.sim_hold = False
         if isinstance(step, P.Read) and {**context, **step.tag}.get("procedure") in TRUTH_PROCEDURES:
-            truth_rows[i] = _reading_truth(state, stage, enc, ac if "autocollimator" in step.names else None)
-            held[i] = float(stage.held_deg)
-        if isinstance(step, P.Capture) and cam is not None:
-            ccd_truth[i] = cam.sim_frame_truth()
-        bar.update(1)
-        if live is not None:
-            live.on_step(i, step, context, replay)
+            self.truth.rows[i] = _reading_truth(state, stage, self.enc,
+                                                self.ac if "autocollimator" in step.names else None)
+            self.truth.held_deg[i] = float(stage.held_deg)
+        if isinstance(step, P.Capture) and self.cam is not None:
+            self.truth.ccd[i] = self.cam.sim_frame_truth()
+        self.bar.update(1)
+        if self.live is not None:
+            self.live.on_step(i, step, context, replay)
 
-    def on_row(row, result):
+    def on_row(self, row: dict, result: dict) -> None:
+        cam = self.cam
         if row["type"] == "capture":
             rel = f"ccd/img_{int(row['tag']['k']):03d}.png"
             if result.get("image") is None and cam is not None and cam.pending_job is not None:
-                pipe.submit(writer.path / rel, *cam.take_job())   # journaled once it is written
+                assert self.pipe is not None      # a pending job is the pipeline's
+                self.pipe.submit(self.writer.path / rel, *cam.take_job())   # journaled once it is written
             else:
-                writer.write_image(rel, result["image"])
-        if live is not None:
-            live.on_row(row, result)
+                self.writer.write_image(rel, result["image"])
+        if self.live is not None:
+            self.live.on_row(row, result)
 
-    if live is not None:
-        live.start(len(steps))
+
+def _continuous(sc: Any, writer: DatasetWriter, run: _BuiltRun) -> None:
+    """The ISO 230-7 continuous run, after the stop-and-go procedures (twin/continuous.py), when the
+    scenario asks for one."""
+    pr = sc["procedure"]
+    n_rev = int(pr.get("continuous_revolutions", 0) or 0) if hasattr(pr, "get") else 0
+    if n_rev > 0:
+        from .continuous import continuous_run
+
+        writer.write_table("radial_continuous", continuous_run(
+            run.bench, run.state, run.inst, float(pr["continuous_speed"]), n_rev,
+            int(pr["continuous_samples_per_rev"])))
+
+
+def _truth_after_run(sc: Any, writer: DatasetWriter, rows: list[dict], run: _BuiltRun, truth: _RunTruth,
+                     truth_dir: Path | None) -> ForkCall | None:
+    """The truth (its α grid from its own child, started with the run) while the frame workers
+    finish their backlog; apart (simulate_apart): in a forked child that also computes the grid,
+    while the caller goes on to its analysis (the child's job is returned)."""
+    def write() -> None:
+        _write_truth(sc, writer, rows, run.bench, run.inst, truth, run.alpha_grid())
+
+    if truth_dir is None:
+        write()
+        return None
+    return ForkCall(write, what=f"the truth of {sc.name} (written to {truth_dir})", nice=TRUTH_APART_NICE)
+
+
+def _run_and_write(sc: Any, opts: _RunOptions, run: _BuiltRun) -> tuple[Path, ForkCall | None]:
+    """``_simulate``'s run of the built bench: the steps, the frames, the tables, the truth."""
+    from tqdm.auto import tqdm  # a notebook widget in Jupyter, the text bar elsewhere (issue 34)
+
+    enc: SimEncoder = run.inst["encoder"]
+    cam = run.inst.get("ccd")
+    writer = DatasetWriter(opts.out, _manifest(sc, enc, cam, run.bench), prepared=True, resume=opts.resume,
+                           truth_to=opts.truth_dir)
+    bar = tqdm(total=len(run.steps), desc=f"simulate {sc.name}", unit="step", disable=not opts.progress,
+               leave=False)
+    pipe = _frame_pipeline(run, opts)
+    obs = _RunObserver(run, opts, writer, bar, pipe)
+    if opts.live is not None:
+        opts.live.start(len(run.steps))
     job: ForkCall | None = None
-    runner_cls = Runner if pipe is None else _FrameGatedRunner
-    runner = runner_cls(inst, state.clock, journal=out / JOURNAL, on_step=on_step, on_row=on_row, fsync=False)
-    if pipe is not None:
-        runner.frames = pipe
+    settings = RunnerSettings(on_step=obs.on_step, on_row=obs.on_row, fsync=False)
+    gated: _FrameGatedRunner | None = None
+    if pipe is None:
+        runner = Runner(run.inst, run.state.clock, opts.out / JOURNAL, settings)
+    else:
+        runner = gated = _FrameGatedRunner(run.inst, run.state.clock, opts.out / JOURNAL, settings)
+        gated.frames = pipe
     ok = False
     try:
         try:
-            rows = runner.run(steps, resume=resume)
+            rows = runner.run(run.steps, resume=opts.resume)
         finally:
             bar.close()
             if cam is not None:
                 cam.close()
-        pr = sc["procedure"]
-        n_rev = int(pr.get("continuous_revolutions", 0) or 0) if hasattr(pr, "get") else 0
-        if n_rev > 0:   # ISO 230-7 continuous run, after the stop-and-go procedures (twin/continuous.py)
-            from .continuous import continuous_run
-
-            writer.write_table("radial_continuous", continuous_run(
-                bench, state, inst, float(pr["continuous_speed"]), n_rev, int(pr["continuous_samples_per_rev"])))
-        # the truth (its α grid from its own child, started with the run) while the frame workers
-        # finish their backlog; apart (simulate_apart): in a forked child that also computes the
-        # grid, while the caller goes on to its analysis
-        if truth_dir is None:
-            _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth, alpha_grid())
-        else:
-            job = ForkCall(lambda: _write_truth(sc, writer, rows, bench, inst, truth_rows, held, ccd_truth,
-                                                alpha_grid()),
-                           what=f"the truth of {sc.name} (written to {truth_dir})", nice=TRUTH_APART_NICE)
-        if pipe is not None:
-            runner.drain()    # the last frames written, then the journal lines held behind them
+        _continuous(sc, writer, run)
+        job = _truth_after_run(sc, writer, rows, run, obs.truth, opts.truth_dir)
+        if gated is not None:
+            gated.drain()     # the last frames written, then the journal lines held behind them
         ok = True
     finally:
         if pipe is not None:
@@ -423,7 +493,7 @@ def _run_and_write(sc: Any, out: Path, progress: bool, backend: str, resume: boo
         if job is not None:
             job.cancel()
         raise
-    return out, job
+    return opts.out, job
 
 
 class _FrameGatedRunner(Runner):
@@ -542,10 +612,11 @@ def _reading_truth(st: SimBenchState, stage: SimRotaryStage, enc: SimEncoder,
     pose, at its own time), O(1). (shaft angle, head 1's exact reading, axis δX/δY in the disk
     plane, disk centre x/y, top and bottom sphere centres x/y, twist[, AC exact x, y, face seen,
     polygon setup error]) — rad and m."""
-    p = st.pose
-    x0 = float(stage.last_exact[0] if stage.last_pose is p else enc.sim_exact_readings(p)[0])
+    p = st.posed()
+    last = stage.last_exact
+    x0 = float(last[0] if last is not None and stage.last_pose is p else enc.sim_exact_readings(p)[0])
     ax = p.extra["axis_disk_plane_m"]
-    out = (float(p.shaft_angle_rad), x0, float(ax[0]), float(ax[1]), float(p.disk.pos[0]), float(p.disk.pos[1]),
+    out: tuple = (float(p.shaft_angle_rad), x0, float(ax[0]), float(ax[1]), float(p.disk.pos[0]), float(p.disk.pos[1]),
            float(p.sphere_top.pos[0]), float(p.sphere_top.pos[1]), float(p.sphere_bottom.pos[0]),
            float(p.sphere_bottom.pos[1]), float(p.extra.get("twist_disk_to_polygon_rad", 0.0)))
     if ac is not None:
@@ -600,10 +671,72 @@ def _alpha_grid(sc: Any, bench: Bench) -> dict[str, list]:
     return cols
 
 
-def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict,
-                 truth_rows: dict[int, tuple], held: dict[int, float],
-                 ccd_truth: dict[int, dict], alpha: dict[str, list]) -> None:
-    """The run's truth into ``w``'s truth folder; ``alpha``: the α grid's columns (``_alpha_grid``)."""
+def _write_radial_truth(w: DatasetWriter, rows: list[dict], truth: _RunTruth) -> None:
+    """truth/radial_motion.csv: per radial-motion stop, the true angle, α, the axis and disk centre
+    motion in the disk plane and the sphere centres (µm)."""
+    radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
+    if not radial:
+        return
+    t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "target_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
+                                          "axis_dy_um", "disk_centre_x_um", "disk_centre_y_um",
+                                          "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
+                                          "sphere_bottom_y_um")}
+    for r in radial:
+        phi, x0, *pos_m = truth.rows[r["i"]][:10]
+        vals = (r["tag"]["rep"], r["tag"]["k"], truth.held_deg.get(r["i"], _theta(r)), _theta(r), math.degrees(phi),
+                (x0 - phi) / ARCSEC,
+                *(v * 1e6 for v in pos_m))
+        for k, v in zip(t, vals):
+            t[k].append(v)
+    w.write_truth_table("radial_motion", t)
+
+
+def _write_polygon_truth(w: DatasetWriter, rows: list[dict], truth: _RunTruth,
+                         beta_h: np.ndarray) -> dict[tuple, list]:
+    """truth/polygon.csv and polygon_setup.csv: per polygon reading, the true angle, α, the exact
+    face angle, Σβ (Hsieh numbering, ``beta_h`` in arcsec) and U; per mounting, U and its spread.
+    Returns the mountings' (U, setup error) per (rep, shift, start face, direction)."""
+    N = beta_h.size
+    poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
+    setup: dict[tuple, list] = {}
+    if not poly:
+        return setup
+    t: dict[str, list] = {k: [] for k in (
+        "shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "target_deg", "true_deg", "alpha_arcsec",
+        "ac_exact_arcsec", "ac_exact_y_arcsec", "physics_face", "beta_sum_arcsec", "U_arcsec", "setup_error_arcsec",
+        "twist_arcsec")}
+    for r in poly:
+        tag = r["tag"]
+        phi, x0, *_, twist, ex, ey, face, setup_err = truth.rows[r["i"]]
+        j, i = int(tag["start_face"]), int(tag["step"])
+        bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
+        alpha = (x0 - phi) / ARCSEC
+        # Hsieh eq. 3 at the commanded stop θ: ε = U + Σβ + (θ − θ_true) − twist. The servo rests
+        # anywhere in the held count and the friction it holds twists the shaft per stop, so U,
+        # the mounting's constant, is what remains after both (twin/instruments/drive.py).
+        U = ex / ARCSEC - (math.radians(_theta(r)) - phi) / ARCSEC - bsum + twist / ARCSEC
+        vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], truth.held_deg.get(r["i"], _theta(r)), _theta(r),
+                math.degrees(phi),
+                alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, setup_err / ARCSEC, twist / ARCSEC)
+        for k, v in zip(t, vals):
+            t[k].append(v)
+        setup.setdefault((tag["rep"], tag["shift_deg"], j, tag["direction"]), []).append(
+            (U, setup_err / ARCSEC))
+    w.write_truth_table("polygon", t)
+    keys = list(setup)
+    w.write_truth_table("polygon_setup", {
+        "rep": [k[0] for k in keys], "shift_deg": [k[1] for k in keys], "start_face": [k[2] for k in keys],
+        "direction": [k[3] for k in keys],
+        "U_arcsec": [float(np.mean([u for u, _ in setup[k]])) for k in keys],
+        "U_spread_arcsec": [float(np.ptp([u for u, _ in setup[k]])) for k in keys],
+        "setup_error_arcsec": [setup[k][0][1] for k in keys]})
+    return setup
+
+
+def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst: dict, truth: _RunTruth,
+                 alpha: dict[str, list]) -> None:
+    """The run's truth into ``w``'s truth folder; ``truth``: what the run took per step
+    (``_RunObserver``); ``alpha``: the α grid's columns (``_alpha_grid``)."""
     N = bench.n_faces
     # the overrides applied to the file (--set, --seed, with_overrides): only when there are some, so
     # a run of the file as it is keeps its bytes; "file" holds the values with them applied
@@ -614,61 +747,18 @@ def _write_truth(sc: Any, w: DatasetWriter, rows: list[dict], bench: Bench, inst
                                          **({"overrides": overrides} if overrides else {})})
     w.write_truth_table("encoder_error", alpha)
 
-    radial = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "radial_motion"]
-    if radial:
-        t: dict[str, list] = {k: [] for k in ("rep", "k", "theta_deg", "target_deg", "true_deg", "alpha_arcsec", "axis_dx_um",
-                                              "axis_dy_um", "disk_centre_x_um", "disk_centre_y_um",
-                                              "sphere_top_x_um", "sphere_top_y_um", "sphere_bottom_x_um",
-                                              "sphere_bottom_y_um")}
-        for r in radial:
-            phi, x0, *pos_m = truth_rows[r["i"]][:10]
-            vals = (r["tag"]["rep"], r["tag"]["k"], held.get(r["i"], _theta(r)), _theta(r), math.degrees(phi),
-                    (x0 - phi) / ARCSEC,
-                    *(v * 1e6 for v in pos_m))
-            for k, v in zip(t, vals):
-                t[k].append(v)
-        w.write_truth_table("radial_motion", t)
+    _write_radial_truth(w, rows, truth)
 
     beta_p = np.asarray(bench.polygon_pitch_deviation_rad) / ARCSEC
     kmap = [sim_hsieh_to_physics_face(h, N) for h in range(1, N + 1)]
     beta_h = np.array([beta_p[k - 1] for k in kmap])
     w.write_truth_table("polygon_beta", {"face": list(range(1, N + 1)), "physics_face": kmap,
                                          "beta_arcsec": beta_h.tolist()})
-    poly = [r for r in rows if r["type"] == "read" and r["tag"].get("procedure") == "polygon"]
-    setup: dict[tuple, list] = {}
-    if poly:
-        t = {k: [] for k in ("shift_deg", "start_face", "step", "rep", "direction", "theta_deg", "target_deg", "true_deg",
-                             "alpha_arcsec", "ac_exact_arcsec", "ac_exact_y_arcsec", "physics_face", "beta_sum_arcsec",
-                             "U_arcsec", "setup_error_arcsec", "twist_arcsec")}
-        for r in poly:
-            tag = r["tag"]
-            phi, x0, *_, twist, ex, ey, face, setup_err = truth_rows[r["i"]]
-            j, i = int(tag["start_face"]), int(tag["step"])
-            bsum = float(sum(beta_h[(j - 1 + m) % N] for m in range(i)))
-            alpha = (x0 - phi) / ARCSEC
-            # Hsieh eq. 3 at the commanded stop θ: ε = U + Σβ + (θ − θ_true) − twist. The servo rests
-            # anywhere in the held count and the friction it holds twists the shaft per stop, so U,
-            # the mounting's constant, is what remains after both (twin/instruments/drive.py).
-            U = ex / ARCSEC - (math.radians(_theta(r)) - phi) / ARCSEC - bsum + twist / ARCSEC
-            vals = (tag["shift_deg"], j, i, tag["rep"], tag["direction"], held.get(r["i"], _theta(r)), _theta(r),
-                    math.degrees(phi),
-                    alpha, ex / ARCSEC, ey / ARCSEC, face, bsum, U, setup_err / ARCSEC, twist / ARCSEC)
-            for k, v in zip(t, vals):
-                t[k].append(v)
-            setup.setdefault((tag["rep"], tag["shift_deg"], j, tag["direction"]), []).append(
-                (U, setup_err / ARCSEC))
-        w.write_truth_table("polygon", t)
-        keys = list(setup)
-        w.write_truth_table("polygon_setup", {
-            "rep": [k[0] for k in keys], "shift_deg": [k[1] for k in keys], "start_face": [k[2] for k in keys],
-            "direction": [k[3] for k in keys],
-            "U_arcsec": [float(np.mean([u for u, _ in setup[k]])) for k in keys],
-            "U_spread_arcsec": [float(np.ptp([u for u, _ in setup[k]])) for k in keys],
-            "setup_error_arcsec": [setup[k][0][1] for k in keys]})
+    setup = _write_polygon_truth(w, rows, truth, beta_h)
 
     caps = [r for r in rows if r["type"] == "capture"]
     if caps:
-        ct = [ccd_truth[r["i"]] for r in caps]
+        ct = [truth.ccd[r["i"]] for r in caps]
         w.write_truth_table("ccd", {
             "k": [r["tag"]["k"] for r in caps],
             "centre_x_px": [c["centre_px"][0] for c in ct],

@@ -32,14 +32,15 @@ __all__ = ["effect_contribution", "plot_residual_before_after", "plot_harmonic_s
            "figures_loop"]
 
 
-def _fig(w=8.0, h=4.5, nrows=1, ncols=1):
+def _fig(w: float = 8.0, h: float = 4.5, nrows: int = 1, ncols: int = 1) -> tuple[Figure, np.ndarray]:
+    """A figure of w × h inches on the Agg canvas and its nrows × ncols array of Axes."""
     fig = Figure(figsize=(w, h))     # margins set by _save (fixed_margins) when the figure is complete
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     return fig, axes
 
 
-def _save(fig, path):
+def _save(fig: Figure, path: str | Path | None) -> Figure:
     fixed_margins(fig)
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -47,8 +48,26 @@ def _save(fig, path):
     return fig
 
 
+def _column(values: np.ndarray | float | None) -> np.ndarray:
+    """A per-reading column of ``ev``: an array once ``Evidence.__post_init__`` has run (the
+    dataclass types its fields as the constructor takes them, where None or a scalar may stand)."""
+    if not isinstance(values, np.ndarray):
+        raise TypeError(f"Evidence column not filled in by Evidence.__post_init__: {type(values).__name__}")
+    return values
+
+
+def _weights(ev: Evidence) -> np.ndarray:
+    """w² = 1/u² per reading, 1/arcsec²."""
+    return 1.0 / _column(ev.u_arcsec) ** 2
+
+
+def _closure_centred(ev: Evidence, x: np.ndarray) -> np.ndarray:
+    """``x`` less its w²-weighted mean over each closure group (what one setup error U absorbs)."""
+    return _center(x, _column(ev.closure_group), _weights(ev))
+
+
 def _centred_residual(ev: Evidence) -> np.ndarray:
-    return _center(ev.residual_arcsec, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
+    return _closure_centred(ev, ev.residual_arcsec)
 
 
 def effect_contribution(ev: Evidence, result: dict) -> np.ndarray:
@@ -62,10 +81,10 @@ def effect_contribution(ev: Evidence, result: dict) -> np.ndarray:
         adj = e.get("regressor_adjustment_coefs")
         if adj:  # the measured regressor as adjusted by the joint fit (errors in variables)
             total += fourier_eval(ev.theta_deg, {int(k): (float(v[0]), float(v[1])) for k, v in adj.items()})
-    return _center(total, ev.closure_group, 1.0 / ev.u_arcsec ** 2)
+    return _closure_centred(ev, total)
 
 
-def plot_residual_before_after(ev: Evidence, result: dict, path=None) -> Figure:
+def plot_residual_before_after(ev: Evidence, result: dict, path: str | Path | None = None) -> Figure:
     fig, ax = _fig(9, 5, 2, 1)
     th = ev.theta_deg % 360
     r0 = _centred_residual(ev)
@@ -89,7 +108,7 @@ def plot_residual_before_after(ev: Evidence, result: dict, path=None) -> Figure:
     return _save(fig, path)
 
 
-def plot_harmonic_spectrum(result: dict, path=None) -> Figure:
+def plot_harmonic_spectrum(result: dict, path: str | Path | None = None) -> Figure:
     fig, ax = _fig(8, 4)
     a = ax[0, 0]
     h = result["signature"]["harmonics"]
@@ -110,18 +129,20 @@ def plot_harmonic_spectrum(result: dict, path=None) -> Figure:
     return _save(fig, path)
 
 
-def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
+def plot_signature(ev: Evidence, result: dict, path: str | Path | None = None) -> Figure:
     fig, ax = _fig(15, 4, 1, 4)
     r = _centred_residual(ev)
-    w2 = 1.0 / ev.u_arcsec ** 2
+    w2 = _weights(ev)
+    t_s, group = _column(ev.t_s), _column(ev.closure_group)
+    start_face, face, direction = _column(ev.start_face), _column(ev.face), _column(ev.direction)
     # vs time
     a = ax[0, 0]
-    a.plot(ev.t_s, r, ".", ms=3, color="0.4")
+    a.plot(t_s, r, ".", ms=3, color="0.4")
     d = result["signature"]["drift"]
     if d.get("slope_arcsec_per_s") is not None:
-        tc = ev.t_s - np.bincount(ev.closure_group, w2 * ev.t_s)[ev.closure_group] / np.bincount(ev.closure_group, w2)[ev.closure_group]
-        o = np.argsort(ev.t_s)
-        a.plot(ev.t_s[o], (d["slope_arcsec_per_s"] * tc)[o], "-", color="C3", lw=0.8,
+        tc = t_s - np.bincount(group, w2 * t_s)[group] / np.bincount(group, w2)[group]
+        o = np.argsort(t_s)
+        a.plot(t_s[o], (d["slope_arcsec_per_s"] * tc)[o], "-", color="C3", lw=0.8,
                label=f"drift {d['slope_arcsec_per_s']:.2e} ± {d['u']:.1e} ″/s")
         a.legend(fontsize=8)
     a.set_xlabel("t [s]")
@@ -129,17 +150,17 @@ def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
     a.set_title("vs reading time", fontsize=10)
     # vs start face: the closure removes each run's mean, so what is left to see is the spread
     e = ax[0, 1]
-    sfs = np.unique(ev.start_face)
-    e.plot(ev.start_face + 0.15 * (np.random.default_rng(0).random(ev.n) - 0.5), r, ".", ms=2, color="0.6")
-    e.plot(sfs, [np.sqrt(np.mean(r[ev.start_face == j] ** 2)) for j in sfs], "o-", ms=3, color="C3", label="rms per start face")
+    sfs = np.unique(start_face)
+    e.plot(start_face + 0.15 * (np.random.default_rng(0).random(ev.n) - 0.5), r, ".", ms=2, color="0.6")
+    e.plot(sfs, [np.sqrt(np.mean(r[start_face == j] ** 2)) for j in sfs], "o-", ms=3, color="C3", label="rms per start face")
     e.set_xlabel("start face j")
     e.set_title("vs start face", fontsize=10)
     e.legend(fontsize=8)
     # vs face under the autocollimator
     b = ax[0, 2]
-    faces = np.unique(ev.face)
-    m = np.array([np.average(r[ev.face == f], weights=w2[ev.face == f]) for f in faces])
-    s = np.array([1.0 / np.sqrt(np.sum(w2[ev.face == f])) for f in faces])
+    faces = np.unique(face)
+    m = np.array([np.average(r[face == f], weights=w2[face == f]) for f in faces])
+    s = np.array([1.0 / np.sqrt(np.sum(w2[face == f])) for f in faces])
     b.errorbar(faces, m, yerr=s, fmt="o", ms=3, color="C0")
     sf = result["signature"]["start_face"]
     b.set_title("vs polygon face" + (f" (p = {sf['p_value']:.2g})" if sf.get("p_value") is not None else ""), fontsize=10)
@@ -148,7 +169,7 @@ def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
     c = ax[0, 3]
     th = ev.theta_deg % 360
     for dval, col, lab in ((1, "C0", "forward"), (-1, "C1", "backward")):
-        sel = ev.direction == dval
+        sel = direction == dval
         if np.any(sel):
             c.plot(th[sel], r[sel], ".", ms=3, color=col, label=lab)
     dd = result["signature"]["direction"]
@@ -159,7 +180,7 @@ def plot_signature(ev: Evidence, result: dict, path=None) -> Figure:
     return _save(fig, path)
 
 
-def figures_loop(ev: Evidence, result: dict, outdir) -> list[Path]:
+def figures_loop(ev: Evidence, result: dict, outdir: str | Path) -> list[Path]:
     """All three figures as PNG files in ``outdir``; returns their paths."""
     outdir = Path(outdir)
     paths = [outdir / "loop_residual.png", outdir / "loop_spectrum.png", outdir / "loop_signature.png"]

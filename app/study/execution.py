@@ -270,8 +270,9 @@ def run_study(study_path: str | Path, out_dir: str | Path, scheduler: Any = None
         wall_s=time.perf_counter() - t0,
         where="dask " + str(getattr(scheduler, "scheduler_address", scheduler))
         if scheduler is not None else ("in-process" if workers == 0 else
-                                       f"local pool, {workers or usable_cores()} workers"))
-    return _write_results(study, points, plan, seeds, out, info, overrides, cache.notes)
+                                       f"local pool, {workers or usable_cores()} workers"),
+        overrides=overrides, notes=tuple(cache.notes or ()))
+    return _write_results(study, points, plan, seeds, out, info)
 
 
 def _run_pool(n_workers: int, tasks: list[dict[str, Any]], store: Callable[[dict[str, Any]], None],
@@ -417,8 +418,9 @@ def _write_tables(study: Study, points: list[Point], plan: _Plan, seeds: list[in
 
 
 def _write_results(study: Study, points: list[Point], plan: _Plan, seeds: list[int], out: Path,
-                   info: report.RunInfo, overrides: Mapping[str, Any] | None = None,
-                   notes: list[str] | None = None) -> dict[str, Any]:
+                   info: report.RunInfo) -> dict[str, Any]:
+    """study.json (written last: the completion marker), after the tables and the report."""
+    overrides, notes = info.overrides, info.notes
     summary_rows = _write_tables(study, points, plan, seeds, out, info)
     written = report.write_report(study, summary_rows, plan.done, out, info)
     verdict = written.verdict

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,8 @@ class RunInfo:
     cached: int  # (point, rep) pairs taken from the cache
     wall_s: float
     where: str  # the executor, in words
+    overrides: Mapping[str, Any] | None = None  # --set / --seed, as given (study.json only)
+    notes: tuple[str, ...] = ()  # the unusable cache entries recomputed (study.json only)
 
     def run_label(self, study: Study) -> str:
         """What every row ran: physics, full (simulate → analyze) or full+close_loop, or the custom

@@ -176,7 +176,7 @@ def sink_for_bench(writer: DatasetWriter, cfg: BenchConfig) -> TableSink:
         enc_of.setdefault(tag_of[p["type"]], p.get("encoder", "encoder"))
     ac = next((p.get("autocollimator", "autocollimator") for p in cfg.procedures
                if p["type"].startswith("polygon")), "autocollimator")
-    probes = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
+    probes: list[str] = next((p.get("probes", ["probe_top", "probe_bottom"]) for p in cfg.procedures
                    if p["type"] == "radial_motion"), [])
     return TableSink(writer, probes=probes, resolution_arcsec=float(cfg.geometry.get("encoder_resolution_arcsec", 0.0)),
                      theta=cfg.run["theta"], encoder_of=enc_of, autocollimator=ac)

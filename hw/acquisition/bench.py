@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchtwin.schema import SchemaError, check_version, loads_toml, read_input_text
+from benchtwin.schema import Key, SchemaError, check_table, check_version, loads_toml, read_input_text
 from benchtwin.units import ARCSEC, DEG, UnitError, parse_quantity
 
 from . import procedures as P
@@ -53,8 +53,6 @@ _GEOMETRY = {"optical_radius": "length", "L1": "length", "L2": "length", "gratin
              "polygon_certificate": "angle", "scale_edge_radius": "length",
              "autocollimator_resolution": "angle", "autocollimator_accuracy": "angle"}
 _GEOMETRY_REQUIRED = ("optical_radius", "L1", "L2", "grating_period", "polygon_faces")
-_RUN = {"waits": ("real", "skip"), "driver_sleep_scale": None, "theta": ("target", "encoder"), "strict": None,
-        "stage": None, "fsync": None}
 _INSTRUMENT = {"driver", "port", "serial", "options", "commands", "retries", "backoff", "reconnect",
                "soft_limits", "max_speed", "closed_loop_encoder", "heads"}
 _SERIAL = {"baudrate", "bytesize", "parity", "stopbits", "timeout", "xonxoff", "rtscts"}
@@ -149,6 +147,7 @@ def parse_bench(raw: Mapping[str, Any], where: str = "<bench>") -> BenchConfig:
 
 
 def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConfig:
+    """The bench file's sections, each by its own parser, then the checks across them."""
     if not isinstance(raw, Mapping):
         raise BenchFileError(f"{where}: expected a table at the top level")
     check_version(raw, where, fail=BenchFileError)  # optional top-level version: missing = 1
@@ -156,7 +155,27 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
     unknown = sorted(set(raw) - _TOP)
     if unknown:
         raise BenchFileError(f"{where}: unknown top-level key(s) {unknown}; known: {sorted(_TOP)}")
-    bench = _table(raw.get("bench"), where, "bench", _BENCH)
+    name, source, session = _bench_section(raw.get("bench"), where)
+    geo = _geometry_section(raw.get("geometry"), where)
+    ccd = _ccd_section(raw.get("ccd"), where)
+    run = _run_section(raw.get("run"), where)
+    instruments = _instruments_section(raw.get("instruments"), where, geo, run, section)
+    procedures = _procedures_section(raw.get("procedure"), where, geo, section)
+    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd, session=session)
+    if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
+        raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
+                             f"reference_px: the camera's geometry for the dataset manifest)")
+    for k, p in enumerate(procedures):  # every instrument a procedure reads must exist
+        for inst in _proc_instruments(p):
+            if inst not in instruments:
+                raise _fail(where, f"procedure[{k}]", f"instrument {inst!r} to be defined in [instruments]",
+                            sorted(instruments))
+    return cfg
+
+
+def _bench_section(node: Any, where: str) -> tuple[str, str, str | None]:
+    """[bench]: (name, source, session)."""
+    bench = _table(node, where, "bench", _BENCH)
     name = bench.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
         raise _fail(where, "bench.name", "a non-empty string", name)
@@ -167,12 +186,26 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
     if session is not None and not (isinstance(session, str) and len(session) == 32
                                     and all(c in "0123456789abcdef" for c in session)):
         raise _fail(where, "bench.session", "32 lower-case hex characters (the emulator session's uuid4)", session)
+    return name, source, session
 
-    g = _table(raw.get("geometry"), where, "geometry", set(_GEOMETRY))
+
+#: [geometry]'s optional single quantities: key -> (dimension, manifest key, its unit in SI). The
+#: autocollimator's datasheet resolution and maximum error are GUM type B inputs of Hsieh's budget
+#: (sec. 3.3 (2), (4)), declared in the manifest like the encoder's resolution.
+_GEOMETRY_QUANTITIES: dict[str, tuple[str, str, float]] = {
+    "encoder_resolution": ("angle", "encoder_resolution_arcsec", ARCSEC),
+    "autocollimator_resolution": ("angle", "autocollimator_resolution_arcsec", ARCSEC),
+    "autocollimator_accuracy": ("angle", "autocollimator_accuracy_arcsec", ARCSEC),
+}
+
+
+def _geometry_section(node: Any, where: str) -> dict[str, Any]:
+    """[geometry]: the dataset manifest's ``bench`` (units in the key names)."""
+    g = _table(node, where, "geometry", set(_GEOMETRY))
     for k in _GEOMETRY_REQUIRED:
         if k not in g:
             raise BenchFileError(f"{where}: [geometry]: missing key '{k}' (expected "
-                                 f"{'an integer' if _GEOMETRY[k] is None else 'a quantity of dimension ' + _GEOMETRY[k]})")
+                                 f"{'an integer' if _GEOMETRY[k] is None else f'a quantity of dimension {_GEOMETRY[k]}'})")
     geo: dict[str, Any] = {
         "optical_radius_mm": _fmt(_q(g["optical_radius"], "length", where, "geometry.optical_radius") * 1e3),
         "L1_mm": _fmt(_q(g["L1"], "length", where, "geometry.L1") * 1e3),
@@ -190,39 +223,45 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
             raise _fail(where, "geometry.heads", "azimuths from head 1, so the first is '0 deg'", g["heads"])
     if "encoder_lines" in g:
         geo["encoder_lines"] = _int(g["encoder_lines"], where, "geometry.encoder_lines", 1)
-    if "encoder_resolution" in g:
-        geo["encoder_resolution_arcsec"] = _fmt(_q(g["encoder_resolution"], "angle", where,
-                                                   "geometry.encoder_resolution") / ARCSEC)
-    # the autocollimator's datasheet resolution and maximum error: GUM type B inputs of Hsieh's budget
-    # (sec. 3.3 (2), (4)), declared in the manifest like the encoder's resolution
-    for k in ("autocollimator_resolution", "autocollimator_accuracy"):
+    for k, (dim, out_key, unit) in _GEOMETRY_QUANTITIES.items():
         if k in g:
-            geo[f"{k}_arcsec"] = _fmt(_q(g[k], "angle", where, f"geometry.{k}") / ARCSEC)
+            geo[out_key] = _fmt(_q(g[k], dim, where, f"geometry.{k}") / unit)
     if "polygon_certificate" in g:
         cert = g["polygon_certificate"]
         if not isinstance(cert, list) or len(cert) != geo["polygon_faces"]:
             raise _fail(where, "geometry.polygon_certificate", f"{geo['polygon_faces']} angles (one per face)", cert)
         geo["polygon_certificate_arcsec"] = [_fmt(_q(c, "angle", where, f"geometry.polygon_certificate[{i}]") / ARCSEC)
                                              for i, c in enumerate(cert)]
-
     if "scale_edge_radius" in g:
         geo["scale_edge_radius_mm"] = _fmt(_q(g["scale_edge_radius"], "length", where, "geometry.scale_edge_radius") * 1e3)
-    ccd = _ccd_section(raw.get("ccd"), where)
+    return geo
 
-    r = _table(raw.get("run"), where, "run", set(_RUN), required=False)
-    run = {"waits": "real", "driver_sleep_scale": 1.0, "theta": "target", "strict": True, "stage": "stage",
-           "fsync": True}
-    for k, v in r.items():
-        choices = _RUN[k]
-        if choices is not None and v not in choices:
-            raise _fail(where, f"run.{k}", f"one of {choices}", v)
-        if k == "driver_sleep_scale" and (not isinstance(v, (int, float)) or isinstance(v, bool) or v < 0):
-            raise _fail(where, "run.driver_sleep_scale", "a number >= 0", v)
-        if k in ("strict", "fsync") and not isinstance(v, bool):
-            raise _fail(where, f"run.{k}", "true or false", v)
-        run[k] = v
 
-    insts = _table(raw.get("instruments"), where, "instruments")
+#: [run]: its keys (benchtwin.schema's declarative spec) and their defaults
+RUN_KEYS: dict[str, Key] = {
+    "waits": Key("str", choices=("real", "skip"), doc="real: Wait really waits; skip: it does not"),
+    "driver_sleep_scale": Key("float", lo=0.0, doc="the drivers' sleeps (backoff, polls) scaled by this"),
+    "theta": Key("str", choices=("target", "encoder"), doc="the tables' theta_deg: the commanded stop or the display"),
+    "strict": Key("bool", doc="a reading whose status is not ok stops the run"),
+    "stage": Key("str", doc="the stage's instrument table"),
+    "fsync": Key("bool", doc="fsync every journal line"),
+}
+_RUN_DEFAULTS: dict[str, Any] = {"waits": "real", "driver_sleep_scale": 1.0, "theta": "target", "strict": True,
+                                 "stage": "stage", "fsync": True}
+
+
+def _run_section(node: Any, where: str) -> dict[str, Any]:
+    """[run] (optional): its keys checked by ``RUN_KEYS``, the defaults filled in."""
+    r = _table(node, where, "run", set(RUN_KEYS), required=False)
+    check_table(r, RUN_KEYS, where, "[run]", fail=BenchFileError)
+    return {**_RUN_DEFAULTS, **r}
+
+
+def _instruments_section(node: Any, where: str, geo: Mapping[str, Any], run: Mapping[str, Any],
+                         section: list) -> dict[str, dict[str, Any]]:
+    """[instruments.*]: every instrument table, the run's stage a Zaber stage, and every closed-loop
+    encoder an instrument of the file."""
+    insts = _table(node, where, "instruments")
     if not insts:
         raise BenchFileError(f"{where}: [instruments]: expected at least one instrument table")
     instruments = {}
@@ -239,25 +278,19 @@ def _parse_bench(raw: Mapping[str, Any], where: str, section: list) -> BenchConf
         enc = sec.get("closed_loop_encoder")
         if enc is not None and enc not in instruments:
             raise _fail(where, f"instruments.{n}.closed_loop_encoder", f"an instrument name (have {sorted(instruments)})", enc)
+    return instruments
 
-    procs = raw.get("procedure")
-    if not isinstance(procs, list) or not procs:
+
+def _procedures_section(node: Any, where: str, geo: Mapping[str, Any], section: list) -> list[dict[str, Any]]:
+    """[[procedure]]: at least one table, each in the procedure language."""
+    if not isinstance(node, list) or not node:
         raise BenchFileError(f"{where}: missing [[procedure]] tables (expected at least one, type one of {PROCEDURES})")
     procedures = []
-    for k, p in enumerate(procs):
+    for k, p in enumerate(node):
         section[0] = f"procedure[{k}]"
         procedures.append(_procedure(k, p, where, geo))
     section[0] = "the top level"
-    cfg = BenchConfig(None, dict(raw), name, source, geo, run, instruments, procedures, ccd=ccd, session=session)
-    if any(p["type"] == "ccd_sweep" for p in procedures) and ccd is None:
-        raise BenchFileError(f"{where}: a ccd_sweep procedure needs the [ccd] section (position, tangential, "
-                             f"reference_px: the camera's geometry for the dataset manifest)")
-    for k, p in enumerate(procedures):  # every instrument a procedure reads must exist
-        for inst in _proc_instruments(p):
-            if inst not in instruments:
-                raise _fail(where, f"procedure[{k}]", f"instrument {inst!r} to be defined in [instruments]",
-                            sorted(instruments))
-    return cfg
+    return procedures
 
 
 def _ccd_section(node: Any, where: str) -> dict[str, Any] | None:
@@ -282,6 +315,7 @@ def _ccd_section(node: Any, where: str) -> dict[str, Any] | None:
 
 
 def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict[str, Any]:
+    """[instruments.NAME]: driver and port, then a camera's or a serial instrument's keys."""
     at = f"instruments.{name}"
     s = _table(sec, where, at, _INSTRUMENT)
     drv = s.get("driver")
@@ -293,15 +327,29 @@ def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict
                     + ("; for a camera its folder or VideoCapture source" if drv in CAMERA_DRIVERS else ""), port)
     out: dict[str, Any] = {"driver": drv, "port": port}
     if drv in CAMERA_DRIVERS:
-        for k in ("serial", "commands", "backoff", "reconnect", "retries"):
-            if k in s:
-                raise BenchFileError(f"{where}: [{at}]: key '{k}' is for serial instruments, not camera driver {drv!r}")
-        out.update(serial={}, commands={}, retries=0, backoff_s=0.0, reconnect=False,
-                   options=_table(s.get("options", {}), where, f"{at}.options"))
-        for k in ("soft_limits", "max_speed", "closed_loop_encoder", "heads"):
-            if k in s:
-                raise BenchFileError(f"{where}: [{at}]: key '{k}' is not for a camera")
-        return out
+        return _camera_instrument(s, out, where, at)
+    return _serial_instrument(s, out, where, at, geo)
+
+
+def _camera_instrument(s: Mapping[str, Any], out: dict[str, Any], where: str, at: str) -> dict[str, Any]:
+    """A camera (not serial): only its options."""
+    drv = out["driver"]
+    for k in ("serial", "commands", "backoff", "reconnect", "retries"):
+        if k in s:
+            raise BenchFileError(f"{where}: [{at}]: key '{k}' is for serial instruments, not camera driver {drv!r}")
+    out.update(serial={}, commands={}, retries=0, backoff_s=0.0, reconnect=False,
+               options=_table(s.get("options", {}), where, f"{at}.options"))
+    for k in ("soft_limits", "max_speed", "closed_loop_encoder", "heads"):
+        if k in s:
+            raise BenchFileError(f"{where}: [{at}]: key '{k}' is not for a camera")
+    return out
+
+
+def _serial_instrument(s: Mapping[str, Any], out: dict[str, Any], where: str, at: str,
+                       geo: Mapping[str, Any]) -> dict[str, Any]:
+    """A serial instrument: port settings, options, commands, retries, backoff, reconnect; the
+    stage's (Zaber) and the encoder's (Heidenhain) own keys."""
+    drv = out["driver"]
     out["serial"] = _table(s.get("serial", {}), where, f"{at}.serial", _SERIAL)
     out["options"] = _table(s.get("options", {}), where, f"{at}.options")
     out["commands"] = _table(s.get("commands", {}), where, f"{at}.commands")
@@ -311,20 +359,7 @@ def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict
     if not isinstance(out["reconnect"], bool):
         raise _fail(where, f"{at}.reconnect", "true or false", out["reconnect"])
     if drv == "zaber":
-        lim = s.get("soft_limits")
-        if not isinstance(lim, list) or len(lim) != 2:
-            raise _fail(where, f"{at}.soft_limits", "[low, high] angles, e.g. ['-5 deg', '365 deg']", lim)
-        lo, hi = (_q(v, "angle", where, f"{at}.soft_limits") / DEG for v in lim)
-        if not lo < hi:
-            raise _fail(where, f"{at}.soft_limits", "low < high", lim)
-        out["soft_limits_deg"] = (_fmt(lo), _fmt(hi))
-        if "max_speed" not in s:
-            raise BenchFileError(f"{where}: [{at}]: missing key 'max_speed' (expected an angular speed, e.g. '20 deg/s')")
-        out["max_speed_deg_s"] = _fmt(_q(s["max_speed"], "angular_speed", where, f"{at}.max_speed") / DEG)
-        if "microsteps_per_deg" not in out["options"]:
-            raise BenchFileError(f"{where}: [{at}.options]: missing key 'microsteps_per_deg' (a number, from the "
-                                 f"stage's datasheet)")
-        out["closed_loop_encoder"] = s.get("closed_loop_encoder")
+        _zaber_keys(s, out, where, at)
     else:
         for k in ("soft_limits", "max_speed", "closed_loop_encoder"):
             if k in s:
@@ -340,7 +375,27 @@ def _instrument(name: str, sec: Any, where: str, geo: Mapping[str, Any]) -> dict
     return out
 
 
+def _zaber_keys(s: Mapping[str, Any], out: dict[str, Any], where: str, at: str) -> None:
+    """The stage's keys: soft limits, speed limit, microsteps, closed-loop encoder."""
+    lim = s.get("soft_limits")
+    if not isinstance(lim, list) or len(lim) != 2:
+        raise _fail(where, f"{at}.soft_limits", "[low, high] angles, e.g. ['-5 deg', '365 deg']", lim)
+    lo, hi = (_q(v, "angle", where, f"{at}.soft_limits") / DEG for v in lim)
+    if not lo < hi:
+        raise _fail(where, f"{at}.soft_limits", "low < high", lim)
+    out["soft_limits_deg"] = (_fmt(lo), _fmt(hi))
+    if "max_speed" not in s:
+        raise BenchFileError(f"{where}: [{at}]: missing key 'max_speed' (expected an angular speed, e.g. '20 deg/s')")
+    out["max_speed_deg_s"] = _fmt(_q(s["max_speed"], "angular_speed", where, f"{at}.max_speed") / DEG)
+    if "microsteps_per_deg" not in out["options"]:
+        raise BenchFileError(f"{where}: [{at}.options]: missing key 'microsteps_per_deg' (a number, from the "
+                             f"stage's datasheet)")
+    out["closed_loop_encoder"] = s.get("closed_loop_encoder")
+
+
 def _procedure(k: int, p: Any, where: str, geo: Mapping[str, Any]) -> dict[str, Any]:
+    """[[procedure]] number ``k``: its type's keys (``procedures.PROCEDURE_PARAMS``), the polygon's
+    faces and the heads from [geometry] when it does not give them."""
     at = f"procedure[{k}]"
     if not isinstance(p, Mapping):
         raise _fail(where, at, "a table", p)
@@ -353,38 +408,42 @@ def _procedure(k: int, p: Any, where: str, geo: Mapping[str, Any]) -> dict[str, 
         raise BenchFileError(f"{where}: [{at}] ({typ}): unknown key(s) {unknown}; known: {sorted(spec)}")
     out: dict[str, Any] = {"type": typ}
     for key, kind in spec.items():
-        if key not in p:
-            continue
-        v, kk = p[key], f"{at}.{key}"
-        if kind is int:
-            out[key] = _int(v, where, kk, 0 if key == "rep" else 1)
-        elif kind is bool:
-            if not isinstance(v, bool):
-                raise _fail(where, kk, "true or false", v)
-            out[key] = v
-        elif kind is str:
-            if not isinstance(v, str):
-                raise _fail(where, kk, "an instrument name (string)", v)
-            out[key] = v
-        elif kind is list:
-            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-                raise _fail(where, kk, "a list of strings", v)
-            if key == "directions" and not set(v) <= {"forward", "backward"}:
-                raise _fail(where, kk, "a list of 'forward'/'backward'", v)
-            out[key] = list(v)
-        elif kind == "angles":
-            if not isinstance(v, list) or not v:
-                raise _fail(where, kk, "a list of angles", v)
-            out[key] = [_fmt(_q(x, "angle", where, kk) / DEG) for x in v]
-        elif kind == "angle":
-            out[key] = _fmt(_q(v, "angle", where, kk) / DEG)
-        elif kind == "time":
-            out[key] = _q(v, "time", where, kk)
+        if key in p:
+            out[key] = _procedure_value(key, kind, p[key], where, f"{at}.{key}")
     if "faces" not in out and typ.startswith("polygon"):
         out["faces"] = int(geo["polygon_faces"])
     if typ == "selfcal" and "heads" not in out:
         out["heads"] = list(geo.get("heads_deg", [0.0]))
     return out
+
+
+def _procedure_value(key: str, kind: Any, v: Any, where: str, kk: str) -> Any:
+    """One procedure key's value checked against its kind (int, bool, str, list, angle(s), time)."""
+    if kind is int:
+        return _int(v, where, kk, 0 if key == "rep" else 1)
+    if kind is bool:
+        if not isinstance(v, bool):
+            raise _fail(where, kk, "true or false", v)
+        return v
+    if kind is str:
+        if not isinstance(v, str):
+            raise _fail(where, kk, "an instrument name (string)", v)
+        return v
+    if kind is list:
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            raise _fail(where, kk, "a list of strings", v)
+        if key == "directions" and not set(v) <= {"forward", "backward"}:
+            raise _fail(where, kk, "a list of 'forward'/'backward'", v)
+        return list(v)
+    if kind == "angles":
+        if not isinstance(v, list) or not v:
+            raise _fail(where, kk, "a list of angles", v)
+        return [_fmt(_q(x, "angle", where, kk) / DEG) for x in v]
+    if kind == "angle":
+        return _fmt(_q(v, "angle", where, kk) / DEG)
+    if kind == "time":
+        return _q(v, "time", where, kk)
+    raise AssertionError(f"procedure key {key!r}: unknown kind {kind!r}")
 
 
 def _proc_instruments(p: Mapping[str, Any]) -> list[str]:
@@ -413,7 +472,7 @@ def iter_procedure(cfg: BenchConfig) -> Iterator:
 
 # --------------------------------------------------------------------------- instruments
 
-def _driver_class(name: str) -> type:
+def _driver_class(name: str) -> Any:
     mod, cls = DRIVERS[name]
     return getattr(importlib.import_module(mod), cls)
 
@@ -468,7 +527,7 @@ def open_instruments(cfg: BenchConfig, *, sleep: Callable[[float], None] | None 
     return out, [p for p, _ in shared.values()]
 
 
-def _open_camera(cls: type, name: str, sec: Mapping[str, Any], where: str, clock: Any) -> Any:
+def _open_camera(cls: Any, name: str, sec: Mapping[str, Any], where: str, clock: Any) -> Any:
     """A camera driver (not serial): a watched folder polls with real sleeps (waiting for a file,
     not a device backoff, so ``driver_sleep_scale`` does not apply)."""
     kw: dict[str, Any] = dict(sec["options"])

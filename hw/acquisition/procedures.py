@@ -39,6 +39,8 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from benchtwin.schema import toml_value
+
 __all__ = [
     "Move", "Read", "Capture", "Wait", "Mark", "Step",
     "radial_motion_run", "ccd_sweep", "polygon_traditional", "polygon_shift_angle", "selfcal_sweep",
@@ -263,20 +265,11 @@ def steps_from_specs(specs: Iterable[Mapping[str, Any]]) -> Iterator[Step]:
             raise ValueError(f"unknown procedure type {typ!r}; expected one of {', '.join(PROCEDURE_TYPES)}")
 
 
+_UNITS = {"angle": "deg", "angles": "deg", "time": "s"}   # the parameter kinds written as quantities
+
+
 def _toml_value(v: Any, kind: Any) -> str:
-    if kind == "angle":
-        return f'"{float(v):.12g} deg"'
-    if kind == "angles":
-        return "[" + ", ".join(f'"{float(x):.12g} deg"' for x in v) + "]"
-    if kind == "time":
-        return f'"{float(v):.12g} s"'
-    if kind is bool:
-        return "true" if v else "false"
-    if kind is int:
-        return str(int(v))
-    if kind is list:
-        return "[" + ", ".join(f'"{x}"' for x in v) + "]"
-    return f'"{v}"'
+    return toml_value(kind(v) if kind in (bool, int) else v, _UNITS.get(kind))  # the one TOML writer
 
 
 def specs_toml(specs: Sequence[Mapping[str, Any]], omit: Sequence[str] = ()) -> list[str]:

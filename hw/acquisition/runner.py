@@ -55,6 +55,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -66,7 +67,7 @@ from benchtwin.hw.interfaces import MOVE_NOT_HELD
 
 from .procedures import Capture, Mark, Move, Read, Step, Wait, describe_step
 
-__all__ = ["SimClock", "WallClock", "Runner", "RunnerError", "ResumeMismatchError", "dry_run", "read_journal", "iter_journal"]
+__all__ = ["SimClock", "WallClock", "Runner", "RunnerSettings", "RunnerError", "ResumeMismatchError", "dry_run", "read_journal", "iter_journal"]
 
 JOURNAL_VERSION = 1
 
@@ -216,21 +217,59 @@ def _drop_torn_tail(path: Path) -> None:
         f.truncate(cut)
 
 
+@dataclass(frozen=True)
+class RunnerSettings:
+    """How a ``Runner`` runs: the stage's instrument name; ``on_step(i, step, context, replay)``
+    before every step and ``on_row(row, live_result)`` after every live row; ``strict``: a reading
+    whose status is not "ok" stops the run; ``fsync``: every journal line is fsynced (hardware; the
+    twin may only flush: fast, the same file); ``verify_resume``: re-read the last journaled stop on
+    resume (module docstring); ``session``: the emulator session serving the instruments (journaled;
+    None: hardware)."""
+
+    stage: str = "stage"
+    on_step: Callable[..., None] | None = None
+    on_row: Callable[[dict, dict], None] | None = None
+    strict: bool = True
+    fsync: bool = True
+    verify_resume: bool = False
+    session: str | None = None
+
+
+@dataclass
+class _StreamState:
+    """What ``Runner.stream`` carries from step to step: the journal being replayed (None once the
+    run is live), the open journal, the counts, the context of the Marks so far, the last journaled
+    time and move, a Read's line held for the Capture after it, and the last journaled Read."""
+
+    journal_iter: Iterator[dict] | None = None
+    fh: Any = None
+    n_rows: int = 0
+    n_done: int = 0
+    last_t: float | None = None
+    context: dict[str, Any] = field(default_factory=dict)
+    last_move: float | None = None
+    held: dict | None = None
+    last_read: tuple[dict, float | None] | None = None
+
+
 class Runner:
     def __init__(self, instruments: Mapping[str, Any], clock: Any, journal: str | Path | None = None,
-                 stage: str = "stage", on_step: Callable[..., None] | None = None,
-                 on_row: Callable[[dict, dict], None] | None = None, strict: bool = True, fsync: bool = True,
-                 verify_resume: bool = False, session: str | None = None):
+                 settings: RunnerSettings | None = None, **kw: Any):
+        """``settings`` (a ``RunnerSettings``), or its fields as keywords (``stage=``, ``on_step=``, …)."""
+        if settings is not None and kw:
+            raise TypeError("Runner: give settings or its fields as keywords, not both")
+        settings = settings if settings is not None else RunnerSettings(**kw)
+        self.settings = settings
         self.instruments = dict(instruments)
         self.clock = clock
         self.journal = Path(journal) if journal is not None else None
-        self.stage = stage
-        self.on_step = on_step
-        self.on_row = on_row
-        self.strict = strict  # raise on a reading whose status is not "ok"
-        self.fsync = fsync    # hardware: fsync every line; the twin may only flush (fast, same file)
-        self.verify_resume = verify_resume  # re-read the last journaled stop on resume (see module docstring)
-        self.session = session  # the emulator session serving the instruments (journaled; None: hardware)
+        self.stage = settings.stage
+        self.on_step = settings.on_step
+        self.on_row = settings.on_row
+        self.strict = settings.strict
+        self.fsync = settings.fsync
+        self.verify_resume = settings.verify_resume
+        self.session = settings.session
 
     # ------------------------------------------------------------------ internals
     def _inst(self, name: str) -> Any:
@@ -317,129 +356,148 @@ class Runner:
 
         An existing journal is continued with ``resume`` and replaced only with ``restart``; with
         neither, the run stops (RunnerError) rather than discard the readings it holds (issue #13)."""
-        journal_iter: Iterator[dict] | None = None
-        if self.journal is not None and resume:
-            self._verify_session()
-            journal_iter = (r for r in iter_journal(self.journal) if "i" in r)
-        elif self.journal is not None and self.journal.exists():
-            if not restart:
-                raise RunnerError(f"{self.journal}: a journal of an earlier run exists (its readings are kept); "
-                                  "resume it, or restart (which deletes it)")
-            self.journal.unlink()
-        fh = None
-        n_rows = 0
-        n_done = 0
-        last_t: float | None = None
-        context: dict[str, Any] = {}
-        last_move: float | None = None
-
-        def open_journal(cut_torn_tail: bool):
-            self.journal.parent.mkdir(parents=True, exist_ok=True)
-            if cut_torn_tail:
-                _drop_torn_tail(self.journal)
-            f = open(self.journal, "a", encoding="utf-8")
-            if f.tell() == 0:
-                head = {"journal": "benchtwin-run", "version": JOURNAL_VERSION}
-                self._append(f, head if self.session is None else {**head, "session": self.session})
-            return f
-
-        held: dict | None = None    # a Read's line, journaled with the Capture after it
-        last_read: tuple[dict, float | None] | None = None   # the last journaled Read, and its stop
+        st = _StreamState(journal_iter=self._start_journal(resume, restart))
         failed = False
         try:
-            if self.journal is not None and journal_iter is None:
-                fh = open_journal(False)
+            if self.journal is not None and st.journal_iter is None:
+                st.fh = self._open_journal(False)
             for i, (step, nxt) in enumerate(_with_next(procedure)):
                 desc = describe_step(step)
                 if isinstance(step, Mark):
-                    context.update(step.context)
-                rec = next(journal_iter, None) if journal_iter is not None else None
+                    st.context.update(step.context)
+                rec = next(st.journal_iter, None) if st.journal_iter is not None else None
                 if rec is not None:
-                    if rec["i"] != i or rec["step"] != _plain(desc):
-                        raise RunnerError(f"resume: step {i} of the procedure ({desc}) differs from the "
-                                          f"journal ({rec.get('step')}); not the same procedure")
-                    if self.on_step is not None:
-                        self.on_step(i, step, dict(context), True)
-                    if isinstance(step, Move):
-                        last_move = step.target_deg
-                    if isinstance(step, Read) and "row" in rec:
-                        last_read = (rec, last_move)
-                    if "row" in rec:
-                        n_rows += 1
-                        if sink is not None:
-                            sink(rec["row"], None)
-                    n_done += 1
-                    last_t = rec["t_s"]
+                    self._replay(st, i, step, desc, rec, sink)
                     continue
-                if journal_iter is not None:  # the first live step after the journaled ones
-                    journal_iter = None
-                    if n_done:
-                        still = False   # the stage has not left the journal's last stop
-                        if self.verify_resume and last_move is not None:
-                            still = self._verify_stage(last_move, step)
-                        if last_move is not None:  # stand where the bench stood (move times count from there)
-                            self._inst(self.stage).move_to(last_move)
-                        if still and last_read is not None and last_read[1] == last_move:
-                            self._verify_position(last_read[0])
-                        self.clock.set(last_t)
-                    fh = open_journal(True)
-                if self.on_step is not None:
-                    self.on_step(i, step, dict(context), False)
-                rec = {"i": i, "step": _plain(desc)}
-                live: Any = None
-                row: dict[str, Any] | None = None
-                if isinstance(step, Move):
-                    res = self._inst(self.stage).move_to(step.target_deg)
-                    if not (res.get("status") == MOVE_NOT_HELD and "held_deg" in res):
-                        # (a stop held on another count is kept: journaled with its held_deg)
-                        self._check(self.stage, res, i)
-                    last_move = step.target_deg
-                    rec["result"] = _plain(res)
-                elif isinstance(step, Wait):
-                    self.clock.advance(step.seconds)
-                elif isinstance(step, Read):
-                    readings = {}
-                    for name in step.names:
-                        r = self._inst(name).read()
-                        self._check(name, r, i)
-                        readings[name] = r
-                    row = {"i": i, "type": "read", "tag": _plain({**context, **step.tag}),
-                           "t_s": float(self.clock.now()), "readings": _plain(readings)}
-                    live = readings
-                elif isinstance(step, Capture):
-                    res = self._inst(step.camera).capture()
-                    self._check(step.camera, res, i)
-                    meta = {k: v for k, v in res.items() if k != "image"}
-                    img = res.get("image")
-                    if img is not None:
-                        meta["image_shape"] = list(np.shape(img))
-                        meta["image_dtype"] = str(np.asarray(img).dtype)
-                    row = {"i": i, "type": "capture", "camera": step.camera, "tag": _plain({**context, **step.tag}),
-                           "t_s": float(self.clock.now()), "reading": _plain(meta)}
-                    live = res
-                if row is not None:
-                    rec["row"] = row
-                    n_rows += 1
-                    if self.on_row is not None:
-                        self.on_row(row, live)
-                    if sink is not None:
-                        sink(row, live)
-                rec["t_s"] = float(self.clock.now())
-                if isinstance(step, Read) and isinstance(nxt, Capture):
-                    held = rec
-                elif held is not None:
-                    self._append(fh, held, rec)
-                    held = None
-                else:
-                    self._append(fh, rec)
+                if st.journal_iter is not None:  # the first live step after the journaled ones
+                    self._go_live(st, step)
+                self._live_step(st, i, step, nxt, desc, sink)
         except BaseException:
             failed = True
             raise
         finally:
-            if fh is not None:
+            if st.fh is not None:
                 try:
-                    fh.close()
+                    st.fh.close()
                 except OSError:     # what a full disk kept in the buffer: the error in flight says so
                     if not failed:
                         raise
-        return n_rows
+        return st.n_rows
+
+    def _start_journal(self, resume: bool, restart: bool) -> Iterator[dict] | None:
+        """The journaled steps to replay (``resume``), or None; an earlier run's journal is deleted
+        only with ``restart`` (RunnerError otherwise)."""
+        if self.journal is not None and resume:
+            self._verify_session()
+            return (r for r in iter_journal(self.journal) if "i" in r)
+        if self.journal is not None and self.journal.exists():
+            if not restart:
+                raise RunnerError(f"{self.journal}: a journal of an earlier run exists (its readings are kept); "
+                                  "resume it, or restart (which deletes it)")
+            self.journal.unlink()
+        return None
+
+    def _open_journal(self, cut_torn_tail: bool) -> Any:
+        """The journal opened for appending (its header written when it is new)."""
+        assert self.journal is not None
+        self.journal.parent.mkdir(parents=True, exist_ok=True)
+        if cut_torn_tail:
+            _drop_torn_tail(self.journal)
+        f = open(self.journal, "a", encoding="utf-8")
+        if f.tell() == 0:
+            head = {"journal": "benchtwin-run", "version": JOURNAL_VERSION}
+            self._append(f, head if self.session is None else {**head, "session": self.session})
+        return f
+
+    def _replay(self, st: _StreamState, i: int, step: Step, desc: dict, rec: dict,
+                sink: Callable[[dict, Any], None] | None) -> None:
+        """A journaled step: checked against the procedure, re-applied through ``on_step``, its row
+        (if any) handed to the sink; no instrument is read."""
+        if rec["i"] != i or rec["step"] != _plain(desc):
+            raise RunnerError(f"resume: step {i} of the procedure ({desc}) differs from the "
+                              f"journal ({rec.get('step')}); not the same procedure")
+        if self.on_step is not None:
+            self.on_step(i, step, dict(st.context), True)
+        if isinstance(step, Move):
+            st.last_move = step.target_deg
+        if isinstance(step, Read) and "row" in rec:
+            st.last_read = (rec, st.last_move)
+        if "row" in rec:
+            st.n_rows += 1
+            if sink is not None:
+                sink(rec["row"], None)
+        st.n_done += 1
+        st.last_t = rec["t_s"]
+
+    def _go_live(self, st: _StreamState, step: Step) -> None:
+        """The first live step after the journaled ones: the bench checked (``verify_resume``) and
+        stood where the journal left it, the clock restored, the journal reopened (its torn tail cut)."""
+        st.journal_iter = None
+        if st.n_done:
+            still = False   # the stage has not left the journal's last stop
+            if self.verify_resume and st.last_move is not None:
+                still = self._verify_stage(st.last_move, step)
+            if st.last_move is not None:  # stand where the bench stood (move times count from there)
+                self._inst(self.stage).move_to(st.last_move)
+            if still and st.last_read is not None and st.last_read[1] == st.last_move:
+                self._verify_position(st.last_read[0])
+            self.clock.set(st.last_t)
+        st.fh = self._open_journal(True)
+
+    def _live_step(self, st: _StreamState, i: int, step: Step, nxt: Step | None, desc: dict,
+                   sink: Callable[[dict, Any], None] | None) -> None:
+        """A live step: done on the instruments, its row handed to ``on_row`` and the sink, then
+        journaled (a Read's line held for the Capture right after it)."""
+        if self.on_step is not None:
+            self.on_step(i, step, dict(st.context), False)
+        rec: dict[str, Any] = {"i": i, "step": _plain(desc)}
+        row, live = self._execute(st, i, step, rec)
+        if row is not None:
+            rec["row"] = row
+            st.n_rows += 1
+            if self.on_row is not None:
+                self.on_row(row, live)
+            if sink is not None:
+                sink(row, live)
+        rec["t_s"] = float(self.clock.now())
+        if isinstance(step, Read) and isinstance(nxt, Capture):
+            st.held = rec
+        elif st.held is not None:
+            self._append(st.fh, st.held, rec)
+            st.held = None
+        else:
+            self._append(st.fh, rec)
+
+    def _execute(self, st: _StreamState, i: int, step: Step, rec: dict[str, Any]) -> tuple[dict[str, Any] | None, Any]:
+        """Do ``step`` on the instruments: (its row or None, the live result); a Move's result goes
+        into its journal line ``rec``."""
+        if isinstance(step, Move):
+            res = self._inst(self.stage).move_to(step.target_deg)
+            if not (res.get("status") == MOVE_NOT_HELD and "held_deg" in res):
+                # (a stop held on another count is kept: journaled with its held_deg)
+                self._check(self.stage, res, i)
+            st.last_move = step.target_deg
+            rec["result"] = _plain(res)
+            return None, None
+        if isinstance(step, Wait):
+            self.clock.advance(step.seconds)
+            return None, None
+        if isinstance(step, Read):
+            readings = {}
+            for name in step.names:
+                r = self._inst(name).read()
+                self._check(name, r, i)
+                readings[name] = r
+            return {"i": i, "type": "read", "tag": _plain({**st.context, **step.tag}),
+                    "t_s": float(self.clock.now()), "readings": _plain(readings)}, readings
+        if isinstance(step, Capture):
+            res = self._inst(step.camera).capture()
+            self._check(step.camera, res, i)
+            meta = {k: v for k, v in res.items() if k != "image"}
+            img = res.get("image")
+            if img is not None:
+                meta["image_shape"] = list(np.shape(img))
+                meta["image_dtype"] = str(np.asarray(img).dtype)
+            return {"i": i, "type": "capture", "camera": step.camera, "tag": _plain({**st.context, **step.tag}),
+                    "t_s": float(self.clock.now()), "reading": _plain(meta)}, res
+        return None, None

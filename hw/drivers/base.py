@@ -38,7 +38,8 @@ import serial
 
 from benchtwin.hw.transport import Transport
 
-__all__ = ["Command", "CommandTable", "InstrumentError", "FormatError", "SerialInstrument", "SharedPort", "to_bytes"]
+__all__ = ["Command", "CommandTable", "InstrumentError", "FormatError", "LinkSettings", "SerialInstrument", "SharedPort",
+           "to_bytes"]
 
 
 class InstrumentError(RuntimeError):
@@ -172,6 +173,24 @@ def parse_raw(inst: "SerialInstrument", m: re.Match[bytes], cmd: Command) -> dic
     return {"raw": m.group(0)}
 
 
+@dataclass(frozen=True)
+class LinkSettings:
+    """How a serial driver talks to its instrument, common to every driver: the bench file's
+    overrides of the command table; extra attempts after the first (``retries``); the wait before
+    retry k, ``backoff_s * backoff_factor**k`` (s); ``sleep`` (callable taking seconds; default
+    ``time.sleep``, tests inject a recorder); ``clock`` (seconds for ``t_s``, default
+    ``time.monotonic``); ``reconnect`` (callable returning a fresh open transport after a
+    disconnect, or None)."""
+
+    commands: Mapping[str, Mapping[str, Any]] | None = None
+    retries: int = 2
+    backoff_s: float = 0.05
+    backoff_factor: float = 2.0
+    sleep: Callable[[float], None] | None = None
+    clock: Callable[[], float] | None = None
+    reconnect: Callable[[], Transport] | None = None
+
+
 class SerialInstrument:
     """Base of the serial drivers. Subclasses set ``KIND``, ``MODEL``, ``UNITS``, ``SERIAL_SETTINGS``
     (what the caller passes to ``open_transport``), ``DEFAULT_COMMANDS`` and ``PARSERS``.
@@ -193,15 +212,19 @@ class SerialInstrument:
     PARSERS: dict[str, Parser] = {"raw": parse_raw}
     PROTOCOL_DOC = "docs/protocols/"
 
-    def __init__(self, name: str, transport: Transport, *, commands: Mapping[str, Mapping[str, Any]] | None = None,
-                 retries: int = 2, backoff_s: float = 0.05, backoff_factor: float = 2.0,
-                 sleep: Callable[[float], None] | None = None, clock: Callable[[], float] | None = None,
-                 reconnect: Callable[[], Transport] | None = None) -> None:
+    def __init__(self, name: str, transport: Transport, link: LinkSettings | None = None, **kw: Any) -> None:
+        """``link`` (a ``LinkSettings``), or its fields as keywords (``retries=``, ``sleep=``, …)."""
+        if link is not None and kw:
+            raise TypeError(f"{name}: give link or its fields as keywords, not both")
+        link = link if link is not None else LinkSettings(**kw)
+        retries, backoff_s, backoff_factor = link.retries, link.backoff_s, link.backoff_factor
+        sleep, clock, reconnect = link.sleep, link.clock, link.reconnect
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
+        self.link = link
         self.name = str(name)
         self.port = transport if isinstance(transport, SharedPort) else SharedPort(transport)
-        self.commands = CommandTable.build(self.DEFAULT_COMMANDS, commands)
+        self.commands = CommandTable.build(self.DEFAULT_COMMANDS, link.commands)
         for cmd in self.commands.values():
             if cmd.parse not in self.PARSERS:
                 raise ValueError(f"{self.name}: command {cmd.name!r} names parse function {cmd.parse!r}; "

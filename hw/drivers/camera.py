@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,7 @@ import numpy as np
 from benchtwin.hw.drivers.base import InstrumentError
 from benchtwin.hw.interfaces import CameraFrame, check_image
 
-__all__ = ["OpenCVCamera", "FolderCamera", "WatchFolderCamera", "to_grey"]
+__all__ = ["OpenCVCamera", "FolderCamera", "WatchFolderCamera", "WatchFolderSettings", "to_grey"]
 
 
 def to_grey(frame: np.ndarray, dtype: str | None = None) -> np.ndarray:
@@ -167,6 +168,19 @@ class FolderCamera:
                 "status": "ok", "file": path.name}
 
 
+@dataclass(frozen=True)
+class WatchFolderSettings:
+    """A hot folder's file pattern (names starting with "." are temporary files and ignored), the
+    wait for a new frame and the interval of the folder's polls (s), the image dtype (None: as
+    read) and the pixel size (µm, metadata)."""
+
+    pattern: str = "*.png"
+    timeout_s: float = 5.0
+    poll_s: float = 0.01
+    dtype: str | None = None
+    pixel_size_um: float | None = None
+
+
 class WatchFolderCamera:
     """A hot-folder camera (see the module docstring). Arguments: ``name``, ``folder``, ``pattern``
     (``"*.png"``; names starting with "." are temporary files and ignored), ``timeout_s`` (5),
@@ -175,20 +189,25 @@ class WatchFolderCamera:
 
     KIND = "camera"
 
-    def __init__(self, name: str, folder: str | Path, *, pattern: str = "*.png", timeout_s: float = 5.0,
-                 poll_s: float = 0.01, dtype: str | None = None, sleep: Callable[[float], None] | None = None,
-                 clock: Callable[[], float] | None = None, pixel_size_um: float | None = None) -> None:
+    def __init__(self, name: str, folder: str | Path, settings: WatchFolderSettings | None = None, *,
+                 sleep: Callable[[float], None] | None = None, clock: Callable[[], float] | None = None,
+                 **kw: Any) -> None:
+        """``settings`` (a ``WatchFolderSettings``), or its fields as keywords."""
+        if settings is not None and kw:
+            raise TypeError(f"{name}: give settings or its fields as keywords, not both")
+        settings = settings if settings is not None else WatchFolderSettings(**kw)
         self.name = str(name)
         self.folder = Path(folder)
         if not self.folder.is_dir():
             raise ValueError(f"{self.folder}: not a folder (the camera's save folder must exist)")
-        self.pattern = pattern
-        self.timeout_s = float(timeout_s)
-        self.poll_s = float(poll_s)
-        self.dtype = dtype
+        self.settings = settings
+        self.pattern = settings.pattern
+        self.timeout_s = float(settings.timeout_s)
+        self.poll_s = float(settings.poll_s)
+        self.dtype = settings.dtype
         self.sleep = sleep if sleep is not None else time.sleep
         self.clock = clock if clock is not None else time.monotonic
-        self.pixel_size_um = pixel_size_um
+        self.pixel_size_um = settings.pixel_size_um
         self.last = self._newest()
 
     def _newest(self) -> str | None:

@@ -12,14 +12,16 @@ the bench file.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
+from dataclasses import dataclass
 from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, FormatError, SerialInstrument, parse_float, parse_raw
 from benchtwin.hw.interfaces import AutocollimatorReading
 
-__all__ = ["TriAngle", "format_triangle"]
+__all__ = ["TriAngle", "TriAngleSettings", "format_triangle"]
 
 _NUM = rb"\s*[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?\s*"
 _REPLY = rb"(?P<values>" + _NUM + rb"(?:;" + _NUM + rb")*);?\r\n"
@@ -33,6 +35,22 @@ def parse_fields(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> di
 def format_triangle(fields: list[float], decimals: int = 3) -> bytes:
     """A reply line as the instrument sends it (tests and emulators)."""
     return (";".join(f"{v:.{decimals}f}" for v in fields) + "\r\n").encode("ascii")
+
+
+@dataclass(frozen=True)
+class TriAngleSettings:
+    """Which fields of the reply are x, y and the signal level (None: no signal field), the signal
+    level at or below which there is no signal, and arcsec per reply unit (1: the instrument set to
+    ``Unit SEC``)."""
+
+    x_field: int = 1
+    y_field: int = 0
+    signal_field: int | None = 3
+    no_signal_below: float = 0.01
+    arcsec_per_unit: float = 1.0
+
+
+_TRIANGLE_FIELDS = tuple(f.name for f in dataclasses.fields(TriAngleSettings))
 
 
 class TriAngle(SerialInstrument):
@@ -49,12 +67,15 @@ class TriAngle(SerialInstrument):
     DEFAULT_COMMANDS = {"poll": Command("poll", b"P 1\r\n", _REPLY, "fields", b"\r\n")}
     PARSERS = {"fields": parse_fields, "raw": parse_raw}
 
-    def __init__(self, name: str, transport, *, x_field: int = 1, y_field: int = 0, signal_field: int | None = 3,
-                 no_signal_below: float = 0.01, arcsec_per_unit: float = 1.0, **kw: Any) -> None:
+    def __init__(self, name: str, transport, fields: TriAngleSettings | None = None, **kw: Any) -> None:
+        """``fields`` (a ``TriAngleSettings``), or its fields as keywords beside the common ones
+        (``SerialInstrument``'s ``LinkSettings``)."""
+        if fields is None:
+            fields = TriAngleSettings(**{k: kw.pop(k) for k in _TRIANGLE_FIELDS if k in kw})
         super().__init__(name, transport, **kw)
-        self.x_field, self.y_field, self.signal_field = int(x_field), int(y_field), signal_field
-        self.no_signal_below = float(no_signal_below)
-        self.arcsec_per_unit = float(arcsec_per_unit)
+        self.x_field, self.y_field, self.signal_field = int(fields.x_field), int(fields.y_field), fields.signal_field
+        self.no_signal_below = float(fields.no_signal_below)
+        self.arcsec_per_unit = float(fields.arcsec_per_unit)
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "x_field": self.x_field, "y_field": self.y_field,

@@ -30,12 +30,13 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from typing import Any, cast
 
 from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
 from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
 
-__all__ = ["ZaberRotaryStage", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
+__all__ = ["ZaberRotaryStage", "ZaberSettings", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
 
 _REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d+)(?: (?P<id>\d{1,2}|--))? (?P<reply>OK|RJ) (?P<state>IDLE|BUSY)"
           rb" (?P<flag>--|[FWN][A-Z]) (?P<data>[ -~]*?)(?::(?P<cs>[0-9A-Fa-f]{2}))?\r?\n")
@@ -88,11 +89,39 @@ def _cmd(name: str, template: bytes) -> Command:
     return Command(name, template, _REPLY, "reply", b"\n")
 
 
+@dataclass(frozen=True)
+class ZaberSettings:
+    """A Zaber stage's settings, from the bench file: microsteps per degree, soft limits (low, high
+    in deg) and the bench's speed limit (deg/s), all required; device and axis numbers; the
+    closed-loop tolerance (deg) and corrections at most; the status polls' interval and the move's
+    timeout (s); Zaber's native speed unit (data per microstep/s); the stage settings written at the
+    first move (only with ``write_settings`` and an explicit ``settings`` dict); message ids and
+    checksums (zaber.md)."""
+
+    microsteps_per_deg: float
+    soft_limits_deg: tuple[float, float]
+    max_speed_deg_s: float
+    device: int = 1
+    axis: int = 1
+    tolerance_deg: float = 0.001
+    max_corrections: int = 5
+    poll_interval_s: float = 0.05
+    move_timeout_s: float = 120.0
+    speed_data_per_microstep_s: float = 1.6384
+    write_settings: bool = False
+    settings: Mapping[str, Any] | None = None
+    message_ids: bool = False
+    checksums: bool = False
+
+
+_ZABER_FIELDS = tuple(f.name for f in fields(ZaberSettings))
+
+
 class ZaberRotaryStage(SerialInstrument):
     """Zaber rotary stage. Constructor arguments beyond the common ones (all from the bench file):
 
     ``microsteps_per_deg`` (required), ``soft_limits_deg`` = (low, high) (required),
-    ``max_speed_deg_s`` (required: the speed limit), ``device`` (1), ``axis`` (1), ``encoder``
+    ``max_speed_deg_s`` (required: the speed limit), ``device`` (1), ``axis`` (1) (``ZaberSettings``), ``encoder``
     (an AngleEncoder for closed-loop correction, or None), ``tolerance_deg`` (0.001),
     ``max_corrections`` (5), ``poll_interval_s`` (0.05), ``move_timeout_s`` (120),
     ``speed_data_per_microstep_s`` (1.6384: Zaber's native speed unit), ``write_settings`` (False)
@@ -115,14 +144,19 @@ class ZaberRotaryStage(SerialInstrument):
     }
     PARSERS = {"reply": parse_reply, "raw": parse_raw}
 
-    def __init__(self, name: str, transport, *, microsteps_per_deg: float, soft_limits_deg: tuple[float, float],
-                 max_speed_deg_s: float, device: int = 1, axis: int = 1, encoder: Any = None,
-                 tolerance_deg: float = 0.001, max_corrections: int = 5, poll_interval_s: float = 0.05,
-                 move_timeout_s: float = 120.0, speed_data_per_microstep_s: float = 1.6384,
-                 write_settings: bool = False, settings: Mapping[str, Any] | None = None,
-                 message_ids: bool = False, checksums: bool = False, **kw: Any) -> None:
+    def __init__(self, name: str, transport, stage: ZaberSettings | None = None, *, encoder: Any = None,
+                 **kw: Any) -> None:
+        """``stage`` (a ``ZaberSettings``), or its fields as keywords beside the common ones
+        (``SerialInstrument``'s ``LinkSettings``); ``encoder``: an AngleEncoder for closed-loop
+        correction, or None."""
+        if stage is None:
+            stage = ZaberSettings(**{k: kw.pop(k) for k in _ZABER_FIELDS if k in kw})
         super().__init__(name, transport, **kw)
-        self.message_ids, self.checksums = bool(message_ids), bool(checksums)
+        self.stage_settings = stage
+        microsteps_per_deg, soft_limits_deg, max_speed_deg_s = (stage.microsteps_per_deg, stage.soft_limits_deg,
+                                                                stage.max_speed_deg_s)
+        settings, write_settings = stage.settings, stage.write_settings
+        self.message_ids, self.checksums = bool(stage.message_ids), bool(stage.checksums)
         self._next_id = 0
         self._msg_id: int | None = None
         lo, hi = (float(v) for v in soft_limits_deg)
@@ -140,13 +174,13 @@ class ZaberRotaryStage(SerialInstrument):
         self.soft_limits_deg = (lo, hi)
         self.microsteps_per_deg = float(microsteps_per_deg)
         self.max_speed_deg_s = float(max_speed_deg_s)
-        self.device, self.axis = int(device), int(axis)
+        self.device, self.axis = int(stage.device), int(stage.axis)
         self.encoder = encoder
-        self.tolerance_deg = float(tolerance_deg)
-        self.max_corrections = int(max_corrections)
-        self.poll_interval_s = float(poll_interval_s)
-        self.move_timeout_s = float(move_timeout_s)
-        self.speed_data_per_microstep_s = float(speed_data_per_microstep_s)
+        self.tolerance_deg = float(stage.tolerance_deg)
+        self.max_corrections = int(stage.max_corrections)
+        self.poll_interval_s = float(stage.poll_interval_s)
+        self.move_timeout_s = float(stage.move_timeout_s)
+        self.speed_data_per_microstep_s = float(stage.speed_data_per_microstep_s)
         self.write_settings = bool(write_settings)
         self.settings = dict(settings or {})
         self._checked = False

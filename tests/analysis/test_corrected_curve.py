@@ -60,7 +60,7 @@ def test_nothing_identified_leaves_the_raw_curve():
 def test_reading_response_is_the_shift_angle_analysis_of_the_perturbation():
     """α is linear in the readings ε (Hsieh eqs. 5-7): adding q·ε² to every reading changes each α
     by exactly q × reading_response(ε²), the column ac_scale fits for a quadratic non-linearity."""
-    from benchtwin.analysis.hsieh_pipeline import analyze_polygon
+    from benchtwin.analysis.hsieh_pipeline import PolygonOptions, analyze_polygon
     from benchtwin.analysis.pipeline import _setup_error_lookup, reading_response
     from benchtwin.analysis.results import AutocollimatorDeclared
     from benchtwin.analysis.steps import PolygonAnalysis
@@ -80,7 +80,7 @@ def test_reading_response_is_the_shift_angle_analysis_of_the_perturbation():
 
     def alpha(e):
         cols = {"shift_deg": S, "start_face": j, "step": i, "theta_deg": th, "ac_arcsec": e, "t_s": np.arange(e.size)}
-        pol = PolygonAnalysis.from_analysis(analyze_polygon(cols, N, mc_samples=0, u_eps_arcsec=0.05),
+        pol = PolygonAnalysis.from_analysis(analyze_polygon(cols, N, options=PolygonOptions(mc_samples=0, u_eps_arcsec=0.05)),
                                             AutocollimatorDeclared(resolution_arcsec=0.001, accuracy_arcsec=0.05,
                                                                    source="test"), {}, [])
         ev = evidence_from_polygon(cols, pol.pitch_deviation_arcsec, _setup_error_lookup(pol),

@@ -3,9 +3,10 @@
 A reduced version of ``benchmarks/coverage_jia.py`` (which runs ≥ 50 seeds of the full jia2019
 scenario, docs/benchmarks.md "Jia uncertainty coverage"): 6 seeds of jia2019 with 72 radial stops
 and 24 CCD frames (the realistic noise of the scenario unchanged), ~15 s per seed. The seeds are
-fixed, so the outcome is deterministic; the bounds are those a correct u meets with a wide margin
-and an underestimated u (the d_ref fit's u alone, which ignores the asynchronous motion's share in
-one sweep's first harmonic) fails by far.
+fixed, so the outcome is deterministic; the bounds are those a correct u meets with a wide margin,
+and a u three times too small or too large fails. The d_ref fit's u alone (without the asynchronous
+motion's share in one sweep's first harmonic) is no longer an example of a too small u on this bench:
+the microscope's vibration (twin/vibration.py) dominates u(e) and the fit's residuals carry it.
 """
 
 from __future__ import annotations
@@ -62,10 +63,17 @@ def test_reduced_coverage(tmp_path):
     # u incl. the async share: no seed beyond 4 u (a t-distribution with 4 dof: P(|t| > 4) = 1.6 %)
     assert np.all(np.abs(ze) < 4) and np.all(np.abs(zt) < 4), (ze, zt)
     assert np.sqrt(np.mean(ze**2)) < 2 and np.sqrt(np.mean(zt**2)) < 2
-    # the d_ref fit's u alone is far too small against the synchronous truth (but right for this sweep):
-    # seeds 2000…2005 give |z| = 7.7, 0.3, 0.4, 2.4, 1.9, 16.8 with it
+    # ... nor overstated: with a correct u, 6 · RMS(z)² is χ² with 6 dof, P(RMS(z) < 0.35) = 0.6 %;
+    # seeds 2000…2005 give RMS(z) 0.75 (e), 0.96 (θ0), so a u three times too large fails
+    assert np.sqrt(np.mean(ze**2)) > 0.35 and np.sqrt(np.mean(zt**2)) > 0.35, (ze, zt)
+    # The d_ref fit's u alone: since the CCD microscope stand's vibration (twin/vibration.py, 927fcb3:
+    # 1.21 µm per frame and axis, each frame an independent draw) the fit's residuals hold the sweep's
+    # dominant scatter, u_fit = 0.12-0.47 µm at 24 frames, while the ball sets' asynchronous first
+    # harmonic is u_h1_async = 0.013-0.025 µm (4aa9eba; the earlier path bearings' async_rms gave
+    # ~0.05 µm against a 2-3 nm fit u). With u_fit/u ≥ 0.994 on every seed the fit-only u covers the
+    # synchronous truth as u does (seeds 2000…2005: z = -0.0, -0.8, -0.05, 1.2, 1.0, 0.5): the same bounds.
     zf = z["e (synchronous truth; u from the d_ref fit only)"]
-    assert np.sqrt(np.mean(zf**2)) > 3 and np.count_nonzero(np.abs(zf) > 4) >= 2
+    assert np.all(np.abs(zf) < 4) and np.sqrt(np.mean(zf**2)) < 2, zf
     assert np.all(np.abs(z["e (this sweep's truth; u from the fit only)"]) < 3)
     # δY and Δθ at 8 angles × 6 seeds: about the stated level
     for key in ("δY (synchronous truth; u from the revolutions' scatter, per harmonic)",

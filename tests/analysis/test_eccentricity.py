@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.eccentricity import (
+    CcdSweep,
     ImageAnalysisError,
+    ImageOptions,
     d_ref_px,
     eccentricity_from_dref,
     eccentricity_from_images,
@@ -103,15 +105,15 @@ def test_blur_noise_and_dust(grating_renderer):
     res = d_ref_px(spoilt, ref)
     assert len(res["rejected_points_px"]) == 1 and res["n_lines"] == clean["n_lines"] - 1
     assert abs(res["d_ref_px"] - exact) < 0.05
-    assert abs(d_ref_px(spoilt, ref, reject_outliers=False)["d_ref_px"] - exact) > 0.1  # the check has teeth
+    assert abs(d_ref_px(spoilt, ref, options=ImageOptions(reject_outliers=False))["d_ref_px"] - exact) > 0.1  # the check has teeth
 
 
 def test_edge_method_crossing_is_a_variant(grating_renderer):
     W, H = 400, 300
     ref, centre, exact = _geom(W, H, 3.0, 0.0)
     img = grating_renderer(W, H, centre, R_PX, PERIOD_UM / UM_PER_PX)
-    a = d_ref_px(img, ref, edge_method="area")["d_ref_px"]
-    c = d_ref_px(img, ref, edge_method="crossing")["d_ref_px"]
+    a = d_ref_px(img, ref, options=ImageOptions(edge_method="area"))["d_ref_px"]
+    c = d_ref_px(img, ref, options=ImageOptions(edge_method="crossing"))["d_ref_px"]
     assert abs(a - exact) < 0.02
     assert abs(c - exact) < 0.15  # linear interpolation of the 50 % crossing: biased on a sharp step
 
@@ -185,7 +187,7 @@ def test_sweep_of_60_images(grating_renderer, lab_centre):
         # the grating turns with the disk: the lines' phase in the image follows θ
         images.append(grating_renderer(W, H, c, R_PX, PERIOD_UM / UM_PER_PX,
                                        phase_rad=(0.1 + math.radians(t)) % pitch_rad))
-    out = eccentricity_from_images(images, th, period_um=PERIOD_UM, reference_px=ref,
+    out = eccentricity_from_images(images, th, CcdSweep(period_um=PERIOD_UM, reference_px=ref),
                                    names=[f"ccd/img_{k:03d}.png" for k in range(60)])
     assert out["e_um"] == pytest.approx(E_UM, abs=0.01)
     assert out["theta0_deg"] == pytest.approx(TH0, abs=0.1)
@@ -195,7 +197,7 @@ def test_sweep_of_60_images(grating_renderer, lab_centre):
     assert out["c0_um"] == pytest.approx(2.0, abs=0.01)
     assert out["dref_um"].shape == (60,)
     # the paper's fixed scale gives the same answer
-    out2 = eccentricity_from_images(images[::2], th[::2], um_per_px=UM_PER_PX, reference_px=ref, order=5)
+    out2 = eccentricity_from_images(images[::2], th[::2], CcdSweep(um_per_px=UM_PER_PX, reference_px=ref, order=5))
     assert out2["e_um"] == pytest.approx(E_UM, abs=0.01)
 
 
@@ -313,7 +315,7 @@ def test_dust_merging_two_line_ends_is_rejected_not_fatal(grating_renderer):
     assert sc["um_per_px"] == pytest.approx(UM_PER_PX, rel=5e-4)
     # without outlier rejection the merged end is one point between two lines: the old hard failure
     with pytest.raises(ImageAnalysisError, match="line spacing is irregular"):
-        pixel_scale_um(dusty, PERIOD_UM, reject_outliers=False, name="dusty.png")
+        pixel_scale_um(dusty, PERIOD_UM, name="dusty.png", options=ImageOptions(reject_outliers=False))
 
 
 def test_scale_rejects_a_line_centre_shifted_along_the_edge(grating_renderer):

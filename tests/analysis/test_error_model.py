@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.error_model import (
+    EccentricityEstimate,
     ErrorModel,
+    RadialCurve,
     compare_with_measured,
     jia_error_model,
     periodic_integral,
@@ -23,7 +25,7 @@ E_UM, TH0 = 7.1, 192.08  # Jia sec. 5
 
 def test_eccentricity_alone_is_eq3():
     th = np.linspace(0, 360, 721)
-    m = jia_error_model(E_UM, TH0, R_UM)
+    m = jia_error_model(EccentricityEstimate(E_UM, TH0), R_UM)
     expect = (E_UM / R_UM) * np.sin(np.radians(th - TH0)) / ARCSEC
     np.testing.assert_allclose(m.predict(th), expect, rtol=1e-12, atol=1e-12)
     # 7.1 µm at r = 22 mm: 66.57″ amplitude; zero crossing rising at θ0
@@ -85,7 +87,7 @@ def test_fourier_term_is_exact():
 
 def test_terms_sum_and_add_term():
     grid = np.arange(0, 360, 2.0)
-    m = jia_error_model(E_UM, TH0, R_UM, grid, _dY(grid))
+    m = jia_error_model(EccentricityEstimate(E_UM, TH0), R_UM, RadialCurve(grid, _dY(grid)))
     th = np.arange(0, 360, 15.0)
     parts = m.predict_terms(th)
     assert set(parts) == {"eccentricity", "radial_motion"}
@@ -102,18 +104,18 @@ def test_terms_sum_and_add_term():
 
 def test_uncertainty_propagation():
     th = np.array([TH0, TH0 + 90.0])
-    m = jia_error_model(E_UM, TH0, R_UM, u_e_um=0.24, u_theta0_deg=1.13)
+    m = jia_error_model(EccentricityEstimate(E_UM, TH0, u_e_um=0.24, u_theta0_deg=1.13), R_UM)
     u = m.uncertainty(th)
     # at θ = θ0: only the phase contributes, (e/r)·u(θ0); at θ0 + 90°: only e, u(e)/r
     assert u[0] == pytest.approx(E_UM / R_UM * math.radians(1.13) / ARCSEC, rel=1e-9)
     assert u[1] == pytest.approx(0.24 / R_UM / ARCSEC, rel=1e-9)
     # u(r): relative, on both 1/r terms together
-    m2 = jia_error_model(E_UM, TH0, R_UM, u_r_um=22.0)
+    m2 = jia_error_model(EccentricityEstimate(E_UM, TH0), R_UM, u_r_um=22.0)
     assert m2.uncertainty(np.array([TH0 + 90.0]))[0] == pytest.approx(E_UM / R_UM / ARCSEC * 1e-3, rel=1e-9)
     # Monte Carlo of e, θ0, r
     rng = np.random.default_rng(9)
     q = np.array([30.0, 120.0, 250.0])
-    m3 = jia_error_model(E_UM, TH0, R_UM, u_e_um=0.24, u_theta0_deg=1.13, u_r_um=50.0)
+    m3 = jia_error_model(EccentricityEstimate(E_UM, TH0, u_e_um=0.24, u_theta0_deg=1.13), R_UM, u_r_um=50.0)
     e = rng.normal(E_UM, 0.24, 20000)
     t0 = rng.normal(TH0, 1.13, 20000)
     r = rng.normal(R_UM, 50.0, 20000)
@@ -133,7 +135,7 @@ def test_radial_uncertainty_independent_vs_correlated():
 
 def test_compare_removes_means_and_reports_fraction():
     th = np.arange(23) * 360.0 / 23  # polygon positions
-    m = jia_error_model(E_UM, TH0, R_UM)
+    m = jia_error_model(EccentricityEstimate(E_UM, TH0), R_UM)
     model = m.predict(th)
     rng = np.random.default_rng(12)
     extra = 0.09 * np.sqrt(np.mean((model - model.mean()) ** 2)) * rng.standard_normal(th.size)
@@ -164,22 +166,23 @@ def test_figures_jia_smoke():
     from matplotlib.figure import Figure
 
     from benchtwin.analysis.eccentricity import eccentricity_from_dref
-    from benchtwin.analysis.radial_motion import radial_motion
+    from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
     from benchtwin.analysis.report.figures_jia import fig_comparison, fig_dref, fig_predicted_error, fig_radial_motion
 
     rng = np.random.default_rng(0)
     th = np.tile(np.arange(0, 360, 2.0), 3)
     rep = np.repeat([0, 1, 2], 180)
     t = np.radians(th)
-    rm = radial_motion(rep, th, 3 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.01, th.size),
-                       4 * np.sin(t) + 0.1 * np.cos(3 * t), 6.81, 122.96)
+    rm = radial_motion(ProbeReadings(rep, th, 3 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.01, th.size),
+                                     4 * np.sin(t) + 0.1 * np.cos(3 * t)), SphereSpacing(6.81, 122.96))
     fig = fig_radial_motion(rm)
     assert isinstance(fig, Figure) and len(fig.axes[0].lines) == 3 + 3 * 3
     thc = np.arange(60) * 6.0
     d = 3 + E_UM * np.cos(np.radians(thc - TH0)) + rng.normal(0, 0.05, 60)
     ecc = eccentricity_from_dref(thc, d)
     assert isinstance(fig_dref(ecc, thc, d), Figure)
-    m = jia_error_model(ecc["e_um"], ecc["theta0_deg"], R_UM, rm["theta_deg"], rm["dY_um"], u_e_um=ecc["e_u_um"])
+    m = jia_error_model(EccentricityEstimate(ecc["e_um"], ecc["theta0_deg"], u_e_um=ecc["e_u_um"]), R_UM,
+                        RadialCurve(rm["theta_deg"], rm["dY_um"]))
     f15 = fig_predicted_error(m)
     assert {ln.get_label() for ln in f15.axes[0].lines} >= {"eccentricity", "radial_motion", "Δθ (eq. 5)"}
     tp = np.arange(23) * 360 / 23
@@ -196,14 +199,14 @@ def test_error_model_from_results_dicts():
     rng = np.random.default_rng(3)
     t = np.radians(th)
     rm_in = dict(rep=rep, theta_deg=th, probe_top_um=2 * np.cos(t) + 0.2 * np.sin(2 * t) + rng.normal(0, 0.02, th.size),
-                 probe_bottom_um=1 + 0.1 * np.cos(3 * t) + rng.normal(0, 0.02, th.size), L1_mm=6.81, L2_mm=122.96)
-    from benchtwin.analysis.radial_motion import radial_motion
+                 probe_bottom_um=1 + 0.1 * np.cos(3 * t) + rng.normal(0, 0.02, th.size))
+    from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
 
-    rm = radial_motion(**rm_in)
+    rm = radial_motion(ProbeReadings(**rm_in), SphereSpacing(6.81, 122.96))
     ecc = {"e_um": E_UM, "theta0_deg": TH0, "e_u_um": 0.24, "theta0_u_deg": 1.13, "cov_e_theta0": 0.0}
     q = np.arange(0, 360, 10.0)
     models = {k: error_model_from_results(ecc, rm, R_UM, dY_uncertainty=k) for k in ("range", "range_mean", "gum", "none")}
-    ref = jia_error_model(E_UM, TH0, R_UM, rm["theta_deg"], rm["dY_um"])
+    ref = jia_error_model(EccentricityEstimate(E_UM, TH0), R_UM, RadialCurve(rm["theta_deg"], rm["dY_um"]))
     for m in models.values():
         np.testing.assert_allclose(m.predict(q), ref.predict(q), atol=1e-12)
     u = {k: m.uncertainty(q) for k, m in models.items()}
@@ -243,20 +246,21 @@ def _refine_case(rng, de_um=0.3, dt_deg=2.0, u_pt=0.05, n=23, e=7.1, t0=192.0, r
 
 
 def test_refine_eccentricity_recovers_a_known_error_and_weights_by_u():
-    from benchtwin.analysis.error_model import refine_eccentricity
+    from benchtwin.analysis.error_model import EccentricityEstimate, refine_eccentricity
 
     th, res = _refine_case(np.random.default_rng(1), u_pt=1e-4)
     # a vague CCD prior: the comparison decides (the linearisation in δθ0 costs ~e·δθ0² ≈ 0.01 µm)
-    ref = refine_eccentricity(th, res, 1e-4, 7.1, 192.0, 10.0, 30.0, 22000.0)
+    ref = refine_eccentricity(th, res, 1e-4, EccentricityEstimate(7.1, 192.0, 10.0, 30.0), 22000.0)
     assert ref["e_um"] == pytest.approx(7.4, abs=0.01) and ref["theta0_deg"] == pytest.approx(194.0, abs=0.01)
     assert ref["comparison"]["e_um"] == pytest.approx(ref["e_um"], abs=1e-3)
     # a CCD far more precise than the comparison: the CCD's values stay
-    ref2 = refine_eccentricity(th, res, 10.0, 7.1, 192.0, 1e-4, 1e-4, 22000.0)
+    ref2 = refine_eccentricity(th, res, 10.0, EccentricityEstimate(7.1, 192.0, 1e-4, 1e-4), 22000.0)
     assert ref2["e_um"] == pytest.approx(7.1, abs=1e-5) and ref2["theta0_deg"] == pytest.approx(192.0, abs=1e-5)
     assert ref2["u_e_um"] == pytest.approx(1e-4, rel=1e-3)
     # equal weights: halfway, with u/√2
     u_cmp = ref["comparison"]["u_e_um"]
-    ref3 = refine_eccentricity(th, res, 1e-4, 7.1, 192.0, u_cmp, ref["comparison"]["u_theta0_deg"], 22000.0)
+    ref3 = refine_eccentricity(th, res, 1e-4, EccentricityEstimate(7.1, 192.0, u_cmp, ref["comparison"]["u_theta0_deg"]),
+                               22000.0)
     assert ref3["u_e_um"] == pytest.approx(u_cmp / math.sqrt(2), rel=0.02)
     assert ref3["e_um"] == pytest.approx(7.1 + 0.5 * (ref["comparison"]["e_um"] - 7.1), abs=0.3 * u_cmp + 0.01)
 
@@ -265,7 +269,7 @@ def test_refine_eccentricity_consistency_chi2_against_monte_carlo():
     """GUM against Monte Carlo: CCD values drawn with their stated u around the truth, comparisons
     drawn with theirs: the χ² of the two is χ²(2) (mean 2, p uniform), and the combined e covers
     the truth at the stated u."""
-    from benchtwin.analysis.error_model import refine_eccentricity
+    from benchtwin.analysis.error_model import EccentricityEstimate, refine_eccentricity
 
     rng = np.random.default_rng(20191)
     u_e, u_t = 0.24, 2.0
@@ -273,7 +277,7 @@ def test_refine_eccentricity_consistency_chi2_against_monte_carlo():
     for _ in range(400):
         de, dt = rng.normal(0, u_e), rng.normal(0, u_t)     # the CCD's error
         th, res = _refine_case(rng, de_um=-de, dt_deg=-dt, u_pt=0.1, e=7.1 + de, t0=192.0 + dt)
-        ref = refine_eccentricity(th, res, 0.1, 7.1 + de, 192.0 + dt, u_e, u_t, 22000.0)
+        ref = refine_eccentricity(th, res, 0.1, EccentricityEstimate(7.1 + de, 192.0 + dt, u_e, u_t), 22000.0)
         chi2.append(ref["chi2"])
         z.append((ref["e_um"] - 7.1) / ref["u_e_um"])
     assert np.mean(chi2) == pytest.approx(2.0, rel=0.2)
@@ -281,9 +285,9 @@ def test_refine_eccentricity_consistency_chi2_against_monte_carlo():
 
 
 def test_refine_eccentricity_rejects_bad_input():
-    from benchtwin.analysis.error_model import refine_eccentricity
+    from benchtwin.analysis.error_model import EccentricityEstimate, refine_eccentricity
 
     with pytest.raises(ValueError, match="positive u"):
-        refine_eccentricity([0, 90, 180, 270], [0, 1, 0, -1], 0.0, 7.1, 0.0, 0.2, 1.0, 22000.0)
+        refine_eccentricity([0, 90, 180, 270], [0, 1, 0, -1], 0.0, EccentricityEstimate(7.1, 0.0, 0.2, 1.0), 22000.0)
     with pytest.raises(ValueError, match="≥ 4 points"):
-        refine_eccentricity([0, 180], [0, 1], 0.1, 7.1, 0.0, 0.2, 1.0, 22000.0)
+        refine_eccentricity([0, 180], [0, 1], 0.1, EccentricityEstimate(7.1, 0.0, 0.2, 1.0), 22000.0)

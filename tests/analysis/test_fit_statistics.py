@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from benchtwin.analysis.error_model import (eccentricity_term, fit_statistics, refine_eccentricity,
+from benchtwin.analysis.error_model import (EccentricityEstimate, eccentricity_term, fit_statistics, refine_eccentricity,
                                             sampling_advice)
 
 
@@ -91,9 +91,10 @@ def test_refined_e_covers_a_first_order_graduation_term():
         th, res, u_pt, e, e_ccd, t_ccd, u_e, u_t, r, cols, sig = _graduated_bench(np.random.default_rng(seed))
         u_k1, source = k1_prior(sig)
         assert 0.5 < u_k1 < 1.5 and "orders 2…6" in source
-        ref = refine_eccentricity(th, res, u_pt, e_ccd, t_ccd, u_e, u_t, r, u_k1_arcsec=u_k1, columns=cols)
+        ref = refine_eccentricity(th, res, u_pt, EccentricityEstimate(e_ccd, t_ccd, u_e, u_t), r, u_k1_arcsec=u_k1,
+                                  columns=cols)
         z_with.append((ref["e_um"] - e) / ref["u_e_um"])
-        ref0 = refine_eccentricity(th, res, u_pt, e_ccd, t_ccd, u_e, u_t, r, columns=cols)
+        ref0 = refine_eccentricity(th, res, u_pt, EccentricityEstimate(e_ccd, t_ccd, u_e, u_t), r, columns=cols)
         z_without.append((ref0["e_um"] - e) / ref0["u_e_um"])
         assert ref["u_e_um"] > ref0["u_e_um"]
         # the joint fit: 1 constant + the first harmonic + 10 graduation columns fitted to 60 stops

@@ -19,7 +19,7 @@ import pytest
 
 from benchtwin.analysis.eccentricity import eccentricity_from_dref, eccentricity_from_sweep, with_async_motion
 from benchtwin.analysis.error_model import error_model_from_results
-from benchtwin.analysis.radial_motion import radial_motion
+from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
 from benchtwin.analysis.uncertainty import MCResult, coverage_interval_shortest
 
 E_UM, TH0_DEG, R_UM = 7.1, 192.08, 22000.0  # Jia sec. 5; r: scenarios/jia2019.toml
@@ -132,7 +132,7 @@ def test_dY_gum_matches_mc(async_sd):
     err, u, ug, h1 = [], [], [], []
     for _ in range(M):
         cols, dY = _sphere_readings(rng, async_sd=async_sd)
-        rm = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+        rm = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
         err.append((rm["dY_um"] - dY)[at])
         u.append(rm["u_dY_theta_um"][at])
         ug.append(rm["u_dY_gum_theta_um"][at])
@@ -167,7 +167,7 @@ def test_dtheta_gum_matches_mc_through_the_whole_chain():
     vals, us = [], []
     for _ in range(M):
         cols, dY = _sphere_readings(rng, async_sd=async_sd)
-        rm = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+        rm = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
         c1, d1 = rng.normal(0, async_sd, 2)
         d = d0 + c1 * np.sin(t) + d1 * np.cos(t) + rng.normal(0, sd_dref_um, TH_CCD.size)
         ecc = with_async_motion(eccentricity_from_dref(TH_CCD, d), rm["u_h1_async_um"])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ import pytest
 
 from benchtwin.analysis import selfcal as sc
 from benchtwin.analysis import shift_angle as sa
-from benchtwin.analysis.hsieh_pipeline import _drop_harmonics, analyze_polygon
+from benchtwin.analysis.hsieh_pipeline import HSIEH2022_TYPE_B, HeadsData, PolygonOptions, _drop_harmonics, analyze_polygon
 from tests.synthetic.polygon import synthesize_readings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -80,7 +81,7 @@ def fb_result():
     """The twin's procedure with one run: all faces at S = 0, face 1 at 1…14°, forward and backward."""
     rng = np.random.default_rng(7)
     cols = synthesize_readings(ALPHA, make_beta(24, 8), setup_fn(9), np.arange(15.0))
-    return analyze_polygon(fwd_bwd(cols, 0.05, rng, h=0.2), 24, encoder_resolution_arcsec=0.04)
+    return analyze_polygon(fwd_bwd(cols, 0.05, rng, h=0.2), 24, type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.04))
 
 
 def test_budget_dof_from_the_model_residuals_not_from_direction_pairs(fb_result):
@@ -121,7 +122,8 @@ def test_results_keys_have_values_and_uncertainties():
     cols = synthesize_readings(ALPHA, make_beta(24, 12), setup_fn(13), np.arange(15.0), n_rep=2,
                                   noise_arcsec=0.02, rng=rng)
     heads = heads_columns(ALPHA, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.01, rng)
-    r = analyze_polygon(cols, 24, heads, sc.SELFA_HEADS_DEG, encoder_resolution_arcsec=0.04)
+    r = analyze_polygon(cols, 24, HeadsData(heads, sc.SELFA_HEADS_DEG),
+                        type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.04))
     json.dumps(r, allow_nan=False)
     assert len(r["polygon_pitch_deviation_arcsec"]) == 24
     assert all(u > 0 for u in r["polygon_pitch_deviation_u_arcsec"])
@@ -143,7 +145,7 @@ def test_comparison_on_the_harmonics_both_methods_see():
     a = series({2: (1.0, 0.3), 5: (0.2, 0.1), 24: (0.3, 0.7), 84: (0.2, -0.4)})
     cols = synthesize_readings(a, make_beta(24, 14), setup_fn(15), np.arange(15.0))
     heads = heads_columns(a, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.0, None, n_rep=1)
-    r = analyze_polygon(cols, 24, heads, sc.SELFA_HEADS_DEG, u_eps_arcsec=0.01)
+    r = analyze_polygon(cols, 24, HeadsData(heads, sc.SELFA_HEADS_DEG), options=PolygonOptions(u_eps_arcsec=0.01))
     d = r["difference_arcsec"]
     assert d["max_abs"] < 1e-9
     assert d["removed_from_shift_angle_rms"] == pytest.approx(0.2 / math.sqrt(2), rel=1e-6)  # the 84th
@@ -151,7 +153,7 @@ def test_comparison_on_the_harmonics_both_methods_see():
     # and the disagreement shows when the harmonics the two see differ
     heads_other = heads_columns(series({2: (1.1, 0.3), 5: (0.2, 0.1)}), np.arange(360.0), sc.SELFA_HEADS_DEG, 0.0,
                                 None, n_rep=1)
-    r2 = analyze_polygon(cols, 24, heads_other, sc.SELFA_HEADS_DEG, u_eps_arcsec=0.01)
+    r2 = analyze_polygon(cols, 24, HeadsData(heads_other, sc.SELFA_HEADS_DEG), options=PolygonOptions(u_eps_arcsec=0.01))
     assert r2["en_max"] > 1.0
 
 
@@ -194,8 +196,8 @@ def _analyze_twin(ds_path):
 
     ds = open_dataset(ds_path)
     b = ds.bench
-    return analyze_polygon(ds.table("polygon"), b["polygon_faces"], ds.table("heads"), b["heads_deg"],
-                           encoder_resolution_arcsec=b["encoder_resolution_arcsec"])
+    return analyze_polygon(ds.table("polygon"), b["polygon_faces"], HeadsData(ds.table("heads"), b["heads_deg"]),
+                           type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=b["encoder_resolution_arcsec"]))
 
 
 def _simulate(tmp_path_factory, name, **over):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchtwin.analysis.radial_motion import D_N, disk_weights, error_motion_values, radial_motion, range_method_u
+from benchtwin.analysis.radial_motion import (D_N, ProbeReadings, RadialOptions, SphereSpacing, disk_weights,
+                                             error_motion_values, radial_motion, range_method_u)
 
 L1, L2 = 6.81, 122.96  # mm, Jia sec. 5
 
@@ -50,7 +51,7 @@ def synthetic(reps=3, n=360, seed=0, async_sd=0.0, noise_sd=0.0, x=False):
 
 def test_disk_motion_recovered_noise_free():
     cols, truth = synthetic()
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     np.testing.assert_allclose(res["theta_deg"], truth["theta_deg"])
     rms = np.sqrt(np.mean((res["dY_um"] - truth["dY"]) ** 2))
     assert rms < 0.005  # 5 nm
@@ -70,7 +71,7 @@ def test_eq9_weights():
 
 def test_callable_between_grid_points():
     cols, truth = synthetic(n=120)
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     q = np.array([0.5, 17.25, 181.0, 359.9])
     t = np.radians(q)
     expect = 0.15 * np.cos(2 * t - 0.5) + 0.10 * np.cos(3 * t - 1.9) + 0.05 * np.cos(5 * t - 3.5) + 0.02 * np.cos(7 * t - 0.2)
@@ -80,7 +81,7 @@ def test_callable_between_grid_points():
 
 def test_sync_async_and_summary_values():
     cols, truth = synthetic(async_sd=0.1, seed=3)
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     sync_true = truth["dY"] + truth["async"].mean(axis=0)
     np.testing.assert_allclose(res["dY_um"], sync_true, atol=1e-9)
     np.testing.assert_allclose(res["dY_async_um"], truth["async"] - truth["async"].mean(axis=0), atol=1e-9)
@@ -119,7 +120,7 @@ def test_d_n_beyond_ten_is_the_mean_range_of_normal_samples(n):
 
 def test_range_method_on_disk_motion():
     cols, truth = synthetic(async_sd=0.1, seed=4)
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     reps = truth["dY"] + truth["async"]
     np.testing.assert_allclose(res["u_dY_range_theta_um"], np.ptp(reps, axis=0) / D_N[3], atol=1e-9)
     assert res["u_dY_range_um"] == pytest.approx(np.max(np.ptp(reps, axis=0)) / D_N[3], abs=1e-9)
@@ -131,31 +132,31 @@ def test_gum_uncertainty_matches_monte_carlo():
     dYs, us = [], []
     for seed in range(60):
         cols, truth = synthetic(noise_sd=sd, seed=100 + seed, n=180)
-        res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+        res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
         dYs.append(res["dY_um"])
         us.append(res["u_dY_gum_theta_um"])
     sd_mc = np.std(dYs, axis=0, ddof=1).mean()
     assert np.mean(us) == pytest.approx(sd_mc, rel=0.2)
     # with the probe uncertainty given: absolute covariance, same size
     cols, _ = synthetic(noise_sd=sd, seed=1, n=180)
-    res = radial_motion(L1_mm=L1, L2_mm=L2, u_probe_um=sd, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2), RadialOptions(u_probe_um=sd))
     assert res["u_dY_gum_um"] == pytest.approx(np.max(np.mean(us, axis=0)), rel=0.2)
     # the noise-free case has no fit uncertainty; u(L) adds a term ∝ |δtop − δbot|
     cols, truth = synthetic()
-    res = radial_motion(L1_mm=L1, L2_mm=L2, u_L1_mm=0.05, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2, u_L1_mm=0.05))
     expect = np.abs(truth["eps"] * L2 / L2) * 0.05  # |∂δY/∂L1| = |δbot − δtop|/L2 = |ε|
     np.testing.assert_allclose(res["u_dY_gum_theta_um"], expect, atol=1e-9)
 
 
 def test_x_probes():
     cols, truth = synthetic(x=True)
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     np.testing.assert_allclose(res["dX_um"], truth["dX"], atol=1e-9)
     np.testing.assert_allclose(res["tilt_y_urad"], 0.0, atol=1e-6)
     assert {"top_x", "bottom_x", "disk_x"} <= set(res["summary"])
     cols.pop("probe_bottom_x_um")
     with pytest.raises(ValueError, match="together"):
-        radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+        radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
 
 
 def test_nonuniform_and_different_grids_per_rep():
@@ -170,7 +171,7 @@ def test_nonuniform_and_different_grids_per_rep():
     cols["theta_deg"][m] = th1
     cols["probe_top_um"][m] = 1.0 + 2.0 * np.cos(t1) + dY + L1 * eps
     cols["probe_bottom_um"][m] = 5.0 + 1.0 * np.sin(t1) + dY - (L2 - L1) * eps
-    res = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
+    res = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
     assert res["theta_deg"].size == 360  # default 1° grid when the reps' angles differ
     expect = res["dY_fn"](res["theta_deg"])
     t = np.radians(res["theta_deg"])
@@ -182,10 +183,10 @@ def test_errors_are_clear():
     cols, _ = synthetic(n=60)
     bad = dict(cols, probe_top_um=cols["probe_top_um"][:-1])
     with pytest.raises(ValueError, match="probe_top_um"):
-        radial_motion(L1_mm=L1, L2_mm=L2, **bad)
+        radial_motion(ProbeReadings(**bad), SphereSpacing(L1, L2))
     few = {k: v[:15] for k, v in cols.items()}  # rep 0 with 15 readings < 21 parameters
     with pytest.raises(ValueError, match="repetition 0"):
-        radial_motion(L1_mm=L1, L2_mm=L2, **few)
+        radial_motion(ProbeReadings(**few), SphereSpacing(L1, L2))
 
 
 def test_error_motion_values_single_rep():
@@ -200,11 +201,12 @@ def test_keep_residual_keeps_content_above_the_order():
     hf = 0.03 * np.cos(15 * t)  # order 15: eq. 7 (order 10) filters it, keep_residual keeps it
     cols["probe_top_um"] = cols["probe_top_um"] + hf
     cols["probe_bottom_um"] = cols["probe_bottom_um"] + hf
-    lit = radial_motion(L1_mm=L1, L2_mm=L2, **cols)
-    raw = radial_motion(L1_mm=L1, L2_mm=L2, keep_residual=True, **cols)
+    lit = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2))
+    raw = radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2), RadialOptions(keep_residual=True))
     tg = np.radians(truth["theta_deg"])
     np.testing.assert_allclose(lit["dY_um"], truth["dY"], atol=1e-9)
     np.testing.assert_allclose(raw["dY_um"], truth["dY"] + 0.03 * np.cos(15 * tg), atol=1e-9)
     np.testing.assert_allclose(raw["dY_fn"](truth["theta_deg"]), raw["dY_um"], atol=1e-12)
     with pytest.raises(ValueError, match="same angles"):
-        radial_motion(L1_mm=L1, L2_mm=L2, keep_residual=True, grid_deg=np.arange(0, 360, 2.0), **cols)
+        radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2),
+                      RadialOptions(keep_residual=True, grid_deg=np.arange(0, 360, 2.0)))

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from benchtwin.analysis.radial_motion import disk_weights, radial_motion
+from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, disk_weights, radial_motion
 
 L1, L2 = 6.81, 122.96  # mm, Jia sec. 5
 
@@ -29,7 +29,7 @@ def test_series_values_u_is_the_reading_u_through_the_fit(n_theta, reps):
     top = 2.0 * np.cos(3 * t) + rng.normal(0.0, 0.05, th.size)
     bot = 1.0 * np.sin(5 * t) + rng.normal(0.0, 0.05, th.size)
     u = 0.05
-    rm = radial_motion(rep, th, top, bot, L1, L2, u_probe_um=u)
+    rm = radial_motion(ProbeReadings(rep, th, top, bot), SphereSpacing(L1, L2), RadialOptions(u_probe_um=u))
     K = rm["order"]
     point = u**2 * 2 * (K - 1) / n_theta
     w_top, w_bot = disk_weights(L1, L2)
@@ -44,5 +44,6 @@ def test_series_values_u_is_the_reading_u_through_the_fit(n_theta, reps):
 def test_one_revolution_has_no_asynchronous_u():
     th = np.arange(36) * 10.0
     t = np.radians(th)
-    rm = radial_motion(np.zeros(36, int), th, np.cos(2 * t), np.sin(3 * t), L1, L2, u_probe_um=0.05)
+    rm = radial_motion(ProbeReadings(np.zeros(36, int), th, np.cos(2 * t), np.sin(3 * t)), SphereSpacing(L1, L2),
+                       RadialOptions(u_probe_um=0.05))
     assert math.isnan(rm["summary"]["disk"]["asynchronous_u_um"]) and rm["summary"]["disk"]["total_u_um"] > 0

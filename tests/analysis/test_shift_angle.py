@@ -7,6 +7,7 @@ is about that), β (Σβ = 0) and U_j(S); every random draw uses an explicit see
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from scipy import stats
 
 from benchtwin.analysis import selfcal as sc
 from benchtwin.analysis import shift_angle as sa
-from benchtwin.analysis.hsieh_pipeline import analyze_polygon, fourier_resample_arcsec
+from benchtwin.analysis.hsieh_pipeline import HSIEH2022_TYPE_B, HeadsData, analyze_polygon, fourier_resample_arcsec
 from tests.synthetic.polygon import synthesize_readings
 
 
@@ -52,8 +53,7 @@ def setup_fn(seed: int):
 
 
 def analyse(cols, N, **kw):
-    tab = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                              theta_deg=cols.get("theta_deg"), rep=cols.get("rep"))
+    tab = sa.tabulate_polygon({k: v for k, v in cols.items() if k != "direction"}, N)
     return tab, sa.shift_angle_analysis(tab, **kw)
 
 
@@ -202,13 +202,13 @@ def test_certificate_used_when_S0_table_incomplete_and_closure_compared_when_ful
     cols = synthesize_readings(ALPHA, beta, setup_fn(15), [0.0, 10.0])
     keep = (cols["shift_deg"] != 0.0) | (cols["start_face"] == 1)
     part = {k: v[keep] for k, v in cols.items()}
-    _, res = analyse(part, N, certificate_beta_arcsec=beta)
+    _, res = analyse(part, N, beta_from=sa.BetaSource(certificate_arcsec=beta))
     assert res.beta_source == "certificate"
     for s in res.shifts:
         np.testing.assert_allclose(s.alpha_arcsec, ALPHA(s.theta_deg), atol=1e-9)
     with pytest.raises(sa.PolygonDataError, match=r"incomplete Table 1.*start_face=2, step=1"):
         analyse(part, N)
-    _, full = analyse(cols, N, certificate_beta_arcsec=beta + 0.1, beta_source="certificate")
+    _, full = analyse(cols, N, beta_from=sa.BetaSource("certificate", beta + 0.1))
     np.testing.assert_allclose(full.beta_closure_arcsec, beta, atol=1e-9)
 
 
@@ -281,8 +281,7 @@ def full_cols(N=6, shifts=(0.0, 5.0)):
 
 
 def tab_of(cols, N=6, **kw):
-    return sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                               theta_deg=cols.get("theta_deg"), rep=cols.get("rep"), **kw)
+    return sa.tabulate_polygon({**{k: v for k, v in cols.items() if k != "direction"}, **kw}, N)
 
 
 def test_error_missing_reading_names_cell():
@@ -409,7 +408,8 @@ def test_analyze_polygon_end_to_end_json_ready():
     alpha = make_alpha({2: (1.0314, -2.4233), 3: (0.3, 0.5), 5: (0.1, 0.1), 24: (0.02, 0.3)})
     cols = synthesize_readings(alpha, beta, setup_fn(41), np.arange(15.0), n_rep=3, noise_arcsec=0.02, rng=rng)
     heads = _heads_columns(alpha, np.arange(360.0), sc.SELFA_HEADS_DEG, 0.005, rng, n_rep=2)
-    r = analyze_polygon(cols, N, heads, sc.SELFA_HEADS_DEG, selfcal_sets=sc.SELFA_SETS, encoder_resolution_arcsec=0.04)
+    r = analyze_polygon(cols, N, HeadsData(heads, sc.SELFA_HEADS_DEG, sc.SELFA_SETS),
+                        type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.04))
     json.dumps(r, allow_nan=False)
     for key in ("polygon_pitch_deviation_arcsec", "polygon_pitch_deviation_u_arcsec", "setup_error_arcsec",
                 "encoder_error_arcsec", "selfcal_error_arcsec", "en_max", "budget"):
@@ -426,7 +426,7 @@ def test_analyze_polygon_end_to_end_json_ready():
     assert r["budget"][-1]["kind"] == "combined"
     assert r["budget_summary"]["k"] > 1.96
     # without heads
-    r2 = analyze_polygon(cols, N, None, None)
+    r2 = analyze_polygon(cols, N, None)
     assert r2["en_max"] is None and r2["selfcal_error_arcsec"] is None
 
 
@@ -439,7 +439,7 @@ def test_analyze_polygon_detects_disagreement():
     other = make_alpha({2: (1.5, 0.0)})
     cols = synthesize_readings(alpha, beta, setup_fn(43), [0.0, 5.0, 10.0], n_rep=3, noise_arcsec=0.01, rng=rng)
     heads = _heads_columns(other, np.arange(360.0), [0.0, 120.0, 240.0], 0.005, rng, n_rep=3)
-    r = analyze_polygon(cols, N, heads, [0.0, 120.0, 240.0])
+    r = analyze_polygon(cols, N, HeadsData(heads, [0.0, 120.0, 240.0]))
     assert r["en_max"] > 1.0
 
 
@@ -463,7 +463,7 @@ def test_figures_render(tmp_path):
     alpha = make_alpha({2: (1.0, 0.2), 3: (0.2, 0.0)})
     cols = synthesize_readings(alpha, make_beta(N, 44), setup_fn(45), [0.0, 10.0, 20.0])
     heads = _heads_columns(alpha, np.arange(0, 360.0, 2.0), [0.0, 90.0, 180.0, 270.0], 0.005, rng)
-    r = analyze_polygon(cols, N, heads, [0.0, 90.0, 180.0, 270.0])
+    r = analyze_polygon(cols, N, HeadsData(heads, [0.0, 90.0, 180.0, 270.0]))
     for fn in (fh.figure_pitch_deviation, fh.figure_alpha_at_shifts, fh.figure_curve_fits,
                fh.figure_selfcal_vs_shift_angle, fh.figure_difference):
         fig = fn(r)
@@ -524,8 +524,7 @@ def _runs(N, shifts, reps, sigma, h_fn, seed, alpha=ALPHA):
             c["direction"] = np.array([d] * n, dtype=object)
             parts.append(c)
     cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    tab = sa.tabulate_polygon(cols["shift_deg"], cols["start_face"], cols["step"], cols["ac_arcsec"], N,
-                              theta_deg=cols["theta_deg"], rep=cols["rep"], direction=cols["direction"])
+    tab = sa.tabulate_polygon(cols, N)
     return cols, tab, beta
 
 
@@ -549,8 +548,7 @@ def test_reading_repeatability_from_the_model_residuals_not_from_direction_pairs
     # a missing reading drops that run-row (and says so)
     keep = ~((cols["shift_deg"] == 0.0) & (cols["start_face"] == 3) & (cols["step"] == 4) & (cols["rep"] == 1)
              & (cols["direction"] == "forward"))
-    t2 = sa.tabulate_polygon(cols["shift_deg"][keep], cols["start_face"][keep], cols["step"][keep],
-                             cols["ac_arcsec"][keep], N, rep=cols["rep"][keep], direction=cols["direction"][keep])
+    t2 = sa.tabulate_polygon({k: v[keep] for k, v in cols.items() if k != "theta_deg"}, N)
     r2 = sa.reading_repeatability(t2)
     assert r2.dropped == [(0.0, 1, "forward", 3)] and r2.dof == rep.dof - (N - 1)
 
@@ -575,8 +573,8 @@ def test_direction_difference_separates_theta_dependent_hysteresis_from_noise():
     assert dd["p_value"] < 1e-6
     assert dd["rms_systematic"] == pytest.approx(0.1 / np.sqrt(2), rel=0.15)  # Δ = 2·0.05·sin(3θ)
     # one direction only: nothing to compare
-    one = sa.tabulate_polygon(*(c for c in (np.zeros(9), np.repeat(np.arange(1, 4), 3), np.tile(np.arange(1, 4), 3),
-                                            np.arange(9.0))), 3)
+    one = sa.tabulate_polygon(dict(zip(sa.POLYGON_COLUMNS, (np.zeros(9), np.repeat(np.arange(1, 4), 3),
+                                                            np.tile(np.arange(1, 4), 3), np.arange(9.0)))), 3)
     assert sa.direction_difference(one, np.zeros(3), 0.01) is None
 
 

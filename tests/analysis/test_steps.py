@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.eccentricity import eccentricity_from_dref
-from benchtwin.analysis.radial_motion import radial_motion
+from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 from benchtwin.analysis.results import _check, CCDSection, RadialMotionSection
 from benchtwin.analysis.steps import EccentricityResult, PolygonAnalysis, RadialMotionResult, TraceOutcome
 
@@ -88,7 +88,7 @@ def test_radial_motion_result_section_is_the_documented_one():
     rep = np.repeat([1, 2, 3], 36)
     top = 0.1 * np.sin(np.deg2rad(3 * th)) + rng.normal(0, 0.005, th.size)
     bot = 0.05 * np.cos(np.deg2rad(2 * th)) + rng.normal(0, 0.005, th.size)
-    raw = radial_motion(rep, th, top, bot, 50.0, 150.0, order=5)
+    raw = radial_motion(ProbeReadings(rep, th, top, bot), SphereSpacing(50.0, 150.0), RadialOptions(order=5))
     r = RadialMotionResult.from_radial_motion(raw, {"locations": []})
     assert r.n_reps == 3 and r.dY_um is raw["dY_um"] and r.u_h1_async_um == raw["u_h1_async_um"]
     sec = r.to_json()

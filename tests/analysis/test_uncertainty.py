@@ -66,10 +66,12 @@ def test_gtc_is_the_engine():
 
 
 def test_shift_angle_budget_from_inputs():
-    b = un.shift_angle_budget(u_repeat_alpha=0.13 / math.sqrt(6), dof_repeat_alpha=5, n_faces=24,
-                              u_repeat_beta=0.12 / math.sqrt(6), dof_repeat_beta=5, ac_resolution=0.001,
-                              ac_traceability_U=0.01, ac_error_half_width=0.07, encoder_resolution=0.04,
-                              setup_residual=0.0001, setup_misalignment=0.05)
+    b = un.shift_angle_budget(
+        un.ShiftAngleBudgetInputs(u_repeat_alpha_arcsec=0.13 / math.sqrt(6), dof_repeat_alpha=5, n_faces=24,
+                                  u_repeat_beta_arcsec=0.12 / math.sqrt(6), dof_repeat_beta=5,
+                                  setup_residual_arcsec=0.0001),
+        un.TypeBInputs(ac_resolution_arcsec=0.001, ac_traceability_U_arcsec=0.01, ac_error_half_width_arcsec=0.07,
+                       encoder_resolution_arcsec=0.04, setup_misalignment_arcsec=0.05))
     u = {c.name: c.u for c in b.contributions}
     assert u["Repeatability of angle error measurement"] == pytest.approx(0.0531, abs=1e-4)
     assert u["Resolution of the autocollimator"] == pytest.approx(0.0003, abs=1e-4)

@@ -323,7 +323,10 @@ def test_full_fidelity_simulates_and_analyses_against_the_truth(tmp_path, fixed_
 def test_full_fidelity_repetitions_and_close_loop_on_the_pool(tmp_path, fixed_code_version):
     """Realistic size (jia2019's procedure, 23 faces, 60 CCD frames, order 10): 2 points × 2 reps on
     2 workers, one task per repetition; reps are independent realisations shared across points
-    (common random numbers); the close loop runs because an output needs it."""
+    (common random numbers); the close loop runs because an output needs it. Rolling-path bearings,
+    as in TINY_FULL: with jia2019's ball sets the truth's α grid is one realisation of the cage
+    configuration and the polygon's 23 visits of a stop are 23 others (docs/physics.md), and the grid
+    differs from their mean by ~0.9″ RMS (seed 11), which is no error of the measurement."""
     import pyarrow.parquet as pq
 
     p = _write(tmp_path, """
@@ -335,6 +338,8 @@ def test_full_fidelity_repetitions_and_close_loop_on_the_pool(tmp_path, fixed_co
         outputs = ["measured_angle_error_pv_arcsec", "residual_rms_arcsec", "residual_after_rms_arcsec",
                    "n_identified_effects", "identified.tilt_abbe", "true_angle_error_pv_arcsec",
                    "measurement_error_rms_arcsec", "measured_angle_error_u_arcsec"]
+        [study.fixed]
+        "bearings.type" = "path"
         [[study.parameters]]
         key = "errors.eccentricity"
         values = ["0 um", "7.1 um"]
@@ -343,8 +348,11 @@ def test_full_fidelity_repetitions_and_close_loop_on_the_pool(tmp_path, fixed_co
     assert r["computed"] == 4 and r["output_fidelity"]["identified.tilt_abbe"] == "full+close_loop"
     t = pq.read_table(r["table_parquet"]).to_pylist()
     assert {row["fidelity"] for row in t} == {"full+close_loop"}
+    # measured α against the twin's true α: the stated u plus the shaft's stick-slip twist between disk
+    # and polygon, which the analysis' budget does not hold (the bound of TINY_FULL's test)
+    sigma_twist = 1.2 * 0.02 / (math.sqrt(3.0) * 5000.0) / ARCSEC
     for row in t:
-        assert row["measurement_error_rms_arcsec"] < 3 * row["measured_angle_error_u_arcsec"]
+        assert row["measurement_error_rms_arcsec"] < 2 * math.hypot(row["measured_angle_error_u_arcsec"], sigma_twist)
         assert row["residual_after_rms_arcsec"] <= row["residual_rms_arcsec"] + 1e-9
         assert row["identified.tilt_abbe"] in (0.0, 1.0) and row["n_identified_effects"] >= 0
     by = {(row["point"], row["rep"]): row for row in t}

@@ -33,10 +33,10 @@ def test_every_sim_instrument_conforms(twin):
 
 
 def test_sim_stage_soft_limits_follow_the_driver_contract(twin):
-    from benchtwin.twin.instruments.stage import SimRotaryStage
+    from benchtwin.twin.instruments.stage import SimRotaryStage, StageSpec
 
     state, inst = twin
-    stage = SimRotaryStage("limited", state, inst["encoder"], soft_limits_deg=(-1.0, 361.0))
+    stage = SimRotaryStage("limited", state, inst["encoder"], StageSpec(soft_limits_deg=(-1.0, 361.0)))
     assert stage.describe()["soft_limits_deg"] == [-1.0, 361.0]
     assert check_conformance(stage, "stage", move_to_deg=30.0) == []
     t0, pos0 = state.clock.now(), stage.position()["angle_deg"]
@@ -45,4 +45,4 @@ def test_sim_stage_soft_limits_follow_the_driver_contract(twin):
     assert state.clock.now() == t0 and stage.position()["angle_deg"] == pos0   # nothing moved, no time passed
     assert stage.move_to(361.0)["status"] == "ok"                              # the limits themselves are allowed
     with pytest.raises(ValueError, match="low < high"):
-        SimRotaryStage("bad", state, inst["encoder"], soft_limits_deg=(10.0, 0.0))
+        SimRotaryStage("bad", state, inst["encoder"], StageSpec(soft_limits_deg=(10.0, 0.0)))

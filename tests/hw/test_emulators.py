@@ -18,7 +18,7 @@ from benchtwin.twin.emulators.millimar import MillimarEmulator
 from benchtwin.twin.emulators.pty import PtyServer, load_fault_plan
 from benchtwin.twin.emulators.tesa import TesaEmulator
 from benchtwin.twin.emulators.triangle import TriAngleEmulator
-from benchtwin.twin.emulators.zaber import ZaberEmulator
+from benchtwin.twin.emulators.zaber import ZaberDeviceSpec, ZaberEmulator
 
 from tests.support.acquisition import Stub
 
@@ -112,7 +112,7 @@ def test_heidenhain_current_value_two_heads():
 
 def test_zaber_move_poll_get_set():
     src = Stub()
-    z = ZaberEmulator("stage", src, microsteps_per_deg=1000, busy_polls=1)
+    z = ZaberEmulator("stage", src, ZaberDeviceSpec(microsteps_per_deg=1000, busy_polls=1))
     # zaber.md: "/1 1 move abs 90000" LF -> "@01 1 OK BUSY -- 0" CR LF; polls until IDLE
     assert one(z, b"/1 1 move abs 90000\n") == b"@01 1 OK BUSY -- 0\r\n"
     assert src.moves == [90.0]
@@ -228,7 +228,7 @@ def test_zaber_message_ids_checksums_and_identity():
 
 def test_zaber_alerts_info_and_warnings():
     src = Stub()
-    z = ZaberEmulator("stage", src, busy_polls=1)
+    z = ZaberEmulator("stage", src, ZaberDeviceSpec(busy_polls=1))
     assert one(z, b"/1 0 set comm.alert 1\n") == b"@01 0 OK IDLE -- 0\r\n"
     assert one(z, b"/1 1 move abs 1000\n") == b"@01 1 OK BUSY -- 0\r\n"
     # the move ends after the last BUSY reply: the unsolicited alert follows it (zaber.md)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from benchtwin.twin.hidden import Hidden
-from benchtwin.twin.instruments.encoder_head import SimEncoder
+from benchtwin.twin.instruments.encoder_head import EncoderSpec, SimEncoder
 from benchtwin.twin.instruments.graduation import (SCANNING_FIELD_LINES, HeadMap, brownian_bridge,
                                                     declared_line_map, dirichlet_factor, eccentric_ruling,
                                                     harmonics, remove_orders, scanning_average)
@@ -109,8 +109,8 @@ def test_encoder_reads_declared_plus_hidden_map_with_its_own_streams():
     st = SimBenchState(seed=11)
 
     def enc(hidden):
-        e = SimEncoder("encoder", st, radius_m=22e-3, n_lines=N, resolution_rad=0.0,
-                       graduation_error_rms_rad=1.0 * ARCSEC, seed=11)
+        e = SimEncoder("encoder", st, EncoderSpec(radius_m=22e-3, n_lines=N, resolution_rad=0.0,
+                                                  graduation_error_rms_rad=1.0 * ARCSEC), seed=11)
         e.hidden = hidden
         return e
 

@@ -165,22 +165,31 @@ def test_ccd_pixel_scale_changes_only_the_images():
 
 
 def test_tangential_motion_is_a_race_waviness_whirl():
-    """The hidden race waviness (3 and 5 lobes, both bearings) goes through the path bearing's
-    model: each lobe whirls the axis, so the X probes AND the Y probes see it (the old template
-    moved X only); the head on +Y reads −δX/r."""
-    d, _, _ = diff("tangential_motion")
+    """The hidden race waviness (3 and 5 lobes, both bearings) goes through the bearing model. On a
+    path bearing (a replay: the lobes imposed as whirls) each lobe whirls the axis, so the X probes
+    AND the Y probes see it (the old template moved X only); the head on +Y reads −δX/r. On the
+    suite's ball bearings (issue 33: scenarios/hidden/ state jia2019's 12-ball pair) the lobes sit on
+    the inner race, and Wardle's rule lets orders 3 and 5 move the centre only through the contacts'
+    non-linearity and gravity's load zone: a small fraction of the imposed whirl."""
+    sc = load("tangential_motion").with_overrides({"bearings.type": "path"})
+    a, b = channels(sc), channels(without_hidden(sc))
+    d = {k: a[k] - b[k] for k in a}
     assert peak(d["alpha"]) > 0.8                      # −δX/r: 0.12 µm / 22 mm ≈ 1.1″
     assert peak(d["probe_top_x"]) > 0.1 and peak(d["probe_bottom_x"]) > 0.1
     assert peak(d["probe_top"]) > 0.1 and peak(d["probe_bottom"]) > 0.1
     # a rigid translation: head on +Y reads −δX/r (small-angle, to a few %)
     np.testing.assert_allclose(d["alpha"], -d["probe_top_x"] * 1e-6 / 22e-3 / ARCSEC, atol=0.05)
+    ball, _, _ = diff("tangential_motion")
+    assert 0.0 < peak(ball["alpha"]) < 0.2 * peak(d["alpha"])
 
 
 def test_tilt_abbe_moves_the_spheres_not_the_disk():
     d, _, _ = diff("tilt_abbe")
-    assert peak(d["alpha"]) < 0.01
+    # < 0.02″: on the suite's ball bearings (issue 33) the spheres' 10 mm shift moves their weight
+    # along the shaft, which shifts the balls' load zone: 0.014″ at the disk (0 on a path bearing)
+    assert peak(d["alpha"]) < 0.02
     assert peak(d["probe_top"]) > 0.02                 # the top sphere sits 10 mm further from the disk
-    assert peak(d["ac"]) < 0.011
+    assert peak(d["ac"]) < 0.021                    # the same 0.014″, read at 0.005″ resolution
 
 
 def test_ac_drift_grows_with_time_in_the_autocollimator_only():

@@ -181,10 +181,13 @@ def test_interpolation_error_is_heydemann_from_the_signals():
 
 
 def test_tangential_motion_whirls_through_the_path_bearing():
-    sc = load("tangential_motion")
+    """On a path bearing (a replay; the suite's scenarios state ball bearings since issue 33) the
+    hidden lobes are imposed whirls of the rolling paths."""
+    sc = load("tangential_motion").with_overrides({"bearings.type": "path"})
     bench = Bench(sc)
     raw = dict(sc.raw)
     raw.pop("hidden")
+    raw["bearings"] = {**raw["bearings"], "type": "path"}
     plain = Bench(validate(raw, "plain"))
     th = np.linspace(0, 2 * np.pi, 64, endpoint=False)
     d = np.array([bench.race_offsets_m(t, include_async=False) - plain.race_offsets_m(t, include_async=False)

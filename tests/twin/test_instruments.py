@@ -22,9 +22,9 @@ import pytest
 
 from benchtwin.hw.acquisition.runner import SimClock
 from benchtwin.hw.interfaces import INSTRUMENT_KINDS, check_image
-from benchtwin.twin.instruments.autocollimator import SimAutocollimator
-from benchtwin.twin.instruments.encoder_head import GRADUATION_FIXED_POINT_TOL_RAD, SimEncoder
-from benchtwin.twin.instruments.probe import SimProbe
+from benchtwin.twin.instruments.autocollimator import AutocollimatorSpec, SimAutocollimator
+from benchtwin.twin.instruments.encoder_head import GRADUATION_FIXED_POINT_TOL_RAD, EncoderSpec, SimEncoder
+from benchtwin.twin.instruments.probe import ProbeSpec, SimProbe
 from benchtwin.twin.instruments.stage import (ARCSEC, SimBenchState, SimRotaryStage, sim_hsieh_to_physics_face,
                                               sim_rz)
 
@@ -39,8 +39,9 @@ def rx(a):
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
 
 
-def ideal_encoder(state, heads=(0.0,), **kw):
-    return SimEncoder("encoder", state, heads_rad=heads, radius_m=R_OPT, n_lines=7069, resolution_rad=0.0, **kw)
+def ideal_encoder(state, heads=(0.0,), seed=0, **kw):
+    return SimEncoder("encoder", state, EncoderSpec(heads_rad=heads, radius_m=R_OPT, n_lines=7069, resolution_rad=0.0, **kw),
+                      seed=seed)
 
 
 # --------------------------------------------------------------------------- encoder
@@ -187,7 +188,8 @@ def test_interpolation_error_periodic_in_the_grating_pitch():
 def test_encoder_noise_resolution_and_protocol():
     st = SimBenchState(seed=5, pose=make_pose(math.radians(10.0)))
     res, noise = 0.39 * ARCSEC, 0.05 * ARCSEC
-    enc = SimEncoder("encoder", st, heads_rad=[0.0, math.pi], radius_m=R_OPT, resolution_rad=res, noise_rad=noise, seed=5)
+    enc = SimEncoder("encoder", st, EncoderSpec(heads_rad=[0.0, math.pi], radius_m=R_OPT, resolution_rad=res, noise_rad=noise),
+                     seed=5)
     assert isinstance(enc, INSTRUMENT_KINDS["encoder"])
     r = enc.read()
     assert set(r) >= {"heads_deg", "angle_deg", "t_s", "status"} and r["status"] == "ok"
@@ -208,9 +210,10 @@ def test_encoder_noise_resolution_and_protocol():
 
 # --------------------------------------------------------------------------- probes
 
-def probe(st, sphere="top", axis="y", side=1, **kw):
+def probe(st, sphere="top", axis="y", side=1, seed=0, **kw):
     z = Z_TOP if sphere == "top" else Z_BOT
-    return SimProbe(f"p_{sphere}_{axis}", st, sphere, axis, side, sphere_radius_m=SPHERE_R, nominal_z_m=z, **kw)
+    spec = ProbeSpec(sphere, axis, side, sphere_radius_m=SPHERE_R, nominal_z_m=z, **kw)
+    return SimProbe(f"p_{sphere}_{axis}", st, spec, seed=seed)
 
 
 @pytest.mark.parametrize("side", [1, -1])
@@ -294,7 +297,7 @@ def test_autocollimator_exact_reflection_sign_and_tilt():
     assert abs(beta.sum()) < 1e-18
     faces = 2 * np.pi * np.arange(N) / N + np.concatenate([[0.0], np.cumsum(beta[:-1])])
     st = SimBenchState(seed=1, n_faces=N, polygon_setup_rms_rad=0.0)
-    ac = SimAutocollimator("ac", st, range_rad=1000 * ARCSEC)
+    ac = SimAutocollimator("ac", st, AutocollimatorSpec(range_rad=1000 * ARCSEC))
     assert isinstance(ac, INSTRUMENT_KINDS["autocollimator"])
     # polygon turned by +d (CCW): reading −d
     for d in np.array([-300.0, -1.0, 0.0, 2.5, 400.0]) * ARCSEC:
@@ -316,8 +319,8 @@ def test_autocollimator_exact_reflection_sign_and_tilt():
 
 def test_autocollimator_drift_range_resolution():
     st = SimBenchState(seed=1, n_faces=12, polygon_setup_rms_rad=0.0, clock=SimClock())
-    ac = SimAutocollimator("ac", st, resolution_rad=0.005 * ARCSEC, range_rad=100 * ARCSEC,
-                           drift_rate_rad_s=1.0 * ARCSEC / 3600.0)
+    ac = SimAutocollimator("ac", st, AutocollimatorSpec(resolution_rad=0.005 * ARCSEC, range_rad=100 * ARCSEC,
+                                                  drift_rate_rad_s=1.0 * ARCSEC / 3600.0))
     st.pose = make_pose(-10 * ARCSEC)
     r0 = ac.read()
     st.clock.advance(1800.0)
@@ -355,7 +358,7 @@ def test_polygon_readings_obey_hsieh_eq3_on_a_rigid_bench():
     st = SimBenchState(fb, SimClock(), polygon_setup_rms_rad=1.0 * ARCSEC)
     enc = ideal_encoder(st)
     stage = SimRotaryStage("stage", st, enc)
-    ac = SimAutocollimator("autocollimator", st, range_rad=1000 * ARCSEC)
+    ac = SimAutocollimator("autocollimator", st, AutocollimatorSpec(range_rad=1000 * ARCSEC))
     rows = Runner({"stage": stage, "encoder": enc, "autocollimator": ac}, st.clock, on_step=st.on_step).run(
         polygon_shift_angle(N, [0.0, 5.0], directions=("forward", "backward")))
     assert len(rows) == 2 * (N * N + N)
@@ -378,14 +381,14 @@ def test_polygon_readings_obey_hsieh_eq3_on_a_rigid_bench():
 # --------------------------------------------------------------------------- camera
 
 def test_camera_capture_shape_and_truth():
-    from benchtwin.twin.instruments.camera import SimCamera
+    from benchtwin.twin.instruments.camera import CcdOptics, SimCamera
     from benchtwin.twin.render import GratingSpec, SensorParams
 
     st = SimBenchState(seed=4, pose=eccentric_pose(0.2, 7.1e-6, math.radians(192.08)))
     sensor = SensorParams(width_px=256, height_px=192, dust_count=0, scratch_count=0)
     cam = sensor.camera(math.pi)
     grating = GratingSpec(period_m=20e-6, duty=0.5, line_length_m=1.2e-3, edge_radius_m=22.5e-3)
-    with SimCamera("ccd", st, grating, cam, sensor, backend="analytic") as c:
+    with SimCamera("ccd", st, CcdOptics(grating, cam, sensor), backend="analytic") as c:
         assert isinstance(c, INSTRUMENT_KINDS["camera"])
         r = c.capture()
         geo = c.sim_frame_truth()

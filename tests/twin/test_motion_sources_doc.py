@@ -65,12 +65,49 @@ def test_rows_follow_the_resolved_values(tmp_path):
     assert "Bryan 1990" in shipped["temperatures (drive every thermal row below)"].size_source
 
 
-def test_path_bearing_rows_say_the_whirl_is_imposed():
+def test_path_bearing_rows_say_the_whirl_is_imposed(tmp_path):
+    """A path bearing (a replay) still says what the code imposes: built from the old null_paper
+    bearing block, since no shipped bench uses one any more."""
     ms = _module()
-    rows = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "hidden" / "null_paper.toml")}
+    src = (ROOT / "scenarios" / "hidden" / "null_paper.toml").read_text(encoding="utf-8")
+    i, j = src.index("[bearings]"), src.index("[errors]")
+    block = """[bearings]
+type = "path"
+radial_stiffness = "150 N/um"
+waviness_top = [ { order = 2, amplitude = "0.15 um", phase = "30 deg" },
+                 { order = 3, amplitude = "0.10 um", phase = "110 deg" },
+                 { order = 5, amplitude = "0.05 um", phase = "200 deg" } ]
+waviness_bottom = [ { order = 2, amplitude = "0.10 um", phase = "250 deg" },
+                    { order = 4, amplitude = "0.06 um", phase = "80 deg" } ]
+async_rms = "0.06 um"               # non-repeating motion, rep to rep (fig. 13: 0.3 µm range over 3 reps)
+
+"""
+    p = tmp_path / "hidden" / "null_paper.toml"
+    p.parent.mkdir()
+    p.write_text(src[:i] + block + src[j:], encoding="utf-8")
+    rows = {r.source: r for r in ms.bench_rows(p)}
     wav = rows["path bearing: race waviness"]
     assert "FORWARD whirl" in wav.mechanism
     assert wav.size == "top: k=2 0.15 µm, k=3 0.1 µm, k=5 0.05 µm; bottom: k=2 0.1 µm, k=4 0.06 µm"
     assert rows["path bearing: random non-repeating motion"].keyed_by.endswith("not time")
     assert rows["path bearing: cage lobing"].size_source.startswith(
         "`bearings.async_rms`: Jia 2019 fig. 13")
+    replay = rows["path bearing: the REPLAY of a given rolling path (not a bearing model)"]
+    assert "none stated" in replay.size_source
+
+
+def test_no_shipped_bench_imposes_a_whirl_and_air_motion_is_keyed_by_time():
+    """Issue 33 item 1: every bench in scenarios/ runs on a bearing model (ball or air); the only
+    path bearings are the template stress cases' ideal (zero) paths, with their provenance."""
+    ms = _module()
+    for path in ms.scenario_files():
+        rows = ms.bench_rows(path)
+        assert not any("FORWARD whirl" in r.mechanism for r in rows), path
+        replay = [r for r in rows if r.source.startswith("path bearing")]
+        if replay:
+            assert path.parent.name == "hidden_templates"
+            assert "synthetic: an ideal rolling path" in replay[0].size_source
+    rows = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "hsieh2022.toml")}
+    assert rows["air bearings: supply-pressure fluctuation (asynchronous)"].keyed_by == ms.KEY_TIME
+    assert "backward at qN−1" in rows["air bearings: journal form through the film"].mechanism
+    assert "K = 116 N/µm" in rows["air bearings: film stiffness"].size

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from benchtwin.twin.instruments.autocollimator import SimAutocollimator
+from benchtwin.twin.instruments.autocollimator import AutocollimatorSpec, SimAutocollimator
 from benchtwin.twin.instruments.stage import SimBenchState
 from benchtwin.twin.physics import ARCSEC, Bench
 from benchtwin.twin.scenario import default_scenario_path, load_scenario
@@ -84,7 +84,7 @@ def test_hsieh2022_thermal_drift_over_the_run():
     assert 0.05 < abs(dT_s) < 2.0                       # the run is long enough to see the bench warm
     # the autocollimator, read at one pose at t = 0 and at t_end (noise off)
     st = SimBenchState(b)
-    ac = SimAutocollimator("ac", st, noise_rad=0.0, resolution_rad=0.0, accuracy_rad=0.0)
+    ac = SimAutocollimator("ac", st, AutocollimatorSpec(noise_rad=0.0, resolution_rad=0.0, accuracy_rad=0.0))
     st.pose = b.pose_at(0.0, t_s=0.0)
     r0 = ac.read()["x_arcsec"]
     st.clock.set(t_end)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from typing import Any, Protocol
 
 __all__ = ["ReadingSource", "ProtocolEmulator", "decimals_for", "Framing"]
@@ -61,6 +62,18 @@ class ProtocolEmulator:
     DRIVER = ""            # the bench-file driver name that talks this protocol
     SERIAL: dict[str, Any] = {}
     TCP_PORT = 0           # the instrument's own TCP port where its Ethernet interface has one (0: any)
+
+    def __init_subclass__(cls, protocol: str | None = None, serial: Mapping[str, Any] | None = None,
+                          **kwargs: Any) -> None:
+        """``class X(ProtocolEmulator, protocol="tesa", serial={...})``: the protocol's name, which
+        is also its driver's and names its document (docs/protocols/<name>.md), and the line
+        settings. A class may instead set ``PROTOCOL``, ``DRIVER``, ``PROTOCOL_DOC``, ``SERIAL``."""
+        super().__init_subclass__(**kwargs)
+        if protocol is not None:
+            cls.PROTOCOL = cls.DRIVER = protocol
+            cls.PROTOCOL_DOC = f"docs/protocols/{protocol}.md"
+        if serial is not None:
+            cls.SERIAL = dict(serial)
 
     def __init__(self, name: str, source: ReadingSource):
         self.name = str(name)
@@ -139,6 +152,38 @@ class ProtocolEmulator:
     def handle(self, request: bytes) -> bytes | None:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def reading(self, instrument: str, *keys: str) -> tuple[float, ...] | None:
+        """The values ``keys`` of the source's reading of ``instrument``, or None where the twin
+        reports no valid reading (a status other than "ok", or a value that is not finite): each
+        protocol then sends its own out-of-range reply."""
+        r = self.source.read(instrument)
+        values = tuple(float(r[k]) for k in keys)
+        if r.get("status", "ok") != "ok" or not all(math.isfinite(v) for v in values):
+            return None
+        return values
+
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "protocol": self.PROTOCOL, "protocol_doc": self.PROTOCOL_DOC,
                 "driver": self.DRIVER, "serial": dict(self.SERIAL)}
+
+
+class ReadingEmulator(ProtocolEmulator):
+    """An instrument that reports one reading of the source (``instrument``, default
+    ``INSTRUMENT``) with ``decimals`` decimals (default ``DECIMALS``): the probe displays and the
+    autocollimators."""
+
+    INSTRUMENT = ""
+    DECIMALS = 2
+
+    def __init_subclass__(cls, instrument: str | None = None, decimals: int | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if instrument is not None:
+            cls.INSTRUMENT = instrument
+        if decimals is not None:
+            cls.DECIMALS = int(decimals)
+
+    def __init__(self, name: str, source: ReadingSource, instrument: str | None = None,
+                 decimals: int | None = None):
+        super().__init__(name, source)
+        self.instrument = self.INSTRUMENT if instrument is None else instrument
+        self.decimals = int(self.DECIMALS if decimals is None else decimals)

@@ -11,25 +11,19 @@ an unknown request gets no reply.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
-from ._base import ProtocolEmulator
+from ._base import ReadingEmulator
 
 __all__ = ["ElcomatEmulator"]
 
 
-class ElcomatEmulator(ProtocolEmulator):
-    PROTOCOL = "elcomat"
-    PROTOCOL_DOC = "docs/protocols/elcomat.md"
-    DRIVER = "elcomat"
-    SERIAL = {"baudrate": 19200, "bytesize": 8, "parity": "N", "stopbits": 1}
+class ElcomatEmulator(ReadingEmulator, protocol="elcomat", instrument="autocollimator", decimals=3,
+                      serial={"baudrate": 19200, "bytesize": 8, "parity": "N", "stopbits": 1}):
     NOT_OK_CODE = "4 000"
 
-    def __init__(self, name: str, source: Any, instrument: str = "autocollimator", decimals: int = 3):
-        super().__init__(name, source)
-        self.instrument = instrument
-        self.decimals = int(decimals)
+    def __init__(self, name: str, source: Any, instrument: str | None = None, decimals: int | None = None):
+        super().__init__(name, source, instrument, decimals)
         self.zero: tuple[float, float] | None = None
 
     def _line(self, code: str, x: float, y: float) -> bytes:
@@ -40,10 +34,10 @@ class ElcomatEmulator(ProtocolEmulator):
         cmd = request.strip()
         if cmd not in (b"a", b"r"):
             return None
-        r = self.source.read(self.instrument)
-        x, y = float(r["x_arcsec"]), float(r["y_arcsec"])
-        if r.get("status", "ok") != "ok" or not (math.isfinite(x) and math.isfinite(y)):
+        got = self.reading(self.instrument, "x_arcsec", "y_arcsec")
+        if got is None:
             return self._line(self.NOT_OK_CODE, 0.0, 0.0)
+        x, y = got
         if cmd == b"a":
             return self._line("4 003", x, y)
         if self.zero is None:

@@ -10,7 +10,6 @@ an unknown command gets no reply.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -19,11 +18,8 @@ from ._base import ProtocolEmulator
 __all__ = ["MillimarEmulator"]
 
 
-class MillimarEmulator(ProtocolEmulator):
-    PROTOCOL = "millimar"
-    PROTOCOL_DOC = "docs/protocols/millimar.md"
-    DRIVER = "millimar"
-    SERIAL = {"baudrate": 9600, "bytesize": 7, "parity": "E", "stopbits": 2}
+class MillimarEmulator(ProtocolEmulator, protocol="millimar",
+                       serial={"baudrate": 9600, "bytesize": 7, "parity": "E", "stopbits": 2}):
 
     def __init__(self, name: str, source: Any, channels: Mapping[int, str] | None = None, decimals: int = 2):
         super().__init__(name, source)
@@ -37,12 +33,11 @@ class MillimarEmulator(ProtocolEmulator):
         inst = self.channels.get(n)
         if inst is None:
             return f"{n} ERR6"
-        r = self.source.read(inst)
-        v = float(r["value_um"])
-        if r.get("status", "ok") != "ok" or not math.isfinite(v):
+        got = self.reading(inst, "value_um")
+        if got is None:
             return f"{n} ERR1"
         d = self.decimals
-        return f"{n} {v:+0{d + 5}.{d}f} um"
+        return f"{n} {got[0]:+0{d + 5}.{d}f} um"
 
     def handle(self, request: bytes) -> bytes | None:
         cmd = request.strip()

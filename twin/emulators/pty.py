@@ -49,64 +49,15 @@ import os
 import select
 import tempfile
 import termios
-import threading
 import time
 import tty
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from benchtwin.schema import Key, SchemaError, check_table, check_version, loads_json, loads_toml, read_input_text
+from .byteserver import FAULT_ACTIONS, BytePort, ByteServer, fault_reply, load_fault_plan
 
-__all__ = ["PtyServer", "load_fault_plan", "FAULT_ACTIONS"]
-
-FAULT_ACTIONS = ("drop", "garble", "partial", "delay", "disconnect")
-MAX_FAULTS = 10_000
-# the fault plan's schema (benchtwin.schema: the one validator mechanism of the input files)
-FAULT_PLAN_KEYS = {"version": Key("int"), "faults": Key("list")}
-FAULT_KEYS = {
-    "port": Key("str", required=True, n_min=1, n_max=64, doc="the port's name in the bench file"),
-    "request": Key("int", required=True, lo=1, hi=10**9, doc="the n-th request on that port"),
-    "action": Key("str", required=True, choices=FAULT_ACTIONS),
-    "seconds": Key("float", lo=0.0, hi=3600.0, doc="delay/disconnect duration"),
-}
-
-
-def load_fault_plan(source: str | Path | Mapping[str, Any] | list | None) -> list[dict[str, Any]]:
-    """A validated fault list from a file (TOML or JSON), a ``{"faults": [...]}`` dict or a list."""
-    where = "<fault plan>"
-    if source is None:
-        return []
-    if isinstance(source, (str, Path)):
-        p = Path(source)
-        where = str(p)
-        if not p.exists():
-            raise ValueError(f"{p}: no such fault plan file")
-        # bounded, regular, UTF-8, nesting-limited, finite numbers (benchtwin.schema; issue #13)
-        try:
-            text = read_input_text(p, what="fault plan")
-            data: Any = loads_json(text, where) if p.suffix == ".json" else loads_toml(text, where)
-        except SchemaError as exc:
-            raise ValueError(str(exc)) from None
-    else:
-        data = source
-    if isinstance(data, Mapping):
-        check_version(data, where, fail=ValueError)
-        check_table(data, FAULT_PLAN_KEYS, where, fail=ValueError)
-        items = data.get("faults", [])
-    else:
-        items = data
-    if not isinstance(items, list) or len(items) > MAX_FAULTS:
-        raise ValueError(f"{where}: key 'faults': expected an array of at most {MAX_FAULTS} tables")
-    out = []
-    for k, f in enumerate(items):
-        # one declarative check (benchtwin.schema.check_table): seconds = nan stops here, not in
-        # the emulator's port thread (issue #13)
-        f = check_table(f, FAULT_KEYS, where, at=f"faults[{k}]", fail=ValueError)
-        out.append({"port": f["port"], "request": int(f["request"]), "action": f["action"],
-                    "seconds": float(f.get("seconds", 0.0))})
-    return out
-
+__all__ = ["PtyServer", "load_fault_plan", "FAULT_ACTIONS", "fault_reply"]
 
 PRISTINE = termios.B50   # the speed an idle port is parked at: no client uses 50 baud
 _SPEEDS = {getattr(termios, f"B{b}"): b for b in (50, 75, 110, 134, 150, 200, 300, 600, 1200, 1800, 2400, 4800,
@@ -140,18 +91,13 @@ def client_framing(fd: int) -> dict[str, Any] | None:
             "stopbits": 2 if attrs[2] & termios.CSTOPB else 1, "parity_odd": bool(attrs[2] & termios.PARODD)}
 
 
-class _Port:
-    def __init__(self, name: str, emulator: Any, link: Path):
-        self.name = name
-        self.emulator = emulator
+class _Port(BytePort):
+    def __init__(self, name: str, emulator: Any, link: Path, faults: Mapping[int, dict[str, Any]]):
+        super().__init__(name, emulator, faults)
         self.link = link
         self.master = -1
         self.slave = -1
         self.pts = ""
-        self.count = 0
-        self.faults: dict[int, dict[str, Any]] = {}
-        self.fired: list[dict[str, Any]] = []
-        self.thread: threading.Thread | None = None
         self.open()
 
     def open(self) -> None:
@@ -184,36 +130,20 @@ class _Port:
         self.master = self.slave = -1
 
 
-class PtyServer:
-    """Serve ``emulators`` (``{port name: ProtocolEmulator}``) on pseudo-terminals."""
+class PtyServer(ByteServer):
+    """Serve ``emulators`` (``{port name: ProtocolEmulator}``) on pseudo-terminals (the loop:
+    byteserver.ByteServer)."""
 
     def __init__(self, emulators: Mapping[str, Any], faults: Any = None, link_dir: str | Path | None = None,
                  poll_s: float = 0.02):
         self.link_dir = Path(link_dir) if link_dir is not None else Path(tempfile.mkdtemp(prefix="benchtwin-emu-"))
         self.link_dir.mkdir(parents=True, exist_ok=True)
-        self.emulators = dict(emulators)
-        self.plan = load_fault_plan(faults)
-        unknown = sorted({f["port"] for f in self.plan} - set(self.emulators))
-        if unknown:
-            raise ValueError(f"fault plan names unknown port(s) {unknown}; ports: {sorted(self.emulators)}")
-        self.poll_s = float(poll_s)
-        self.lock = threading.Lock()
-        self._stop = threading.Event()
-        self.ports: dict[str, _Port] = {}
-        self.errors: list[str] = []
+        super().__init__(emulators, faults, poll_s)
 
     # ------------------------------------------------------------------ lifecycle
-    def start(self) -> dict[str, str]:
+    def _open_ports(self) -> None:
         for name, emu in self.emulators.items():
-            p = _Port(name, emu, self.link_dir / name)
-            for f in self.plan:
-                if f["port"] == name:
-                    p.faults[f["request"]] = f
-            self.ports[name] = p
-        for p in self.ports.values():
-            p.thread = threading.Thread(target=self._serve, args=(p,), name=f"emu-{p.name}", daemon=True)
-            p.thread.start()
-        return self.paths()
+            self.ports[name] = _Port(name, emu, self.link_dir / name, self.faults_of(name))
 
     def paths(self) -> dict[str, str]:
         """Stable paths (the links) of every port."""
@@ -223,64 +153,38 @@ class PtyServer:
         """Current pseudo-terminal device of every port."""
         return {n: p.pts for n, p in self.ports.items()}
 
-    def fired(self) -> list[dict[str, Any]]:
-        return [f for p in self.ports.values() for f in p.fired]
+    def _close_port(self, p: _Port) -> None:
+        p.close()
+        try:
+            p.link.unlink()
+        except OSError:
+            pass
 
-    def stop(self) -> None:
-        self._stop.set()
-        for p in self.ports.values():
-            if p.thread is not None:
-                p.thread.join(timeout=2.0)
-            p.close()
-            try:
-                p.link.unlink()
-            except OSError:
-                pass
-
-    def __enter__(self) -> "PtyServer":
-        if not self.ports:
-            self.start()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.stop()
-
-    # ------------------------------------------------------------------ serving
-    def _serve(self, p: _Port) -> None:
-        while not self._stop.is_set():
-            try:
-                r, _, _ = select.select([p.master], [], [], self.poll_s)
-            except (OSError, ValueError):
+    # ------------------------------------------------------------------ the pseudo-terminal transport
+    def _receive(self, p: _Port) -> bytes | None:
+        try:
+            r, _, _ = select.select([p.master], [], [], self.poll_s)
+        except (OSError, ValueError):
+            time.sleep(self.poll_s)
+            return None
+        if not r:
+            self._watch(p)
+            return None
+        try:
+            data = os.read(p.master, 4096)
+        except BlockingIOError:
+            return None
+        except OSError as exc:
+            if exc.errno == errno.EIO:  # no slave open (cannot happen while we hold one)
                 time.sleep(self.poll_s)
-                continue
-            if not r:
-                self._watch(p)
-                continue
-            try:
-                data = os.read(p.master, 4096)
-            except BlockingIOError:
-                continue
-            except OSError as exc:
-                if exc.errno == errno.EIO:  # no slave open (cannot happen while we hold one)
-                    time.sleep(self.poll_s)
-                    continue
-                raise
-            if not data:
-                continue
+                return None
+            raise
+        if data:
             self._watch(p)  # after the read: a client sets its line before it writes
-            try:
-                with self.lock:
-                    exchanges = p.emulator.feed(data)
-            except Exception as exc:  # noqa: BLE001 - an emulator bug must not kill the port silently
-                self.errors.append(f"{p.name}: {type(exc).__name__}: {exc}")
-                continue
-            for _req, reply in exchanges:
-                reply, disconnect = fault_reply(p, reply)
-                if disconnect:
-                    p.reopen()
-                    break  # the rest of this read went to the dead port
-                if reply:
-                    self._write(p, reply)
+        return data
+
+    def _disconnect(self, p: _Port) -> None:
+        p.reopen()
 
     def _watch(self, p: _Port) -> None:
         """A client (re)configured the port since the last look: a connection (module docstring)."""
@@ -291,7 +195,7 @@ class PtyServer:
         with self.lock:
             p.emulator.connect(framing)
 
-    def _write(self, p: _Port, data: bytes) -> None:
+    def _reply(self, p: _Port, data: bytes) -> None:
         view = memoryview(data)
         while view:
             try:
@@ -299,27 +203,3 @@ class PtyServer:
                 view = view[n:]
             except BlockingIOError:
                 select.select([], [p.master], [], self.poll_s)
-
-
-def fault_reply(port: Any, reply: bytes | None) -> tuple[bytes | None, bool]:
-    """Count one request/reply exchange of ``port`` (pty or TCP: ``count``, ``faults``, ``fired``)
-    and apply the fault plan's action planned for it. Returns (the bytes to send, or None; whether
-    to disconnect the client). One implementation for both servers, so a fault plan means the same
-    on a pseudo-terminal and on a socket."""
-    port.count += 1
-    fault = port.faults.get(port.count)
-    if fault is None:
-        return reply, False
-    port.fired.append(dict(fault))
-    act = fault["action"]
-    if act == "disconnect":
-        return None, True
-    if act == "drop" or reply is None:
-        return None, False
-    if act == "garble":
-        return b"#" + reply[1:], False
-    if act == "partial":
-        return reply[:-1], False
-    if act == "delay":
-        time.sleep(fault["seconds"])
-    return reply, False

@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import math
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from benchtwin.fsio import atomic_write_text
 from benchtwin.hw.acquisition.procedures import specs_toml
+from benchtwin.schema import toml_value
 from benchtwin.units import ARCSEC
 
 from ._base import decimals_for
@@ -44,9 +46,9 @@ from .pty import PtyServer
 from .tcp import TcpServer
 from .tesa import TesaEmulator
 from .triangle import TriAngleEmulator
-from .zaber import ZaberEmulator
+from .zaber import ZaberDeviceSpec, ZaberEmulator
 
-__all__ = ["EmulationSession", "build_emulators", "bench_file_text"]
+__all__ = ["EmulationSession", "SessionOptions", "build_emulators", "bench_file_text"]
 
 MICROSTEPS_PER_DEG = 1000.0
 
@@ -63,7 +65,7 @@ def build_emulators(sc: Any, backend: EmulatedBench, autocollimator: str = "elco
     pr_dec = decimals_for(float(ins["probe"]["resolution"]) * 1e6, 2, 4)
     emus: dict[str, Any] = {
         "encoder": HeidenhainEmulator("encoder", backend, "encoder", decimals=6),
-        "stage": ZaberEmulator("stage", backend, MICROSTEPS_PER_DEG),
+        "stage": ZaberEmulator("stage", backend, ZaberDeviceSpec(microsteps_per_deg=MICROSTEPS_PER_DEG)),
     }
     if autocollimator == "elcomat":
         emus["autocollimator"] = ElcomatEmulator("autocollimator", backend, "autocollimator", ac_dec)
@@ -84,10 +86,6 @@ def build_emulators(sc: Any, backend: EmulatedBench, autocollimator: str = "elco
     return emus
 
 
-def _q(x: float, unit: str) -> str:
-    return f'"{x:.12g} {unit}"'
-
-
 def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], timeout_s: float = 0.25,
                     camera: Any = None, frames_dir: str | Path | None = None, session: str | None = None) -> str:
     """A ready-to-use bench file for the emulated instruments (docs/bench-file.md). ``camera``:
@@ -97,36 +95,36 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     b = sc["bench"]
     from benchtwin.twin.instruments.encoder_head import sim_lines_from_bench
 
-    heads = ", ".join(_q(_deg(h), "deg") for h in b["heads"])
+    heads = ", ".join(toml_value(_deg(h), "deg") for h in b["heads"])
     lines = [
         f"# Written by `benchtwin emulate` for scenario {sc.name!r} (seed {sc.seed}).",
         ("# The ports are loopback TCP sockets served by the emulator; they exist while it runs."
          if any(str(v).startswith("tcp://") for v in ports.values()) else
          "# The ports are links to pseudo-terminals served by the emulator; they exist while it runs."),
-        "", "[bench]", f'name = "{sc.name}-emulated"', 'source = "emulated"',
-        f'description = "emulated instruments of scenario {sc.name} (benchtwin emulate)"',
-        *([f'session = "{session}"           # this emulator session: a resume against another is refused']
+        "", "[bench]", f"name = {toml_value(sc.name + '-emulated')}", 'source = "emulated"',
+        "description = " + toml_value(f"emulated instruments of scenario {sc.name} (benchtwin emulate)"),
+        *([f"session = {toml_value(session)}           # this emulator session: a resume against another is refused"]
           if session is not None else []),
         "", "[geometry]",
-        f"optical_radius = {_q(float(b['optical_radius']) * 1e3, 'mm')}",
-        f"L1 = {_q(float(b['L1']) * 1e3, 'mm')}",
-        f"L2 = {_q(float(b['L2']) * 1e3, 'mm')}",
-        f"grating_period = {_q(float(b['grating_period']) * 1e6, 'um')}",
+        f"optical_radius = {toml_value(float(b['optical_radius']) * 1e3, 'mm')}",
+        f"L1 = {toml_value(float(b['L1']) * 1e3, 'mm')}",
+        f"L2 = {toml_value(float(b['L2']) * 1e3, 'mm')}",
+        f"grating_period = {toml_value(float(b['grating_period']) * 1e6, 'um')}",
         f"polygon_faces = {int(b['polygon_faces'])}",
         f"heads = [{heads}]",
         f"encoder_lines = {sim_lines_from_bench(b)}",
-        f"encoder_resolution = {_q(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
-        f"scale_edge_radius = {_q(float(b['scale_edge_radius']) * 1e3, 'mm')}",
+        f"encoder_resolution = {toml_value(float(b['encoder_resolution']) / ARCSEC, 'arcsec')}",
+        f"scale_edge_radius = {toml_value(float(b['scale_edge_radius']) * 1e3, 'mm')}",
     ]
     ac = sc["instruments"]["autocollimator"]
-    lines += [f"autocollimator_resolution = {_q(float(ac['resolution']) / ARCSEC, 'arcsec')}",
-              f"autocollimator_accuracy = {_q(float(ac['accuracy']) / ARCSEC, 'arcsec')}"]
+    lines += [f"autocollimator_resolution = {toml_value(float(ac['resolution']) / ARCSEC, 'arcsec')}",
+              f"autocollimator_accuracy = {toml_value(float(ac['accuracy']) / ARCSEC, 'arcsec')}"]
     if camera is not None:
         c = camera.camera
         ref = ", ".join(f"{float(v):.12g}" for v in c.reference_px)
         lines += ["", "[ccd]                          # the camera's nominal geometry (dataset manifest 'ccd')",
-                  f"position = {_q(_deg(c.azimuth_rad), 'deg')}", f'tangential = "{c.tangential}"',
-                  f"reference_px = [{ref}]", f"pixel_size = {_q(c.pixel_pitch_m * 1e6, 'um')}"]
+                  f"position = {toml_value(_deg(c.azimuth_rad), 'deg')}", f"tangential = {toml_value(c.tangential)}",
+                  f"reference_px = [{ref}]", f"pixel_size = {toml_value(c.pixel_pitch_m * 1e6, 'um')}"]
     lines += [
         "", "[run]", 'waits = "skip"                # emulated instruments: nothing to settle',
         "driver_sleep_scale = 0.0      # no retry backoff / poll waits against an emulator",
@@ -135,7 +133,8 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     ser = f"serial = {{ timeout = {timeout_s:g} }}"
 
     def inst(name: str, driver: str, port: str, options: str = "", extra: tuple[str, ...] = ()) -> None:
-        lines.extend([f"[instruments.{name}]", f'driver = "{driver}"', f'port = "{port}"', ser, "retries = 3",
+        lines.extend([f"[instruments.{name}]", f"driver = {toml_value(driver)}", f"port = {toml_value(port)}", ser,
+                      "retries = 3",
                       "reconnect = true", *extra])
         if options:
             lines.append(f"options = {{ {options} }}")
@@ -163,7 +162,7 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
          "message_ids = true, checksums = true",
          ('soft_limits = ["-1 deg", "361 deg"]', f'max_speed = "{st.speed_deg_s * 1.25:g} deg/s"'))
     if camera is not None:
-        lines += ["[instruments.ccd]", 'driver = "watch_folder"', f'port = "{frames_dir}"',
+        lines += ["[instruments.ccd]", 'driver = "watch_folder"', f"port = {toml_value(str(frames_dir))}",
                   "options = { timeout_s = 30.0 }", ""]
     # the procedures simulate runs, in the one procedure language (faces and heads: from [geometry])
     from benchtwin.twin.simulate import scenario_procedures
@@ -172,11 +171,32 @@ def bench_file_text(sc: Any, ports: dict[str, str], emulators: dict[str, Any], t
     return "\n".join(lines)
 
 
+@dataclass(frozen=True)
+class SessionOptions:
+    """An emulation session's instruments and ports: the autocollimator's protocol ("elcomat" or
+    "triangle"), the probes' ("millimar" or "tesa"), the emulators' read timeout (s), the CCD
+    camera's renderer (None: no camera), and TCP sockets instead of pseudo-terminals (from
+    ``tcp_base_port``; 0: any free port)."""
+
+    autocollimator: str = "elcomat"
+    probes: str = "millimar"
+    timeout_s: float = 0.25
+    camera: str | None = None
+    tcp: bool = False
+    tcp_base_port: int = 0
+
+
 class EmulationSession:
     """Twin + emulators + pseudo-terminals + bench file for one acquisition (and its resumptions)."""
 
-    def __init__(self, sc: Any, faults: Any = None, autocollimator: str = "elcomat", probes: str = "millimar",
-                 timeout_s: float = 0.25, camera: str | None = None, tcp: bool = False, tcp_base_port: int = 0):
+    def __init__(self, sc: Any, faults: Any = None, options: SessionOptions | None = None, **kw: Any):
+        """``faults``: the fault plan; ``options`` (a ``SessionOptions``), or its fields as keywords."""
+        if options is not None and kw:
+            raise TypeError("EmulationSession: give options or its fields as keywords, not both")
+        options = options if options is not None else SessionOptions(**kw)
+        autocollimator, probes, camera = options.autocollimator, options.probes, options.camera
+        timeout_s, tcp, tcp_base_port = options.timeout_s, options.tcp, options.tcp_base_port
+        self.options = options
         self.sc = sc
         self.backend = EmulatedBench(sc, MICROSTEPS_PER_DEG, camera_backend=camera)
         self.camera = FolderCameraEmulator("ccd") if camera is not None else None

@@ -44,12 +44,11 @@ from __future__ import annotations
 
 import select
 import socket
-import threading
 import time
 from collections.abc import Mapping
 from typing import Any
 
-from .pty import fault_reply, load_fault_plan
+from .byteserver import BytePort, ByteServer
 
 __all__ = ["TcpServer", "HOST"]
 
@@ -66,47 +65,36 @@ RECV_BYTES = 1024
 CLOSED_KEPT = 100
 
 
-class _Endpoint:
-    def __init__(self, name: str, emulator: Any, sock: socket.socket):
-        self.name = name
-        self.emulator = emulator
+class _Endpoint(BytePort):
+    def __init__(self, name: str, emulator: Any, sock: socket.socket, faults: Mapping[int, dict[str, Any]]):
+        super().__init__(name, emulator, faults)
         self.sock = sock
         self.port = sock.getsockname()[1]
         self.client: socket.socket | None = None
         self.out = bytearray()           # replies not yet sent to the client
         self.out_since = 0.0             # monotonic time since when replies have been waiting
-        self.count = 0
-        self.faults: dict[int, dict[str, Any]] = {}
-        self.fired: list[dict[str, Any]] = []
-        self.thread: threading.Thread | None = None
 
     @property
     def url(self) -> str:
         return f"tcp://{HOST}:{self.port}"
 
 
-class TcpServer:
-    """Serve ``emulators`` (``{port name: ProtocolEmulator}``) on loopback TCP sockets."""
+class TcpServer(ByteServer):
+    """Serve ``emulators`` (``{port name: ProtocolEmulator}``) on loopback TCP sockets (the loop:
+    byteserver.ByteServer)."""
+
+    thread_prefix = "emu-tcp"
 
     def __init__(self, emulators: Mapping[str, Any], faults: Any = None, base_port: int = 0,
                  poll_s: float = 0.02):
-        self.emulators = dict(emulators)
-        self.plan = load_fault_plan(faults)
-        unknown = sorted({f["port"] for f in self.plan} - set(self.emulators))
-        if unknown:
-            raise ValueError(f"fault plan names unknown port(s) {unknown}; ports: {sorted(self.emulators)}")
+        super().__init__(emulators, faults, poll_s)
         if not isinstance(base_port, int) or not (base_port == 0 or 1024 <= base_port <= 65535 - len(emulators)):
             raise ValueError(f"TCP base port must be 0 (any free port) or 1024..{65535 - len(emulators)}, "
                              f"got {base_port!r}")
         self.base_port = base_port
-        self.poll_s = float(poll_s)
-        self.lock = threading.Lock()
-        self._stop = threading.Event()
-        self.ends: dict[str, _Endpoint] = {}
-        self.errors: list[str] = []
         self.closed: list[str] = []      # connections closed for a client's fault (see the module docstring)
 
-    def start(self) -> dict[str, str]:
+    def _open_ports(self) -> None:
         try:
             for k, (name, emu) in enumerate(self.emulators.items()):
                 s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -118,45 +106,24 @@ class TcpServer:
                     raise ValueError(f"cannot listen on {HOST}:{self.base_port + k} for {name!r}: {exc}") from None
                 s.listen(2)
                 s.setblocking(False)
-                e = _Endpoint(name, emu, s)
-                e.faults = {f["request"]: f for f in self.plan if f["port"] == name}
-                self.ends[name] = e
+                self.ports[name] = _Endpoint(name, emu, s, self.faults_of(name))
         except BaseException:
-            for e in self.ends.values():
+            for e in self.ports.values():
                 e.sock.close()
             raise
-        for e in self.ends.values():
-            e.thread = threading.Thread(target=self._serve, args=(e,), name=f"emu-tcp-{e.name}", daemon=True)
-            e.thread.start()
-        return self.paths()
 
     def paths(self) -> dict[str, str]:
-        return {n: e.url for n, e in self.ends.items()}
+        return {n: e.url for n, e in self.ports.items()}
 
     def pts(self) -> dict[str, str]:
         """Where each port listens (the same as ``paths``: a socket has no device behind it)."""
-        return {n: f"{HOST}:{e.port}" for n, e in self.ends.items()}
+        return {n: f"{HOST}:{e.port}" for n, e in self.ports.items()}
 
-    def fired(self) -> list[dict[str, Any]]:
-        return [f for e in self.ends.values() for f in e.fired]
+    def _close_port(self, e: _Endpoint) -> None:
+        self._drop(e)
+        e.sock.close()
 
-    def stop(self) -> None:
-        self._stop.set()
-        for e in self.ends.values():
-            if e.thread is not None:
-                e.thread.join(timeout=2.0)
-            self._drop(e)
-            e.sock.close()
-
-    def __enter__(self) -> "TcpServer":
-        if not self.ends:
-            self.start()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.stop()
-
-    # ------------------------------------------------------------------ serving
+    # ------------------------------------------------------------------ the socket transport
     @staticmethod
     def _drop(e: _Endpoint) -> None:
         if e.client is not None:
@@ -186,70 +153,64 @@ class TcpServer:
             return
         del e.out[:n]
 
-    def _serve(self, e: _Endpoint) -> None:
-        while not self._stop.is_set():
-            readers: list[socket.socket] = [e.sock]
-            writers: list[socket.socket] = []
-            if e.client is not None:
-                # replies waiting: send them before reading more requests (back-pressure)
-                (writers if e.out else readers).append(e.client)
+    def _receive(self, e: _Endpoint) -> bytes | None:
+        readers: list[socket.socket] = [e.sock]
+        writers: list[socket.socket] = []
+        if e.client is not None:
+            # replies waiting: send them before reading more requests (back-pressure)
+            (writers if e.out else readers).append(e.client)
+        try:
+            r, w, _ = select.select(readers, writers, [], self.poll_s)
+        except (OSError, ValueError):
+            self._drop(e)
+            return None
+        if e.sock in r:
             try:
-                r, w, _ = select.select(readers, writers, [], self.poll_s)
-            except (OSError, ValueError):
-                self._drop(e)
-                continue
-            if e.sock in r:
-                try:
-                    conn, _ = e.sock.accept()
-                except OSError:
-                    conn = None
-                if conn is not None:
-                    self._drop(e)
-                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                    # a fixed send buffer: the kernel's autotuning would take megabytes of replies
-                    # for a client that reads none (and hide that it reads none)
-                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, MAX_OUTPUT_BYTES)
-                    conn.setblocking(False)
-                    e.client = conn
-                    with self.lock:
-                        e.emulator.connect({"transport": "tcp"})
-                continue
-            if e.client is not None and e.client in w:
-                self._send(e)
-            if e.client is not None and e.out and time.monotonic() - e.out_since > SEND_TIMEOUT_S:
-                self._close(e, f"the client read none of {len(e.out)} reply bytes for {SEND_TIMEOUT_S:g} s")
-            if e.client is None or e.client not in r:
-                continue
-            try:
-                data = e.client.recv(RECV_BYTES)
-            except BlockingIOError:
-                continue
+                conn, _ = e.sock.accept()
             except OSError:
-                data = b""
-            if not data:          # the client closed its end
+                conn = None
+            if conn is not None:
                 self._drop(e)
-                continue
-            try:
+                conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                # a fixed send buffer: the kernel's autotuning would take megabytes of replies
+                # for a client that reads none (and hide that it reads none)
+                conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, MAX_OUTPUT_BYTES)
+                conn.setblocking(False)
+                e.client = conn
                 with self.lock:
-                    exchanges = e.emulator.feed(data)
-                    pending = e.emulator.pending_bytes()
-            except Exception as exc:  # noqa: BLE001 - an emulator bug must not kill the port silently
-                self.errors.append(f"{e.name}: {type(exc).__name__}: {exc}")
-                continue
-            for _req, reply in exchanges:
-                reply, disconnect = fault_reply(e, reply)
-                if disconnect:
-                    self._drop(e)
-                    break
-                if reply and e.client is not None:
-                    if not e.out:
-                        e.out_since = time.monotonic()
-                    e.out += reply
-            if e.client is None:
-                continue
-            if pending > MAX_LINE_BYTES:
-                self._close(e, f"a request of over {MAX_LINE_BYTES} bytes without its line end")
-                continue
+                    e.emulator.connect({"transport": "tcp"})
+            return None
+        if e.client is not None and e.client in w:
             self._send(e)
-            if len(e.out) > MAX_OUTPUT_BYTES:
-                self._close(e, f"over {MAX_OUTPUT_BYTES} reply bytes the client did not read")
+        if e.client is not None and e.out and time.monotonic() - e.out_since > SEND_TIMEOUT_S:
+            self._close(e, f"the client read none of {len(e.out)} reply bytes for {SEND_TIMEOUT_S:g} s")
+        if e.client is None or e.client not in r:
+            return None
+        try:
+            data = e.client.recv(RECV_BYTES)
+        except BlockingIOError:
+            return None
+        except OSError:
+            data = b""
+        if not data:          # the client closed its end
+            self._drop(e)
+        return data
+
+    def _disconnect(self, e: _Endpoint) -> None:
+        self._drop(e)
+
+    def _reply(self, e: _Endpoint, reply: bytes) -> None:
+        if e.client is not None:
+            if not e.out:
+                e.out_since = time.monotonic()
+            e.out += reply
+
+    def _fed(self, e: _Endpoint, pending: int) -> None:
+        if e.client is None:
+            return
+        if pending > MAX_LINE_BYTES:
+            self._close(e, f"a request of over {MAX_LINE_BYTES} bytes without its line end")
+            return
+        self._send(e)
+        if len(e.out) > MAX_OUTPUT_BYTES:
+            self._close(e, f"over {MAX_OUTPUT_BYTES} reply bytes the client did not read")

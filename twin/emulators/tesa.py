@@ -10,33 +10,21 @@ example of a rejected command).
 
 from __future__ import annotations
 
-import math
-from typing import Any
-
-from ._base import ProtocolEmulator
+from ._base import ReadingEmulator
 
 __all__ = ["TesaEmulator"]
 
 
-class TesaEmulator(ProtocolEmulator):
-    PROTOCOL = "tesa"
-    PROTOCOL_DOC = "docs/protocols/tesa.md"
-    DRIVER = "tesa"
-    SERIAL = {"baudrate": 4800, "bytesize": 7, "parity": "E", "stopbits": 2}
-
-    def __init__(self, name: str, source: Any, instrument: str = "probe_top", decimals: int = 2):
-        super().__init__(name, source)
-        self.instrument = instrument
-        self.decimals = int(decimals)
+class TesaEmulator(ReadingEmulator, protocol="tesa", instrument="probe_top", decimals=2,
+                   serial={"baudrate": 4800, "bytesize": 7, "parity": "E", "stopbits": 2}):
 
     def handle(self, request: bytes) -> bytes | None:
         cmd = request.strip()
         if cmd == b"?":
-            r = self.source.read(self.instrument)
-            v = float(r["value_um"])
-            if r.get("status", "ok") != "ok" or not math.isfinite(v):
+            got = self.reading(self.instrument, "value_um")
+            if got is None:
                 return b"OVER\r\n"
-            return f"{v:+.{self.decimals}f}\r\n".encode("ascii")
+            return f"{got[0]:+.{self.decimals}f}\r\n".encode("ascii")
         if cmd == b"UNI?":
             return b"UM\r\n"
         return b"ERR23\r\n"

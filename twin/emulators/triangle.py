@@ -10,33 +10,19 @@ reply. ``Unit``/``Zero`` are not emulated (the driver never sends them).
 
 from __future__ import annotations
 
-import math
-from typing import Any
-
-from ._base import ProtocolEmulator
+from ._base import ReadingEmulator
 
 __all__ = ["TriAngleEmulator"]
 
 
-class TriAngleEmulator(ProtocolEmulator):
-    PROTOCOL = "triangle"
-    PROTOCOL_DOC = "docs/protocols/triangle.md"
-    DRIVER = "triangle"
-    SERIAL = {"baudrate": 9600, "bytesize": 8, "parity": "N", "stopbits": 1}
-
-    def __init__(self, name: str, source: Any, instrument: str = "autocollimator", decimals: int = 3):
-        super().__init__(name, source)
-        self.instrument = instrument
-        self.decimals = int(decimals)
+class TriAngleEmulator(ReadingEmulator, protocol="triangle", instrument="autocollimator", decimals=3,
+                       serial={"baudrate": 9600, "bytesize": 8, "parity": "N", "stopbits": 1}):
 
     def handle(self, request: bytes) -> bytes | None:
         cmd = request.strip()
         if cmd not in (b"P 1", b"P", b"M"):
             return None
-        r = self.source.read(self.instrument)
-        x, y = float(r["x_arcsec"]), float(r["y_arcsec"])
-        signal = 1.0
-        if r.get("status", "ok") != "ok" or not (math.isfinite(x) and math.isfinite(y)):
-            x, y, signal = 0.0, 0.0, 0.0
+        got = self.reading(self.instrument, "x_arcsec", "y_arcsec")
+        x, y, signal = (*got, 1.0) if got is not None else (0.0, 0.0, 0.0)   # no beam: signal 0
         d = self.decimals
         return f"{y:.{d}f};{x:.{d}f};{0.0:.{d}f};{signal:.3f}\r\n".encode("ascii")

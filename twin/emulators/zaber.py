@@ -37,6 +37,7 @@ polls, then IDLE, so a client's wait loop is exercised. The stage's native unit 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import Any
 
 from ._base import ProtocolEmulator
@@ -62,6 +63,25 @@ def zaber_checksum(body: bytes) -> str:
     return f"{(-sum(body)) & 0xFF:02X}"
 
 
+@dataclass(frozen=True)
+class ZaberDeviceSpec:
+    """The emulated controller and stage: microsteps per degree, device and axis numbers, status
+    polls answered BUSY after a move, speed (deg/s; None: the backend's, else 20), the device's
+    identity (device id, serial number, firmware version), and the motor's full step (deg at the
+    motor) and gear ratio (which with microsteps_per_deg give the resolution setting)."""
+
+    microsteps_per_deg: float = 1000.0
+    device: int = 1
+    axis: int = 1
+    busy_polls: int = 1
+    speed_deg_s: float | None = None
+    device_id: int = ROTARY_DEVICE_ID
+    serial_number: int = 70001
+    version: str = FIRMWARE
+    step_deg: float = 1.8
+    gear_ratio: float = 1.0
+
+
 class ZaberEmulator(ProtocolEmulator):
     PROTOCOL = "zaber"
     PROTOCOL_DOC = "docs/protocols/zaber.md"
@@ -69,22 +89,21 @@ class ZaberEmulator(ProtocolEmulator):
     SERIAL = {"baudrate": 115200, "bytesize": 8, "parity": "N", "stopbits": 1}
     TCP_PORT = 55550   # Zaber's ASCII-over-TCP port on its Ethernet controllers (zaber.md)
 
-    def __init__(self, name: str, source: Any, microsteps_per_deg: float = 1000.0, device: int = 1,
-                 axis: int = 1, busy_polls: int = 1, speed_deg_s: float | None = None,
-                 device_id: int = ROTARY_DEVICE_ID, serial_number: int = 70001, version: str = FIRMWARE,
-                 step_deg: float = 1.8, gear_ratio: float = 1.0):
+    def __init__(self, name: str, source: Any, spec: ZaberDeviceSpec = ZaberDeviceSpec()):
         super().__init__(name, source)
-        self.microsteps_per_deg = float(microsteps_per_deg)
-        self.device, self.axis = int(device), int(axis)
-        self.busy_polls = int(busy_polls)
+        self.spec = spec
+        self.microsteps_per_deg = float(spec.microsteps_per_deg)
+        self.device, self.axis = int(spec.device), int(spec.axis)
+        self.busy_polls = int(spec.busy_polls)
         self._busy_left = 0
         self._moving = False
         self.position_deg = float(getattr(source, "position_deg", 0.0) or 0.0)
-        self.speed_deg_s = float(speed_deg_s if speed_deg_s is not None else getattr(source, "speed_deg_s", 20.0))
-        self.device_id, self.serial_number, self.version = int(device_id), int(serial_number), str(version)
+        self.speed_deg_s = float(spec.speed_deg_s if spec.speed_deg_s is not None
+                                 else getattr(source, "speed_deg_s", 20.0))
+        self.device_id, self.serial_number, self.version = int(spec.device_id), int(spec.serial_number), str(spec.version)
         # microstep resolution: microsteps per full step of the motor (step_deg at the output shaft
         # with gear_ratio); the emulated stage's microsteps_per_deg fixes it
-        self.microsteps_per_step = self.microsteps_per_deg * float(step_deg) / float(gear_ratio)
+        self.microsteps_per_step = self.microsteps_per_deg * float(spec.step_deg) / float(spec.gear_ratio)
         self.warnings: set[str] = set()
         self.settings: dict[str, str] = {}
         self._defaults()

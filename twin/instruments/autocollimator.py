@@ -32,6 +32,7 @@ independent per axis), resolution quantisation; beyond ±``range`` on either axi
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -43,25 +44,40 @@ from .ac_optics import AutocollimatorOptics
 from .stage import ARCSEC, TWO_PI, SimBenchState, sim_rng
 
 
+@dataclass(frozen=True)
+class AutocollimatorSpec:
+    """An autocollimator's data sheet: resolution, accuracy (maximum error), range ±range, noise
+    (rms) in rad, drift rate (rad/s), and its azimuth in the lab (rad; None: the bench state's)."""
+
+    resolution_rad: float = 0.0
+    accuracy_rad: float = 0.0
+    range_rad: float = 1000 * ARCSEC
+    noise_rad: float = 0.0
+    drift_rate_rad_s: float = 0.0
+    azimuth_rad: float | None = None
+
+
 class SimAutocollimator:
-    """``Autocollimator`` of the twin."""
+    """``Autocollimator`` of the twin; ``seed`` and ``key``: its accuracy curve's and noise's
+    random streams."""
 
     kind = "autocollimator"
 
-    def __init__(self, name: str, state: SimBenchState, resolution_rad: float = 0.0, accuracy_rad: float = 0.0,
-                 range_rad: float = 1000 * ARCSEC, noise_rad: float = 0.0, drift_rate_rad_s: float = 0.0,
-                 azimuth_rad: float | None = None, seed: int = 0, key: int = 0):
+    def __init__(self, name: str, state: SimBenchState, spec: AutocollimatorSpec = AutocollimatorSpec(),
+                 seed: int = 0, key: int = 0):
         self.name = name
         self.state = state
+        self.spec = spec
+        azimuth_rad = spec.azimuth_rad
         self.azimuth_rad = float(state.ac_azimuth_rad if azimuth_rad is None else azimuth_rad)
         if azimuth_rad is not None and abs(azimuth_rad - state.ac_azimuth_rad) > 0:
             state.ac_azimuth_rad = self.azimuth_rad  # the polygon mounting follows the instrument
             state.set_polygon_mounting(state.polygon_start_face, state.polygon_shift_rad)
-        self.resolution_rad = float(resolution_rad)
-        self.accuracy_rad = float(accuracy_rad)
-        self.range_rad = float(range_rad)
-        self.noise_rad = float(noise_rad)
-        self.drift_rate_rad_s = float(drift_rate_rad_s)
+        self.resolution_rad = float(spec.resolution_rad)
+        self.accuracy_rad = float(spec.accuracy_rad)
+        self.range_rad = float(spec.range_rad)
+        self.noise_rad = float(spec.noise_rad)
+        self.drift_rate_rad_s = float(spec.drift_rate_rad_s)
         self.key = int(key)
         r = sim_rng(seed, "ac_accuracy", key)
         c1 = r.uniform(-0.6, 0.6, 2)
@@ -77,12 +93,13 @@ class SimAutocollimator:
                           hidden: Any = None) -> "SimAutocollimator":
         """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
         from the scenario."""
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
 
         a = sc["instruments"]["autocollimator"]
-        obj = cls(name, state, resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
-                  noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"], seed=state.seed)
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        spec = AutocollimatorSpec(resolution_rad=a["resolution"], accuracy_rad=a["accuracy"], range_rad=a["range"],
+                                  noise_rad=a["noise"], drift_rate_rad_s=a["drift_rate"])
+        obj = cls(name, state, spec, seed=state.seed)
+        hidden = hidden_for(sc, hidden)
         obj.hidden = hidden if ("ac_scale" in hidden.effects or "ac_drift" in hidden.effects) else None
         obj.optics = hidden.ac_optics()
         return obj
@@ -111,7 +128,8 @@ class SimAutocollimator:
         pose = self.state.pose if pose is None else pose
         psi = self.azimuth_rad
         th = getattr(self.state.bench, "thermal", None)
-        if th is not None and getattr(th, "acs_m_K", 0.0):
+        acs_m_K = getattr(th, "acs_m_K", 0.0) if th is not None else 0.0
+        if th is not None and acs_m_K:
             psi = psi + th.autocollimator_stand_yaw_rad(pose.t_s)
         a = np.array([math.cos(psi), math.sin(psi), 0.0])
         n = self.sim_face_normals_lab(pose)

@@ -18,7 +18,8 @@ states the image's shape, dtype and backend, and ``image`` is None (the worker w
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 
@@ -30,18 +31,32 @@ from .stage import SimBenchState
 VIBRATION_SUBSTREAM = 1
 
 
+@dataclass(frozen=True)
+class CcdOptics:
+    """What the CCD microscope sees and how: the disk's grating (``render.GratingSpec``), the camera's
+    geometry (``render.Camera``: pose, pixels) and its sensor (``render.SensorParams``: noise, bit
+    depth)."""
+
+    grating: Any
+    camera: Any
+    sensor: Any
+
+
 class SimCamera:
-    """``Camera`` of the twin. Use as a context manager (or call ``close``) to release GL."""
+    """``Camera`` of the twin. Use as a context manager (or call ``close``) to release GL.
+    ``backend``: the renderer's ("auto", "pyrender", "analytic"), or ``renderer`` itself; ``key``:
+    its noise stream's."""
 
     kind = "camera"
 
-    def __init__(self, name: str, state: SimBenchState, grating: Any, camera: Any, sensor: Any,
-                 backend: str = "auto", renderer: Any = None, key: int = 0):
+    def __init__(self, name: str, state: SimBenchState, optics: CcdOptics, backend: str = "auto",
+                 renderer: Any = None, key: int = 0):
         from benchtwin.twin.render import Renderer
 
         self.name = name
         self.state = state
-        self.grating, self.camera, self.sensor = grating, camera, sensor
+        self.optics = optics
+        self.grating, self.camera, self.sensor = optics.grating, optics.camera, optics.sensor
         self.backend = backend
         self._own = renderer is None
         self.renderer = Renderer(backend) if renderer is None else renderer
@@ -60,13 +75,13 @@ class SimCamera:
         from the scenario."""
         import dataclasses
 
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
         from benchtwin.twin.render import GratingSpec, SensorParams
 
         b = sc["bench"]
         sensor = SensorParams.from_section(sc["instruments"]["ccd"])
         grating = GratingSpec.from_bench(b)
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        hidden = hidden_for(sc, hidden)
         if "ccd_pixel_scale" in hidden.effects:
             # true pixel ≠ nominal (camera.pixel_pitch_m stays the nominal: the manifest's value);
             # true grating period at the edge ≠ datasheet, same line count (larger ruling radius)
@@ -75,7 +90,7 @@ class SimCamera:
             grating = dataclasses.replace(grating, period_m=grating.period_m * s,
                                           edge_radius_m=grating.edge_radius_m * s)
         camera = sensor.camera(float(b["ccd_position"]), tangential=tangential)
-        cam = cls(name, state, grating, camera, sensor, backend=backend)
+        cam = cls(name, state, CcdOptics(grating, camera, sensor), backend=backend)
         from benchtwin.twin.vibration import StandVibration
 
         cam.vibration = StandVibration.from_section(sc.get("vibration") if hasattr(sc, "get") else None)
@@ -115,7 +130,7 @@ class SimCamera:
         unchanged)."""
         from benchtwin.twin.pose import BodyPose
 
-        p = self.state.pose if pose is None else pose
+        p = self.state.posed(pose)
         th = getattr(self.state.bench, "thermal", None)
         d = th.microscope_stand_drift_m(p.t_s) if th is not None else 0.0
         vr, vt = self.vibration_m()
@@ -149,9 +164,10 @@ class SimCamera:
             backend = self.pipeline.backend()
             self.last_truth = {**self.sim_frame_truth(), "backend": backend}
             c = self.camera
-            return {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
-                    "image_shape": [int(c.height_px), int(c.width_px)],
-                    "image_dtype": str(np.dtype(self.sensor.dtype))}
+            # (no image: the reading is a CameraFrame without its image, and with its shape and dtype)
+            return cast(CameraFrame, {"image": None, "t_s": float(st.clock.now()), "status": "ok", "backend": backend,
+                                      "image_shape": [int(c.height_px), int(c.width_px)],
+                                      "image_dtype": str(np.dtype(self.sensor.dtype))})
         frame = self.renderer.render(self.disk_seen(st.pose), self.grating, self.camera, self.sensor,
                                      st.rng("ccd", self.key))
         tr = frame.truth

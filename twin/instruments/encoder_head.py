@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -65,30 +66,46 @@ def sim_lines_from_bench(bench: dict) -> int:
     return int(round(TWO_PI * float(bench["scale_edge_radius"]) / float(bench["grating_period"])))
 
 
+@dataclass(frozen=True)
+class EncoderSpec:
+    """An encoder's geometry and data sheet: its heads' azimuths from head 1 (rad; head 1 at 0), the
+    optical radius (m), the lines on the disk, the display's resolution (rad), the heads' noise
+    (rms, rad), the interpolation error's amplitude (rad, order 1 of the grating pitch; order 2
+    a third of it), the declared line map's rms (rad) and the scanning field (lines a head averages)."""
+
+    heads_rad: Sequence[float] = (0.0,)
+    radius_m: float = 22e-3
+    n_lines: int = 7069
+    resolution_rad: float = 0.39 * ARCSEC
+    noise_rad: float = 0.0
+    interpolation_error_rad: float = 0.0
+    graduation_error_rms_rad: float = 0.0
+    scanning_field_lines: int = SCANNING_FIELD_LINES
+
+
 class SimEncoder:
-    """``AngleEncoder`` of the twin: one counter, one or more reading heads."""
+    """``AngleEncoder`` of the twin: one counter, one or more reading heads; ``seed`` and ``key``:
+    its disk's and noise's random streams."""
 
     kind = "encoder"
 
-    def __init__(self, name: str, state: SimBenchState, heads_rad: Sequence[float] = (0.0,),
-                 radius_m: float = 22e-3, n_lines: int = 7069, resolution_rad: float = 0.39 * ARCSEC,
-                 noise_rad: float = 0.0, interpolation_error_rad: float = 0.0,
-                 graduation_error_rms_rad: float = 0.0, seed: int = 0, key: int = 0,
-                 scanning_field_lines: int = SCANNING_FIELD_LINES):
+    def __init__(self, name: str, state: SimBenchState, spec: EncoderSpec = EncoderSpec(), seed: int = 0,
+                 key: int = 0):
         self.name = name
         self.state = state
-        self.heads_rad = np.asarray(heads_rad, dtype=float)
+        self.spec = spec
+        self.heads_rad = np.asarray(spec.heads_rad, dtype=float)
         if self.heads_rad.size < 1 or self.heads_rad[0] != 0.0:
             raise ValueError("heads: head 1 must be at 0 (azimuths are measured from head 1)")
-        self.radius_m = float(radius_m)
-        self.n_lines = int(n_lines)
+        self.radius_m = float(spec.radius_m)
+        self.n_lines = int(spec.n_lines)
         self.pitch_rad = TWO_PI / self.n_lines
-        self.resolution_rad = float(resolution_rad)
-        self.noise_rad = float(noise_rad)
+        self.resolution_rad = float(spec.resolution_rad)
+        self.noise_rad = float(spec.noise_rad)
         self.key = int(key)
         # Graduation error: the declared line-position map (a property of the disk: seeded, fixed).
-        self.graduation_error_rms_rad = float(graduation_error_rms_rad)
-        self.scanning_field_lines = int(scanning_field_lines)
+        self.graduation_error_rms_rad = float(spec.graduation_error_rms_rad)
+        self.scanning_field_lines = int(spec.scanning_field_lines)
         self._declared_lines = None
         if self.graduation_error_rms_rad > 0:
             self._declared_lines = declared_line_map(self.n_lines, self.graduation_error_rms_rad,
@@ -96,13 +113,13 @@ class SimEncoder:
         self._map_cache: tuple | None = None
         # Interpolation error: orders 1 and 2 of the grating pitch.
         ri = sim_rng(seed, "encoder_interpolation")
-        self.interpolation = {"amplitude_rad": np.array([1.0, 1.0 / 3.0]) * float(interpolation_error_rad),
+        self.interpolation = {"amplitude_rad": np.array([1.0, 1.0 / 3.0]) * float(spec.interpolation_error_rad),
                               "phase_rad": ri.uniform(0, TWO_PI, 2)}
         self._interpolation_terms = [(m * self.n_lines, float(p), float(a)) for m, (a, p) in enumerate(
             zip(self.interpolation["amplitude_rad"], self.interpolation["phase_rad"]), start=1) if a]
         # [hidden] effects of the disk and heads (twin/hidden.py); None: none.
         self.hidden = None
-        self._head_points = None
+        self._head_points: tuple | None = None
         # (pose, exact readings) of the stage's last stop: read() there reuses them (the servo's
         # last evaluation of the same pose); set by SimRotaryStage.move_to.
         self.sim_last_exact: tuple | None = None
@@ -112,16 +129,17 @@ class SimEncoder:
                           hidden: Any = None) -> "SimEncoder":
         """``hidden``: the bench's ``Hidden`` (built once per bench, ``Bench.hidden``); None: built
         from the scenario."""
-        from benchtwin.twin.hidden import Hidden
+        from benchtwin.twin.hidden import hidden_for
 
         b, enc = sc["bench"], sc["instruments"]["encoder"]
-        hidden = Hidden.from_scenario(sc) if hidden is None else hidden
+        hidden = hidden_for(sc, hidden)
         # hidden.optical_radius: the heads sit at the TRUE radius (the manifest keeps the nominal)
-        obj = cls(name, state, heads_rad=[float(h) for h in b["heads"]],
-                  radius_m=float(b["optical_radius"]) * hidden.optical_radius_factor,
-                  n_lines=sim_lines_from_bench(b), resolution_rad=float(b["encoder_resolution"]),
-                  noise_rad=float(enc["noise"]), interpolation_error_rad=float(enc["interpolation_error"]),
-                  graduation_error_rms_rad=float(sc["errors"]["graduation_error_rms"]), seed=state.seed)
+        spec = EncoderSpec(heads_rad=[float(h) for h in b["heads"]],
+                           radius_m=float(b["optical_radius"]) * hidden.optical_radius_factor,
+                           n_lines=sim_lines_from_bench(b), resolution_rad=float(b["encoder_resolution"]),
+                           noise_rad=float(enc["noise"]), interpolation_error_rad=float(enc["interpolation_error"]),
+                           graduation_error_rms_rad=float(sc["errors"]["graduation_error_rms"]))
+        obj = cls(name, state, spec, seed=state.seed)
         obj.hidden = hidden if hidden else None
         return obj
 
@@ -255,7 +273,7 @@ class SimEncoder:
     def sim_exact_readings(self, pose: BenchPose | None = None) -> np.ndarray:
         """Readings (rad) of every head from the exact geometry, graduation and interpolation
         errors included; no noise, no quantisation."""
-        pose = self.state.pose if pose is None else pose
+        pose = self.state.posed(pose)
         g = self.sim_graduation_value(self.sim_head_body_angles(pose), pose.t_s)
         phi = pose.shaft_angle_rad
         if self.hidden is not None:

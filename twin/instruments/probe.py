@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,31 +33,53 @@ from .stage import SimBenchState, sim_rng
 
 
 
+@dataclass(frozen=True)
+class ProbeSpec:
+    """A probe's geometry and data sheet: the sphere it touches ("top"/"bottom") and its measuring
+    axis ("y" or "x"), the side it touches from (+1: from +u; −1: from −u), the sphere's radius and
+    nominal centre height (m), its form lobes ({order, amplitude (m), phase (rad)}), repeatability
+    (rms, m), the linearity envelope ±(a + b·(L/1 mm)²) (m), the range ±range (m) and the
+    resolution (m)."""
+
+    sphere: str = "top"
+    axis: str = "y"
+    side: int = +1
+    sphere_radius_m: float = 6e-3
+    nominal_z_m: float = 0.0
+    form_lobes: Sequence[dict] = ()
+    repeatability_m: float = 0.0
+    linearity_a_m: float = 0.0
+    linearity_b_m: float = 0.0
+    range_m: float = 0.3e-3
+    resolution_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.sphere not in ("top", "bottom"):
+            raise ValueError("sphere must be 'top' or 'bottom'")
+        if self.axis not in ("x", "y"):
+            raise ValueError("axis must be 'x' or 'y'")
+        if self.side not in (1, -1):
+            raise ValueError("side must be +1 or -1")
+
+
 class SimProbe:
-    """``DisplacementProbe`` of the twin on sphere ``sphere`` ("top"/"bottom"), axis "y" or "x"."""
+    """``DisplacementProbe`` of the twin on sphere ``spec.sphere`` ("top"/"bottom"), axis "y" or "x";
+    ``seed`` and ``key``: its linearity curve's and noise's random streams."""
 
     kind = "probe"
 
-    def __init__(self, name: str, state: SimBenchState, sphere: str = "top", axis: str = "y", side: int = +1,
-                 sphere_radius_m: float = 6e-3, nominal_z_m: float = 0.0, form_lobes: Sequence[dict] = (),
-                 repeatability_m: float = 0.0, linearity_a_m: float = 0.0, linearity_b_m: float = 0.0,
-                 range_m: float = 0.3e-3, resolution_m: float = 0.0, seed: int = 0, key: int = 0):
-        if sphere not in ("top", "bottom"):
-            raise ValueError("sphere must be 'top' or 'bottom'")
-        if axis not in ("x", "y"):
-            raise ValueError("axis must be 'x' or 'y'")
-        if side not in (1, -1):
-            raise ValueError("side must be +1 or -1")
-        self.name, self.state, self.sphere, self.axis, self.side = name, state, sphere, axis, int(side)
-        self.u = np.array([1.0, 0.0, 0.0]) if axis == "x" else np.array([0.0, 1.0, 0.0])
-        self.R = float(sphere_radius_m)
-        self.nominal_z_m = float(nominal_z_m)
-        self.form = [(int(l["order"]), float(l["amplitude"]), float(l["phase"])) for l in form_lobes]
-        self.repeatability_m = float(repeatability_m)
-        self.linearity_a_m = float(linearity_a_m)
-        self.linearity_b_m = float(linearity_b_m)
-        self.range_m = float(range_m)
-        self.resolution_m = float(resolution_m)
+    def __init__(self, name: str, state: SimBenchState, spec: ProbeSpec, seed: int = 0, key: int = 0):
+        self.spec = spec
+        self.name, self.state, self.sphere, self.axis, self.side = name, state, spec.sphere, spec.axis, int(spec.side)
+        self.u = np.array([1.0, 0.0, 0.0]) if spec.axis == "x" else np.array([0.0, 1.0, 0.0])
+        self.R = float(spec.sphere_radius_m)
+        self.nominal_z_m = float(spec.nominal_z_m)
+        self.form = [(int(l["order"]), float(l["amplitude"]), float(l["phase"])) for l in spec.form_lobes]
+        self.repeatability_m = float(spec.repeatability_m)
+        self.linearity_a_m = float(spec.linearity_a_m)
+        self.linearity_b_m = float(spec.linearity_b_m)
+        self.range_m = float(spec.range_m)
+        self.resolution_m = float(spec.resolution_m)
         self.key = int(key)
         # Linearity curve: g(L) = Σ c_k [sin(kπL/(2·range) + φ_k) − sin φ_k], |g| ≤ 0.9 on ±range.
         r = sim_rng(seed, "probe_linearity", key)
@@ -71,11 +94,11 @@ class SimProbe:
                           name: str | None = None, key: int = 0) -> "SimProbe":
         p = sc["instruments"]["probe"]
         g = bench.geometry
-        return cls(name or f"probe_{sphere}" + ("_x" if axis == "x" else ""), state, sphere, axis, +1,
-                   sphere_radius_m=g["sphere_radius_m"], nominal_z_m=g[f"sphere_{sphere}_z_m"],
-                   form_lobes=bench.sphere_form[sphere], repeatability_m=p["repeatability"],
-                   linearity_a_m=p["linearity_a"], linearity_b_m=p["linearity_b"], range_m=p["range"],
-                   resolution_m=p["resolution"], seed=state.seed, key=key)
+        spec = ProbeSpec(sphere, axis, +1, sphere_radius_m=g["sphere_radius_m"], nominal_z_m=g[f"sphere_{sphere}_z_m"],
+                         form_lobes=bench.sphere_form[sphere], repeatability_m=p["repeatability"],
+                         linearity_a_m=p["linearity_a"], linearity_b_m=p["linearity_b"], range_m=p["range"],
+                         resolution_m=p["resolution"])
+        return cls(name or f"probe_{sphere}" + ("_x" if axis == "x" else ""), state, spec, seed=state.seed, key=key)
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, "kind": "probe", "model": "sim inductive probe (twin), TESA-like",

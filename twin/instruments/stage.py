@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -40,6 +41,10 @@ from benchtwin.hw.acquisition.procedures import move_time_s
 from benchtwin.hw.acquisition.runner import SimClock
 from benchtwin.hw.interfaces import MOVE_NOT_HELD, SoftLimitError, StageMove, StagePosition
 from benchtwin.twin.pose import BenchPose, BodyPose
+from benchtwin.twin.streams import INSTRUMENT_STREAMS as SIM_STREAMS  # noqa: F401 - simulate.py reads it here
+from benchtwin.twin.streams import rng_from_key as sim_rng_from_key
+from benchtwin.twin.streams import stream_key as sim_rng_key
+from benchtwin.twin.streams import stream_rng as sim_rng
 from benchtwin.units import ARCSEC
 
 if TYPE_CHECKING:
@@ -48,36 +53,6 @@ if TYPE_CHECKING:
 TWO_PI = 2.0 * math.pi
 #: warm-start offsets the sim stage remembers (LRU; see SimRotaryStage.move_to)
 SIM_OFFSET_CACHE_SIZE = 8192
-
-# Random streams of the instruments (ids far from the physics' 1…7; each quantity its own stream).
-SIM_STREAMS = {
-    "probe_noise": 101,
-    "probe_linearity": 102,
-    "encoder_noise": 103,
-    "encoder_graduation": 104,
-    "encoder_interpolation": 105,
-    "ac_noise": 106,
-    "ac_accuracy": 107,
-    "polygon_setup": 108,
-    "ccd": 109,
-    "servo": 110,
-}
-
-
-def sim_rng(seed: int, stream: str, *keys: int) -> np.random.Generator:
-    """An independent generator for (seed, stream, keys…)."""
-    return sim_rng_from_key(sim_rng_key(seed, stream, *keys))
-
-
-def sim_rng_key(seed: int, stream: str, *keys: int) -> tuple[int, ...]:
-    """The entropy of ``sim_rng(seed, stream, keys…)``: a plain tuple, for a draw made elsewhere
-    (twin/instruments/settle_ahead.py: the servo's noise of a settle computed in a worker)."""
-    return (int(seed), SIM_STREAMS[stream], *map(int, keys))
-
-
-def sim_rng_from_key(key: tuple[int, ...]) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence(list(key)))
-
 
 def sim_rz(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
@@ -130,6 +105,13 @@ class SimBenchState:
         if "polygon_start_face" in ctx:
             self.set_polygon_mounting(int(ctx["polygon_start_face"]), math.radians(float(ctx.get("shift_deg", 0.0))))
 
+    def posed(self, pose: BenchPose | None = None) -> BenchPose:
+        """``pose``, else the bench's current pose (RuntimeError before the bench is first posed)."""
+        p = self.pose if pose is None else pose
+        if p is None:
+            raise RuntimeError("the bench has not been posed yet")
+        return p
+
     def on_step(self, i: int, step: Any, context: dict, replay: bool) -> None:
         """Runner hook: key the noise streams by step index; apply the context of Marks."""
         self.step_index = int(i)
@@ -176,7 +158,7 @@ class SimBenchState:
     def polygon_pose(self, pose: BenchPose | None = None) -> BodyPose:
         """The polygon as clamped now: the physics' polygon frame turned by the mounting angle
         about its own axis."""
-        p = self.pose if pose is None else pose
+        p = self.posed(pose)
         return BodyPose(pos=p.polygon.pos, R=p.polygon.R @ sim_rz(self.polygon_mounting_rad))
 
     # ------------------------------------------------------------------ posing
@@ -190,16 +172,29 @@ class SimBenchState:
         return self.pose
 
 
+@dataclass(frozen=True)
+class StageSpec:
+    """The twin stage's motion and stop: speed (deg/s), acceleration (deg/s²), settle time (s),
+    the tolerance of a stop on head 1's reading (arcsec), the search's iterations at most, and the
+    soft limits (deg; None: none)."""
+
+    speed_deg_s: float = 20.0
+    accel_deg_s2: float = 40.0
+    settle_s: float = 0.0
+    tol_arcsec: float = 1e-6
+    max_iter: int = 20
+    soft_limits_deg: tuple[float, float] | None = None
+
+
 class SimRotaryStage:
     """``RotaryStage`` of the twin: stops where head 1 of ``encoder`` reads the target."""
 
     kind = "stage"
 
-    def __init__(self, name: str, state: SimBenchState, encoder: Any, speed_deg_s: float = 20.0,
-                 accel_deg_s2: float = 40.0, settle_s: float = 0.0, tol_arcsec: float = 1e-6,
-                 max_iter: int = 20, soft_limits_deg: tuple[float, float] | None = None,
+    def __init__(self, name: str, state: SimBenchState, encoder: Any, spec: StageSpec = StageSpec(),
                  servo: Any = None, secant: bool = False):
         self.name = name
+        self.spec = spec
         # The search for the command at which head 1 reads the target: the fixed point (the
         # command corrected by the reading's error, slope 1) or, with ``secant``, the secant of the
         # last two poses (the slope 1 − ε of reading vs command, ε the torsional lag's and α's
@@ -216,11 +211,12 @@ class SimRotaryStage:
         self.sim_ahead: Any = None
         self.state = state
         self.encoder = encoder
-        self.speed_deg_s = float(speed_deg_s)
-        self.accel_deg_s2 = float(accel_deg_s2)
-        self.settle_s = float(settle_s)
-        self.tol_rad = float(tol_arcsec) * ARCSEC
-        self.max_iter = int(max_iter)
+        self.speed_deg_s = float(spec.speed_deg_s)
+        self.accel_deg_s2 = float(spec.accel_deg_s2)
+        self.settle_s = float(spec.settle_s)
+        self.tol_rad = float(spec.tol_arcsec) * ARCSEC
+        self.max_iter = int(spec.max_iter)
+        soft_limits_deg = spec.soft_limits_deg
         if soft_limits_deg is not None and not float(soft_limits_deg[0]) < float(soft_limits_deg[1]):
             raise ValueError(f"{name}: soft_limits_deg must be (low, high) with low < high, got {soft_limits_deg}")
         self.soft_limits_deg = None if soft_limits_deg is None else (float(soft_limits_deg[0]),
@@ -315,10 +311,10 @@ class SimRotaryStage:
         # Warm start: the offset between command and reading found the last time this target was
         # approached in this rep and direction (the polygon runs come back to the same stops for
         # every start face: the first pose usually holds), else the previous stop's offset.
-        key = (target_deg, st.rep, st.direction)
-        offset = self._offsets.get(key)
+        warm = (target_deg, st.rep, st.direction)
+        offset = self._offsets.get(warm)
         if offset is not None:
-            self._offsets.move_to_end(key)
+            self._offsets.move_to_end(warm)
         else:
             offset = self.command_rad - (math.radians(self.position_deg) if self.target_deg is not None else 0.0)
         cmd = target + offset
@@ -340,7 +336,7 @@ class SimRotaryStage:
         else:
             raise RuntimeError(f"{self.name}: no convergence to {target_deg}° (|error| {abs(err) / ARCSEC:.3g}″)")
         self.last_iterations = it
-        self._offsets[key] = cmd - target
+        self._offsets[warm] = cmd - target
         if len(self._offsets) > SIM_OFFSET_CACHE_SIZE:
             self._offsets.popitem(last=False)
         self.last_pose, self.last_exact = pose, x

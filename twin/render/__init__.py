@@ -31,12 +31,16 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from benchtwin.twin.pose import BodyPose
 from benchtwin.twin.render.grating import CcdCamera, GratingSpec, SceneGeometry, build_scene
 from benchtwin.twin.render.sensor import SensorParams, apply_sensor
+
+if TYPE_CHECKING:  # imported when the first GL frame is rendered (it loads OpenGL)
+    from benchtwin.twin.render.pyrender_backend import GlCoverageRenderer
 
 __all__ = ["render_ccd", "Renderer", "CcdFrame", "GratingSpec", "CcdCamera", "SensorParams", "BACKENDS"]
 
@@ -64,11 +68,11 @@ class Renderer:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         self.backend = backend
         self.supersample, self.jitter, self.end_band = supersample, jitter, end_band
-        self._gl = None
+        self._gl: GlCoverageRenderer | None = None
         self._gl_failed = False
 
     # ------------------------------------------------------------------ coverage
-    def _gl_renderer(self, w: int, h: int):
+    def _gl_renderer(self, w: int, h: int) -> GlCoverageRenderer:
         from benchtwin.twin.render.pyrender_backend import GlCoverageRenderer
 
         if self._gl is not None and (self._gl.width_px, self._gl.height_px) != (w, h):

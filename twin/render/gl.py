@@ -39,8 +39,9 @@ def configure() -> str:
     os.environ.setdefault("PYOPENGL_PLATFORM", platform)
     if os.environ["MUJOCO_GL"] != os.environ["PYOPENGL_PLATFORM"] and "OpenGL" not in sys.modules:
         os.environ["PYOPENGL_PLATFORM"] = os.environ["MUJOCO_GL"]
-    if not hasattr(np, "infty"):
-        np.infty = np.inf  # noqa: NPY201 - pyrender 0.1.45 (scene.py, camera.py) uses the numpy-1 alias
+    # pyrender 0.1.45 (scene.py, camera.py) uses numpy 1's alias np.infty, which numpy 2 removed (and
+    # its stubs do not declare): put it back in the module's namespace when it is missing
+    vars(np).setdefault("infty", np.inf)
     return os.environ["PYOPENGL_PLATFORM"]
 
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class SensorParams:
                  "rotation": "rotation_rad", "pixel_scale_error": "pixel_scale_error",
                  "wavelength": "wavelength_m"}
         ints = {"width_px", "height_px", "bit_depth", "dust_count", "scratch_count"}
-        kw = {}
+        kw: dict[str, Any] = {}  # int or float by field: one dict, so mypy cannot match each to its field
         for key, name in names.items():
             if key in d:
                 kw[name] = int(round(float(d[key]))) if name in ints else float(d[key])
@@ -185,7 +186,8 @@ def apply_sensor(irradiance: np.ndarray, sensor: SensorParams, rng: np.random.Ge
     """
     import cv2
 
-    img = np.asarray(irradiance, dtype=np.float32)
+    # float32 throughout; cv2's stubs type its filters' results as any integer or floating array
+    img: np.ndarray = np.asarray(irradiance, dtype=np.float32)
     h, w = img.shape
     pixel_m = sensor.pixel_pitch_m if pixel_m is None else pixel_m
     if sensor.dust_count > 0 or sensor.scratch_count > 0:
