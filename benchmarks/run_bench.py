@@ -19,7 +19,24 @@ Floors, measured in the same run by the scripts beside this one:
 - servo floor (benchmarks/servo_bench.py): the drive servo's physics steps against raw ``mj_step``
   on the same model (the servo's dynamics have no closed form: raw MuJoCo is their floor).
 
-Ratios printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
+The parts of ``run`` (issue #36), each against its own floor, all measured in this run; the amounts of
+work are one simulate's own, counted by benchmarks/run_parts.py (its static poses, run and α grid; its
+servo's ``mj_step`` calls; its frames):
+
+- I/O: the I/O floor above (decode, Otsu, label, encode of the frames);
+- render + sensor: frames × (the twin's render + sensor model of a frame), floor frames × (bare NumPy
+  render + bare OpenCV sensor);
+- statics: poses × the twin's µs per pose (``Bench.pose_at``), floor poses × the closed form's µs per
+  pose (both from physics_floor.py's α grid, the per-pose cost applied to the run's poses too);
+- servo: its ``mj_step`` calls at the servo's steps/s, floor at raw ``mj_step``'s (servo_bench.py);
+- tracing: close-loop − analyze (two processes), floor the tracing's own CPU inside one close-loop
+  process (report_bench.py: it has no closed form; the floor is the step without process overhead).
+
+Then run's CPU / the sum of the floors (goal ≤ 1.5, stretch 1.2) and run's wall / its CPU (≤ 0.6 on 2
+cores), with the load average before and after (``uptime``): CPU time and these ratios are what a
+loaded machine changes least.
+
+Ratios also printed: run / I/O floor (target ≤ 3, stretch 2), analyze / (decode + Otsu + label), the
 eccentricity step alone (serial and in threads; benchmarks/ecc_bench.py) / decode + Otsu + label in
 the same process (target ≤ 2), the twin's poses / their closed-form solve (target ≤ 2), the servo /
 raw mj_step, the twin's render and sensor per frame / the floor's, simulate / (frames × floor render + sensor +
@@ -150,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
             # inside one close-loop process: the tracing, the report and the bench picture on their own
             parts.append(last_json(timed_run([py, str(HERE / "report_bench.py"), str(ds), "-o", str(work / f"rb{i}"),
                                               "--close-loop", "--json"], capture=True)[2])["parts"])
+        # the amounts of work of one simulate (hence of run's): poses, servo steps, frames
+        counts = last_json(timed_run([py, str(HERE / "run_parts.py"), *sc, "--json"], capture=True)[2])
         rf = last_json(timed_run([py, str(HERE / "render_floor.py"), "--json"], capture=True)[2])
         pf = last_json(timed_run([py, str(HERE / "physics_floor.py"), *sc, "--json"], capture=True)[2])
         sv = _servo(sc)
@@ -223,10 +242,38 @@ def main(argv: list[str] | None = None) -> int:
           f"{sv['raw_steps_s']:,.0f}: {sv['ratio']:.2f}× (target ≤ 2)")
     print(f"Goal (issue #17): run ≤ 3× I/O floor: {wall['run'] / floor_io_w:.2f}× wall, "
           f"{cpu['run'] / floor_io_c:.2f}× CPU")
+
+    # issue #36: every part of run against its own floor (CPU s), with the amounts of run's own work
+    poses = counts["poses_run"] + counts["poses_grid"]
+    steps = counts["servo_steps"]
+    run_parts = [
+        ("I/O (decode+Otsu+label+encode)", f"{n} frames", floor_io_c, floor_io_c),
+        ("render + sensor", f"{n} frames", n * (rf["twin_render_cpu_s"] + rf["twin_sensor_cpu_s"]),
+         n * (rf["floor_render_cpu_s"] + rf["floor_sensor_cpu_s"])),
+        ("statics (run + α grid)", f"{counts['poses_run']}+{counts['poses_grid']} poses",
+         poses * pf["twin_us_per_pose"] * 1e-6, poses * pf["floor_us_per_pose"] * 1e-6),
+        ("servo (mj_step)", f"{steps:,} steps", steps / sv["servo_steps_s"], steps / sv["raw_steps_s"]),
+        ("tracing", "close-loop − analyze", tr_c, tin_c),
+    ]
+    print(f"\nParts of run (issue #36), CPU s: the part at the twin's measured rate and at its floor's, both "
+          f"measured in this run; load average {load0[0]:.1f} before, {load1[0]:.1f} after")
+    print(f"{'part':32s} {'amount':22s} {'twin CPU s':>10s} {'floor CPU s':>11s} {'×':>6s}")
+    for name, amount, tw, fl in run_parts:
+        print(f"{name:32s} {amount:22s} {tw:10.2f} {fl:11.2f} {tw / fl:6.2f}")
+    sum_floor = sum(fl for *_, fl in run_parts)
+    sum_twin = sum(tw for _, _, tw, _ in run_parts)
+    print(f"{'sum':55s} {sum_twin:10.2f} {sum_floor:11.2f}")
+    print(f"run: {cpu['run']:.2f} s CPU, {wall['run']:.2f} s wall. CPU / sum of floors {cpu['run'] / sum_floor:.2f} "
+          f"(goal ≤ 1.5, stretch 1.2); CPU / sum of the parts at the twin's rates {cpu['run'] / sum_twin:.2f} "
+          f"(the rest: imports, process starts, analysis beyond decode+label, tables, report); wall / CPU "
+          f"{wall['run'] / cpu['run']:.2f} (goal ≤ 0.6 on 2 cores); statics {pf['ratio']:.2f}× their closed form "
+          f"(goal ≤ 2)")
     if args.json:
         print(json.dumps({"wall_s": wall, "cpu_s": cpu, "in_process": parts, "io_floor": {"wall_s": io_w, "cpu_s": io_c},
                           "render_floor": rf, "physics_floor": pf, "servo": sv, "eccentricity_step": ecc,
-                          "load_average": [load0[0], load1[0]], "frames": n}))
+                          "load_average": [load0[0], load1[0]], "frames": n, "counts": counts,
+                          "run_parts": {name: {"twin_cpu_s": tw, "floor_cpu_s": fl} for name, _, tw, fl in run_parts},
+                          "run_cpu_over_floors": cpu["run"] / sum_floor, "run_wall_over_cpu": wall["run"] / cpu["run"]}))
     return 0
 
 
