@@ -50,6 +50,9 @@ there (``app.score.score_files(results, dataset, truth_dir)``).
     .venv/bin/python benchmarks/loop_validation.py --seed 1 --per-class 100 [--classes null graduation_error ...]
         [--jobs 1] [--work /tmp/loop_validation] [--doc docs/loop-validation.md]
     .venv/bin/python benchmarks/loop_validation.py --from-json WORK/outcomes.json   # rewrite the doc only
+    .venv/bin/python benchmarks/loop_validation.py --reference /tmp/rg-101 [...] [--work W]
+        # the reference generator's datasets (gen.py --out DIR --seed N): close-loop on every case
+        # folder of DIR, scored by its own score.py against DIR/expected/<case>.json; per-kind table
 
 A bench is reproduced by (``--seed``, class, index): its draw depends on nothing else, and its
 overrides are recorded (``outcomes.json`` and the doc's per-bench list).
@@ -280,6 +283,41 @@ def _commit() -> str:
         return "unknown"
 
 
+REFGEN = Path("/work/shared/reference-generator")
+
+
+def reference_run(gen_dirs: list[str], work: str) -> list[dict[str, Any]]:
+    """Each case folder of each reference-generator output (``gen.py --out DIR``: ``case_NN`` or,
+    with ``--named``, the kind's name; ``expected/`` beside them) through
+    ``analyze(..., close_loop=True)``, scored by the generator's ``score.py`` (its SUMMARY line and
+    verdict). Returns one record per case: dir, case, kind (the truth's effect name), verdict, summary."""
+    from benchtwin.analysis.pipeline import analyze
+
+    out = []
+    for g in map(Path, gen_dirs):
+        for exp in sorted((g / "expected").glob("*.json")):
+            case = exp.stem
+            if not (g / case / "manifest.json").is_file():
+                continue
+            res_dir = Path(work) / g.name / case
+            shutil.rmtree(res_dir, ignore_errors=True)
+            rec: dict[str, Any] = {"dir": str(g), "case": case,
+                                   "kind": json.loads(exp.read_text(encoding="utf-8"))["effect"]["name"]}
+            try:
+                t0 = time.time()
+                analyze(g / case, res_dir, progress=False, close_loop=True)
+                rec["analyze_s"] = round(time.time() - t0, 1)
+                p = subprocess.run([sys.executable, str(REFGEN / "score.py"), str(exp), str(res_dir / "results.json")],
+                                   capture_output=True, text=True, check=False)
+                rec["summary"] = p.stdout.strip().splitlines()[-1]
+                rec["verdict"] = "PASS" if "verdict=PASS" in rec["summary"] else "FAIL"
+            except Exception as exc:  # noqa: BLE001 - recorded
+                rec["verdict"], rec["error"] = "ERROR", f"{type(exc).__name__}: {exc}"
+            print(f"{g.name} {case} ({rec['kind']}): {rec['verdict']}", flush=True)
+            out.append(rec)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, default=1)
@@ -289,7 +327,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", default="/tmp/loop_validation")
     ap.add_argument("--doc", default=str(DOC))
     ap.add_argument("--from-json", default=None, help="rewrite the doc from an earlier outcomes.json")
+    ap.add_argument("--reference", nargs="+", default=None, metavar="GEN_OUT",
+                    help="score the reference generator's outputs (gen.py --out GEN_OUT) instead of drawing benches")
     a = ap.parse_args(argv)
+    if a.reference:
+        recs = reference_run(a.reference, a.work)
+        kinds = sorted({r["kind"] for r in recs})
+        for k in kinds:
+            rk = [r for r in recs if r["kind"] == k]
+            print(f"{k:28s} {sum(r['verdict'] == 'PASS' for r in rk)}/{len(rk)}")
+        Path(a.work).mkdir(parents=True, exist_ok=True)
+        (Path(a.work) / "reference.json").write_text(json.dumps(recs, indent=1), encoding="utf-8")
+        return 0
     out_json = Path(a.work) / "outcomes.json"
     if a.from_json:
         saved = json.loads(Path(a.from_json).read_text(encoding="utf-8"))

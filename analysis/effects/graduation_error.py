@@ -19,6 +19,21 @@ positions; 11 for one 23-face sweep, 20 with shift sets).
   residual found significant (context key ``harmonics``), so that the effect costs two parameters
   per harmonic actually seen, not 18 — otherwise the information criterion punishes it for
   harmonics it does not need and it could never compete with one-parameter effects.
+
+Every order the sampling resolves (issue 32 item 5). A shift-angle design at P distinct stop
+positions resolves orders up to (P − 1)/2 (``Evidence.kmax_resolved``: 179 at 360 positions), far
+beyond 20, and a real division error has content there that no single harmonic test flags (each
+order's share is below the Bonferroni bound, their sum is not: 0.18″ RMS above order 20 on the
+hsieh2022 twin). Where the design leaves degrees of freedom for it — every stop position read at
+least twice (repetitions, both directions, several start faces), so that the fit of a value per
+position is not an interpolation of single readings — a second variant, ``broadband``, fits every
+order 2…kmax_resolved: on equally spaced positions this is the per-angle (non-parametric) α less
+its mean and first harmonic (k = 0: the closure; k = 1: the eccentricity), on unequal ones its
+band-limited form. It costs 2 parameters per order, so the information criterion chooses it only
+when the orders outside the significant set carry more than their ln n each; the cross-validation
+(leave-one-repetition-out) checks it predicts readings it was not fitted to. Where the design does
+not allow it (single readings per position), the orders above the significant set that remain are
+listed by the residual's signature (what is left, and why: no revisits to test them against).
 """
 
 from __future__ import annotations
@@ -64,6 +79,30 @@ def _orders(ev, ctx):
     return ks
 
 
+def broadband_orders(ev) -> list[int]:
+    """Every order 2…kmax_resolved when the design leaves degrees of freedom for them (each stop
+    position read at least twice) and the sampling resolves more than the harmonic test covers
+    (kmax_resolved > kmax); else [] (see the module docstring)."""
+    kr = int(getattr(ev, "kmax_resolved", 0) or 0)
+    if kr <= int(getattr(ev, "kmax", 0) or 0) or not getattr(ev, "revisited", False):
+        return []
+    return list(range(2, kr + 1))
+
+
+def _all_orders(ev, ctx) -> list[int]:
+    return sorted(set(_orders(ev, ctx)) | set(broadband_orders(ev)))
+
+
+def variants(names, ev=None, ctx=None):
+    """The significant orders (``harmonics``, as before) and, where the design allows it, every
+    resolved order (``broadband``); one variant when they are the same columns."""
+    if ev is None or not broadband_orders(ev):
+        return [list(names)]
+    sig = set(_orders(ev, ctx))
+    out = [[n for n in names if int(n[1:].split("_")[0]) in sig]]
+    return [v for v in out if v] + [list(names)]
+
+
 def ambiguous_with(ev):
     """Without X probes a motion of the axis along X (tangential at the head) is unmeasured: at any
     harmonic it reads as −δX/r, a function of θ exactly like a division error (one head, no
@@ -73,12 +112,12 @@ def ambiguous_with(ev):
 
 
 def available(ev, ctx=None):
-    ks = _orders(ev, ctx)
+    ks = _all_orders(ev, ctx)
     return (bool(ks), "" if ks else "no significant harmonic of order 2…20 in the residual")
 
 
 def design(ev, ctx=None):
-    return harmonic_columns(ev.theta_deg, _orders(ev, ctx))
+    return harmonic_columns(ev.theta_deg, _all_orders(ev, ctx))
 
 
 def heads(ev, params, heads_deg, ctx=None):
@@ -92,7 +131,7 @@ MAX_ARCSEC = 20.0
 
 
 def plausible(ev, params, u, ctx=None):
-    for k in ORDERS:
+    for k in sorted({int(n[1:].split("_")[0]) for n in params} | set(ORDERS)):
         a = float(abs(complex(params.get(f"a{k}_arcsec", 0.0), params.get(f"b{k}_arcsec", 0.0))))
         if a > MAX_ARCSEC:
             return False, f"harmonic {k}: {a:.3g}″ is beyond {MAX_ARCSEC:g}″"
@@ -103,7 +142,7 @@ def predict(ev, params, ctx=None):
 
 
 def aux(ev, ctx=None):
-    return {"orders": _orders(ev, ctx)}
+    return {"orders": _all_orders(ev, ctx)}
 
 
 def term(params, aux, base_terms=None):

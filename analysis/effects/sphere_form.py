@@ -115,7 +115,7 @@ def _fraction_column(ev, fplan):
     return out
 
 
-def variants(names):
+def variants(names, ev=None, ctx=None):
     """Parameter subsets tried (tracing): per-harmonic form, or one fraction of the reading."""
     per = [n for n in names if n != "form_fraction"]
     return [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]

@@ -157,6 +157,12 @@ class Evidence:
         self.theta_bin = np.round((self.theta_deg % 360.0) / THETA_BIN_DEG).astype(int) % int(round(360 / THETA_BIN_DEG))
         n_theta = np.unique(self.theta_bin).size
         self.kmax = int(min(20, max(1, (n_theta - 1) // 2)))
+        # every order the sampling resolves (graduation_error's broadband variant, issue 32 item 5),
+        # and whether every stop position was read at least twice (the design leaves degrees of
+        # freedom for a value per position: repetitions, both directions, several start faces)
+        self.kmax_resolved = int(max(1, (n_theta - 1) // 2))
+        counts = np.unique(self.theta_bin, return_counts=True)[1]
+        self.revisited = bool(counts.size and counts.min() >= 2)
 
     @property
     def n(self) -> int:
@@ -208,7 +214,7 @@ class _View:
 
     def __getattr__(self, name):
         if name in ("optical_radius_mm", "L1_mm", "L2_mm", "grating_period_um", "encoder_lines", "radial", "n_faces",
-                    "eccentricity_term", "kmax", "sphere_form_um"):
+                    "eccentricity_term", "kmax", "kmax_resolved", "revisited", "sphere_form_um"):
             return getattr(self.parent, name)
         if name == "ac_arcsec":
             return None

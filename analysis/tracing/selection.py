@@ -90,7 +90,7 @@ def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
     names = [n for n, k in zip(names, keep) if k]
     subsets = getattr(module, "SUBSETS", None)
     if hasattr(module, "variants"):
-        subsets = module.variants(names)
+        subsets = module.variants(names, pb.ev, ctx)
     out = []
     if subsets:
         for sub in subsets:
@@ -352,6 +352,18 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     equivalents = [c for c in pairs if c.equivalent]
     pb.fast = False
     chosen = passed[0] if passed else None
+    # The representative of an ambiguity set: the alternatives within AMBIG_DBIC of the best BIC
+    # whose predictions are collinear (cos² > COLLINEAR) are ones the data cannot tell apart (a BIC
+    # difference below AMBIG_DBIC is not "strong" evidence, Kass & Raftery 1995), so the BIC does not
+    # pick among them: the stated preference does (_prefer: fewer effects, then the library order).
+    # The set is reported whole either way; what changes is which alternative's fit is the model
+    # after. E.g. on a bench without X probes the unmeasured tangential motion (always present where
+    # the Y probes see the axis move) is preferred to an L1 error fitted to the same harmonics.
+    if chosen is not None:
+        p0 = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
+        alts = [c for c in passed[1:] if c.bic - chosen.bic < AMBIG_DBIC
+                and _cos2(pb, pb.predict_rows(c.X, c.fit, nuisance=False), p0) > COLLINEAR]
+        chosen = min([chosen] + alts, key=lambda c: _prefer(c, order))
     reported: set[int] = set()
 
     def report(c: _Cand) -> _Cand:
@@ -395,6 +407,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         "by_aicc": _ordered(passed, lambda c: c.aicc, tol, order)[0].key if passed else None,
         "by_cv": (_ordered([c for c in passed if c.cv is not None], lambda c: c.cv, tol, order)[0].key
                   if any(c.cv is not None for c in passed) else None),
+        "representative": chosen.key if chosen is not None else None,
         "n_passed": len(passed), "cv_folds": None if pb.folds is None else int(len(np.unique(pb.folds[pb.folds >= 0]))),
     }
     result["selection"]["agree"] = len({v for k, v in result["selection"].items() if k.startswith("by_") and v}) <= 1
@@ -442,7 +455,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                                      "with": [n for n in chosen.names if n != member], "notes": chosen.notes}})
     # ambiguity: other passing candidates within AMBIG_DBIC whose predictions are nearly collinear
     amb_cands, amb_fits = [set(chosen.names)], {chosen.key: cj}
-    for c in passed[1:] + equivalents:
+    for c in [c for c in passed if c is not chosen] + equivalents:
         if c.bic - chosen.bic < AMBIG_DBIC and set(c.names) not in amb_cands:
             pc = pb.predict_rows(c.X, c.fit, nuisance=False)
             if _cos2(pb, pc, pred) > COLLINEAR:
@@ -452,7 +465,7 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     # (an exact tie is a choice by stated preference only: the design's ambiguities of the other
     # candidate hold as much)
     forced = set()
-    tied = [chosen] + [c for c in passed[1:] if c.bic - chosen.bic <= tol]
+    tied = [chosen] + [c for c in passed if c is not chosen and abs(c.bic - chosen.bic) <= tol]
     for c in tied:
         for member in c.names:
             fn = getattr(cands_mod[member], "ambiguous_with", None)
