@@ -470,7 +470,21 @@ def trace(evidence: Evidence, candidates=None) -> dict:
         for member in c.names:
             fn = getattr(cands_mod[member], "ambiguous_with", None)
             forced |= set(fn(ev)) if fn else set()
+    # a member whose design-forced alternative is itself a member of the chosen candidate (without X
+    # probes: graduation_error + tangential_motion) is not told apart from it either: the other
+    # member alone (an unmeasured motion at the same harmonics) is an alternative of the set
+    within = []
+    for member in chosen.names:
+        fn = getattr(cands_mod[member], "ambiguous_with", None)
+        if len(chosen.names) > 1 and fn and set(fn(ev)) & (set(chosen.names) - {member}):
+            within.append(set(chosen.names) - {member})
     forced -= set().union(*amb_cands)
+    for alt in within:
+        if alt not in amb_cands:
+            amb_cands.append(alt)
+            for c in singles:
+                if set(c.names) == alt:
+                    amb_fits[c.key] = cand_json(report(c))
     for other in sorted(forced):
         amb_cands.append({other})
         for c in singles:
