@@ -1,0 +1,69 @@
+"""Issue 32 (the loop on benches it was not tuned to): the rules the reference generator's failures
+led to, each on a small evidence that can fail (fast).
+
+- graduation_error reaches every order the sampling resolves, but only where every stop position is
+  revisited (item 5);
+- the cross-validation cannot be won by nuisance pushed far beyond its stated uncertainty (the
+  reference generator's hsieh_like: a 1″ k = 2 division error carried by a 0.04″ model-uncertainty
+  column, 'no effect' cross-validated as well as the effect).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from benchtwin.analysis.effects import graduation_error
+from benchtwin.analysis.tracing import Evidence, _Problem, _center
+
+
+def _shift_design(reps: int, directions=(1,)) -> dict:
+    """24 faces, shifts 0…14° (start face 1 at each shift): 360 stop positions."""
+    th, rep, sh, d = [], [], [], []
+    for r in range(reps):
+        for s in range(15):
+            for i in range(24):
+                for dd in directions:
+                    th.append(s + 15.0 * i)
+                    rep.append(r)
+                    sh.append(float(s))
+                    d.append(dd)
+    return {"theta_deg": np.array(th), "rep": np.array(rep), "shift_deg": np.array(sh), "direction": np.array(d)}
+
+
+def _ev(design: dict, alpha: np.ndarray, **kw) -> Evidence:
+    return Evidence(alpha_arcsec=alpha, u_arcsec=0.05, model_terms={}, n_faces=24, radial=None, **design, **kw)
+
+
+def test_broadband_orders_where_every_stop_is_revisited():
+    one = _shift_design(1)
+    ev1 = _ev(one, np.zeros(one["theta_deg"].size))
+    assert ev1.kmax == 20 and ev1.kmax_resolved == 179
+    assert not ev1.revisited and graduation_error.broadband_orders(ev1) == []   # single readings per stop
+    two = _shift_design(2)
+    ev2 = _ev(two, np.zeros(two["theta_deg"].size))
+    assert ev2.revisited and graduation_error.broadband_orders(ev2) == list(range(2, 180))
+    names = graduation_error.design(ev2, {"harmonics": [2, 5]})[1]
+    v = graduation_error.variants(names, ev2, {"harmonics": [2, 5]})
+    assert v[0] == ["a2_arcsec", "b2_arcsec", "a5_arcsec", "b5_arcsec"] and len(v[1]) == 2 * 178
+    # a 23-face sweep (23 positions) resolves less than the harmonic test covers: no broadband variant
+    th = np.tile(np.arange(23) * 360.0 / 23, 4)
+    ev3 = Evidence(theta_deg=th, alpha_arcsec=np.zeros(th.size), u_arcsec=0.05, model_terms={},
+                   rep=np.repeat(np.arange(4), 23))
+    assert ev3.revisited and graduation_error.broadband_orders(ev3) == []
+
+
+def test_cross_validation_is_not_won_by_nuisance_beyond_its_uncertainty():
+    rng = np.random.default_rng(3)
+    d = _shift_design(1)
+    th = np.deg2rad(d["theta_deg"])
+    alpha = 1.0 * np.sin(2 * th + 0.4) + rng.normal(0.0, 0.05, th.size)
+    # the model's uncertainty: one column at k = 2 with u = 0.04″ per component (e.g. the probes'
+    # type-A u of the ∫δY term), 25× smaller than the signal
+    ev = _ev(d, alpha, model_sensitivity={"u_a2": 0.04 * np.sin(2 * th), "u_b2": 0.04 * np.cos(2 * th)})
+    pb = _Problem(ev, use_selfcal=False)
+    assert pb.folds is not None
+    X = _center(np.column_stack([np.sin(2 * th), np.cos(2 * th)]), ev.closure_group, pb.w ** 2)
+    cv0, cv1 = pb.cv(np.zeros((ev.n, 0))), pb.cv(X)
+    # without the nuisance's prior term both are ~ the held-out noise (the nuisance at ~25 σ carries
+    # the effect); with it, 'no effect' pays ~ (1/0.04)² for it
+    assert cv1 < cv0 - 100.0, (cv0, cv1)
