@@ -332,8 +332,26 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     pairs = []
     # pairs of variants of two effects: an effect may earn its place next to one variant of another
     # (e.g. a tilt error next to the whirl's quadrature term) and not next to its best variant
+    # A variant with more columns than the harmonic test covers (graduation_error's every resolved
+    # order: any function of θ up to the sampling's Nyquist) contains every θ-only effect: such a
+    # pair is rank-deficient by construction (the gate would reject it as not identifiable) and
+    # costs a fit of hundreds of columns; it is not formed. Other designs have no such variant.
+    wide = 2 * ev.kmax + 2
+    basis: dict[int, np.ndarray] = {}
+
+    def inside(big: _Cand, small: _Cand) -> bool:
+        if big.X.shape[1] <= wide:
+            return False
+        if id(big) not in basis:
+            basis[id(big)] = np.linalg.qr(big.X * pb.w[:, None])[0]
+        B = small.X * pb.w[:, None]
+        Q = basis[id(big)]
+        return bool(np.linalg.norm(B - Q @ (Q.T @ B)) <= 1e-6 * np.linalg.norm(B))
+
     for a, b in itertools.combinations(variants, 2):
         if a.names[0] == b.names[0] or max(a.z[a.names[0]], b.z[b.names[0]]) < Z_PAIR:
+            continue
+        if inside(a, b) or inside(b, a):
             continue
         c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
         _evaluate(pb, c, cands_mod, ctx)
