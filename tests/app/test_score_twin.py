@@ -21,8 +21,10 @@ from benchtwin.cli import main
 from .naive import naive
 
 # The project's close-loop analysis on the suite's graduation_error dataset, seed 11, scored. Stored
-# expectations with their tolerances; measured (docs/suite-scores.md, seed 11): e −0.0001 µm, θ0
-# +0.0007°, α 0.025″, β 0.010″, coverage 77 % / 98 % of 48, named alone, after/floor 0.68.
+# expectations with their tolerances; measured (seed 11, ball bearings without cage slip, main of
+# 2026-12-05): e −0.00006 µm and θ0 −0.001° against the sweep's truth, α 0.030″, β 0.025″, coverage
+# 96 % within 2u, named alone, after/floor 2.43 (path bearings before: e −0.0001 µm, θ0 +0.0007°,
+# α 0.025″, β 0.010″, after/floor 0.68; docs/suite-scores.md).
 # Tolerances: e 0.01 µm and θ0 0.02° (≈ the e, θ0 u of the suite's benches), α and β 0.04″ (a third of
 # Hsieh's u_c ≈ 0.12″), after/floor 1.5 (the hidden suite's criterion, docs/hidden-suite.md).
 # α since the drive servo holds the encoder's COUNT (twin/instruments/drive.py): at each commanded
@@ -31,7 +33,14 @@ from .naive import naive
 # the α tolerance is the 0.04″ combined with 1.2 × that floor. The analysis' noise floor does not
 # (yet) hold that rest noise: after/floor measured 2.95 with the servo; 1.2 × that until it does.
 ALPHA_FLOOR_ARCSEC = 0.39 / math.sqrt(12.0)
-EXPECT = {"e_error_um": 0.01, "theta0_error_deg": 0.02,
+#
+# e and θ0 are scored against the sweep's truth (score.py _sweep_truth: Jia eqs. 10-12 on the true
+# d_ref of every frame), not the installed eccentricity: since the suite's benches run on ball
+# bearings (issue 33), the axis's once-per-revolution motion during the sweep (0.12 µm, 0.58° here)
+# is part of what every CCD sweep — and every head — sees as eccentricity (Jia sec. 4.2). Against the
+# installed e the project's analysis and the naive fit both miss by that motion, which says nothing
+# about either.
+EXPECT = {"e_error_sweep_um": 0.01, "theta0_error_sweep_deg": 0.02,
           "alpha_rms_error_arcsec": math.hypot(0.04, 1.2 * ALPHA_FLOOR_ARCSEC),
           "beta_rms_error_arcsec": 0.04, "residual_after_over_floor": 3.5}
 EXPECT_COVERAGE_2U = 0.85
@@ -43,14 +52,21 @@ def test_project_analysis_score_does_not_get_worse(grad_dataset, grad_results):
         assert s[k] is not None and abs(s[k]) <= tol, (k, s[k], tol)
     assert s["coverage_2u"] >= EXPECT_COVERAGE_2U
     assert s["named"] == "alone" and s["spurious"] == [] and s["identification_correct"] is True
-    assert abs(s["e_z"]) < 3 and abs(s["theta0_z"]) < 3
+    assert abs(_z_sweep(s, "e")) < 3 and abs(_z_sweep(s, "theta0")) < 3
+
+
+def _z_sweep(s, q):
+    """z of e (q = "e") or θ0 against the sweep's truth, with the u the results stated."""
+    unit = "um" if q == "e" else "deg"
+    u = s[f"{q}_error_{unit}"] / s[f"{q}_z"]
+    return s[f"{q}_error_sweep_{unit}"] / u
 
 
 def test_naive_fit_scores_visibly_worse(grad_dataset, grad_results):
     own = score_files(grad_results, grad_dataset)
     nv = score_results(canonical_results(naive(str(grad_dataset))), read_truth(grad_dataset / "truth", grad_dataset))
-    assert abs(nv["e_error_um"]) > 10 * abs(own["e_error_um"]) and abs(nv["e_error_um"]) > 0.02
-    assert abs(nv["theta0_error_deg"]) > 10 * abs(own["theta0_error_deg"])
+    assert abs(nv["e_error_sweep_um"]) > 10 * abs(own["e_error_sweep_um"]) and abs(nv["e_error_sweep_um"]) > 0.02
+    assert abs(nv["theta0_error_sweep_deg"]) > 10 * abs(own["theta0_error_sweep_deg"])
     assert nv["alpha_rms_error_arcsec"] > 10 * own["alpha_rms_error_arcsec"]
 
 
@@ -67,8 +83,8 @@ def test_a_wrong_result_cannot_pass(grad_dataset, grad_results):
     bad["polygon_pitch_deviation_arcsec"][1] -= 0.5
     bad["identified_effects"] = [{"name": "ac_scale"}]
     s = score_results(canonical_results(bad), truth)
-    assert abs(s["e_error_um"]) > 0.09 and abs(s["e_z"]) > 5
-    assert abs(s["theta0_error_deg"]) > 0.9
+    assert abs(s["e_error_sweep_um"]) > 0.09 and abs(_z_sweep(s, "e")) > 5
+    assert abs(s["theta0_error_sweep_deg"]) > 0.9
     # +0.5″ at one stop: well above the good result's count-quantisation floor
     assert s["alpha_rms_error_arcsec"] > good["alpha_rms_error_arcsec"] + 0.02
     assert good["alpha_rms_error_arcsec"] < EXPECT["alpha_rms_error_arcsec"]
@@ -164,7 +180,7 @@ def test_python_entry_point(grad_dataset, tmp_path, monkeypatch):
     out = benchtwin.score(fn, suite=tmp_path / "s")
     assert len(seen) == len(S.entries("small"))
     assert out["overall"]["with_results"] == len(seen) - 1 and "my fit diverged" in next(iter(out["errors"].values()))
-    assert out["overall"]["e_error_um"] > 0.02 and "| criterion | overall |" in out["table"]
+    assert out["overall"]["e_error_sweep_um"] > 0.02 and "| criterion | overall |" in out["table"]
 
 
 def test_readme_example_runs_and_is_worse(grad_dataset, grad_results, tmp_path, monkeypatch):
@@ -184,7 +200,7 @@ def test_readme_example_runs_and_is_worse(grad_dataset, grad_results, tmp_path, 
     assert "| criterion | overall |" in printed[0]
     own = score_files(grad_results, grad_dataset)
     nv = benchtwin.score(ns["naive"], suite=tmp_path / "s")["overall"]
-    assert nv["e_error_um"] > 10 * abs(own["e_error_um"]) and nv["alpha_rms_error_arcsec"] > 10 * own[
+    assert nv["e_error_sweep_um"] > 10 * abs(own["e_error_sweep_um"]) and nv["alpha_rms_error_arcsec"] > 10 * own[
         "alpha_rms_error_arcsec"]
 
 
