@@ -231,12 +231,14 @@ def bench_rows(path: Path) -> list[Row]:
             "ball bearings: cage slip (sets the asynchronous motion)",
             "cage angle φ_ref + ρ·(θ − θ_ref)·(1 + s) from the previous stop's end, s ~ N(0, cage_slip) per "
             "bearing and stop (twin/physics.py `_advance_path`, `cage_angles_rad`)" if s > 0 else
-            "cage_slip = 0: the cages roll without slip, so a stop's ball configuration is a function of "
-            "the shaft angle travelled: no asynchronous motion",
+            "cage_slip = 0: the cages roll without slip, cage angle φ_ref + ρ·(θ − θ_ref) (twin/physics.py "
+            "`_advance_path`): the ball configuration follows the shaft angle TRAVELLED, so a stop revisited a "
+            "turn later sees the cage ρ·360° further on: asynchronous motion at the cage's orders, no random part",
             f"σ = {s:g} of the move's rolling",
             src("bearings.cage_slip"),
             "per stop: s drawn from (seed, run, the stop's time t_s); within a move the cage follows the "
-            "shaft angle travelled, not time (a held stop does not move)" if s > 0 else KEY_ANGLE))
+            "shaft angle travelled, not time (a held stop does not move)" if s > 0 else
+            "the shaft angle travelled since the run's start (not θ mod 360°)"))
     u = float(br["unbalance"])
     if u > 0 or sc["bench"]["gravity_direction"] != "none":
         rows.append(Row(
