@@ -285,10 +285,25 @@ def _ambiguous_sets(amb) -> list[list[str]]:
     return sets
 
 
-def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplained: bool) -> str:
+#: the truth's −δX/r that a bench without X probes cannot see (app/score.py ``_floor``:
+#: ``unattributable_arcsec``, orders 2…10), from which on naming tangential_motion, or the set
+#: {tangential_motion, graduation_error} that only X probes separate, is no false positive: the
+#: independent reference generator's verdict rule (../shared/reference-generator/score.py), adopted
+#: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real
+UNOBSERVABLE_MIN_ARCSEC = 0.1
+OK_UNOBSERVABLE = "ok (unobservable −δX/r named)"
+
+
+def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplained: bool,
+             unobservable_arcsec: float | None = None) -> str:
     in_amb = any(expect in s for s in ambiguous)
     if expect == "none":
         if named or ambiguous:
+            if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
+                tang = "tangential_motion"
+                allowed = {tang} | ({"graduation_error"} if any(tang in st for st in ambiguous) else set())
+                if set(named) | {n for st in ambiguous for n in st} <= allowed:
+                    return OK_UNOBSERVABLE
             return "FALSE: " + ",".join(named + [n for s in ambiguous for n in s])
         return "unexplained" if unexplained else "ok (nothing)"
     if expect == "unexplained":
@@ -353,7 +368,14 @@ def run_one(path: str, seed: int, work: str, datasets_from: str | None = None) -
     rec["params"] = {e.get("name"): e.get("params") for e in res.get("identified_effects") or [] if isinstance(e, dict)}
     rec["u"] = {e.get("name"): e.get("u") for e in res.get("identified_effects") or [] if isinstance(e, dict)}
     expect = EXPECTED.get(name, ("?", "", set()))[0]
-    rec["outcome"] = classify(expect, rec["named"], rec["ambiguous"], rec["unexplained"])
+    try:   # the truth's unobservable −δX/r (None with X probes): only for the verdict below
+        from benchtwin.app.score import read_truth
+
+        rec["unobservable_arcsec"] = read_truth(Path(ds) / "truth", Path(ds))["floor"].get("unattributable_arcsec")
+    except Exception as exc:  # noqa: BLE001 - recorded in the table
+        rec["unobservable_arcsec"] = None
+        rec["unobservable_error"] = f"{type(exc).__name__}: {exc}"
+    rec["outcome"] = classify(expect, rec["named"], rec["ambiguous"], rec["unexplained"], rec["unobservable_arcsec"])
     # the tracing's residual per polygon reading (the basis of the noise floor below)
     rt, rat = res.get("residual_test") or {}, res.get("residual_after_trace") or {}
     rec["trace_rms_before"] = rt.get("rms_arcsec")
@@ -398,7 +420,8 @@ def _hidden_summary(path: Path) -> str:
 
 
 def is_correct(name: str, outcome: str) -> bool:
-    return outcome in EXPECTED.get(name, ("?", "", set()))[2]
+    accepted = EXPECTED.get(name, ("?", "", set()))[2]
+    return outcome in accepted or (outcome == OK_UNOBSERVABLE and "ok (nothing)" in accepted)
 
 
 def previous_rows(old_doc: Path, skip: set[str]) -> list[str]:

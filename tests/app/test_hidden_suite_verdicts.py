@@ -1,0 +1,32 @@
+"""The hidden suite's verdict rule (benchmarks/hidden_suite.py ``classify``): on a bench without X
+probes, the truth's unobservable −δX/r ≥ 0.1″ makes tangential_motion, or the set {tangential_motion,
+graduation_error}, no false positive on a null — the independent reference generator's rule — and
+nothing else."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+_spec = importlib.util.spec_from_file_location("hidden_suite", ROOT / "benchmarks" / "hidden_suite.py")
+hs = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(hs)
+
+SET = [["graduation_error", "tangential_motion"]]
+
+
+def test_the_set_on_a_y_probe_null_is_no_false_positive_above_the_unobservable_floor():
+    assert hs.classify("none", [], SET, False, 0.2) == hs.OK_UNOBSERVABLE
+    assert hs.classify("none", ["tangential_motion"], [], False, 0.2) == hs.OK_UNOBSERVABLE
+    assert hs.is_correct("null_a", hs.OK_UNOBSERVABLE)
+
+
+def test_below_the_floor_or_with_x_probes_or_another_name_it_stays_false():
+    assert hs.classify("none", [], SET, False, 0.05).startswith("FALSE")
+    assert hs.classify("none", [], SET, False, None).startswith("FALSE")          # X probes: nothing unobservable
+    assert hs.classify("none", ["graduation_error"], [], False, 0.3).startswith("FALSE")   # alone: not the set
+    assert hs.classify("none", ["ac_scale"], SET, False, 0.3).startswith("FALSE")
+    assert hs.classify("none", [], [], False, 0.3) == "ok (nothing)"
+    # an effect that is expected is never satisfied by the rule
+    assert not hs.is_correct("graduation_error", hs.OK_UNOBSERVABLE)
