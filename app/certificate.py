@@ -75,6 +75,19 @@ K_DEFAULT = 2.0  # coverage factor where no budget gives one (GUM 6.3.3; p ≈ 9
 P_DEFAULT = 0.95
 
 
+@dataclass(frozen=True)
+class Coverage:
+    """How a stated expanded uncertainty U covers the value: coverage factor k, coverage
+    probability p and the distribution k was taken from (GUM 6.2-6.3, G.4; D-SI expandedUnc)."""
+
+    k: float = K_DEFAULT
+    p: float = P_DEFAULT
+    distribution: str = "normal"
+
+
+DEFAULT_COVERAGE = Coverage()
+
+
 class CertificateInputError(ValueError):
     """Bad results.json or lab file (the CLI turns it into exit 2); the message names file and key."""
 
@@ -562,8 +575,9 @@ def _contact_xml(parent: etree._Element, tag: str, c: Contact, lang: str, strict
     return e
 
 
-def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | None, k: float, p: float,
-          distribution: str = "normal") -> etree._Element:
+def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | None = None,
+          cov: Coverage = DEFAULT_COVERAGE) -> etree._Element:
+    """si:real: the value rounded to its U (with U's coverage), or the plain value without U."""
     r = _el(parent, "real", ns=SI_NS)
     _el(r, "label", label, ns=SI_NS)
     if U is None:
@@ -575,15 +589,15 @@ def _real(parent: etree._Element, label: str, x: float, unit: str, U: float | No
     _el(r, "unit", unit, ns=SI_NS)
     eu = _el(r, "expandedUnc", ns=SI_NS)
     _el(eu, "uncertainty", Us, ns=SI_NS)
-    _el(eu, "coverageFactor", _k_str(k), ns=SI_NS)
-    _el(eu, "coverageProbability", _p_str(p), ns=SI_NS)
-    _el(eu, "distribution", distribution, ns=SI_NS)
+    _el(eu, "coverageFactor", _k_str(cov.k), ns=SI_NS)
+    _el(eu, "coverageProbability", _p_str(cov.p), ns=SI_NS)
+    _el(eu, "distribution", cov.distribution, ns=SI_NS)
     return r
 
 
 def _real_list(parent: etree._Element, labels: Sequence[str] | None, values: Sequence[float], unit: str,
-               U: Sequence[float] | None = None, k: float = K_DEFAULT, p: float = P_DEFAULT,
-               decimals: int | None = None, distribution: str = "normal") -> etree._Element:
+               U: Sequence[float] | None = None, cov: Coverage = DEFAULT_COVERAGE,
+               decimals: int | None = None) -> etree._Element:
     """si:realListXMLList: one unit for all, each value rounded to its own U (or to ``decimals``)."""
     r = _el(parent, "realListXMLList", ns=SI_NS)
     if labels is not None:
@@ -598,9 +612,9 @@ def _real_list(parent: etree._Element, labels: Sequence[str] | None, values: Seq
     if U is not None:
         eu = _el(r, "expandedUncXMLList", ns=SI_NS)
         _el(eu, "uncertaintyXMLList", " ".join(b for _, b in pairs), ns=SI_NS)
-        _el(eu, "coverageFactorXMLList", _k_str(k), ns=SI_NS)
-        _el(eu, "coverageProbabilityXMLList", _p_str(p), ns=SI_NS)
-        _el(eu, "distributionXMLList", distribution, ns=SI_NS)
+        _el(eu, "coverageFactorXMLList", _k_str(cov.k), ns=SI_NS)
+        _el(eu, "coverageProbabilityXMLList", _p_str(cov.p), ns=SI_NS)
+        _el(eu, "distributionXMLList", cov.distribution, ns=SI_NS)
     return r
 
 
@@ -1009,7 +1023,7 @@ def _influence_conditions(mr: etree._Element, man: Mapping[str, Any], lab: LabFi
             u_key = f"{base}_u_{k[len(base) + 1:]}"
             u = env.get(u_key)
             q = _quantity(_el(c, "data"), base.replace("_", " "), lang)
-            _real(q, base, float(env[k]), unit, K_DEFAULT * float(u) if u else None, K_DEFAULT, P_DEFAULT)
+            _real(q, base, float(env[k]), unit, K_DEFAULT * float(u) if u else None)
 
 
 def _encoder_error_result(results: etree._Element, res: Mapping[str, Any], curve: Mapping[str, Any],
@@ -1031,10 +1045,10 @@ def _encoder_error_result(results: etree._Element, res: Mapping[str, Any], curve
     q = _quantity(lst, "reference angle (encoder reading − encoder error)", lang,
                   "basic_referenceValue benchtwin_referenceAngle")
     _real_list(q, None, [t - a / 3600.0 for t, a in zip(curve["theta_deg"], curve["value"])], DSI_UNITS["deg"],
-               [U / 3600.0 for U in curve["U"]], curve["k"], curve["p"], distribution=curve["distribution"])
+               [U / 3600.0 for U in curve["U"]], Coverage(curve["k"], curve["p"], curve["distribution"]))
     q = _quantity(lst, "encoder error", lang, "basic_measurementError benchtwin_encoderErrorValue")
-    _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"], curve["k"], curve["p"],
-               distribution=curve["distribution"])
+    _real_list(q, None, curve["value"], DSI_UNITS["arcsec"], curve["U"],
+               Coverage(curve["k"], curve["p"], curve["distribution"]))
 
 
 def _selfcal_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
@@ -1078,10 +1092,10 @@ def _eccentricity_result(results: etree._Element, res: Mapping[str, Any], src: s
                     "include a change of the mounting after the calibration.")
         q = _quantity(d, "eccentricity e", lang, "benchtwin_eccentricityValue")
         _real(q, "e", _number(src, res, "eccentricity_um"), DSI_UNITS["um"],
-              K_DEFAULT * _number(src, res, "eccentricity_u_um", positive=True), K_DEFAULT, P_DEFAULT)
+              K_DEFAULT * _number(src, res, "eccentricity_u_um", positive=True))
         q = _quantity(d, "eccentricity phase θ0", lang, "benchtwin_eccentricityPhase")
         _real(q, "theta0", _number(src, res, "eccentricity_phase_deg"), DSI_UNITS["deg"],
-              K_DEFAULT * _number(src, res, "eccentricity_phase_u_deg", positive=True), K_DEFAULT, P_DEFAULT)
+              K_DEFAULT * _number(src, res, "eccentricity_phase_u_deg", positive=True))
 
 
 def _radial_motion_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
@@ -1108,7 +1122,7 @@ def _radial_motion_result(results: etree._Element, res: Mapping[str, Any], src: 
                 q = _quantity(lst, f"{kind} error motion value{band}", lang, f"benchtwin_{kind}ErrorMotion")
                 _text(q, "description", cond, lang)
                 _real(q, kind, x, DSI_UNITS["um"],
-                      K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None, K_DEFAULT, P_DEFAULT)
+                      K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None)
             if isinstance(bw, Mapping) and isinstance(acq, Mapping):
                 _iso230_7_influence(lst, bw, acq, lang)
 
@@ -1124,8 +1138,7 @@ def _effects_result(results: etree._Element, res: Mapping[str, Any], lang: str) 
                 base, unit = _unit_of(pk)
                 u = (e.get("u") or {}).get(pk)
                 q = _quantity(lst, base, lang)
-                _real(q, pk, float(pv), unit, K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None,
-                      K_DEFAULT, P_DEFAULT)
+                _real(q, pk, float(pv), unit, K_DEFAULT * float(u) if isinstance(u, (int, float)) and u > 0 else None)
 
 
 def _iso230_7_influence(lst: etree._Element, bw: Mapping[str, Any], acq: Mapping[str, Any], lang: str) -> None:
@@ -1139,12 +1152,12 @@ def _iso230_7_influence(lst: etree._Element, bw: Mapping[str, Any], acq: Mapping
     for key in ("lowest_order", "highest_order"):
         if bw.get(key) is not None:
             _real(_quantity(data, f"{key.replace('_', ' ')} per revolution", lang, f"benchtwin_{key}"), key,
-                  float(bw[key]), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+                  float(bw[key]), DSI_UNITS["one"], None)
     c = _el(ic, "influenceCondition", refType="benchtwin_stepAndSettle")
     _text(c, "name", "speed: step-and-settle", lang)
     _text(c, "description", str(acq.get("text", "")), lang)
     _real(_quantity(_el(c, "data"), "positions per turn", lang, "benchtwin_positionsPerTurn"), "positions_per_turn",
-          float(acq["positions_per_turn"]), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+          float(acq["positions_per_turn"]), DSI_UNITS["one"], None)
 
 
 def _iso230_2_result(results: etree._Element, res: Mapping[str, Any], src: str, lang: str) -> None:
@@ -1172,8 +1185,7 @@ def _iso230_2_result(results: etree._Element, res: Mapping[str, Any], src: str, 
         q = _quantity(lst, f"{f.get('symbol', key)}: {f.get('what', '')}", lang, f"benchtwin_iso230_2_{key}")
         v = f.get("value")
         if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-            _real(q, key, float(v), DSI_UNITS.get(str(f.get("unit", "arcsec")), DSI_UNITS["arcsec"]), None,
-                  K_DEFAULT, P_DEFAULT)
+            _real(q, key, float(v), DSI_UNITS.get(str(f.get("unit", "arcsec")), DSI_UNITS["arcsec"]), None)
         else:
             _text(q, "noQuantity", "not computed: the runs cannot give it (see the flags)", lang)
     lst = _el(d, "list", refType="benchtwin_iso230_2Runs")
@@ -1182,7 +1194,7 @@ def _iso230_2_result(results: etree._Element, res: Mapping[str, Any], src: str, 
         n = runs.get(direction)
         if isinstance(n, int) and not isinstance(n, bool):
             _real(_quantity(lst, f"runs, {direction}", lang, f"benchtwin_runs_{direction}"), f"n_runs_{direction}",
-                  float(n), DSI_UNITS["one"], None, K_DEFAULT, P_DEFAULT)
+                  float(n), DSI_UNITS["one"], None)
     _text(_quantity(lst, "meets the run count of ISO 230-2", lang, "benchtwin_meetsRunCount"), "noQuantity",
           "true" if meets else "false", lang)
 
@@ -1221,11 +1233,10 @@ def _arc_periods_result(results: etree._Element, res: Mapping[str, Any], src: st
                                      ("amplitude_arcsec", "u", "amplitude A", "benchtwin_amplitude"),
                                      ("phase_deg", "u_phase_deg", "phase φ", "benchtwin_phase")):
             _real(_quantity(lst, name, lang, ref), key.rsplit("_", 1)[0], _number(w, p, key), _unit_of(key)[1],
-                  k * _number(w, p, ukey, positive=True), k, P_DEFAULT, distribution=dist)
+                  k * _number(w, p, ukey, positive=True), Coverage(k, P_DEFAULT, dist))
         for key, name, ref in (("false_alarm", "false-alarm probability", "benchtwin_falseAlarm"),
                                ("n_periods_covered", "periods covered by the arc", "benchtwin_periodsCovered")):
-            _real(_quantity(lst, name, lang, ref), key, _number(w, p, key), DSI_UNITS["one"], None, K_DEFAULT,
-                  P_DEFAULT)
+            _real(_quantity(lst, name, lang, ref), key, _number(w, p, key), DSI_UNITS["one"], None)
 
 
 def _equipment(man: Mapping[str, Any], lab: LabFile) -> list[dict[str, str]]:
