@@ -202,7 +202,22 @@ class Bench:
     def __init__(self, sc: Any):
         self.sc = sc
         self.seed = _seed_of(sc)
-        b, br, er = sc["bench"], sc["bearings"], sc["errors"]
+        self._bearing_options(sc)
+        self._generate(sc)
+        self.thermal = self._thermal(sc)
+        self._drift4 = np.zeros(4)           # thermal translation of the bearing seats now
+        self._drift_t = math.nan             # the time of _drift4_t (pose_at's cache)
+        self._drift4_t = self._drift4
+        self._drift_src: Thermal | None = None
+        self.placement = self._placement(sc)
+        self._build(sc)
+        self._index_model()
+        self._linearise()
+
+    def _bearing_options(self, sc: Any) -> None:
+        """The scenario's bench and bearing options the statics use (geometry checked), and the
+        bench's [hidden] effects (twin/hidden.py: true values the dataset does not declare)."""
+        b, br = sc["bench"], sc["bearings"]
         if abs(b["bearing_top_z"] - b["bearing_bottom_z"]) < 1e-3:
             raise ValueError("bench.bearing_top_z and bench.bearing_bottom_z must be at least 1 mm apart: "
                              "two bearings at one place cannot hold the shaft's tilt")
@@ -225,13 +240,10 @@ class Bench:
         self.air_bearings: AirBearings | None = None
         self.cage_slip = float(_opt(sc, "bearings", "cage_slip", 0.0))
 
-        self._generate(sc)
-        self.thermal = self._thermal(sc)
-        self._drift4 = np.zeros(4)           # thermal translation of the bearing seats now
-        self._drift_t = math.nan             # the time of _drift4_t (pose_at's cache)
-        self._drift4_t = self._drift4
-        self._drift_src: Thermal | None = None
-        place = Placement(
+    def _placement(self, sc: Any) -> Placement:
+        """Where the generated errors put the bodies on the shaft (build.Placement)."""
+        b, br, er = sc["bench"], sc["bearings"], sc["errors"]
+        return Placement(
             disk_offset_m=self.disk_offset_m,
             disk_tilt_rad=float(er["disk_tilt"]),
             disk_tilt_azimuth_rad=float(_opt(sc, "errors", "disk_tilt_phase", 0.0)),
@@ -244,14 +256,18 @@ class Bench:
             unbalance_phase_rad=self.unbalance_phase_rad,
             unbalance_z_m=0.5 * (b["bearing_top_z"] + b["bearing_bottom_z"]),
         )
-        self.placement = place
+
+    def _build(self, sc: Any) -> None:
+        """The MuJoCo model of the true bench (the spheres where they truly are), with the bearings'
+        stiffness where the ball sets or the air film carry the shaft."""
+        b = sc["bench"]
         sc_true = sc
         if self.hidden.delta_L1_m:
             L1 = float(b["L1"]) + self.hidden.delta_L1_m
             if not 0.0 <= L1 < float(b["L2"]):
                 raise ValueError(f"hidden.tilt_abbe: true L1 = {L1:g} m must be in [0, L2)")
             sc_true = TrueScenario(sc, {"L1": L1})   # the spheres where they truly are
-        self.model, self.geometry = build_model(sc_true, place)
+        self.model, self.geometry = build_model(sc_true, self.placement)
         m = self.model
         if self.ball_sets is not None:
             # The ball sets carry the shaft (forces from twin/bearing.py, added to MuJoCo's
@@ -267,6 +283,11 @@ class Bench:
         # Statics: no constraint rows (no contacts, friction is applied as its sliding value).
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         self.data = mujoco.MjData(m)
+
+    def _index_model(self) -> None:
+        """Addresses of the joints, tendons, actuator and bodies in the compiled model, and the
+        statics' caches and counters."""
+        m, br = self.model, self.sc["bearings"]
         self._qadr = np.array([m.joint(n).qposadr[0] for n in JOINTS])
         self._dadr = np.array([m.joint(n).dofadr[0] for n in JOINTS])
         if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dadr, np.arange(6))):
@@ -289,6 +310,11 @@ class Bench:
         self.total_iterations = 0
         self.n_poses = 0
 
+
+    def _linearise(self) -> None:
+        """The statics' linear parts: the tendon matrix, MuJoCo's stiffness (and the ball sets'
+        kernel and assembly), the drive command's sensitivity and the Newton right-hand sides; the
+        axis-average-line centring."""
         # Journal displacement at the bearings = T·q (the fixed tendons are linear in q).
         self._T = self._tendon_matrix()
         self.reset_path()
