@@ -85,7 +85,7 @@ from the poses returned here.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -425,7 +425,8 @@ class Bench:
                 extra = _lobes_arrays(self.hidden.race_waviness_lobes(s_))
                 if extra[0].size:   # hidden tangential_motion: undeclared lobes of the inner race
                     bs = self.ball_sets[s_]
-                    inner = tuple(np.concatenate([x, y]) for x, y in zip(bs.inner, extra))
+                    inner = cast(tuple[np.ndarray, np.ndarray, np.ndarray],
+                                 tuple(np.concatenate([x, y]) for x, y in zip(bs.inner, extra)))
                     self.ball_sets[s_] = BallSet(bs.geometry, inner=inner, outer=bs.outer, ball_dd_m=bs.ball_dd_m)
             self.cage_ratio = self.ball_sets["top"].rho
         elif self.bearing_type == "air":
@@ -434,7 +435,7 @@ class Bench:
                                  "not bearings.type = \"air\"")
             self.air_bearings = build_air_bearings(br, _rng(seed, "air_form"), _rng(seed, "air_supply"))
         # Optional measured motion table: replaces the synchronous waviness.
-        self.motion_table = None
+        self.motion_table: dict[str, Any] | None = None
         table = sc.get("motion_table") if hasattr(sc, "get") else None
         if table:
             self._set_motion_table(table, b)
@@ -473,11 +474,11 @@ class Bench:
         th = np.mod(th, TWO_PI)[order]
         # Rolling-path offsets that carry an unloaded rigid shaft along the table's motion:
         # x(z) = dx + z·tilt_y, y(z) = dy − z·tilt_x at each bearing (same kinematics as the tendons).
-        off = []
+        rows = []
         for z in (b["bearing_top_z"], b["bearing_bottom_z"]):
-            off.append(cols["dx"][order] + z * cols["tilt_y"][order])
-            off.append(cols["dy"][order] - z * cols["tilt_x"][order])
-        off = np.array(off)                                   # (4, n)
+            rows.append(cols["dx"][order] + z * cols["tilt_y"][order])
+            rows.append(cols["dy"][order] - z * cols["tilt_x"][order])
+        off = np.array(rows)                                  # (4, n)
         th_p = np.concatenate([th, [th[0] + TWO_PI]])
         off_p = np.concatenate([off, off[:, :1]], axis=1)
         self.motion_table = {"theta_rad": th.tolist(), **{k: cols[k][order].tolist() for k in cols}}
@@ -503,7 +504,7 @@ class Bench:
             self._rep_cache[rep] = p
         return p
 
-    def _race_terms(self, rep: int, include_async: bool) -> tuple:
+    def _race_terms(self, rep: int, include_async: bool) -> tuple | None:
         """The harmonic terms of ``race_offsets_m`` for one rep, cached: every lobe and random
         component is a·cos(f·θ + φ) or a·sin(f·θ + φ) on one of the four offsets, so the offsets are
         C·cos(F·θ + Φ) + S·sin(F·θ + Φ) with (4, n) coefficient matrices C, S (one cos, one sin
@@ -521,7 +522,10 @@ class Bench:
             f, ph, a = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (f, ph, a))
             c, s = np.zeros((4, f.size)), np.zeros((4, f.size))
             (s if use_sin else c)[row] = a
-            F.append(f), Ph.append(ph), C.append(c), S.append(s)
+            F.append(f)
+            Ph.append(ph)
+            C.append(c)
+            S.append(s)
 
         if self.air_bearings is not None:   # the journals' form through the film (synchronous)
             for f, ph, row, amp, use_sin in self.air_bearings.offset_terms():
@@ -570,6 +574,7 @@ class Bench:
                 out += c
             if Sm is not None:
                 out += Sm @ np.sin(arg)
+        assert out is not None   # a table, the terms' sum or zeros
         if self.hidden:
             dx = self.hidden.race_x_offset_m(th)        # hidden tangential motion: X only
             out[0] += dx
@@ -605,6 +610,7 @@ class Bench:
         """The fused kernel of the current ball sets (rebuilt if a set was replaced, as the
         bearing tests and design studies do on a built bench)."""
         k, bs = self._kernel, self.ball_sets
+        assert bs is not None   # only ball benches have a kernel
         if k.sets[0] is not bs["top"] or k.sets[1] is not bs["bottom"]:
             k = self._kernel = BallSets([bs["top"], bs["bottom"]])
         return k
@@ -770,14 +776,16 @@ class Bench:
             u[0] -= dx
             u[2] -= dx
         cage = self.cage_angles_rad(th)
+        bs = self.ball_sets
+        assert bs is not None   # only ball benches take ball forces
         if with_stiffness:
-            ft, kt = self.ball_sets["top"].force_and_stiffness(u[:2], th, cage[0])
-            fb, kb = self.ball_sets["bottom"].force_and_stiffness(u[2:], th, cage[1])
+            ft, kt = bs["top"].force_and_stiffness(u[:2], th, cage[0])
+            fb, kb = bs["bottom"].force_and_stiffness(u[2:], th, cage[1])
             K = np.zeros((4, 4))
             K[:2, :2], K[2:, 2:] = kt, kb
             return np.concatenate([ft, fb]), K
-        ft = self.ball_sets["top"].force_on_shaft_N(u[:2], th, cage[0])
-        fb = self.ball_sets["bottom"].force_on_shaft_N(u[2:], th, cage[1])
+        ft = bs["top"].force_on_shaft_N(u[:2], th, cage[0])
+        fb = bs["bottom"].force_on_shaft_N(u[2:], th, cage[1])
         return np.concatenate([ft, fb])
 
     def _set_loads(self, cmd_rad: float, direction: int) -> None:
