@@ -50,6 +50,12 @@ NORMAL_COVERAGE = {1: math.erf(1 / math.sqrt(2)), 2: math.erf(2 / math.sqrt(2))}
 RADIAL_ORDERS = range(2, 11)
 #: two angles closer than this are the same stop (tables write θ with 9-15 digits)
 THETA_MATCH_DEG = 1e-6
+#: a bench without X probes whose truth holds at least this much −δX/r the Y probes cannot see
+#: (``_floor``'s ``unattributable_arcsec``, orders 2…10): naming tangential_motion there, or the set
+#: {tangential_motion, graduation_error} that only X probes separate, is no spurious name — the rule
+#: of the independent reference generator's scorer (../shared/reference-generator/score.py), since
+#: the twin's bearings are physical and their X motion is real (issue 33)
+UNOBSERVABLE_MIN_ARCSEC = 0.1
 
 CSV_QUANTITIES = ("e_um", "theta0_deg", "alpha_arcsec", "beta_arcsec", "selfcal_arcsec", "named", "ambiguous",
                   "unexplained", "residual_before_arcsec", "residual_after_arcsec")
@@ -857,9 +863,12 @@ def _score_curve(curve: Mapping[str, Any] | None, truth_vals: np.ndarray | None,
             "coverage": _coverage(err, curve.get("u")), "_err": err, "_u": curve.get("u")}
 
 
-def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | None) -> dict[str, Any]:
+def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | None,
+                         unobservable_arcsec: float | None = None) -> dict[str, Any]:
     """Named alone / in an ambiguity set / not named; 'unexplained' for an out-of-library effect;
-    spurious = every name neither expected nor a set-mate of an expected name."""
+    spurious = every name neither expected nor a set-mate of an expected name, nor (where the
+    truth's unobservable −δX/r is ≥ UNOBSERVABLE_MIN_ARCSEC) tangential_motion or its set with
+    graduation_error."""
     out: dict[str, Any] = {"expected": None, "accept": None, "named": None, "spurious": None, "unexplained": None,
                            "correct": None}
     if expected is None or expected.get("accept") is None:
@@ -875,17 +884,22 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     for s in sets:
         if ok_names & set(s):
             ok_names |= set(s)
+    unseen: set[str] = set()
+    if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
+        unseen = {"tangential_motion"} | ({"graduation_error"} if any("tangential_motion" in s for s in sets) else set())
     mentioned = named + [n for s in sets for n in s]
-    out["spurious"] = sorted(set(n for n in mentioned if n not in ok_names))
+    extra = [n for n in mentioned if n not in unseen]   # what the unobservable motion does not excuse
+    out["spurious"] = sorted(set(n for n in mentioned if n not in ok_names | unseen))
+    out["unobservable_named"] = sorted(unseen & set(mentioned))
     if exp:
         alone = all(e in named and not any(e in s for s in sets) for e in exp)
         inset = all(e in named or any(e in s for s in sets) for e in exp)
         out["named"] = "alone" if alone else ("in ambiguity set" if inset else "not named")
         outcome = {"alone": "named", "in ambiguity set": "ambiguous", "not named": "missed"}[out["named"]]
     elif "unexplained" in acc:
-        outcome = "unexplained" if unexpl else ("spurious" if mentioned else "missed")
+        outcome = "unexplained" if unexpl else ("spurious" if extra else "missed")
     else:
-        outcome = "nothing" if not mentioned and not unexpl else ("spurious" if mentioned else "unexplained")
+        outcome = "nothing" if not extra and not unexpl else ("spurious" if extra else "unexplained")
     out["outcome"] = outcome
     out["correct"] = bool(outcome in acc and not out["spurious"])
     return out
@@ -963,7 +977,7 @@ def score_results(res: Mapping[str, Any], truth: Mapping[str, Any]) -> dict[str,
     s["coverage_1u"] = pc["coverage_1u"] if pc else None
     s["coverage_2u"] = pc["coverage_2u"] if pc else None
     # identification
-    ident = score_identification(res, truth.get("expected"))
+    ident = score_identification(res, truth.get("expected"), (truth.get("floor") or {}).get("unattributable_arcsec"))
     s["identification"] = ident
     s["named"] = ident["named"]
     s["spurious"] = ident["spurious"]

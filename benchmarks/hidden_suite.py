@@ -290,7 +290,7 @@ def _ambiguous_sets(amb) -> list[list[str]]:
 #: {tangential_motion, graduation_error} that only X probes separate, is no false positive: the
 #: independent reference generator's verdict rule (../shared/reference-generator/score.py), adopted
 #: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real
-UNOBSERVABLE_MIN_ARCSEC = 0.1
+UNOBSERVABLE_MIN_ARCSEC = 0.1   # = benchtwin.app.score.UNOBSERVABLE_MIN_ARCSEC (the scorer's same rule)
 OK_UNOBSERVABLE = "ok (unobservable −δX/r named)"
 
 

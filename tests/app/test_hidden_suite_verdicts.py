@@ -30,3 +30,17 @@ def test_below_the_floor_or_with_x_probes_or_another_name_it_stays_false():
     assert hs.classify("none", [], [], False, 0.3) == "ok (nothing)"
     # an effect that is expected is never satisfied by the rule
     assert not hs.is_correct("graduation_error", hs.OK_UNOBSERVABLE)
+
+
+def test_the_suite_and_the_scorer_share_the_threshold():
+    from benchtwin.app.score import UNOBSERVABLE_MIN_ARCSEC, score_identification
+
+    assert hs.UNOBSERVABLE_MIN_ARCSEC == UNOBSERVABLE_MIN_ARCSEC
+    null = {"expect": [], "accept": ["nothing"]}
+    res = {"named": [], "ambiguous": SET, "unexplained": False}
+    ok = score_identification(res, null, 0.2)
+    assert ok["correct"] and ok["spurious"] == [] and ok["unobservable_named"] == ["graduation_error", "tangential_motion"]
+    bad = score_identification(res, null, 0.05)
+    assert not bad["correct"] and bad["spurious"] == ["graduation_error", "tangential_motion"]
+    alone = score_identification({"named": ["graduation_error"], "ambiguous": [], "unexplained": False}, null, 0.2)
+    assert not alone["correct"] and alone["spurious"] == ["graduation_error"]
