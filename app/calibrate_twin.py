@@ -382,6 +382,8 @@ def _learn_radial(ds: Any, res: Mapping[str, Any], raw: dict[str, Any], order: i
                                             "0: not observable without X probes")
     br["type"] = "path"
     comments[("bearings", "type")] = "the measured motion table replaces the bearings' own motion (twin/physics.py)"
+    # a path bearing states where its replayed motion was measured (docs/physics.md, "Path bearings")
+    br["path_provenance"] = f"radial_motion.csv of the dataset {Path(str(ds.path)).name} ({src}), by benchtwin calibrate-twin"
     for k in ("waviness_top", "waviness_bottom"):
         br[k] = []
         comments[("bearings", k)] = "replaced by [motion_table]"
