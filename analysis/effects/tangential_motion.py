@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import (ARCSEC_PER_RAD, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral, linear_predict,
+from ._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral, linear_predict,
                     quadrature, radius_um)
 
 NAME = "tangential_motion"
@@ -78,14 +78,15 @@ def ambiguous_with(ev):
     return ["graduation_error"] if is_generic(ev) else []
 
 
-#: δX is used in the harmonics the X probes resolve (amplitude ≥ Z_RESOLVED type-A u): the other
-#: orders of eq. 7's series are the probes' noise (0.1 µm repeatability → ~0.007 µm per
-#: coefficient, 0.2″ RMS over orders 2…10 at r = 22 mm) and would only add it to the regressor.
-Z_RESOLVED = 3.0
-
-
+#: δX enters with every order the X probes' grid determines (analysis/radial_motion.py,
+#: X_ORDERS_MAX), each with its type-A u as an errors-in-variables nuisance (regressor_perturbations):
+#: the probes (0.1 µm repeatability: ~0.007 µm, 0.064″ at r = 22 mm per coefficient) resolve a ball
+#: bearing's δX at few orders above 10, while the polygon sees −δX/r to ~0.02″ per coefficient; a
+#: regressor cut to the resolved orders leaves the rest (aliased by the faces onto orders 23 − k)
+#: to graduation_error. The nuisance is paid for in the information criterion by its Occam factor
+#: (analysis/tracing/problem.py, ``occam``), so its freedom is not free.
 def x_orders(ev) -> list[int]:
-    return ev.radial.significant_orders("dX_um", Z_RESOLVED)
+    return list(ev.radial.coefs("dX_um"))
 
 
 def _k(ev):
@@ -114,7 +115,9 @@ def regressor_perturbations(ev, params, ctx=None):
         cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
         form = getattr(ev, "sphere_form_um", None)
         if form and g and ks:
-            cols.append(k * g * ev.radial.form_perturbations(ev.theta_deg, "dX_um", form / np.sqrt(3.0), "value", ks))
+            # the spheres' form bound (Jia: 0.014 µm) is a bound on eq. 7's orders, as for δY
+            kf = [q for q in ks if q in RADIAL_ORDERS]
+            cols.append(k * g * ev.radial.form_perturbations(ev.theta_deg, "dX_um", form / np.sqrt(3.0), "value", kf))
     else:
         cols.append(k * (float(params.get("inphase_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "value")
                          + float(params.get("quadrature_gain", 0.0)) * ev.radial.perturbations(ev.theta_deg, "dY_um", "quadrature")))

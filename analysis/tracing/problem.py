@@ -366,6 +366,29 @@ class _Problem:
             nf += 1
         return tot + prior / max(nf, 1)
 
+    def eiv_adjustment(self, X: np.ndarray, fit: dict, extra: np.ndarray | None) -> tuple[float, float]:
+        """Errors in variables, checked: (Σ ν̂², p) for the measured-regressor nuisance E (unit prior,
+        ``extra``) of a fit of X: ν̂ its posterior mean given the residual y − X·β (with the model
+        nuisance S), p = Σ λ/(1 + λ) over the eigenvalues λ of Eᵀ Σ₀⁻¹ E (Σ₀ = W⁻¹ + S Sᵀ), the
+        number of E's directions the readings determine: Σ ν̂² is ~χ²(p) when the regressor's
+        uncertainty is what its u says. (0, 0) without E."""
+        if extra is None or extra.shape[1] == 0:
+            return 0.0, 0.0
+        w2 = self.w ** 2
+        r = self.y - (X @ np.asarray(fit["beta"], dtype=float) if X.shape[1] else 0.0)
+        A = np.hstack([self.S, extra])
+        Aw = A * w2[:, None]
+        nu = np.linalg.solve(np.eye(A.shape[1]) + A.T @ Aw, Aw.T @ r)[self.S.shape[1]:]
+        We = extra * w2[:, None]
+        S = self.S
+        if S.shape[1]:
+            Ws = S * w2[:, None]
+            G = extra.T @ We - (We.T @ S) @ np.linalg.solve(np.eye(S.shape[1]) + S.T @ Ws, Ws.T @ extra)
+        else:
+            G = extra.T @ We
+        lam = np.clip(np.linalg.eigvalsh(0.5 * (G + G.T)), 0.0, None)
+        return float(nu @ nu), float(np.sum(lam / (1.0 + lam)))
+
     def ic(self, fit) -> tuple[float, float]:
         n, k, chi2 = fit["n"], fit["k"], fit["chi2"]
         bic = chi2 + k * math.log(n)

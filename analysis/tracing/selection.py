@@ -18,7 +18,7 @@ import numpy as np
 
 from benchtwin.units import ARCSEC_PER_RAD
 
-from ..distributions import chi2_sf, f_sf
+from ..distributions import chi2_isf, chi2_sf, f_sf
 from ..effects import ALL
 from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
@@ -258,6 +258,14 @@ def trace(evidence: Evidence, candidates=None) -> dict:
                              "(effects alias onto each other at these sampling angles)")
         if min(c.z.values()) < Z_GATE:
             c.reasons.append(f"z = {min(c.z.values()):.1f} < {Z_GATE}")
+        if c.extra is not None and c.extra.shape[1]:
+            # errors in variables: the fit may move a measured regressor only within its u; a fit
+            # that needs it moved by more (Σν̂² beyond χ²(p) at P_SIG) explains the residual with a
+            # motion (or form) the probes did not measure
+            adj, p_eff = pb.eiv_adjustment(c.X, c.fit, c.extra)
+            if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
+                c.reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
+                                 f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
         if bic0 - c.bic < DBIC_GATE:
             c.reasons.append(f"ΔBIC = {bic0 - c.bic:.1f} < {DBIC_GATE}")
         if member_bics is not None and c.bic > min(member_bics) - DBIC_GATE:
