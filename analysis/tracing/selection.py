@@ -102,6 +102,11 @@ def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
     return out, ""
 
 
+#: errors-in-variables re-linearisation: at most EIV_ITER passes, until the parameters change by < EIV_RTOL
+EIV_ITER = 10
+EIV_RTOL = 1e-6
+
+
 def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
     c.fit = pb.fit(c.X)
     members = [mods[n] for n in c.names]
@@ -111,6 +116,17 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
         c.extra = np.hstack(list(c.extras.values()))
         if c.extra.shape[1]:
             c.fit = pb.fit(c.X, extra=c.extra)
+            # the nuisance columns are scaled by the parameters (g·δX's u): linearised at the fit
+            # without them, whose g the regressor's own noise attenuates; re-linearised at the joint
+            # fit's parameters until they settle (the errors-in-variables fixed point)
+            for _ in range(EIV_ITER):
+                P0 = np.asarray(c.fit["beta"], dtype=float)
+                P, _u = _params_u(c, 1.0)
+                c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
+                c.extra = np.hstack(list(c.extras.values()))
+                c.fit = pb.fit(c.X, extra=c.extra)
+                if np.allclose(np.asarray(c.fit["beta"], dtype=float), P0, rtol=EIV_RTOL, atol=0.0):
+                    break
     c.bic, c.aicc = pb.ic(c.fit)
     scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
     # joint z of each member: Δχ² when its columns are dropped, scaled by the reduced χ² if > 1
