@@ -749,10 +749,16 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     x_probes = None
     if (ds / "radial_motion.csv").exists():
         x_probes = "probe_top_x_um" in _read_csv(ds / "radial_motion.csv")
-    if x_probes is False and ee is not None and r_mm and {"axis_dx_um", "axis_dy_um"} <= set(ee):
+    tangential = None
+    if ee is not None and r_mm and {"axis_dx_um", "axis_dy_um"} <= set(ee):
         _numeric(td / "encoder_error.csv", ee, "axis_dx_um", "axis_dy_um")
-        parts["unseen_tangential_arcsec"] = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"],
-                                                                 ee["axis_dy_um"], float(r_mm))
+        # the axis's own −δX/r (orders 2…10), which Jia's eq. 5 does not hold: a real tangential
+        # motion of the bench (with or without X probes to see it)
+        tangential = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"], np.zeros_like(ee["axis_dx_um"]),
+                                          float(r_mm))
+        if x_probes is False:
+            parts["unseen_tangential_arcsec"] = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"],
+                                                                     ee["axis_dy_um"], float(r_mm))
     # what a Y-probe bench cannot attribute is reported, not floored: an analysis can fit it (as a
     # division error), it cannot tell which it is (hence an ambiguity set)
     unattributable = parts.pop("unseen_tangential_arcsec", None)
@@ -760,7 +766,7 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     common = {k: v for k, v in parts.items() if k != "alpha_measurement_arcsec"}
     total_r = float(math.sqrt(sum(v * v for v in {**common, **per_reading}.values()))) if per_reading else None
     return {"floor_arcsec": total, "floor_per_reading_arcsec": total_r, "parts": {**parts, **per_reading},
-            "unattributable_arcsec": unattributable, "x_probes": x_probes}
+            "unattributable_arcsec": unattributable, "tangential_arcsec": tangential, "x_probes": x_probes}
 
 
 def _integral_rms_arcsec(theta_deg: np.ndarray, dx_um: np.ndarray, dy_um: np.ndarray, r_mm: float) -> float:
@@ -864,11 +870,13 @@ def _score_curve(curve: Mapping[str, Any] | None, truth_vals: np.ndarray | None,
 
 
 def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | None,
-                         unobservable_arcsec: float | None = None) -> dict[str, Any]:
+                         unobservable_arcsec: float | None = None,
+                         tangential_arcsec: float | None = None) -> dict[str, Any]:
     """Named alone / in an ambiguity set / not named; 'unexplained' for an out-of-library effect;
-    spurious = every name neither expected nor a set-mate of an expected name, nor (where the
-    truth's unobservable −δX/r is ≥ UNOBSERVABLE_MIN_ARCSEC) tangential_motion or its set with
-    graduation_error."""
+    spurious = every name neither expected nor a set-mate of an expected name, nor
+    tangential_motion where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (a real
+    tangential motion of the bench's bearings), nor graduation_error in a set with it where that
+    motion is unobservable (no X probes: ``unobservable_arcsec``)."""
     out: dict[str, Any] = {"expected": None, "accept": None, "named": None, "spurious": None, "unexplained": None,
                            "correct": None}
     if expected is None or expected.get("accept") is None:
@@ -885,8 +893,10 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
         if ok_names & set(s):
             ok_names |= set(s)
     unseen: set[str] = set()
-    if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
-        unseen = {"tangential_motion"} | ({"graduation_error"} if any("tangential_motion" in s for s in sets) else set())
+    if max(unobservable_arcsec or 0.0, tangential_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
+        unseen = {"tangential_motion"}
+    if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC and any("tangential_motion" in s for s in sets):
+        unseen |= {"graduation_error"}
     mentioned = named + [n for s in sets for n in s]
     extra = [n for n in mentioned if n not in unseen]   # what the unobservable motion does not excuse
     out["spurious"] = sorted(set(n for n in mentioned if n not in ok_names | unseen))
@@ -977,7 +987,8 @@ def score_results(res: Mapping[str, Any], truth: Mapping[str, Any]) -> dict[str,
     s["coverage_1u"] = pc["coverage_1u"] if pc else None
     s["coverage_2u"] = pc["coverage_2u"] if pc else None
     # identification
-    ident = score_identification(res, truth.get("expected"), (truth.get("floor") or {}).get("unattributable_arcsec"))
+    fl0 = truth.get("floor") or {}
+    ident = score_identification(res, truth.get("expected"), fl0.get("unattributable_arcsec"), fl0.get("tangential_arcsec"))
     s["identification"] = ident
     s["named"] = ident["named"]
     s["spurious"] = ident["spurious"]

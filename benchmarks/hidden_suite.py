@@ -291,19 +291,26 @@ def _ambiguous_sets(amb) -> list[list[str]]:
 #: independent reference generator's verdict rule (../shared/reference-generator/score.py), adopted
 #: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real
 UNOBSERVABLE_MIN_ARCSEC = 0.1   # = benchtwin.app.score.UNOBSERVABLE_MIN_ARCSEC (the scorer's same rule)
-OK_UNOBSERVABLE = "ok (unobservable −δX/r named)"
+OK_UNOBSERVABLE = "ok (the bearings' −δX/r named)"
 
 
 def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplained: bool,
-             unobservable_arcsec: float | None = None) -> str:
+             unobservable_arcsec: float | None = None, tangential_arcsec: float | None = None) -> str:
+    """The outcome against the expected effect. On a null, tangential_motion is no false positive
+    where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (``tangential_arcsec``: the
+    bearings' real X motion), nor its set with graduation_error where no X probes can see that
+    motion (``unobservable_arcsec``) — the rule app/score.py applies."""
     in_amb = any(expect in s for s in ambiguous)
     if expect == "none":
         if named or ambiguous:
-            if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
-                tang = "tangential_motion"
-                allowed = {tang} | ({"graduation_error"} if any(tang in st for st in ambiguous) else set())
-                if set(named) | {n for st in ambiguous for n in st} <= allowed:
-                    return OK_UNOBSERVABLE
+            tang = "tangential_motion"
+            allowed: set[str] = set()
+            if max(unobservable_arcsec or 0.0, tangential_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
+                allowed = {tang}
+            if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC and any(tang in st for st in ambiguous):
+                allowed |= {"graduation_error"}
+            if allowed and set(named) | {n for st in ambiguous for n in st} <= allowed:
+                return OK_UNOBSERVABLE
             return "FALSE: " + ",".join(named + [n for s in ambiguous for n in s])
         return "unexplained" if unexplained else "ok (nothing)"
     if expect == "unexplained":
@@ -371,11 +378,13 @@ def run_one(path: str, seed: int, work: str, datasets_from: str | None = None) -
     try:   # the truth's unobservable −δX/r (None with X probes): only for the verdict below
         from benchtwin.app.score import read_truth
 
-        rec["unobservable_arcsec"] = read_truth(Path(ds) / "truth", Path(ds))["floor"].get("unattributable_arcsec")
+        fl = read_truth(Path(ds) / "truth", Path(ds))["floor"]
+        rec["unobservable_arcsec"], rec["tangential_arcsec"] = fl.get("unattributable_arcsec"), fl.get("tangential_arcsec")
     except Exception as exc:  # noqa: BLE001 - recorded in the table
-        rec["unobservable_arcsec"] = None
+        rec["unobservable_arcsec"] = rec["tangential_arcsec"] = None
         rec["unobservable_error"] = f"{type(exc).__name__}: {exc}"
-    rec["outcome"] = classify(expect, rec["named"], rec["ambiguous"], rec["unexplained"], rec["unobservable_arcsec"])
+    rec["outcome"] = classify(expect, rec["named"], rec["ambiguous"], rec["unexplained"], rec["unobservable_arcsec"],
+                              rec["tangential_arcsec"])
     # the tracing's residual per polygon reading (the basis of the noise floor below)
     rt, rat = res.get("residual_test") or {}, res.get("residual_after_trace") or {}
     rec["trace_rms_before"] = rt.get("rms_arcsec")

@@ -44,3 +44,17 @@ def test_the_suite_and_the_scorer_share_the_threshold():
     assert not bad["correct"] and bad["spurious"] == ["graduation_error", "tangential_motion"]
     alone = score_identification({"named": ["graduation_error"], "ambiguous": [], "unexplained": False}, null, 0.2)
     assert not alone["correct"] and alone["spurious"] == ["graduation_error"]
+
+
+def test_with_x_probes_the_bearings_real_tangential_motion_may_be_named_but_not_a_division_error():
+    from benchtwin.app.score import score_identification
+
+    # X probes: nothing unobservable, but the truth's axis holds 0.6″ of −δX/r
+    assert hs.classify("none", ["tangential_motion"], [], False, None, 0.6) == hs.OK_UNOBSERVABLE
+    assert hs.classify("none", ["tangential_motion"], [], False, None, 0.05).startswith("FALSE")
+    assert hs.classify("none", [], SET, False, None, 0.6).startswith("FALSE")   # the set needs an unseen motion
+    null = {"expect": [], "accept": ["nothing"]}
+    assert score_identification({"named": ["tangential_motion"], "ambiguous": [], "unexplained": False},
+                                null, None, 0.6)["correct"]
+    s = score_identification({"named": [], "ambiguous": SET, "unexplained": False}, null, None, 0.6)
+    assert not s["correct"] and s["spurious"] == ["graduation_error"]
