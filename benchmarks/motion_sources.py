@@ -293,16 +293,9 @@ def bench_rows(path: Path) -> list[Row]:
 
 def _air_rows(sc, br, src) -> list[Row]:
     """Aerostatic journals (twin/air_bearing.py): stiffness, form through the film, supply."""
-    from twin.air_bearing import P_AMBIENT_PA, AerostaticJournal
+    from twin.air_bearing import journal_from_bearings
 
-    j = AerostaticJournal(
-        diameter_m=float(br["air_journal_diameter"]), length_m=float(br["air_journal_length"]),
-        clearance_m=float(br["air_clearance"]), supply_pressure_Pa=P_AMBIENT_PA + float(br["air_supply_pressure"]),
-        feed_holes=int(br["air_feed_holes"]), rows=int(br["air_feed_rows"]), restrictor=str(br["air_restrictor"]),
-        orifice_diameter_m=float(br["air_orifice_diameter"]),
-        discharge_coefficient=float(br["air_discharge_coefficient"]),
-        porous_permeability_m2=float(br["air_porous_permeability"]),
-        porous_thickness_m=float(br["air_porous_thickness"]), porous_area_m2=float(br["air_porous_area"]))
+    j = journal_from_bearings(br)
     n = j.feed_holes
     k0 = j.stiffness_N_m()
     out = [Row(

@@ -481,9 +481,9 @@ class AirBearings:
         return out
 
 
-def build_air_bearings(br, rng_form: np.random.Generator, rng_supply: np.random.Generator) -> AirBearings:
-    """The bench's two journals from a scenario's resolved ``[bearings]`` (SI; gauge supply)."""
-    j = AerostaticJournal(
+def journal_from_bearings(br) -> AerostaticJournal:
+    """One journal of the bench from a scenario's resolved ``[bearings]`` (SI; gauge supply)."""
+    return AerostaticJournal(
         diameter_m=float(br["air_journal_diameter"]), length_m=float(br["air_journal_length"]),
         clearance_m=float(br["air_clearance"]), supply_pressure_Pa=P_AMBIENT_PA + float(br["air_supply_pressure"]),
         feed_holes=int(br["air_feed_holes"]), rows=int(br["air_feed_rows"]), restrictor=str(br["air_restrictor"]),
@@ -491,6 +491,11 @@ def build_air_bearings(br, rng_form: np.random.Generator, rng_supply: np.random.
         discharge_coefficient=float(br["air_discharge_coefficient"]),
         porous_permeability_m2=float(br["air_porous_permeability"]),
         porous_thickness_m=float(br["air_porous_thickness"]), porous_area_m2=float(br["air_porous_area"]))
+
+
+def build_air_bearings(br, rng_form: np.random.Generator, rng_supply: np.random.Generator) -> AirBearings:
+    """The bench's two journals from a scenario's resolved ``[bearings]`` (SI; gauge supply)."""
+    j = journal_from_bearings(br)
     forms, runout = {}, {}
     for s in ("top", "bottom"):
         forms[s] = generate_form(float(br["journal_roundness"]), rng_form)
@@ -506,5 +511,5 @@ def build_air_bearings(br, rng_form: np.random.Generator, rng_supply: np.random.
     return AirBearings(j, forms, runout, supply, thrust)
 
 
-__all__ = ["build_air_bearings", "AerostaticJournal", "AerostaticThrust", "AirBearings", "SupplyPressure", "generate_form",
+__all__ = ["build_air_bearings", "journal_from_bearings", "AerostaticJournal", "AerostaticThrust", "AirBearings", "SupplyPressure", "generate_form",
            "orifice_mass_flow", "porous_mass_flow", "slot_mass_flow", "land_mean_pressure"]
