@@ -290,7 +290,8 @@ def _ambiguous_sets(amb) -> list[list[str]]:
 #: {tangential_motion, graduation_error} that only X probes separate, is no false positive: the
 #: independent reference generator's verdict rule (../shared/reference-generator/score.py), adopted
 #: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real
-UNOBSERVABLE_MIN_ARCSEC = 0.1   # = benchtwin.app.score.UNOBSERVABLE_MIN_ARCSEC (the scorer's same rule)
+#: here since the hidden benches run on physical ball bearings; the rule is the scorer's own, imported, not a copy.
+from benchtwin.app.score import UNOBSERVABLE_MIN_ARCSEC, excused_names  # noqa: E402,F401
 OK_UNOBSERVABLE = "ok (the bearings' −δX/r named)"
 
 
@@ -299,16 +300,11 @@ def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplai
     """The outcome against the expected effect. On a null, tangential_motion is no false positive
     where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (``tangential_arcsec``: the
     bearings' real X motion), nor its set with graduation_error where no X probes can see that
-    motion (``unobservable_arcsec``) — the rule app/score.py applies."""
+    motion (``unobservable_arcsec``): ``benchtwin.app.score.excused_names``, the scorer's one rule."""
     in_amb = any(expect in s for s in ambiguous)
     if expect == "none":
         if named or ambiguous:
-            tang = "tangential_motion"
-            allowed: set[str] = set()
-            if max(unobservable_arcsec or 0.0, tangential_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
-                allowed = {tang}
-            if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC and any(tang in st for st in ambiguous):
-                allowed |= {"graduation_error"}
+            allowed = excused_names(ambiguous, unobservable_arcsec, tangential_arcsec)
             if allowed and set(named) | {n for st in ambiguous for n in st} <= allowed:
                 return OK_UNOBSERVABLE
             return "FALSE: " + ",".join(named + [n for s in ambiguous for n in s])
