@@ -289,8 +289,8 @@ def _ambiguous_sets(amb) -> list[list[str]]:
 #: ``unattributable_arcsec``, orders 2…10), from which on naming tangential_motion, or the set
 #: {tangential_motion, graduation_error} that only X probes separate, is no false positive: the
 #: independent reference generator's verdict rule (../shared/reference-generator/score.py), adopted
-#: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real
-#: here since the hidden benches run on physical ball bearings; the rule is the scorer's own, imported, not a copy.
+#: here since the hidden benches run on physical ball bearings (issue 33), whose X motion is real.
+#: The rule is the scorer's own (``excused_names``), imported, not a copy kept equal.
 from benchtwin.app.score import UNOBSERVABLE_MIN_ARCSEC, excused_names  # noqa: E402,F401
 OK_UNOBSERVABLE = "ok (the bearings' −δX/r named)"
 
