@@ -97,7 +97,7 @@ from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
 from .hidden import TrueScenario, hidden_for
-from .pose import BenchPose, BodyPose
+from .pose import BenchPose, BodyPose, face_normals
 from .streams import stream_rng as _rng  # the one stream table (seeded: one stream per quantity)
 from .thermal import Thermal
 
@@ -239,6 +239,26 @@ class Bench:
         self.ball_sets: dict[str, BallSet] | None = None
         self.air_bearings: AirBearings | None = None
         self.cage_slip = float(_opt(sc, "bearings", "cage_slip", 0.0))
+
+    @staticmethod
+    def _pyramidal(sc: Any, seed: int, N: int) -> np.ndarray | None:
+        """Per physics face (1…N), the pyramidal error in rad from [polygon]: the stated values
+        (Hsieh's face h is physics face ((1 − h) mod N) + 1; one value: every face) plus a seeded
+        N(0, pyramidal_rms) draw. None when the scenario has no [polygon] section or all are 0."""
+        given = _opt(sc, "polygon", "pyramidal_error", None)
+        rms = float(_opt(sc, "polygon", "pyramidal_rms", 0.0))
+        p = np.zeros(N)
+        if given is not None:
+            g = np.asarray(given, dtype=float)
+            p_h = np.full(N, g[0]) if g.size == 1 else g
+            for h in range(1, N + 1):
+                p[((1 - h) % N)] = p_h[h - 1]
+        if rms > 0:
+            p = p + _rng(seed, "polygon_pyramidal").normal(0.0, rms, N)
+        if not np.any(p):
+            return None
+        p.flags.writeable = False   # shared with every pose
+        return p
 
     def _placement(self, sc: Any) -> Placement:
         """Where the generated errors put the bodies on the shaft (build.Placement)."""
@@ -383,6 +403,11 @@ class Bench:
         cum = np.concatenate([[0.0], np.cumsum(beta[:-1])])
         self.polygon_face_normal_angle_rad = TWO_PI * np.arange(N) / N + cum
         self.polygon_face_normal_angle_rad.flags.writeable = False   # shared with every pose
+        # Pyramidal error p_k ([polygon], optional): face k's normal tilted out of the plane
+        # perpendicular to the polygon's axis, n_k = (cos p cos g, cos p sin g, sin p) in the body.
+        # Given in the dataset's (Hsieh's) face numbering; stored per physics face. None when the
+        # scenario states none: every normal in the plane, the poses and truth as before.
+        self.polygon_pyramidal_rad = self._pyramidal(sc, seed, N)
         ph = _opt(sc, "errors", "polygon_eccentricity_phase", None)
         if ph is None:
             ph = _rng(seed, "polygon_eccentricity_phase").uniform(0, TWO_PI)
@@ -1005,6 +1030,8 @@ class Bench:
             "drive_torque_Nm": float(d.actuator_force[self._act]),
             "axis_disk_plane_m": axis_p[:2].copy(),
             "polygon_face_normal_angle_rad": self.polygon_face_normal_angle_rad,
+            **({"polygon_face_pyramidal_rad": self.polygon_pyramidal_rad}
+               if self.polygon_pyramidal_rad is not None else {}),
             "settle_iterations": it,
             "rep": int(rep),
             "direction": int(direction),
@@ -1040,8 +1067,7 @@ class Bench:
     def polygon_face_normals_body(self) -> np.ndarray:
         """(N, 3) outward unit normals of faces 1…N in the polygon body frame (pitch deviations
         included)."""
-        g = self.polygon_face_normal_angle_rad
-        return np.stack([np.cos(g), np.sin(g), np.zeros_like(g)], axis=1)
+        return face_normals(self.polygon_face_normal_angle_rad, self.polygon_pyramidal_rad)
 
     def truth(self) -> dict:
         """Every generated or derived physical parameter, JSON-ready, SI, unit-suffixed keys."""
@@ -1069,6 +1095,9 @@ class Bench:
             "polygon_pitch_deviation_rad": self.polygon_pitch_deviation_rad.tolist(),
             "polygon_pitch_deviation_arcsec": (self.polygon_pitch_deviation_rad / ARCSEC).tolist(),
             "polygon_face_normal_angle_body_rad": self.polygon_face_normal_angle_rad.tolist(),
+            **({"polygon_pyramidal_error_rad": self.polygon_pyramidal_rad.tolist(),
+                "polygon_pyramidal_error_arcsec": (self.polygon_pyramidal_rad / ARCSEC).tolist()}
+               if self.polygon_pyramidal_rad is not None else {}),
             "polygon_centre_body_m": self.polygon_offset_m.tolist(),
             "polygon_eccentricity_phase_rad": self.polygon_eccentricity_phase_rad,
             "polygon_tilt_rad": self.placement.polygon_tilt_rad,

@@ -37,7 +37,9 @@ class BenchPose:
       at body polar angle g is the line along body direction (cos g, sin g, 0). Graduation 0 is the
       encoder's index line.
     - ``polygon``: frame at the polygon's geometric centre; face k (1…N) has nominal outward normal
-      at body polar angle 2π(k−1)/N (pitch deviations are applied by the twin's polygon model).
+      at body polar angle 2π(k−1)/N (pitch deviations are applied by the twin's polygon model;
+      ``extra["polygon_face_normal_angle_rad"]``), tilted out of the body's x–y plane by its
+      pyramidal error where the scenario states one (``extra["polygon_face_pyramidal_rad"]``).
     - ``sphere_top`` / ``sphere_bottom``: frames at the sphere centres (form error in the body frame).
     - ``shaft_angle_rad``: true rotation of the shaft at the disk (what an ideal encoder would read).
     """
@@ -49,3 +51,16 @@ class BenchPose:
     sphere_top: BodyPose
     sphere_bottom: BodyPose
     extra: dict = field(default_factory=dict)
+
+
+def face_normals(azimuth_rad, pyramidal_rad=None) -> np.ndarray:
+    """(N, 3) outward unit normals of a polygon's faces in its body frame: face k's normal at body
+    polar angle g_k, tilted by its pyramidal error p_k out of the plane perpendicular to the axis
+    (towards +z for p > 0): (cos p·cos g, cos p·sin g, sin p). ``pyramidal_rad`` None: all in the
+    plane (z = 0; the same numbers as before the pyramidal error existed)."""
+    g = np.asarray(azimuth_rad, dtype=float)
+    if pyramidal_rad is None:
+        return np.stack([np.cos(g), np.sin(g), np.zeros_like(g)], axis=1)
+    p = np.asarray(pyramidal_rad, dtype=float)
+    cp = np.cos(p)
+    return np.stack([cp * np.cos(g), cp * np.sin(g), np.sin(p)], axis=1)

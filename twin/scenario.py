@@ -363,6 +363,11 @@ def _cross_checks(data: dict[str, Any], where: str) -> None:
         if th[-1] - th[0] >= 2 * 3.141592653589793:
             raise ScenarioError(f"{where}: motion_table.theta: expected angles within one turn (< 360°)")
         data["motion_table"] = {k: v for k, v in mt.items() if v is not None}
+    if "polygon" in data and data["polygon"]["pyramidal_error"] is not None:
+        n_p, n_f = len(data["polygon"]["pyramidal_error"]), b["polygon_faces"]
+        if n_p not in (1, n_f):
+            raise ScenarioError(f"{where}: polygon.pyramidal_error: expected 1 value (every face) or "
+                                f"{n_f} (one per face, bench.polygon_faces), got {n_p}")
     for key in ("heads",):
         v = b[key]
         if len(set(v)) != len(v):

@@ -288,6 +288,18 @@ OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
         "autocollimator_stand_time_constant": Field("time", 3600.0, lo=1.0, hi=1e7,
                                                     doc="lumped lag of the stand behind the room air"),
     },
+    # The polygon's faces out of the plane (twin/physics.py, twin/instruments/autocollimator.py;
+    # docs/physics.md, "The polygon's pyramidal error and the autocollimator's second axis"): each
+    # face normal tilted by p out of the plane perpendicular to the polygon's axis. Optional (and
+    # no tilt by default), so a scenario that does not state it keeps its dataset's bytes.
+    "polygon": {
+        "pyramidal_error": Field("list[angle]", None, lo=-60 * ARCSEC, hi=60 * ARCSEC,
+                                 doc="per face, faces 1…N in the dataset's numbering (polygon.csv's start_face, "
+                                     "truth polygon_beta's face): the normal's tilt out of the plane perpendicular "
+                                     "to the polygon's axis, + towards the axis's top (+z); one value: every face"),
+        "pyramidal_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
+                               doc="a seeded per-face draw N(0, rms) added to pyramidal_error (stream polygon_pyramidal)"),
+    },
     # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
     # a real spindle). Equal-length lists; missing motion columns count as 0.
     "motion_table": {

@@ -9,8 +9,12 @@ zero shaft angle; re-clamping for start face j and shift S is applied by ``SimBe
 (``polygon_pose``), see ``stage``.
 
 Exact reading: the posed polygon's face normals n_k (lab) come from the body-frame face angles
-including the pitch deviations (``BenchPose.extra["polygon_face_normal_angle_rad"]``) and the
-polygon's tilt and wobble (its pose); the face seen is the one whose normal is closest to a. The
+including the pitch deviations (``BenchPose.extra["polygon_face_normal_angle_rad"]``), the faces'
+pyramidal errors (``extra["polygon_face_pyramidal_rad"]``: the normal tilted out of the plane
+perpendicular to the polygon's axis, ``pose.face_normals``) and the polygon's tilt and wobble on
+the shaft (its pose: the bearings' tilt motion included); the face seen is the one whose normal
+is closest to a. Both axes come from the one reflected beam, so a pyramidal face's horizontal
+reading carries the exact second-order cross-talk (docs/physics.md). The
 beam leaves along −a and returns along r = −a + 2(a·n)n. With e_t = ẑ × a (horizontal, across the
 axis) the instrument measures the return beam's angles atan2(r·e_t, r·a) and atan2(r·ẑ, r·a);
 the face angles are half of them. Sign (docs/conventions.md, Hsieh eq. 3 with α = reading − true):
@@ -38,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.hw.interfaces import AutocollimatorReading
+from benchtwin.twin.pose import face_normals
 from benchtwin.units import quantise
 
 from .ac_optics import AutocollimatorOptics
@@ -116,8 +121,8 @@ class SimAutocollimator:
         g = pose.extra.get("polygon_face_normal_angle_rad") if pose.extra else None
         if g is None:
             g = TWO_PI * np.arange(self.state.n_faces) / self.state.n_faces
-        g = np.asarray(g, dtype=float)
-        nb = np.stack([np.cos(g), np.sin(g), np.zeros_like(g)], axis=1)
+        p = pose.extra.get("polygon_face_pyramidal_rad") if pose.extra else None
+        nb = face_normals(g, p)    # pyramidal error: the normal out of the plane ⊥ the polygon's axis
         return nb @ self.state.polygon_pose(pose).R.T
 
     def sim_exact_angles(self, pose=None) -> tuple[float, float, int]:
