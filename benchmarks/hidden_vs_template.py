@@ -50,6 +50,7 @@ import numpy as np
 
 from benchtwin.analysis.effects import graduation_error as grad_mod
 from benchtwin.analysis.fourier import harmonic_columns
+from benchtwin.analysis.radial_motion import RADIAL_ORDERS
 from benchtwin.twin.scenario import load_scenario, validate
 from benchtwin.twin.simulate import sim_build, simulate
 from benchtwin.units import ARCSEC
@@ -159,6 +160,122 @@ def fit_ac_scale(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
     return f"Δ AC reading, {len(a)} readings", "[v, v²]", *remains(y, run_columns(a), np.column_stack([v, v * v]))
 
 
+def fit_optical_radius(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """A head radius r(1 + s): the template is a gain on the analysis's model (analysis/effects/
+    optical_radius.py: −(Δr/r)·Σ model terms), the model being Jia eq. 5, e/r·sin(θ−θ0) + ∫δY dθ/r.
+    Built from the truth of the run without the effect: its eccentricity term is α + δX/r (the head
+    reads the grating's tangential displacement, −δX/r for the axis' part, exactly: the
+    tangential_motion row) and ∫δY dθ/r replaces −δX/r, as eq. 5 does."""
+    a, b = rows(h / "truth" / "encoder_error.csv"), rows(p / "truth" / "encoder_error.csv")
+    th = col(a, "theta_deg")
+    y = col(a, "alpha_arcsec") - col(b, "alpha_arcsec")
+    k = 1.0 / (float(sc["bench"]["optical_radius"]) * 1e6 * ARCSEC)
+    ecc = col(b, "alpha_arcsec") + col(b, "axis_dx_um") * k
+    model = ecc + periodic_integral(th, col(b, "axis_dy_um")) * k
+    return "Δα, 0.1° grid", "−(Δr/r)·[e/r·sin(θ−θ0) + ∫δY dθ/r] (Jia eq. 5 model)", *remains(y, np.ones((th.size, 1)),
+                                                                                         model[:, None])
+
+
+def _d_ref(d: Path) -> dict[float, float]:
+    """θ (deg, 6 decimals) → d_ref (µm) of the frames the analysis's CCD step keeps (Jia eqs. 10–13:
+    the image scale from the grating lines with the datasheet period)."""
+    from benchtwin.analysis.dataset import open_dataset
+    from benchtwin.analysis.pipeline import step_eccentricity
+    r = step_eccentricity(open_dataset(d, order=1), 1, False, workers=1)
+    return {round(float(t), 6): float(v) for t, v in zip(r.theta_deg, r.d_ref_um)}
+
+
+def fit_ccd_scale(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """The CCD's d_ref as the analysis measures it from the images (pipeline.step_eccentricity), on
+    the frames both runs keep; template: a gain s on d_ref (analysis/effects/ccd_pixel_scale.py's
+    ccd channel: e, hence d_ref, scaled by 1/(1 + s)); nuisance: a constant (eq. 10's offset)."""
+    dh, dp = _d_ref(h), _d_ref(p)
+    keys = sorted(set(dh) & set(dp))
+    v = np.array([dp[t] for t in keys])
+    y = np.array([dh[t] for t in keys]) - v
+    return (f"Δ d_ref (µm), {len(keys)} CCD frames", "s·d_ref (Jia eq. 13 scale)",
+            *remains(y, np.ones((len(keys), 1)), v[:, None]))
+
+
+def _probes(d: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rs = rows(d / "radial_motion.csv")
+    return col(rs, "theta_deg"), col(rs, "probe_top_um"), col(rs, "probe_bottom_um")
+
+
+def _orders01(th: np.ndarray) -> np.ndarray:
+    """Jia eq. 7's removed orders: 0 (probe position) and 1 (sphere centring)."""
+    return np.column_stack([np.ones(th.size), harmonic_columns(th, (1,))[0]])
+
+
+def fit_tilt_abbe(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """The spheres sit ΔL1 off their declared heights: the probe readings change, α does not. The
+    channel is eq. 9's δY at the disk from the probe readings with the DECLARED L1, L2 (what the
+    analysis computes); template: ΔL1·(δ_bottom − δ_top)/L2 (analysis/effects/tilt_abbe.py's radial
+    channel, from the readings with the effect); nuisance: orders 0 and 1 (eq. 7 removes them)."""
+    L1 = float(sc["bench"]["L1"]) * 1e3
+    L2 = float(sc["bench"]["L2"]) * 1e3
+    th, th_, bh = _probes(h)
+    _, tp, bp = _probes(p)
+    y = ((L2 - L1) * (th_ - tp) + L1 * (bh - bp)) / L2
+    return (f"Δ δY at the disk (eq. 9, µm), {th.size} probe positions", "ΔL1·(δ_bottom − δ_top)/L2",
+            *remains(y, _orders01(th), ((bh - th_) / L2)[:, None]))
+
+
+def fit_sphere_form(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """Lobes of the top sphere's form: the top probe's reading changes, α does not. Template: the
+    sphere's reading harmonics 2…10 (analysis/effects/sphere_form.py: a form harmonic of the reading,
+    eq. 7's orders RADIAL_ORDERS); nuisance: orders 0 and 1 (eq. 7 removes them)."""
+    th, th_, _ = _probes(h)
+    _, tp, _ = _probes(p)
+    X = harmonic_columns(th, RADIAL_ORDERS)[0]
+    return (f"Δ top probe reading (µm), {th.size} positions", "harmonics 2…10 of the reading",
+            *remains(th_ - tp, _orders01(th), X))
+
+
+def setup_columns(rs: list[dict[str, str]]) -> np.ndarray:
+    """One indicator column per polygon setup (shift, start face): Hsieh's U_j as the measurement
+    model has it (evidence_from_polygon: one U per (shift, start face), shared by directions and reps)."""
+    keys = [(r["shift_deg"], r["start_face"]) for r in rs]
+    idx = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    X = np.zeros((len(rs), len(idx)))
+    X[np.arange(len(rs)), [idx[k] for k in keys]] = 1.0
+    return X
+
+
+def fit_torsion(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """Friction torque twisting the shaft between disk and polygon: the AC readings change. Template:
+    h·approach direction (analysis/effects/torsion_hysteresis.py, the approach from the readings' time
+    order, tracing.evidence.approach_direction); nuisance: one U_j per setup (shift, start face),
+    shared by both directions as in the measurement model."""
+    from benchtwin.analysis.tracing.evidence import approach_direction
+    a, b = rows(h / "polygon.csv"), rows(p / "polygon.csv")
+    y = col(a, "ac_arcsec") - col(b, "ac_arcsec")
+    d = np.array([-1.0 if r["direction"].startswith("b") else 1.0 for r in a])
+    app = approach_direction(col(a, "theta_deg"), col(a, "t_s"), d).astype(float)
+    return f"Δ AC reading, {len(a)} readings", "h·approach direction", *remains(y, setup_columns(a), app[:, None])
+
+
+def fit_polygon_pitch(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
+    """The true polygon's faces differ from the certificate: the AC readings change. Template: the
+    cumulative pitch C(f) of the face under the autocollimator, f = (j + i − 2) mod N + 1, f = 1…N−1
+    (analysis/effects/polygon_pitch_ignored.py); nuisance: one constant per run (U_j)."""
+    a, b = rows(h / "polygon.csv"), rows(p / "polygon.csv")
+    y = col(a, "ac_arcsec") - col(b, "ac_arcsec")
+    N = int(sc["bench"]["polygon_faces"])
+    f = (col(a, "start_face").astype(int) + col(a, "step").astype(int) - 2) % N + 1
+    X = np.column_stack([(f == c).astype(float) for c in range(1, N)])
+    return f"Δ AC reading, {len(a)} readings", f"C(f), f = 1…{N - 1}", *remains(y, run_columns(a), X)
+
+
+def fit_none_polygon(h: Path, p: Path, sc) -> tuple[str, str, float, float | None]:
+    """No effect module describes it (thermal_growth): the RMS of the true α's difference at the
+    polygon readings (their times: the lobes follow the hub's temperature), a constant removed."""
+    a, b = rows(h / "truth" / "polygon.csv"), rows(p / "truth" / "polygon.csv")
+    y = col(a, "alpha_arcsec") - col(b, "alpha_arcsec")
+    return (f"Δα, {len(a)} polygon readings", "no template: out of the library",
+            _rms_residual(y, np.ones((y.size, 1))), None)
+
+
 CASES: dict[str, Callable] = {
     "graduation_error": fit_graduation,
     "selfa_graduation": fit_graduation,
@@ -168,33 +285,102 @@ CASES: dict[str, Callable] = {
     "ac_drift": fit_ac_drift,
     "ac_scale": fit_ac_scale,
     "ac_nonlinearity": fit_ac_scale,
+    "optical_radius": fit_optical_radius,
+    "ccd_pixel_scale": fit_ccd_scale,
+    "ccd_pixel_scale_pixel_only": fit_ccd_scale,
+    "tilt_abbe": fit_tilt_abbe,
+    "sphere_form": fit_sphere_form,
+    "torsion_hysteresis": fit_torsion,
+    "polygon_pitch_ignored": fit_polygon_pitch,
+    "thermal_growth": fit_none_polygon,
 }
+
+#: settings beyond SMALL where a case's channel needs them: the CCD cases a frame every 30° at
+#: 512 × 384 px (Jia eq. 13's line count needs several periods in the field; the order-1 fit of
+#: eq. 10 needs ≥ 6 frames), the probe cases the scenario's 120 radial positions (eq. 7's orders
+#: 0…10 are 21 columns)
+EXTRA: dict[str, dict[str, str | int]] = {
+    "ccd_pixel_scale": {"procedure.ccd_step": "30 deg", "instruments.ccd.width": "512 px",
+                        "instruments.ccd.height": "384 px"},
+    "ccd_pixel_scale_pixel_only": {"procedure.ccd_step": "30 deg", "instruments.ccd.width": "512 px",
+                                   "instruments.ccd.height": "384 px"},
+    "tilt_abbe": {"procedure.radial_positions": 120},
+    "sphere_form": {"procedure.radial_positions": 120},
+}
+
+
+#: the files a null scenario's two runs must share byte for byte (every channel and its truth)
+NULL_FILES = ("polygon.csv", "radial_motion.csv", "ccd/index.csv", "truth/encoder_error.csv", "truth/polygon.csv",
+              "truth/radial_motion.csv", "truth/ccd.csv", "truth/polygon_beta.csv", "truth/polygon_setup.csv")
+
+
+def hidden_names() -> tuple[list[str], list[str]]:
+    """(effect scenarios, nulls) of scenarios/hidden/: a null's ``[hidden]`` table is empty."""
+    effects, nulls = [], []
+    for f in sorted((ROOT / "scenarios" / "hidden").glob("*.toml")):
+        (effects if load_scenario(f).raw.get("hidden") else nulls).append(f.stem)
+    return effects, nulls
+
+
+def simulate_pair(name: str, work: Path, overrides: dict) -> tuple[Path, Path, object, dict]:
+    """The scenario (small settings) and the same without its ``[hidden]`` table, same seed."""
+    sc = load_scenario(ROOT / "scenarios" / "hidden" / f"{name}.toml").with_overrides(overrides)
+    raw = dict(sc.raw)
+    hidden = raw.pop("hidden")
+    plain = validate(raw, f"{name} without [hidden]")
+    d = work / name
+    shutil.rmtree(d, ignore_errors=True)
+    simulate(sc, d / "hidden", progress=False, backend="analytic")
+    simulate(plain, d / "plain", progress=False, backend="analytic")
+    return d / "hidden", d / "plain", sc, hidden
+
+
+def null_row(nulls: list[str], work: Path) -> str:
+    """One row for the nulls: nothing hidden, so the run without ``[hidden]`` is the same run; checked
+    (every channel's and every truth file's bytes equal)."""
+    same = []
+    for name in nulls:
+        h, p, _, hidden = simulate_pair(name, work, SMALL)
+        assert not hidden, name
+        diff = [f for f in NULL_FILES if (h / f).exists() != (p / f).exists()
+                or ((h / f).exists() and (h / f).read_bytes() != (p / f).read_bytes())]
+        same.append(f"{'identical' if not diff else 'DIFFER: ' + ', '.join(diff)}")
+    verdict = "identical" if all(x == "identical" for x in same) else "; ".join(f"{n}: {x}" for n, x in zip(nulls, same))
+    names = ", ".join(f"`{n}`" for n in nulls)
+    return (f"| {names} | nothing: `[hidden]` empty | with = without ({len(NULL_FILES)} files: the channels and "
+            f"truth/): {verdict} | — (nothing to fit) | — | — | — |")
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", default="/tmp/hidden_vs_template")
     ap.add_argument("--only", nargs="*", default=None)
+    ap.add_argument("--no-nulls", action="store_true", help="skip the nulls' with = without check")
     args = ap.parse_args(argv)
     work = Path(args.work)
+    effects, nulls = hidden_names()
+    missing = [n for n in effects if n not in CASES]
+    if missing:
+        print(f"scenarios/hidden/: no template comparison for {missing} (add them to CASES)")
+        return 2
     names = [n for n in CASES if not args.only or n in args.only]
     out = ["| scenario | cause (twin/hidden.py) | difference (nuisance removed) | template (analysis columns) | "
-           "RMS before ″ | RMS after ″ | remains |", "| --- | --- | --- | --- | --- | --- | --- |"]
+           "RMS before | RMS after | remains |", "| --- | --- | --- | --- | --- | --- | --- |"]
     t0 = time.time()
     for name in names:
-        sc = load_scenario(ROOT / "scenarios" / "hidden" / f"{name}.toml").with_overrides(SMALL)
-        raw = dict(sc.raw)
-        hidden = raw.pop("hidden")
-        plain = validate(raw, f"{name} without [hidden]")
-        d = work / name
-        shutil.rmtree(d, ignore_errors=True)
-        simulate(sc, d / "hidden", progress=False, backend="analytic")
-        simulate(plain, d / "plain", progress=False, backend="analytic")
-        what, template, before, after = CASES[name](d / "hidden", d / "plain", sc)
+        h, p, sc, hidden = simulate_pair(name, work, {**SMALL, **EXTRA.get(name, {})})
+        what, template, before, after = CASES[name](h, p, sc)
         cause = "; ".join(f"{e}: " + ", ".join(sorted(k for k, v in ps.items() if v not in (None, [], 0, 0.0)))
                           for e, ps in hidden.items())
-        frac = after / before if before > 0 else math.nan
-        out.append(f"| `{name}` | {cause} | {what} | {template} | {before:.4f} | {after:.4f} | {frac:.1%} |")
+        if after is None:
+            out.append(f"| `{name}` | {cause} | {what} | {template} | {before:.4f} | — | — |")
+        else:
+            frac = after / before if before > 0 else math.nan
+            out.append(f"| `{name}` | {cause} | {what} | {template} | {before:.4f} | {after:.4f} | {frac:.1%} |")
+        print(out[-1], flush=True)
+    todo = [n for n in nulls if not args.only or n in args.only]
+    if todo and not args.no_nulls:
+        out.append(null_row(todo, work))
         print(out[-1], flush=True)
     print(f"\nwall time {time.time() - t0:.0f} s\n")
     print("\n".join(out))
