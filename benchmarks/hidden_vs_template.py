@@ -211,14 +211,18 @@ def fit_tilt_abbe(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
     """The spheres sit ΔL1 off their declared heights: the probe readings change, α does not. The
     channel is eq. 9's δY at the disk from the probe readings with the DECLARED L1, L2 (what the
     analysis computes); template: ΔL1·(δ_bottom − δ_top)/L2 (analysis/effects/tilt_abbe.py's radial
-    channel, from the readings with the effect); nuisance: orders 0 and 1 (eq. 7 removes them)."""
+    channel), δ the spheres' TRUE motion with the effect (truth/radial_motion.csv: the template's
+    shape, as the tangential rows use the true axis motion; built from the readings it would carry
+    their repeatability too, errors in variables); nuisance: orders 0 and 1 (eq. 7 removes them)."""
     L1 = float(sc["bench"]["L1"]) * 1e3
     L2 = float(sc["bench"]["L2"]) * 1e3
     th, th_, bh = _probes(h)
     _, tp, bp = _probes(p)
     y = ((L2 - L1) * (th_ - tp) + L1 * (bh - bp)) / L2
+    t = rows(h / "truth" / "radial_motion.csv")
+    tilt = (col(t, "sphere_bottom_y_um") - col(t, "sphere_top_y_um")) / L2
     return (f"Δ δY at the disk (eq. 9, µm), {th.size} probe positions", "ΔL1·(δ_bottom − δ_top)/L2",
-            *remains(y, _orders01(th), ((bh - th_) / L2)[:, None]))
+            *remains(y, _orders01(th), tilt[:, None]))
 
 
 def fit_sphere_form(h: Path, p: Path, sc) -> tuple[str, str, float, float]:
@@ -272,9 +276,17 @@ def fit_none_polygon(h: Path, p: Path, sc) -> tuple[str, str, float, float | Non
     polygon readings (their times: the lobes follow the hub's temperature), a constant removed."""
     a, b = rows(h / "truth" / "polygon.csv"), rows(p / "truth" / "polygon.csv")
     y = col(a, "alpha_arcsec") - col(b, "alpha_arcsec")
+    th = np.round(col(a, "target_deg"), 6)
+    angles = np.unique(th)
+    static = _rms_residual(y, (th[:, None] == angles[None, :]).astype(float))
+    NOTES.append(f"thermal_growth: a static error of θ (one value per polygon angle, {angles.size} "
+                 f"angles: whatever graduation_error's harmonics could take on these stops) leaves {static:.4f}″")
     return (f"Δα, {len(a)} polygon readings", "no template: out of the library",
             _rms_residual(y, np.ones((y.size, 1))), None)
 
+
+#: lines printed under the table (what a case measured beside its row)
+NOTES: list[str] = []
 
 CASES: dict[str, Callable] = {
     "graduation_error": fit_graduation,
@@ -384,6 +396,8 @@ def main(argv: list[str] | None = None) -> int:
         print(out[-1], flush=True)
     print(f"\nwall time {time.time() - t0:.0f} s\n")
     print("\n".join(out))
+    for n in NOTES:
+        print(f"\n- {n}")
     return 0
 
 
