@@ -20,17 +20,40 @@ before and after the fit and the fraction that remains (after/before):
   template d·t_s (analysis/effects/ac_drift.py); nuisance: one constant per run (U_j of Hsieh
   eq. 3, which the measurement model removes anyway);
 - ac_scale: Δ of the autocollimator's readings, template [v, v²] (analysis/effects/ac_scale.py's
-  gain and quadratic columns, v the reading without the effect); nuisance: one constant per run.
+  gain and quadratic columns, v the reading without the effect); nuisance: one constant per run;
+- optical_radius: Δα on the 0.1° grid, template a gain on Jia eq. 5's model e/r·sin(θ−θ0) + ∫δY dθ/r
+  (analysis/effects/optical_radius.py), the model from the run without the effect; nuisance: a constant;
+- ccd_pixel_scale (and _pixel_only): Δ of the CCD's d_ref as the analysis measures it from the
+  images (pipeline.step_eccentricity, Jia eqs. 10–13), template a gain s·d_ref (ccd_pixel_scale.py's
+  ccd channel); nuisance: a constant; a frame every 30° at 512 × 384 px (EXTRA);
+- tilt_abbe: Δ of eq. 9's δY at the disk from the probe readings (declared L1), template
+  ΔL1·(δ_bottom − δ_top)/L2 (tilt_abbe.py's radial channel, the spheres' true motion); nuisance:
+  orders 0 and 1 (eq. 7); 120 radial positions;
+- sphere_form: Δ of the top probe's reading, template its harmonics 2…10 (sphere_form.py: a form
+  harmonic of the reading, eq. 7's RADIAL_ORDERS); nuisance: orders 0 and 1; 120 radial positions;
+- torsion_hysteresis: Δ of the AC readings, template h·approach direction (torsion_hysteresis.py);
+  nuisance: one U_j per setup (shift, start face), shared by both directions;
+- polygon_pitch_ignored: Δ of the AC readings, template the cumulative pitch C(f) of the face under
+  the autocollimator, f = 1…N−1 (polygon_pitch_ignored.py); nuisance: one constant per run;
+- thermal_growth: no effect module describes it ("no template: out of the library"): the RMS of Δα
+  at the polygon readings (their times), a constant removed; a note says what a static error of θ
+  would leave;
+- the nulls (``[hidden]`` empty): nothing to fit; one row checks that the run without ``[hidden]``
+  is byte for byte the same run (NULL_FILES).
 
-"before" is the RMS left after the nuisance columns alone, "after" with the template's columns too.
+A hidden scenario without an entry here makes the script exit 2 (tests/benchmarks: the table in
+docs/effects.md lists every scenario of scenarios/hidden/).
+
+"before" is the RMS left after the nuisance columns alone, "after" with the template's columns too,
+in ″, or in µm where the difference column says so.
 
 A remainder near 0 says the template has the physics' shape (Heydemann's sub-division error is
 that case: its first and second harmonics ARE the physics); a large remainder says the analysis's
 template misses part of the effect (what the loop must then call unexplained or leave in its
-residual). Small settings (one radial rep, 24 radial positions, CCD frames every 180°: the CCD and
-probes do not enter these channels); the polygon procedure is the scenario's own.
+residual). Small settings (one radial rep, 24 radial positions, CCD frames every 180°, except where
+a case's channel is the CCD or the probes: EXTRA); the polygon procedure is the scenario's own.
 
-    .venv/bin/python benchmarks/hidden_vs_template.py [--work /tmp/hidden_vs_template] [--only NAME ...]
+    .venv/bin/python benchmarks/hidden_vs_template.py [--work /tmp/hidden_vs_template] [--only NAME ...] [--no-nulls]
 
 Prints a markdown table (docs/effects.md quotes it). Imports both twin and analysis: a benchmark
 is outside the package layers (pyproject's import-linter contracts cover benchtwin.* only).
