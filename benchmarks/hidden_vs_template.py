@@ -377,8 +377,8 @@ def null_row(nulls: list[str], work: Path) -> str:
     for name in nulls:
         h, p, _, hidden = simulate_pair(name, work, SMALL)
         assert not hidden, name
-        diff = [f for f in NULL_FILES if (h / f).exists() != (p / f).exists()
-                or ((h / f).exists() and (h / f).read_bytes() != (p / f).read_bytes())]
+        diff = [f for f in NULL_FILES if not ((h / f).exists() and (p / f).exists())
+                or (h / f).read_bytes() != (p / f).read_bytes()]   # a missing file is no evidence: it differs
         same.append(f"{'identical' if not diff else 'DIFFER: ' + ', '.join(diff)}")
     verdict = "identical" if all(x == "identical" for x in same) else "; ".join(f"{n}: {x}" for n, x in zip(nulls, same))
     names = ", ".join(f"`{n}`" for n in nulls)
