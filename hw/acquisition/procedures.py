@@ -43,7 +43,7 @@ from benchtwin.schema import toml_value
 
 __all__ = [
     "Move", "Read", "Capture", "Wait", "Mark", "Step",
-    "radial_motion_run", "ccd_sweep", "polygon_traditional", "polygon_shift_angle", "selfcal_sweep",
+    "radial_motion_run", "ccd_sweep", "PolygonSetup", "polygon_traditional", "polygon_shift_angle", "selfcal_sweep",
     "count_steps", "estimate_duration", "describe_step",
     "PROCEDURE_TYPES", "PROCEDURE_PARAMS", "steps_from_specs", "specs_toml",
 ]
@@ -153,12 +153,25 @@ def ccd_sweep(step_deg: float = 6.0, dwell_s: float = 0.5, camera: str = "ccd", 
             yield Capture(camera, tag)
 
 
-def polygon_traditional(N: int, start_face: int = 1, shift_deg: float = 0.0, rep: int = 0,
-                        directions: Sequence[str] = ("forward",), dwell_s: float = 0.5,
-                        encoder: str = "encoder", autocollimator: str = "autocollimator") -> Iterator[Step]:
+@dataclass(frozen=True)
+class PolygonSetup:
+    """What both polygon procedures share: the polygon (``faces``: N), the directions of each sweep
+    (``"forward"``: i = 1…N; ``"backward"``: i = N…1, same mounting), the dwell at each face (s) and
+    the instruments read at each stop (an encoder and the autocollimator)."""
+
+    faces: int
+    directions: tuple[str, ...] = ("forward",)
+    dwell_s: float = 0.5
+    encoder: str = "encoder"
+    autocollimator: str = "autocollimator"
+
+
+def polygon_traditional(polygon: PolygonSetup, start_face: int = 1, shift_deg: float = 0.0,
+                        rep: int = 0) -> Iterator[Step]:
     """Cross-calibration with polygon and autocollimator (Hsieh 2022 sec. 2.1): clamp the polygon
     with ``start_face`` at the encoder angle S (a Mark: operator action), then read at
     θ_i = (i−1)·360/N + S, i = 1…N, in each direction (backward: i = N…1, same mounting)."""
+    N = polygon.faces
     if N < 3:
         raise ValueError("a polygon has at least 3 faces")
     if not 1 <= start_face <= N:
@@ -166,22 +179,20 @@ def polygon_traditional(N: int, start_face: int = 1, shift_deg: float = 0.0, rep
     yield Mark(f"polygon clamp: face {start_face} at S={shift_deg:g}°, rep {rep}",
                {"procedure": "polygon", "polygon_start_face": int(start_face), "shift_deg": float(shift_deg),
                 "rep": int(rep)})
-    for d in directions:
+    for d in polygon.directions:
         d = _dir_name(d)
         yield Mark(f"polygon {d}", {"direction": d})
         steps = range(1, N + 1) if d == "forward" else range(N, 0, -1)
         for i in steps:
             th = (i - 1) * 360.0 / N + shift_deg
             yield Move(th)
-            yield Wait(dwell_s)
-            yield Read((encoder, autocollimator),
+            yield Wait(polygon.dwell_s)
+            yield Read((polygon.encoder, polygon.autocollimator),
                        {"shift_deg": float(shift_deg), "start_face": int(start_face), "step": int(i), "target_deg": th})
 
 
-def polygon_shift_angle(N: int, shifts_deg: Sequence[float] = (0.0,), reps: int = 1,
-                        directions: Sequence[str] = ("forward",), dwell_s: float = 0.5,
-                        all_faces_each_shift: bool = False, encoder: str = "encoder",
-                        autocollimator: str = "autocollimator") -> Iterator[Step]:
+def polygon_shift_angle(polygon: PolygonSetup, shifts_deg: Sequence[float] = (0.0,), reps: int = 1,
+                        all_faces_each_shift: bool = False) -> Iterator[Step]:
     """Hsieh 2022 shift-angle method: at the first shift (the reference, normally S = 0) every face
     is the start face once (N·N readings per direction: 576 for N = 24), which gives the pitch
     deviations β and U_1 (eqs. 4–7); at every further shift S start face 1 is clamped at S and
@@ -191,9 +202,9 @@ def polygon_shift_angle(N: int, shifts_deg: Sequence[float] = (0.0,), reps: int 
         raise ValueError("at least one shift angle")
     for rep in range(reps):
         for si, s in enumerate(shifts):
-            faces = range(1, N + 1) if (si == 0 or all_faces_each_shift) else (1,)
+            faces = range(1, polygon.faces + 1) if (si == 0 or all_faces_each_shift) else (1,)
             for j in faces:
-                yield from polygon_traditional(N, j, s, rep, directions, dwell_s, encoder, autocollimator)
+                yield from polygon_traditional(polygon, j, s, rep)
 
 
 def selfcal_sweep(heads: Sequence[float], step_deg: float = 1.0, directions: Sequence[str] = ("forward", "backward"),
@@ -248,14 +259,13 @@ def steps_from_specs(specs: Iterable[Mapping[str, Any]]) -> Iterator[Step]:
         if typ == "radial_motion":
             yield from radial_motion_run(p.get("reps", 3), p.get("positions", 360), dwell,
                                          p.get("probes", ["probe_top", "probe_bottom"]), enc)
-        elif typ == "polygon_shift_angle":
-            yield from polygon_shift_angle(p["faces"], p.get("shifts", [0.0]), p.get("reps", 1), dirs, dwell,
-                                           p.get("all_faces_each_shift", False), enc,
-                                           p.get("autocollimator", "autocollimator"))
-        elif typ == "polygon_traditional":
-            yield from polygon_traditional(p["faces"], p.get("start_face", 1), p.get("shift", 0.0),
-                                           p.get("rep", 0), dirs, dwell, enc,
-                                           p.get("autocollimator", "autocollimator"))
+        elif typ in ("polygon_shift_angle", "polygon_traditional"):
+            polygon = PolygonSetup(p["faces"], tuple(dirs), dwell, enc, p.get("autocollimator", "autocollimator"))
+            if typ == "polygon_shift_angle":
+                yield from polygon_shift_angle(polygon, p.get("shifts", [0.0]), p.get("reps", 1),
+                                               p.get("all_faces_each_shift", False))
+            else:
+                yield from polygon_traditional(polygon, p.get("start_face", 1), p.get("shift", 0.0), p.get("rep", 0))
         elif typ == "ccd_sweep":
             yield from ccd_sweep(p.get("step", 6.0), dwell, p.get("camera", "ccd"), enc, reps=p.get("reps", 1))
         elif typ == "selfcal":

@@ -8,8 +8,8 @@ import math
 
 import pytest
 
-from benchtwin.hw.acquisition.procedures import (Capture, Mark, Move, Read, Wait, ccd_sweep, count_steps,
-                                                 estimate_duration, move_time_s, polygon_shift_angle,
+from benchtwin.hw.acquisition.procedures import (Capture, Mark, Move, PolygonSetup, Read, Wait, ccd_sweep,
+                                                 count_steps, estimate_duration, move_time_s, polygon_shift_angle,
                                                  polygon_traditional, radial_motion_run, selfcal_sweep)
 from benchtwin.hw.acquisition.runner import Runner, RunnerError, SimClock, WallClock, dry_run, read_journal
 
@@ -17,13 +17,14 @@ from benchtwin.hw.acquisition.runner import Runner, RunnerError, SimClock, WallC
 # --------------------------------------------------------------------------- dry runs
 
 def test_shift_angle_reading_counts():
-    assert count_steps(polygon_shift_angle(24, [0.0]))["read"] == 576
-    assert count_steps(polygon_shift_angle(23, [0.0]))["read"] == 529
+    assert count_steps(polygon_shift_angle(PolygonSetup(24), [0.0]))["read"] == 576
+    assert count_steps(polygon_shift_angle(PolygonSetup(23), [0.0]))["read"] == 529
     # further shifts: start face 1 only (Hsieh sec. 3), both directions double everything
-    assert count_steps(polygon_shift_angle(24, [0.0, 5.0, 10.0]))["read"] == 576 + 2 * 24
-    assert count_steps(polygon_shift_angle(24, [0.0, 5.0], directions=("forward", "backward")))["read"] == 2 * (576 + 24)
-    assert count_steps(polygon_shift_angle(24, [0.0, 5.0], all_faces_each_shift=True, reps=2))["read"] == 2 * 2 * 576
-    assert count_steps(polygon_traditional(24))["read"] == 24
+    assert count_steps(polygon_shift_angle(PolygonSetup(24), [0.0, 5.0, 10.0]))["read"] == 576 + 2 * 24
+    assert count_steps(polygon_shift_angle(PolygonSetup(24, ("forward", "backward")), [0.0, 5.0]))["read"] == \
+        2 * (576 + 24)
+    assert count_steps(polygon_shift_angle(PolygonSetup(24), [0.0, 5.0], all_faces_each_shift=True, reps=2))["read"] == 2 * 2 * 576
+    assert count_steps(polygon_traditional(PolygonSetup(24)))["read"] == 24
     assert count_steps(radial_motion_run(3, 360))["read"] == 1080
     c = count_steps(ccd_sweep(6.0))
     assert c["capture"] == 60 and c["read"] == 60
@@ -31,7 +32,7 @@ def test_shift_angle_reading_counts():
 
 
 def test_polygon_steps_follow_hsieh_eq3_indexing():
-    steps = list(polygon_shift_angle(24, [0.0, 5.0]))
+    steps = list(polygon_shift_angle(PolygonSetup(24), [0.0, 5.0]))
     reads = [s for s in steps if isinstance(s, Read)]
     moves = [s for s in steps if isinstance(s, Move)]
     assert reads[0].tag == {"shift_deg": 0.0, "start_face": 1, "step": 1, "target_deg": 0.0}
@@ -44,7 +45,7 @@ def test_polygon_steps_follow_hsieh_eq3_indexing():
     clamps = [s for s in steps if isinstance(s, Mark) and "polygon_start_face" in s.context]
     assert len(clamps) == 25 and clamps[1].context["polygon_start_face"] == 2
     # backward: same mounting, steps N…1
-    back = [s for s in polygon_traditional(8, 3, directions=("forward", "backward")) if isinstance(s, Read)]
+    back = [s for s in polygon_traditional(PolygonSetup(8, ("forward", "backward")), 3) if isinstance(s, Read)]
     assert [r.tag["step"] for r in back] == [1, 2, 3, 4, 5, 6, 7, 8, 8, 7, 6, 5, 4, 3, 2, 1]
 
 
@@ -71,9 +72,9 @@ def test_procedures_reject_bad_arguments():
     with pytest.raises(ValueError):
         list(ccd_sweep(7.0))
     with pytest.raises(ValueError):
-        list(polygon_traditional(12, 13))
+        list(polygon_traditional(PolygonSetup(12), 13))
     with pytest.raises(ValueError):
-        list(polygon_traditional(12, 1, directions=("sideways",)))
+        list(polygon_traditional(PolygonSetup(12, ("sideways",)), 1))
 
 
 # --------------------------------------------------------------------------- runner
@@ -132,7 +133,7 @@ def test_runner_rows_context_and_clock():
     clock, inst = _bench()
     marks = []
     rows = Runner(inst, clock, on_step=lambda i, s, c, replay: marks.append(c) if isinstance(s, Mark) else None).run(
-        polygon_traditional(6, 2, 10.0, directions=("forward", "backward"), dwell_s=1.0))
+        polygon_traditional(PolygonSetup(6, ("forward", "backward"), dwell_s=1.0), 2, 10.0))
     assert len(rows) == 12
     r0 = rows[0]
     assert r0["tag"]["polygon_start_face"] == 2 and r0["tag"]["direction"] == "forward"
@@ -153,14 +154,14 @@ def test_runner_failed_status_raises():
 
     inst["encoder"] = Bad("encoder", inst["stage"], clock)
     with pytest.raises(RunnerError, match="out_of_range"):
-        Runner(inst, clock).run(polygon_traditional(4))
+        Runner(inst, clock).run(polygon_traditional(PolygonSetup(4)))
     with pytest.raises(RunnerError, match="needs instrument"):
-        Runner({"stage": inst["stage"]}, clock).run(polygon_traditional(4))
+        Runner({"stage": inst["stage"]}, clock).run(polygon_traditional(PolygonSetup(4)))
 
 
 @pytest.mark.parametrize("n", [1, 7, 23])
 def test_journal_resume_gives_identical_rows(tmp_path, n):
-    proc = lambda: polygon_shift_angle(6, [0.0, 3.0], directions=("forward", "backward"), dwell_s=0.5)
+    proc = lambda: polygon_shift_angle(PolygonSetup(6, ("forward", "backward"), dwell_s=0.5), [0.0, 3.0])
     clock, inst = _bench()
     full = Runner(inst, clock, journal=tmp_path / "full.jsonl").run(proc())
 
@@ -179,28 +180,28 @@ def test_journal_resume_checks_the_procedure_and_tolerates_a_torn_line(tmp_path)
     j = tmp_path / "run.jsonl"
     clock, inst = _bench(fail_after=3)
     with pytest.raises(KeyboardInterrupt):
-        Runner(inst, clock, journal=j).run(polygon_traditional(6))
+        Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(6)))
     with j.open("a") as f:
         f.write('{"i": 99, "step": {"ty')  # crash in the middle of a line
     clock, inst = _bench()
-    rows = Runner(inst, clock, journal=j).run(polygon_traditional(6), resume=True)
+    rows = Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(6)), resume=True)
     assert len(rows) == 6
     clock, inst = _bench()
     with pytest.raises(RunnerError, match="not the same procedure"):
-        Runner(inst, clock, journal=j).run(polygon_traditional(6, start_face=2), resume=True)
+        Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(6), start_face=2), resume=True)
 
 
 def test_no_resume_keeps_the_journal_and_restart_starts_a_new_one(tmp_path):
     j = tmp_path / "run.jsonl"
     clock, inst = _bench()
-    Runner(inst, clock, journal=j).run(polygon_traditional(4))
+    Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(4)))
     before = j.read_bytes()
     clock, inst = _bench()
     with pytest.raises(RunnerError, match="resume it, or restart"):
-        Runner(inst, clock, journal=j).run(polygon_traditional(4))
+        Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(4)))
     assert j.read_bytes() == before  # issue #13: a run without --resume deleted the readings taken
     clock, inst = _bench()
-    Runner(inst, clock, journal=j).run(polygon_traditional(4), restart=True)
+    Runner(inst, clock, journal=j).run(polygon_traditional(PolygonSetup(4)), restart=True)
     recs = read_journal(j)
     assert recs[0]["journal"] == "benchtwin-run" and sum("row" in r for r in recs) == 4
 
@@ -243,7 +244,7 @@ def test_capture_rows_keep_the_image_out_of_the_journal(tmp_path):
 # --------------------------------------------------------------------------- streaming (flat memory)
 
 def test_stream_hands_every_row_to_the_sink_and_keeps_none(tmp_path):
-    proc = lambda: polygon_shift_angle(5, [0.0, 2.0], directions=("forward", "backward"), dwell_s=0.1)
+    proc = lambda: polygon_shift_angle(PolygonSetup(5, ("forward", "backward"), dwell_s=0.1), [0.0, 2.0])
     clock, inst = _bench()
     rows = Runner(inst, clock).run(proc())
     clock, inst = _bench()
@@ -289,7 +290,7 @@ def test_stream_memory_is_flat_in_the_number_of_readings(tmp_path):
 def test_torn_tail_that_parses_is_still_re_executed(tmp_path):
     """A crash between the JSON and its newline: the line parses but is incomplete; the step is
     run again and the journal ends identical to an uninterrupted one's."""
-    proc = lambda: polygon_traditional(6)
+    proc = lambda: polygon_traditional(PolygonSetup(6))
     clock, inst = _bench()
     Runner(inst, clock, journal=tmp_path / "full.jsonl").run(proc())
     full = (tmp_path / "full.jsonl").read_text()

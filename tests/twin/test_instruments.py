@@ -347,7 +347,7 @@ class FakeBench:
 
 def test_polygon_readings_obey_hsieh_eq3_on_a_rigid_bench():
     """ε_ij = α((i−1)·360/N + S) + Σ_{k=j}^{j+i−1} β_k + U_j with α = reading − true (exact)."""
-    from benchtwin.hw.acquisition.procedures import polygon_shift_angle
+    from benchtwin.hw.acquisition.procedures import PolygonSetup, polygon_shift_angle
     from benchtwin.hw.acquisition.runner import Runner
 
     N = 12
@@ -360,7 +360,7 @@ def test_polygon_readings_obey_hsieh_eq3_on_a_rigid_bench():
     stage = SimRotaryStage("stage", st, enc)
     ac = SimAutocollimator("autocollimator", st, AutocollimatorSpec(range_rad=1000 * ARCSEC))
     rows = Runner({"stage": stage, "encoder": enc, "autocollimator": ac}, st.clock, on_step=st.on_step).run(
-        polygon_shift_angle(N, [0.0, 5.0], directions=("forward", "backward")))
+        polygon_shift_angle(PolygonSetup(N, ("forward", "backward")), [0.0, 5.0]))
     assert len(rows) == 2 * (N * N + N)
     beta_h = np.array([beta_p[sim_hsieh_to_physics_face(h, N) - 1] for h in range(1, N + 1)])
     U = {}
