@@ -11,6 +11,7 @@ the asynchronous plot the deviation of each revolution from that mean around the
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,7 +25,23 @@ def _closed(th_deg: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.append(t, t[0] + 2 * np.pi), np.concatenate([v, v[..., :1]], axis=-1)
 
 
-def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, colour: str, lw: float,
+@dataclass(frozen=True)
+class _PanelStyle:
+    """How one kind of polar panel draws its curves: the kind's name (in the panel's title), the
+    line colour and the line width (pt)."""
+
+    kind: str
+    colour: str
+    line_width_pt: float
+
+
+#: the three panels of a location's row, left to right
+_TOTAL = _PanelStyle("total", "#888", 0.8)
+_SYNCHRONOUS = _PanelStyle("synchronous", "#1f4e9a", 1.6)
+_ASYNCHRONOUS = _PanelStyle("asynchronous", "#b5401a", 0.8)
+
+
+def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, style: _PanelStyle,
                  title: str) -> None:
     """One polar plot drawn on a Cartesian axes (equal aspect): r(θ) = R0 + δ(θ) as x = r cos θ,
     y = r sin θ, θ counter-clockwise from +x (matplotlib's polar default). The grid a polar axes
@@ -47,7 +64,7 @@ def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, 
         ax.text(1.13 * rmax * np.cos(a), 1.13 * rmax * np.sin(a), f"{deg}°", fontsize=7, ha="center", va="center")
     for cur in curves:
         r = R0 + cur
-        ax.plot(r * c, r * s_, color=colour, lw=lw)
+        ax.plot(r * c, r * s_, color=style.colour, lw=style.line_width_pt)
     ax.plot(R0 * cr, R0 * sr, color="k", lw=0.5, ls=":")
     lim = 1.22 * rmax
     ax.set_xlim(-lim, lim)
@@ -78,12 +95,11 @@ def fig_polar(locations: Sequence[Mapping], title: str = "Radial error motion, I
         asy = np.atleast_2d(loc["asynchronous_plot_um"])
         amax = max(float(np.max(np.abs(tot))), float(np.max(np.abs(syn))), float(np.max(np.abs(asy))), 1e-6)
         R0 = 1.5 * amax
-        panels = ((tot, "total", loc["total_um"], "#888", 0.8),
-                  (syn[None, :], "synchronous", loc["synchronous_um"], "#1f4e9a", 1.6),
-                  (asy, "asynchronous", loc["asynchronous_um"], "#b5401a", 0.8))
-        for ax, (curves, kind, value, colour, lw) in zip(row, panels):
+        panels = ((tot, _TOTAL, loc["total_um"]), (syn[None, :], _SYNCHRONOUS, loc["synchronous_um"]),
+                  (asy, _ASYNCHRONOUS, loc["asynchronous_um"]))
+        for ax, (curves, style, value) in zip(row, panels):
             t, c = _closed(th, curves)
-            _polar_panel(ax, t, c, R0, amax, colour, lw, f"{loc['label']}\n{kind}: {value:.3f} µm")
+            _polar_panel(ax, t, c, R0, amax, style, f"{loc['label']}\n{style.kind}: {value:.3f} µm")
     fig.suptitle(title + "; rings: δ in µm about the base circle", fontsize=10)
     return fig
 
