@@ -25,11 +25,11 @@ def _import_args(p: argparse.ArgumentParser) -> None:
 @command("import", "read a measured error table (CSV) into an error-curve dataset", _import_args)
 def cmd_import(ns: argparse.Namespace) -> dict[str, Any]:
     from benchtwin.analysis.dataset import DatasetError
-    from benchtwin.app.curve_import import ImportError_, import_table
+    from benchtwin.app.curve_import import ImportError_, TableColumns, import_table
 
     try:
-        res = import_table(ns.table, ns.out, angle=ns.angle, error=ns.error, reverse=ns.reverse,
-                           error_unit=ns.error_unit, u=ns.u, force=ns.force)
+        columns = TableColumns(ns.angle, ns.error, reverse=ns.reverse, u=ns.u, error_unit=ns.error_unit)
+        res = import_table(ns.table, ns.out, columns, force=ns.force)
     except (ImportError_, DatasetError) as exc:
         raise InputError(str(exc)) from None
     return {"ok": True, **res, "message": f"dataset written: {res['dataset']} ({res['n_angles']} angles, "

@@ -18,13 +18,14 @@ dataset is written atomically, manifest last (analysis.dataset).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from benchtwin.schema import MAX_CELL_CHARS, SchemaError, csv_rows, parse_float, read_input_text
 from benchtwin.units import ARCSEC
 
-__all__ = ["import_table", "ERROR_UNITS", "ImportError_"]
+__all__ = ["import_table", "TableColumns", "ERROR_UNITS", "ImportError_"]
 
 #: arcsec per unit of the error column
 ERROR_UNITS = {"arcsec": 1.0, "urad": 1e-6 / ARCSEC, "deg": 3600.0}
@@ -32,6 +33,25 @@ ERROR_UNITS = {"arcsec": 1.0, "urad": 1e-6 / ARCSEC, "deg": 3600.0}
 
 class ImportError_(ValueError):
     """A table that cannot be imported; the message names the file, row and column."""
+
+
+@dataclass(frozen=True)
+class TableColumns:
+    """Which columns of the table hold what, by header name: the angle (deg), the encoder's error (in
+    ``error_unit``, one of ``ERROR_UNITS``), optionally the error in the other direction of rotation
+    (``reverse``; ``error`` is then the forward one) and a column of standard uncertainties (``u``,
+    in ``error_unit``)."""
+
+    angle: str
+    error: str
+    reverse: str | None = None
+    u: str | None = None
+    error_unit: str = "arcsec"
+
+    def named(self) -> dict[str, str]:
+        """The columns given, by role (``angle``, ``error``, ``reverse``, ``u``: the option names)."""
+        roles = {"angle": self.angle, "error": self.error, "reverse": self.reverse, "u": self.u}
+        return {k: c for k, c in roles.items() if c is not None}
 
 
 def _number(cell: str, where: str, row: int, col: str) -> float:
@@ -53,9 +73,8 @@ def _short(v: str, n: int = 40) -> str:
     return s if len(s) <= n else s[: n - 1] + "…"
 
 
-def read_columns(table: str | Path, angle: str, error: str, reverse: str | None = None,
-                 u: str | None = None) -> dict[str, list[float]]:
-    """The named columns of a CSV table as floats (``u`` and ``reverse`` optional). The file is
+def read_columns(table: str | Path, columns: TableColumns) -> dict[str, list[float]]:
+    """The named columns of a CSV table as floats, by role (``u`` and ``reverse`` optional). The file is
     read as every input is (benchtwin.schema: a regular file, bounded size, UTF-8); a column named
     twice in the header, a malformed row or cell, and an angle given twice are errors."""
     from benchtwin.analysis.dataset import MAX_ROWS, MAX_TABLE_BYTES
@@ -72,14 +91,14 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
     except StopIteration:
         raise ImportError_(f"{p}: empty file (expected a header row)") from None
     header = [h.strip() for h in first]
-    want = {"angle": angle, "error": error, "reverse": reverse, "u": u}
+    want = columns.named()
     for what, col in want.items():
-        if col is not None and col not in header:
+        if col not in header:
             raise ImportError_(f"{p}: row 1: no column {col!r} (--{what}; the header has {_short(str(header), 200)})")
-        if col is not None and header.count(col) > 1:
+        if header.count(col) > 1:
             raise ImportError_(f"{p}: row 1: column {col!r} (--{what}) appears {header.count(col)} times; "
                                "expected it once")
-    idx = {k: header.index(c) for k, c in want.items() if c is not None}
+    idx = {k: header.index(c) for k, c in want.items()}
     out: dict[str, list[float]] = {k: [] for k in idx}
     for rowno, row in rows:
         if not row or all(not c.strip() for c in row):
@@ -100,7 +119,7 @@ def read_columns(table: str | Path, angle: str, error: str, reverse: str | None 
     for a, r in zip(out["angle"], (int(x) for x in out["_row"])):
         key = round(a % 360.0, 9) % 360.0
         if key in seen:
-            raise ImportError_(f"{p}: rows {seen[key]} and {r}, column {angle!r}: the same angle twice "
+            raise ImportError_(f"{p}: rows {seen[key]} and {r}, column {columns.angle!r}: the same angle twice "
                                f"({a}°; 0° and 360° are the same position)")
         seen[key] = r
     return out
@@ -124,10 +143,8 @@ def _check_range(table: str | Path, values: list[float], rows: list[int], col: s
                                f"{column.rsplit('_', 1)[1]}{extra}, got {v:g}")
 
 
-def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, reverse: str | None = None,
-                 error_unit: str = "arcsec", u: str | None = None, force: bool = False) -> dict[str, Any]:
-    """Write the dataset; returns a summary. ``reverse``: the column of the other direction
-    (``error`` is then the forward one); ``u``: a column of standard uncertainties (same unit).
+def import_table(table: str | Path, out: str | Path, columns: TableColumns, *, force: bool = False) -> dict[str, Any]:
+    """Write the dataset of the table's ``columns``; returns a summary.
     The writing rule (``benchtwin.fsio.locked_output_dir``): a non-empty ``out`` is replaced only
     with ``force``, never while another live run holds it, never when it holds the table."""
     from benchtwin.analysis.dataset import DatasetError, DatasetWriter, parse_table, table_to_csv
@@ -135,16 +152,17 @@ def import_table(table: str | Path, out: str | Path, *, angle: str, error: str, 
 
     check_not_input(out, [table], "dataset folder")  # before reading: the table is never the output
 
+    angle, error, reverse, u, error_unit = columns.angle, columns.error, columns.reverse, columns.u, columns.error_unit
     if error_unit not in ERROR_UNITS:
         raise ImportError_(f"--error-unit: expected one of {sorted(ERROR_UNITS)}, got {error_unit!r}")
     f = ERROR_UNITS[error_unit]
-    cols = read_columns(table, angle, error, reverse, u)
+    cols = read_columns(table, columns)
     th = cols["angle"]
     src_rows = [int(r) for r in cols["_row"]]  # the source table's row numbers, for the errors
     _check_range(table, th, src_rows, angle, "theta_deg", 1.0, "deg")
     for k in ("error", "reverse", "u"):
         if k in cols:
-            _check_range(table, cols[k], src_rows, {"error": error, "reverse": reverse, "u": u}[k] or "",
+            _check_range(table, cols[k], src_rows, columns.named()[k],
                          "u_arcsec" if k == "u" else "error_arcsec", f, error_unit)
     rows: dict[str, list[Any]] = {"theta_deg": list(th), "error_arcsec": [v * f for v in cols["error"]],
                                   "direction": ["forward"] * len(th)}

@@ -71,13 +71,13 @@ def import_table(draw):
 def test_import_raises_only_import_error_and_validate_accepts_what_it_writes(tmp_path_factory, text, reverse, u,
                                                                                unit):
     from benchtwin.analysis.dataset import open_dataset
-    from benchtwin.app.curve_import import ImportError_, import_table as imp
+    from benchtwin.app.curve_import import ImportError_, TableColumns, import_table as imp
 
     d = tmp_path_factory.getbasetemp() / f"imp-{uuid.uuid4().hex}"
     d.mkdir()
     (d / "t.csv").write_text(text, encoding="utf-8")
     try:
-        imp(d / "t.csv", d / "ds", angle="a", error="e", reverse=reverse, u=u, error_unit=unit)
+        imp(d / "t.csv", d / "ds", TableColumns("a", "e", reverse=reverse, u=u, error_unit=unit))
     except ImportError_:
         assert not (d / "ds" / "manifest.json").exists()
         return
