@@ -233,11 +233,11 @@ def _study_output(out: Path, force: bool, study: Path) -> Any:
     resumable (its cache/ is keyed by content): an earlier study folder is continued; any other
     non-empty folder is refused unless --force (which clears it); never a folder another live study
     holds, nor one holding the study file."""
-    from benchtwin.fsio import locked_output_dir
+    from benchtwin.fsio import OutputFolder, locked_output_dir
 
     resume = (out / "cache").is_dir() and not out.is_symlink() and not force
-    return locked_output_dir(out, force=force, resume=resume, resume_marker="cache", what="study output folder",
-                             owner="study", inputs=[study])
+    return locked_output_dir(out, OutputFolder("study output folder", "study", resume_marker="cache"), force=force,
+                             resume=resume, inputs=[study])
 
 
 if _have("benchtwin.twin.simulate"):

@@ -54,7 +54,7 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     except (ScenarioError, ValueError) as exc:
         raise InputError(str(exc)) from None
     directory = ns.dir or Path(tempfile.mkdtemp(prefix="benchtwin-emulate-"))
-    from benchtwin.fsio import locked_output_dir
+    from benchtwin.fsio import OutputFolder, locked_output_dir
 
     # the writing rule (benchtwin.fsio): --dir is held under its lock while the emulator runs; an
     # earlier emulator's own folder (its bench file, port links and frames) is replaced, anything
@@ -62,7 +62,7 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     own = {"bench.toml", "ports", "frames", ".benchtwin.lock"}
     earlier = directory.is_dir() and not directory.is_symlink() and (directory / "bench.toml").is_file() and all(
         c.name in own for c in directory.iterdir())
-    with locked_output_dir(directory, force=ns.force or earlier, what="emulator folder (--dir)", owner="emulate",
+    with locked_output_dir(directory, OutputFolder("emulator folder (--dir)", "emulate"), force=ns.force or earlier,
                            inputs=[ns.scenario, ns.faults]):
         return _emulate(ns, sc, faults, directory)
 

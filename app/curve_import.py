@@ -148,7 +148,7 @@ def import_table(table: str | Path, out: str | Path, columns: TableColumns, *, f
     The writing rule (``benchtwin.fsio.locked_output_dir``): a non-empty ``out`` is replaced only
     with ``force``, never while another live run holds it, never when it holds the table."""
     from benchtwin.analysis.dataset import DatasetError, DatasetWriter, parse_table, table_to_csv
-    from benchtwin.fsio import check_not_input, locked_output_dir
+    from benchtwin.fsio import OutputFolder, check_not_input, locked_output_dir
 
     check_not_input(out, [table], "dataset folder")  # before reading: the table is never the output
 
@@ -188,7 +188,7 @@ def import_table(table: str | Path, out: str | Path, columns: TableColumns, *, f
         parse_table(table_to_csv(rows).decode("utf-8"), "error_curve", f"{table} (as error_curve.csv)")
     except DatasetError as exc:
         raise ImportError_(str(exc)) from None
-    with locked_output_dir(out, force=force, what="dataset folder", owner="import", inputs=[table]):
+    with locked_output_dir(out, OutputFolder("dataset folder", "import"), force=force, inputs=[table]):
         w = DatasetWriter(out, manifest, prepared=True)
         w.write_table("error_curve", rows)
         w.close()

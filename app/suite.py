@@ -163,13 +163,13 @@ def write_suite(out: str | Path, seed: int = DEFAULT_SEED, blind: bool = False, 
     run (a second suite into it is refused while the first lives); a non-empty ``out`` is refused
     unless ``force`` (which clears it), except the folder of an interrupted suite (its ``.partial``
     and no suite.json), which is started again."""
-    from benchtwin.fsio import locked_output_dir
+    from benchtwin.fsio import OutputFolder, locked_output_dir
 
     out = Path(out)
     if (out / "suite.json").exists() and not force:
         raise InputError(f"{out}: a suite is already there (suite.json); choose another -o, or --force to replace it")
     interrupted = (out / ".partial").is_dir() and not (out / "suite.json").exists() and not out.is_symlink()
-    with locked_output_dir(out, force=force or interrupted, what="suite folder", owner="suite"):
+    with locked_output_dir(out, OutputFolder("suite folder", "suite"), force=force or interrupted):
         return _write_suite(out, seed, blind, size, jobs, progress)
 
 

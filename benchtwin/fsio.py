@@ -20,8 +20,8 @@ The one writing rule of every command (issue 31, docs/reliability.md), implement
 
 Output files: ``check_output_target(path, force=..., inputs=...)``. Output folders:
 
-- ``locked_output_dir(path, force=..., resume=..., inputs=...)`` (``simulate``, ``acquire``,
-  ``import``, ``study``, ``suite``, ``emulate``): takes the folder's lock, then refuses a non-empty
+- ``locked_output_dir(path, OutputFolder(what, owner, ...), force=..., resume=..., inputs=...)``
+  (``simulate``, ``acquire``, ``import``, ``study``, ``suite``, ``emulate``): takes the folder's lock, then refuses a non-empty
   folder unless ``force`` (which clears it, the lock kept) or, for a resumable run, ``resume`` with
   its journal; ``check_output_dir`` is its check alone, for a caller that writes no lock;
 - ``AtomicDir(target, force=..., inputs=...)`` (``analyze``, ``close-loop``, ``run``) takes the
@@ -45,12 +45,13 @@ import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["OutputError", "DiskFullError", "disk_full", "raise_if_disk_full", "free_bytes", "atomic_write_bytes", "atomic_write_text", "stage_bytes", "commit_staged",
            "discard_staged", "file_mode", "dir_mode", "check_output_dir",
            "clear_dir", "AtomicDir", "DirLock", "LOCK_NAME", "check_not_input", "check_output_target",
-           "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
+           "OutputFolder", "locked_output_dir", "clean_abandoned_partials", "lock_owner"]
 
 LOCK_NAME = ".benchtwin.lock"
 
@@ -449,27 +450,39 @@ def check_output_dir(path: str | Path, *, force: bool = False, resume_marker: st
     return p
 
 
+@dataclass(frozen=True)
+class OutputFolder:
+    """What kind of output folder a command writes in place: what its messages call it (``what``), who
+    holds its lock (``owner``, written in the lock file), the file whose presence makes it resumable
+    with ``resume`` (``resume_marker``, e.g. the journal) and the file written last, whose presence
+    says the run finished (``complete_marker``, e.g. ``manifest.json``); ``check_output_dir``."""
+
+    what: str = "output folder"
+    owner: str = "run"
+    resume_marker: str | None = None
+    complete_marker: str | None = None
+
+
 @contextlib.contextmanager
-def locked_output_dir(path: str | Path, *, force: bool = False, resume: bool = False,
-                      resume_marker: str | None = None, what: str = "output folder", owner: str = "run",
-                      inputs: Iterable[str | Path | None] = (), complete_marker: str | None = None) -> Iterator[Path]:
-    """An output folder written in place, held under its lock for the whole block.
+def locked_output_dir(path: str | Path, folder: OutputFolder, *, force: bool = False, resume: bool = False,
+                      inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
+    """An output folder of the kind ``folder`` written in place, held under its lock for the whole block.
 
     The order is what makes ``--force`` safe: the inputs are checked, the lock is taken (a live
     owner: an error naming its pid, whatever the flags), and only then is the folder checked and,
     with ``force``, cleared (``check_output_dir``). A folder this call created is removed again if
     the block fails before writing anything into it."""
     p = Path(path)
-    check_not_input(p, inputs, what)
-    _check_folder_kind(p, what)
+    check_not_input(p, inputs, folder.what)
+    _check_folder_kind(p, folder.what)
     created = not p.exists()
     p.mkdir(parents=True, exist_ok=True)
-    lock = DirLock(p, owner)
+    lock = DirLock(p, folder.owner)
     try:
         lock.acquire()
         try:
-            check_output_dir(p, force=force, resume=resume, resume_marker=resume_marker, what=what,
-                             complete_marker=complete_marker)
+            check_output_dir(p, force=force, resume=resume, resume_marker=folder.resume_marker, what=folder.what,
+                             complete_marker=folder.complete_marker)
             yield p
         finally:
             lock.release()

@@ -58,7 +58,7 @@ import numpy as np
 
 from benchtwin.analysis.dataset import JOURNAL, Dataset, DatasetError, DatasetWriter
 from benchtwin.forkcall import ForkCall
-from benchtwin.fsio import OutputError, locked_output_dir
+from benchtwin.fsio import OutputError, OutputFolder, locked_output_dir
 from benchtwin.hw.acquisition import procedures as P
 from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, RunnerSettings, SimClock
@@ -79,6 +79,9 @@ GRID_NICE = 10
 #: niceness of ``simulate_apart``'s truth child (with its α grid): nothing waits for it before the
 #: caller's analysis has ended, so it takes only the CPU the frames and the analysis leave (issue #17)
 TRUTH_APART_NICE = 19
+#: the dataset folder a simulation writes in place (``benchtwin.fsio.locked_output_dir``): resumable
+#: by its journal, complete once its manifest is written
+_DATASET_FOLDER = OutputFolder("dataset folder", "simulate", resume_marker=JOURNAL, complete_marker="manifest.json")
 
 
 def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = True) -> list[dict[str, Any]]:
@@ -262,8 +265,7 @@ def simulate(sc: Any, out_dir: str | Path | None = None, progress: bool = True, 
     out = Path(out_dir)
     try:
         # the lock first, then the check (and --force's clearing): never a live run's folder
-        with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
-                               complete_marker="manifest.json", owner="simulate", inputs=[getattr(sc, "path", None)]):
+        with locked_output_dir(out, _DATASET_FOLDER, force=force, resume=resume, inputs=[getattr(sc, "path", None)]):
             return _simulate(sc, _RunOptions(out, progress, backend, resume, live))[0]
     except OutputError as exc:
         raise DatasetError(str(exc)) from None
@@ -285,7 +287,7 @@ def simulate_apart(sc: Any, out_dir: str | Path, truth_dir: str | Path, progress
     ``benchtwin run``; the analysis never needs it (principle 3), so the two can overlap."""
     out = Path(out_dir)
     try:
-        with locked_output_dir(out, what="dataset folder", owner="simulate", inputs=[getattr(sc, "path", None)]):
+        with locked_output_dir(out, OutputFolder("dataset folder", "simulate"), inputs=[getattr(sc, "path", None)]):
             _, job = _simulate(sc, _RunOptions(out, progress, backend, False, truth_dir=Path(truth_dir)))
     except OutputError as exc:
         raise DatasetError(str(exc)) from None

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from benchtwin.analysis.dataset import DatasetWriter
-from benchtwin.fsio import DiskFullError, OutputError, atomic_write_text, locked_output_dir
+from benchtwin.fsio import DiskFullError, OutputError, OutputFolder, atomic_write_text, locked_output_dir
 
 from .bench import BenchConfig, BenchFileError, close_instruments, dataset_manifest, iter_procedure, load_bench, open_instruments
 from .runner import Runner, WallClock
@@ -91,8 +91,8 @@ def acquire(bench_path: str | Path, out_dir: str | Path, resume: bool = False, p
     out = Path(out_dir)
     try:
         # the lock first, then the check (and --force's clearing): never a live run's journal
-        with locked_output_dir(out, force=force, resume=resume, resume_marker=JOURNAL, what="dataset folder",
-                               complete_marker="manifest.json", owner="acquire", inputs=[bench_path]):
+        folder = OutputFolder("dataset folder", "acquire", resume_marker=JOURNAL, complete_marker="manifest.json")
+        with locked_output_dir(out, folder, force=force, resume=resume, inputs=[bench_path]):
             return _acquire(cfg, out, resume, progress, on_row, live)
     except DiskFullError as exc:
         raise BenchFileError(str(exc.with_hint(_rest_of_run(exc, cfg, bench_path, out)))) from exc
