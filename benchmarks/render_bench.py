@@ -37,7 +37,7 @@ from benchtwin.twin.pose import BodyPose  # noqa: E402
 from benchtwin.twin.render import GratingSpec, Renderer, SensorParams  # noqa: E402
 from benchtwin.twin.render.analytic import coverage_image  # noqa: E402
 from benchtwin.twin.render.grating import build_scene, to_trimesh  # noqa: E402
-from benchtwin.twin.render.pyrender_backend import GlCoverageRenderer  # noqa: E402
+from benchtwin.twin.render.pyrender_backend import CoverageSampling, GlCoverageRenderer  # noqa: E402
 from benchtwin.twin.render.sensor import apply_sensor  # noqa: E402
 from benchtwin.twin.scenario import load_scenario  # noqa: E402
 
@@ -120,7 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{rows[-1][0]:55s} {t_bare:7.3f} s", flush=True)
 
     def gl_case(label: str, k: int, n: int, band: bool, nb: int = 2) -> None:
-        with GlCoverageRenderer(W, H, supersample=k, jitter=n, end_band=band, band_jitter=nb) as g:
+        sampling = CoverageSampling(supersample=k, jitter=n, end_band=band, band_jitter=nb)
+        with GlCoverageRenderer(W, H, sampling) as g:
             ends_x = scene.end_x_px(camera.reference_px)
             cov = g.coverage(scene.polygons, ends_x)
             t = timeit(lambda: g.coverage(scene.polygons, ends_x), args.repeat)

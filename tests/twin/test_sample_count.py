@@ -55,14 +55,14 @@ def _jia2019_at(t_deg: float) -> tuple[GratingSpec, BodyPose]:
     ((512, 384), 1, 5, [(2.5, (-4.0, 6.0, 0.0), 2e-4)]),      # three mask planes
 ])
 def test_sample_masks_give_the_resolved_bytes(size, k, n, poses):
-    from benchtwin.twin.render.pyrender_backend import GlCoverageRenderer
+    from benchtwin.twin.render.pyrender_backend import CoverageSampling, GlCoverageRenderer
 
     w, h = size
     cam = CcdCamera(azimuth_rad=math.pi, rotation_rad=0.0 if k == 1 else 0.003, width_px=w, height_px=h)
     scenes = [build_scene(*(_jia2019_at(37.0)[::-1] if p == "jia37" else (_pose(*p), GRATING)), cam) for p in poses]
     out = {}
     for counting in (True, False):
-        with GlCoverageRenderer(w, h, supersample=k, jitter=n, count_samples=counting) as g:
+        with GlCoverageRenderer(w, h, CoverageSampling(supersample=k, jitter=n), count_samples=counting) as g:
             assert (g._counter is not None) == counting
             out[counting] = [g.coverage(s.polygons, s.end_x_px(cam.reference_px)) for s in scenes]
     for a, b in zip(out[True], out[False]):

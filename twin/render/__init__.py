@@ -73,13 +73,13 @@ class Renderer:
 
     # ------------------------------------------------------------------ coverage
     def _gl_renderer(self, w: int, h: int) -> GlCoverageRenderer:
-        from benchtwin.twin.render.pyrender_backend import GlCoverageRenderer
+        from benchtwin.twin.render.pyrender_backend import CoverageSampling, GlCoverageRenderer
 
         if self._gl is not None and (self._gl.width_px, self._gl.height_px) != (w, h):
             self._gl.close()
             self._gl = None
         if self._gl is None:
-            self._gl = GlCoverageRenderer(w, h, self.supersample, self.jitter, self.end_band)
+            self._gl = GlCoverageRenderer(w, h, CoverageSampling(self.supersample, self.jitter, self.end_band))
         return self._gl
 
     def coverage(self, disk: BodyPose, grating: GratingSpec, camera: CcdCamera) -> tuple[np.ndarray, SceneGeometry, str]:

@@ -43,13 +43,28 @@ Choices, and why:
 from __future__ import annotations
 
 import types
+from dataclasses import dataclass
 
 import numpy as np
 
 from benchtwin.twin.render import gl, sample_count
 from benchtwin.twin.render.sample_count import SampleCounter
 
-__all__ = ["GlCoverageRenderer"]
+__all__ = ["GlCoverageRenderer", "CoverageSampling"]
+
+
+@dataclass(frozen=True)
+class CoverageSampling:
+    """The sub-pixel sampling of the coverage (the module's docstring): ``supersample`` k (each pixel
+    rendered as k×k and area-averaged), ``jitter`` n (diagonally shifted passes), and the line ends'
+    band: ``end_band`` (render it again, magnified in x), its ``band_jitter`` passes and
+    ``band_margin_px``, the columns kept on either side of the outermost line ends (px)."""
+
+    supersample: int = 1
+    jitter: int = 2
+    end_band: bool = True
+    band_jitter: int = 2
+    band_margin_px: float = 4.0
 
 
 def _lean_read(self, scene, flags):
@@ -136,14 +151,14 @@ class GlCoverageRenderer:
     pyrender context tears down the EGL display they share).
     """
 
-    def __init__(self, width_px: int, height_px: int, supersample: int = 1, jitter: int = 2,
-                 end_band: bool = True, band_jitter: int = 2, band_margin_px: float = 4.0,
+    def __init__(self, width_px: int, height_px: int, sampling: CoverageSampling = CoverageSampling(), *,
                  lean_framebuffer: bool = True, count_samples: bool | None = None):
-        if supersample < 1 or jitter < 1:
+        if sampling.supersample < 1 or sampling.jitter < 1:
             raise ValueError("supersample and jitter must be ≥ 1")
         self.width_px, self.height_px = int(width_px), int(height_px)
-        self.k, self.n = int(supersample), int(jitter)
-        self.end_band, self.band_jitter, self.band_margin_px = bool(end_band), int(band_jitter), float(band_margin_px)
+        self.k, self.n = int(sampling.supersample), int(sampling.jitter)
+        self.end_band, self.band_jitter = bool(sampling.end_band), int(sampling.band_jitter)
+        self.band_margin_px = float(sampling.band_margin_px)
         pr = gl.pyrender()
         self._pr = pr
         self._r = pr.OffscreenRenderer(self.width_px * self.k, self.height_px * self.k)
