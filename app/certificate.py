@@ -55,7 +55,7 @@ from lxml import etree
 from benchtwin import __version__
 from benchtwin.analysis.results import ResultsError, read_results_text
 from benchtwin.analysis.results_api import Results
-from benchtwin.schema import Key, SchemaError, check_table, load_toml_file, loads_json, read_input_text
+from benchtwin.schema import Key, SchemaError, check_table, leaves, load_toml_file, loads_json, read_input_text
 
 DCC_NS = "https://ptb.de/dcc"
 SI_NS = "https://ptb.de/si"
@@ -265,14 +265,8 @@ def _fail(msg: str) -> Exception:
 def _check_text(where: str, data: Any) -> None:
     """No control character (a NUL, an escape sequence, a line break) in any string of the lab
     file: they are not XML characters, or would be written into the certificate as they are."""
-    stack: list[tuple[Any, str]] = [(data, "")]
-    while stack:
-        v, at = stack.pop()
-        if isinstance(v, Mapping):
-            stack.extend((x, f"{at}.{k}" if at else str(k)) for k, x in v.items())
-        elif isinstance(v, list):
-            stack.extend((x, f"{at}[{i}]") for i, x in enumerate(v))
-        elif isinstance(v, str) and any(unicodedata.category(c) in ("Cc", "Cs") for c in v):
+    for v, at in leaves(data):
+        if isinstance(v, str) and any(unicodedata.category(c) in ("Cc", "Cs") for c in v):
             raise CertificateInputError(f"{where}: key {at}: expected text without control characters "
                                         "(tab, line break, NUL, escape)")
 
