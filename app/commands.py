@@ -12,7 +12,7 @@ import importlib.util
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 if TYPE_CHECKING:
     from benchtwin.twin.scenario import Scenario
@@ -86,16 +86,10 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
                    help="continue an interrupted simulation from OUT/journal.jsonl (the same scenario, --set and "
                         "--seed): the dataset is the one an uninterrupted run writes")
     _override_args(p)
-    _force_arg(p)
+    force_argument(p)
     from benchtwin.app.live import add_live_argument
 
     add_live_argument(p)
-
-
-def _force_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--force", action="store_true",
-                   help="replace a non-empty output folder (default: refuse it; never one a live run holds, nor "
-                        "an input; docs/reliability.md)")
 
 
 def cmd_simulate(ns: argparse.Namespace) -> dict[str, Any]:
@@ -128,7 +122,7 @@ def _analyze_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--order", type=int, default=10, help="Fourier order (Jia eqs. 6, 10); default 10")
     p.add_argument("--model", type=Path, default=None,
                    help="a model file from close-loop: its effects join the error model")
-    _force_arg(p)
+    force_argument(p)
 
 
 def cmd_analyze(ns: argparse.Namespace) -> dict[str, Any]:
@@ -179,7 +173,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", choices=("auto", "pyrender", "analytic"), default="auto")
     p.add_argument("--no-close-loop", action="store_true", help="stop after the Jia/Hsieh analysis")
     _override_args(p)
-    _force_arg(p)
+    force_argument(p)
 
 
 def cmd_run(ns: argparse.Namespace) -> dict[str, Any]:
@@ -258,7 +252,7 @@ if _have("benchtwin.app.study"):
         p.add_argument("--set", dest="set_options", action="append", default=[], metavar="KEY=VALUE",
                        help="a scenario key fixed for every point (joins [study.fixed]; VALUE a TOML value); repeatable")
         p.add_argument("--seed", type=int, default=None, metavar="N", help="the study's seed (study.seed)")
-        _force_arg(p)
+        force_argument(p)
 
     @command("study", "run a design study (parameter sweep with Monte Carlo repetitions)", _study_args)
     def cmd_study(ns: argparse.Namespace) -> dict[str, Any]:

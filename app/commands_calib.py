@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 
 def _calibrate_args(p: argparse.ArgumentParser) -> None:
@@ -21,8 +21,7 @@ def _calibrate_args(p: argparse.ArgumentParser) -> None:
                    help="scenario whose non-fitted values are kept (default: the embedded one + the dataset's manifest)")
     p.add_argument("--results", type=Path, default=None,
                    help="results.json of close-loop on DATASET (default: one beside it, else close-loop is run)")
-    p.add_argument("--force", action="store_true",
-                   help="replace an existing scenario file (default: refuse it; never an input file)")
+    force_argument(p, "replace an existing scenario file (default: refuse it; never an input file)")
 
 
 @command("calibrate-twin", "write a scenario whose twin reproduces a measured dataset (fitted values with u)",

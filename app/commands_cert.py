@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 
 def _certificate_args(p: argparse.ArgumentParser) -> None:
@@ -18,8 +18,7 @@ def _certificate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lab", type=Path, default=None,
                    help="lab file (TOML): laboratory, customer, item, persons, equipment, environment, dates "
                         "(example: docs/lab.example.toml); without it they are 'not stated'")
-    p.add_argument("--force", action="store_true",
-                   help="replace an existing certificate file (default: refuse it; never an input file)")
+    force_argument(p, "replace an existing certificate file (default: refuse it; never an input file)")
     p.add_argument("--html", nargs="?", const="", default=None, metavar="HTML",
                    help="also write the certificate for people: a self-contained HTML page rendered from the DCC "
                         "(default path: OUT with the suffix .html)")

@@ -13,7 +13,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 
 def _emulate_args(p: argparse.ArgumentParser) -> None:
@@ -35,9 +35,8 @@ def _emulate_args(p: argparse.ArgumentParser) -> None:
                    help="with --tcp: first port (the k-th instrument gets PORT+k); default 0: free ports")
     p.add_argument("--duration", type=float, default=None,
                    help="stop after this many seconds (default: run until Ctrl-C / SIGTERM)")
-    p.add_argument("--force", action="store_true",
-                   help="use a non-empty --dir (deletes its contents; an earlier emulator's own folder is reused "
-                        "without it; never the folder of a live emulator)")
+    force_argument(p, "use a non-empty --dir (deletes its contents; an earlier emulator's own folder is reused "
+                   "without it; never the folder of a live emulator)")
 
 
 @command("emulate", "serve a scenario's instruments on pseudo-terminals; writes a bench file for `acquire`",
@@ -117,9 +116,8 @@ def _acquire_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("bench", type=Path, help="bench file (TOML, docs/bench-file.md)")
     p.add_argument("-o", "--out", type=Path, required=True, help="dataset directory to write")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/journal.jsonl")
-    p.add_argument("--force", action="store_true",
-                   help="start again in a non-empty folder: deletes its contents, journal included (never the "
-                        "folder of a live run: its lock is exit 2 naming the pid)")
+    force_argument(p, "start again in a non-empty folder: deletes its contents, journal included (never the "
+                   "folder of a live run: its lock is exit 2 naming the pid)")
     from benchtwin.app.live import add_live_argument
 
     add_live_argument(p)

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 
 def _import_args(p: argparse.ArgumentParser) -> None:
@@ -18,8 +18,7 @@ def _import_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--u", default=None, help="a column of standard uncertainties of the errors (same unit)")
     p.add_argument("--error-unit", default="arcsec", choices=("arcsec", "urad", "deg"),
                    help="unit of the error columns (default arcsec)")
-    p.add_argument("--force", action="store_true",
-                   help="replace a non-empty dataset folder (default: refuse it; never the folder of the table)")
+    force_argument(p, "replace a non-empty dataset folder (default: refuse it; never the folder of the table)")
 
 
 @command("import", "read a measured error table (CSV) into an error-curve dataset", _import_args)

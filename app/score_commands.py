@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from benchtwin.cli import InputError, command
+from benchtwin.cli import InputError, command, force_argument
 
 
 def _score_args(p: argparse.ArgumentParser) -> None:
@@ -47,8 +47,7 @@ def _suite_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--size", choices=SIZES, default="full",
                    help="full: all 19 datasets (~6 min with --jobs 2); small: six of them")
     p.add_argument("--jobs", type=int, default=1, help="simulate this many datasets in parallel (default 1)")
-    p.add_argument("--force", action="store_true",
-                   help="replace a non-empty suite folder (default: refuse it; docs/reliability.md)")
+    force_argument(p, "replace a non-empty suite folder (default: refuse it; docs/reliability.md)")
 
 
 @command("suite", "write the fixed, versioned benchmark suite of twin datasets", _suite_args)

@@ -48,6 +48,17 @@ def command(name: str, help: str,
     return deco
 
 
+#: ``--force`` of a command writing an output folder (benchtwin.fsio's writing rule)
+FORCE_HELP = ("replace a non-empty output folder (default: refuse it; never one a live run holds, nor an input; "
+              "docs/reliability.md)")
+
+
+def force_argument(p: argparse.ArgumentParser, help: str = FORCE_HELP) -> None:
+    """The ``--force`` flag every writing command takes (a boolean, default off); ``help`` says what
+    it replaces and what it never does."""
+    p.add_argument("--force", action="store_true", help=help)
+
+
 class InputError(Exception):
     """Invalid user input (exit code 2)."""
 
