@@ -689,11 +689,11 @@ def _measure(ds: Dataset, order: int, progress: bool) -> BenchAnalysis:
             # one sweep also carries the async motion's 1st harmonic (Jia eqs. 11-12): a type B
             # term from the radial run's repetitions; repeated sweeps hold it in their own scatter
             ecc = ecc.with_async_motion(rm.u_h1_async_um, rm.u_h1_async_dof)
-        if ecc.rejected_frames:
+        if ecc.frames.rejected_frames:
             notes.append(
-                f"CCD: {len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected and dropped "
+                f"CCD: {len(ecc.frames.rejected_frames)} of {ecc.frames.n_frames} frames rejected and dropped "
                 f"({', '.join(ecc.rejected_files)}); e and θ0 fitted on the "
-                f"{len(ecc.files)} remaining angles (≥ {ecc.min_frames} required)")
+                f"{len(ecc.frames.files)} remaining angles (≥ {ecc.frames.min_frames} required)")
     if ds.has("polygon"):
         pol = _step(ds, "polygon.csv", step_polygon, ds)
         notes += pol.notes

@@ -18,14 +18,15 @@ serialised to its results.json section by one function, ``to_json()`` (the secti
 The computing modules keep returning their documented dicts (their tests, benchmarks and the
 functions of the same module that read them: the error model, the ISO 230-7 evaluation, the
 report's figures); each object keeps that dict as ``detail`` for those functions only. The
-``from_*`` constructors are the one place the dict's keys are read.
+``from_*`` constructors are the one place the dict's keys are read (``_StepDetail.from_detail``:
+each field from the key of its name).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any, cast
+from dataclasses import dataclass, fields
+from typing import Any, Self, cast
 
 import numpy as np
 
@@ -42,8 +43,25 @@ __all__ = ["RadialMotionResult", "EccentricityResult", "PolygonAnalysis", "Trace
 
 
 @dataclass(frozen=True, eq=False)
-class RadialMotionResult:
-    """Radial error motion of the spheres and the disk (Jia eqs. 6–9) on the grid ``theta_deg``."""
+class _StepDetail:
+    """A step's output read from the documented dict of the module that computes it, kept whole as
+    ``detail`` for that module's own functions (the error model, the ISO 230-7 evaluation, the
+    report's figures)."""
+
+    detail: dict[str, Any]
+
+    @classmethod
+    def from_detail(cls, d: dict[str, Any], **given: Any) -> Self:
+        """Each field from the key of its name in ``d``, those ``given`` excepted."""
+        names = [f.name for f in fields(cls) if f.name != "detail" and f.name not in given]
+        return cls(detail=d, **{n: d[n] for n in names}, **given)
+
+
+@dataclass(frozen=True, eq=False)
+class RadialMotionResult(_StepDetail):
+    """Radial error motion of the spheres and the disk (Jia eqs. 6–9) on the grid ``theta_deg``;
+    ``detail``: radial_motion()'s whole dict (per-revolution curves, fits, the δY series) for the
+    error model, the ISO 230-7 evaluation and the figures."""
 
     theta_deg: np.ndarray
     #: synchronous disk motion δY along the head direction (eq. 9), µm
@@ -65,17 +83,10 @@ class RadialMotionResult:
     summary: dict[str, dict[str, float]]
     #: the ISO 230-7:2015 evaluation of the same readings (analysis.iso230_7.radial_error_motion)
     iso230_7: dict[str, Any]
-    #: radial_motion()'s whole dict (per-revolution curves, fits, the δY series) for the error model,
-    #: the ISO 230-7 evaluation and the figures
-    detail: dict[str, Any]
 
     @classmethod
     def from_radial_motion(cls, rm: dict[str, Any], iso230_7: dict[str, Any]) -> RadialMotionResult:
-        return cls(theta_deg=rm["theta_deg"], dY_um=rm["dY_um"], tilt_x_urad=rm["tilt_x_urad"],
-                   u_dY_theta_um=rm["u_dY_theta_um"], u_dY_um=rm["u_dY_um"], u_dY_range_um=rm["u_dY_range_um"],
-                   u_dY_gum_um=rm["u_dY_gum_um"], d_n=rm["d_n"], n_reps=rm["n_reps"],
-                   u_h1_async_um=rm["u_h1_async_um"], u_h1_async_dof=rm["u_h1_async_dof"], summary=rm["summary"],
-                   iso230_7=iso230_7, detail=rm)
+        return cls.from_detail(rm, iso230_7=iso230_7)
 
     @property
     def bandwidth(self) -> dict[str, Any]:
@@ -117,18 +128,8 @@ class EccentricityResult:
     u_theta0_fit_deg: float
     #: the asynchronous motion's part of u(e) (radial motion's revolutions); None before it is added
     u_e_async_um: float | None
-    #: image scale from the grating period (eq. 13), µm per pixel
-    pixel_um: float
-    #: the edge radius held fixed in the circle fits (from the manifest), px; None when fitted
-    radius_fixed_px: float | None
-    #: angles, files and d_ref (eqs. 10–12) of the frames used
-    theta_deg: list[float]
-    d_ref_um: np.ndarray
-    files: list[str]
-    n_frames: int
-    rejected_frames: list[RejectedFrame]
-    #: the fewest usable frames accepted (pipeline.ccd_frame_limits)
-    min_frames: int
+    #: the sweep's frames: the pixel scale (eq. 13), the angles and d_ref of those used, those rejected
+    frames: CcdFrames
     residual_rms_um: float | None
     #: where u(e) comes from (results.json eccentricity_u_source)
     u_source: str
@@ -142,10 +143,8 @@ class EccentricityResult:
         return cls(e_um=ecc["e_um"], u_e_um=ecc["e_u_um"], theta0_deg=ecc["theta0_deg"],
                    u_theta0_deg=ecc["theta0_u_deg"], u_e_fit_um=ecc.get("e_u_fit_um", ecc["e_u_um"]),
                    u_theta0_fit_deg=ecc.get("theta0_u_fit_deg", ecc["theta0_u_deg"]),
-                   u_e_async_um=ecc.get("u_async_h1_um"), pixel_um=ecc["pixel_um"],
-                   radius_fixed_px=ecc["radius_fixed_px"], theta_deg=ecc["theta_deg"], d_ref_um=ecc["d_ref_um"],
-                   files=ecc["files"], n_frames=ecc["n_frames"], rejected_frames=ecc["rejected_frames"],
-                   min_frames=ecc["frame_limits"]["min_frames"], residual_rms_um=ecc.get("residual_rms_um"),
+                   u_e_async_um=ecc.get("u_async_h1_um"), frames=CcdFrames.from_detail(ecc),
+                   residual_rms_um=ecc.get("residual_rms_um"),
                    u_source=ecc.get("u_source", ONE_SWEEP_U_SOURCE),
                    sweeps={k: ecc[k] for k in SWEEP_KEYS} if "n_sweeps" in ecc else None,
                    detail=ecc)
@@ -162,7 +161,7 @@ class EccentricityResult:
 
     @property
     def rejected_files(self) -> list[str]:
-        return [r["file"] for r in self.rejected_frames]
+        return [r["file"] for r in self.frames.rejected_frames]
 
     def with_async_motion(self, u_h1_um: float, dof: float | None) -> EccentricityResult:
         """The asynchronous motion's 1st harmonic added to u(e) and u(θ0) (eccentricity.with_async_motion)."""
@@ -171,9 +170,9 @@ class EccentricityResult:
         return EccentricityResult.from_eccentricity(with_async_motion(dict(self.detail), u_h1_um, dof))
 
     def ccd_section(self) -> CCDSection:
-        return CCDSection(pixel_um=self.pixel_um, n_images=len(self.files), n_frames=self.n_frames,
-                          theta_deg=self.theta_deg, d_ref_um=self.d_ref_um, residual_rms_um=self.residual_rms_um,
-                          min_frames=self.min_frames)
+        f = self.frames
+        return CCDSection(pixel_um=f.pixel_um, n_images=len(f.files), n_frames=f.n_frames, theta_deg=f.theta_deg,
+                          d_ref_um=f.d_ref_um, residual_rms_um=self.residual_rms_um, min_frames=f.min_frames)
 
     def to_json(self) -> dict[str, Any]:
         """The eccentricity keys of results.json (BenchResults: eccentricity_*, ccd, ccd_rejected_frames)."""
@@ -185,7 +184,7 @@ class EccentricityResult:
         if self.sweeps is not None:
             out["eccentricity_sweeps"] = self.sweeps
         out["ccd"] = self.ccd_section()
-        out["ccd_rejected_frames"] = self.rejected_frames
+        out["ccd_rejected_frames"] = self.frames.rejected_frames
         return out
 
 
@@ -288,16 +287,18 @@ _CLOSE_LOOP_KEYS = ("signature", "selection", "skipped", "thresholds", "partial_
 
 
 @dataclass(frozen=True, eq=False)
-class TraceOutcome:
-    """What the tracing found in the residual (analysis.tracing.trace; docs/effects.md, "Result of trace")."""
+class TraceOutcome(_StepDetail):
+    """What the tracing found in the residual (analysis.tracing.trace; docs/effects.md, "Result of trace");
+    ``detail``: trace()'s whole dict (signature, selection, candidates) for the report's figures."""
 
-    #: explained / ambiguous / unexplained / no_significant_residual / ...
+    #: explained / ambiguous / unexplained / no_significant_residual / ..., and whether a significant
+    #: residual is left unexplained
     status: str
+    unexplained: bool
     identified_effects: list[IdentifiedEffect]
     #: the best candidate when it was not accepted ([] when there is none)
     partial_effects: list[dict[str, Any]]
     ambiguous: list[dict[str, Any]]
-    unexplained: bool
     #: the residual per polygon reading before and after the traced effects
     residual_before: TraceResidual
     residual_after: TraceResidual
@@ -305,16 +306,11 @@ class TraceOutcome:
     reference_corrections: dict[str, dict[str, Any]]
     #: the model file's payload (analysis.tracing.save_model)
     model_file: dict[str, Any]
-    #: trace()'s whole dict (signature, selection, candidates) for the report's figures
-    detail: dict[str, Any]
 
     @classmethod
     def from_trace(cls, tr: dict[str, Any]) -> TraceOutcome:
-        return cls(status=tr["status"], identified_effects=tr["identified_effects"],
-                   partial_effects=tr.get("partial_effects") or [], ambiguous=tr["ambiguous"],
-                   unexplained=tr["unexplained"], residual_before=tr["residual_before"],
-                   residual_after=tr["residual_after"], reference_corrections=tr.get("reference_corrections") or {},
-                   model_file=tr["model_file"], detail=tr)
+        return cls.from_detail(tr, partial_effects=tr.get("partial_effects") or [],
+                               reference_corrections=tr.get("reference_corrections") or {})
 
     @property
     def signature(self) -> dict[str, Any]:
@@ -443,8 +439,9 @@ CHI2_YARDSTICK = ("u of each α (encoder_error_arcsec.u: the GUM budget of the s
 
 
 @dataclass(frozen=True, eq=False)
-class ModelComparison:
-    """Measured encoder error − Jia model (eq. 5) at the curve's angles (error_model.compare_with_measured)."""
+class ModelComparison(_StepDetail):
+    """Measured encoder error − Jia model (eq. 5) at the curve's angles (error_model.compare_with_measured);
+    ``detail``: compare_with_measured()'s whole dict for the report's figure (figures_jia.fig_comparison)."""
 
     theta_deg: np.ndarray
     measured_arcsec: np.ndarray
@@ -458,17 +455,10 @@ class ModelComparison:
     measured_pv_arcsec: float
     measured_rms_arcsec: float
     note: str
-    #: compare_with_measured()'s whole dict for the report's figure (figures_jia.fig_comparison)
-    detail: dict[str, Any]
 
     @classmethod
     def from_compare(cls, cmp: dict[str, Any]) -> ModelComparison:
-        return cls(theta_deg=cmp["theta_deg"], measured_arcsec=cmp["measured_arcsec"],
-                   model_arcsec=cmp["model_arcsec"], residual_arcsec=cmp["residual_arcsec"],
-                   residual_rms_arcsec=cmp["residual_rms_arcsec"], residual_pv_arcsec=cmp["residual_pv_arcsec"],
-                   residual_max_abs_arcsec=cmp["residual_max_abs_arcsec"], fraction_of_error=cmp["fraction_of_error"],
-                   pv_ratio=cmp["pv_ratio"], measured_pv_arcsec=cmp["measured_pv_arcsec"],
-                   measured_rms_arcsec=cmp["measured_rms_arcsec"], note=cmp["note"], detail=cmp)
+        return cls.from_detail(cmp)
 
     def residual_summary(self, u_arcsec: float | None = None, stats: FitStatistics | None = None, *,
                          per_reading_rms_arcsec: float | None = None,
@@ -659,6 +649,19 @@ class CcdFrames:
     frame_limits: dict[str, int]
     #: the first used frame's fit {file, fit}, which the report draws (figures_ccd.add_ccd_pictures)
     first_frame_fit: dict[str, Any] | None
+
+    @classmethod
+    def from_detail(cls, d: Mapping[str, Any]) -> CcdFrames:
+        """The frames from the eccentricity fit's dict they were merged into (``detail()``)."""
+        return cls(pixel_um=d["pixel_um"], radius_fixed_px=d["radius_fixed_px"], theta_deg=d["theta_deg"],
+                   d_ref_um=d["d_ref_um"], files=d["files"], n_frames=d["n_frames"],
+                   rejected_frames=d["rejected_frames"], frame_limits=d["frame_limits"],
+                   first_frame_fit=d.get("first_frame_fit"))
+
+    @property
+    def min_frames(self) -> int:
+        """The fewest usable frames accepted (pipeline.ccd_frame_limits)."""
+        return self.frame_limits["min_frames"]
 
     def detail(self) -> dict[str, Any]:
         """The keys the step adds to the eccentricity fit's dict (EccentricityResult.detail)."""

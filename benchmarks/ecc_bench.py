@@ -89,9 +89,9 @@ def main(argv: list[str] | None = None) -> int:
     ds = open_dataset(args.dataset)
 
     cases = {
-        "step, serial": lambda: np.asarray(step_eccentricity(ds, 10, False, workers=1).d_ref_um),
+        "step, serial": lambda: np.asarray(step_eccentricity(ds, 10, False, workers=1).frames.d_ref_um),
         f"step, {args.workers} threads": lambda: np.asarray(
-            step_eccentricity(ds, 10, False, workers=args.workers).d_ref_um),
+            step_eccentricity(ds, 10, False, workers=args.workers).frames.d_ref_um),
         "floor: decode+Otsu+label once": lambda: floor(ds),
     }
     if args.two_pass:

@@ -85,7 +85,7 @@ def _summary_rows(a: BenchAnalysis) -> tuple[list[list[Any]], list[str]]:
     if ecc is not None:
         rows.append(["eccentricity e (Jia eq. 11)", value_with_u(ecc.e_um, ecc.u_e_um, "µm")])
         rows.append(["eccentricity phase θ0 (eq. 12)", value_with_u(ecc.theta0_deg, ecc.u_theta0_deg, "°")])
-        rows.append(["pixel scale (from the grating)", f"{ecc.pixel_um:.5f} µm/px"])
+        rows.append(["pixel scale (from the grating)", f"{ecc.frames.pixel_um:.5f} µm/px"])
     if rm is not None:
         rows += _radial_rows(a)
     if pol is not None and pol.budget_summary:
@@ -167,13 +167,14 @@ def _add_ccd_section(rep: Any, ds: Dataset, a: BenchAnalysis) -> None:
     from benchtwin.analysis.report.figures_ccd import add_ccd_pictures
 
     add_ccd_pictures(rep, ds, ecc.detail)  # the pictures of the image analysis (issue 20)
-    rep.figure(fj.fig_dref(ecc.detail, np.asarray(ecc.theta_deg), np.asarray(ecc.d_ref_um)), "d_ref over the sweep and its first harmonic")
-    if ecc.rejected_frames:
-        rep.paragraph(f"{len(ecc.rejected_frames)} of {ecc.n_frames} frames rejected by the image analysis "
-                      f"and dropped; e and θ0 are fitted on the {len(ecc.files)} remaining angles (the "
-                      f"least-squares fit of eq. 10 does not need equal spacing; ≥ {ecc.min_frames} "
+    fr = ecc.frames
+    rep.figure(fj.fig_dref(ecc.detail, np.asarray(fr.theta_deg), np.asarray(fr.d_ref_um)), "d_ref over the sweep and its first harmonic")
+    if fr.rejected_frames:
+        rep.paragraph(f"{len(fr.rejected_frames)} of {fr.n_frames} frames rejected by the image analysis "
+                      f"and dropped; e and θ0 are fitted on the {len(fr.files)} remaining angles (the "
+                      f"least-squares fit of eq. 10 does not need equal spacing; ≥ {fr.min_frames} "
                       "frames are required).", note=True)
-        rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in ecc.rejected_frames],
+        rep.table([[r["file"], f"{r['theta_deg']:.1f}°", r["stage"], r["reason"]] for r in fr.rejected_frames],
                   ["rejected frame", "θ", "step", "reason"])
 
 

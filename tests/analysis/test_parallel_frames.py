@@ -148,14 +148,14 @@ def test_report_overlay_is_the_steps_own_fit(small_ds):
     ds = open_dataset(small_ds)
     res = step_eccentricity(ds, 10, False, workers=2)
     own = res.detail["first_frame_fit"]
-    assert own["file"] == res.files[0] == "img_001.png"  # img_000 is fogged
+    assert own["file"] == res.frames.files[0] == "img_001.png"  # img_000 is fogged
     img = ds.read_image(own["file"])
-    again = ecc.d_ref_px(img, tuple(ds.manifest["ccd"]["reference_px"]), radius_px=res.radius_fixed_px,
+    again = ecc.d_ref_px(img, tuple(ds.manifest["ccd"]["reference_px"]), radius_px=res.frames.radius_fixed_px,
                          name=own["file"])
     for k in ("d_ref_px", "residual_rms_px", "centre_px", "radius_px", "reference_px", "points_px",
               "rejected_points_px"):
         assert np.array_equal(np.asarray(own["fit"][k]), np.asarray(again[k])), k
-    assert own["fit"]["d_ref_px"] * res.pixel_um == res.d_ref_um[0]
+    assert own["fit"]["d_ref_px"] * res.frames.pixel_um == res.frames.d_ref_um[0]
 
 
 def test_edges_once_equals_the_two_pass_path(small_ds):

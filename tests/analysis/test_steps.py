@@ -45,7 +45,7 @@ def test_step_outputs_are_frozen_and_name_their_units(cls):
     assert dataclasses.is_dataclass(cls) and cls.__dataclass_params__.frozen
     # a value with a unit carries it in its name (principle 4); counts, flags, texts and the nested
     # sections (typed by analysis/results.py) do not have one
-    unitless = {"n_reps", "n_frames", "min_frames", "files", "rejected_frames", "summary", "detail", "iso230_7",
+    unitless = {"n_reps", "frames", "summary", "detail", "iso230_7",
                 "beta_source", "budget", "budget_summary", "repeatability", "autocollimator_declared",
                 "budget_inputs", "notes", "en_max", "status", "identified_effects", "partial_effects", "ambiguous",
                 "unexplained", "residual_before", "residual_after", "reference_corrections", "model_file",
@@ -70,7 +70,7 @@ def test_eccentricity_result_reads_the_step_dict_and_adds_the_async_motion():
                n_frames=th.size, rejected_frames=[], frame_limits={"min_frames": 10, "by_fit": 10, "by_fraction": 23})
     e = EccentricityResult.from_eccentricity(raw)
     assert e.e_um == raw["e_um"] and e.u_e_um == raw["e_u_um"] and e.theta0_deg == raw["theta0_deg"]
-    assert e.u_e_fit_um == e.u_e_um and e.u_e_async_um is None and e.min_frames == 10
+    assert e.u_e_fit_um == e.u_e_um and e.u_e_async_um is None and e.frames.min_frames == 10
     with pytest.raises(dataclasses.FrozenInstanceError):
         e.e_um = 0.0  # type: ignore[misc]
     a = e.with_async_motion(0.04, 4)
