@@ -39,7 +39,7 @@ import serial
 from benchtwin.hw.transport import Transport
 
 __all__ = ["Command", "CommandTable", "InstrumentError", "FormatError", "LinkSettings", "SerialInstrument", "SharedPort",
-           "to_bytes"]
+           "ProbeDisplay", "to_bytes"]
 
 
 class InstrumentError(RuntimeError):
@@ -357,6 +357,15 @@ class SerialInstrument:
 
     def close(self) -> None:
         self.transport.close()
+
+
+class ProbeDisplay(SerialInstrument):
+    """Base of the displays of displacement probes (hw.interfaces.DisplacementProbe: kind ``probe``):
+    ``read()`` -> ``{"value_um", "t_s", "status", ...}``, the displacement in µm whatever the unit
+    the instrument displays."""
+
+    KIND = "probe"
+    UNITS = {"value_um": "um"}
 
 
 def parse_float(text: bytes | str, what: str = "value") -> float:

@@ -17,8 +17,8 @@ import math
 import re
 from typing import Any, cast
 
-from benchtwin.hw.drivers.base import (Command, FormatError, InstrumentError, SerialInstrument, SharedPort,
-                                       parse_float, parse_raw)
+from benchtwin.hw.drivers.base import (Command, FormatError, InstrumentError, ProbeDisplay, SerialInstrument,
+                                       SharedPort, parse_float, parse_raw)
 from benchtwin.hw.interfaces import ProbeReading
 
 __all__ = ["MillimarC1202", "format_millimar"]
@@ -58,13 +58,11 @@ def format_millimar(channel: int, value: float, unit: str = "um", decimals: int 
     return (s + "\r").encode("latin-1")
 
 
-class MillimarC1202(SerialInstrument):
+class MillimarC1202(ProbeDisplay):
     """One feature (channel) of a Millimar C1202. Extra constructor argument: ``channel`` (1..3).
-    ``read()`` -> ``{"value_um", "t_s", "status", ...}`` (``tolerance``/``warning`` when active)."""
+    ``read()`` also gives ``tolerance``/``warning`` when they are active."""
 
-    KIND = "probe"
     MODEL = "Mahr Millimar C1202"
-    UNITS = {"value_um": "um"}
     SERIAL_SETTINGS = {"baudrate": 9600, "bytesize": 7, "parity": "E", "stopbits": 2, "timeout": 0.5}
     PROTOCOL_DOC = "docs/protocols/millimar.md"
     DEFAULT_COMMANDS = {"read": Command("read", b"M{channel}?\r", _REPLY, "channel", b"\r")}

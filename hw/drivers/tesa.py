@@ -15,7 +15,7 @@ import math
 import re
 from typing import Any, cast
 
-from benchtwin.hw.drivers.base import Command, SerialInstrument, parse_float, parse_raw
+from benchtwin.hw.drivers.base import Command, ProbeDisplay, SerialInstrument, parse_float, parse_raw
 from benchtwin.hw.interfaces import ProbeReading
 
 __all__ = ["TesaTT", "format_tesa"]
@@ -34,13 +34,10 @@ def format_tesa(value: float, decimals: int = 2) -> bytes:
     return f"{value:+.{decimals}f}\r\n".encode("ascii")
 
 
-class TesaTT(SerialInstrument):
-    """TESA TT80/TT90. Extra constructor argument: ``um_per_unit`` (1.0: display in µm; 1000.0 for mm).
-    ``read()`` -> ``{"value_um", "t_s", "status"}``."""
+class TesaTT(ProbeDisplay):
+    """TESA TT80/TT90. Extra constructor argument: ``um_per_unit`` (1.0: display in µm; 1000.0 for mm)."""
 
-    KIND = "probe"
     MODEL = "TESA TT-series display"
-    UNITS = {"value_um": "um"}
     SERIAL_SETTINGS = {"baudrate": 4800, "bytesize": 7, "parity": "E", "stopbits": 2, "timeout": 0.5}
     PROTOCOL_DOC = "docs/protocols/tesa.md"
     DEFAULT_COMMANDS = {"read": Command("read", b"?\r", _REPLY, "value", b"\r\n")}
