@@ -36,7 +36,7 @@ from typing import Any, cast
 from benchtwin.hw.drivers.base import Command, InstrumentError, SerialInstrument, parse_float, parse_raw
 from benchtwin.hw.interfaces import SoftLimitError, StageMove, StagePosition
 
-__all__ = ["ZaberRotaryStage", "ZaberSettings", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
+__all__ = ["ZaberRotaryStage", "ZaberSettings", "ZaberReply", "format_zaber_reply", "parse_zaber_reply", "zaber_checksum"]
 
 _REPLY = (rb"@(?P<dev>\d{2}) (?P<axis>\d+)(?: (?P<id>\d{1,2}|--))? (?P<reply>OK|RJ) (?P<state>IDLE|BUSY)"
           rb" (?P<flag>--|[FWN][A-Z]) (?P<data>[ -~]*?)(?::(?P<cs>[0-9A-Fa-f]{2}))?\r?\n")
@@ -74,12 +74,25 @@ def parse_reply(inst: SerialInstrument, m: re.Match[bytes], cmd: Command) -> dic
 parse_zaber_reply = parse_reply
 
 
-def format_zaber_reply(data: str | int = 0, *, device: int = 1, axis: int = 1, reply: str = "OK",
-                       busy: bool = False, flag: str = "--", msg_id: int | None = None,
-                       checksum: bool = False) -> bytes:
-    """A reply line as the controller sends it (tests and emulators)."""
-    mid = f" {msg_id:02d}" if msg_id is not None else ""
-    body = f"{device:02d} {axis}{mid} {reply} {'BUSY' if busy else 'IDLE'} {flag} {data}".encode("ascii")
+@dataclass(frozen=True)
+class ZaberReply:
+    """The fields of one reply line (zaber.md): the data, the device and axis numbers, ``OK`` or
+    ``RJ``, busy (``BUSY``) or idle, the warning flag (``--``: none) and the message id (None: the
+    reply carries none)."""
+
+    data: str | int = 0
+    device: int = 1
+    axis: int = 1
+    reply: str = "OK"
+    busy: bool = False
+    flag: str = "--"
+    msg_id: int | None = None
+
+
+def format_zaber_reply(r: ZaberReply = ZaberReply(), *, checksum: bool = False) -> bytes:
+    """The reply line ``r`` as the controller sends it, with its checksum when ``checksum`` (tests)."""
+    mid = f" {r.msg_id:02d}" if r.msg_id is not None else ""
+    body = f"{r.device:02d} {r.axis}{mid} {r.reply} {'BUSY' if r.busy else 'IDLE'} {r.flag} {r.data}".encode("ascii")
     if checksum:
         body += b":" + zaber_checksum(body)
     return b"@" + body + b"\r\n"

@@ -181,10 +181,10 @@ def test_edges_once_equals_the_two_pass_path(small_ds):
             rejected.append((f, "d_ref (eqs. 10-12)"))
             continue
         files.append(f)
-    assert new.pixel_um == scale
-    assert new.files == files
-    assert np.array_equal(np.asarray(new.d_ref_um), np.asarray(d_old) * scale)
-    assert [(r["file"], r["stage"]) for r in new.rejected_frames] == rejected
+    assert new.frames.pixel_um == scale
+    assert new.frames.files == files
+    assert np.array_equal(np.asarray(new.frames.d_ref_um), np.asarray(d_old) * scale)
+    assert [(r["file"], r["stage"]) for r in new.frames.rejected_frames] == rejected
     assert rejected[0] == ("img_000.png", "pixel scale (eq. 13)")
 
 

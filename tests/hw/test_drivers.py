@@ -304,7 +304,7 @@ def test_heidenhain_garbage_never_parses_silently(junk):
 
 
 # --- Zaber ----------------------------------------------------------------------------------------
-from benchtwin.hw.drivers.zaber import ZaberRotaryStage, format_zaber_reply  # noqa: E402
+from benchtwin.hw.drivers.zaber import ZaberReply, ZaberRotaryStage, format_zaber_reply  # noqa: E402
 from benchtwin.hw.interfaces import SoftLimitError  # noqa: E402
 
 STAGE = dict(microsteps_per_deg=1000.0, soft_limits_deg=(-10.0, 370.0), max_speed_deg_s=20.0)
@@ -338,7 +338,7 @@ def test_zaber_message_ids_checksums_and_alerts():
     assert st_.position()["angle_deg"] == 90.0
     rt.assert_done()
     assert st_.describe()["message_ids"] and st_.describe()["checksums"]
-    assert format_zaber_reply(5, msg_id=3, checksum=True) == b"@01 1 03 OK IDLE -- 5:04\r\n"
+    assert format_zaber_reply(ZaberReply(5, msg_id=3), checksum=True) == b"@01 1 03 OK IDLE -- 5:04\r\n"
 
 
 def test_zaber_stale_reply_is_skipped_and_the_own_reply_taken():
@@ -412,7 +412,7 @@ def test_zaber_closed_loop_on_encoder():
 @settings(max_examples=60, deadline=None)
 def test_zaber_parser_round_trip(data, busy, flag):
     rt = ReplayTransport([{"request": "/1 1 get pos\n",
-                           "response": format_zaber_reply(data, busy=busy, flag=flag).decode()}])
+                           "response": format_zaber_reply(ZaberReply(data, busy=busy, flag=flag)).decode()}])
     st_ = ZaberRotaryStage("s", rt, sleep=Sleeps(), retries=0, **STAGE)
     assert st_.position()["angle_deg"] == pytest.approx(data / 1000.0)
 
