@@ -8,12 +8,14 @@ separate it — with its parameter within 3u of the injected value and the resid
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
 from scipy import stats
 
 from benchtwin.analysis.effects import ALL
+from benchtwin.analysis.effects.protocol import problems
 from tests.synthetic.evidence import make_evidence
 from benchtwin.analysis.tracing import trace
 
@@ -163,6 +165,54 @@ def test_effect_protocol(name):
         assert X.shape == (ev.n, len(names))
         p = {n: 0.1 * (i + 1) for i, n in enumerate(names)}
         np.testing.assert_allclose(m.predict(ev, p, ctx), X @ np.array([p[n] for n in names]))
+
+
+REQUIRED = ("NAME", "MEANING", "PARAMS", "CHANNELS", "SEEN_BY_SELFCAL", "SEPARATED_BY", "SEPARATES_FROM",
+            "available", "design", "predict", "aux", "term")
+
+
+def _copy(module, drop=(), **replace):
+    """A stand-in module: ``module``'s members less ``drop``, with ``replace`` set."""
+    m = types.ModuleType(f"broken_{module.__name__}")
+    m.__dict__.update({k: v for k, v in vars(module).items() if k not in drop and not k.startswith("__")})
+    m.__dict__.update(replace)
+    return m
+
+
+@pytest.mark.parametrize("name", sorted(ALL))
+def test_registered_modules_are_effects(name):
+    """Every module of the registry satisfies protocol.Effect at run time (members, their types, each
+    function callable with the protocol's positional arguments; the optional members where present),
+    and the check names what a module lacks: without any one required member, it is not an Effect."""
+    m = ALL[name]
+    assert problems(m) == []
+    for member in REQUIRED:
+        found = problems(_copy(m, drop=(member,)))
+        assert len(found) == 1 and found[0].startswith(member), (member, found)
+
+
+def test_protocol_check_names_wrong_types_and_arity():
+    """A member of the wrong type, a function that cannot take the protocol's arguments (required or
+    optional member), a missing channel: each is a problem."""
+    m = ALL["graduation_error"]
+    assert [p.split(":")[0] for p in problems(_copy(m, SEEN_BY_SELFCAL=1))] == ["SEEN_BY_SELFCAL"]
+    assert [p.split(":")[0] for p in problems(_copy(m, term=lambda params, aux: None))] == ["term()"]
+    assert [p.split(":")[0] for p in problems(_copy(m, design=lambda ev, ctx: None))] == ["design()"]
+    assert [p.split(":")[0] for p in problems(_copy(m, heads=lambda ev, params, ctx=None: None))] == ["heads()"]
+    assert [p.split(":")[0] for p in problems(_copy(m, ambiguous_with=lambda: []))] == ["ambiguous_with()"]
+    channels = {k: v for k, v in m.CHANNELS.items() if k != "ccd"}
+    assert [p.split(":")[0] for p in problems(_copy(m, CHANNELS=channels))] == ["CHANNELS"]
+
+
+def test_shared_stubs_behave_as_the_ones_they_replace():
+    """The reference-chain effects take aux/term from _base: no data, no ErrorModel term; predict is X @ params."""
+    for name in ("ac_drift", "ac_scale", "torsion_hysteresis", "polygon_pitch_ignored"):
+        m = ALL[name]
+        assert m.SEEN_BY_SELFCAL is False
+        assert m.term({n: 1.0 for n in m.PARAMS}, {}, {"eccentricity": np.sin}) is None
+    for name in ("ac_drift", "ac_scale", "torsion_hysteresis"):
+        assert ALL[name].aux(None) == {}
+    assert ALL["polygon_pitch_ignored"].aux(types.SimpleNamespace(n_faces=23)) == {"n_faces": 23}
 
 
 def test_forward_channels():
