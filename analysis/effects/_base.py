@@ -1,26 +1,22 @@
 """Shared helpers for the effect modules (numpy and the analysis's Fourier series, :mod:`benchtwin.analysis.fourier`).
 
-Every effect module in this package follows one protocol (see ``docs/effects.md``):
+Every effect module in this package follows one protocol, stated with types in
+:mod:`benchtwin.analysis.effects.protocol` (:class:`~benchtwin.analysis.effects.protocol.Effect`;
+``docs/effects.md``). The parts of it that are the same for many effects live here once, and the
+modules take them from here:
 
-- ``NAME`` (str), ``MEANING`` (one paragraph), ``PARAMS`` (name → unit; ``{k}`` marks a family),
-  ``CHANNELS`` (measured channel → how the effect shows up there), ``SEEN_BY_SELFCAL`` (bool: is
-  it an error of the encoder/model, hence present identically in the multi-head self-calibration
-  residual, or an error of the polygon/autocollimator reference chain, hence absent there),
-  ``SEPARATED_BY`` (which data tell it apart), ``SEPARATES_FROM`` (other effect → the measurement
-  that would separate the two).
-- ``available(ev, ctx) -> (bool, reason)``; ``design(ev, ctx) -> (X, names)`` with X of shape
-  (n_readings, n_params), the residual being ``X @ params`` (all effects here are linear in their
-  parameters); ``predict(ev, params, ctx)``; ``aux(ev, ctx) -> dict`` (JSON-ready data the
-  θ-function needs); ``term(params, aux, base_terms) -> callable(theta_rad) -> arcsec | None``
-  (None: the effect is not an encoder error and gives no ErrorModel term).
-
-``ev`` is a :class:`benchtwin.analysis.tracing.Evidence` (or its self-calibration view, which has
-the same θ-related attributes); the modules use its attributes only (duck typing), so they do not
-import ``tracing``.
+- ``linear_predictor(design)``: the ``predict`` of a linear effect, ``X @ params`` (all of them);
+- ``no_aux`` / ``no_term``: the ``aux`` and ``term`` of an effect with no θ-function (an error of
+  the reference chain, not of the encoder: it gives no ErrorModel term);
+- ``channels(...)``: a module's ``CHANNELS``, every channel named, "none" where not stated;
+- ``disk_fixed_heads_of(term, aux)``: the ``heads`` of an error fixed to the disk (Hsieh eq. 8);
+- ``within`` / ``amplitudes_within``: the usual ``plausible`` bounds (one parameter; sin/cos pairs).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +25,8 @@ from benchtwin.analysis.fourier import perturbation_columns as perturbation_colu
 from benchtwin.analysis.fourier import harmonic_columns as harmonic_columns  # re-exported to the effect modules
 from benchtwin.analysis.radial_motion import RADIAL_ORDERS as RADIAL_ORDERS  # re-exported (Jia eq. 7)
 from benchtwin.units import ARCSEC_PER_RAD as ARCSEC_PER_RAD  # re-exported to the effect modules
+
+from .protocol import CHANNEL_NAMES, Context, Evidence, ThetaFunction
 
 # The series over a set of harmonics ({k: (a_k, b_k)}) are the analysis's one Fourier engine
 # (analysis/fourier.py, Jia eqs. 6-7); the effect modules know them by these names.
@@ -51,11 +49,54 @@ def coefs_from_json(d: dict) -> dict[int, tuple[float, float]]:
     return {int(k): (float(v[0]), float(v[1])) for k, v in d.items()}
 
 
-def linear_predict(design, ev, params: dict[str, float], ctx=None) -> np.ndarray:
+def linear_predict(design, ev, params: Mapping[str, float], ctx: Context = None) -> np.ndarray:
     """Generic ``predict`` for a linear effect: X @ params (missing names count as 0)."""
     X, names = design(ev, ctx)
     p = np.array([float(params.get(n, 0.0)) for n in names])
     return X @ p if names else np.zeros(len(ev.theta_deg))
+
+
+def linear_predictor(design: Callable[[Evidence, Context], tuple[np.ndarray, list[str]]]) -> Callable[..., np.ndarray]:
+    """The ``predict(ev, params, ctx=None)`` of a linear effect whose columns are ``design``: X @ params."""
+    def predict(ev: Evidence, params: Mapping[str, float], ctx: Context = None) -> np.ndarray:
+        """The effect's residual at the readings: X @ params (missing names count as 0)."""
+        return linear_predict(design, ev, params, ctx)
+    return predict
+
+
+def no_aux(ev: Evidence, ctx: Context = None) -> dict[str, Any]:
+    """``aux`` of an effect whose θ-function needs no data from the evidence (or that has none)."""
+    return {}
+
+
+def no_term(params: Mapping[str, float], aux: Mapping[str, Any], base_terms: Any = None) -> None:
+    """``term`` of an effect of the reference chain (SEEN_BY_SELFCAL false): not an encoder error, so
+    no ErrorModel term."""
+    return None
+
+
+def channels(*, alpha: str, selfcal: str, radial: str = "none", ccd: str = "none", heads: str = "none") -> dict[str, str]:
+    """A module's ``CHANNELS``: how the effect shows up in each measured channel (protocol.CHANNEL_NAMES,
+    in that order); a channel not stated is "none"."""
+    return dict(zip(CHANNEL_NAMES, (alpha, selfcal, radial, ccd, heads)))
+
+
+def within(params: Mapping[str, float], name: str, limit: float, what: str, unit: str) -> tuple[bool, str]:
+    """``plausible`` for one parameter: (ok, reason) with ok = |params[name]| ≤ limit (missing: 0);
+    ``unit`` follows the numbers in the reason (e.g. "″", " %")."""
+    v = float(params.get(name, 0.0))
+    ok = abs(v) <= limit
+    return ok, "" if ok else f"{what} {v:.3g}{unit} is beyond ±{limit:g}{unit}"
+
+
+def amplitudes_within(params: Mapping[str, float], pairs: Iterable[tuple[str, str, str]], limit: float) -> tuple[bool, str]:
+    """``plausible`` for sin/cos pairs: (ok, reason), ok when every pair's amplitude √(s² + c²) (arcsec)
+    is ≤ limit; ``pairs`` are (label, sin name, cos name), missing names count as 0."""
+    for label, s, c in pairs:
+        a = float(abs(complex(params.get(s, 0.0), params.get(c, 0.0))))
+        if a > limit:
+            return False, f"{label}: {a:.3g}″ is beyond {limit:g}″"
+    return True, ""
 
 
 def radius_um(ev) -> float:
@@ -74,6 +115,16 @@ def disk_fixed_heads(fn, theta_deg, heads_deg) -> np.ndarray:
     th = np.deg2rad(np.asarray(theta_deg, dtype=float))
     g1 = np.asarray(fn(th), dtype=float) + 0.0 * th
     return np.column_stack([g1 - (np.asarray(fn(th - np.deg2rad(p)), dtype=float) + 0.0 * th) for p in heads_deg])
+
+
+def disk_fixed_heads_of(term: Callable[..., ThetaFunction | None],
+                        aux: Callable[[Evidence, Context], dict[str, Any]]) -> Callable[..., np.ndarray]:
+    """The ``heads(ev, params, heads_deg, ctx=None)`` of an error fixed to the disk whose θ-function
+    is ``term(params, aux(ev, ctx))``: δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8)."""
+    def heads(ev: Evidence, params: Mapping[str, float], heads_deg: Any, ctx: Context = None) -> np.ndarray:
+        """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
+        return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
+    return heads
 
 
 def forward(module, ev, params: dict, ctx=None, heads_deg=None) -> dict:

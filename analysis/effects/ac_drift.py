@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor, no_aux, no_term, within
 
 NAME = "ac_drift"
 MEANING = (
@@ -20,11 +20,8 @@ MEANING = (
     "changes sign with the direction of rotation in θ and is absent from the self-calibration."
 )
 PARAMS = {"drift_arcsec_per_s": "arcsec/s"}
-CHANNELS = {
-    "alpha": "d·t_s (the per-run mean goes into the setup error U_j)",
-    "selfcal": "none (not an encoder error)",
-    "radial": "none", "ccd": "none", "heads": "none",
-}
+CHANNELS = channels(alpha="d·t_s (the per-run mean goes into the setup error U_j)",
+                    selfcal="none (not an encoder error)")
 SEEN_BY_SELFCAL = False
 SEPARATED_BY = "Reading order ≠ θ order: backward sweeps, shifted start angles, repetitions; self-calibration (absent there)."
 SEPARATES_FROM = {
@@ -76,22 +73,13 @@ def design(ev, ctx=None):
     return np.asarray(ev.t_s, dtype=float)[:, None], ["drift_arcsec_per_s"]
 
 
+predict = linear_predictor(design)
+aux, term = no_aux, no_term  # an error of the reference chain: no θ-function, no ErrorModel term
+
+
 #: plausible drift: 0.02″/s (72″/h) is far beyond a thermally settled autocollimator (≲ 1″/h).
 MAX_RATE = 0.02
 
 
 def plausible(ev, params, u, ctx=None):
-    d = float(params.get("drift_arcsec_per_s", 0.0))
-    ok = abs(d) <= MAX_RATE
-    return ok, "" if ok else f"drift {d:.3g}″/s is beyond ±{MAX_RATE:g}″/s"
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
-
-
-def aux(ev, ctx=None):
-    return {}
-
-
-def term(params, aux, base_terms=None):
-    return None
+    return within(params, "drift_arcsec_per_s", MAX_RATE, "drift", "″/s")

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor, no_aux, no_term
 
 NAME = "ac_scale"
 MEANING = (
@@ -35,20 +35,17 @@ MEANING = (
     "encoder error: absent from the self-calibration."
 )
 PARAMS = {"gain_pct": "%", "quad_per_arcsec": "1/arcsec"}
-CHANNELS = {
-    "alpha": "(k/100)·α + q·ε² (α ≈ model in the design)",
-    "selfcal": "none (reference chain)",
-    "radial": "none", "ccd": "none", "heads": "none",
-}
-#: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
-SUBSETS = [["gain_pct"], ["quad_per_arcsec"], ["gain_pct", "quad_per_arcsec"]]
+CHANNELS = channels(alpha="(k/100)·α + q·ε² (α ≈ model in the design)", selfcal="none (reference chain)")
 SEEN_BY_SELFCAL = False
-SEPARATED_BY = "Self-calibration (absent there); readings with large setup offsets U (tilt the polygon) for the quadratic part."
+SEPARATED_BY = ("Self-calibration (absent there); readings with large setup offsets U (tilt the polygon) "
+                "for the quadratic part.")
 SEPARATES_FROM = {
     "optical_radius": "multi-head self-calibration, or calibrate the autocollimator against a small-angle generator",
     "ccd_pixel_scale": "multi-head self-calibration, or calibrate the autocollimator",
     "graduation_error": "re-measure with deliberately offset setup errors U_j (tilted polygon): the quadratic term moves, a division error does not",
 }
+#: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
+SUBSETS = [["gain_pct"], ["quad_per_arcsec"], ["gain_pct", "quad_per_arcsec"]]
 
 
 def _eps(ev):
@@ -77,6 +74,10 @@ def design(ev, ctx=None):
     return np.column_stack([a / 100.0, _quad(ev)]), ["gain_pct", "quad_per_arcsec"]
 
 
+predict = linear_predictor(design)
+aux, term = no_aux, no_term  # an error of the reference chain: no θ-function, no ErrorModel term
+
+
 #: plausible ranges: an autocollimator's scale is calibrated to well below 1 % (TriAngle: 0.25″ over
 #: ±1000″, 0.025 %); 5 % is a gross error. The non-linearity may not exceed ``MAX_QUAD_ARCSEC`` over
 #: the readings' own range (20 × the 0.25″ accuracy class).
@@ -95,21 +96,9 @@ def plausible(ev, params, u, ctx=None):
     return True, ""
 
 
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
-
-
 def reading_correction(ev, params) -> np.ndarray:
     """What the autocollimator added to each raw reading ε (arcsec): (k/100)·ε + q·ε², so that the
     true reading is m = ε − this (the model of the columns, with ε the measured reading: the linear
     column's regressor is the model only to keep α's noise off it). Needs the raw readings."""
     e = np.asarray(ev.ac_arcsec, dtype=float)
     return float(params.get("gain_pct", 0.0)) / 100.0 * e + float(params.get("quad_per_arcsec", 0.0)) * e * e
-
-
-def aux(ev, ctx=None):
-    return {}
-
-
-def term(params, aux, base_terms=None):
-    return None

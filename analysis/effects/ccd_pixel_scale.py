@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor, within
 
 NAME = "ccd_pixel_scale"
 MEANING = (
@@ -20,13 +20,11 @@ MEANING = (
     "affected. Seen by the self-calibration (the model, not the encoder, is wrong)."
 )
 PARAMS = {"scale_error_pct": "%"}
-CHANNELS = {
-    "alpha": "(s/100)·e/r·sin(θ−θ0) (the model's eccentricity term)",
-    "selfcal": "the same",
-    "radial": "none",
-    "ccd": "d_ref scaled by 1/(1+s/100): invisible in the CCD data alone (its shape is unchanged)",
-    "heads": "the eccentricity signature of every head scaled by s",
-}
+CHANNELS = channels(
+    alpha="(s/100)·e/r·sin(θ−θ0) (the model's eccentricity term)", selfcal="the same",
+    ccd="d_ref scaled by 1/(1+s/100): invisible in the CCD data alone (its shape is unchanged)",
+    heads="the eccentricity signature of every head scaled by s",
+)
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = "A calibrated scale in the CCD's field of view; otherwise only the absence of a gain on the ∫δY term."
 SEPARATES_FROM = {
@@ -50,6 +48,9 @@ def design(ev, ctx=None):
     return (_ecc(ev) / 100.0)[:, None], ["scale_error_pct"]
 
 
+predict = linear_predictor(design)
+
+
 #: plausible range of the scale error: Jia's count (90 px over 3 periods) is good to ±1 px
 #: (±1.1 %); a wrong datasheet period or magnification of more than 10 % would show in the image
 #: as a visibly wrong line count.
@@ -57,12 +58,7 @@ MAX_PCT = 10.0
 
 
 def plausible(ev, params, u, ctx=None):
-    s = float(params.get("scale_error_pct", 0.0))
-    ok = abs(s) <= MAX_PCT
-    return ok, "" if ok else f"scale error {s:.3g} % is beyond ±{MAX_PCT:g} %"
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+    return within(params, "scale_error_pct", MAX_PCT, "scale error", " %")
 
 
 def aux(ev, ctx=None):

@@ -38,7 +38,7 @@ listed by the residual's signature (what is left, and why: no revisits to test t
 
 from __future__ import annotations
 
-from ._base import disk_fixed_heads, harmonic_columns, linear_predict
+from ._base import amplitudes_within, channels, disk_fixed_heads_of, harmonic_columns, linear_predictor
 
 NAME = "graduation_error"
 MEANING = (
@@ -50,13 +50,12 @@ MEANING = (
 )
 PARAMS = {"a{k}_arcsec": "arcsec", "b{k}_arcsec": "arcsec"}
 ORDERS = tuple(range(2, 21))
-CHANNELS = {
-    "alpha": "Σ_k a_k sin kθ + b_k cos kθ added to the encoder error",
-    "selfcal": "the same harmonics, identical amplitude and phase (multiples of the head count are blind)",
-    "radial": "none",
-    "ccd": "none (the CCD sees the scale's edge, not the division)",
-    "heads": "δ_(1,j)(θ) = g(θ) − g(θ − ψ_j): the raw head differences carry it with the head spacing",
-}
+CHANNELS = channels(
+    alpha="Σ_k a_k sin kθ + b_k cos kθ added to the encoder error",
+    selfcal="the same harmonics, identical amplitude and phase (multiples of the head count are blind)",
+    ccd="none (the CCD sees the scale's edge, not the division)",
+    heads="δ_(1,j)(θ) = g(θ) − g(θ − ψ_j): the raw head differences carry it with the head spacing",
+)
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = ("Self-calibration curve (sees it identically; reference-chain effects are absent "
                 "there); re-mounting the disk rotated on the shaft (the error moves with the disk, "
@@ -120,9 +119,7 @@ def design(ev, ctx=None):
     return harmonic_columns(ev.theta_deg, _all_orders(ev, ctx))
 
 
-def heads(ev, params, heads_deg, ctx=None):
-    """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
-    return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
+predict = linear_predictor(design)
 
 
 #: plausible division error per harmonic: 20″ — encoders of this class (Mercury 3000: a few arcsec
@@ -131,14 +128,8 @@ MAX_ARCSEC = 20.0
 
 
 def plausible(ev, params, u, ctx=None):
-    for k in sorted({int(n[1:].split("_")[0]) for n in params} | set(ORDERS)):
-        a = float(abs(complex(params.get(f"a{k}_arcsec", 0.0), params.get(f"b{k}_arcsec", 0.0))))
-        if a > MAX_ARCSEC:
-            return False, f"harmonic {k}: {a:.3g}″ is beyond {MAX_ARCSEC:g}″"
-    return True, ""
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+    ks = sorted({int(n[1:].split("_")[0]) for n in params} | set(ORDERS))
+    return amplitudes_within(params, [(f"harmonic {k}", f"a{k}_arcsec", f"b{k}_arcsec") for k in ks], MAX_ARCSEC)
 
 
 def aux(ev, ctx=None):
@@ -155,3 +146,7 @@ def term(params, aux, base_terms=None):
         return sum(params.get(f"a{k}_arcsec", 0.0) * np.sin(k * th) + params.get(f"b{k}_arcsec", 0.0) * np.cos(k * th)
                    for k in ks) + 0.0 * th
     return fn
+
+
+#: the multi-head differences δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk
+heads = disk_fixed_heads_of(term, aux)

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ._base import disk_fixed_heads, alias_harmonic, linear_predict
+from ._base import alias_harmonic, amplitudes_within, channels, disk_fixed_heads_of, linear_predictor
 
 NAME = "interpolation_error"
 MEANING = (
@@ -33,12 +33,11 @@ MEANING = (
 )
 PARAMS = {"c{m}_sin_arcsec": "arcsec", "c{m}_cos_arcsec": "arcsec"}
 ORDERS = (1, 2)
-CHANNELS = {
-    "alpha": "Σ_m c_m sin/cos(2π m L θ/360°), seen as the alias harmonic m·L mod N",
-    "selfcal": "the same for head 1 at the self-calibration angles (a constant if they are whole multiples of the period)",
-    "radial": "none", "ccd": "none",
-    "heads": "each head's own interpolation error",
-}
+CHANNELS = channels(
+    alpha="Σ_m c_m sin/cos(2π m L θ/360°), seen as the alias harmonic m·L mod N",
+    selfcal="the same for head 1 at the self-calibration angles (a constant if they are whole multiples of the period)",
+    heads="each head's own interpolation error",
+)
 #: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
 SUBSETS = [["c1_sin_arcsec", "c1_cos_arcsec"], ["c2_sin_arcsec", "c2_cos_arcsec"],
            ["c1_sin_arcsec", "c1_cos_arcsec", "c2_sin_arcsec", "c2_cos_arcsec"]]
@@ -110,9 +109,7 @@ def design(ev, ctx=None):
     return (np.column_stack(cols) if cols else np.zeros((ph.size, 0))), names
 
 
-def heads(ev, params, heads_deg, ctx=None):
-    """δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk."""
-    return disk_fixed_heads(term(params, aux(ev, ctx)), ev.theta_deg, heads_deg)
+predict = linear_predictor(design)
 
 
 #: plausible sub-division error: 10″ — one grating period of a 7069-line disk is 183″; an error of
@@ -121,14 +118,7 @@ MAX_ARCSEC = 10.0
 
 
 def plausible(ev, params, u, ctx=None):
-    for m in ORDERS:
-        a = float(abs(complex(params.get(f"c{m}_sin_arcsec", 0.0), params.get(f"c{m}_cos_arcsec", 0.0))))
-        if a > MAX_ARCSEC:
-            return False, f"order {m}: {a:.3g}″ is beyond {MAX_ARCSEC:g}″"
-    return True, ""
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+    return amplitudes_within(params, [(f"order {m}", f"c{m}_sin_arcsec", f"c{m}_cos_arcsec") for m in ORDERS], MAX_ARCSEC)
 
 
 def visibility(ev) -> dict:
@@ -153,3 +143,7 @@ def term(params, aux, base_terms=None):
         return sum(params.get(f"c{m}_sin_arcsec", 0.0) * np.sin(m * ph) + params.get(f"c{m}_cos_arcsec", 0.0) * np.cos(m * ph)
                    for m in ORDERS) + 0.0 * ph
     return fn
+
+
+#: the multi-head differences δ_(1,j)(θ) = g(θ) − g(θ − ψ_j) (Hsieh eq. 8): the error is fixed to the disk
+heads = disk_fixed_heads_of(term, aux)

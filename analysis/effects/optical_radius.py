@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor
 
 NAME = "optical_radius"
 MEANING = (
@@ -23,13 +23,10 @@ MEANING = (
     "self-calibration residual shows it too."
 )
 PARAMS = {"delta_r_mm": "mm"}
-CHANNELS = {
-    "alpha": "−(Δr/r)·Σ model terms",
-    "selfcal": "the same (−Δr/r times the model evaluated on the self-calibration grid)",
-    "radial": "none",
-    "ccd": "none (the CCD measures e in µm, not e/r)",
-    "heads": "the same gain on each head's eccentricity signature",
-}
+CHANNELS = channels(alpha="−(Δr/r)·Σ model terms",
+                    selfcal="the same (−Δr/r times the model evaluated on the self-calibration grid)",
+                    ccd="none (the CCD measures e in µm, not e/r)",
+                    heads="the same gain on each head's eccentricity signature")
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = ("The ∫δY term (scaled too, unlike ccd_pixel_scale) — needs radial motion large "
                 "compared with the noise; self-calibration (sees it, does not see ac_scale).")
@@ -54,6 +51,9 @@ def design(ev, ctx=None):
     return (-_model(ev) / float(ev.optical_radius_mm))[:, None], ["delta_r_mm"]
 
 
+predict = linear_predictor(design)
+
+
 #: plausible range of Δr/r: a reading head mounted, or a disk ruled, more than 5 % (1.1 mm at
 #: r = 22 mm) off the datasheet radius is a gross assembly error that would be seen at once; a fit
 #: beyond it compensates something else (e.g. two cancelling gains).
@@ -65,9 +65,6 @@ def plausible(ev, params, u, ctx=None):
     lim = MAX_RELATIVE * float(ev.optical_radius_mm)
     ok = abs(d) <= lim
     return ok, "" if ok else f"Δr = {d:.3g} mm is beyond ±{lim:.3g} mm ({MAX_RELATIVE:.0%} of r)"
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
 
 
 def aux(ev, ctx=None):

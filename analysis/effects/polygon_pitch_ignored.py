@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor, no_term
 
 NAME = "polygon_pitch_ignored"
 MEANING = (
@@ -24,10 +24,7 @@ MEANING = (
     "absent from the self-calibration."
 )
 PARAMS = {"pitch_cum_f{f}_arcsec": "arcsec (f = 1…N−1; C(N) = 0)"}
-CHANNELS = {
-    "alpha": "C(f), f = (j + i − 2) mod N + 1",
-    "selfcal": "none", "radial": "none", "ccd": "none", "heads": "none",
-}
+CHANNELS = channels(alpha="C(f), f = (j + i − 2) mod N + 1", selfcal="none")
 SEEN_BY_SELFCAL = False
 SEPARATED_BY = "Several start faces (the pattern moves with the face, an encoder error stays at θ)."
 SEPARATES_FROM = {
@@ -63,6 +60,10 @@ def design(ev, ctx=None):
     return X, [f"pitch_cum_f{c}_arcsec" for c in range(1, N)]
 
 
+predict = linear_predictor(design)
+term = no_term  # an error of the reference chain: no θ-function, no ErrorModel term
+
+
 #: plausible leftover cumulative pitch: 10″ per face — a polygon certificate is good to ~0.1–0.5″.
 MAX_ARCSEC = 10.0
 
@@ -72,13 +73,6 @@ def plausible(ev, params, u, ctx=None):
     ok = m <= MAX_ARCSEC
     return ok, "" if ok else f"cumulative pitch {m:.3g}″ is beyond {MAX_ARCSEC:g}″"
 
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
-
 
 def aux(ev, ctx=None):
     return {"n_faces": int(ev.n_faces)}
-
-
-def term(params, aux, base_terms=None):
-    return None

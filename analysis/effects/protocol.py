@@ -6,19 +6,10 @@ it. :class:`Effect` states what such a module provides, so that the registry
 registered module against it (PEP 544: a module can implement a protocol). :func:`problems` checks
 the same at run time, with each function's arity (tests/analysis/test_effects.py).
 
-Required (:class:`Effect`):
-
-- ``NAME`` (str), ``MEANING`` (one paragraph), ``PARAMS`` (name → unit; ``{k}`` marks a family),
-  ``CHANNELS`` (measured channel → how the effect shows up there: every one of
-  :data:`CHANNEL_NAMES`), ``SEEN_BY_SELFCAL`` (bool: is it an error of the encoder/model, hence
-  present identically in the multi-head self-calibration residual, or an error of the
-  polygon/autocollimator reference chain, hence absent there), ``SEPARATED_BY`` (which data tell it
-  apart), ``SEPARATES_FROM`` (other effect → the measurement that would separate the two).
-- ``available(ev, ctx) -> (bool, reason)``; ``design(ev, ctx) -> (X, names)`` with X of shape
-  (n_readings, n_params), the residual being ``X @ params`` (all effects here are linear in their
-  parameters); ``predict(ev, params, ctx)``; ``aux(ev, ctx) -> dict`` (JSON-ready data the
-  θ-function needs); ``term(params, aux, base_terms) -> callable(theta_rad) -> arcsec | None``
-  (None: the effect is not an encoder error and gives no ErrorModel term).
+Required (:class:`Effect`, each member documented there): the description ``NAME``, ``MEANING``,
+``PARAMS``, ``CHANNELS``, ``SEEN_BY_SELFCAL``, ``SEPARATED_BY``, ``SEPARATES_FROM``; the functions
+``available``, ``design``, ``predict``, ``aux``, ``term``. All effects here are linear in their
+parameters: the residual is ``X @ params`` with ``X`` from ``design``.
 
 Optional (:class:`EffectOptions`; the callers test for them with ``hasattr``/``getattr``, so a
 module that does not need one leaves it out): ``plausible``, ``heads``, ``regressor_perturbations``,
@@ -56,19 +47,41 @@ class Effect(Protocol):
     """What every effect module provides (the module docstring says what each member means)."""
 
     NAME: str
+    """the registry's key (``ALL[NAME]``), also the module's name"""
     MEANING: str
+    """one paragraph: what is physically wrong and how it shows"""
     PARAMS: dict[str, str]
+    """parameter name → unit (``{k}`` in a name marks a family, e.g. ``a{k}_arcsec``)"""
     CHANNELS: dict[str, str]
+    """measured channel (every one of :data:`CHANNEL_NAMES`, in that order) → how the effect shows up there"""
     SEEN_BY_SELFCAL: bool
+    """an error of the encoder/model, hence present identically in the multi-head self-calibration
+    residual (True), or of the polygon/autocollimator reference chain, hence absent there (False)"""
     SEPARATED_BY: str
+    """which data tell it apart"""
     SEPARATES_FROM: dict[str, str]
+    """other effect → the measurement that would separate the two"""
 
-    def available(self, ev: Evidence, ctx: Context = None) -> tuple[bool, str]: ...
-    def design(self, ev: Evidence, ctx: Context = None) -> tuple[np.ndarray, list[str]]: ...
-    def predict(self, ev: Evidence, params: Mapping[str, float], ctx: Context = None) -> np.ndarray: ...
-    def aux(self, ev: Evidence, ctx: Context = None) -> dict[str, Any]: ...
+    def available(self, ev: Evidence, ctx: Context = None) -> tuple[bool, str]:
+        """(can these data show it, why not / a note)"""
+        ...
+
+    def design(self, ev: Evidence, ctx: Context = None) -> tuple[np.ndarray, list[str]]:
+        """(X, names): X of shape (n_readings, n_params), the residual being ``X @ params``"""
+        ...
+
+    def predict(self, ev: Evidence, params: Mapping[str, float], ctx: Context = None) -> np.ndarray:
+        """the residual at the readings for ``params`` (arcsec; names not given count as 0)"""
+        ...
+
+    def aux(self, ev: Evidence, ctx: Context = None) -> dict[str, Any]:
+        """JSON-ready data the θ-function needs (stored in the model file beside the parameters)"""
+        ...
+
     def term(self, params: Mapping[str, float], aux: Mapping[str, Any],
-             base_terms: Any = None) -> ThetaFunction | None: ...
+             base_terms: Any = None) -> ThetaFunction | None:
+        """the ErrorModel term θ (rad) → arcsec, or None: not an encoder error (no term)"""
+        ...
 
 
 class EffectOptions(Protocol):

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import ARCSEC_PER_RAD, linear_predict, radius_um
+from ._base import ARCSEC_PER_RAD, channels, linear_predictor, radius_um
 
 NAME = "sphere_form"
 MEANING = (
@@ -31,13 +31,12 @@ MEANING = (
 )
 PARAMS = {"{sphere}_h{k}_sin_um": "µm", "{sphere}_h{k}_cos_um": "µm"}
 MIN_LOBE_UM = 0.01
-CHANNELS = {
-    "alpha": "−w_s/r·∫(f_s sin kθ + g_s cos kθ) dθ (the model's spurious share)",
-    "selfcal": "the same (the model is wrong, the encoder is not)",
-    "radial": "the sphere's reading contains f; δY at the disk is too large by w_s·f",
-    "ccd": "none",
-    "heads": "none beyond the model",
-}
+CHANNELS = channels(
+    alpha="−w_s/r·∫(f_s sin kθ + g_s cos kθ) dθ (the model's spurious share)",
+    selfcal="the same (the model is wrong, the encoder is not)",
+    radial="the sphere's reading contains f; δY at the disk is too large by w_s·f",
+    heads="none beyond the model",
+)
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = "Donaldson reversal (or re-clamping the sphere rotated by 180°/k); a second sphere or X probe at the same height."
 SEPARATES_FROM = {
@@ -121,8 +120,7 @@ def variants(names, ev=None, ctx=None):
     return [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]
 
 
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+predict = linear_predictor(design)
 
 
 def plausible(ev, params, u, ctx=None):

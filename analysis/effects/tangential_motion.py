@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral, linear_predict,
-                    quadrature, radius_um)
+from ._base import (ARCSEC_PER_RAD, RADIAL_ORDERS, channels, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral,
+                    linear_predictor, quadrature, radius_um)
 
 NAME = "tangential_motion"
 MEANING = (
@@ -39,13 +39,12 @@ MEANING = (
 PARAMS = {"gain": "1 (X probes present; 1 = δX fully missing from the model)",
           "radial_gain": "1 (share of eq. 5's ∫δY term that the head does not read)",
           "inphase_gain": "1 (no X probes)", "quadrature_gain": "1 (no X probes)"}
-CHANNELS = {
-    "alpha": "−(g·δX_disk + h·∫δY dθ)/r (without X probes −(q·δY + p·H[δY] + h·∫δY dθ)/r)",
-    "selfcal": "the same for head 1 (an encoder reading error)",
-    "radial": "δX_disk from the X probes by eq. 9 (the regressor itself)",
-    "ccd": "none",
-    "heads": "head at azimuth ψ sees −δ·(tangent at ψ)/r: raw head differences resolve δX and δY",
-}
+CHANNELS = channels(
+    alpha="−(g·δX_disk + h·∫δY dθ)/r (without X probes −(q·δY + p·H[δY] + h·∫δY dθ)/r)",
+    selfcal="the same for head 1 (an encoder reading error)",
+    radial="δX_disk from the X probes by eq. 9 (the regressor itself)",
+    heads="head at azimuth ψ sees −δ·(tangent at ψ)/r: raw head differences resolve δX and δY",
+)
 #: variants tried (the best BIC represents the effect): a parameter the data do not need costs ln n.
 #: A variant is tried only when all its parameters are in the design (X probes or not).
 SUBSETS = [["gain"], ["gain", "radial_gain"], ["quadrature_gain"], ["inphase_gain", "quadrature_gain"],
@@ -155,8 +154,7 @@ def plausible(ev, params, u, ctx=None):
     return True, ""
 
 
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+predict = linear_predictor(design)
 
 
 def aux(ev, ctx=None):

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import (ARCSEC_PER_RAD, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral, linear_predict,
-                    quadrature, radius_um)
+from ._base import (ARCSEC_PER_RAD, channels, coefs_from_json, coefs_to_json, fourier_eval, fourier_integral,
+                    linear_predictor, quadrature, radius_um)
 
 NAME = "tilt_abbe"
 MEANING = (
@@ -35,13 +35,12 @@ MEANING = (
 PARAMS = {"dL1_mm": "mm (eq. 5's ∫δY reading)", "dL1_tangential_mm": "mm (tangential reading, −δX/r)"}
 #: variants: one per reading model (see the module docstring)
 SUBSETS = [["dL1_mm"], ["dL1_tangential_mm"]]
-CHANNELS = {
-    "alpha": "ΔL1/(L2·r)·∫(δ_bottom − δ_top) dθ, or −ΔL1/(L2·r)·(δ_bottom − δ_top)_X (X probes; H[·] of the Y lobes without)",
-    "selfcal": "the same (the model, not the encoder, is wrong)",
-    "radial": "δY at the disk changes by ΔL1·(δ_bottom − δ_top)/L2 (probe readings unchanged)",
-    "ccd": "none",
-    "heads": "the corrected δY seen with each head's phase",
-}
+CHANNELS = channels(
+    alpha="ΔL1/(L2·r)·∫(δ_bottom − δ_top) dθ, or −ΔL1/(L2·r)·(δ_bottom − δ_top)_X (X probes; H[·] of the Y lobes without)",
+    selfcal="the same (the model, not the encoder, is wrong)",
+    radial="δY at the disk changes by ΔL1·(δ_bottom − δ_top)/L2 (probe readings unchanged)",
+    heads="the corrected δY seen with each head's phase",
+)
 SEEN_BY_SELFCAL = True
 SEPARATED_BY = "A tilt error motion whose lobes differ from the top sphere's (so ∫(δ_bottom−δ_top) is not collinear with ∫δY); measure L1 directly (height gauge)."
 SEPARATES_FROM = {
@@ -108,8 +107,7 @@ def plausible(ev, params, u, ctx=None):
             return False, f"ΔL1 = {d:.3g} mm is beyond ±{lim:.3g} mm (L2/4)"
     return True, ""
 
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
+predict = linear_predictor(design)
 
 
 def aux(ev, ctx=None):

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import linear_predict
+from ._base import channels, linear_predictor, no_aux, no_term, within
 
 NAME = "torsion_hysteresis"
 MEANING = (
@@ -34,11 +34,8 @@ MEANING = (
     "from the self-calibration."
 )
 PARAMS = {"half_hysteresis_arcsec": "arcsec"}
-CHANNELS = {
-    "alpha": "h·approach direction (+1 forward, −1 backward: the last move before the stop)",
-    "selfcal": "none",
-    "radial": "none (a pure rotation about the axis)", "ccd": "none", "heads": "none",
-}
+CHANNELS = channels(alpha="h·approach direction (+1 forward, −1 backward: the last move before the stop)",
+                    selfcal="none", radial="none (a pure rotation about the axis)")
 SEEN_BY_SELFCAL = False
 SEPARATED_BY = "Forward and backward sweeps sharing one polygon mounting; approaching each stop from both sides."
 SEPARATES_FROM = {
@@ -61,23 +58,14 @@ def design(ev, ctx=None):
     return np.asarray(_approach(ev), dtype=float)[:, None], ["half_hysteresis_arcsec"]
 
 
+predict = linear_predictor(design)
+aux, term = no_aux, no_term  # an error of the reference chain: no θ-function, no ErrorModel term
+
+
 #: plausible half-hysteresis: 20″ (1e-4 rad) of wind-up between disk and polygon would need a
 #: broken or very soft coupling.
 MAX_ARCSEC = 20.0
 
 
 def plausible(ev, params, u, ctx=None):
-    h = float(params.get("half_hysteresis_arcsec", 0.0))
-    ok = abs(h) <= MAX_ARCSEC
-    return ok, "" if ok else f"half hysteresis {h:.3g}″ is beyond ±{MAX_ARCSEC:g}″"
-
-def predict(ev, params, ctx=None):
-    return linear_predict(design, ev, params, ctx)
-
-
-def aux(ev, ctx=None):
-    return {}
-
-
-def term(params, aux, base_terms=None):
-    return None
+    return within(params, "half_hysteresis_arcsec", MAX_ARCSEC, "half hysteresis", "″")
