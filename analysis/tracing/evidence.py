@@ -221,6 +221,16 @@ class _View:
         raise AttributeError(name)
 
 
+def column(values: np.ndarray | float | None) -> np.ndarray:
+    """A per-reading column of an :class:`Evidence` (``closure_group``, ``rep``, ``face``,
+    ``u_arcsec``, ...): an array once ``Evidence.__post_init__`` has run. The dataclass types its
+    fields as the constructor takes them (None or a scalar may stand there); this states, and
+    checks, what they hold afterwards."""
+    if not isinstance(values, np.ndarray):
+        raise TypeError(f"Evidence column not filled in by Evidence.__post_init__: {type(values).__name__}")
+    return values
+
+
 #: The standard uncertainty of one α when the caller gives none: Hsieh et al. 2022 Table 3's combined
 #: standard uncertainty of the shift-angle α, u_c = 0.069″ ≈ 0.07″ (the pipeline always passes the
 #: dataset's own, from its readings' repeatability and its budget).

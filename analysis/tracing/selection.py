@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,7 @@ from ..distributions import chi2_isf, chi2_sf, f_sf
 from ..effects import ALL
 from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
-from .evidence import Evidence, _replace_alpha
+from .evidence import Evidence, _replace_alpha, column
 from .problem import _Problem, _center, _rms, _z_from_chi2, noise_floor
 from .signature import _short_signature, _significant_parts, signature
 from .significance import harmonic_test, residual_test
@@ -40,16 +41,16 @@ class _Cand:
     names: tuple[str, ...]
     X: np.ndarray
     pnames: list[list[str]]         # per member
-    fit: dict = field(default_factory=dict)
+    fit: dict[str, Any] = field(default_factory=dict)
     bic: float = math.inf
     aicc: float = math.inf
-    z: dict = field(default_factory=dict)
+    z: dict[str, float] = field(default_factory=dict)
     cv: float | None = None
     notes: list[str] = field(default_factory=list)
     passed: bool = False
     reasons: list[str] = field(default_factory=list)
     extra: np.ndarray | None = None
-    extras: dict = field(default_factory=dict)
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
     f_p: float | None = None
     equivalent: bool = False
     member_bics: list[float] | None = None    # a pair's members' BIC (its gate compares with them)
@@ -212,8 +213,89 @@ def _better(c: "_Cand", b: "_Cand", tol: float, order, flag=lambda c: c.passed) 
     return _prefer(c, order) < _prefer(b, order)
 
 
+# ----------------------------------------------------------------------------------------------
+# the pipeline, one stage after the other:
+#   1. evidence         is there anything to explain?              _residual_stage  → _Residual
+#   2. candidates       each library effect's variants, ready       _candidate_stage → _Candidates
+#   3. fit and select   screening fits, gates (CV folds), pairs,    _select          → _Selection
+#                       the representative of the best
+#   4. report           the reference solver's numbers              _Reporter, _result_head
+#   5. ambiguity sets   what the data cannot tell apart             _ambiguity
+#   6. outcome          residual after, status, model file          _explained / _unexplained
+# ----------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Residual:
+    """Stage 1 (evidence): the residual before any effect, its signature and whether it is worth
+    explaining; ``alpha_problem`` is the fit problem on the polygon's rows alone (the χ² after)."""
+
+    before: dict[str, Any]
+    signature: dict[str, Any]
+    flagged_harmonics: list[int]
+    noise_floor_arcsec: float
+    significant: bool
+    alpha_problem: _Problem
+
+
+@dataclass(frozen=True)
+class _Candidates:
+    """Stage 2 (candidates): the fit problem on every row (polygon and self-calibration), the
+    library modules, each effect's variants with their design columns, and the effects skipped."""
+
+    pb: _Problem
+    mods: dict[str, Any]
+    ctx: dict[str, Any]
+    variants: list[_Cand]
+    skipped: dict[str, str]
+    async_motion: dict[str, Any] | None
+
+
+@dataclass(frozen=True)
+class _Gates:
+    """What every candidate is compared with in stage 3: the no-effect fit's BIC, AICc and
+    cross-validated χ² (``cv0``), the tie tolerance (χ² units), the noise floor, the library order,
+    and for pairs the best single effect's BIC (``None`` while the single effects are gated)."""
+
+    pb: _Problem
+    mods: dict[str, Any]
+    ctx: dict[str, Any]
+    order: list[str]
+    tie_tol_chi2: float
+    noise_floor_arcsec: float
+    bic0: float
+    aicc0: float
+    cv0: float | None
+    best_single_bic: float | None = None
+
+
+@dataclass(frozen=True)
+class _Selection:
+    """Stage 3 (fit and select): the best variant of each effect, the best pairs, those that pass
+    every gate (ordered by BIC), the pairs that only equal the best single effect, and the chosen
+    representative (``None``: nothing passes)."""
+
+    gates: _Gates
+    singles: list[_Cand]
+    pairs: list[_Cand]
+    passed: list[_Cand]
+    equivalents: list[_Cand]
+    chosen: _Cand | None
+
+
+@dataclass(frozen=True)
+class _After:
+    """The chosen candidate applied: its prediction on every row (arcsec, with its measured
+    regressors' adjustment on the polygon rows), those adjustments per member, the residual after
+    at the polygon's readings (arcsec) and its test (``residual_after`` of the result)."""
+
+    pred_arcsec: np.ndarray
+    adjust_arcsec: dict[str, np.ndarray]
+    residual_arcsec: np.ndarray
+    test: dict[str, Any]
+
+
 @_one_blas_thread
-def trace(evidence: Evidence, candidates=None) -> dict:
+def trace(evidence: Evidence, candidates: Iterable[str] | dict[str, Any] | None = None) -> dict:
     """Trace the residual of ``evidence`` to the candidate effects (default: all of ``effects.ALL``).
 
     Returns a JSON-ready dict: ``status``, ``residual_before``, ``signature``,
@@ -221,349 +303,516 @@ def trace(evidence: Evidence, candidates=None) -> dict:
     ``unexplained_signature``, ``candidates`` (every fit's numbers), ``skipped``, ``thresholds``,
     ``model_file`` (payload for :func:`save_model`).
     """
-    ev = evidence
-    cands_mod = ALL if candidates is None else {n: ALL[n] for n in candidates} if not isinstance(candidates, dict) else candidates
+    mods = ALL if candidates is None else candidates if isinstance(candidates, dict) else {n: ALL[n] for n in candidates}
+    res = _residual_stage(evidence)
+    cands = _candidate_stage(evidence, res, mods)
+    sel = _select(cands, res)
+    rep = _Reporter.for_selection(sel)
+    head = _result_head(res, cands, sel, rep)
+    if sel.chosen is None:
+        return _jsonable(_unexplained(head, evidence, res, cands.ctx))
+    return _jsonable(_explained(head, evidence, res, sel, sel.chosen, rep))
+
+
+def _residual_stage(ev: Evidence) -> _Residual:
+    """Stage 1, evidence: anything to explain? The residual's χ² against its uncertainties, its
+    harmonics and signature (time, direction, face patterns), the noise floor, and the residual's
+    RMS beyond what the measurement and the model's uncertainties explain."""
     before = residual_test(ev)
     pa = _Problem(ev, use_selfcal=False)
     harm = harmonic_test(ev, pa)
     sig = signature(ev, harm)
-    flagged = sig["significant_harmonics"]
     u_rms = noise_floor(ev)
     before["noise_floor_arcsec"] = u_rms
-    # the residual's RMS beyond what the measurement and the model's uncertainties explain
     excess = float(np.sqrt(np.mean(np.square(ev.u_arcsec)))) * math.sqrt(max(before["chi2"] / before["dof"] - 1.0, 0.0))
     before["excess_rms_arcsec"] = excess
     significant = bool((before["p_value"] < P_SIG and excess >= SIZE_GATE * u_rms) or _significant_parts(sig, ev.n, u_rms))
     before["significant"] = significant
-    ctx = {"harmonics": flagged}
+    return _Residual(before=before, signature=sig, flagged_harmonics=sig["significant_harmonics"],
+                     noise_floor_arcsec=u_rms, significant=significant, alpha_problem=pa)
 
+
+def _candidate_stage(ev: Evidence, res: _Residual, mods: dict[str, Any]) -> _Candidates:
+    """Stage 2, candidates: the fit problem on every row (the polygon's readings and the
+    self-calibration), and each library effect's variants (:func:`_prepare`: available on this
+    bench, its observable columns) or why it is skipped."""
+    ctx: dict[str, Any] = {"harmonics": res.flagged_harmonics}
     pb = _Problem(ev, use_selfcal=True)
     a = getattr(pb, "async_info", None) or {}
+    async_motion = None
     if a:
-        before["async_motion"] = {**a, "per_stop_arcsec": float(a.get("sigma_um", 0.0)) * ARCSEC_PER_RAD
-                                  / (ev.optical_radius_mm * 1000.0),
-                                  "note": "non-repeating motion of the probes' revolutions (isotropic); its X part at "
-                                          "the polygon's stops is in the model's uncertainty"}
-    skipped, singles = {}, []
-    for name, mod in cands_mod.items():
+        async_motion = {**a, "per_stop_arcsec": float(a.get("sigma_um", 0.0)) * ARCSEC_PER_RAD
+                        / (ev.optical_radius_mm * 1000.0),
+                        "note": "non-repeating motion of the probes' revolutions (isotropic); its X part at "
+                                "the polygon's stops is in the model's uncertainty"}
+    skipped: dict[str, str] = {}
+    variants: list[_Cand] = []
+    for name, mod in mods.items():
         cs, why = _prepare(pb, name, mod, ctx)
         if not cs:
             skipped[name] = why
-        singles += cs
-    # Screening: every candidate's fits by the block solver (pb.fast, analysis.tracing.blockfit;
-    # ~1e-13 from the reference, far below every threshold and tie tolerance). The candidates whose
-    # numbers are reported are refitted with the reference afterwards (``report``), so that the
-    # results are the reference's to the last bit.
+        variants += cs
+    return _Candidates(pb=pb, mods=mods, ctx=ctx, variants=variants, skipped=skipped, async_motion=async_motion)
+
+
+def _select(cands: _Candidates, res: _Residual) -> _Selection:
+    """Stage 3, fit and select: screen every variant (:func:`_screen`), gate them and keep each
+    effect's best (:func:`_best_variants`), form and gate the pairs (:func:`_pairs`), order those
+    that pass by BIC and pick the representative of the best (:func:`_representative`)."""
+    g = _screen(cands, res.noise_floor_arcsec)
+    singles = _best_variants(cands.variants, g)
+    g = replace(g, best_single_bic=min((c.bic for c in singles if c.passed), default=None))
+    pairs = _pairs(cands.variants, g)
+    passed = _ordered([c for c in singles + pairs if c.passed], lambda c: c.bic, g.tie_tol_chi2, g.order)
+    equivalents = [c for c in pairs if c.equivalent]
+    g.pb.fast = False
+    return _Selection(gates=g, singles=singles, pairs=pairs, passed=passed, equivalents=equivalents,
+                      chosen=_representative(passed, g))
+
+
+def _screen(cands: _Candidates, noise_floor_arcsec: float) -> _Gates:
+    """Stage 3a, screening: every variant fitted by the block solver (pb.fast,
+    analysis.tracing.blockfit; ~1e-13 from the reference, far below every threshold and tie
+    tolerance), and the no-effect baseline the gates compare with: BIC and AICc of the null fit
+    (the reference's, fitted before the screening) and its leave-one-group-out CV over the folds.
+    The candidates whose numbers are reported are refitted with the reference afterwards
+    (:class:`_Reporter`), so that the results are the reference's to the last bit."""
+    pb = cands.pb
     pb.fast = True
-    for c in singles:
-        _evaluate(pb, c, cands_mod, ctx)
-    variants = list(singles)
-    bic0, aicc0 = pb.ic(pb.null)      # pb.null: the reference's (fitted before the screening)
+    for c in cands.variants:
+        _evaluate(pb, c, cands.mods, cands.ctx)
+    bic0, aicc0 = pb.ic(pb.null)
     cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
-    order = list(ALL) + [n for n in cands_mod if n not in ALL]  # the stated preference (ALL), whatever the call order
+    order = list(ALL) + [n for n in cands.mods if n not in ALL]  # the stated preference (ALL), whatever the call order
     tol = TIE_REL * max(float(pb.null["chi2"]), float(pb.n_rows))
+    return _Gates(pb=pb, mods=cands.mods, ctx=cands.ctx, order=order, tie_tol_chi2=tol,
+                  noise_floor_arcsec=noise_floor_arcsec, bic0=bic0, aicc0=aicc0, cv0=cv0)
 
-    def gate(c: _Cand, member_bics: dict | None = None):
-        c.reasons = []
-        c.equivalent = False
-        # Parameters must be identifiable with the data at hand: e.g. on 23 polygon stops the
-        # interpolation error of a 7069-line disk aliases onto harmonic 8, exactly the column of a
-        # graduation harmonic 8; such a pair fits anything with parameters of ~1e9.
-        if c.fit["k"] < c.X.shape[1]:
-            c.reasons.append(f"parameters not identifiable: design rank {c.fit['k']} < {c.X.shape[1]} columns "
-                             "(effects alias onto each other at these sampling angles)")
-        if min(c.z.values()) < Z_GATE:
-            c.reasons.append(f"z = {min(c.z.values()):.1f} < {Z_GATE}")
-        if c.extra is not None and c.extra.shape[1]:
-            # errors in variables: the fit may move a measured regressor only within its u; a fit
-            # that needs it moved by more (Σν̂² beyond χ²(p) at P_SIG) explains the residual with a
-            # motion (or form) the probes did not measure
-            adj, p_eff = pb.eiv_adjustment(c.X, c.fit, c.extra)
-            if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
-                c.reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
-                                 f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
-        if bic0 - c.bic < DBIC_GATE:
-            c.reasons.append(f"ΔBIC = {bic0 - c.bic:.1f} < {DBIC_GATE}")
-        if member_bics is not None and c.bic > min(member_bics) - DBIC_GATE:
-            c.reasons.append("the pair does not beat its members by ΔBIC ≥ 10")
-        scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
-        P, U = _params_u(c, scale)
-        # physically plausible: every module states the range its parameters can take on a real bench
-        for member in c.names:
-            pl = getattr(cands_mod[member], "plausible", None)
-            if pl:
-                ok, why = pl(ev, P[member], U[member], ctx)
-                if not ok:
-                    c.reasons.append(f"{member}: implausible: {why}")
-        # the χ² improvement against the scatter the candidate leaves (F-test): an effect must
-        # bring the residual down by more than the noise would by chance, whatever u was assumed
-        k_c = max(c.fit["k"], 1)
-        d_chi2 = pb.null["chi2"] - c.fit["chi2"]
-        F = (d_chi2 / k_c) / max(c.fit["chi2"] / c.fit["dof"], 1e-300)
-        c.f_p = float(f_sf(F, k_c, c.fit["dof"])) if d_chi2 > 0 else 1.0
-        if c.f_p >= F_SIG:
-            c.reasons.append(f"F-test of the improvement: p = {c.f_p:.2g} ≥ {F_SIG}")
-        # size: the candidate must bring the residual down, and each member must change the readings,
-        # by a meaningful share of the noise floor
-        parts = _member_predictions(pb, c)
-        r0a = pb.y[pb.alpha_rows]
-        red = math.sqrt(max(_rms(r0a) ** 2 - _rms(r0a - sum(parts)[pb.alpha_rows]) ** 2, 0.0))
-        if red < SIZE_GATE * u_rms:
-            c.reasons.append(f"reduces the residual by only {red:.3g}″ RMS (√(before² − after²)) < {SIZE_GATE} × "
-                             f"the noise floor ({u_rms:.3g}″)")
-        if len(parts) == 2:
-            for j, member in enumerate(c.names):
-                alone = _rms(r0a - parts[1 - j][pb.alpha_rows])
-                both = _rms(r0a - sum(parts)[pb.alpha_rows])
-                red_m = math.sqrt(max(alone ** 2 - both ** 2, 0.0))
-                if red_m < SIZE_GATE * u_rms:
-                    c.reasons.append(f"{member}: reduces the residual left by the other member by only {red_m:.3g}″ RMS "
-                                     f"< {SIZE_GATE} × the noise floor")
-        for member, pp in zip(c.names, parts):
-            size = _rms(pp[pb.alpha_rows])
-            if size < SIZE_GATE * u_rms:
-                c.reasons.append(f"{member}: contribution {size:.3g}″ RMS < {SIZE_GATE} × the noise floor "
-                                 f"({u_rms:.3g}″): below what the measurement can resolve in practice")
-        # a pair of nearly collinear, cancelling members is a degenerate fit, not two effects
-        if len(c.names) == 2:
-            cs = _cos_signed(pb, parts[0], parts[1])
-            n0, n1 = (_rms(pp[pb.alpha_rows]) for pp in parts)
-            n01 = _rms((parts[0] + parts[1])[pb.alpha_rows])
-            if cs * abs(cs) < -COLLINEAR and n01 < DEGENERATE_RATIO * max(n0, n1):
-                c.reasons.append(f"degenerate pair: the members are nearly collinear (cos = {cs:.3f}) and cancel "
-                                 f"({n0:.3g}″ and {n1:.3g}″ RMS, together {n01:.3g}″)")
-        if not c.reasons:
-            c.cv = pb.cv(c.X, extra=c.extra)
-            if c.cv is not None and cv0 is not None and c.cv >= cv0 - tol:
-                c.reasons.append("cross-validation no better than no effect")
-        if not c.reasons and member_bics is not None and best_single is not None and c.bic > best_single - DBIC_GATE - tol:
-            # as good as the best single effect with its own gates passed: an alternative explanation
-            c.equivalent = True
-            c.reasons.append("the pair does not beat the best single effect by ΔBIC ≥ 10 (an equivalent alternative)")
-        c.passed = not c.reasons
 
-    best_single = None
+def _gate(c: _Cand, g: _Gates, member_bics: list[float] | None = None) -> None:
+    """Stage 3b, the gates: a candidate passes when its fit gates (:func:`_fit_gates`) and size
+    gates (:func:`_size_gates`) find nothing, and then its cross-validated χ² beats no effect's;
+    a pair that passes but does not beat the best single effect by ΔBIC ≥ DBIC_GATE is an
+    equivalent alternative. Sets ``c.reasons``, ``c.passed``, ``c.equivalent``, ``c.f_p``, ``c.cv``."""
+    c.reasons = []
+    c.equivalent = False
+    c.reasons += _fit_gates(c, g, member_bics)
+    c.reasons += _size_gates(c, g)
+    if not c.reasons:
+        c.cv = g.pb.cv(c.X, extra=c.extra)
+        if c.cv is not None and g.cv0 is not None and c.cv >= g.cv0 - g.tie_tol_chi2:
+            c.reasons.append("cross-validation no better than no effect")
+    if (not c.reasons and member_bics is not None and g.best_single_bic is not None
+            and c.bic > g.best_single_bic - DBIC_GATE - g.tie_tol_chi2):
+        # as good as the best single effect with its own gates passed: an alternative explanation
+        c.equivalent = True
+        c.reasons.append("the pair does not beat the best single effect by ΔBIC ≥ 10 (an equivalent alternative)")
+    c.passed = not c.reasons
+
+
+def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str]:
+    """The fit's gates: identifiable, each member's z, the measured regressors moved within their
+    u, ΔBIC against no effect (and a pair against its members), physically plausible parameters,
+    and the F-test of the χ² improvement (sets ``c.f_p``). Returns the reasons it fails."""
+    pb, reasons = g.pb, []
+    # Parameters must be identifiable with the data at hand: e.g. on 23 polygon stops the
+    # interpolation error of a 7069-line disk aliases onto harmonic 8, exactly the column of a
+    # graduation harmonic 8; such a pair fits anything with parameters of ~1e9.
+    if c.fit["k"] < c.X.shape[1]:
+        reasons.append(f"parameters not identifiable: design rank {c.fit['k']} < {c.X.shape[1]} columns "
+                       "(effects alias onto each other at these sampling angles)")
+    if min(c.z.values()) < Z_GATE:
+        reasons.append(f"z = {min(c.z.values()):.1f} < {Z_GATE}")
+    if c.extra is not None and c.extra.shape[1]:
+        # errors in variables: the fit may move a measured regressor only within its u; a fit
+        # that needs it moved by more (Σν̂² beyond χ²(p) at P_SIG) explains the residual with a
+        # motion (or form) the probes did not measure
+        adj, p_eff = pb.eiv_adjustment(c.X, c.fit, c.extra)
+        if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
+            reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
+                           f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
+    if g.bic0 - c.bic < DBIC_GATE:
+        reasons.append(f"ΔBIC = {g.bic0 - c.bic:.1f} < {DBIC_GATE}")
+    if member_bics is not None and c.bic > min(member_bics) - DBIC_GATE:
+        reasons.append("the pair does not beat its members by ΔBIC ≥ 10")
+    scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+    P, U = _params_u(c, scale)
+    # physically plausible: every module states the range its parameters can take on a real bench
+    for member in c.names:
+        pl = getattr(g.mods[member], "plausible", None)
+        if pl:
+            ok, why = pl(pb.ev, P[member], U[member], g.ctx)
+            if not ok:
+                reasons.append(f"{member}: implausible: {why}")
+    # the χ² improvement against the scatter the candidate leaves (F-test): an effect must
+    # bring the residual down by more than the noise would by chance, whatever u was assumed
+    k_c = max(c.fit["k"], 1)
+    d_chi2 = pb.null["chi2"] - c.fit["chi2"]
+    F = (d_chi2 / k_c) / max(c.fit["chi2"] / c.fit["dof"], 1e-300)
+    c.f_p = float(f_sf(F, k_c, c.fit["dof"])) if d_chi2 > 0 else 1.0
+    if c.f_p >= F_SIG:
+        reasons.append(f"F-test of the improvement: p = {c.f_p:.2g} ≥ {F_SIG}")
+    return reasons
+
+
+def _size_gates(c: _Cand, g: _Gates) -> list[str]:
+    """The practical-significance gates: the candidate must bring the residual down, and each
+    member must change the readings, by a meaningful share (SIZE_GATE) of the noise floor; a pair
+    of nearly collinear, cancelling members is a degenerate fit. Returns the reasons it fails."""
+    pb, u_rms, reasons = g.pb, g.noise_floor_arcsec, []
+    parts = _member_predictions(pb, c)
+    r0a = pb.y[pb.alpha_rows]
+    red = math.sqrt(max(_rms(r0a) ** 2 - _rms(r0a - _sum_rows(parts)[pb.alpha_rows]) ** 2, 0.0))
+    if red < SIZE_GATE * u_rms:
+        reasons.append(f"reduces the residual by only {red:.3g}″ RMS (√(before² − after²)) < {SIZE_GATE} × "
+                       f"the noise floor ({u_rms:.3g}″)")
+    if len(parts) == 2:
+        for j, member in enumerate(c.names):
+            alone = _rms(r0a - parts[1 - j][pb.alpha_rows])
+            both = _rms(r0a - _sum_rows(parts)[pb.alpha_rows])
+            red_m = math.sqrt(max(alone ** 2 - both ** 2, 0.0))
+            if red_m < SIZE_GATE * u_rms:
+                reasons.append(f"{member}: reduces the residual left by the other member by only {red_m:.3g}″ RMS "
+                               f"< {SIZE_GATE} × the noise floor")
+    for member, pp in zip(c.names, parts):
+        size = _rms(pp[pb.alpha_rows])
+        if size < SIZE_GATE * u_rms:
+            reasons.append(f"{member}: contribution {size:.3g}″ RMS < {SIZE_GATE} × the noise floor "
+                           f"({u_rms:.3g}″): below what the measurement can resolve in practice")
+    # a pair of nearly collinear, cancelling members is a degenerate fit, not two effects
+    if len(c.names) == 2:
+        cs = _cos_signed(pb, parts[0], parts[1])
+        n0, n1 = (_rms(pp[pb.alpha_rows]) for pp in parts)
+        n01 = _rms((parts[0] + parts[1])[pb.alpha_rows])
+        if cs * abs(cs) < -COLLINEAR and n01 < DEGENERATE_RATIO * max(n0, n1):
+            reasons.append(f"degenerate pair: the members are nearly collinear (cos = {cs:.3f}) and cancel "
+                           f"({n0:.3g}″ and {n1:.3g}″ RMS, together {n01:.3g}″)")
+    return reasons
+
+
+def _sum_rows(parts: list[np.ndarray]) -> np.ndarray:
+    """Σ of per-row arrays, as the built-in sum adds them: 0 + a + b + … (a non-empty list)."""
+    total = 0.0 + parts[0]
+    for p in parts[1:]:
+        total = total + p
+    return total
+
+
+def _best_variants(variants: list[_Cand], g: _Gates) -> list[_Cand]:
+    """Stage 3c: every variant gated; per effect its best variant (SUBSETS): the best BIC among the
+    variants that pass, else the best BIC (ties by the stated preference)."""
     for c in variants:
-        gate(c)
-    # per effect its best variant (SUBSETS): the best BIC among the variants that pass, else the best BIC
+        _gate(c, g)
     best_var: dict[str, _Cand] = {}
     for c in variants:
         b = best_var.get(c.names[0])
-        if b is None or _better(c, b, tol, order):
+        if b is None or _better(c, b, g.tie_tol_chi2, g.order):
             best_var[c.names[0]] = c
-    singles = list(best_var.values())
-    best_single = min((c.bic for c in singles if c.passed), default=None)
+    return list(best_var.values())
+
+
+def _pairs(variants: list[_Cand], g: _Gates) -> list[_Cand]:
+    """Stage 3d, pairs of variants of two effects: an effect may earn its place next to one
+    variant of another (e.g. a tilt error next to the whirl's quadrature term) and not next to its
+    best variant. Only variants with z ≥ Z_PAIR pair up, and not one that lies inside the other's
+    span (:class:`_Span`). Each pair is fitted, gated against its members' BIC and the best single
+    effect; per effect pair the best-BIC combination among those that pass, else the best."""
+    pb, span = g.pb, _Span(g.pb)
     pairs = []
-    # pairs of variants of two effects: an effect may earn its place next to one variant of another
-    # (e.g. a tilt error next to the whirl's quadrature term) and not next to its best variant
-    # A variant with more columns than the harmonic test covers (graduation_error's every resolved
-    # order: any function of θ up to the sampling's Nyquist) contains every θ-only effect: such a
-    # pair is rank-deficient by construction (the gate would reject it as not identifiable) and
-    # costs a fit of hundreds of columns; it is not formed. Other designs have no such variant.
-    wide = 2 * ev.kmax + 2
-    basis: dict[int, np.ndarray] = {}
-
-    def inside(big: _Cand, small: _Cand) -> bool:
-        if big.X.shape[1] <= wide:
-            return False
-        if id(big) not in basis:
-            basis[id(big)] = np.linalg.qr(big.X * pb.w[:, None])[0]
-        B = small.X * pb.w[:, None]
-        Q = basis[id(big)]
-        return bool(np.linalg.norm(B - Q @ (Q.T @ B)) <= 1e-6 * np.linalg.norm(B))
-
     for a, b in itertools.combinations(variants, 2):
         if a.names[0] == b.names[0] or max(a.z[a.names[0]], b.z[b.names[0]]) < Z_PAIR:
             continue
-        if inside(a, b) or inside(b, a):
+        if span.inside(a, b) or span.inside(b, a):
             continue
         c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
-        _evaluate(pb, c, cands_mod, ctx)
+        _evaluate(pb, c, g.mods, g.ctx)
         c.member_bics = [a.bic, b.bic]
-        gate(c, c.member_bics)
+        _gate(c, g, c.member_bics)
         pairs.append(c)
-    # one entry per effect pair: the best-BIC variant combination among those that pass, else the best
     best_pair: dict[tuple, _Cand] = {}
     for c in pairs:
         key = tuple(sorted(c.names))
         b = best_pair.get(key)
-        if b is None or _better(c, b, tol, order, flag=lambda x: x.passed or x.equivalent):
+        if b is None or _better(c, b, g.tie_tol_chi2, g.order, flag=lambda x: x.passed or x.equivalent):
             best_pair[key] = c
-    pairs = list(best_pair.values())
-    passed = _ordered([c for c in singles + pairs if c.passed], lambda c: c.bic, tol, order)
-    equivalents = [c for c in pairs if c.equivalent]
-    pb.fast = False
-    chosen = passed[0] if passed else None
-    # The representative of an ambiguity set: the alternatives within AMBIG_DBIC of the best BIC
-    # whose predictions are collinear (cos² > COLLINEAR) are ones the data cannot tell apart (a BIC
-    # difference below AMBIG_DBIC is not "strong" evidence, Kass & Raftery 1995), so the BIC does not
-    # pick among them: the stated preference does (_prefer: fewer effects, then the library order).
-    # The set is reported whole either way; what changes is which alternative's fit is the model
-    # after. E.g. on a bench without X probes the unmeasured tangential motion (always present where
-    # the Y probes see the axis move) is preferred to an L1 error fitted to the same harmonics.
-    if chosen is not None:
-        p0 = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
-        alts = [c for c in passed[1:] if c.bic - chosen.bic < AMBIG_DBIC
-                and _cos2(pb, pb.predict_rows(c.X, c.fit, nuisance=False), p0) > COLLINEAR]
-        chosen = min([chosen] + alts, key=lambda c: _prefer(c, order))
-    reported: set[int] = set()
+    return list(best_pair.values())
 
-    def report(c: _Cand) -> _Cand:
-        """c with its fits, gates and CV redone by the reference solver (the decisions stay the
-        screening's): the numbers results.json and the model file report."""
-        nonlocal cv0
-        if not reported:
-            cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
-        if id(c) not in reported:
-            reported.add(id(c))
-            _evaluate(pb, c, cands_mod, ctx)
-            gate(c, c.member_bics)
+
+class _Span:
+    """Does one variant's design contain another's? A variant with more columns than the harmonic
+    test covers (graduation_error's every resolved order: any function of θ up to the sampling's
+    Nyquist) contains every θ-only effect: such a pair is rank-deficient by construction (the gate
+    would reject it as not identifiable) and costs a fit of hundreds of columns; it is not formed.
+    Other designs have no such variant. The wide designs' orthonormal bases are computed once."""
+
+    def __init__(self, pb: _Problem):
+        self.pb = pb
+        self.wide = 2 * pb.ev.kmax + 2
+        self.basis: dict[int, np.ndarray] = {}
+
+    def inside(self, big: _Cand, small: _Cand) -> bool:
+        if big.X.shape[1] <= self.wide:
+            return False
+        w = self.pb.w[:, None]
+        if id(big) not in self.basis:
+            self.basis[id(big)] = np.linalg.qr(big.X * w)[0]
+        B = small.X * w
+        Q = self.basis[id(big)]
+        return bool(np.linalg.norm(B - Q @ (Q.T @ B)) <= 1e-6 * np.linalg.norm(B))
+
+
+def _representative(passed: list[_Cand], g: _Gates) -> _Cand | None:
+    """Stage 3e, the representative of an ambiguity set: the alternatives within AMBIG_DBIC of the
+    best BIC whose predictions are collinear (cos² > COLLINEAR) are ones the data cannot tell apart
+    (a BIC difference below AMBIG_DBIC is not "strong" evidence, Kass & Raftery 1995), so the BIC
+    does not pick among them: the stated preference does (_prefer: fewer effects, then the library
+    order). The set is reported whole either way; what changes is which alternative's fit is the
+    model after. E.g. on a bench without X probes the unmeasured tangential motion (always present
+    where the Y probes see the axis move) is preferred to an L1 error fitted to the same harmonics."""
+    if not passed:
+        return None
+    pb, chosen = g.pb, passed[0]
+    p0 = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
+    alts = [c for c in passed[1:] if c.bic - chosen.bic < AMBIG_DBIC
+            and _cos2(pb, pb.predict_rows(c.X, c.fit, nuisance=False), p0) > COLLINEAR]
+    return min([chosen] + alts, key=lambda c: _prefer(c, g.order))
+
+
+class _Reporter:
+    """Stage 4, the numbers results.json and the model file report: a candidate's fits, gates and
+    CV redone once by the reference solver (the decisions stay the screening's), and its JSON.
+    With a chosen candidate, the no-effect CV is the reference's too (:meth:`for_selection`)."""
+
+    def __init__(self, gates: _Gates):
+        self.gates = gates
+        self._reported: set[int] = set()
+
+    @classmethod
+    def for_selection(cls, sel: _Selection) -> "_Reporter":
+        g = sel.gates
+        if sel.chosen is None:
+            return cls(g)
+        rep = cls(replace(g, cv0=g.pb.cv(np.zeros((g.pb.n_rows, 0)))))
+        rep.report(sel.chosen)
+        return rep
+
+    def report(self, c: _Cand) -> _Cand:
+        if id(c) not in self._reported:
+            self._reported.add(id(c))
+            _evaluate(self.gates.pb, c, self.gates.mods, self.gates.ctx)
+            _gate(c, self.gates, c.member_bics)
         return c
 
-    if chosen is not None:
-        report(chosen)
-
-    def cand_json(c: _Cand) -> dict:
+    def json(self, c: _Cand) -> dict[str, Any]:
+        g = self.gates
         scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
         P, U = _params_u(c, scale)
         return {"names": list(c.names), "params": P, "u": U, "chi2": c.fit["chi2"], "dof": c.fit["dof"], "k": c.fit["k"],
-                "bic": c.bic, "aicc": c.aicc, "delta_bic": bic0 - c.bic, "delta_aicc": aicc0 - c.aicc, "z": c.z,
-                "cv_gain": (None if c.cv is None or not cv0 else 1.0 - c.cv / cv0), "f_test_p": c.f_p, "passed": c.passed,
-                "rejected_because": c.reasons, "notes": c.notes}
+                "bic": c.bic, "aicc": c.aicc, "delta_bic": g.bic0 - c.bic, "delta_aicc": g.aicc0 - c.aicc, "z": c.z,
+                "cv_gain": (None if c.cv is None or not g.cv0 else 1.0 - c.cv / g.cv0), "f_test_p": c.f_p,
+                "passed": c.passed, "rejected_because": c.reasons, "notes": c.notes}
 
-    alpha = pb.alpha_rows
-    r0 = pb.y[alpha]
-    result: dict[str, Any] = {"residual_before": before, "signature": sig, "identified_effects": [], "ambiguous": [],
-                              "partial_effects": [], "skipped": skipped,
-                              "thresholds": {"P_SIG": P_SIG, "Z_GATE": Z_GATE, "DBIC_GATE": DBIC_GATE,
-                                             "AMBIG_DBIC": AMBIG_DBIC, "COLLINEAR": COLLINEAR, "F_SIG": F_SIG,
-                                             "SIZE_GATE": SIZE_GATE, "DEGENERATE_RATIO": DEGENERATE_RATIO,
-                                             "SPHERE_FORM_UM": SPHERE_FORM_UM, "TIE_REL": TIE_REL,
-                                             "tie_tolerance_chi2": tol},
-                              "candidates": [cand_json(c) for c in _ordered(singles + pairs, lambda c: c.bic, tol, order)][:30]}
-    total_err = _rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2))
-    # the three criteria side by side (the choice is BIC among candidates that pass all gates, CV
-    # included; AICc, which penalises less, is reported so that a disagreement is visible)
-    result["selection"] = {
+
+def _result_head(res: _Residual, cands: _Candidates, sel: _Selection, rep: _Reporter) -> dict[str, Any]:
+    """Stage 4, the result's first part, whatever the outcome: the residual before, its signature,
+    the skipped effects, the thresholds, every candidate's numbers (best BIC first, at most 30) and
+    the three criteria side by side (the choice is BIC among candidates that pass all gates, CV
+    included; AICc, which penalises less, is reported so that a disagreement is visible)."""
+    g, passed, tol, pb = rep.gates, sel.passed, rep.gates.tie_tol_chi2, sel.gates.pb
+    before = res.before if cands.async_motion is None else {**res.before, "async_motion": cands.async_motion}
+    ranked = _ordered(sel.singles + sel.pairs, lambda c: c.bic, tol, g.order)
+    with_cv = [c for c in passed if c.cv is not None]
+    selection = {
         "by_bic": passed[0].key if passed else None,
-        "by_aicc": _ordered(passed, lambda c: c.aicc, tol, order)[0].key if passed else None,
-        "by_cv": (_ordered([c for c in passed if c.cv is not None], lambda c: c.cv, tol, order)[0].key
-                  if any(c.cv is not None for c in passed) else None),
-        "representative": chosen.key if chosen is not None else None,
+        "by_aicc": _ordered(passed, lambda c: c.aicc, tol, g.order)[0].key if passed else None,
+        "by_cv": (_ordered(with_cv, lambda c: c.cv if c.cv is not None else math.inf, tol, g.order)[0].key
+                  if with_cv else None),
+        "representative": sel.chosen.key if sel.chosen is not None else None,
         "n_passed": len(passed), "cv_folds": None if pb.folds is None else int(len(np.unique(pb.folds[pb.folds >= 0]))),
     }
-    result["selection"]["agree"] = len({v for k, v in result["selection"].items() if k.startswith("by_") and v}) <= 1
-    if chosen is None:
-        result["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
-        result["unexplained"] = significant
-        result["status"] = "unexplained" if significant else "no_significant_residual"
-        result["unexplained_signature"] = ({**_short_signature(sig), "left": _significant_parts(sig, ev.n, u_rms)}
-                                           if significant else None)
-        result["model_file"] = _payload(ev, [], [], result["status"], ctx)
-        return _jsonable(result)
+    selection["agree"] = len({v for k, v in selection.items() if k.startswith("by_") and v}) <= 1
+    return {"residual_before": before, "signature": res.signature, "identified_effects": [], "ambiguous": [],
+            "partial_effects": [], "skipped": cands.skipped,
+            "thresholds": {"P_SIG": P_SIG, "Z_GATE": Z_GATE, "DBIC_GATE": DBIC_GATE,
+                           "AMBIG_DBIC": AMBIG_DBIC, "COLLINEAR": COLLINEAR, "F_SIG": F_SIG,
+                           "SIZE_GATE": SIZE_GATE, "DEGENERATE_RATIO": DEGENERATE_RATIO,
+                           "SPHERE_FORM_UM": SPHERE_FORM_UM, "TIE_REL": TIE_REL,
+                           "tie_tolerance_chi2": tol},
+            "candidates": [rep.json(c) for c in ranked][:30], "selection": selection}
 
+
+def _unexplained(head: dict[str, Any], ev: Evidence, res: _Residual, ctx: dict[str, Any]) -> dict[str, Any]:
+    """Stage 6 without a candidate that passes: the residual after is the residual before;
+    "unexplained" if it was significant, else nothing to explain."""
+    before = res.before
+    out = dict(head)
+    out["residual_after"] = {k: before[k] for k in ("rms_arcsec", "pv_arcsec", "fraction_of_error", "chi2", "dof", "p_value")}
+    out["unexplained"] = res.significant
+    out["status"] = "unexplained" if res.significant else "no_significant_residual"
+    out["unexplained_signature"] = ({**_short_signature(res.signature),
+                                     "left": _significant_parts(res.signature, ev.n, res.noise_floor_arcsec)}
+                                    if res.significant else None)
+    out["model_file"] = _payload(ev, [], [], out["status"], ctx)
+    return out
+
+
+def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selection, chosen: _Cand,
+               rep: _Reporter) -> dict[str, Any]:
+    """Stage 6 with a chosen candidate: the residual after it (:func:`_apply`), its effects, the
+    ambiguity sets (stage 5, :func:`_ambiguity`), and the verdict: "explained" (or "ambiguous")
+    when the residual after shows no signature left (the same tests as "anything to explain?"),
+    else "unexplained" with the chosen candidate's effects as partial ones."""
+    g = sel.gates
+    after = _apply(ev, res, g, chosen)
+    out = dict(head)
+    out["residual_after"] = after.test
+    cj = rep.json(chosen)
+    effects = _effects_json(ev, chosen, after, cj)
+    out["ambiguous"] = _ambiguity(sel, rep, chosen, after.pred_arcsec, cj)
+    sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
+                          time_ks=res.flagged_harmonics)
+    left = _significant_parts(sig_after, ev.n, res.noise_floor_arcsec)
+    if after.test["p_value"] < P_SIG:
+        left.insert(0, f"χ² after: p = {after.test['p_value']:.2g}")
+    out["residual_after"] = {**after.test, "signature_left": left}
+    if left:
+        out["partial_effects"] = effects
+        out["unexplained"] = True
+        out["status"] = "unexplained"
+        out["unexplained_signature"] = {**_short_signature(res.signature),
+                                        "after_best_candidate": _short_signature(sig_after), "left": left}
+    else:
+        out["identified_effects"] = effects
+        out["unexplained"] = False
+        out["status"] = "ambiguous" if out["ambiguous"] else "explained"
+        out["unexplained_signature"] = None
+    out["model_file"] = _payload(ev, effects if not out["unexplained"] else [], out["ambiguous"], out["status"], g.ctx)
+    scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
+    out["reference_corrections"] = (_reference_corrections(g.pb, chosen, g.mods, scale)
+                                    if not out["unexplained"] else {})
+    return out
+
+
+def _apply(ev: Evidence, res: _Residual, g: _Gates, chosen: _Cand) -> _After:
+    """Stage 6a: the chosen candidate's prediction and the residual it leaves. Errors in variables:
+    a measured regressor (δX from the X probes, the tilt motion) is adjusted by the joint fit within
+    its own uncertainty; the adjustment is part of the effect's estimate (after-residual, model
+    file), as Fourier coefficients in θ (the perturbations are harmonics). χ² after: the polygon
+    rows without the chosen effect, the model nuisance (and the chosen effect's regressor
+    uncertainty) refitted."""
+    pb = g.pb
+    alpha = pb.alpha_rows
+    r0 = pb.y[alpha]
     pred = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
-    # errors in variables: a measured regressor (δX from the X probes, the tilt motion) is adjusted
-    # by the joint fit within its own uncertainty; the adjustment is part of the effect's estimate
-    # (after-residual, model file), as Fourier coefficients in θ (the perturbations are harmonics)
-    adjust = _regressor_adjustments(pb, chosen, cands_mod, ctx)
-    adj_alpha = sum(adjust.values()) if adjust else np.zeros(ev.n)
-    adj_alpha = _center(np.asarray(adj_alpha, dtype=float) + np.zeros(ev.n), ev.closure_group, pb.w[: ev.n] ** 2)
+    adjust = _regressor_adjustments(pb, chosen, g.mods, g.ctx)
+    adj_alpha = _sum_rows(list(adjust.values())) if adjust else np.zeros(ev.n)
+    groups, w2 = column(ev.closure_group), 1 / column(ev.u_arcsec) ** 2
+    adj_alpha = _center(np.asarray(adj_alpha, dtype=float) + np.zeros(ev.n), groups, pb.w[: ev.n] ** 2)
     pred = pred.copy()
     pred[alpha] = pred[alpha] + adj_alpha
     r1 = r0 - pred[alpha]
-    # χ² after: the alpha rows without the chosen effect, model nuisance (and the chosen effect's
-    # regressor uncertainty) refitted
+    pa = res.alpha_problem
     pa_y = pa.y
     pa.y = r1
     f_after = pa.fit(np.zeros((ev.n, 0)))
     pa.y = pa_y
     chi2_a = f_after["chi2"]
     dof_a = max(f_after["dof"] - chosen.fit["k"], 1)
-    p_after = float(chi2_sf(chi2_a, dof_a))
-    result["residual_after"] = {"rms_arcsec": _rms(r1), "pv_arcsec": float(np.ptp(r1)),
-                                "fraction_of_error": _rms(r1) / max(total_err, 1e-300), "chi2": chi2_a, "dof": dof_a,
-                                "p_value": p_after}
+    total_err = _rms(_center(ev.alpha_arcsec, groups, w2))
+    test = {"rms_arcsec": _rms(r1), "pv_arcsec": float(np.ptp(r1)),
+            "fraction_of_error": _rms(r1) / max(total_err, 1e-300), "chi2": chi2_a, "dof": dof_a,
+            "p_value": float(chi2_sf(chi2_a, dof_a))}
+    return _After(pred_arcsec=pred, adjust_arcsec=adjust, residual_arcsec=r1, test=test)
+
+
+def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]) -> list[dict[str, Any]]:
+    """The chosen candidate's members as effects: parameters with u (× √(χ²/dof) when > 1), the
+    regressor adjustment's Fourier coefficients, and the evidence for each."""
     scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
     P, U = _params_u(chosen, scale)
-    cj = cand_json(chosen)
     effects = []
     for member in chosen.names:
+        adjust = after.adjust_arcsec
         adj_c = _harmonic_coefs(ev.theta_deg, adjust[member], ev.kmax) if member in adjust else None
         effects.append({"name": member, "params": P[member], "u": U[member],
                         **({"regressor_adjustment_coefs": adj_c} if adj_c else {}),
                         "evidence": {"delta_bic": cj["delta_bic"], "delta_aicc": cj["delta_aicc"], "cv_gain": cj["cv_gain"],
                                      "z": chosen.z[member], "chi2": chosen.fit["chi2"], "dof": chosen.fit["dof"],
                                      "with": [n for n in chosen.names if n != member], "notes": chosen.notes}})
-    # ambiguity: other passing candidates within AMBIG_DBIC whose predictions are nearly collinear
-    amb_cands, amb_fits = [set(chosen.names)], {chosen.key: cj}
-    for c in [c for c in passed if c is not chosen] + equivalents:
-        if c.bic - chosen.bic < AMBIG_DBIC and set(c.names) not in amb_cands:
-            pc = pb.predict_rows(c.X, c.fit, nuisance=False)
-            if _cos2(pb, pc, pred) > COLLINEAR:
-                amb_cands.append(set(c.names))
-                amb_fits[c.key] = cand_json(report(c))
-    # sets forced by design: those of the chosen candidate and of every alternative tied with it
-    # (an exact tie is a choice by stated preference only: the design's ambiguities of the other
-    # candidate hold as much)
-    forced = set()
-    tied = [chosen] + [c for c in passed if c is not chosen and abs(c.bic - chosen.bic) <= tol]
-    for c in tied:
-        for member in c.names:
-            fn = getattr(cands_mod[member], "ambiguous_with", None)
-            forced |= set(fn(ev)) if fn else set()
-    # a member whose design-forced alternative is itself a member of the chosen candidate (without X
-    # probes: graduation_error + tangential_motion) is not told apart from it either: the other
-    # member alone (an unmeasured motion at the same harmonics) is an alternative of the set
-    within = []
-    for member in chosen.names:
-        fn = getattr(cands_mod[member], "ambiguous_with", None)
-        if len(chosen.names) > 1 and fn and set(fn(ev)) & (set(chosen.names) - {member}):
-            within.append(set(chosen.names) - {member})
-    forced -= set().union(*amb_cands)
+    return effects
+
+
+def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, pred: np.ndarray,
+               cj: dict[str, Any]) -> list[dict[str, Any]]:
+    """Stage 5, the ambiguity set of the chosen candidate: the passing (or equivalent) alternatives
+    the data cannot tell apart from it (:func:`_collinear_alternatives`) and those forced by the
+    design (:func:`_design_alternatives`), each with its reference fit, and the measurement that
+    would separate them. Returns [] or [the set]."""
+    amb_cands, amb_fits = _collinear_alternatives(sel, rep, chosen, pred, cj)
+    within, forced = _design_alternatives(sel, chosen, amb_cands)
     for alt in within:
         if alt not in amb_cands:
             amb_cands.append(alt)
-            for c in singles:
+            for c in sel.singles:
                 if set(c.names) == alt:
-                    amb_fits[c.key] = cand_json(report(c))
+                    amb_fits[c.key] = rep.json(rep.report(c))
     for other in sorted(forced):
         amb_cands.append({other})
-        for c in singles:
+        for c in sel.singles:
             if c.names == (other,):
-                amb_fits[c.key] = cand_json(report(c))
+                amb_fits[c.key] = rep.json(rep.report(c))
     # members shared by every alternative are identified whatever the choice: not part of the set,
     # unless the alternatives differ only by one optional member (then the set names both)
     common = set.intersection(*amb_cands)
     amb_names = set.union(*amb_cands) - (common if len(amb_cands) > 1 else set())
     if len(amb_cands) > 1 and len(amb_names) == 1:
         amb_names = set.union(*amb_cands)
-    if len(amb_cands) > 1 and len(amb_names) > 1:
-        names = sorted(amb_names)
-        result["ambiguous"].append({"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
-                                    "alternatives": ["+".join(sorted(a)) for a in amb_cands],
-                                    "forced_by_design": sorted(forced)})
-    # the residual after must show no signature left either (same tests as "anything to explain?")
-    sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - pred[alpha]), time_ks=flagged)
-    left = _significant_parts(sig_after, ev.n, u_rms)
-    if p_after < P_SIG:
-        left.insert(0, f"χ² after: p = {p_after:.2g}")
-    result["residual_after"]["signature_left"] = left
-    if left:
-        result["partial_effects"] = effects
-        result["unexplained"] = True
-        result["status"] = "unexplained"
-        result["unexplained_signature"] = {**_short_signature(sig), "after_best_candidate": _short_signature(sig_after),
-                                           "left": left}
-    else:
-        result["identified_effects"] = effects
-        result["unexplained"] = False
-        result["status"] = "ambiguous" if result["ambiguous"] else "explained"
-        result["unexplained_signature"] = None
-    result["model_file"] = _payload(ev, effects if not result["unexplained"] else [], result["ambiguous"], result["status"], ctx)
-    result["reference_corrections"] = (_reference_corrections(pb, chosen, cands_mod, scale)
-                                       if not result["unexplained"] else {})
-    return _jsonable(result)
+    if not (len(amb_cands) > 1 and len(amb_names) > 1):
+        return []
+    names = sorted(amb_names)
+    return [{"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
+             "alternatives": ["+".join(sorted(a)) for a in amb_cands], "forced_by_design": sorted(forced)}]
+
+
+def _collinear_alternatives(sel: _Selection, rep: _Reporter, chosen: _Cand, pred: np.ndarray,
+                            cj: dict[str, Any]) -> tuple[list[set[str]], dict[str, dict[str, Any]]]:
+    """The chosen candidate and the other passing (or equivalent) candidates within AMBIG_DBIC of
+    its BIC whose predictions are nearly collinear with its own (cos² > COLLINEAR): (their member
+    sets, {key: reference fit JSON})."""
+    pb = sel.gates.pb
+    amb_cands, amb_fits = [set(chosen.names)], {chosen.key: cj}
+    for c in [c for c in sel.passed if c is not chosen] + sel.equivalents:
+        if c.bic - chosen.bic < AMBIG_DBIC and set(c.names) not in amb_cands:
+            pc = pb.predict_rows(c.X, c.fit, nuisance=False)
+            if _cos2(pb, pc, pred) > COLLINEAR:
+                amb_cands.append(set(c.names))
+                amb_fits[c.key] = rep.json(rep.report(c))
+    return amb_cands, amb_fits
+
+
+def _design_alternatives(sel: _Selection, chosen: _Cand, amb_cands: list[set[str]]) -> tuple[list[set[str]], set[str]]:
+    """The alternatives the design forces (each module's ``ambiguous_with``): (``within``, ``forced``).
+    ``forced``: those of the chosen candidate and of every alternative tied with it (an exact tie
+    is a choice by stated preference only: the design's ambiguities of the other candidate hold as
+    much), less the names already in ``amb_cands``. ``within``: a member whose design-forced
+    alternative is itself a member of the chosen candidate (without X probes: graduation_error +
+    tangential_motion) is not told apart from it either: the other member alone (an unmeasured
+    motion at the same harmonics) is an alternative of the set."""
+    g = sel.gates
+    ev = g.pb.ev
+    forced: set[str] = set()
+    tied = [chosen] + [c for c in sel.passed if c is not chosen and abs(c.bic - chosen.bic) <= g.tie_tol_chi2]
+    for c in tied:
+        for member in c.names:
+            fn = getattr(g.mods[member], "ambiguous_with", None)
+            forced |= set(fn(ev)) if fn else set()
+    within = []
+    for member in chosen.names:
+        fn = getattr(g.mods[member], "ambiguous_with", None)
+        if len(chosen.names) > 1 and fn and set(fn(ev)) & (set(chosen.names) - {member}):
+            within.append(set(chosen.names) - {member})
+    forced -= set().union(*amb_cands)
+    return within, forced
 
 
 def _reference_corrections(pb: _Problem, c: _Cand, mods: dict, scale: float) -> dict[str, dict[str, Any]]:
