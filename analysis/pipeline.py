@@ -940,7 +940,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     """The tracing's evidence (analysis.tracing.evidence_from_polygon): the polygon's readings less
     the Jia model, the radial probes, the self-calibration where it has a u, and the CCD's (e, θ0)
     with their u. Returns (evidence, the polygon table it was built from, u of α's readings, notes)."""
-    from benchtwin.analysis.tracing import RadialMotion, evidence_from_polygon
+    from benchtwin.analysis.tracing import BenchContext, RadialMotion, SelfCalCurve, evidence_from_polygon
 
     geo, ecc, pol = a.bench, cast(EccentricityResult, a.ecc), cast(PolygonAnalysis, a.pol)
     radial = None
@@ -958,17 +958,15 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
         sc_cal = None
     u_eps, u_read = _reading_u(pol)
     poly = {k: (v.astype(str) if v.dtype == object else v) for k, v in polygon_table(ds).items()}
+    selfcal = (SelfCalCurve(theta_deg=sc_cal.theta_deg, value_arcsec=sc_cal.value, u_arcsec=np.asarray(sc_cal.u),
+                            n_heads=geo.n_heads) if sc_cal else None)
     ev = evidence_from_polygon(
         poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), a.model,
-        n_faces=geo.faces, u_arcsec=float(u_read), radial=radial,
-        selfcal_theta_deg=sc_cal.theta_deg if sc_cal else None,
-        selfcal_value_arcsec=sc_cal.value if sc_cal else None,
-        selfcal_u_arcsec=np.asarray(sc_cal.u) if sc_cal else None,
-        n_heads=geo.n_heads,
-        optical_radius_mm=geo.optical_radius_mm, L1_mm=geo.L1_mm, L2_mm=geo.L2_mm,
-        grating_period_um=geo.grating_period_um, encoder_lines=geo.encoder_lines,
-        radial_term="radial_motion" if a.rm is not None else None,
-        u_floor_arcsec=max(float(u_read), u_eps),
+        BenchContext(n_faces=geo.faces, u_arcsec=float(u_read), radial=radial, selfcal=selfcal,
+                     optical_radius_mm=geo.optical_radius_mm, L1_mm=geo.L1_mm, L2_mm=geo.L2_mm,
+                     grating_period_um=geo.grating_period_um, encoder_lines=geo.encoder_lines,
+                     radial_term="radial_motion" if a.rm is not None else None,
+                     u_floor_arcsec=max(float(u_read), u_eps)),
     )
     ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(PolygonReadings.from_table(poly).ac_arcsec,
                                                                       dtype=float) ** 2,

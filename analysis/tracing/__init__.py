@@ -38,11 +38,13 @@ The package (one module per step; the names of the former single module are all 
 
 - ``thresholds``: significance thresholds and bench constants (docs/effects.md);
 - ``evidence``: :class:`Evidence`, :class:`RadialMotion`, :class:`SelfCal`, :class:`CCDData`,
-  :func:`evidence_from_polygon`;
+  :func:`evidence_from_polygon` (with its :class:`BenchContext` and :class:`SelfCalCurve`);
 - ``problem``: the weighted least-squares problem (closure groups, nuisance columns, CV folds);
 - ``significance``: 1., :func:`residual_test`, :func:`harmonic_test`;
 - ``signature``: 2., :func:`signature`;
-- ``selection``: 3., :func:`trace`;
+- ``selection``: 3., :func:`trace`, one stage after the other: evidence → candidates → fit and
+  select (screening, gates with the CV folds, pairs, the representative) → report → ambiguity sets
+  → outcome;
 - ``traced_model``: the model file (:func:`save_model`, :func:`load_model`, :func:`add_to_error_model`).
 """
 
@@ -55,7 +57,8 @@ from .thresholds import (AMBIG_DBIC, ASYNC_BAND, ASYNC_NOISE_ORDER, ASYNC_P, COL
                          F_SIG, MAX_CV_FOLDS, P_SIG, SIZE_GATE, SPHERE_FORM_UM, THETA_BIN_DEG, TIE_REL, Z_GATE,
                          Z_PAIR)
 from ._blas import _one_blas_thread, _openblas
-from .evidence import approach_direction, CCDData, Evidence, evidence_from_polygon, RadialMotion, _replace_alpha, SelfCal, _View
+from .evidence import (approach_direction, BenchContext, CCDData, column, Evidence, evidence_from_polygon, RadialMotion,
+                       _replace_alpha, SelfCal, SelfCalCurve, _View)
 from .problem import _center, noise_floor, _Problem, _rms, _z_from_chi2
 from .significance import harmonic_test, _nested, _one_column, residual_test
 from .signature import (_dummies, _free_of_theta, _selfcal_signature, _short_signature, signature, _significant_parts,
@@ -69,6 +72,6 @@ from .traced_model import (add_to_error_model, _jsonable, load_model, model_term
 __all__ = [
     "Evidence", "RadialMotion", "SelfCal", "CCDData", "trace", "signature", "residual_test",
     "save_model", "load_model", "model_terms_from_payload", "add_to_error_model", "evidence_from_polygon",
-    "approach_direction",
+    "BenchContext", "SelfCalCurve", "approach_direction",
     "P_SIG", "Z_GATE", "DBIC_GATE", "AMBIG_DBIC", "COLLINEAR", "TIE_REL",
 ]

@@ -10,7 +10,9 @@ probes' radial motion (:class:`benchtwin.analysis.radial_motion.RadialMotion`, e
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -231,6 +233,11 @@ def column(values: np.ndarray | float | None) -> np.ndarray:
     return values
 
 
+#: The setup errors U_j of the shift-angle analysis (Hsieh eq. 7), arcsec: {(shift_deg, start_face): U}
+#: or a function (shift_deg, start_face) → U
+SetupErrors = Mapping[tuple[float, int], float] | Callable[[float, int], float]
+
+
 #: The standard uncertainty of one α when the caller gives none: Hsieh et al. 2022 Table 3's combined
 #: standard uncertainty of the shift-angle α, u_c = 0.069″ ≈ 0.07″ (the pipeline always passes the
 #: dataset's own, from its readings' repeatability and its budget).
@@ -267,10 +274,47 @@ def approach_direction(theta_deg, t_s, direction) -> np.ndarray:
     return out
 
 
-def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model, *, n_faces: int,
-                          u_arcsec=U_ALPHA_HSIEH2022_ARCSEC, radial: RadialMotion | None = None, selfcal_theta_deg=None,
-                          selfcal_value_arcsec=None, selfcal_u_arcsec=None, n_heads: int | None = None,
-                          **bench) -> Evidence:
+@dataclass(frozen=True)
+class SelfCalCurve:
+    """A multi-head self-calibration curve as the shift-angle analysis gives it (Hsieh eq. 9):
+    head 1's μ(θ) in arcsec with its standard uncertainty (a self-calibration without u cannot be
+    weighted), on its own θ grid (degrees), from ``n_heads`` heads. :func:`evidence_from_polygon`
+    evaluates the model on its grid and makes it the evidence's :class:`SelfCal`."""
+
+    theta_deg: np.ndarray
+    value_arcsec: np.ndarray
+    u_arcsec: np.ndarray | float
+    n_heads: int
+
+    def __post_init__(self) -> None:
+        if self.u_arcsec is None:  # no assumed value: a self-calibration without u cannot be weighted
+            raise ValueError("SelfCalCurve: u_arcsec is required with value_arcsec")
+
+
+@dataclass(frozen=True)
+class BenchContext:
+    """What :func:`evidence_from_polygon` needs besides the polygon's readings, the shift-angle
+    results and the model: the bench (``n_faces`` of the polygon, the encoder's geometry), the
+    standard uncertainty of one α per reading (``u_arcsec``) and the other instruments' data
+    (``radial``: the probes' radial motion, ``selfcal``: the multi-head self-calibration). The
+    remaining fields are :class:`Evidence`'s of the same name, with its defaults."""
+
+    n_faces: int
+    u_arcsec: np.ndarray | float = U_ALPHA_HSIEH2022_ARCSEC
+    radial: RadialMotion | None = None
+    selfcal: SelfCalCurve | None = None
+    optical_radius_mm: float = Evidence.optical_radius_mm
+    L1_mm: float = Evidence.L1_mm
+    L2_mm: float = Evidence.L2_mm
+    grating_period_um: float | None = Evidence.grating_period_um
+    encoder_lines: int | None = Evidence.encoder_lines
+    radial_term: str | None = Evidence.radial_term
+    sphere_form_um: float | None = Evidence.sphere_form_um
+    u_floor_arcsec: float | None = Evidence.u_floor_arcsec
+
+
+def evidence_from_polygon(columns: dict[str, Any], beta_arcsec: np.ndarray, setup_error_arcsec: SetupErrors,
+                          model: Any, bench: BenchContext) -> Evidence:
     """Evidence from the polygon table (dataset ``polygon.csv`` columns) and the shift-angle results.
 
     ``columns``: ``shift_deg``, ``start_face``, ``step``, ``theta_deg``, ``ac_arcsec``, ``t_s`` and
@@ -278,9 +322,10 @@ def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model,
     deviations used; ``setup_error_arcsec``: {(shift_deg, start_face): U} (Hsieh eq. 7) or a callable
     (shift, face) → U. α per reading = ε − Σ_{k=j}^{j+i−1} β_k − U_j (eq. 3). ``model``: anything with
     ``predict_terms(theta_deg) -> {name: arcsec}`` (the project's ErrorModel) or a callable doing the
-    same. ``bench``: further Evidence keywords (optical_radius_mm, L1_mm, L2_mm, encoder_lines, ...).
+    same. ``bench``: the polygon's face count, u of α, the radial probes, the self-calibration and
+    the encoder's geometry (:class:`BenchContext`).
     """
-    N = int(n_faces)
+    N = int(bench.n_faces)
     c = {k: np.asarray(v) for k, v in columns.items()}
     S = c["shift_deg"].astype(float)
     j = c["start_face"].astype(int)
@@ -302,15 +347,17 @@ def evidence_from_polygon(columns: dict, beta_arcsec, setup_error_arcsec, model,
     approach = (approach_direction(th, c["t_s"], direction if direction is not None else np.ones(th.size))
                 if "t_s" in c else None)
     sc = None
-    if selfcal_theta_deg is not None:
-        tsc = np.asarray(selfcal_theta_deg, dtype=float)
-        if selfcal_u_arcsec is None:  # no assumed value: a self-calibration without u cannot be weighted
-            raise ValueError("evidence_from_polygon: selfcal_u_arcsec is required with selfcal_value_arcsec")
-        sc = SelfCal(tsc, np.asarray(selfcal_value_arcsec, dtype=float), selfcal_u_arcsec, int(n_heads or 1),
-                     dict(terms_fn(tsc)))
-    return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=u_arcsec, model_terms=dict(terms_fn(th)),
+    if bench.selfcal is not None:
+        tsc = np.asarray(bench.selfcal.theta_deg, dtype=float)
+        sc = SelfCal(tsc, np.asarray(bench.selfcal.value_arcsec, dtype=float), bench.selfcal.u_arcsec,
+                     int(bench.selfcal.n_heads or 1), dict(terms_fn(tsc)))
+    return Evidence(theta_deg=th, alpha_arcsec=alpha, u_arcsec=bench.u_arcsec, model_terms=dict(terms_fn(th)),
                     t_s=c.get("t_s"), rep=c.get("rep"), direction=direction, approach=approach, start_face=j, shift_deg=S, step=i,
-                    n_faces=N, radial=radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc, **bench)
+                    n_faces=N, radial=bench.radial, ac_arcsec=c["ac_arcsec"].astype(float), selfcal=sc,
+                    optical_radius_mm=bench.optical_radius_mm, L1_mm=bench.L1_mm, L2_mm=bench.L2_mm,
+                    grating_period_um=bench.grating_period_um, encoder_lines=bench.encoder_lines,
+                    radial_term=bench.radial_term, sphere_form_um=bench.sphere_form_um,
+                    u_floor_arcsec=bench.u_floor_arcsec)
 
 
 def _replace_alpha(ev: Evidence, alpha: np.ndarray) -> Evidence:

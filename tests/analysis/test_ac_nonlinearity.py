@@ -25,7 +25,7 @@ from benchtwin.analysis.dataset import DatasetWriter, open_dataset
 from benchtwin.analysis.pipeline import (_setup_error_lookup, corrected_polygon, polygon_table, reading_response,
                                          step_polygon)
 from benchtwin.analysis.steps import TraceOutcome
-from benchtwin.analysis.tracing import evidence_from_polygon, trace
+from benchtwin.analysis.tracing import BenchContext, SelfCalCurve, evidence_from_polygon, trace
 
 N_FACES = 24
 HEADS_DEG = [0.0, 120.0, 240.0]
@@ -83,9 +83,10 @@ def _loop(root: Path):
     poly = polygon_table(ds)
     sc = pol.selfcal_error_arcsec
     ev = evidence_from_polygon(
-        poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), _Model(), n_faces=N_FACES, u_arcsec=NOISE_ARCSEC, selfcal_theta_deg=sc["theta_deg"],
-        selfcal_value_arcsec=sc["value"], selfcal_u_arcsec=np.asarray(sc["u"]), n_heads=len(HEADS_DEG),
-        optical_radius_mm=22.0, L1_mm=6.81, L2_mm=122.96, grating_period_um=20.0, u_floor_arcsec=0.05)
+        poly, pol.pitch_deviation_arcsec, _setup_error_lookup(pol), _Model(),
+        BenchContext(n_faces=N_FACES, u_arcsec=NOISE_ARCSEC,
+                     selfcal=SelfCalCurve(sc["theta_deg"], sc["value"], np.asarray(sc["u"]), len(HEADS_DEG)),
+                     optical_radius_mm=22.0, L1_mm=6.81, L2_mm=122.96, grating_period_um=20.0, u_floor_arcsec=0.05))
     ev.ac_quadratic_response = reading_response(poly, pol, np.asarray(poly["ac_arcsec"], dtype=float) ** 2, N_FACES)
     tr = TraceOutcome.from_trace(trace(ev))
     return pol, tr, corrected_polygon(ds, poly, pol, tr, ev)

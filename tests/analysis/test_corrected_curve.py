@@ -64,7 +64,7 @@ def test_reading_response_is_the_shift_angle_analysis_of_the_perturbation():
     from benchtwin.analysis.pipeline import _setup_error_lookup, reading_response
     from benchtwin.analysis.results import AutocollimatorDeclared
     from benchtwin.analysis.steps import PolygonAnalysis
-    from benchtwin.analysis.tracing import evidence_from_polygon
+    from benchtwin.analysis.tracing import BenchContext, evidence_from_polygon
 
     rng = np.random.default_rng(2)
     N = 7
@@ -84,7 +84,7 @@ def test_reading_response_is_the_shift_angle_analysis_of_the_perturbation():
                                             AutocollimatorDeclared(resolution_arcsec=0.001, accuracy_arcsec=0.05,
                                                                    source="test"), {}, [])
         ev = evidence_from_polygon(cols, pol.pitch_deviation_arcsec, _setup_error_lookup(pol),
-                                   lambda t: {}, n_faces=N)
+                                   lambda t: {}, BenchContext(n_faces=N))
         return ev.alpha_arcsec, cols, pol
 
     a1, cols, pol = alpha(eps)

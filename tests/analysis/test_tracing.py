@@ -276,15 +276,15 @@ def test_docs_list_every_effect_and_threshold():
 
 def test_evidence_from_polygon_table():
     """Adapter from polygon.csv columns + β + U (Hsieh eqs. 3, 7) to Evidence: α = ε − Σβ − U."""
-    from benchtwin.analysis.tracing import RadialMotion, evidence_from_polygon
+    from benchtwin.analysis.tracing import BenchContext, RadialMotion, evidence_from_polygon
 
     ev, truth = make_evidence(np.random.default_rng(51), start_faces=[1, 7, 20], directions=(1, -1))
     cols = {"shift_deg": ev.shift_deg, "start_face": ev.start_face, "step": ev.step, "theta_deg": ev.theta_deg,
             "ac_arcsec": ev.ac_arcsec, "t_s": ev.t_s, "direction": np.where(ev.direction > 0, "forward", "backward")}
     U = {(float(s), int(j)): float(u) for s, j, u in zip(ev.shift_deg, ev.start_face, truth["U"])}
     radial = RadialMotion(truth["grid_deg"], truth["top_um"], truth["bottom_um"], 6.81, 122.96)
-    ev2 = evidence_from_polygon(cols, truth["beta"], U, truth["model_terms"], n_faces=23, radial=radial,
-                                encoder_lines=36000)
+    ev2 = evidence_from_polygon(cols, truth["beta"], U, truth["model_terms"],
+                                BenchContext(n_faces=23, radial=radial, encoder_lines=36000))
     np.testing.assert_allclose(ev2.alpha_arcsec, truth["alpha_true"], atol=1e-9)
     np.testing.assert_array_equal(ev2.direction, ev.direction)
     np.testing.assert_array_equal(ev2.face, ev.face)
