@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
 
 import numpy as np
 
@@ -16,7 +18,12 @@ import numpy as np
 # cores). Run them on one thread and restore the setting afterwards (no-op if not found).
 # ----------------------------------------------------------------------------------------------
 
-def _openblas():
+#: OpenBLAS's (get_num_threads, set_num_threads)
+_Threads = tuple[Any, Any]
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _openblas() -> _Threads | None:
     import ctypes
     import glob
 
@@ -35,10 +42,11 @@ def _openblas():
     return None
 
 
-_BLAS = None
+#: None: not looked up yet; False: not found (no-op)
+_BLAS: _Threads | bool | None = None
 
 
-def _one_blas_thread(fn):
+def _one_blas_thread(fn: _F) -> _F:
 
     @functools.wraps(fn)
     def wrapper(*a, **k):
@@ -48,7 +56,7 @@ def _one_blas_thread(fn):
                 _BLAS = _openblas() or False
             except Exception:  # pragma: no cover - platform specific
                 _BLAS = False
-        if not _BLAS:
+        if not isinstance(_BLAS, tuple):      # False: no OpenBLAS found
             return fn(*a, **k)
         get, set_ = _BLAS
         n = int(get())
@@ -57,4 +65,4 @@ def _one_blas_thread(fn):
             return fn(*a, **k)
         finally:
             set_(n)
-    return wrapper
+    return cast(_F, wrapper)

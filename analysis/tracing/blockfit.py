@@ -37,6 +37,7 @@ reference. Within the bound both answer the same problem to ~κ·ε (measured on
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
@@ -155,6 +156,12 @@ def _kappa(ncols: int, p: int, a_S: float, a_E: float, c_E: float, d: float, c_X
     return math.sqrt(max(ncols, 1)) * (a_N + d + a_N * c * d)
 
 
+def _qr_r(a: np.ndarray) -> np.ndarray:
+    """R of the QR factorisation of ``a`` (numpy's ``mode="r"``, which returns the array R; numpy's
+    stubs type every mode as the (Q, R) result)."""
+    return cast(np.ndarray, np.linalg.qr(a, mode="r"))
+
+
 def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.ndarray | None) -> dict | None:
     """The fit of X (and the regressor block ``extra``) on the training set of F, or None when the
     bound on the reference's condition number cannot rule out its truncations (use the reference)."""
@@ -167,7 +174,7 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     else:
         sx, Xs, Xt = np.zeros(0), np.zeros((F.m, 0)), np.zeros((F.m + F.q, 0))
     a_E, c_E, K, Ks, Uw, gain = 0.0, 0.0, None, None, None, 0.0
-    if mE:
+    if extra is not None and mE:
         K = basis.coefficients(extra)
         if K is None:
             return None
@@ -180,7 +187,7 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
         a_E = float(se.max())
         Ks = K / se
         c_E = gain * float(np.linalg.norm(Ks))      # ‖·‖₂ ≤ ‖·‖_F
-        L = np.linalg.qr(K.T, mode="r").T if K.size else np.zeros((K.shape[0], 0))     # L·Lᵀ = K·Kᵀ
+        L = _qr_r(K.T).T if K.size else np.zeros((K.shape[0], 0))     # L·Lᵀ = K·Kᵀ
         Et = Ut @ L
         r = Et.shape[1]
         Z = np.vstack([np.hstack([Et, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
@@ -192,7 +199,7 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     if k:
         # R of [Z, b̃]: R_Z and Q_Zᵀ·b̃ in one factorisation, no Q formed (numpy's LAPACK throughout:
         # scipy's has its own BLAS threads, outside trace's one-thread guard)
-        Rb = np.linalg.qr(np.hstack([Z, bt[:, None]]), mode="r")
+        Rb = _qr_r(np.hstack([Z, bt[:, None]]))
         R2 = Rb[:k, :k]
         if not np.all(np.diag(R2) != 0):
             return None
@@ -207,7 +214,7 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
         d = float(np.linalg.norm(Gx))       # ‖R_X⁻¹‖₂ ≤ ‖R_X⁻¹‖_F
         if not _kappa(ncols, p, F.a, a_E, c_E, d) <= KAPPA_MAX:
             # the Frobenius norms may overstate by up to √(rank): the 2-norms (small SVDs) decide
-            c_E = gain * float(np.linalg.norm(Ks, 2)) if mE else 0.0
+            c_E = gain * float(np.linalg.norm(Ks, 2)) if Ks is not None else 0.0      # Ks: with E (mE > 0)
             c_X = math.sqrt(float(np.linalg.eigvalsh(Xs.T @ Xs)[-1]))      # ‖X_s‖₂ ≤ √p
             if not _kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX:
                 return None
@@ -215,5 +222,5 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     elif not _kappa(ncols, 0, F.a, a_E, c_E, 0.0) <= KAPPA_MAX:
         return None
     rd = res[: F.m]     # the weighted data residual: ν = S_wᵀ·r, μ = E_wᵀ·r (prior stationarity)
-    nuis = F.Sw.T @ rd if K is None else np.concatenate([F.Sw.T @ rd, K.T @ (Uw.T @ rd)])
+    nuis = F.Sw.T @ rd if K is None or Uw is None else np.concatenate([F.Sw.T @ rd, K.T @ (Uw.T @ rd)])
     return {"beta": gam[r:] / sx if p else np.zeros(0), "cov": cov, "nuis": nuis, "chi2": float(res @ res), "k": p}

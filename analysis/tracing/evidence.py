@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from benchtwin.units import ARCSEC_PER_RAD
 from ..radial_motion import RadialMotion
@@ -100,8 +101,8 @@ class Evidence:
     face: np.ndarray | None = None
     n_faces: int = 23
     optical_radius_mm: float = 22.0
-    L1_mm: float = 6.81
-    L2_mm: float = 122.96
+    L1_mm: float | None = 6.81      # None: not stated (a bench without radial probes)
+    L2_mm: float | None = 122.96
     grating_period_um: float | None = 20.0
     encoder_lines: int | None = None
     radial: RadialMotion | None = None
@@ -304,8 +305,8 @@ class BenchContext:
     radial: RadialMotion | None = None
     selfcal: SelfCalCurve | None = None
     optical_radius_mm: float = Evidence.optical_radius_mm
-    L1_mm: float = Evidence.L1_mm
-    L2_mm: float = Evidence.L2_mm
+    L1_mm: float | None = Evidence.L1_mm
+    L2_mm: float | None = Evidence.L2_mm
     grating_period_um: float | None = Evidence.grating_period_um
     encoder_lines: int | None = Evidence.encoder_lines
     radial_term: str | None = Evidence.radial_term
@@ -313,7 +314,7 @@ class BenchContext:
     u_floor_arcsec: float | None = Evidence.u_floor_arcsec
 
 
-def evidence_from_polygon(columns: dict[str, Any], beta_arcsec: np.ndarray, setup_error_arcsec: SetupErrors,
+def evidence_from_polygon(columns: dict[str, Any], beta_arcsec: ArrayLike, setup_error_arcsec: SetupErrors,
                           model: Any, bench: BenchContext) -> Evidence:
     """Evidence from the polygon table (dataset ``polygon.csv`` columns) and the shift-angle results.
 

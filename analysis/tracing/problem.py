@@ -18,7 +18,7 @@ import numpy as np
 from benchtwin.units import ARCSEC_PER_RAD
 from ..distributions import chi2_logsf, norm_isf
 from .blockfit import NuisanceFactor, RangeBasis, block_fit
-from .evidence import Evidence
+from .evidence import Evidence, column
 from .thresholds import MAX_CV_FOLDS
 
 
@@ -82,20 +82,26 @@ class _Problem:
     """Rows: the polygon readings (closure-centred) and, optionally, the self-calibration curve
     (centred, harmonics that are multiples of the head count projected out)."""
 
+    #: the digest of ``y`` the memo and the factorisations are keyed on (set with y, __setattr__)
+    _y_key: tuple | None
+    #: −δX_async/r nuisance columns, computed once (:meth:`_async_nuisance`)
+    _async_cache: np.ndarray | None = None
+
     def __init__(self, ev: Evidence, use_selfcal: bool = True):
         self.ev = ev
         n = ev.n
         self.view = ev.selfcal_view() if use_selfcal else None
-        w_a = 1.0 / ev.u_arcsec
+        w_a = 1.0 / column(ev.u_arcsec)
         self.n_alpha = n
-        y_a = _center(ev.residual_arcsec, ev.closure_group, w_a ** 2)
-        self.n_groups = int(ev.closure_group.max()) + 1
-        sens_keys = sorted(ev.model_sensitivity) if ev.model_sensitivity else []
-        S_a = (np.column_stack([ev.model_sensitivity[k] for k in sens_keys]) if sens_keys else np.zeros((n, 0)))
+        y_a = _center(ev.residual_arcsec, column(ev.closure_group), w_a ** 2)
+        self.n_groups = int(column(ev.closure_group).max()) + 1
+        sens = ev.model_sensitivity or {}
+        sens_keys = sorted(sens)
+        S_a = (np.column_stack([sens[k] for k in sens_keys]) if sens_keys else np.zeros((n, 0)))
         S_a = np.hstack([S_a, self._radial_nuisance(ev)])
-        S_a = _center(S_a, ev.closure_group, w_a ** 2) if S_a.shape[1] else S_a
-        if self.view is not None:
-            sc = ev.selfcal
+        S_a = _center(S_a, column(ev.closure_group), w_a ** 2) if S_a.shape[1] else S_a
+        sc = ev.selfcal
+        if self.view is not None and sc is not None:     # a view exists only with a self-calibration
             m = self.view.theta_deg.size
             w_s = np.broadcast_to(1.0 / np.asarray(sc.u_arcsec, dtype=float), (m,)).astype(float)
             th = np.deg2rad(self.view.theta_deg)
@@ -155,8 +161,9 @@ class _Problem:
         of the polygon's revolution is unmeasured along X; its size along Y (``RadialMotion.async_rms``,
         isotropic) sets one random offset per stop position and polygon rep (the stops sample it
         at their angles; its spectrum reaches far beyond the polygon's harmonics and aliases)."""
-        if getattr(self, "_async_cache", None) is not None:
-            return self._async_cache
+        cached = self._async_cache
+        if cached is not None:
+            return cached
         a = ev.radial.async_rms("dY_um") if ev.radial is not None else {}
         self.async_info = a
         sg = float(a.get("sigma_um", 0.0)) if a else 0.0
@@ -180,7 +187,7 @@ class _Problem:
             R_a = np.asarray(fn(self.ev, P, ctx), dtype=float)
             if R_a.shape[1] == 0:
                 continue
-            R_a = self._center_screening(R_a) if self.fast else _center(R_a, self.ev.closure_group, self.w[: self.ev.n] ** 2)
+            R_a = self._center_screening(R_a) if self.fast else _center(R_a, column(self.ev.closure_group), self.w[: self.ev.n] ** 2)
             if self.view is not None:
                 R_s = self._filt(np.asarray(fn(self.view, P, ctx), dtype=float)) if mod.SEEN_BY_SELFCAL else \
                     np.zeros((self.n_rows - self.ev.n, R_a.shape[1]))
@@ -193,12 +200,12 @@ class _Problem:
         same columns to rounding (not the same bits), for the screening's regressor blocks, which
         are centred per candidate; the reported fits centre them with :func:`_center`."""
         if getattr(self, "_mean_op", None) is None:
-            g, w2 = self.ev.closure_group, self.w[: self.ev.n] ** 2
+            g, w2 = column(self.ev.closure_group), self.w[: self.ev.n] ** 2
             M = np.zeros((int(g.max()) + 1, g.size))
             M[g, np.arange(g.size)] = w2
             sw = M.sum(axis=1)
             self._mean_op = M / np.where(sw > 0, sw, 1.0)[:, None]
-        return x - (self._mean_op @ x)[self.ev.closure_group]
+        return x - (self._mean_op @ x)[column(self.ev.closure_group)]
 
     def _filt(self, x):
         x2 = x if x.ndim == 2 else x[:, None]
@@ -240,7 +247,7 @@ class _Problem:
         ev = self.ev
         X_a, names = module.design(ev, ctx)
         X_a = np.asarray(X_a, dtype=float).reshape(ev.n, -1)
-        X_a = _center(X_a, ev.closure_group, self.w[: ev.n] ** 2) if X_a.shape[1] else X_a
+        X_a = _center(X_a, column(ev.closure_group), self.w[: ev.n] ** 2) if X_a.shape[1] else X_a
         if self.view is None:
             return X_a, list(names)
         m = self.view.theta_deg.size
@@ -314,7 +321,7 @@ class _Problem:
             scale = np.linalg.norm(A, axis=0)
             scale[scale == 0] = 1.0
             As = A / scale
-            sol, _, rank, sv = np.linalg.lstsq(As, b, rcond=None)
+            sol = np.linalg.lstsq(As, b, rcond=None)[0]
             beta_all = sol / scale
         else:
             beta_all = np.zeros(0)

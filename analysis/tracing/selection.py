@@ -4,7 +4,17 @@ Each candidate alone and in pairs: weighted least squares, BIC and AICc, leave-o
 cross-validation, significance gates against over-fitting (``Z_GATE``, ``DBIC_GATE``, ``F_SIG``,
 ``SIZE_GATE``); ambiguity sets with the separating measurement; "unexplained" when nothing brings the
 residual down to the noise. :func:`trace` runs the whole chain (significance, signature, selection)
-and returns the tracing result with the model file payload.
+and returns the tracing result with the model file payload, as a model-selection pipeline whose
+stages run once each, in this order, and hand small frozen dataclasses on:
+
+1. evidence (:func:`_residual_stage` → :class:`_Residual`): anything to explain?
+2. candidates (:func:`_candidate_stage` → :class:`_Candidates`): each effect's variants, or why not;
+3. fit and select (:func:`_select` → :class:`_Selection`): screening fits and the no-effect
+   baseline (:class:`_Gates`), the gates with the cross-validation folds (:func:`_gate`), each
+   effect's best variant, the pairs, the representative of the best;
+4. report (:class:`_Reporter`, :func:`_result_head`): the reference solver's numbers;
+5. ambiguity sets (:func:`_ambiguity`): what the data cannot tell apart, and what would;
+6. outcome (:func:`_explained` / :func:`_unexplained`): the residual after, status, model file.
 """
 
 from __future__ import annotations
@@ -532,8 +542,8 @@ def _pairs(variants: list[_Cand], g: _Gates) -> list[_Cand]:
     best_pair: dict[tuple, _Cand] = {}
     for c in pairs:
         key = tuple(sorted(c.names))
-        b = best_pair.get(key)
-        if b is None or _better(c, b, g.tie_tol_chi2, g.order, flag=lambda x: x.passed or x.equivalent):
+        best = best_pair.get(key)
+        if best is None or _better(c, best, g.tie_tol_chi2, g.order, flag=lambda x: x.passed or x.equivalent):
             best_pair[key] = c
     return list(best_pair.values())
 

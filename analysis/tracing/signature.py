@@ -14,7 +14,7 @@ import numpy as np
 from ..distributions import chi2_isf, chi2_sf, norm_isf, t_sf
 from ..fourier import evaluate_harmonics, fit_harmonics
 from ._blas import _one_blas_thread
-from .evidence import Evidence
+from .evidence import Evidence, column
 from .problem import _Problem, _center, _rms, _z_from_chi2
 from .significance import _nested, _one_column, harmonic_test
 from .thresholds import DBIC_GATE, P_SIG, SIZE_GATE, Z_GATE
@@ -28,8 +28,8 @@ def _free_of_theta(pb: _Problem, col: np.ndarray) -> np.ndarray:
     """The closure-centred column with every function of the stop position θ removed (weighted)."""
     ev = pb.ev
     w2 = pb.w[: ev.n] ** 2
-    x = _center(col, ev.closure_group, w2)
-    D = _center(_dummies(ev.theta_bin), ev.closure_group, w2)
+    x = _center(col, column(ev.closure_group), w2)
+    D = _center(_dummies(ev.theta_bin), column(ev.closure_group), w2)
     sw = np.sqrt(w2)
     beta, *_ = np.linalg.lstsq(D * sw[:, None], x * sw, rcond=None)
     out = x - D @ beta
@@ -81,8 +81,8 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     th = np.deg2rad(ev.theta_deg)
     tt = (t - t.mean()) / T
     H = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
-    X0 = _center(H, ev.closure_group, pb.w ** 2)
-    X1 = _center(H * tt[:, None], ev.closure_group, pb.w ** 2)
+    X0 = _center(H, column(ev.closure_group), pb.w ** 2)
+    X1 = _center(H * tt[:, None], column(ev.closure_group), pb.w ** 2)
     f0, f1 = pb.fit(X0), pb.fit(np.hstack([X0, X1]))
     d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
     if k <= 0:
@@ -109,8 +109,8 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
     th = np.deg2rad(ev.theta_deg)
     H = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
     coef, times = [], []
-    for g in np.unique(ev.closure_group):
-        m = ev.closure_group == g
+    for g in np.unique(column(ev.closure_group)):
+        m = column(ev.closure_group) == g
         if int(m.sum()) < H.shape[1] + 2:
             continue
         A = np.column_stack([np.ones(int(m.sum())), H[m]]) * w[m, None]
@@ -195,7 +195,7 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
     if not d["available"]:
         sig["drift"]["reason"] = "the reading order follows θ in every run: a drift cannot be told from a θ pattern"
     # repetition: synchronous (same at the same θ in every rep) or not
-    if np.unique(ev.rep).size >= 2:
+    if np.unique(column(ev.rep)).size >= 2:
         cell = ev.theta_bin * 10 + ev.approach
         inv = np.unique(cell, return_inverse=True)[1]
         w2 = pb.w ** 2
@@ -204,31 +204,31 @@ def signature(ev: Evidence, harmonics: list[dict] | None = None, time_ks: list[i
         chi2 = float(np.sum(w2 * dev ** 2))
         dof = max(ev.n - inv.max() - 1, 1)
         p = float(chi2_sf(chi2, dof))
-        sig["repetition"] = {"available": True, "n_reps": int(np.unique(ev.rep).size), "synchronous_rms_arcsec": _rms(m[inv]),
+        sig["repetition"] = {"available": True, "n_reps": int(np.unique(column(ev.rep)).size), "synchronous_rms_arcsec": _rms(m[inv]),
                              "asynchronous_rms_arcsec": _rms(dev), "chi2_async": chi2, "dof": int(dof), "p_value": p,
                              "synchronous": bool(p >= P_SIG)}
     else:
         sig["repetition"] = {"available": False, "reason": "one repetition"}
     # polygon-related: a pattern fixed to the face (moves with the start face)?
-    base = _center(_dummies(ev.theta_bin * 10 + ev.approach), ev.closure_group, pb.w ** 2)
-    if np.unique(ev.start_face).size >= 2:
-        fx = _center(_dummies(ev.face), ev.closure_group, pb.w ** 2)
+    base = _center(_dummies(ev.theta_bin * 10 + ev.approach), column(ev.closure_group), pb.w ** 2)
+    if np.unique(column(ev.start_face)).size >= 2:
+        fx = _center(_dummies(column(ev.face)), column(ev.closure_group), pb.w ** 2)
         sig["start_face"] = {"test": "face pattern beyond the θ pattern", **_nested(pb, base, fx)}
     else:
         sig["start_face"] = {"available": False, "reason": "one start face: face ≡ θ"}
     # shift: does the θ pattern depend on the shift angle (beyond a function of θ)?
-    shifts = np.unique(np.round(ev.shift_deg, 6))
+    shifts = np.unique(np.round(column(ev.shift_deg), 6))
     if shifts.size >= 2:
         kk = range(1, max(1, (int(ev.n_faces) - 1) // 2) + 1)
         th = np.deg2rad(ev.theta_deg)
         H = np.column_stack([f(k * th) for k in kk for f in (np.sin, np.cos)])
-        Hs = np.column_stack([H * (np.round(ev.shift_deg, 6) == s)[:, None] for s in shifts[1:]])
+        Hs = np.column_stack([H * (np.round(column(ev.shift_deg), 6) == s)[:, None] for s in shifts[1:]])
         sig["shift"] = {"test": "harmonics 1…(N−1)/2 differing between shifts",
-                        **_nested(pb, _center(H, ev.closure_group, pb.w ** 2), _center(Hs, ev.closure_group, pb.w ** 2))}
+                        **_nested(pb, _center(H, column(ev.closure_group), pb.w ** 2), _center(Hs, column(ev.closure_group), pb.w ** 2))}
     else:
         sig["shift"] = {"available": False, "reason": "one shift angle"}
     # direction of rotation: of the approach to each stop (a hysteresis follows the last move)
-    dd = _one_column(pb, ev.approach.astype(float), "direction")
+    dd = _one_column(pb, column(ev.approach).astype(float), "direction")
     sig["direction"] = {"half_difference_arcsec": dd.get("gain"), "u": dd.get("u"), "z": dd.get("z"),
                         "rms_arcsec": dd.get("rms_arcsec"),
                         "significant": dd.get("significant", False), "available": dd["available"]}

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..distributions import chi2_sf
 from ._blas import _one_blas_thread
-from .evidence import Evidence
+from .evidence import Evidence, column
 from .problem import _Problem, _center, _rms, _z_from_chi2
 from .thresholds import P_SIG, Z_GATE
 
@@ -27,7 +27,7 @@ def residual_test(ev: Evidence) -> dict:
     r = pb.y[: ev.n]
     chi2, dof = pb.null["chi2"], pb.null["dof"]
     return {"rms_arcsec": _rms(r), "pv_arcsec": float(np.ptp(r)) if r.size else 0.0,
-            "fraction_of_error": _rms(r) / max(_rms(_center(ev.alpha_arcsec, ev.closure_group, 1 / ev.u_arcsec ** 2)), 1e-300),
+            "fraction_of_error": _rms(r) / max(_rms(_center(ev.alpha_arcsec, column(ev.closure_group), 1 / column(ev.u_arcsec) ** 2)), 1e-300),
             "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
 
 
@@ -39,7 +39,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
     ks = list(range(1, ev.kmax + 1))
     th = np.deg2rad(ev.theta_deg)
     X = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
-    X = _center(X, ev.closure_group, pb.w ** 2)
+    X = _center(X, column(ev.closure_group), pb.w ** 2)
     fit = pb.fit(X)
     scale = max(1.0, fit["chi2"] / fit["dof"])
     out = []
@@ -62,7 +62,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
 
 def _one_column(pb: _Problem, col: np.ndarray, name: str) -> dict:
     ev = pb.ev
-    X = _center(np.asarray(col, dtype=float)[:, None], ev.closure_group, pb.w ** 2)
+    X = _center(np.asarray(col, dtype=float)[:, None], column(ev.closure_group), pb.w ** 2)
     if not np.any(np.abs(X) > 1e-12 * (np.max(np.abs(col)) + 1e-300)):
         return {"available": False, "reason": f"{name}: no variation inside the closure groups"}
     fit = pb.fit(X)
