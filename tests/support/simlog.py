@@ -49,10 +49,13 @@ def pytest_collection_finish(session) -> None:
 
     run = S._simulate
 
-    def logged(sc, out, progress, backend, *a, **kw):
+    def logged(sc, *a, **kw):
+        # _simulate(sc, opts) with opts.backend (an older signature: sc, out, progress, backend, ...)
+        opts = a[0] if a else kw.get("opts")
+        backend = getattr(opts, "backend", a[2] if len(a) > 2 else kw.get("backend", "analytic"))
         t0, c0, k0 = time.perf_counter(), time.process_time(), _children_cpu_s()
         try:
-            return run(sc, out, progress, backend, *a, **kw)
+            return run(sc, *a, **kw)
         finally:
             _log(path, {"what": "simulate", "scenario": scenario_key(sc, backend), "name": sc.name,
                         "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3),
