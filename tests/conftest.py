@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import functools
 import os
-import shutil
 from pathlib import Path
 
 import pytest
@@ -160,32 +159,37 @@ def datasets(tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture(scope="session")
-def jia_results(tmp_path_factory, datasets) -> Path:
+def jia_results(datasets) -> Path:
     """A reduced jia2019 run (the dataset tests/analysis/test_parallel_frames.py analyses too)."""
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.twin.scenario import load_scenario
 
     sc = load_scenario().with_overrides({"procedure.radial_positions": 36, "procedure.ccd_step": "12 deg"})
-    base = tmp_path_factory.mktemp("cert_jia")
-    ds = datasets.copy(sc, base / "ds", ignore=("truth",))  # the certificate is made without ground truth
-    analyze(ds, base / "out", progress=False, close_loop=True)
-    return base / "out" / "results.json"
+
+    def make(base: Path) -> None:
+        ds = datasets.copy(sc, base / "ds", ignore=("truth",))  # the certificate is made without ground truth
+        analyze(ds, base / "out", progress=False, close_loop=True)
+
+    # analysed once per run, by one xdist worker (the modules reading it run on either): read-only
+    return datasets.shared("jia_results: jia2019 36 positions, ccd_step 12 deg, close_loop, no truth", make) \
+        / "out" / "results.json"
 
 
 @pytest.fixture(scope="session")
-def hsieh_results(tmp_path_factory) -> Path:
+def hsieh_results(datasets) -> Path:
     """hsieh2022 reduced: 12 heads and self-calibration kept, fewer shifts, faces and stops, no CCD
     sweep worth the time (the eccentricity is covered by the jia run)."""
     from benchtwin.analysis.pipeline import analyze
     from benchtwin.twin.scenario import load_scenario
-    from benchtwin.twin.simulate import simulate
 
     sc = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "hsieh2022.toml").with_overrides({
         "procedure.radial_positions": 36, "procedure.radial_reps": 2, "procedure.polygon_shifts": ["0 deg", "5 deg", "10 deg"],
         "procedure.polygon_reps": 1, "procedure.ccd_step": "12 deg", "procedure.selfcal_step": "15 deg",
         "procedure.directions": ["forward"], "bench.polygon_faces": 12})
-    base = tmp_path_factory.mktemp("cert_hsieh")
-    ds = simulate(sc, base / "ds", progress=False, backend="analytic")
-    shutil.rmtree(ds / "truth")
-    analyze(ds, base / "out", progress=False, close_loop=True)
-    return base / "out" / "results.json"
+
+    def make(base: Path) -> None:
+        ds = datasets.copy(sc, base / "ds", ignore=("truth",))
+        analyze(ds, base / "out", progress=False, close_loop=True)
+
+    # simulated and analysed once per run, by one xdist worker (the modules reading it run on either)
+    return datasets.shared("hsieh_results: hsieh2022 reduced, close_loop, no truth", make) / "out" / "results.json"

@@ -82,3 +82,55 @@ def test_processes_of_one_run_share_one_simulation(tmp_path):
     assert [p.exitcode for p in procs] == [0, 0]
     assert log.read_text().count("\n") == 1
     assert (tmp_path / "cache" / scenario_key(small_scenario()) / "ds" / "manifest.json").is_file()
+
+
+def _made_by(log: Path, pause_s: float = 0.0):
+    """A ``make`` for ``DatasetFactory.shared`` that writes out/results.json and logs each call."""
+
+    def make(base: Path) -> None:
+        with open(log, "a") as fh:
+            fh.write(f"{os.getpid()}\n")
+        (base / "out").mkdir()
+        time.sleep(pause_s)
+        (base / "out" / "results.json").write_text("{}")
+
+    return make
+
+
+def test_a_shared_folder_is_made_once_and_checked_read_only(tmp_path):
+    """``shared(name, make)`` (the session's analysed runs): made once, in place, then handed out;
+    a left-over without its completion mark is made again; a write into it is named."""
+    log = tmp_path / "calls.log"
+    f = DatasetFactory(tmp_path / "cache")
+    a = f.shared("an analysis", _made_by(log))
+    assert f.shared("an analysis", _made_by(log)) == a and (a / "out" / "results.json").is_file()
+    assert log.read_text().count("\n") == 1
+    b = f.shared("another analysis", _made_by(log))
+    assert b != a and log.read_text().count("\n") == 2
+    (b / ".complete").unlink()                               # as if its maker had been killed
+    (b / "out" / "stale").write_text("x")
+    g = DatasetFactory(tmp_path / "cache")
+    assert g.shared("another analysis", _made_by(log)) == b and not (b / "out" / "stale").exists()
+    assert log.read_text().count("\n") == 3
+    assert f.verify() == [] and g.verify() == []
+    (a / "out" / "results.json").write_text("changed")       # writing into a shared one is named
+    assert f.verify() == [str(a)]
+
+
+def _ask_shared(root: str, log: str) -> None:
+    DatasetFactory(Path(root)).shared("an analysis", _made_by(Path(log), pause_s=0.5))
+
+
+def test_processes_of_one_run_share_one_made_folder(tmp_path):
+    """Two xdist workers asking for the same shared folder at once: one makes it, the other waits."""
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("needs fork")
+    log = tmp_path / "calls.log"
+    ctx = mp.get_context("fork")
+    procs = [ctx.Process(target=_ask_shared, args=(str(tmp_path / "cache"), str(log))) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(60)
+    assert [p.exitcode for p in procs] == [0, 0]
+    assert log.read_text().count("\n") == 1

@@ -26,6 +26,7 @@ import hashlib
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 from benchtwin.twin.scenario import Scenario
@@ -73,6 +74,28 @@ class DatasetFactory:
         shutil.copytree(src, dest, ignore=shutil.ignore_patterns(*ignore) if ignore else None)
         return Path(dest)
 
+    def shared(self, name: str, make: Callable[[Path], None]) -> Path:
+        """A folder made once per test run by ``make(folder)`` (the first asker's; the others, other
+        xdist workers included, wait on the lock and read it), e.g. an analysis of a dataset that
+        several test modules read. Shared and read-only as ``dataset``'s: checked by ``verify``.
+        ``name`` must say what is made (the folder is found by it alone)."""
+        key = "shared-" + hashlib.sha256(name.encode()).hexdigest()[:20]
+        final = self.root / key / "made"
+        if not (final / ".complete").is_file():
+            with open(self.root / f"{key}.lock", "a") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if not (final / ".complete").is_file():
+                    # made in place (what it writes may name its own paths); a killed maker's leftovers
+                    # are removed by the next asker, who finds no .complete
+                    shutil.rmtree(final, ignore_errors=True)
+                    final.mkdir(parents=True)
+                    make(final)
+                    (final / ".complete").write_text(name)
+                    (final.parent / FINGERPRINT).write_text(json.dumps(_fingerprint(final)))
+                    self.simulated.append(key)
+        self.served[key] = self.served.get(key, 0) + 1
+        return final
+
     def _simulate(self, sc: Scenario, backend: str, key: str, final: Path) -> None:
         from benchtwin.twin.simulate import simulate
 
@@ -88,6 +111,7 @@ class DatasetFactory:
         changed = []
         for key in sorted(self.served):
             d = self.root / key
-            if json.loads((d / FINGERPRINT).read_text()) != _fingerprint(d / "ds"):
-                changed.append(str(d / "ds"))
+            made = d / ("made" if key.startswith("shared-") else "ds")
+            if json.loads((d / FINGERPRINT).read_text()) != _fingerprint(made):
+                changed.append(str(made))
         return changed
