@@ -32,7 +32,7 @@ def grad_results(grad_dataset, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def imported_results(tmp_path_factory):
+def imported_results(datasets):
     """The shared Sensors 2024 table (docs/real-data.md) imported with both directions and closed-loop
     through the CLI, as a lab would (~2 s, no simulation): results.json of it."""
     from pathlib import Path
@@ -42,11 +42,14 @@ def imported_results(tmp_path_factory):
     table = Path(__file__).resolve().parents[3] / "shared" / "realdata" / "sensors2024_24_1400_table6_matrix_encoder_errors.csv"
     if not table.is_file():
         pytest.skip(f"{table} (the shared real-data table) is not beside this checkout")
-    base = tmp_path_factory.mktemp("imported")
-    assert main(["import", str(table), "-o", str(base / "rd"), "--angle", "angle_deg", "--error",
-                 "error_prograde_arcsec", "--reverse", "error_reversal_arcsec", "--quiet"]) == 0
-    assert main(["close-loop", str(base / "rd"), "-o", str(base / "out"), "--quiet"]) == 0
-    return base / "out" / "results.json"
+
+    def make(base: Path) -> None:
+        assert main(["import", str(table), "-o", str(base / "rd"), "--angle", "angle_deg", "--error",
+                     "error_prograde_arcsec", "--reverse", "error_reversal_arcsec", "--quiet"]) == 0
+        assert main(["close-loop", str(base / "rd"), "-o", str(base / "out"), "--quiet"]) == 0
+
+    # made once per run, by one xdist worker (the four modules reading it run on either): read-only
+    return datasets.shared(f"imported_results: {table.name} import + close-loop", make) / "out" / "results.json"
 
 
 @pytest.fixture()
