@@ -35,12 +35,14 @@ def _decision(res: dict) -> dict:
 
 @pytest.fixture(scope="module")
 def fast_runs(tmp_path_factory):
-    """The FAST cases on seed 1, written and analysed once: {name: (dataset, results, truth)}."""
+    """The FAST cases on seed 1, written and analysed once: {name: (dataset, results, truth)}. The
+    analysis in memory (``out`` None: no report drawn; its tests read the results only; results.json
+    as written is checked by ``_run`` in the slow cases and by the pipeline's tests)."""
     root = tmp_path_factory.mktemp("independent")
     out = {}
     for name in FAST:
         ds, truth = write_case(CASES[name], root, 1)
-        res = analyze(ds, root / name / "out", progress=False, close_loop=True)["results"]
+        res = analyze(ds, progress=False, close_loop=True)
         out[name] = (ds, res, truth)
     return out
 
@@ -133,7 +135,7 @@ def test_same_decision_under_1e12_perturbation(name, fast_runs, tmp_path):
     """Principle 6 on a full dataset: the SelfA-like bench's decision (the issue's CV-gate flip)."""
     ds, res, _ = fast_runs[name]
     p = _perturbed_copy(ds, tmp_path / "ds", 1e-12, 7)
-    got = analyze(p, tmp_path / "out", progress=False, close_loop=True)["results"]
+    got = analyze(p, progress=False, close_loop=True)    # in memory: the decision is the test's, not the report
     assert _decision(got) == _decision(res)
 
 
@@ -142,7 +144,7 @@ import json, sys
 from benchtwin.analysis.pipeline import analyze
 out = {{}}
 for name, ds in {jobs!r}.items():
-    r = analyze(ds, ds + ".prescott", progress=False, close_loop=True)["results"]
+    r = analyze(ds, progress=False, close_loop=True)      # in memory: the decision only, no report
     out[name] = r
 print(json.dumps({{n: {{"identified": sorted(e["name"] for e in r.get("identified_effects") or []),
                       "ambiguous": [sorted(a["names"]) for a in r.get("ambiguous") or []],
