@@ -142,11 +142,18 @@ def test_threads_give_the_serial_per_frame_results(small_ds):
     assert serial[0][0] is None  # the fogged frame
 
 
-def test_report_overlay_is_the_steps_own_fit(small_ds):
+@pytest.fixture(scope="module")
+def step_ecc(small_ds):
+    """The eccentricity step on the dataset, in 2 threads (read, never changed, by the two tests below:
+    the same call in each, computed once)."""
+    return step_eccentricity(open_dataset(small_ds), 10, False, workers=2)
+
+
+def test_report_overlay_is_the_steps_own_fit(small_ds, step_ecc):
     """The report draws the first used frame's fit from the step (not found again); it is the fit
     the figure code would recompute from the frame."""
     ds = open_dataset(small_ds)
-    res = step_eccentricity(ds, 10, False, workers=2)
+    res = step_ecc
     own = res.detail["first_frame_fit"]
     assert own["file"] == res.frames.files[0] == "img_001.png"  # img_000 is fogged
     img = ds.read_image(own["file"])
@@ -158,10 +165,10 @@ def test_report_overlay_is_the_steps_own_fit(small_ds):
     assert own["fit"]["d_ref_px"] * res.frames.pixel_um == res.frames.d_ref_um[0]
 
 
-def test_edges_once_equals_the_two_pass_path(small_ds):
+def test_edges_once_equals_the_two_pass_path(small_ds, step_ecc):
     """The former path: pixel scale and d_ref each found the frame's edges themselves."""
     ds = open_dataset(small_ds)
-    new = step_eccentricity(ds, 10, False, workers=2)
+    new = step_ecc
     ccd = ds.manifest["ccd"]
     scales, frames, rejected = [], [], []
     for _k, _theta, image, f in ds.ccd_frames():
