@@ -41,7 +41,9 @@ def _chromium(tmp: Path, *args: str) -> str:
 def _screenshot(html: Path, png: Path) -> np.ndarray:
     from PIL import Image
 
-    _chromium(html.parent, f"--screenshot={png}", f"--window-size={WINDOW[0]},{WINDOW[1]}", html.as_uri())
+    # the browser's profile beside the screenshot, never in the report's folder (the session's
+    # shared analysed run, read-only: tests/conftest.py jia_results)
+    _chromium(png.parent / "shot", f"--screenshot={png}", f"--window-size={WINDOW[0]},{WINDOW[1]}", html.as_uri())
     with Image.open(png) as im:
         return np.asarray(im.convert("RGB"), dtype=int)
 
