@@ -133,8 +133,11 @@ def _radial_rows(a: BenchAnalysis) -> list[list[Any]]:
 
 
 def _add_summary(rep: Any, a: BenchAnalysis, results: BenchResults) -> None:
+    from benchtwin.analysis.report.html import U_CONVENTION
+
     rows, test_notes = _summary_rows(a)
     rep.heading("Summary")
+    rep.paragraph(U_CONVENTION, note=True)
     rep.table(rows, ["quantity", "value"])
     for n in test_notes:
         rep.paragraph(n, note=True)
@@ -205,8 +208,23 @@ def _add_polygon_section(rep: Any, a: BenchAnalysis) -> None:
         add_iso230_2_table(rep, a.iso230_2)
     if pol.budget:
         rep.heading("Uncertainty budget (GUM, Hsieh Table 3)", level=3)
-        rep.table([[r.get("name"), r.get("u"), r.get("sensitivity"), r.get("contribution"), r.get("dof")]
-                   for r in pol.budget], ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
+        rep.table(_budget_rows(pol.budget), ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
+
+
+def _budget_rows(budget: list[dict[str, Any]]) -> list[list[Any]]:
+    """The GUM table's rows as a reader expects them: ν of a type B input with no stated
+    reliability is ∞ (results.json writes it as null), the combined row has no sensitivity (–), and a
+    u that is zero to the arithmetic's precision (below 1e-9 of the combined u, e.g. the setup-error
+    calculation's 1.7e-15″) is shown as 0, not as a 1e-15 that reads like a measured size."""
+    combined = max((abs(float(r["u"])) for r in budget if isinstance(r.get("u"), (int, float))), default=0.0)
+
+    def num(v: Any) -> Any:
+        if isinstance(v, float) and abs(v) < 1e-9 * combined:
+            return 0
+        return v
+
+    return [[r.get("name"), num(r.get("u")), "–" if r.get("sensitivity") is None else r["sensitivity"],
+             num(r.get("contribution")), "∞" if r.get("dof") is None else r["dof"]] for r in budget]
 
 
 # ----------------------------------------------------------------------------- the loop

@@ -67,7 +67,7 @@ def write_error_curve_report(out: Path, ds: Dataset, a: ErrorCurveAnalysis, clos
     import matplotlib
 
     matplotlib.use("Agg")
-    from benchtwin.analysis.report.html import Report
+    from benchtwin.analysis.report.html import U_CONVENTION, Report
 
     rep = Report(f"Encoder error curve — {ds.path.name}")
     imp = ds.manifest.get("import") or {}
@@ -78,6 +78,7 @@ def write_error_curve_report(out: Path, ds: Dataset, a: ErrorCurveAnalysis, clos
 
     add_calibration_section(rep, cal)  # the calibration result first (issue 34)
     rep.heading("Summary")
+    rep.paragraph(U_CONVENTION, note=True)
     rep.table(_summary_rows(a, close_loop), ["quantity", "value"])
     _add_findings(rep, a)
     if a.arc is not None:

@@ -153,7 +153,7 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
     rows = []
     for loc in locs:
         rows.append([loc["label"]] + [
-            value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm").replace(" (standard uncertainty)", "")
+            value_with_u(loc[f"{k}_um"], loc[f"{k}_u_um"], "µm")
             if np.isfinite(loc[f"{k}_um"]) else "– (one revolution)" for k in ("total", "synchronous", "asynchronous")])
     band = f", {iso_band_label(bw)}" if bw else ""
     rep.table(rows, ["location", f"total{band}", f"synchronous{band}", f"asynchronous{band}"])
@@ -162,8 +162,7 @@ def add_iso230_7_section(rep, iso: Mapping, ds=None, filtered: Mapping | None = 
 
         def vu(v: Mapping, k: str) -> str:
             u = v.get(f"{k}_u_um")
-            return value_with_u(v[f"{k}_um"], u if u is not None else float("nan"), "µm").replace(
-                " (standard uncertainty)", "")
+            return value_with_u(v[f"{k}_um"], u if u is not None else float("nan"), "µm")
 
         rep.paragraph("A different quantity, for comparison: the same values of Jia's order-2…10 Fourier series of "
                       "each revolution (eq. 7, orders 2–10 of the revolution: probe noise and motion above order 10 "

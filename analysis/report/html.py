@@ -142,12 +142,18 @@ def _td(v: Any) -> str:
     return f"<td>{html.escape(str(v))}</td>"
 
 
+#: said once where a report's values start (not after each value: issue 34's "printed 40 times")
+U_CONVENTION = "± is the standard uncertainty u (k = 1) wherever no coverage factor k is stated."
+
+
 def value_with_u(x: float, u: float, unit: str, k: float | None = None) -> str:
-    """'7.10 ± 0.05 µm' with u shown to two significant digits and x rounded to match (GUM 7.2.6)."""
+    """'7.10 ± 0.05 µm' with u shown to two significant digits and x rounded to match (GUM 7.2.6).
+    Without ``k`` the ± is the standard uncertainty, which the report states once (``U_CONVENTION``);
+    with ``k`` it is an expanded uncertainty and says so: '… (k = 2)'."""
     import math
 
     if not (math.isfinite(u) and u > 0):
         return f"{x:.4g} {unit}"
     digits = max(0, 1 - int(math.floor(math.log10(u))))
     s = f"{x:.{digits}f} ± {u:.{digits}f} {unit}"
-    return s + (f" (k = {k:g})" if k else " (standard uncertainty)")
+    return s + (f" (k = {k:g})" if k else "")

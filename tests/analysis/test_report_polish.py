@@ -1,0 +1,42 @@
+"""The report reads as a metrologist expects (issue 34, "report polish"): the GUM table shows ν = ∞
+for a type B input and – for the combined row's sensitivity, never "None"; a u that is zero to the
+arithmetic's precision is 0, not 1.651e-15; "(standard uncertainty)" is said once where the values
+start, not after every value."""
+
+from __future__ import annotations
+
+import re
+
+from benchtwin.analysis.report.bench_report import _budget_rows
+from benchtwin.analysis.report.html import U_CONVENTION, value_with_u
+
+
+def test_value_with_u_states_k_only_when_expanded():
+    assert value_with_u(7.1234, 0.0512, "µm") == "7.123 ± 0.051 µm"
+    assert value_with_u(7.1234, 0.0512, "µm", k=2) == "7.123 ± 0.051 µm (k = 2)"
+
+
+def test_budget_rows_show_infinity_dash_and_zero():
+    budget = [
+        {"name": "traceability", "u": 0.005, "sensitivity": 1.0, "contribution": 0.005, "dof": None},
+        {"name": "setup calculation", "u": 1.651e-15, "sensitivity": 1.0, "contribution": 1.651e-15, "dof": 50.0},
+        {"name": "combined standard uncertainty", "u": 0.2394, "sensitivity": None, "contribution": 0.2394,
+         "dof": 250.9},
+    ]
+    rows = _budget_rows(budget)
+    assert rows[0] == ["traceability", 0.005, 1.0, 0.005, "∞"]
+    assert rows[1] == ["setup calculation", 0, 1.0, 0, 50.0]
+    assert rows[2] == ["combined standard uncertainty", 0.2394, "–", 0.2394, 250.9]
+    # a small but real u stays what it is
+    assert _budget_rows([{"name": "x", "u": 1e-4, "sensitivity": 1.0, "contribution": 1e-4, "dof": 9.0},
+                         budget[2]])[0][1] == 1e-4
+
+
+def test_the_analysed_runs_report_says_it_once(hsieh_results):
+    text = re.sub(r"<[^>]+>", " ", (hsieh_results.parent / "report.html").read_text(encoding="utf-8"))
+    assert text.count("(standard uncertainty)") <= 1
+    assert text.count(U_CONVENTION) == 1
+    budget = text[text.index("Uncertainty budget"):]
+    budget = budget[:budget.index("</table>") if "</table>" in budget else 4000]
+    assert not re.search(r"\bNone\b", budget)
+    assert not re.search(r"\de-1\d\b", budget)
