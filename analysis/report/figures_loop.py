@@ -159,12 +159,23 @@ def plot_signature(ev: Evidence, result: dict, path: str | Path | None = None) -
     # vs face under the autocollimator
     b = ax[0, 2]
     faces = np.unique(face)
-    m = np.array([np.average(r[face == f], weights=w2[face == f]) for f in faces])
-    s = np.array([1.0 / np.sqrt(np.sum(w2[face == f])) for f in faces])
-    b.errorbar(faces, m, yerr=s, fmt="o", ms=3, color="C0")
     sf = result["signature"]["start_face"]
-    b.set_title("vs polygon face" + (f" (p = {sf['p_value']:.2g})" if sf.get("p_value") is not None else ""), fontsize=10)
-    b.set_xlabel("face under the autocollimator")
+    if sfs.size < 2:
+        # one start face: the face under the autocollimator is a function of θ, so this panel would
+        # redraw the θ panel in another order (issue 34: a degenerate panel); say why it is empty
+        b.text(0.5, 0.5, "one start face:\nthe face under the autocollimator\nfollows θ, so a face pattern\n"
+               "cannot be told from a θ pattern\n(several start faces can)", ha="center", va="center",
+               fontsize=8, color="0.3", transform=b.transAxes)
+        b.set_xticks([])
+        b.set_yticks([])
+        b.set_title("vs polygon face", fontsize=10)
+    else:
+        m = np.array([np.average(r[face == f], weights=w2[face == f]) for f in faces])
+        s = np.array([1.0 / np.sqrt(np.sum(w2[face == f])) for f in faces])
+        b.errorbar(faces, m, yerr=s, fmt="o", ms=3, color="C0")
+        b.set_title("vs polygon face" + (f" (p = {sf['p_value']:.2g})" if sf.get("p_value") is not None else ""),
+                    fontsize=10)
+        b.set_xlabel("face under the autocollimator")
     # by direction
     c = ax[0, 3]
     th = ev.theta_deg % 360

@@ -40,3 +40,22 @@ def test_the_analysed_runs_report_says_it_once(hsieh_results):
     budget = budget[:budget.index("</table>") if "</table>" in budget else 4000]
     assert not re.search(r"\bNone\b", budget)
     assert not re.search(r"\de-1\d\b", budget)
+
+
+def test_the_face_panel_says_why_it_is_empty_with_one_start_face():
+    import numpy as np
+
+    from benchtwin.analysis.report.figures_loop import plot_signature
+    from benchtwin.analysis.tracing import trace
+    from tests.synthetic.evidence import make_evidence
+
+    def face_panel(start_faces):
+        ev, _ = make_evidence(np.random.default_rng(41), start_faces=start_faces,
+                              inject={"graduation_error": {2: (0.4, 0.3)}})
+        fig = plot_signature(ev, trace(ev))
+        return fig.axes[2]
+
+    one = face_panel([1])
+    assert not one.lines and not one.collections and "one start face" in one.texts[0].get_text()
+    several = face_panel(range(1, 24, 3))
+    assert several.lines and not several.texts   # the errorbar of each face's mean
