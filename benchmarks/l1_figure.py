@@ -8,7 +8,8 @@ synchronous radial motion of the axis in the disk plane that the twin's statics 
 (Bench.disk_plane_motion). Nothing here uses the analysis model: it is the rigid rotor on its two
 bearings, so outside the bearing span the motion grows with the lever arm of the shaft's tilt.
 
-Run: .venv/bin/python benchmarks/l1_figure.py  ->  docs/img/l1_study.png
+Run: .venv/bin/python benchmarks/l1_figure.py [--out PNG]  ->  docs/img/l1_study.png
+(tests/twin/test_doc_figures.py draws it again and compares the pixels)
 """
 
 from __future__ import annotations
@@ -27,7 +28,12 @@ from benchtwin.twin.scenario import load_scenario  # noqa: E402
 OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "l1_study.png"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=OUT, help="the PNG to write (default docs/img/l1_study.png)")
+    out = ap.parse_args(argv).out
     sc = load_scenario().to_dict()
     sc["bearings"]["async_rms"] = 0.0          # the synchronous (repeating) motion only
     zt0 = sc["bench"]["bearing_top_z"]          # -12 mm: the jia2019 design
@@ -69,9 +75,9 @@ def main() -> None:
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
     fig.tight_layout()
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(OUT, dpi=110)
-    print(OUT)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    print(out)
 
 
 if __name__ == "__main__":

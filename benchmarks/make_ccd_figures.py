@@ -7,7 +7,8 @@ Writes
 - docs/img/ccd_binary.png: the same frame binarised with Otsu's threshold (cv2), as in Jia's
   fig. 11b, downscaled with nearest-neighbour so it stays binary.
 
-Usage: ``.venv/bin/python benchmarks/make_ccd_figures.py [--backend auto]``.
+Usage: ``.venv/bin/python benchmarks/make_ccd_figures.py [--backend auto] [--out docs/img]``.
+tests/twin/test_doc_figures.py renders them again and compares (the docs' figures are pyrender's).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--theta-deg", type=float, default=0.0)
+    ap.add_argument("--out", type=Path, default=OUT, help="folder of the two PNGs (default docs/img)")
     args = ap.parse_args(argv)
+    out = args.out
     sc = load_scenario()
     grating = GratingSpec.from_bench(sc["bench"])
     sensor = SensorParams.from_section(sc["instruments"]["ccd"])
@@ -46,13 +49,13 @@ def main(argv: list[str] | None = None) -> int:
         frame = r.render(disk, grating, camera, sensor, np.random.default_rng(sc.seed))
     img = frame.image
     h = round(img.shape[0] * WIDTH_PX / img.shape[1])
-    OUT.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(OUT / "ccd_frame.png"), cv2.resize(img, (WIDTH_PX, h), interpolation=cv2.INTER_AREA))
+    out.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(out / "ccd_frame.png"), cv2.resize(img, (WIDTH_PX, h), interpolation=cv2.INTER_AREA))
     grey = img if img.dtype == np.uint8 else (img / (img.max() / 255.0)).astype(np.uint8)
     thr, binary = cv2.threshold(grey, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    cv2.imwrite(str(OUT / "ccd_binary.png"), cv2.resize(binary, (WIDTH_PX, h), interpolation=cv2.INTER_NEAREST))
+    cv2.imwrite(str(out / "ccd_binary.png"), cv2.resize(binary, (WIDTH_PX, h), interpolation=cv2.INTER_NEAREST))
     print(f"backend {frame.truth['backend']}, Otsu threshold {thr:.0f}, centre_px {frame.truth['centre_px']}, "
-          f"wrote {OUT / 'ccd_frame.png'} and {OUT / 'ccd_binary.png'}")
+          f"wrote {out / 'ccd_frame.png'} and {out / 'ccd_binary.png'}")
     return 0
 
 
