@@ -11,10 +11,11 @@ The figures of docs/img and what checks them:
 
 - ccd_frame.png, ccd_binary.png: benchmarks/make_ccd_figures.py, here (GL; a few seconds);
 - l1_study.png: benchmarks/l1_figure.py, here (≈ 6 s of CPU);
+- bench_view.png: benchmarks/bench_view_figure.py (the report's opening picture), here (EGL; ≈ 2 s);
 - the others are not drawn by a script of their own: bearing_distance.png and ccd_frames.png are
-  study figures (``benchtwin study``, 10 and 7 min), iso230_7_polar.png and bench_view.png come
-  from a run's report, live_view.png is a screenshot of a live run; coverage_jia.png is
-  benchmarks/coverage_jia.py's, from 50 full jia2019 simulations. None has a drift test.
+  study figures (``benchtwin study``, 10 and 7 min), iso230_7_polar.png comes from a run's report,
+  live_view.png is a screenshot of a live run; coverage_jia.png is benchmarks/coverage_jia.py's,
+  from 50 full jia2019 simulations. None has a drift test.
 """
 
 from __future__ import annotations
@@ -76,8 +77,9 @@ def test_the_ccd_figures_are_what_make_ccd_figures_renders(tmp_path):
                              ".venv/bin/python benchmarks/make_ccd_figures.py")
 
 
-#: l1_study.png: at most this fraction of pixels may differ by more than L1_LEVELS (anti-aliasing
-#: after a last-digit change of the statics); the figure before the ball bearings: 15 % of them.
+#: l1_study.png, bench_view.png: at most this fraction of pixels may differ by more than L1_LEVELS
+#: (anti-aliasing after a last-digit change of the statics, another software rasteriser's rounding);
+#: l1_study.png drawn before the ball bearings had 15 % of its pixels off by more.
 L1_FRACTION, L1_LEVELS = 1e-3, 16
 
 
@@ -86,6 +88,15 @@ def test_the_l1_figure_is_what_l1_figure_draws(tmp_path):
     frac = moved_fraction(_pixels(tmp_path / "l1.png"), _pixels(IMG / "l1_study.png"), L1_LEVELS)
     assert frac <= L1_FRACTION, (f"docs/img/l1_study.png is stale ({frac:.2%} of pixels differ by more than "
                                  f"{L1_LEVELS} levels): .venv/bin/python benchmarks/l1_figure.py")
+
+
+@needs_gl
+def test_the_bench_view_is_what_bench_view_figure_draws(tmp_path, monkeypatch):
+    monkeypatch.setenv("BENCHTWIN_CACHE", "none")  # rendered now, not read from a cache
+    _script("bench_view_figure").main(["--out", str(tmp_path / "bench.png")])
+    frac = moved_fraction(_pixels(tmp_path / "bench.png"), _pixels(IMG / "bench_view.png"), L1_LEVELS)
+    assert frac <= L1_FRACTION, (f"docs/img/bench_view.png is stale ({frac:.2%} of pixels differ by more than "
+                                 f"{L1_LEVELS} levels): .venv/bin/python benchmarks/bench_view_figure.py")
 
 
 def test_the_comparisons_catch_a_moved_figure():
