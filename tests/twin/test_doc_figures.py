@@ -12,10 +12,12 @@ The figures of docs/img and what checks them:
 - ccd_frame.png, ccd_binary.png: benchmarks/make_ccd_figures.py, here (GL; a few seconds);
 - l1_study.png: benchmarks/l1_figure.py, here (≈ 6 s of CPU);
 - bench_view.png: benchmarks/bench_view_figure.py (the report's opening picture), here (EGL; ≈ 2 s);
-- the others are not drawn by a script of their own: bearing_distance.png and ccd_frames.png are
-  study figures (``benchtwin study``, 10 and 7 min), iso230_7_polar.png comes from a run's report,
-  live_view.png is a screenshot of a live run; coverage_jia.png is benchmarks/coverage_jia.py's,
-  from 50 full jia2019 simulations. None has a drift test.
+- iso230_7_polar.png: benchmarks/iso230_7_figure.py (the report's polar plots of a default
+  simulation), here, slow (a simulation: ≈ 1 min of CPU, 5 min wall on a loaded machine);
+- bearing_distance.png, ccd_frames.png: the shipped studies' figures (``benchtwin study``, ≈ 10
+  and 7 min wall on two cores), here, slow;
+- not tested: live_view.png, a screenshot of a live run (no script draws it), and
+  coverage_jia.png, benchmarks/coverage_jia.py's, from ≥ 50 full jia2019 simulations (hours).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from tests.support.gl import needs_gl
 
@@ -108,3 +111,33 @@ def test_the_comparisons_catch_a_moved_figure():
     assert top > 2 and frac > 1e-3
     binary = _pixels(IMG / "ccd_binary.png")
     assert pixel_drift(np.roll(binary, 1, axis=1), binary)[1] > 1e-4
+
+
+@pytest.mark.slow
+def test_the_iso230_7_figure_is_what_iso230_7_figure_draws(tmp_path):
+    _script("iso230_7_figure").main(["--out", str(tmp_path / "iso.png")])
+    frac = moved_fraction(_pixels(tmp_path / "iso.png"), _pixels(IMG / "iso230_7_polar.png"), L1_LEVELS)
+    assert frac <= L1_FRACTION, (f"docs/img/iso230_7_polar.png is stale ({frac:.2%} of pixels differ by more than "
+                                 f"{L1_LEVELS} levels): .venv/bin/python benchmarks/iso230_7_figure.py")
+
+
+#: the study figures and the study that draws each (docs/studies.md: "copy figures/... to docs/img")
+STUDY_FIGURES = {"bearing_distance.png": ("bearing_distance.toml", "angle_error_pv_arcsec_vs_*.png"),
+                 "ccd_frames.png": ("ccd_frames.toml", "eccentricity_u_um_vs_*.png")}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("png", sorted(STUDY_FIGURES))
+def test_the_study_figures_are_what_the_studies_draw(png, tmp_path):
+    """The shipped studies run again (bearing_distance ≈ 10 min, ccd_frames ≈ 7 min wall on two
+    cores, full fidelity with GL) and their figure compared with the doc's, as l1_study.png (the
+    same matplotlib tolerance)."""
+    from benchtwin.app.study import run_study
+
+    toml, pattern = STUDY_FIGURES[png]
+    run_study(ROOT / "scenarios" / "studies" / toml, tmp_path / "out", progress=False)
+    (fig,) = sorted((tmp_path / "out" / "figures").glob(pattern))
+    frac = moved_fraction(_pixels(fig), _pixels(IMG / png), L1_LEVELS)
+    assert frac <= L1_FRACTION, (f"docs/img/{png} is stale ({frac:.2%} of pixels differ by more than {L1_LEVELS} "
+                                 f"levels): .venv/bin/benchtwin study scenarios/studies/{toml} -o OUT and copy "
+                                 f"OUT/figures/{fig.name} to docs/img/{png}")
