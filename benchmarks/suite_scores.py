@@ -133,14 +133,16 @@ def run_seed(seed: int, size: str, jobs: int, work: Path, commit: str) -> dict:
     from benchtwin.app.suite import open_suite, score_suite_files, write_suite
 
     sd, rd = work / f"suite_{size}_seed{seed}", work / f"results_{size}_seed{seed}"
-    t0, c0 = time.time(), _cpu_s()
+    c0 = _cpu_s()  # first: it may wait for orphans to end
+    t0 = time.time()
     if not (sd / "suite.json").exists():
         write_suite(sd, seed=seed, blind=True, size=size, jobs=jobs, progress=lambda m: print(f"seed {seed} {m}",
                                                                                                flush=True))
     t_sim, c_sim = time.time() - t0, _cpu_s() - c0
     print(f"seed {seed} simulate: wall {t_sim:.0f} s, CPU {c_sim:.0f} s", flush=True)
     _, items = open_suite(sd)
-    t0, c0 = time.time(), _cpu_s()
+    c0 = _cpu_s()
+    t0 = time.time()
     errors = {}
     with ProcessPoolExecutor(max_workers=jobs) as ex:
         for ds, dt, err in ex.map(_analyze, [(str(it.dataset), str(rd / it.name)) for it in items]):
