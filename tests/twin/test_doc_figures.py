@@ -13,7 +13,7 @@ The figures of docs/img and what checks them:
 - l1_study.png: benchmarks/l1_figure.py, here (≈ 6 s of CPU);
 - bench_view.png: benchmarks/bench_view_figure.py (the report's opening picture), here (EGL; ≈ 2 s);
 - iso230_7_polar.png: benchmarks/iso230_7_figure.py (the report's polar plots of a default
-  simulation), here, slow (a simulation: ≈ 1 min of CPU, 5 min wall on a loaded machine);
+  simulation), here, slow (one simulation of the default scenario: 5 min wall on a loaded machine);
 - bearing_distance.png, ccd_frames.png: the shipped studies' figures (``benchtwin study``, ≈ 10
   and 7 min wall on two cores), here, slow;
 - not tested: live_view.png, a screenshot of a live run (no script draws it), and
