@@ -9,7 +9,7 @@ does): the summary table, the radial motion, the CCD, the Jia model and its comp
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -211,7 +211,7 @@ def _add_polygon_section(rep: Any, a: BenchAnalysis) -> None:
         rep.table(_budget_rows(pol.budget), ["contribution", "u(xᵢ) ″", "∂α/∂xᵢ", "|c|·u ″", "ν"])
 
 
-def _budget_rows(budget: list[dict[str, Any]]) -> list[list[Any]]:
+def _budget_rows(budget: Sequence[Mapping[str, Any]]) -> list[list[Any]]:
     """The GUM table's rows as a reader expects them: ν of a type B input with no stated
     reliability is ∞ (results.json writes it as null), the combined row has no sensitivity (–), and a
     u that is zero to the arithmetic's precision (below 1e-9 of the combined u, e.g. the setup-error
