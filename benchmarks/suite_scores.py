@@ -93,38 +93,25 @@ def readme_naive():
     return ns["naive"]
 
 
-def _become_subreaper() -> bool:
-    """Linux: orphaned descendants are re-parented to this process (``prctl(PR_SET_CHILD_SUBREAPER)``),
-    so their CPU is counted once reaped (:func:`_reap_orphans`): the frame workers of ``simulate`` are
-    children of a forkserver (twin/render/pipeline.py) that the pool worker which started it does not
-    wait for (as benchmarks/run_bench.py)."""
-    try:
-        import ctypes
+def _run_bench():
+    """benchmarks/run_bench.py, for its subreaper and reaper (one implementation of both): importing it
+    makes this process the subreaper of its orphaned descendants (``prctl(PR_SET_CHILD_SUBREAPER)``),
+    so their CPU is counted once reaped: the frame workers of ``simulate`` are children of a
+    forkserver (twin/render/pipeline.py) that the pool worker which started it does not wait for.
+    Imported here, not at the top: a test that loads this module must not become a subreaper."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import run_bench
 
-        return ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0) == 0  # 36 = PR_SET_CHILD_SUBREAPER
-    except (OSError, AttributeError):
-        return False
-
-
-def _reap_orphans(timeout_s: float = 30.0) -> None:
-    """Wait for the descendants left behind by a finished process pool (see :func:`_become_subreaper`);
-    called only after the pool has shut down, so no child of the pool's is taken from it."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        try:
-            pid, _ = os.waitpid(-1, os.WNOHANG)
-        except ChildProcessError:
-            return
-        if pid == 0:
-            time.sleep(0.05)
+    return run_bench
 
 
 def _cpu_s() -> float:
     """CPU seconds (user + system) of this process and its reaped descendants (the pools' workers,
-    and with :func:`_become_subreaper` their orphaned forkservers and frame workers)."""
+    and through run_bench's subreaper their orphaned forkservers and frame workers); called only
+    after a pool has shut down, so no child of the pool's is taken from it."""
     import resource
 
-    _reap_orphans()
+    _run_bench()._reap_descendants()
     return sum(getattr(resource.getrusage(w), k) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
                for k in ("ru_utime", "ru_stime"))
 
@@ -379,7 +366,7 @@ def main(argv=None) -> int:
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
     commit = _commit()
-    _become_subreaper()
+    _run_bench()   # the subreaper, before any pool starts
     runs = {}
     for s in a.seeds:
         runs[s] = run_seed(s, a.size, a.jobs, work, commit)
