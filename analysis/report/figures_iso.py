@@ -45,7 +45,8 @@ def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, 
                  title: str) -> None:
     """One polar plot drawn on a Cartesian axes (equal aspect): r(θ) = R0 + δ(θ) as x = r cos θ,
     y = r sin θ, θ counter-clockwise from +x (matplotlib's polar default). The grid a polar axes
-    would draw is drawn with it — the rings at R0 − amax, R0, R0 + amax labelled in µm of δ at 22.5°,
+    would draw is drawn with it — the rings at R0 − amax, R0, R0 + amax labelled in µm of δ at 22.5°
+    (over the traces, on a white ground),
     spokes every 45° labelled in degrees, the outer circle at R0 + 1.05·amax — because a polar
     projection costs ~10× as much to lay out and draw (its transforms, tick machinery and the
     extents of every tick label), for the same picture."""
@@ -56,8 +57,6 @@ def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, 
     ax.plot(rmax * cr, rmax * sr, color="k", lw=0.8)  # the outer circle (a polar axes' spine)
     for dv in (-amax, 0.0, amax):
         ax.plot((R0 + dv) * cr, (R0 + dv) * sr, color="#b0b0b0", lw=0.6)
-        a = np.deg2rad(22.5)
-        ax.text((R0 + dv) * np.cos(a), (R0 + dv) * np.sin(a), f"{dv:+.2f}", fontsize=7, ha="left", va="bottom")
     for deg in range(0, 360, 45):
         a = np.deg2rad(deg)
         ax.plot([0.0, rmax * np.cos(a)], [0.0, rmax * np.sin(a)], color="#b0b0b0", lw=0.6)
@@ -66,6 +65,12 @@ def _polar_panel(ax, t: np.ndarray, curves: np.ndarray, R0: float, amax: float, 
         r = R0 + cur
         ax.plot(r * c, r * s_, color=style.colour, lw=style.line_width_pt)
     ax.plot(R0 * cr, R0 * sr, color="k", lw=0.5, ls=":")
+    # the rings' labels over the traces, on a white ground (issue 34: they were drawn under the
+    # traces and unreadable where a trace crossed them)
+    a = np.deg2rad(22.5)
+    for dv in (-amax, 0.0, amax):
+        ax.text((R0 + dv) * np.cos(a), (R0 + dv) * np.sin(a), f"{dv:+.2f}", fontsize=7, ha="left", va="bottom",
+                zorder=5, bbox={"boxstyle": "round,pad=0.12", "fc": "white", "ec": "none", "alpha": 0.85})
     lim = 1.22 * rmax
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)

@@ -59,3 +59,19 @@ def test_the_face_panel_says_why_it_is_empty_with_one_start_face():
     assert not one.lines and not one.collections and "one start face" in one.texts[0].get_text()
     several = face_panel(range(1, 24, 3))
     assert several.lines and not several.texts   # the errorbar of each face's mean
+
+
+def test_the_polar_rings_labels_are_drawn_over_the_traces_on_a_white_ground():
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from benchtwin.analysis.report.figures_iso import _PanelStyle, _polar_panel
+
+    ax = Figure().subplots()
+    t = np.linspace(0, 2 * np.pi, 360, endpoint=False)
+    _polar_panel(ax, t, np.array([0.3 * np.sin(7 * t)]), 1.0, 0.3, _PanelStyle("total", "0.4", 1.0), "x")
+    rings = [txt for txt in ax.texts if txt.get_text() in ("-0.30", "+0.00", "+0.30")]
+    assert len(rings) == 3
+    top_line = max(line.get_zorder() for line in ax.lines)
+    for txt in rings:
+        assert txt.get_zorder() > top_line and txt.get_bbox_patch() is not None
