@@ -63,6 +63,22 @@ def test_the_key_is_the_scenarios_content():
     assert scenario_key(file) != scenario_key(file.with_overrides({}))
 
 
+def _two_at_once(target, *args: str) -> list[int | None]:
+    """Run ``target(*args)`` in two processes at once (as two xdist workers would ask) and return their
+    exit codes. Forked, not spawned: the stand-ins the targets install (a fake twin, a ``make`` that
+    logs its calls) are set in the child from this module's state, which a spawned child would not
+    share; where the OS has no fork there is no such race to test."""
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("needs fork: the stand-ins are module state a spawned child would not inherit")
+    ctx = mp.get_context("fork")
+    procs = [ctx.Process(target=target, args=args) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(60)
+    return [p.exitcode for p in procs]
+
+
 def _ask(root: str, log: str) -> None:
     S.simulate = _stand_in(Path(log), pause_s=0.5)
     DatasetFactory(Path(root)).dataset(small_scenario())
@@ -70,16 +86,8 @@ def _ask(root: str, log: str) -> None:
 
 def test_processes_of_one_run_share_one_simulation(tmp_path):
     """xdist's workers: two processes asking at once get one simulation between them."""
-    if "fork" not in mp.get_all_start_methods():
-        pytest.skip("needs fork (the stand-in twin is set in the child)")
     log = tmp_path / "calls.log"
-    ctx = mp.get_context("fork")
-    procs = [ctx.Process(target=_ask, args=(str(tmp_path / "cache"), str(log))) for _ in range(2)]
-    for p in procs:
-        p.start()
-    for p in procs:
-        p.join(60)
-    assert [p.exitcode for p in procs] == [0, 0]
+    assert _two_at_once(_ask, str(tmp_path / "cache"), str(log)) == [0, 0]
     assert log.read_text().count("\n") == 1
     assert (tmp_path / "cache" / scenario_key(small_scenario()) / "ds" / "manifest.json").is_file()
 
@@ -123,14 +131,6 @@ def _ask_shared(root: str, log: str) -> None:
 
 def test_processes_of_one_run_share_one_made_folder(tmp_path):
     """Two xdist workers asking for the same shared folder at once: one makes it, the other waits."""
-    if "fork" not in mp.get_all_start_methods():
-        pytest.skip("needs fork")
     log = tmp_path / "calls.log"
-    ctx = mp.get_context("fork")
-    procs = [ctx.Process(target=_ask_shared, args=(str(tmp_path / "cache"), str(log))) for _ in range(2)]
-    for p in procs:
-        p.start()
-    for p in procs:
-        p.join(60)
-    assert [p.exitcode for p in procs] == [0, 0]
+    assert _two_at_once(_ask_shared, str(tmp_path / "cache"), str(log)) == [0, 0]
     assert log.read_text().count("\n") == 1
