@@ -23,33 +23,23 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run_bench import ENV, SUBREAPER, _reap_descendants  # noqa: E402  (the subreaper is set on import)
+from run_bench import timed_run  # noqa: E402  (the subreaper is set on import)
 
 STAGES = ("physics", "run", "simulate_jia2019", "analyze", "close_loop_ref", "simulate_hsieh2022")
 
 
 def timed(cmd: list[str], cwd: Path) -> dict:
+    """run_bench's timing of one command (its whole process tree's CPU), with the load around it."""
     load0 = os.getloadavg()[0]
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if SUBREAPER:
-        _reap_descendants()
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if p.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)}: exit {p.returncode}\n{p.stderr[-3000:]}")
-    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
-    return {"wall_s": wall, "cpu_s": cpu, "load": [load0, os.getloadavg()[0]], "stdout": p.stdout[-2000:]}
+    wall, cpu, out = timed_run(cmd, capture=True, cwd=cwd)
+    return {"wall_s": wall, "cpu_s": cpu, "load": [load0, os.getloadavg()[0]], "stdout": out[-2000:]}
 
 
 def command(stage: str, tree: Path, work: Path, ref_case: Path | None) -> list[str] | None:

@@ -101,13 +101,13 @@ def _reap_descendants(timeout_s: float = 30.0) -> None:
             time.sleep(0.01)
 
 
-def timed_run(cmd: list[str], capture: bool = False) -> tuple[float, float, str]:
+def timed_run(cmd: list[str], capture: bool = False, cwd: Path | None = None) -> tuple[float, float, str]:
     """(wall s, CPU s of the process and all its descendants, stdout) of one command. Wall: until
     the command exits; CPU: also of descendants that outlive it (the forkserver of the frame
     workers), reaped here (Linux; elsewhere only the children the command itself waited for)."""
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE if capture else subprocess.DEVNULL,
+    p = subprocess.run(cmd, cwd=cwd, env=ENV, stdout=subprocess.PIPE if capture else subprocess.DEVNULL,
                        stderr=subprocess.PIPE, text=True)
     wall = time.perf_counter() - t0
     if SUBREAPER:
