@@ -99,7 +99,9 @@ def _run_bench():
     so their CPU is counted once reaped: the frame workers of ``simulate`` are children of a
     forkserver (twin/render/pipeline.py) that the pool worker which started it does not wait for.
     Imported here, not at the top: a test that loads this module must not become a subreaper."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:   # called for every CPU reading: put the folder on the path once
+        sys.path.insert(0, here)
     import run_bench
 
     return run_bench
