@@ -227,18 +227,33 @@ def bench_rows(path: Path) -> list[Row]:
                 src("hidden.tangential_motion.race_waviness_top", "hidden.tangential_motion.race_waviness_bottom"),
                 f"{KEY_ANGLE} (synchronous)"))
         s = float(br["cage_slip"])
-        rows.append(Row(
-            "ball bearings: cage slip (sets the asynchronous motion)",
-            "cage angle φ_ref + ρ·(θ − θ_ref)·(1 + s) from the previous stop's end, s ~ N(0, cage_slip) per "
-            "bearing and stop (twin/physics.py `_advance_path`, `cage_angles_rad`)" if s > 0 else
-            "cage_slip = 0: the cages roll without slip, cage angle φ_ref + ρ·(θ − θ_ref) (twin/physics.py "
-            "`_advance_path`): the ball configuration follows the shaft angle TRAVELLED, so a stop revisited a "
-            "turn later sees the cage ρ·360° further on: asynchronous motion at the cage's orders, no random part",
-            f"σ = {s:g} of the move's rolling",
-            src("bearings.cage_slip"),
-            "per stop: s drawn from (seed, run, the stop's time t_s); within a move the cage follows the "
-            "shaft angle travelled, not time (a held stop does not move)" if s > 0 else
-            "the shaft angle travelled since the run's start (not θ mod 360°)"))
+        tau = float(br.get("cage_slip_time", 0.0))
+        smean = float(br.get("cage_slip_mean", 0.0))
+        searched = ("; a search for a published size (2026-12-05) found none for a slow, preloaded "
+                    "start/stop pair (docs/physics.md, \"The cage slip's size\")")
+        if s > 0 and tau > 0:
+            rows.append(Row(
+                "ball bearings: cage slip (sets the asynchronous motion)",
+                "time-keyed slip process: each move rolls the cages by (1 − s(t))·ρ·Δθ, s(t) = s̄ + σ·ξ(t), ξ "
+                "a stationary random process with correlation exp(−|Δt|/τ), one per bearing (twin/physics.py "
+                "`cage_slip_at`, `_advance_path`): the cage at a revisited stop depends on the path and on "
+                "when it was rolled",
+                f"σ = {s:g}, τ = {_minutes(tau) if tau >= 60 else f'{tau:g} s'}, s̄ = {smean:g}",
+                src("bearings.cage_slip", "bearings.cage_slip_time", "bearings.cage_slip_mean") + searched,
+                "bench time t (the slip), integrated over the shaft angle travelled; a held stop does not move"))
+        else:
+            rows.append(Row(
+                "ball bearings: cage slip (sets the asynchronous motion)",
+                "cage angle φ_ref + ρ·(θ − θ_ref)·(1 + s) from the previous stop's end, s ~ N(0, cage_slip) per "
+                "bearing and stop (twin/physics.py `_advance_path`, `cage_angles_rad`)" if s > 0 else
+                "cage_slip = 0: the cages roll without slip, cage angle φ_ref + ρ·(θ − θ_ref) (twin/physics.py "
+                "`_advance_path`): the ball configuration follows the shaft angle TRAVELLED, so a stop revisited a "
+                "turn later sees the cage ρ·360° further on: asynchronous motion at the cage's orders, no random part",
+                f"σ = {s:g} of the move's rolling" + (f", mean lag s̄ = {smean:g}" if smean > 0 else ""),
+                src("bearings.cage_slip") + (searched if s > 0 else ""),
+                "per stop: s drawn from (seed, run, the stop's time t_s); within a move the cage follows the "
+                "shaft angle travelled, not time (a held stop does not move)" if s > 0 else
+                "the shaft angle travelled since the run's start (not θ mod 360°)"))
     u = float(br["unbalance"])
     if u > 0 or sc["bench"]["gravity_direction"] != "none":
         rows.append(Row(

@@ -21,8 +21,11 @@ axis average line as reference):
   and the drive; which waviness orders move the centre, and at which frequencies, follows from
   the sums (tests/twin/test_bearing.py checks Wardle's rule emerges). The cage angle is the
   integral of the shaft's true rotation times the kinematic ratio rho along the bench's path,
-  plus a seeded random slip per start/stop (``bearings.cage_slip``, relative to the move's
-  rolling): poses at a new ``t_s`` are a new stop (the path advances); poses at the same ``t_s``
+  plus a seeded random slip (``bearings.cage_slip``, relative to the move's rolling): by default
+  an independent draw per start/stop; with ``bearings.cage_slip_time`` > 0 a stationary random
+  process s(t) in bench time with that correlation time (each move rolls at (1 − s(t))·rho), and
+  ``bearings.cage_slip_mean`` the cage's mean lag behind its kinematic speed. Poses at a new
+  ``t_s`` are a new stop (the path advances); poses at the same ``t_s``
   are the servo refining the same stop. A stop revisited after a different path therefore sees
   another ball configuration: the asynchronous error motion. Quasi-static: the bearings' radial
   modes are at ~1.6 kHz, the drive settles in ms, the stops last 0.5 s; a test integrates the same
@@ -102,6 +105,9 @@ from .streams import stream_rng as _rng  # the one stream table (seeded: one str
 from .thermal import Thermal
 
 TWO_PI = 2.0 * math.pi
+#: components of the time-keyed cage-slip process (a random-phase sum; 64 make it Gaussian to
+#: within a few per cent in its tails and keep one evaluation at ~µs)
+SLIP_COMPONENTS = 64
 
 # Joints of the model in the order of the solve vector q (names in models/bench.xml).
 JOINTS = ("radial_x", "radial_y", "tilt_x", "tilt_y", "spin", "shaft_twist")
@@ -239,6 +245,10 @@ class Bench:
         self.ball_sets: dict[str, BallSet] | None = None
         self.air_bearings: AirBearings | None = None
         self.cage_slip = float(_opt(sc, "bearings", "cage_slip", 0.0))
+        # 0: the slip is an independent draw per start/stop (keyed by the stop's time); > 0: a
+        # stationary random process s(t) in bench time with this correlation time (s)
+        self.cage_slip_time_s = float(_opt(sc, "bearings", "cage_slip_time", 0.0))
+        self.cage_slip_mean = float(_opt(sc, "bearings", "cage_slip_mean", 0.0))
 
     @staticmethod
     def _pyramidal(sc: Any, seed: int, N: int) -> np.ndarray | None:
@@ -730,6 +740,16 @@ class Bench:
             self._cage0 = _rng(self.seed, "cage_start", self._path_run).uniform(0, TWO_PI, 2)
         else:
             self._cage0 = np.zeros(2)
+        self._slip_omega = self._slip_phase = None
+        if self.ball_sets is not None and self.cage_slip_time_s > 0 and self.cage_slip > 0:
+            # s(t) = mean + cage_slip·ξ(t), ξ a unit-variance stationary process with correlation
+            # exp(−|Δt|/τ) (a random-phase sum: angular frequencies Cauchy with scale 1/τ, i.e. a
+            # Lorentzian spectrum), one per bearing, a function of bench time alone: any stop, in
+            # any order, replayed or resumed, sees the same s at the same t.
+            r = _rng(self.seed, "cage_slip_process", self._path_run)
+            u = r.uniform(0.0, 1.0, (2, SLIP_COMPONENTS))
+            self._slip_omega = np.tan(math.pi * (u - 0.5)) / self.cage_slip_time_s
+            self._slip_phase = r.uniform(0.0, TWO_PI, (2, SLIP_COMPONENTS))
         # The stops of the path in TIME order: times, and each stop's end (shaft angle, cages).
         self._stop_t: list[float] = []
         self._stop_end: list[tuple[float, np.ndarray]] = []
@@ -766,11 +786,26 @@ class Bench:
         else:
             th, cg = self._stop_end[k - 1]
             self._path_theta_ref, self._path_cage_ref = th, cg.copy()
-        if self.cage_slip > 0 and self.ball_sets is not None and not rolling:
+        if self._slip_omega is not None:
+            # the time-keyed model: the move into this stop rolls at the slip of its time (also
+            # in steady rotation: the slip is a property of the rolling, not of the start/stop)
+            self._path_slip = -self.cage_slip_at(t)
+        elif self.cage_slip > 0 and self.ball_sets is not None and not rolling:
             key = int(round(t * 1e6)) % (2**63)
             self._path_slip = _rng(self.seed, "cage_slip", self._path_run, key).normal(0.0, self.cage_slip, 2)
         else:
             self._path_slip = np.zeros(2)
+        if self.cage_slip_mean > 0 and self.ball_sets is not None and self._slip_omega is None:
+            self._path_slip = self._path_slip - self.cage_slip_mean     # the cage lags its kinematic speed
+
+    def cage_slip_at(self, t_s: float) -> np.ndarray:
+        """The cages' relative slip s(t) (top, bottom) at bench time ``t_s`` (time-keyed model,
+        ``bearings.cage_slip_time`` > 0): the cage turns at (1 − s)·rho of the shaft's rotation.
+        Zeros for the per-stop model."""
+        if self._slip_omega is None:
+            return np.zeros(2)
+        xi = math.sqrt(2.0 / SLIP_COMPONENTS) * np.cos(self._slip_omega * float(t_s) + self._slip_phase).sum(axis=1)
+        return self.cage_slip_mean + self.cage_slip * xi
 
     def _end_stop(self, theta_rad: float) -> None:
         """Record the current stop's end state (after its solve)."""
@@ -1137,5 +1172,9 @@ class Bench:
             truth["bearing_type"] = self.bearing_type
             truth["ball_sets"] = {k: v.truth() for k, v in self.ball_sets.items()}
             truth["cage_slip_relative"] = self.cage_slip
+            if self.cage_slip_time_s > 0 or self.cage_slip_mean > 0:   # absent for the per-stop model
+                truth["cage_slip_model"] = "time" if self._slip_omega is not None else "per_stop"
+                truth["cage_slip_time_s"] = self.cage_slip_time_s
+                truth["cage_slip_mean"] = self.cage_slip_mean
             truth["cage_start_rad"] = self._cage0.tolist()
         return truth

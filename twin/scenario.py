@@ -211,6 +211,8 @@ def _validate_section(node: Mapping[str, Any], fields: Mapping[str, Field], sect
         if key not in node:
             if field.required:
                 raise ScenarioError(f"{where}: missing key {path} ({_expect(field)})")
+            if field.omit_default:
+                continue
             out[key] = field.default
             continue
         out[key] = _convert(node[key], field, path, where)

@@ -28,6 +28,9 @@ class Field:
     hi: float | None = None
     choices: tuple[str, ...] | None = None
     doc: str = ""
+    # an absent key is left out of the validated scenario (readers take the default): a key added
+    # later keeps the truth/scenario.json of the scenarios that do not state it byte-identical
+    omit_default: bool = False
 
     @property
     def required(self) -> bool:
@@ -100,7 +103,15 @@ SCHEMA: dict[str, dict[str, Field]] = {
                             doc="ISO 3290-1: ball diameter variation"),
         "waviness_scale": Field("dimensionless", 1.0, lo=0.0, hi=100.0, doc="scales the grade's race waviness"),
         "cage_slip": Field("dimensionless", 0.0, lo=0.0, hi=0.5,
-                           doc="std of the cage's relative slip per start/stop (ball type)"),
+                           doc="std of the cage's relative slip (ball type): per start/stop, or of the "
+                               "slip process when cage_slip_time > 0"),
+        "cage_slip_time": Field("time", 0.0, lo=0.0, hi=1e7,
+                                doc="0: an independent slip per start/stop; > 0: the slip is a stationary "
+                                    "random process in bench time with this correlation time (ball type)",
+                                omit_default=True),
+        "cage_slip_mean": Field("dimensionless", 0.0, lo=0.0, hi=0.5,
+                                doc="mean slip: the cage runs this fraction below its kinematic speed (ball type)",
+                                omit_default=True),
         # Aerostatic journals (type = "air"; twin/air_bearing.py, docs/physics.md "Air bearings").
         "air_journal_diameter": Field("length", 50 * MM, lo=2 * MM, hi=1.0, doc="journal diameter D"),
         "air_journal_length": Field("length", 50 * MM, lo=2 * MM, hi=1.0, doc="journal length L"),

@@ -5,7 +5,7 @@ seed, stream id, keys…]))``: one independent stream per generated quantity, so
 never changes the others for a given scenario seed, and a draw keyed by (instrument, runner step,
 draw count) is the same in an interrupted and resumed run as in an uninterrupted one.
 
-The ids are grouped by who draws: the bench's physics 1…16 (``twin/physics.py``), the instruments
+The ids are grouped by who draws: the bench's physics 1…17 (``twin/physics.py``), the instruments
 101…110 (``twin/instruments``: noise, calibration errors, the servo; ``INSTRUMENT_STREAMS`` is what
 ``truth/seeds.json`` lists), the hidden quantities of the hidden suite 201…204 (``twin/hidden.py``).
 An id never changes meaning: a new quantity takes a new id.
@@ -35,6 +35,7 @@ STREAMS: dict[str, int] = {
     "air_form": 14,
     "air_supply": 15,
     "polygon_pyramidal": 16,
+    "cage_slip_process": 17,
     # the instruments (twin/instruments; keyed further by instrument, runner step and draw)
     "probe_noise": 101,
     "probe_linearity": 102,

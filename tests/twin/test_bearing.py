@@ -247,3 +247,98 @@ def test_jia2019_alpha_scatters_over_the_23_visits_of_a_stop():
     sd = alpha.std(axis=0, ddof=1)
     assert sd.min() >= 0.1, sd
     assert 0.1 < sd.mean() < 2.0
+
+
+# ----------------------------------------------- the time-keyed cage slip (issue 33 item 2) --
+def _walk(b: Bench, path) -> np.ndarray:
+    """The cage path alone (no solve): every (shaft angle, bench time) a stop; the cages at the end."""
+    for th, t in path:
+        b._advance_path(t)
+        b._end_stop(th)
+    return b.cage_angles_rad(path[-1][0])
+
+
+def _sweeps(n: int, dt: float, step_deg: float = 15.0, stops: int = 24):
+    """n polygon-like sweeps: `stops` forward stops of `step_deg`, a return move to the start; one
+    stop every `dt` seconds. Returns the path and the indices of the stops at the start angle."""
+    path, at_start, t = [], [], 0.0
+    for _ in range(n):
+        for k in range(stops):
+            t += dt
+            if k == 0:
+                at_start.append(len(path))
+            path.append((math.radians(step_deg * k), t))
+    return path, at_start
+
+
+def _start_visits(b: Bench, path, at_start) -> np.ndarray:
+    """The cage angles (top, bottom) at every visit of the start stop."""
+    out = []
+    for i, (th, t) in enumerate(path):
+        b._advance_path(t)
+        b._end_stop(th)
+        if i in at_start:
+            out.append(b.cage_angles_rad(th))
+    return np.array(out)
+
+
+def test_time_keyed_slip_is_zero_without_slip_and_linear_in_its_spread():
+    """cage_slip = 0 (any correlation time): every visit of a stop after out-and-back sweeps sees the
+    same cages. With slip, the visits' cage offsets are the integral of the slip over the moves,
+    so they scale exactly with cage_slip (one realisation of ξ(t), the same seed)."""
+    path, at = _sweeps(6, dt=1.5)
+    off = _start_visits(Bench(ball_scenario(cage_slip=0.0, cage_slip_time=60.0)), path, at)
+    np.testing.assert_allclose(off - off[0], 0.0, atol=1e-12)
+    d = {}
+    for s in (0.01, 0.02):
+        c = _start_visits(Bench(ball_scenario(cage_slip=s, cage_slip_time=60.0)), path, at)
+        d[s] = c - c[0]
+    assert np.abs(d[0.02]).max() > 1e-4
+    np.testing.assert_allclose(d[0.02], 2.0 * d[0.01], rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("tau", [0.0, 3.0, 60.0])
+def test_revisit_spread_follows_the_slip_process(tau):
+    """The cage's change over one sweep (23 forward moves of 15°, one return of −345°) is
+    −rho·Σ_k Δθ_k·s(t_k): its variance over independent runs is rho²σ²·Σ_kl Δθ_kΔθ_l·C(t_k − t_l),
+    C = exp(−|Δt|/τ) for the time-keyed process and δ_kl for the per-stop draws (tau = 0). A
+    slowly varying slip (τ ≫ the sweep) nearly cancels between the way out and back: the spread
+    of the visits shrinks with τ as the model says."""
+    sigma, dt = 0.02, 1.5
+    path, at = _sweeps(2, dt=dt)
+    b = Bench(ball_scenario(cage_slip=sigma, cage_slip_time=tau))
+    rho = b.ball_sets["top"].rho
+    th = np.array([p[0] for p in path[at[0]:at[1] + 1]])
+    tt = np.array([p[1] for p in path[at[0]:at[1] + 1]])
+    dth, tk = np.diff(th), tt[1:]
+    C = np.exp(-np.abs(tk[:, None] - tk[None, :]) / tau) if tau > 0 else np.eye(len(tk))
+    predicted = rho * sigma * math.sqrt(dth @ C @ dth)
+    runs = 600
+    dc = np.empty((runs, 2))
+    for r in range(runs):
+        b.reset_path(run=r)
+        c = _start_visits(b, path, at)
+        dc[r] = c[1] - c[0]
+    measured = dc.std(axis=0)
+    np.testing.assert_allclose(measured, predicted, rtol=0.15)
+    if tau == 60.0:   # against the per-stop model's spread: a 36 s sweep at τ = 60 s cancels ~half of it
+        assert predicted < 0.7 * rho * sigma * math.sqrt(dth @ dth)
+
+
+def test_time_keyed_slip_depends_on_elapsed_time_not_on_call_order():
+    """The same angular path run faster or slower reaches a revisited stop with other cages (the
+    slip is a function of bench time); the slip at a time is the same whatever was asked before."""
+    b = Bench(ball_scenario(cage_slip=0.02, cage_slip_time=60.0))
+    fast, _ = _sweeps(3, dt=1.5)
+    slow, _ = _sweeps(3, dt=15.0)
+    c_fast = _walk(b, fast)
+    b.reset_path()
+    c_slow = _walk(b, slow)
+    assert np.all(np.abs(c_fast - c_slow) > 1e-6)
+    s1 = b.cage_slip_at(123.4)
+    b.reset_path()
+    _walk(b, fast)
+    np.testing.assert_array_equal(b.cage_slip_at(123.4), s1)
+    assert b.cage_slip_at(123.4)[0] != b.cage_slip_at(123.4)[1]   # the two bearings slip independently
+    assert np.all(b.cage_slip_at(5.0) != 0.0)
+    assert not np.any(Bench(ball_scenario(cage_slip=0.02)).cage_slip_at(5.0))

@@ -111,3 +111,20 @@ def test_no_shipped_bench_imposes_a_whirl_and_air_motion_is_keyed_by_time():
     assert rows["air bearings: supply-pressure fluctuation (asynchronous)"].keyed_by == ms.KEY_TIME
     assert "backward at qN−1" in rows["air bearings: journal form through the film"].mechanism
     assert "K = 116 N/µm" in rows["air bearings: film stiffness"].size
+
+
+def test_time_keyed_cage_slip_row(tmp_path):
+    """cage_slip_time > 0 (the time-keyed slip process) is said as such, keyed by bench time, with
+    its correlation time and the sources of all three numbers."""
+    ms = _module()
+    src = (ROOT / "scenarios" / "jia2019.toml").read_text(encoding="utf-8")
+    changed = src.replace("radial_stiffness = ", 'cage_slip_time = "60 s"\nradial_stiffness = ', 1)
+    p = tmp_path / "scenarios" / "jia2019.toml"
+    p.parent.mkdir()
+    p.write_text(changed, encoding="utf-8")
+    slip = {r.source: r for r in ms.bench_rows(p)}["ball bearings: cage slip (sets the asynchronous motion)"]
+    assert slip.size == "σ = 0.02, τ = 1 min, s̄ = 0"
+    assert slip.keyed_by.startswith("bench time t")
+    assert "`bearings.cage_slip`: ASSUMPTION, no source" in slip.size_source
+    assert "`bearings.cage_slip_time`: no source" in slip.size_source
+    assert "`bearings.cage_slip_mean`: schema default, no source" in slip.size_source
