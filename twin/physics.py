@@ -740,7 +740,8 @@ class Bench:
             self._cage0 = _rng(self.seed, "cage_start", self._path_run).uniform(0, TWO_PI, 2)
         else:
             self._cage0 = np.zeros(2)
-        self._slip_omega = self._slip_phase = None
+        self._slip_omega: np.ndarray | None = None
+        self._slip_phase: np.ndarray | None = None
         if self.ball_sets is not None and self.cage_slip_time_s > 0 and self.cage_slip > 0:
             # s(t) = mean + cage_slip·ξ(t), ξ a unit-variance stationary process with correlation
             # exp(−|Δt|/τ) (a random-phase sum: angular frequencies Cauchy with scale 1/τ, i.e. a
@@ -802,9 +803,10 @@ class Bench:
         """The cages' relative slip s(t) (top, bottom) at bench time ``t_s`` (time-keyed model,
         ``bearings.cage_slip_time`` > 0): the cage turns at (1 − s)·rho of the shaft's rotation.
         Zeros for the per-stop model."""
-        if self._slip_omega is None:
+        omega, phase = self._slip_omega, self._slip_phase
+        if omega is None or phase is None:
             return np.zeros(2)
-        xi = math.sqrt(2.0 / SLIP_COMPONENTS) * np.cos(self._slip_omega * float(t_s) + self._slip_phase).sum(axis=1)
+        xi = math.sqrt(2.0 / SLIP_COMPONENTS) * np.cos(omega * float(t_s) + phase).sum(axis=1)
         return self.cage_slip_mean + self.cage_slip * xi
 
     def _end_stop(self, theta_rad: float) -> None:
