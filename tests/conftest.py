@@ -5,6 +5,7 @@
 - ``datasets``: the session's twin datasets, each scenario simulated once per run, shared by the
   xdist workers of a run (tests/support/datasets.py).
 - ``BENCHTWIN_TEST_SIMLOG=FILE`` logs every simulation and process pool (tests/support/simlog.py).
+- ``BENCHTWIN_ALPHA_GRID_CACHE``: one memo of the truth's α grid per run (twin/alpha_grid_memo.py).
 - pytest-xdist (``-n auto --dist loadgroup`` in pyproject.toml): a test module runs on one worker
   (its module-scoped fixtures are built once), and the tests marked ``xdist_group("serial")`` (those
   that start process pools, forkservers or a browser, or wait on deadlines) run one after another on
@@ -29,13 +30,34 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                      help="run tests that talk to a real bench (see hw/README); never in CI")
 
 
+#: the run's memo of the truth's α grid (twin/alpha_grid_memo.py), made by the process that starts the
+#: run (xdist's workers and the tests' subprocesses inherit the variable) and removed at its end
+_grid_memo_made: str | None = None
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    global _rootpath
+    global _rootpath, _grid_memo_made
     _rootpath = config.rootpath
+    # The α grid is a property of the bench, not of the procedure: the many small runs of one bench
+    # (tests/support/scenarios.py) compute it once per test run instead of once per simulation (≈ 2 s
+    # of CPU each on jia2019's ball bench). The same bytes either way (tests/twin/test_alpha_grid_memo.py).
+    from benchtwin.twin.alpha_grid_memo import ENV as GRID_MEMO_ENV
+
+    if not os.environ.get(GRID_MEMO_ENV):
+        import tempfile
+
+        _grid_memo_made = os.environ[GRID_MEMO_ENV] = tempfile.mkdtemp(prefix="benchtwin-alpha-grids-")
     from tests.support import simlog
 
     if os.environ.get(simlog.LOG_ENV) and not config.pluginmanager.has_plugin("tests.support.simlog"):
         config.pluginmanager.register(simlog, "tests.support.simlog")
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if _grid_memo_made is not None:
+        import shutil
+
+        shutil.rmtree(_grid_memo_made, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -125,15 +125,16 @@ def test_probe_readings_follow_the_true_sphere_motion(small_ds):
 
 
 @pytest.mark.parametrize("bearings", ["path", "ball"])
-def test_same_seed_byte_identical_and_seed_matters(tmp_path, bearings):
-    sc = small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
-                           "bearings.type": bearings})
-    a = simulate(sc, tmp_path / "a", progress=False, backend="analytic")
+def test_same_seed_byte_identical_and_seed_matters(tmp_path, bearings, datasets):
+    # the bench of the resume and truth-apart tests: ``a`` is the session's dataset (simulated by
+    # whichever test asked first, perhaps in another xdist worker), ``b`` simulated here
+    over = {"procedure.polygon_shifts": ["0 deg"], "procedure.directions": ["forward"], "bearings.type": bearings}
+    sc = small_scenario(**over)
+    a = datasets.dataset(sc)
     b = simulate(sc, tmp_path / "b", progress=False, backend="analytic")
     fa, fb = files(a), files(b)
     assert fa.keys() == fb.keys() and all(fa[k] == fb[k] for k in fa)
-    c = simulate(small_scenario(**{"procedure.polygon_shifts": ["0 deg"], "procedure.selfcal": False,
-                                   "bearings.type": bearings, "scenario.seed": 7}),
+    c = simulate(small_scenario(**over, **{"scenario.seed": 7}),
                  tmp_path / "c", progress=False, backend="analytic")
     assert files(c)["polygon.csv"] != fa["polygon.csv"]
 

@@ -1,0 +1,102 @@
+"""An opt-in memo of the truth's α grid (``twin/simulate.py`` ``_alpha_grid``), keyed by the bench.
+
+The α grid (``truth/encoder_error.csv``: every head's α at readings 0.1° apart) is a property of the
+bench as built, not of the run (``_alpha_grid``'s docstring; tests/twin/test_truth_apart.py checks
+it against the bench as the run left it): it is a pure function of the scenario *without* its
+``[procedure]`` and of the code that computes it. It is also the largest fixed cost of a small
+simulation: 3600 stops of the statics, ≈ 1.2 s of CPU on a path bench and ≈ 2.1 s on jia2019's ball
+bench, more than the rest of a short run. Runs that differ only in their procedure (the test
+suite's small benches, a study of the procedure) compute the same grid again and again.
+
+With ``BENCHTWIN_ALPHA_GRID_CACHE=DIR`` a grid is written to ``DIR/KEY.json`` once and read back by
+later runs of the same bench, in any process. Without the variable nothing changes. The key is the
+SHA-256 of:
+
+- the scenario's values (``Scenario.raw``, overrides applied) without ``[procedure]``;
+- the source of every module the grid can depend on (the ``benchtwin`` floor, ``twin/``, ``hw/``,
+  ``analysis/``) and the MuJoCo models (``models/*.xml``): any code change is a new key, so a stale
+  grid is never read;
+- the versions of NumPy, SciPy and MuJoCo (their arithmetic sets the grid's last bits).
+
+The values are JSON floats, written with ``repr`` (exact round trip), so a grid read back gives the
+dataset the same bytes as a grid computed (tests/twin/test_alpha_grid_memo.py). A file is written
+atomically (``fsio``): a reader finds a whole grid or none; an unreadable or incomplete file is
+computed again (and replaced).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+ENV = "BENCHTWIN_ALPHA_GRID_CACHE"
+
+
+@functools.cache
+def _code_digest() -> str:
+    """SHA-256 over the source files (and MuJoCo models) of the packages the α grid's computation can
+    reach, and of the analysis (the twin's dataset writer lives there)."""
+    import benchtwin
+    import benchtwin.analysis
+    import benchtwin.hw
+    import benchtwin.models
+    import benchtwin.twin
+
+    mods = (benchtwin, benchtwin.twin, benchtwin.hw, benchtwin.analysis, benchtwin.models)
+    roots = sorted({Path(str(m.__file__)).resolve().parent for m in mods})
+    files: set[Path] = set()
+    for root in roots:
+        files.update(p for p in root.rglob("*") if p.suffix in (".py", ".xml") and p.is_file())
+    h = hashlib.sha256()
+    for p in sorted(files):
+        h.update(str(p).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def grid_key(sc: Any) -> str:
+    """The memo key of scenario ``sc``'s α grid (see the module docstring)."""
+    import mujoco
+    import numpy
+    import scipy
+
+    raw = {k: v for k, v in dict(sc.raw).items() if k != "procedure"}
+    blob = json.dumps({"raw": raw, "code": _code_digest(),
+                       "versions": [numpy.__version__, scipy.__version__, mujoco.__version__]},
+                      sort_keys=True, default=str, ensure_ascii=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _load(path: Path) -> dict[str, list] | None:
+    try:
+        cols = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(cols, dict) or "theta_deg" not in cols or "alpha_arcsec" not in cols:
+        return None
+    n = len(cols["theta_deg"])
+    if n == 0 or any(not isinstance(v, list) or len(v) != n for v in cols.values()):
+        return None
+    return cols
+
+
+def memoised(sc: Any, compute: Callable[[], dict[str, list]]) -> dict[str, list]:
+    """``compute()``, or the grid a run of the same bench stored under ``$BENCHTWIN_ALPHA_GRID_CACHE``."""
+    folder = os.environ.get(ENV)
+    if not folder:
+        return compute()
+    from benchtwin.fsio import atomic_write_text
+
+    path = Path(folder) / f"{grid_key(sc)}.json"
+    cols = _load(path)
+    if cols is not None:
+        return cols
+    cols = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, json.dumps({k: [float(x) for x in v] for k, v in cols.items()}), fsync=False)
+    return cols
