@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.util
 import json
 import os
 from collections.abc import Callable
@@ -41,14 +42,12 @@ ENV = "BENCHTWIN_ALPHA_GRID_CACHE"
 def _code_digest() -> str:
     """SHA-256 over the source files (and MuJoCo models) of the packages the α grid's computation can
     reach, and of the analysis (the twin's dataset writer lives there)."""
-    import benchtwin
-    import benchtwin.analysis
-    import benchtwin.hw
-    import benchtwin.models
-    import benchtwin.twin
-
-    mods = (benchtwin, benchtwin.twin, benchtwin.hw, benchtwin.analysis, benchtwin.models)
-    roots = sorted({Path(str(m.__file__)).resolve().parent for m in mods})
+    # found by name, not imported here: the twin's layer contracts (pyproject.toml) stay what they are
+    roots: set[Path] = set()
+    for name in ("benchtwin", "benchtwin.twin", "benchtwin.hw", "benchtwin.analysis", "benchtwin.models"):
+        spec = importlib.util.find_spec(name)
+        if spec is not None:
+            roots.update(Path(p).resolve() for p in (spec.submodule_search_locations or []))
     files: set[Path] = set()
     for root in roots:
         files.update(p for p in root.rglob("*") if p.suffix in (".py", ".xml") and p.is_file())
