@@ -61,6 +61,10 @@ def test_the_key_is_the_scenarios_content():
 
     file = load_scenario(ROOT / "scenarios" / "jia2019.toml")   # its path is written into truth/
     assert scenario_key(file) != scenario_key(file.with_overrides({}))
+    # the same values, overrides recorded or not (truth/scenario.json differs): two datasets
+    cleared = sc.with_overrides({})
+    cleared.overrides = {}
+    assert cleared.raw == sc.raw and scenario_key(cleared) != scenario_key(sc)
 
 
 def _two_at_once(target, *args: str) -> list[int | None]:

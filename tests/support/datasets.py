@@ -3,8 +3,8 @@
 ``DatasetFactory.dataset(sc)`` returns the dataset of scenario ``sc``, simulated by the first test
 that asks for it and shared by every later one, read-only; ``copy(sc, dest)`` hands a test its own
 copy to change (delete truth/, fog a frame, ...). Datasets are keyed by the scenario's content
-(``scenario_key``): its text values (``Scenario.raw``), its file path (the truth's scenario.json
-names it) and the renderer backend; the same seed gives the same bytes (tests/twin/test_simulate.py
+(``scenario_key``): its text values (``Scenario.raw``), its overrides and its file path (the truth's
+scenario.json records both) and the renderer backend; the same seed gives the same bytes (tests/twin/test_simulate.py
 checks it), so a dataset simulated for one test is the dataset any other test would simulate.
 
 Under pytest-xdist every worker has its own session but the folder is shared (the run's base
@@ -36,7 +36,10 @@ FINGERPRINT = "fingerprint.json"
 
 def scenario_key(sc: Scenario, backend: str = "analytic") -> str:
     """The content hash of a scenario: what decides the bytes ``simulate`` writes."""
-    blob = json.dumps({"raw": sc.raw, "path": str(sc.path) if sc.path is not None else None, "backend": backend},
+    # the overrides too: truth/scenario.json records them (a scenario with its overrides cleared, as
+    # tests/app/test_cli_overrides.py makes one, has the same values and other bytes)
+    blob = json.dumps({"raw": sc.raw, "path": str(sc.path) if sc.path is not None else None, "backend": backend,
+                       "overrides": dict(getattr(sc, "overrides", None) or {})},
                       sort_keys=True, default=str, ensure_ascii=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
