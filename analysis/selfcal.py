@@ -390,6 +390,10 @@ def _residuals(d: np.ndarray, D: np.ndarray, A: np.ndarray, sy: _System, names: 
     Rk = np.eye(int(live.sum()))[None] - Hl[:, :, None] * qk[:, None, :]
     e_ka = np.einsum("kab,bc,kac->ka", Rk, Sig, np.conj(Rk)).real / cl[None, :]
     dof = float(np.sum(e_ka * vis_sig))
+    # no redundancy (e.g. one set of NH heads: eq. 9 fits its average exactly) leaves dof and rss at
+    # rounding level (1e-31 on the twin's null_b), whose ratio is noise of the BLAS kernel, not a σ
+    if dof <= 1e-6 * n:
+        dof = 0.0
     sigma = float(np.sqrt(rss / dof)) if dof > 0 else float("nan")
     set_rms = {name: float(np.sqrt(np.mean(res_set[:, s_] ** 2))) for s_, name in enumerate(names)}
     head_rms = float(np.sqrt(np.mean(res**2))) if res.size else float("nan")

@@ -268,3 +268,16 @@ def test_exact_data_zero_u_delta_still_weighs_the_heads():
     r = sc.selfcal_fourier(TH, sc.SELFA_HEADS_DEG, d, sets=sc.SELFA_SETS, u_delta_arcsec=0.0)
     np.testing.assert_allclose(r.value_arcsec, without(HARM, lambda k: k % 84 == 0)(TH), atol=1e-9)
     assert np.max(r.u_arcsec) < 1e-9
+
+
+def test_one_set_without_redundancy_has_no_residual_sigma():
+    """One set of NH equally spaced heads: eq. 9 fits its average exactly, so there are no residual
+    degrees of freedom. Before, dof and the residual sum of squares were both at rounding level
+    (≈ 1e-31 on the twin's null_b) and their ratio was reported as σ(δ) ≈ 0.1″: a figure of the BLAS
+    kernel, not of the data. Now dof = 0 and σ is NaN, whatever the noise."""
+    th = np.arange(0.0, 360.0, 2.0)
+    heads = [0.0, 120.0, 240.0]
+    d = sc.head_deltas_arcsec(series({1: (1.0, 0.2), 2: (0.5, 0.1)}), th, heads)
+    d = d + np.random.default_rng(3).normal(0.0, 0.1, d.shape) * (np.arange(3) > 0)
+    r = sc.selfcal_fourier(th, heads, d, sets={"NH3": [1, 2, 3]})
+    assert r.dof == 0.0 and np.isnan(r.sigma_delta_arcsec)
