@@ -319,8 +319,53 @@ def _direction_out(dd: dict[str, Any] | None) -> dict[str, Any] | None:
                                   "rms_systematic", "max_abs", "offset_arcsec")}
 
 
+def _runs_scatter(tab: Mapping[str, np.ndarray], heads_deg: Sequence[float], sets: Mapping[str, Sequence[int]] | None,
+                  n_seen: int) -> tuple[float, int, float] | None:
+    """Type A of the self-calibration from its own repetitions: eq. 9 on each run (one ``rep`` and
+    ``direction``) alone, the pooled standard deviation s of the runs' estimates over θ and the runs,
+    (s/√R, R, ν = (R − 1)·``n_seen``); None with fewer than two complete runs.
+
+    Unlike the propagation of s(δ) (:func:`_heads_repeatability`, independent δ per head), this holds
+    what the heads share at one instant: the axis' motion between runs reads into all of them at once
+    (m₁ − m_j in every δ_j), so its errors are correlated across heads and its effect on â is not the
+    independent-reading one. ``n_seen``: the real Fourier parameters eq. 9 estimates (the dof per run)."""
+    cols = [np.asarray(tab[c]).ravel() for c in ("rep", "direction") if tab.get(c) is not None]
+    if not cols:
+        return None
+    keys = list(zip(*cols))
+    runs = sorted(set(keys), key=str)
+    if len(runs) < 2:
+        return None
+    th_all = np.asarray(tab["theta_deg"], dtype=float).ravel()
+    hd_all = np.asarray(tab["head"]).ravel()
+    dl_all = np.asarray(tab["delta_arcsec"], dtype=float).ravel()
+    vals = []
+    for run in runs:
+        sel = np.array([k_ == run for k_ in keys])
+        try:
+            t = sc.tabulate_heads(th_all[sel], hd_all[sel], dl_all[sel], len(heads_deg))
+            vals.append(sc.selfcal_fourier(t["theta_deg"], heads_deg, t["delta_arcsec"], sets=sets,
+                                           u_delta_arcsec=1.0).value_arcsec)
+        except ValueError:  # an incomplete run (missing cells, another θ grid): no run-level scatter
+            return None
+    V = np.array(vals)
+    if len({v.size for v in vals}) != 1:
+        return None
+    R = V.shape[0]
+    s = math.sqrt(float(np.mean(np.var(V, axis=0, ddof=1))))
+    return s / math.sqrt(R), R, float((R - 1) * n_seen)
+
+
 def _selfcal(heads: HeadsData, encoder_resolution_arcsec: float, p: float, notes: list[str]) -> tuple[Any, ...]:
-    """Eq. 9 on the heads table: (the self-calibration result, its u per θ, k, dof, s(δ), the sets)."""
+    """Eq. 9 on the heads table: (the self-calibration result, its u per θ, k, dof, s(δ), the sets, the
+    parts of u).
+
+    u(θ) = √(u_A² + u_interp² + u_res²): u_A the type A of â — from the scatter of the runs' own
+    estimates (:func:`_runs_scatter`) where the table has two runs or more, else the propagation of
+    s(δ) (between repetitions of a cell, or the residuals of eq. 9 where the sets are redundant);
+    u_interp the off-grid sets' interpolation error (:func:`.selfcal.selfcal_fourier`); u_res the
+    encoder resolution (rectangular). With one run and no redundancy (one set of NH heads) eq. 9 has
+    no residual: u(δ) is then the quantization of its two readings, √2·res/√12 (type B, ν = ∞)."""
     if heads.heads_deg is None:
         raise ValueError("heads table given without heads_deg (head azimuths from head 1)")
     heads_deg = heads.heads_deg
@@ -335,11 +380,32 @@ def _selfcal(heads: HeadsData, encoder_resolution_arcsec: float, p: float, notes
     u_d, s_d, dof_d = _heads_repeatability(ht)
     scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_d)
     u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
-    u_self = np.sqrt(scr.u_arcsec**2 + u_res**2)
     dof_self = dof_d if u_d is not None else scr.dof
+    a_source = "propagated s(δ) between repetitions" if u_d is not None else "propagated residuals of eq. 9"
+    if u_d is None and not math.isfinite(scr.sigma_delta_arcsec) and u_res > 0:
+        scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets,
+                                 u_delta_arcsec=math.sqrt(2.0) * u_res)
+        dof_self, a_source = math.inf, "quantization of δ's two readings √2·res/√12 (type B; no residual dof)"
+        notes.append("self-calibration: one run and no redundant head set (eq. 9 has no residual): u(δ) is the "
+                     "quantization of its two readings only; nothing in the data shows the heads' noise")
+    n = scr.theta_deg.size
+    n_seen = n - 1 - 2 * int(scr.unobservable_harmonics.size) - (1 if n % 2 == 0 else 0)
+    runs = _runs_scatter(tab, heads_deg, sets, n_seen)
+    u_interp = float(scr.u_model_arcsec)
+    u_prop = np.sqrt(np.maximum(scr.u_arcsec**2 - u_interp**2, 0.0))
+    if runs is not None:
+        u_a: np.ndarray = np.full(n, runs[0])
+        dof_self, a_source = runs[2], f"scatter of the {runs[1]} runs' own estimates (s/√R)"
+    else:
+        u_a = u_prop
+    u_self = np.sqrt(u_a**2 + u_interp**2 + u_res**2)
     k_self = un.coverage_factor(dof_self if dof_self >= 1 else math.inf, p)
     notes += scr.notes
-    return scr, u_self, k_self, dof_self, s_d, sets
+    parts = {"u_type_a_arcsec": float(np.max(u_a)), "type_a_source": a_source,
+             "u_propagated_max_arcsec": float(np.nanmax(u_prop)) if np.any(np.isfinite(u_prop)) else None,
+             "u_runs_arcsec": runs[0] if runs else None, "n_runs": runs[1] if runs else 1,
+             "u_interpolation_arcsec": u_interp, "u_resolution_arcsec": u_res}
+    return scr, u_self, k_self, dof_self, s_d, sets, parts
 
 
 def _compared_curves(th: np.ndarray, alpha: np.ndarray, scr: Any, N: int,
@@ -372,15 +438,17 @@ def _selfcal_out(heads: HeadsData, curve: tuple[np.ndarray, ...], N: int, budget
     U of α); ``budgets`` = (p, the paper's budget or None)."""
     th, alpha, U_alpha = curve
     p, budget_paper = budgets
-    scr, u_self, k_self, dof_self, s_d, sets = _selfcal(heads, encoder_resolution_arcsec, p, notes)
+    scr, u_self, k_self, dof_self, s_d, sets, parts = _selfcal(heads, encoder_resolution_arcsec, p, notes)
     alpha_cmp, mu_at, cmp_note = _compared_curves(th, alpha, scr, N, notes)
     u_self_at = np.interp(th, scr.theta_deg, u_self, period=360.0)
     diff = alpha_cmp - mu_at
     en = un.en_number(alpha_cmp, U_alpha, mu_at, k_self * u_self_at)
     out: dict[str, Any] = {}
+    # the curve states its measurand: α without the harmonics no head set sees (set to 0 here; the
+    # scorer and any comparison leave them out, as α of the shift-angle method without the k·N)
     out["selfcal_error_arcsec"] = {"theta_deg": scr.theta_deg, "value": scr.value_arcsec, "u": u_self,
-                                   "U": k_self * u_self}
-    out["selfcal"] = {"k": k_self, "dof": dof_self, "s_delta_arcsec": s_d,
+                                   "U": k_self * u_self, "unobservable_harmonics": scr.unobservable_harmonics}
+    out["selfcal"] = {"k": k_self, "dof": dof_self, "s_delta_arcsec": s_d, "u_parts": parts,
                       "sigma_delta_residual_arcsec": scr.sigma_delta_arcsec, "residual_dof": scr.dof,
                       "head_residual_rms_arcsec": scr.residual_rms_arcsec,
                       "set_residual_rms_arcsec": scr.set_residual_rms_arcsec, "set_on_grid": scr.set_on_grid,

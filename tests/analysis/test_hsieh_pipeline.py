@@ -291,3 +291,38 @@ def test_twin_paper_noise_agreement_and_budget(tmp_path_factory):
     assert d["fraction_en_above_1"] < 0.02
     assert np.sqrt(np.mean(np.square(d["value"]))) < 0.05 and d["max_abs"] < 0.15
     assert r["direction_difference"]["p_value"] > 1e-3  # the hsieh2022 bench has no friction
+
+
+def test_selfcal_type_a_from_the_runs_holds_what_the_heads_share():
+    """An error all heads share at one instant — the axis' motion m_1 − m_j in every δ_j, different in
+    each run — is correlated across heads; propagating s(δ) as independent readings misses it. The
+    scatter of the runs' own eq. 9 estimates holds it: u_A ≈ σ_m/√R where σ_m is the per-run error
+    of â (here head 1's share of the motion, white in θ), and the curve states the harmonics no set sees."""
+    rng = np.random.default_rng(21)
+    th = np.arange(0.0, 360.0, 2.0)
+    heads_deg = [0.0, 120.0, 240.0]
+    cols = synthesize_readings(ALPHA, make_beta(24, 22), setup_fn(23), np.arange(15.0), n_rep=2,
+                               noise_arcsec=0.02, rng=rng)
+    R, sig_m = 4, 0.05
+    psi = np.deg2rad(heads_deg)
+    thc, hd, dl, rp = [], [], [], []
+    for r_ in range(R):
+        dx, dy = rng.normal(0.0, sig_m, th.size), rng.normal(0.0, sig_m, th.size)  # translation / radius, ″
+        a = np.column_stack([ALPHA(np.mod(th - p, 360.0)) - (dx * math.cos(q) + dy * math.sin(q))
+                             for p, q in zip(heads_deg, psi)])
+        d = a[:, :1] - a
+        for j in (1, 2):
+            thc.append(th), hd.append(np.full(th.size, j + 1)), dl.append(d[:, j]), rp.append(np.full(th.size, r_))
+    heads = {"theta_deg": np.concatenate(thc), "head": np.concatenate(hd), "delta_arcsec": np.concatenate(dl),
+             "rep": np.concatenate(rp)}
+    r = analyze_polygon(cols, 24, HeadsData(heads, heads_deg), type_b=replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.0))
+    parts = r["selfcal"]["u_parts"]
+    assert parts["n_runs"] == R and "runs" in parts["type_a_source"]
+    # â of one run errs by m_1 = −d_x (head 1 at ψ = 0) minus its multiples of 3: σ_m·√(2/3)
+    assert parts["u_runs_arcsec"] == pytest.approx(sig_m * math.sqrt(2 / 3) / math.sqrt(R), rel=0.15)
+    # the propagation of s(δ) as independent readings: var(δ_j) = 3σ_m², (δ_2 + δ_3)/3 → (2/3)σ_m², of
+    # which 2/3 seen: σ_m·2/3 per run, short by √(2/3) (δ_2 and δ_3 share m_1: correlation +1/2)
+    assert parts["u_propagated_max_arcsec"] == pytest.approx(sig_m * 2 / 3 / math.sqrt(R), rel=0.15)
+    assert parts["u_propagated_max_arcsec"] < 0.9 * parts["u_runs_arcsec"]
+    assert r["selfcal_error_arcsec"]["unobservable_harmonics"] == list(range(3, 90, 3))
+    np.testing.assert_allclose(r["selfcal_error_arcsec"]["u"], parts["u_runs_arcsec"], rtol=1e-12)
