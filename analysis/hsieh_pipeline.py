@@ -63,6 +63,7 @@ from benchtwin.jsonable import to_json
 from . import selfcal as sc
 from . import shift_angle as sa
 from . import uncertainty as un
+from .fourier import harmonic_columns
 from .uncertainty import HSIEH2022_TYPE_B
 
 __all__ = ["analyze_polygon", "fourier_resample_arcsec", "HeadsData", "PolygonOptions", "HSIEH2022_TYPE_B"]
@@ -422,13 +423,40 @@ def _compared_curves(th: np.ndarray, alpha: np.ndarray, scr: Any, N: int,
         cmp_note = (f"compared without the harmonics multiples of N = {N} (shift-angle) and "
                     f"{[int(x) for x in scr.unobservable_harmonics]} (self-calibration), and the Nyquist term")
     else:
-        alpha_cmp = alpha
         mu_at = fourier_resample_arcsec(scr.theta_deg, scr.value_arcsec, th, drop_multiples_of=N)
+        ks = _fit_orders(th, [int(x) for x in scr.unobservable_harmonics if int(x) % N])
+        if ks:
+            A = np.column_stack([np.ones(th.size), harmonic_columns(th, ks)[0]])
+            alpha_cmp = alpha - A @ np.linalg.lstsq(A, alpha, rcond=None)[0]
+            mu_at = mu_at - A @ np.linalg.lstsq(A, mu_at, rcond=None)[0]
+        else:
+            alpha_cmp = alpha
+        unob = [int(x) for x in scr.unobservable_harmonics]
+        rest = [k for k in unob if k % N and k not in ks]
         cmp_note = (f"shift-angle θ not a full equally spaced grid: self-calibration evaluated at its θ without "
-                    f"the multiples of N = {N}; harmonics the heads cannot see are not removed from the "
-                    f"shift-angle side")
+                    f"the multiples of N = {N}; of the harmonics the heads cannot see, orders {ks} fitted (least "
+                    f"squares at the {th.size} θ, with the mean) and removed from both sides"
+                    + (f"; orders {rest[:5]}{'…' if len(rest) > 5 else ''} not (too many for the θ), their part of "
+                       f"the shift-angle α stays in the difference" if rest else ""))
         notes.append(cmp_note)
     return alpha_cmp, mu_at, cmp_note
+
+
+def _fit_orders(theta_deg: np.ndarray, orders: Sequence[int], max_cond: float = 10.0) -> list[int]:
+    """The lowest of ``orders`` that a least-squares fit at ``theta_deg`` (not a full grid) separates:
+    with the mean at most a third as many parameters as points, and a well-conditioned design
+    (condition number ≤ ``max_cond``: the orders nearly orthogonal on these θ, so the fit takes little
+    of the other orders with them)."""
+    th = np.asarray(theta_deg, dtype=float)
+    ks: list[int] = []
+    for k in sorted(orders):
+        if 1 + 2 * (len(ks) + 1) > th.size / 3:
+            break
+        A = np.column_stack([np.ones(th.size), harmonic_columns(th, ks + [k])[0]])
+        if np.linalg.cond(A) > max_cond:
+            break
+        ks.append(k)
+    return ks
 
 
 def _selfcal_out(heads: HeadsData, curve: tuple[np.ndarray, ...], N: int, budgets: tuple[Any, ...],

@@ -326,3 +326,25 @@ def test_selfcal_type_a_from_the_runs_holds_what_the_heads_share():
     assert parts["u_propagated_max_arcsec"] < 0.9 * parts["u_runs_arcsec"]
     assert r["selfcal_error_arcsec"]["unobservable_harmonics"] == list(range(3, 90, 3))
     np.testing.assert_allclose(r["selfcal_error_arcsec"]["u"], parts["u_runs_arcsec"], rtol=1e-12)
+
+
+def test_comparison_off_a_grid_removes_the_heads_blind_orders_from_both_sides():
+    """null_b's design: 23 faces at shifts 0/5/10° (θ not an equally spaced grid) and 3 heads at 120°
+    (blind to the multiples of 3). α's 6th harmonic (a 12-ball bearing's axis motion at head 1) is in
+    the shift-angle α and not in the self-calibration: before, the difference kept it (E_n 1.9 on the
+    twin's null_b). Now the blind orders are fitted at the θ and removed from both sides; a real
+    disagreement in an order both see still fails."""
+    N, heads_deg = 23, [0.0, 120.0, 240.0]
+    shifts = np.array([0.0, 5.0, 10.0])
+    a = series({1: (0.5, 0.3), 2: (0.8, 0.1), 6: (0.6, 0.7), 9: (0.3, -0.2)})
+    cols = synthesize_readings(a, make_beta(N, 31), setup_fn(32), shifts)
+    th = np.arange(0.0, 360.0, 2.0)
+    heads = heads_columns(a, th, heads_deg, 0.0, None, n_rep=1)
+    opts = PolygonOptions(u_eps_arcsec=0.01)
+    tb = replace(HSIEH2022_TYPE_B, encoder_resolution_arcsec=0.04)  # one run, one set: u(δ) from the quantization
+    r = analyze_polygon(cols, N, HeadsData(heads, heads_deg), type_b=tb, options=opts)
+    assert "orders [3, 6, 9" in r["difference_arcsec"]["note"]
+    assert r["difference_arcsec"]["max_abs"] < 0.02 and r["en_max"] < 0.5
+    heads_other = heads_columns(series({1: (0.5, 0.3), 2: (1.0, 0.1)}), th, heads_deg, 0.0, None, n_rep=1)
+    r2 = analyze_polygon(cols, N, HeadsData(heads_other, heads_deg), type_b=tb, options=opts)
+    assert r2["en_max"] > 1.0
