@@ -42,10 +42,19 @@ not: on the twin's hsieh2022 bench (0.025 µm order-3 bearing waviness) head-lev
 0.15″ of that motion into α. Sets whose heads sit on the θ grid are preferred per harmonic (exact for
 samples); the off-grid set (7 heads at 51.43° on a 1° grid) only supplies what the others cannot see,
 with an interpolation-error term (:func:`.selfcal.selfcal_fourier`). The self-cal reference is head 1.
+Its u (:func:`_selfcal`): type A from the scatter of the runs' own estimates where the heads table has
+two runs or more (the axis' motion is shared by all heads at one instant, so the δ are correlated and
+the independent-δ propagation of s(δ) is short: hsieh2022 0.0059″ propagated, 0.0087″ between the
+forward and backward runs), else propagated; the interpolation term; the encoder resolution. The
+curve states the harmonics no set sees (``unobservable_harmonics``, set to 0): the measurand is α
+without them, as the shift-angle α is without the multiples of N (on the ball-bearing benches with
+3 heads they hold 0.34″ of head 1's error, the bearing's axis motion at orders 6, 9, 15, …).
 
 Comparison (eq. 13, standard E_n with √(U₁² + U₂²)): on the harmonics both methods see — without the
 multiples of N (lost by the shift-angle method into U_j, eq. 2), those the heads cannot see (84, 168
-for SelfA) and the Nyquist term — when the shift-angle θ form a full equally spaced grid.
+for SelfA) and the Nyquist term — when the shift-angle θ form a full equally spaced grid; otherwise
+the lowest blind orders of the heads that a least-squares fit at those θ separates are removed from
+both sides and the rest named in the note (:func:`_compared_curves`).
 """
 
 from __future__ import annotations
