@@ -829,6 +829,8 @@ def _drop_harmonics(theta_deg: np.ndarray, y: np.ndarray, orders: Sequence[int])
     th = np.asarray(theta_deg, dtype=float)
     ks = sorted(set(int(k) for k in orders if 0 < k < th.size / 2))
     A = np.column_stack([np.ones(th.size), harmonic_columns(th, ks, cos_first=True)[0]])   # [1, cos kθ, sin kθ, …]
+    if th.size % 2 == 0 and th.size // 2 in {int(k) for k in orders}:  # the Nyquist term: its cosine only
+        A = np.column_stack([A, np.cos(np.deg2rad(th) * (th.size // 2))])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     return y - A @ coef
 
@@ -864,7 +866,7 @@ def _score_curve(curve: Mapping[str, Any] | None, truth_vals: np.ndarray | None,
     else:
         err = err - err.mean()
     return {"rms_error_arcsec": _rms(err), "max_abs_error_arcsec": float(np.max(np.abs(err))), "n": int(err.size),
-            "dropped_harmonics": sorted(set(k for k in dropped if k < (theta_deg.size / 2 if theta_deg is not None
+            "dropped_harmonics": sorted(set(k for k in dropped if k <= (theta_deg.size / 2 if theta_deg is not None
                                                                        else 0))),
             "coverage": _coverage(err, curve.get("u")), "_err": err, "_u": curve.get("u")}
 

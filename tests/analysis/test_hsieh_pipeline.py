@@ -324,7 +324,7 @@ def test_selfcal_type_a_from_the_runs_holds_what_the_heads_share():
     # which 2/3 seen: σ_m·2/3 per run, short by √(2/3) (δ_2 and δ_3 share m_1: correlation +1/2)
     assert parts["u_propagated_max_arcsec"] == pytest.approx(sig_m * 2 / 3 / math.sqrt(R), rel=0.15)
     assert parts["u_propagated_max_arcsec"] < 0.9 * parts["u_runs_arcsec"]
-    assert r["selfcal_error_arcsec"]["unobservable_harmonics"] == list(range(3, 90, 3))
+    assert r["selfcal_error_arcsec"]["unobservable_harmonics"] == list(range(3, 90, 3)) + [90]  # + Nyquist
     np.testing.assert_allclose(r["selfcal_error_arcsec"]["u"], parts["u_runs_arcsec"], rtol=1e-12)
 
 

@@ -71,7 +71,7 @@ def test_alpha_on_a_uniform_grid_drops_only_what_the_polygon_cannot_see(truth):
     blind = _score(truth, _min(alpha={"theta_deg": GRID.tolist(),
                                       "value_arcsec": (alpha_true(GRID) + 0.3 * np.cos(4 * th)).tolist()}))
     assert blind["alpha_rms_error_arcsec"] == pytest.approx(0, abs=1e-9)
-    assert blind["alpha_dropped_harmonics"] == [4]
+    assert blind["alpha_dropped_harmonics"] == [4, 8]  # 8 = 4·2 is also the grid's Nyquist term (its cosine)
     seen = _score(truth, _min(alpha={"theta_deg": GRID.tolist(),
                                      "value_arcsec": (alpha_true(GRID) + 0.3 * np.cos(3 * th)).tolist()}))
     assert seen["alpha_rms_error_arcsec"] == pytest.approx(0.3 / math.sqrt(2))
@@ -204,3 +204,14 @@ def test_floor_leaves_out_a_hidden_autocollimator_scale(truth):
     (truth / "truth" / "hidden.json").write_text(json.dumps({"effects": {"ac_scale": {"gain": 0.01}}}))
     without = read_truth(truth / "truth", truth)["floor"]["parts"]["alpha_measurement_arcsec"]
     assert without < 0.02
+
+
+def test_selfcal_declared_nyquist_term_is_dropped(truth):
+    """A self-calibration on an even grid does not estimate the Nyquist term n/2 (its curve holds 0
+    there); declared, the scorer leaves it out (its cosine: the sine is 0 on the grid)."""
+    th = np.radians(GRID)
+    curve = {"theta_deg": GRID.tolist(), "value_arcsec": (alpha_true(GRID) + 0.2 * np.cos(8 * th)).tolist(),
+             "u_arcsec": [0.1] * GRID.size}
+    assert _score(truth, _min(selfcal=curve))["selfcal_rms_error_arcsec"] == pytest.approx(0.2)
+    s = _score(truth, _min(selfcal={**curve, "unobservable_harmonics": [8]}))
+    assert s["selfcal_rms_error_arcsec"] == pytest.approx(0, abs=1e-9) and s["selfcal_dropped_harmonics"] == [8]
