@@ -392,12 +392,20 @@ def _selfcal(heads: HeadsData, encoder_resolution_arcsec: float, p: float, notes
     u_res = encoder_resolution_arcsec / (2 * math.sqrt(3.0))
     dof_self = dof_d if u_d is not None else scr.dof
     a_source = "propagated s(δ) between repetitions" if u_d is not None else "propagated residuals of eq. 9"
-    if u_d is None and not math.isfinite(scr.sigma_delta_arcsec) and u_res > 0:
-        scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets,
-                                 u_delta_arcsec=math.sqrt(2.0) * u_res)
-        dof_self, a_source = math.inf, "quantization of δ's two readings √2·res/√12 (type B; no residual dof)"
-        notes.append("self-calibration: one run and no redundant head set (eq. 9 has no residual): u(δ) is the "
-                     "quantization of its two readings only; nothing in the data shows the heads' noise")
+    if u_d is None and not math.isfinite(scr.sigma_delta_arcsec):
+        if u_res > 0:
+            u_fb, a_source = math.sqrt(2.0) * u_res, "quantization of δ's two readings √2·res/√12 (type B; no residual dof)"
+            notes.append("self-calibration: one run and no redundant head set (eq. 9 has no residual): u(δ) is the "
+                         "quantization of its two readings only; nothing in the data shows the heads' noise")
+        else:
+            # no resolution either: the single heads' residuals from the set estimate, an upper bound
+            # (they also hold what the set average cancels, e.g. the axis' radial error motion)
+            u_fb, a_source = scr.residual_rms_arcsec, "single heads' residual RMS (upper bound; no residual dof)"
+            notes.append("self-calibration: one run, no redundant head set and no encoder resolution: u(δ) is the "
+                         "single heads' residual RMS, an upper bound")
+        if math.isfinite(u_fb) and u_fb > 0:
+            scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_fb)
+            dof_self = math.inf
     n = scr.theta_deg.size
     n_seen = n - 1 - 2 * int(scr.unobservable_harmonics.size) - (1 if n % 2 == 0 else 0)
     runs = _runs_scatter(tab, heads_deg, sets, n_seen)
