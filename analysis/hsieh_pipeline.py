@@ -403,7 +403,8 @@ def _selfcal(heads: HeadsData, encoder_resolution_arcsec: float, p: float, notes
             u_fb, a_source = scr.residual_rms_arcsec, "single heads' residual RMS (upper bound; no residual dof)"
             notes.append("self-calibration: one run, no redundant head set and no encoder resolution: u(δ) is the "
                          "single heads' residual RMS, an upper bound")
-        if math.isfinite(u_fb) and u_fb > 0:
+        # a residual at rounding level (exact data, or 2 heads: eq. 9 fits head 2's δ exactly) shows nothing
+        if math.isfinite(u_fb) and u_fb > 1e-9 * float(np.sqrt(np.mean(ht["delta_arcsec"] ** 2))):
             scr = sc.selfcal_fourier(ht["theta_deg"], heads_deg, ht["delta_arcsec"], sets=sets, u_delta_arcsec=u_fb)
             dof_self = math.inf
     n = scr.theta_deg.size
