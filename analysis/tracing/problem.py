@@ -359,11 +359,20 @@ class _Problem:
         predict held-out readings through nuisance pushed far beyond its stated uncertainty (a 1″
         division error at k = 2 carried by the ∫δY term's 0.04″ type-A u, at 25 σ, on an air
         bearing's multi-head bench: the reference generator's hsieh_like, seed 41) and "no effect"
-        cross-validates as well as the effect itself."""
+        cross-validates as well as the effect itself.
+
+        None also when a fold's training rows do not determine X (rank below X's on every row): the
+        held-out rows then ask the candidate for parameters no training set has seen — e.g. a value
+        per stop position (graduation_error's every resolved order) when the only start face of the
+        shifted runs is held out, or interleaved stop positions are — and the held-out χ² measures
+        the folds, not the candidate. A test that cannot see the candidate decides nothing about it."""
         if self.folds is None:
             return None
+        folds = np.unique(self.folds[self.folds >= 0])
+        if X.shape[1] and not self._folds_determine(X, folds):
+            return None
         tot, prior, nf = 0.0, 0.0, 0
-        for f in np.unique(self.folds[self.folds >= 0]):
+        for f in folds:
             test = self.folds == f
             fit = self.fit(X, train=~test, extra=extra)
             r = (self.y[test] - self.predict_rows(X, fit, test)) * self.w[test]
@@ -372,6 +381,19 @@ class _Problem:
             prior += float(nu @ nu)
             nf += 1
         return tot + prior / max(nf, 1)
+
+    def _folds_determine(self, X: np.ndarray, folds: np.ndarray) -> bool:
+        """Does every fold's training set determine the columns of X as all rows do (the same rank,
+        the reference fit's tolerance on the column-scaled weighted design)? Cached per design."""
+        key = _digest(X)
+        cache = self.__dict__.setdefault("_determined", {})
+        if key not in cache:
+            Xw = X * self.w[:, None]
+            scale = np.linalg.norm(Xw, axis=0)
+            Xs = Xw / np.where(scale > 0, scale, 1.0)
+            full = int(np.linalg.matrix_rank(Xs, tol=1e-8))
+            cache[key] = all(int(np.linalg.matrix_rank(Xs[self.folds != f], tol=1e-8)) >= full for f in folds)
+        return bool(cache[key])
 
     def eiv_adjustment(self, X: np.ndarray, fit: dict, extra: np.ndarray | None) -> tuple[float, float]:
         """Errors in variables, checked: (Σ ν̂², p) for the measured-regressor nuisance E (unit prior,
