@@ -518,7 +518,34 @@ def _best_variants(variants: list[_Cand], g: _Gates) -> list[_Cand]:
         b = best_var.get(c.names[0])
         if b is None or _better(c, b, g.tie_tol_chi2, g.order):
             best_var[c.names[0]] = c
+    span = _Span(g.pb)
+    for name, b in list(best_var.items()):
+        if b.passed:
+            best_var[name] = _needed_superset(b, [c for c in variants if c.names[0] == name], g, span)
     return list(best_var.values())
+
+
+def _needed_superset(b: _Cand, variants: list[_Cand], g: _Gates, span: "_Span") -> _Cand:
+    """The effect's variant that explains what its best-BIC variant ``b`` leaves, when the data need
+    it: a passing variant whose design contains b's and whose extra columns lower the χ² beyond the
+    scatter it leaves (the nested F-test at F_SIG, the gates' own test of an improvement). BIC's
+    ln n per parameter is stricter than that test for many parameters at once: with graduation_error's
+    every resolved order (hundreds of small coefficients, each at a few σ) BIC keeps the significant
+    orders, whose residual the test after (χ² at P_SIG) then finds not explained — the selection and
+    the verdict would read the same data by two rules. For one or a few extra parameters the F-test at
+    F_SIG is the stricter one, so this changes nothing there. The best BIC among the needed ones."""
+    needed = []
+    for c in variants:
+        dk = c.fit["k"] - b.fit["k"]
+        if c is b or not c.passed or dk <= 0 or not span.contains(c, b):
+            continue
+        d_chi2 = b.fit["chi2"] - c.fit["chi2"]
+        if d_chi2 <= 0:
+            continue
+        p = float(f_sf((d_chi2 / dk) / max(c.fit["chi2"] / c.fit["dof"], 1e-300), dk, c.fit["dof"]))
+        if p < F_SIG:
+            needed.append(c)
+    return _ordered(needed, lambda c: c.bic, g.tie_tol_chi2, g.order)[0] if needed else b
 
 
 def _pairs(variants: list[_Cand], g: _Gates) -> list[_Cand]:
@@ -563,6 +590,10 @@ class _Span:
     def inside(self, big: _Cand, small: _Cand) -> bool:
         if big.X.shape[1] <= self.wide:
             return False
+        return self.contains(big, small)
+
+    def contains(self, big: _Cand, small: _Cand) -> bool:
+        """Is the span of ``small``'s columns inside ``big``'s (weighted, to 1e-6 of its norm)?"""
         w = self.pb.w[:, None]
         if id(big) not in self.basis:
             self.basis[id(big)] = np.linalg.qr(big.X * w)[0]
