@@ -67,3 +67,36 @@ def test_cross_validation_is_not_won_by_nuisance_beyond_its_uncertainty():
     # without the nuisance's prior term both are ~ the held-out noise (the nuisance at ~25 σ carries
     # the effect); with it, 'no effect' pays ~ (1/0.04)² for it
     assert cv1 < cv0 - 100.0, (cv0, cv1)
+
+
+def test_cross_validation_does_not_judge_what_its_training_sets_cannot_determine():
+    # SelfA-like shifts, one start face each: the folds are whole shifts, and a fold holds out stop
+    # positions that no training set has (issue 32: the twin's random null, seed 21)
+    d = _shift_design(1)
+    th = np.deg2rad(d["theta_deg"])
+    ev = _ev(d, 0.3 * np.sin(3 * th) + np.random.default_rng(4).normal(0.0, 0.05, th.size))
+    pb = _Problem(ev, use_selfcal=False)
+    assert pb.folds is not None and np.unique(pb.folds).size >= 3
+    low = _center(np.column_stack([np.sin(3 * th), np.cos(3 * th)]), ev.closure_group, pb.w ** 2)
+    assert pb.cv(low) is not None   # a low harmonic: every training set determines it
+    pos = np.unique(np.round(d["theta_deg"], 6), return_inverse=True)[1]
+    per_position = _center(np.eye(pos.max() + 1)[pos][:, 1:], ev.closure_group, pb.w ** 2)
+    assert pb.cv(per_position) is None   # a value per stop position: held-out positions undetermined
+
+
+def test_variant_with_every_order_is_chosen_where_the_data_need_it():
+    # a division error with content at every order (k^-1.5, to order 150) on a revisited shift design:
+    # the significant orders' variant (BIC's) leaves the high orders, which the χ² after then flags
+    from benchtwin.analysis.tracing import trace
+
+    rng = np.random.default_rng(5)
+    d = _shift_design(2)
+    th = np.deg2rad(d["theta_deg"])
+    ks = np.arange(2, 151)
+    amp, ph = 0.4 * ks ** -1.5 / np.sqrt(np.sum(ks ** -3.0) / 2), rng.uniform(0, 2 * np.pi, ks.size)
+    grad = np.sum(amp[:, None] * np.sin(ks[:, None] * th[None, :] + ph[:, None]), axis=0)
+    ev = _ev(d, grad + rng.normal(0.0, 0.05, th.size))
+    out = trace(ev, candidates=["graduation_error"])
+    assert not out["unexplained"], (out["status"], out["residual_after"])
+    (eff,) = out["identified_effects"]
+    assert len(eff["params"]) > 2 * 20   # beyond the harmonic test's 20 orders
