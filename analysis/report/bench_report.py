@@ -202,7 +202,8 @@ def _add_polygon_section(rep: Any, a: BenchAnalysis) -> None:
     rep.figure(fh.figure_pitch_deviation(pol.detail), "Pitch deviations β of the polygon (Hsieh fig. 6)")
     rep.figure(fh.figure_alpha_at_shifts(pol.detail), "Encoder error at the shift angles (Hsieh fig. 7)")
     if pol.selfcal_error_arcsec:
-        rep.figure(fh.figure_selfcal_vs_shift_angle(pol.detail), "Self-calibration vs shift-angle method (Hsieh fig. 11)")
+        rep.figure(fh.figure_selfcal_vs_shift_angle(pol.detail), "Self-calibration vs shift-angle method (Hsieh fig. 11)"
+                   + _blind_caption(pol.detail.get("selfcal_error_arcsec")))
         rep.figure(fh.figure_difference(pol.detail), "Difference between the two methods (Hsieh fig. 12)")
     if a.iso230_2:
         add_iso230_2_table(rep, a.iso230_2)
@@ -313,3 +314,16 @@ def _add_loop_tables(rep: Any, loop: LoopOutcome, residual_before: ResidualSumma
         rep.table([["before", res_b["rms_arcsec"], res_b["pv_arcsec"], res_b["fraction_of_error"]],
                    ["after", res_a["rms_arcsec"], res_a["pv_arcsec"], res_a["fraction_of_error"]]],
                   ["residual", "RMS ″", "P-V ″", "share of the error"])
+
+
+def _blind_caption(curve: Any) -> str:
+    """What the self-calibration curve leaves out (principle 5): the harmonics no head set sees and
+    the Nyquist term, held at 0 (analysis/hsieh_pipeline.py ``_curve_blind``); the comparison and
+    E_n leave them out of both curves."""
+    blind = list((curve or {}).get("unobservable_harmonics") or []) if isinstance(curve, Mapping) else []
+    if not blind:
+        return ""
+    shown = ", ".join(str(int(k)) for k in blind[:12]) + (", …" if len(blind) > 12 else "")
+    return (f". The self-calibration curve holds the harmonics k = {shown} at 0 (no head set sees them, or"
+            " the Nyquist term, which it does not estimate); its u does not include them, and the comparison"
+            " and E_n leave them out of both curves")

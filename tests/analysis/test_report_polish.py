@@ -5,6 +5,7 @@ start, not after every value."""
 
 from __future__ import annotations
 
+import json
 import re
 
 from benchtwin.analysis.report.bench_report import _budget_rows
@@ -75,3 +76,20 @@ def test_the_polar_rings_labels_are_drawn_over_the_traces_on_a_white_ground():
     top_line = max(line.get_zorder() for line in ax.lines)
     for txt in rings:
         assert txt.get_zorder() > top_line and txt.get_bbox_patch() is not None
+
+
+def test_the_selfcal_figure_says_which_harmonics_its_curve_leaves_out(hsieh_results):
+    """Principle 5: the self-calibration curve holds the harmonics no head set sees (and the Nyquist
+    term) at 0; the report's caption names them, and says the curve's u does not include them."""
+    import html as _html
+
+    from benchtwin.analysis.report.bench_report import _blind_caption
+
+    res = json.loads(hsieh_results.read_text(encoding="utf-8"))
+    blind = res["selfcal_error_arcsec"]["unobservable_harmonics"]
+    assert blind, "the reduced hsieh2022 run's 12 heads leave some harmonics unseen"
+    caption = _blind_caption(res["selfcal_error_arcsec"])
+    assert f"k = {blind[0]}" in caption and "u does not include them" in caption
+    page = _html.unescape((hsieh_results.parent / "report.html").read_text(encoding="utf-8"))
+    assert caption in page
+    assert _blind_caption({"unobservable_harmonics": []}) == "" and _blind_caption(None) == ""
