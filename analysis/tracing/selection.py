@@ -264,11 +264,10 @@ class _Candidates:
 class _Gates:
     """What every candidate is compared with in stage 3: the no-effect fit's BIC, AICc and
     cross-validated χ² (``cv0``), the tie tolerance (χ² units), the noise floor, the library order,
-    and for pairs the best single effect's BIC (``None`` while the single effects are gated)."""
+    and for pairs the best single effect's BIC (``None`` while the single effects are gated). The
+    fit problem, the library modules and their context are stage 2's (``cands``)."""
 
-    pb: _Problem
-    mods: dict[str, Any]
-    ctx: dict[str, Any]
+    cands: _Candidates
     order: list[str]
     tie_tol_chi2: float
     noise_floor_arcsec: float
@@ -276,6 +275,18 @@ class _Gates:
     aicc0: float
     cv0: float | None
     best_single_bic: float | None = None
+
+    @property
+    def pb(self) -> _Problem:
+        return self.cands.pb
+
+    @property
+    def mods(self) -> dict[str, Any]:
+        return self.cands.mods
+
+    @property
+    def ctx(self) -> dict[str, Any]:
+        return self.cands.ctx
 
 
 @dataclass(frozen=True)
@@ -395,7 +406,7 @@ def _screen(cands: _Candidates, noise_floor_arcsec: float) -> _Gates:
     cv0 = pb.cv(np.zeros((pb.n_rows, 0)))
     order = list(ALL) + [n for n in cands.mods if n not in ALL]  # the stated preference (ALL), whatever the call order
     tol = TIE_REL * max(float(pb.null["chi2"]), float(pb.n_rows))
-    return _Gates(pb=pb, mods=cands.mods, ctx=cands.ctx, order=order, tie_tol_chi2=tol,
+    return _Gates(cands=cands, order=order, tie_tol_chi2=tol,
                   noise_floor_arcsec=noise_floor_arcsec, bic0=bic0, aicc0=aicc0, cv0=cv0)
 
 
