@@ -213,8 +213,7 @@ def bench_view_key(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> str:
     size, the MuJoCo version and the sources of the model and of this picture (a few ms)."""
     from importlib.metadata import PackageNotFoundError, version
 
-    import benchtwin.models
-    import benchtwin.twin
+    from benchtwin.twin.code_digest import update_with_sources
 
     h = hashlib.sha256()
     try:
@@ -224,12 +223,7 @@ def bench_view_key(sc: Any, width: int = WIDTH, height: int = HEIGHT) -> str:
     h.update(json.dumps({"format": _CACHE_FORMAT, "size": [int(width), int(height)], "mujoco": mj,
                          "scenario": sc.to_dict()}, sort_keys=True, default=repr).encode())
     h.update(Path(__file__).read_bytes())
-    for pkg, pattern in ((benchtwin.twin, "*.py"), (benchtwin.models, "*")):
-        root = Path(list(pkg.__path__)[0])
-        for f in sorted(root.rglob(pattern)):
-            if f.is_file() and "__pycache__" not in f.parts:
-                h.update(f.relative_to(root).as_posix().encode())
-                h.update(f.read_bytes())
+    update_with_sources(h, (("benchtwin.twin", "*.py"), ("benchtwin.models", "*")))
     return h.hexdigest()
 
 

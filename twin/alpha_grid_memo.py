@@ -28,33 +28,24 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import importlib.util
 import json
 import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from .code_digest import update_with_sources
+
 ENV = "BENCHTWIN_ALPHA_GRID_CACHE"
 
 
 @functools.cache
 def _code_digest() -> str:
-    """SHA-256 over the source files (and MuJoCo models) of the packages the α grid's computation can
-    reach, and of the analysis (the twin's dataset writer lives there)."""
-    # found by name, not imported here: the twin's layer contracts (pyproject.toml) stay what they are
-    roots: set[Path] = set()
-    for name in ("benchtwin", "benchtwin.twin", "benchtwin.hw", "benchtwin.analysis", "benchtwin.models"):
-        spec = importlib.util.find_spec(name)
-        if spec is not None:
-            roots.update(Path(p).resolve() for p in (spec.submodule_search_locations or []))
-    files: set[Path] = set()
-    for root in roots:
-        files.update(p for p in root.rglob("*") if p.suffix in (".py", ".xml") and p.is_file())
+    """SHA-256 over the sources the α grid's computation can reach (the ``benchtwin`` floor, the twin,
+    the hardware layer, the analysis: the twin's dataset writer lives there) and the MuJoCo models."""
     h = hashlib.sha256()
-    for p in sorted(files):
-        h.update(str(p).encode())
-        h.update(p.read_bytes())
+    update_with_sources(h, [(name, "*.py") for name in ("benchtwin", "benchtwin.twin", "benchtwin.hw",
+                                                         "benchtwin.analysis")] + [("benchtwin.models", "*")])
     return h.hexdigest()
 
 
