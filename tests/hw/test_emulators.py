@@ -188,6 +188,26 @@ def test_pty_server_serves_and_applies_faults(tmp_path):
         assert not server.errors
 
 
+def test_a_pty_servers_own_link_folder_goes_with_it(tmp_path, monkeypatch):
+    """A server given no link folder makes one in the temporary directory and removes it on stop; a
+    caller's folder stays (it is the caller's)."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    src = Stub(probe_top={"value_um": 1.25, "status": "ok"})
+    with PtyServer({"tesa": TesaEmulator("tesa", src, "probe_top")}) as server:
+        own = server.link_dir
+        assert own.parent == tmp_path and os.path.islink(server.paths()["tesa"])
+    assert not own.exists()
+    with pytest.raises(ValueError, match="unknown port"):
+        PtyServer({"a": None}, [{"port": "b", "request": 1, "action": "drop"}])
+    assert list(tmp_path.iterdir()) == []
+    given = tmp_path / "ports"
+    with PtyServer({"tesa": TesaEmulator("tesa", src, "probe_top")}, link_dir=given):
+        pass
+    assert given.is_dir() and list(given.iterdir()) == []
+
+
 def test_fault_plan_validation(tmp_path):
     f = tmp_path / "faults.toml"
     f.write_text('[[faults]]\nport = "stage"\nrequest = 3\naction = "drop"\n')

@@ -136,9 +136,21 @@ class PtyServer(ByteServer):
 
     def __init__(self, emulators: Mapping[str, Any], faults: Any = None, link_dir: str | Path | None = None,
                  poll_s: float = 0.02):
+        # A folder this server made for its links is its to remove on stop (one per server left in /tmp
+        # otherwise: 7 per test run); a caller's folder is the caller's.
+        # (after the plan's check, which raises: no folder is made for a server that never was)
+        super().__init__(emulators, faults, poll_s)
+        self._own_dir = link_dir is None
         self.link_dir = Path(link_dir) if link_dir is not None else Path(tempfile.mkdtemp(prefix="benchtwin-emu-"))
         self.link_dir.mkdir(parents=True, exist_ok=True)
-        super().__init__(emulators, faults, poll_s)
+
+    def stop(self) -> None:
+        super().stop()
+        if self._own_dir:
+            try:
+                self.link_dir.rmdir()  # empty once every port's link is gone; anything else left stays
+            except OSError:
+                pass
 
     # ------------------------------------------------------------------ lifecycle
     def _open_ports(self) -> None:
