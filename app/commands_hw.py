@@ -61,9 +61,16 @@ def cmd_emulate(ns: argparse.Namespace) -> dict[str, Any]:
     own = {"bench.toml", "ports", "frames", ".benchtwin.lock"}
     earlier = directory.is_dir() and not directory.is_symlink() and (directory / "bench.toml").is_file() and all(
         c.name in own for c in directory.iterdir())
-    with locked_output_dir(directory, OutputFolder("emulator folder (--dir)", "emulate"), force=ns.force or earlier,
-                           inputs=[ns.scenario, ns.faults]):
-        return _emulate(ns, sc, faults, directory)
+    try:
+        with locked_output_dir(directory, OutputFolder("emulator folder (--dir)", "emulate"),
+                               force=ns.force or earlier, inputs=[ns.scenario, ns.faults]):
+            return _emulate(ns, sc, faults, directory)
+    finally:
+        if ns.dir is None:  # the temporary folder made above: removed if the run left nothing in it
+            try:
+                directory.rmdir()
+            except OSError:
+                pass
 
 
 def _emulate(ns: argparse.Namespace, sc: Any, faults: Any, directory: Path) -> dict[str, Any]:

@@ -99,7 +99,9 @@ def test_acquisition_over_tcp_equals_the_simulation(tmp_path):
     _compare({n: a.table(n) for n in tables}, {n: b.table(n) for n in tables})
 
 
-def test_cli_emulate_tcp_writes_tcp_ports(tmp_path, capsys):
+def test_cli_emulate_tcp_writes_tcp_ports(tmp_path, capsys, monkeypatch):
+    import tempfile
+
     from benchtwin import cli
     from benchtwin.hw.acquisition.bench import load_bench
     import benchtwin.app.commands_hw  # noqa: F401
@@ -111,4 +113,8 @@ def test_cli_emulate_tcp_writes_tcp_ports(tmp_path, capsys):
     ports = {n: s["port"] for n, s in cfg.instruments.items()}
     assert all(p.startswith("tcp://127.0.0.1:") for p in ports.values()), ports
     assert cfg.instruments["stage"]["options"]["message_ids"] is True
+    # without --dir the emulator's temporary folder is made for it, and goes when nothing was written in it
+    (tmp_path / "t").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "t"))
     assert cli.main(["emulate", "--tcp", "--tcp-port", "80", "--duration", "0", "--camera", "none"]) == 2
+    assert list((tmp_path / "t").iterdir()) == []
