@@ -154,8 +154,9 @@ def test_analysis_of_emulated_and_simulated_datasets_agree(run):
         _agree(cs["value"], ce["value"], f"{k} value")
         _agree(cs["u"], ce["u"], f"{k} u")
     _agree(ps.pitch_deviation_arcsec, pe.pitch_deviation_arcsec, "beta (arcsec)")
-    # the agreement bound is far inside the noise: every standard uncertainty is > 1e3 x AGREE (the
-    # self-calibration of jia2019's two heads has no redundancy: the analysis gives no u for it)
+    # the agreement bound is far inside the noise: every standard uncertainty is > 1e3 x AGREE (a u
+    # the analysis does not state, None or not finite, e.g. a self-calibration order it cannot
+    # observe, is left out)
     us = [u for u in (emu["ccd"].u_e_um, emu["ccd"].u_theta0_deg, *pe.encoder_error_arcsec["u"],
                       *(pe.selfcal_error_arcsec or {})["u"], *pe.pitch_deviation_u_arcsec)
           if u is not None and math.isfinite(u)]
