@@ -8,9 +8,12 @@ For every scenario under ``scenarios/`` (jia2019, hsieh2022, ``hidden/*``, ``hid
   twin/hidden.py compute it),
 - its size: the RESOLVED value (the file's or the schema's default),
 - the size's source: a reference the scenario file's comment or the docs give for that value
-  (``REFS``, keyed by the file's text value, so it lapses when the value changes), else
-  "ASSUMPTION, no source" where the file's comment on the key says ASSUMPTION, "schema default,
-  no source" where the file does not state the key, else "no source" (none is invented),
+  (``REFS`` for one bench, ``SHARED_REFS`` for every bench stating the same value, both keyed by
+  the file's text value so they lapse when the value changes; ``DEFAULT_REFS`` for a schema
+  default, keyed by the resolved value), else "ASSUMPTION, no source" where the file's comment on
+  the key says ASSUMPTION, "schema default, no source" where the file does not state the key, else
+  "no source" (none is invented: each reference is written out in docs/physics.md, "Sizes and
+  their sources"),
 - what the motion is keyed by (read from the code: the shaft angle θ, the rep index, the stop,
   the bench time t, the approach direction or the CCD frame's step).
 
@@ -115,21 +118,130 @@ REFS: dict[tuple[str, str, str], str] = {
 }
 
 
-def size_source(bench: str, raw: dict, comments: dict[str, str], dotted: str) -> str:
-    """Where a value's size comes from: REFS, else "ASSUMPTION, no source" where the file's comment
-    on the key says ASSUMPTION, "schema default, no source" where the file omits the key, else
-    "no source"."""
+#: Sources found by the sourcing pass of 2026-12-06 (issue 33), for every bench whose file states the
+#: same text value; each is written out with its full citation in docs/physics.md, "Sizes and their
+#: sources". "derived" = a formula from the model's geometry and a cited material property; "within"
+#: = a reference bounds the value without fixing it; "no source for the value" = the only published
+#: number found disagrees or does not apply (the doc says by how much).
+SHARED_REFS: dict[tuple[str, str], str] = {
+    ("bearings.grade", "P4"):
+        "a choice (ASSUMPTION): ISO 492:2014 tolerance class 4 (ABEC 7), the class of super-precision "
+        "angular-contact bearings (SKF, \"Bearing tolerance class\": classes better than P5 are its "
+        "super-precision range); its limits as twin/bearing.py takes them from ISO 492:2014 (class 4: "
+        "Kia 3 µm, Kea 5 µm; not re-read; its class-2 row agrees with SKF's \"Class P2 (ABEC 9) "
+        "tolerances\" table)",
+    ("bearings.grade", "P0"):
+        "a choice (ASSUMPTION: a worn pair stands in as ISO 492 Normal class); its limits as twin/bearing.py "
+        "takes them from ISO 492:2014 (Normal: Kia 13 µm, Kea 20 µm; not re-read)",
+    ("bearings.ball_grade", "G5"):
+        "a choice (ASSUMPTION); its size: ISO 3290-1:2014 grade G5, lot diameter variation V_DWL = 0.25 µm "
+        "(V_Dws = t_Dw = 0.13 µm; the standard's table as reproduced by ball makers)",
+    ("bearings.unbalance", "20 g*mm"):
+        "ASSUMPTION (e = U/m = 25 µm); within ISO 21940-11:2016's finest grade G0.4 (U_per = m·G/Ω) at any "
+        "service speed up to 153 rpm, and the bench moves stop-and-go far slower: bounded, not fixed",
+    ("bench.shaft_mass", "0.8 kg"):
+        "ASSUMPTION, no source for the value; the model's own parts give 0.50 kg (models/bench.xml: Ø 20 × "
+        "143 mm steel shaft 0.35 kg, polygon 0.10, polygon section 0.02, spheres 0.018, disk 0.005, "
+        "unbalance 0.002 kg); the other 0.3 kg (hub, inner rings, nuts, clamp) is unmodelled",
+    ("bearings.friction_torque", "0.02 N*m"):
+        "ASSUMPTION, no source for the value; the constant-μ estimate ½·μ·P·d (SKF rolling bearings "
+        "catalogue, \"Estimating the frictional moment\", table 1: μ = 0.0020; Koyo, table 4-1: 0.0012–0.0020) "
+        "gives 1.2–2.9 mN·m for the open pair at 50 N preload, ≤ 5.9 mN·m at start-up: the value is 3.4–17× "
+        "that (the estimate assumes P ≈ 0.1 C, so it is a floor here)",
+    ("bearings.shaft_torsional_stiffness", "5000 N*m/rad"):
+        "ASSUMPTION, no source for the value; derived G·J/L of the model's Ø 20 mm steel shaft over the "
+        "130 mm from the disk plane to the polygon (G = 75–83 GPa: Hibbeler, Mechanics of Materials; "
+        "Callister, table 6.1): 9.1e3–1.0e4 N·m/rad, so 5000 needs an unsourced series compliance "
+        "(hub, polygon clamp) of 1.0e4–1.1e4 N·m/rad",
+    ("thermal.microscope_stand_growth", "2.3 um/K"):
+        "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, Fundamentals of Materials Science and "
+        "Engineering, table B.6) × 100 mm (the arm's length, ASSUMPTION) = 2.36 µm/K",
+    ("thermal.probe_stand_growth", "0.2 um/K"):
+        "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, table B.6) × 10 mm (the uncompensated "
+        "length, ASSUMPTION) = 0.24 µm/K, rounded down to 0.2",
+    ("thermal.axis_drift", "0.1 um/K"):
+        "ASSUMPTION, no source; as a lumped growth it is α_Al·ΔL with ΔL = 4.2 mm of uneven aluminium "
+        "between the seats (α: Callister, table B.6), ΔL unsourced",
+    ("thermal.axis_drift", "0.05 um/K"):
+        "ASSUMPTION, no source; as a lumped growth it is α_Al·ΔL with ΔL = 2.1 mm of uneven aluminium "
+        "between the seats (α: Callister, table B.6), ΔL unsourced",
+    ("vibration.microscope_stand_damping", "0.03"):
+        "within [0.01, 0.04], the damping ratio of steel elements of EN 1998-6:2005 annex B (as quoted in "
+        "SCIA Engineer 21.0 help, \"Annex A: numerical damping values\")",
+    ("bearings.air_clearance", "8 um"):
+        "within [5, 10] µm: ~5 µm fly height (New Way Air Bearings, glossary \"Fly height\"; Steinmeyer "
+        "glossary \"air bearing\"), ~10 µm for spindles (airbearings.co.uk, \"What is an air bearing?\"); "
+        "the file's 5–15 µm (Slocum 1992 ch. 10) not re-read",
+    ("bearings.air_supply_pressure", "5 bar"):
+        "within [4.8, 5.5] bar gauge: Loadpoint Bearings, \"General advice on air supplies\" (air-bearing "
+        "spindles: regulator at 80 psi, low-pressure trip at 70 psi)",
+    ("bearings.journal_runout", "0.02 um"):
+        "ASSUMPTION; the run-out it gives (1:1) is within the typical 0.1 µm radial run-out of rotary "
+        "air-bearing stages (PI, \"Air bearing technology\")",
+    ("bearings.journal_roundness", "0.1 um"):
+        "ASSUMPTION; the motion it gives through the film (≤ 1/(N−1) of the lobes) is within the typical "
+        "0.1 µm radial run-out of rotary air-bearing stages (PI, \"Air bearing technology\")",
+    ("thermal.ac_drift", "0.05 arcsec/K"):
+        "ASSUMPTION, no source: no data sheet found that gives an autocollimator's zero drift per K "
+        "(Elcomat 3000, TriAngle); on hsieh2022 the 0.1″ it gives over the ±1 K band is below the 0.13″ "
+        "std of Hsieh 2022's six repeated runs (sec. 3.3 (1)): consistent, not a bound",
+    ("hidden.thermal_growth.hub_radius", "10 mm"):
+        "derived: the radius of the Ø 20 mm shaft the hub sits on (models/bench.xml; the bore of the "
+        "ASSUMED 7004 bearing)",
+    ("hidden.ac_drift.warmup_time_constant", "1200 s"):
+        "derived: lumped capacitance ρ·c·t/h of the tube's aluminium wall (Incropera & DeWitt ch. 5): "
+        "2700·900·0.005/10 = 1215 s for a 5 mm wall at h = 10 W/m²K (wall and h: ASSUMPTIONs)",
+    ("hidden.ac_drift.zero_per_kelvin", "1.5 arcsec/K"):
+        "derived in the file: a transverse gradient bends the 300 mm aluminium tube, α·ΔT_g·L²/(2D) "
+        "(D = 60 mm); the gradient's share of the rise (25 %) is an ASSUMPTION",
+    ("hidden.torsion_hysteresis.extra_friction_torque", "0.03 N*m"):
+        "no source; it is this bench's whole bearing friction (friction_torque = 0): 5–25× the "
+        "constant-μ estimate for the open pair (1.2–5.9 mN·m; `bearings.friction_torque` above)",
+}
+
+#: Sources of schema defaults (the file omits the key), keyed by the resolved value in SI units.
+DEFAULT_REFS: dict[tuple[str, float], str] = {
+    ("thermal.probe_stand_time_constant", 1800.0):
+        "within [12 min, 2.5 h], the lumped-capacitance τ = ρ·c·D/(4h) (Incropera & DeWitt ch. 5) of a "
+        "Ø 30 mm aluminium column over h = 25…2 W/m²K (their table 1.1, free convection of gases); "
+        "30 min at h = 10; the column's size is an ASSUMPTION",
+    ("thermal.autocollimator_time_constant", 3600.0):
+        "within [20, 61] min, the lumped-capacitance τ (Incropera & DeWitt ch. 5, h = 10 W/m²K) of a "
+        "Ø 60 mm aluminium instrument body: a 5 mm tube wall ρ·c·t/h to a solid body ρ·c·D/(4h); "
+        "the body's size is an ASSUMPTION",
+}
+
+
+def size_source(bench: str, raw: dict, comments: dict[str, str], dotted: str,
+                resolved: object = None) -> str:
+    """Where a value's size comes from: REFS (this bench), else SHARED_REFS (any bench with the same
+    text value), else "ASSUMPTION, no source" where the file's comment on the key says ASSUMPTION;
+    a key the file omits: DEFAULT_REFS of its resolved value, else "schema default, no source";
+    else "no source"."""
     node: object = raw
     for part in dotted.split("."):
         node = node.get(part) if isinstance(node, dict) else None
     if node is None:
-        return "schema default, no source"
-    ref = REFS.get((bench, dotted, str(node)))
+        dref = DEFAULT_REFS.get((dotted, resolved)) if isinstance(resolved, float) else None
+        return f"schema default: {dref}" if dref else "schema default, no source"
+    ref = REFS.get((bench, dotted, str(node))) or SHARED_REFS.get((dotted, str(node)))
     if ref:
         return ref
     if "ASSUMPTION" in comments.get(dotted, ""):
         return "ASSUMPTION, no source"
     return "no source"
+
+
+def _resolved(sc, dotted: str) -> object:
+    """The loaded scenario's value of ``section.key`` (the schema default where the file omits it),
+    or None."""
+    node: object = sc
+    for part in dotted.split("."):
+        try:
+            node = node[part]  # type: ignore[index]
+        except (KeyError, TypeError):
+            return None
+    return node
 
 
 def _um(x: float) -> str:
@@ -151,7 +263,7 @@ def bench_rows(path: Path) -> list[Row]:
     name = bench_name(path)
 
     def src(*keys: str) -> str:
-        return "; ".join(f"`{k}`: {size_source(name, raw, com, k)}" for k in keys)
+        return "; ".join(f"`{k}`: {size_source(name, raw, com, k, _resolved(sc, k))}" for k in keys)
 
     rows: list[Row] = []
     br, th, hid = sc["bearings"], sc["thermal"], sc.hidden

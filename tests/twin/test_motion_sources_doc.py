@@ -128,3 +128,32 @@ def test_time_keyed_cage_slip_row(tmp_path):
     assert "`bearings.cage_slip`: ASSUMPTION, no source" in slip.size_source
     assert "`bearings.cage_slip_time`: no source" in slip.size_source
     assert "`bearings.cage_slip_mean`: schema default, no source" in slip.size_source
+
+
+def test_shared_and_default_references_lapse_with_the_value(tmp_path):
+    """A reference found by the sourcing pass (SHARED_REFS: any bench stating the same value;
+    DEFAULT_REFS: a schema default) applies only to the value it was read for; a derivation that
+    disagrees with the value leaves it unsourced."""
+    ms = _module()
+    src = (ROOT / "scenarios" / "jia2019.toml").read_text(encoding="utf-8")
+    assert 'microscope_stand_growth = "2.3 um/K"' in src and 'axis_drift = "0.1 um/K"' in src
+    assert "probe_stand_time_constant" not in src
+    changed = src.replace('microscope_stand_growth = "2.3 um/K"', 'microscope_stand_growth = "3 um/K"').replace(
+        'axis_drift = "0.1 um/K"', 'probe_stand_time_constant = "20 min"\naxis_drift = "0.1 um/K"')
+    p = tmp_path / "scenarios" / "jia2019.toml"
+    p.parent.mkdir()
+    p.write_text(changed, encoding="utf-8")
+    rows = {r.source: r for r in ms.bench_rows(p)}
+    micro = rows["thermal: microscope_stand_growth"].size_source
+    assert "Callister" not in micro and "`thermal.microscope_stand_growth`: ASSUMPTION, no source" in micro
+    probe = rows["thermal: probe_stand_growth"].size_source
+    assert "`thermal.probe_stand_time_constant`: no source" in probe and "Incropera" not in probe
+    shipped = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "jia2019.toml")}
+    assert "Callister" in shipped["thermal: microscope_stand_growth"].size_source
+    assert "`thermal.probe_stand_time_constant`: schema default: within [12 min, 2.5 h]" in (
+        shipped["thermal: probe_stand_growth"].size_source)
+    twist = shipped["bearing friction: twist"].size_source
+    assert "`bearings.shaft_torsional_stiffness`: ASSUMPTION, no source for the value" in twist
+    # the same value on another bench carries the same reference
+    hidden = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "hidden" / "torsion_hysteresis.toml")}
+    assert "9.1e3–1.0e4 N·m/rad" in hidden["bearing friction: twist (hidden torsion_hysteresis)"].size_source
