@@ -150,8 +150,9 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "that (the estimate assumes P ≈ 0.1 C, so it is a floor here)",
     ("bearings.shaft_torsional_stiffness", "5000 N*m/rad"):
         "ASSUMPTION, no source for the value; derived G·J/L of the model's Ø 20 mm steel shaft over the "
-        "130 mm from the disk plane to the polygon (G = 75–83 GPa: Hibbeler, Mechanics of Materials; "
-        "Callister, table 6.1): 9.1e3–1.0e4 N·m/rad, so 5000 needs an unsourced series compliance "
+        "130 mm from the disk plane to the polygon (G = 75–80 GPa for steel: Gere, Mechanics of "
+        "Materials, 5th ed., as in Moaveni, Engineering Fundamentals, 4th ed., table 17.1): 9.1e3–9.7e3 "
+        "N·m/rad, so 5000 needs an unsourced series compliance "
         "(hub, polygon clamp) of 1.0e4–1.1e4 N·m/rad",
     ("thermal.microscope_stand_growth", "2.3 um/K"):
         "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, Fundamentals of Materials Science and "
