@@ -147,7 +147,8 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "ASSUMPTION, no source for the value; the constant-μ estimate ½·μ·P·d (SKF rolling bearings "
         "catalogue, \"Estimating the frictional moment\", table 1: μ = 0.0020; Koyo, table 4-1: 0.0012–0.0020) "
         "gives 1.2–2.9 mN·m for the open pair at 50 N preload, ≤ 5.9 mN·m at start-up: the value is 3.4–17× "
-        "that (the estimate assumes P ≈ 0.1 C, so it is a floor here)",
+        "that (a floor, not a bound: at 50 N and near-zero speed load-independent and boundary "
+        "friction dominate)",
     ("bearings.shaft_torsional_stiffness", "5000 N*m/rad"):
         "ASSUMPTION, no source for the value; derived G·J/L of the model's Ø 20 mm steel shaft over the "
         "130 mm from the disk plane to the polygon (G = 75–80 GPa for steel: Gere, Mechanics of "
