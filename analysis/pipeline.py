@@ -62,21 +62,34 @@ def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
     """Radial error motion from the two test spheres (Jia eqs. 6-9), with its ISO 230-7 values."""
     from benchtwin.analysis.radial_motion import ProbeReadings, RadialOptions, SphereSpacing, radial_motion
 
-    t = RadialMotionTable.from_table(ds.table("radial_motion"))
+    t, drift = radial_table(ds)
     b = BenchGeometry.from_manifest(ds.bench)
     L1_mm, L2_mm = b.sphere_distances_mm
     rm = radial_motion(ProbeReadings(t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um,
                                      probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um),
                        SphereSpacing(L1_mm, L2_mm), RadialOptions(order=order))
     # with the ISO 230-7 values and polar plots (issue 20)
-    return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order))
+    return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order, table=t), probe_drift=drift)
 
 
-def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int) -> dict[str, Any]:
-    """ISO 230-7 total / synchronous / asynchronous radial error motion (analysis.iso230_7)."""
+def radial_table(ds: Dataset) -> tuple[RadialMotionTable, dict[str, Any] | None]:
+    """radial_motion.csv less the probes' time-smooth drift where one is significant
+    (:meth:`RadialMotionTable.drift_corrected`, analysis/probe_drift.py), and the drift's summary
+    (None: the readings as they are). Every reduction of the probes (Jia eqs. 6-9, ISO 230-7, the
+    loop's radial evidence and its asynchronous term) reads this table."""
+    t = RadialMotionTable.from_table(ds.table("radial_motion"))
+    b = BenchGeometry.from_manifest(ds.bench)
+    L1_mm, L2_mm = b.sphere_distances_mm
+    return t.drift_corrected(L1_mm, L2_mm, b.optical_radius_mm)
+
+
+def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int,
+                  table: RadialMotionTable | None = None) -> dict[str, Any]:
+    """ISO 230-7 total / synchronous / asynchronous radial error motion (analysis.iso230_7), of
+    ``table`` (default: :func:`radial_table`)."""
     from benchtwin.analysis.iso230_7 import radial_error_motion
 
-    t = RadialMotionTable.from_table(ds.table("radial_motion"))
+    t = table if table is not None else radial_table(ds)[0]
     b = BenchGeometry.from_manifest(ds.bench)
     L1_mm, L2_mm = b.sphere_distances_mm
     return radial_error_motion(t.rep, t.theta_deg, t.probes(), L1_mm, L2_mm, rm=rm, order=order)
@@ -945,7 +958,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     geo, ecc, pol = a.bench, cast(EccentricityResult, a.ecc), cast(PolygonAnalysis, a.pol)
     radial = None
     if a.rm is not None:
-        t = RadialMotionTable.from_table(ds.table("radial_motion"))
+        t = radial_table(ds)[0]
         radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, *geo.sphere_distances_mm,
                               top_x_um=t.probe_top_x_um, bottom_x_um=t.probe_bottom_x_um, rep=t.rep)
     notes = []

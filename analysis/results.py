@@ -207,6 +207,11 @@ class RadialMotionSection(TypedDict):
     u_h1_async_um: Annotated[Num, Key("µm", "asynchronous motion's share in the 1st harmonic of one revolution")]
     bandwidth: NotRequired[Annotated[dict[str, Any], Key("", "orders per revolution of the summary's values: "
                                                              "lowest_order, highest_order, filter, text")]]
+    probe_drift: NotRequired[Annotated[dict[str, Any], Key("", "the probes' time-smooth drift removed before the "
+                                                               "reduction (analysis/probe_drift.py), present when a "
+                                                               "probe's passed the F test: channels (order, pv_um, "
+                                                               "rms_um, u_um, p_value_none, ...), disk_y, disk_x, "
+                                                               "duration_s, as_axis_alpha_pv_arcsec")]]
 
 
 class RadialErrorMotion(TypedDict, total=False):

@@ -83,10 +83,14 @@ class RadialMotionResult(_StepDetail):
     summary: dict[str, dict[str, float]]
     #: the ISO 230-7:2015 evaluation of the same readings (analysis.iso230_7.radial_error_motion)
     iso230_7: dict[str, Any]
+    #: the probes' time-smooth drift removed before the reduction (analysis.probe_drift;
+    #: :meth:`RadialMotionTable.drift_corrected`), None when no probe's drift passed the test
+    probe_drift: dict[str, Any] | None = None
 
     @classmethod
-    def from_radial_motion(cls, rm: dict[str, Any], iso230_7: dict[str, Any]) -> RadialMotionResult:
-        return cls.from_detail(rm, iso230_7=iso230_7)
+    def from_radial_motion(cls, rm: dict[str, Any], iso230_7: dict[str, Any],
+                           probe_drift: dict[str, Any] | None = None) -> RadialMotionResult:
+        return cls.from_detail(rm, iso230_7=iso230_7, probe_drift=probe_drift)
 
     @property
     def bandwidth(self) -> dict[str, Any]:
@@ -99,7 +103,7 @@ class RadialMotionResult(_StepDetail):
             n_reps=self.n_reps, theta_deg=self.theta_deg, dY_um=self.dY_um, tilt_x_urad=self.tilt_x_urad,
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
             u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um,
-            bandwidth=self.bandwidth)
+            bandwidth=self.bandwidth, **({"probe_drift": self.probe_drift} if self.probe_drift else {}))
 
     def iso_summary(self) -> RadialErrorMotion:
         """results.json's radial_error_motion: the ISO 230-7 section (iso230_7.summary)."""
@@ -404,12 +408,63 @@ class RadialMotionTable:
     probe_bottom_um: np.ndarray
     probe_top_x_um: np.ndarray | None
     probe_bottom_x_um: np.ndarray | None
+    #: the time of each reading (optional column), s
+    t_s: np.ndarray | None = None
 
     @classmethod
     def from_table(cls, t: Mapping[str, Any]) -> RadialMotionTable:
         return cls(rep=t["rep"], theta_deg=t["theta_deg"], probe_top_um=t["probe_top_um"],
                    probe_bottom_um=t["probe_bottom_um"], probe_top_x_um=t.get("probe_top_x_um"),
-                   probe_bottom_x_um=t.get("probe_bottom_x_um"))
+                   probe_bottom_x_um=t.get("probe_bottom_x_um"), t_s=t.get("t_s"))
+
+    def drift_corrected(self, L1_mm: float, L2_mm: float,
+                        optical_radius_mm: float | None = None) -> tuple[RadialMotionTable, dict[str, Any] | None]:
+        """The readings less each probe's time-smooth drift (analysis.probe_drift: a Legendre series
+        in the reading time fitted jointly with the θ-synchronous series, its order by a nested F
+        test), and the drift's summary for results.json. Probes whose drift is not significant keep
+        their readings bit for bit; (self, None) when none is (or there are no reading times)."""
+        from benchtwin.analysis.probe_drift import DRIFT_P, fit_probe_drift
+        from benchtwin.analysis.radial_motion import disk_weights
+
+        cols = {"probe_top_um": self.probe_top_um, "probe_bottom_um": self.probe_bottom_um,
+                "probe_top_x_um": self.probe_top_x_um, "probe_bottom_x_um": self.probe_bottom_x_um}
+        fits = fit_probe_drift(self.rep, self.theta_deg, self.t_s, cols)
+        if not any(f.order > 0 for f in fits.values()):
+            return self, None
+        new = {c: (np.asarray(v, dtype=float) - fits[c].removed_um if c in fits and fits[c].order > 0 else v)
+               for c, v in cols.items()}
+        t = np.asarray(self.t_s, dtype=float)
+        out: dict[str, Any] = {
+            "model": "y(θ, t) = m(θ) + d(t) + per-revolution orders 0, 1 + noise; d: Legendre orders 1…P in the "
+                     "reading time over the run, P by a nested F test against P_max = 2·revolutions (≤ 12)",
+            "test_p": DRIFT_P, "duration_s": float(np.ptp(t)),
+            "channels": {c: f.summary() for c, f in fits.items()},
+            "treated_as": "the probes' stand (a drift in time, not axis motion): its part the θ model cannot take is "
+                          "removed from the readings, so the revolutions' asynchronous scatter loses it and the "
+                          "synchronous δY (the mean over revolutions) is unchanged; its part along the θ model (e.g. "
+                          "the sawtooth of a drift linear over the run) cannot be told from synchronous motion",
+        }
+        wt, wb = disk_weights(L1_mm, L2_mm)
+        for key, (a, b) in (("disk_y", ("probe_top_um", "probe_bottom_um")),
+                            ("disk_x", ("probe_top_x_um", "probe_bottom_x_um"))):
+            if a not in fits or b not in fits:
+                continue
+            d = wt * fits[a].drift_um + wb * fits[b].drift_um
+            # u: the two probes' fits are independent (their noise is)
+            u = np.hypot(wt * fits[a].u_drift_um, wb * fits[b].u_drift_um)
+            out[key] = {"pv_um": float(np.ptp(d)), "rms_um": float(np.sqrt(np.mean(d ** 2))),
+                        "u_um": float(np.max(u)), "u_rms_um": float(np.sqrt(np.mean(u ** 2)))}
+            if key == "disk_x" and optical_radius_mm:
+                # if it were the axis's motion along X: α reads −δX/r (not added to any u; see the note)
+                out["as_axis_alpha_pv_arcsec"] = float(np.ptp(d)) / (optical_radius_mm * 1e3) * 206264.80624709636
+                out["as_axis_note"] = (
+                    "were the drift the axis's along X, α would move by as_axis_alpha_pv_arcsec over the radial "
+                    "run's duration_s; a drift in time during the polygon run is what the loop's ac_drift effect "
+                    "(autocollimator or bench drift ∝ reading time) tests, so it is not added to each reading's u")
+        table = RadialMotionTable(rep=self.rep, theta_deg=self.theta_deg, probe_top_um=new["probe_top_um"],
+                                  probe_bottom_um=new["probe_bottom_um"], probe_top_x_um=new["probe_top_x_um"],
+                                  probe_bottom_x_um=new["probe_bottom_x_um"], t_s=self.t_s)
+        return table, out
 
     def probes(self) -> dict[str, np.ndarray | None]:
         """{column: values} of the four probes (analysis.iso230_7.radial_error_motion)."""
