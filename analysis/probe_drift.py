@@ -28,13 +28,14 @@ sawtooth in θ every revolution — synchronous motion for any analysis of these
 drift's linear part over the run stays in the synchronous δY (as before this fit), and the stated
 u(d̂) is that of the identifiable part.
 
-What is removed from the readings is d̂'s part orthogonal to the θ model (per-revolution orders 0,
-1 and the common orders 2…K): the synchronous estimate (the mean over revolutions of each harmonic)
-is then the readings' own, unchanged, and only the revolutions' scatter about it — the asynchronous
-estimate — loses the drift. d̂'s part along the θ model (a drift's average shape over the
-revolutions, e.g. the sawtooth of its linear part) cannot be told from synchronous motion by these
-readings; it stays in the synchronous δY, as it did without this fit, rather than being replaced by
-the Legendre model's extrapolation.
+What is removed from the readings is d̂ less its part common to the revolutions (its projection on
+the θ series of orders 0…K): the synchronous estimate (the mean over revolutions of each harmonic)
+is then the readings' own, unchanged, and only the revolutions' deviations from it — the
+asynchronous estimate, the 1st harmonic's scatter included — lose the drift. d̂'s common part (a
+drift's average shape over the revolutions, e.g. the sawtooth of its linear part) cannot be told
+from synchronous motion by these readings; it stays in the synchronous δY, as it did without this
+fit, rather than being replaced by the Legendre model's extrapolation. d̂'s per-revolution orders 0
+and 1 (nuisance terms of the joint fit) are the Legendre model's: the model decides them.
 
 What the drift MEANS is stated, not decided here: the probes alone cannot tell a common, time-smooth
 drift of their stand from a slow drift of the axis. The analysis takes it as the stand's (the
@@ -53,7 +54,7 @@ import numpy as np
 
 from benchtwin.analysis.fourier import design_matrix
 
-__all__ = ["theta_model_basis", "DRIFT_P", "DRIFT_IDENT_MIN", "DRIFT_MAX_ORDER_PER_REV", "DRIFT_MAX_ORDER", "DRIFT_SYNC_ORDER", "ChannelDrift",
+__all__ = ["theta_model_basis", "common_theta_basis", "DRIFT_P", "DRIFT_IDENT_MIN", "DRIFT_MAX_ORDER_PER_REV", "DRIFT_MAX_ORDER", "DRIFT_SYNC_ORDER", "ChannelDrift",
            "fit_channel_drift", "fit_probe_drift"]
 
 #: significance of the nested F test that admits drift orders (per channel)
@@ -84,7 +85,7 @@ class ChannelDrift:
     p_value_chosen: float    # F test of the chosen P against P_max (1 when P = P_max)
     sigma_um: float          # residual σ of the full fit (noise and non-repeating motion)
     legendre_orders: tuple = ()  # the Legendre orders of d̂ (the first ``order`` identifiable ones)
-    #: d̂ less its projection on the θ model (per-revolution orders 0, 1 and the common orders 2…K): what
+    #: d̂ less its projection on the θ series common to the revolutions (orders 0…K): what
     #: :meth:`RadialMotionTable.drift_corrected` removes from the readings (µm)
     removed_um: np.ndarray | None = None
 
@@ -124,6 +125,13 @@ def theta_model_basis(rep: np.ndarray, theta_deg: np.ndarray, K: int) -> np.ndar
     base = np.hstack([per_rep, F[:, 3:]])
     U, sv, _ = np.linalg.svd(base, full_matrices=False)
     return U[:, sv > sv[0] * max(base.shape) * np.finfo(float).eps]
+
+
+def common_theta_basis(theta_deg: np.ndarray, K: int) -> np.ndarray:
+    """An orthonormal basis of the θ series of orders 0…K common to every revolution."""
+    F = design_matrix(np.asarray(theta_deg, dtype=float).ravel(), K)
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)
+    return U[:, sv > sv[0] * max(F.shape) * np.finfo(float).eps]
 
 
 def fit_channel_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray, y: np.ndarray,
@@ -204,9 +212,11 @@ def fit_channel_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray, y
         Lf = L - L.mean(axis=0)
         u2 = u2 + (Lf @ fits[Pn] - d) ** 2
     u = np.sqrt(u2)
-    # what is removed from the readings: d̂'s part the θ model cannot take (orthogonal to it), so the
-    # synchronous estimate (the θ model's part) is the readings' own and only the scatter changes
-    seen = d - Q @ (Q.T @ d)
+    # what is removed from the readings: d̂ less its part common to the revolutions (its projection on
+    # the θ series of orders 0…K): the synchronous estimate (the mean over the revolutions) stays the
+    # readings' own, the revolutions' deviations from it (orders 0 and 1 included) lose the drift
+    Qc = common_theta_basis(th, K)
+    seen = d - Qc @ (Qc.T @ d)
     return ChannelDrift(order, Pmax, d, u, p_none, p_chosen, math.sqrt(s2), orders[:order], seen)
 
 

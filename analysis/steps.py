@@ -439,10 +439,10 @@ class RadialMotionTable:
                      "reading time over the run, P by a nested F test against P_max = 2·revolutions (≤ 12)",
             "test_p": DRIFT_P, "duration_s": float(np.ptp(t)),
             "channels": {c: f.summary() for c, f in fits.items()},
-            "treated_as": "the probes' stand (a drift in time, not axis motion): its part the θ model cannot take is "
-                          "removed from the readings, so the revolutions' asynchronous scatter loses it and the "
-                          "synchronous δY (the mean over revolutions) is unchanged; its part along the θ model (e.g. "
-                          "the sawtooth of a drift linear over the run) cannot be told from synchronous motion",
+            "treated_as": "the probes' stand (a drift in time, not axis motion): removed from the readings less its "
+                          "part common to the revolutions, so the revolutions' asynchronous scatter loses it and the "
+                          "synchronous δY (the mean over revolutions) is unchanged; the common part (e.g. the "
+                          "sawtooth of a drift linear over the run) cannot be told from synchronous motion",
         }
         wt, wb = disk_weights(L1_mm, L2_mm)
         for key, (a, b) in (("disk_y", ("probe_top_um", "probe_bottom_um")),

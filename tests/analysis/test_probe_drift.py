@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from benchtwin.analysis.probe_drift import (DRIFT_P, DRIFT_SYNC_ORDER, fit_channel_drift, fit_probe_drift,
-                                            theta_model_basis)
+                                            common_theta_basis)
 from benchtwin.analysis.radial_motion import ProbeReadings, SphereSpacing, radial_motion
 from benchtwin.analysis.steps import RadialMotionTable
 
@@ -60,6 +60,13 @@ def _less_linear(t, v):
     return v - A @ np.linalg.lstsq(A, v, rcond=None)[0]
 
 
+def _less_rep_means(rep, v):
+    out = np.array(v, dtype=float)
+    for r in np.unique(rep):
+        out[rep == r] -= out[rep == r].mean()
+    return out
+
+
 def test_polynomial_drift_recovered_within_its_stated_u():
     """A drift inside the model (Legendre orders 2 and 3 of the run's time): d̂ − d is within the
     stated u (z RMS ≈ 1, no point beyond 4 u) on every seed, with the orders 2, 3."""
@@ -74,21 +81,22 @@ def test_polynomial_drift_recovered_within_its_stated_u():
 
 
 def test_room_cycle_drift_recovered_and_sync_unchanged():
-    """A sinusoidal stand drift (outside the Legendre model): found, its part the θ model cannot
-    take recovered to a small fraction of its size; after removing it the synchronous δY is the
+    """A sinusoidal stand drift (outside the Legendre model): found, its part not common to the
+    revolutions recovered to within 40 % of its size (BIC truncates a sine); after removing it the synchronous δY is the
     readings' own (unchanged to 1e-9 µm) and the revolutions' asynchronous scatter is that of the
     same readings without any drift (within 20 %), where uncorrected it is over twice that."""
     for seed in (11, 12, 13):
         rep, th, t, y_top, m, d = _readings(seed, _hvac)
         rng = np.random.default_rng(seed + 100)
         y_bot = y_top - m + 0.5 * m + rng.normal(0.0, SIGMA, y_top.size)  # another sphere, the same stand
-        Q = theta_model_basis(rep, th, DRIFT_SYNC_ORDER)
+        Q = common_theta_basis(th, DRIFT_SYNC_ORDER)
         d_seen = d - Q @ (Q.T @ d)  # what the readings can tell from synchronous motion
         fits = fit_probe_drift(rep, th, t, {"probe_top_um": y_top, "probe_bottom_um": y_bot})
         for f in fits.values():
             assert f.order > 0 and f.p_value_none < 1e-6
-            err = f.removed_um - d_seen
-            assert np.sqrt(np.mean(err ** 2)) < 0.3 * np.sqrt(np.mean(d_seen ** 2)), seed
+            # less each revolution's mean (eq. 7's order 0: the probe position, removed per revolution)
+            err = _less_rep_means(rep, f.removed_um - d_seen)
+            assert np.sqrt(np.mean(err ** 2)) < 0.4 * np.sqrt(np.mean(_less_rep_means(rep, d_seen) ** 2)), seed
         table = RadialMotionTable(rep=rep, theta_deg=th, probe_top_um=y_top, probe_bottom_um=y_bot,
                                   probe_top_x_um=None, probe_bottom_x_um=None, t_s=t)
         corrected, summary = table.drift_corrected(L1, L2)
