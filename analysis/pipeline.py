@@ -65,9 +65,18 @@ def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
     t, drift = radial_table(ds)
     b = BenchGeometry.from_manifest(ds.bench)
     L1_mm, L2_mm = b.sphere_distances_mm
-    rm = radial_motion(ProbeReadings(t.rep, t.theta_deg, t.probe_top_um, t.probe_bottom_um,
-                                     probe_top_x_um=t.probe_top_x_um, probe_bottom_x_um=t.probe_bottom_x_um),
-                       SphereSpacing(L1_mm, L2_mm), RadialOptions(order=order))
+
+    def reduce(tt: RadialMotionTable) -> dict[str, Any]:
+        return radial_motion(ProbeReadings(tt.rep, tt.theta_deg, tt.probe_top_um, tt.probe_bottom_um,
+                                           probe_top_x_um=tt.probe_top_x_um, probe_bottom_x_um=tt.probe_bottom_x_um),
+                             SphereSpacing(L1_mm, L2_mm), RadialOptions(order=order))
+
+    rm = reduce(t)
+    if drift is not None:
+        # Jia sec. 5's range method on the readings as taken (Jia removed no drift): the number to
+        # compare with the paper's 0.18 µm; u_dY_range_um is the drift-corrected one
+        drift["u_dY_range_as_read_um"] = float(reduce(RadialMotionTable.from_table(ds.table("radial_motion")))
+                                               ["u_dY_range_um"])
     # with the ISO 230-7 values and polar plots (issue 20)
     return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order, table=t), probe_drift=drift)
 

@@ -211,7 +211,9 @@ class RadialMotionSection(TypedDict):
                                                                "reduction (analysis/probe_drift.py), present when a "
                                                                "probe's passed the F test: channels (order, pv_um, "
                                                                "rms_um, u_um, p_value_none, ...), disk_y, disk_x, "
-                                                               "duration_s, as_axis_alpha_pv_arcsec")]]
+                                                               "duration_s, as_axis_alpha_pv_arcsec, "
+                                                               "u_dY_range_as_read_um (Jia sec. 5's range "
+                                                               "method on the readings as taken)")]]
 
 
 class RadialErrorMotion(TypedDict, total=False):

@@ -155,6 +155,23 @@ def _add_radial_section(rep: Any, ds: Dataset, a: BenchAnalysis) -> None:
         return
     rep.heading("Radial error motion (Jia sec. 4.1, fig. 13)")
     rep.figure(fj.fig_radial_motion(a.rm.detail), "Radial error motion of the test spheres and of the grating disk along the head direction")
+    pd_ = a.rm.probe_drift
+    if pd_:
+        ch = pd_["channels"]
+        parts = "; ".join(f"{name.removeprefix('probe_').removesuffix('_um')}: {c['pv_um']:.3f} µm P-V, u {c['u_um']:.3f} µm "
+                          f"(Legendre orders {', '.join(map(str, c['legendre_orders']))})"
+                          for name, c in ch.items() if c["order"] > 0)
+        dy = pd_.get("disk_y")
+        rep.paragraph(
+            f"The probes' readings drift in time over the {pd_['duration_s'] / 60:.1f}-minute run ({parts}; "
+            f"F test against no drift at p = {pd_['test_p']:g}, order by BIC)"
+            + (f"; at the disk along Y {dy['pv_um']:.3f} ± {dy['u_um']:.3f} µm P-V" if dy else "")
+            + ". It is taken as the probes' stand's, not axis motion: removed before the revolutions' scatter (the "
+            "asynchronous motion) is formed; the synchronous δY is the readings' own (a drift's part common to "
+            "the revolutions cannot be told from it)"
+            + (f". Were it the axis's along X, α would move by {pd_['as_axis_alpha_pv_arcsec']:.2f}″ over the run; "
+               "a drift in time during the polygon run is the loop's ac_drift effect to find" if "as_axis_alpha_pv_arcsec" in pd_
+               else "") + ".", note=True)
     from benchtwin.analysis.report.figures_iso import add_iso230_7_section
 
     add_iso230_7_section(rep, a.rm.iso230_7, ds, filtered=a.rm.summary)
