@@ -84,10 +84,10 @@ class ChannelDrift:
     p_value_none: float      # F test of P = 0 against P_max
     p_value_chosen: float    # F test of the chosen P against P_max (1 when P = P_max)
     sigma_um: float          # residual σ of the full fit (noise and non-repeating motion)
-    legendre_orders: tuple = ()  # the Legendre orders of d̂ (the first ``order`` identifiable ones)
+    legendre_orders: tuple[int, ...]  # the Legendre orders of d̂ (the first ``order`` identifiable ones)
     #: d̂ less its projection on the θ series common to the revolutions (orders 0…K): what
     #: :meth:`RadialMotionTable.drift_corrected` removes from the readings (µm)
-    removed_um: np.ndarray | None = None
+    removed_um: np.ndarray
 
     def summary(self) -> dict[str, Any]:
         d, u = self.drift_um, self.u_drift_um
@@ -97,8 +97,7 @@ class ChannelDrift:
                 "rms_um": float(np.sqrt(np.mean(d ** 2))) if d.size else 0.0,
                 "u_um": float(np.max(u)) if u.size else 0.0,
                 "u_rms_um": float(np.sqrt(np.mean(u ** 2))) if u.size else 0.0,
-                "removed_rms_um": float(np.sqrt(np.mean(self.removed_um ** 2))) if self.removed_um is not None
-                and self.removed_um.size else 0.0,
+                "removed_rms_um": float(np.sqrt(np.mean(self.removed_um ** 2))) if self.removed_um.size else 0.0,
                 "p_value_none": float(self.p_value_none), "p_value_chosen": float(self.p_value_chosen),
                 "residual_sigma_um": float(self.sigma_um)}
 

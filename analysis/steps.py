@@ -98,12 +98,15 @@ class RadialMotionResult(_StepDetail):
         return cast(dict[str, Any], self.detail["bandwidth"])
 
     def to_json(self) -> RadialMotionSection:
-        return RadialMotionSection(
+        out = RadialMotionSection(
             summary=self.summary, u_dY_range_um=self.u_dY_range_um, u_dY_gum_um=self.u_dY_gum_um, d_n=self.d_n,
             n_reps=self.n_reps, theta_deg=self.theta_deg, dY_um=self.dY_um, tilt_x_urad=self.tilt_x_urad,
             # δY as the spindle's synchronous motion (radial_motion: the revolutions' scatter per harmonic)
             u_dY_um=self.u_dY_um, u_dY_theta_um=self.u_dY_theta_um, u_h1_async_um=self.u_h1_async_um,
-            bandwidth=self.bandwidth, **({"probe_drift": self.probe_drift} if self.probe_drift else {}))
+            bandwidth=self.bandwidth)
+        if self.probe_drift:
+            out["probe_drift"] = self.probe_drift
+        return out
 
     def iso_summary(self) -> RadialErrorMotion:
         """results.json's radial_error_motion: the ISO 230-7 section (iso230_7.summary)."""
@@ -461,9 +464,11 @@ class RadialMotionTable:
                     "were the drift the axis's along X, α would move by as_axis_alpha_pv_arcsec over the radial "
                     "run's duration_s; a drift in time during the polygon run is what the loop's ac_drift effect "
                     "(autocollimator or bench drift ∝ reading time) tests, so it is not added to each reading's u")
-        table = RadialMotionTable(rep=self.rep, theta_deg=self.theta_deg, probe_top_um=new["probe_top_um"],
-                                  probe_bottom_um=new["probe_bottom_um"], probe_top_x_um=new["probe_top_x_um"],
-                                  probe_bottom_x_um=new["probe_bottom_x_um"], t_s=self.t_s)
+        table = RadialMotionTable(rep=self.rep, theta_deg=self.theta_deg,
+                                  probe_top_um=cast(np.ndarray, new["probe_top_um"]),
+                                  probe_bottom_um=cast(np.ndarray, new["probe_bottom_um"]),
+                                  probe_top_x_um=new["probe_top_x_um"], probe_bottom_x_um=new["probe_bottom_x_um"],
+                                  t_s=self.t_s)
         return table, out
 
     def probes(self) -> dict[str, np.ndarray | None]:
