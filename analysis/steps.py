@@ -30,6 +30,7 @@ from typing import Any, Self, cast
 
 import numpy as np
 
+from benchtwin.units import ARCSEC_PER_RAD
 from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, Bench, BenchResults, BudgetInput, BudgetRow,
                                         BudgetSummary, CCDSection, CloseLoop, Comparison, CorrectedCurve, Curve,
                                         EncoderErrorCurve, ErrorCurveResults, Floats, IdentifiedEffect, Iso230_2, ModelPrediction, PolygonResults,
@@ -459,7 +460,7 @@ class RadialMotionTable:
                         "u_um": float(np.max(u)), "u_rms_um": float(np.sqrt(np.mean(u ** 2)))}
             if key == "disk_x" and optical_radius_mm:
                 # if it were the axis's motion along X: α reads −δX/r (not added to any u; see the note)
-                out["as_axis_alpha_pv_arcsec"] = float(np.ptp(d)) / (optical_radius_mm * 1e3) * 206264.80624709636
+                out["as_axis_alpha_pv_arcsec"] = float(np.ptp(d)) / (optical_radius_mm * 1e3) * ARCSEC_PER_RAD
                 out["as_axis_note"] = (
                     "were the drift the axis's along X, α would move by as_axis_alpha_pv_arcsec over the radial "
                     "run's duration_s; a drift in time during the polygon run is what the loop's ac_drift effect "
