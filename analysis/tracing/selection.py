@@ -433,7 +433,7 @@ def _gate(c: _Cand, g: _Gates, member_bics: list[float] | None = None) -> None:
 
 def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str]:
     """The fit's gates: identifiable, each member's z, the measured regressors moved within their
-    u, ΔBIC against no effect (and a pair against its members), physically plausible parameters,
+    u, ΔBIC against no effect (and a pair against its members that pass alone), physically plausible parameters,
     and the F-test of the χ² improvement (sets ``c.f_p``). Returns the reasons it fails."""
     pb, reasons = g.pb, []
     # Parameters must be identifiable with the data at hand: e.g. on 23 polygon stops the
@@ -454,7 +454,7 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
                            f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
     if g.bic0 - c.bic < DBIC_GATE:
         reasons.append(f"ΔBIC = {g.bic0 - c.bic:.1f} < {DBIC_GATE}")
-    if member_bics is not None and c.bic > min(member_bics) - DBIC_GATE:
+    if member_bics and c.bic > min(member_bics) - DBIC_GATE:
         reasons.append("the pair does not beat its members by ΔBIC ≥ 10")
     scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
     P, U = _params_u(c, scale)
@@ -574,7 +574,10 @@ def _pairs(variants: list[_Cand], g: _Gates) -> list[_Cand]:
             continue
         c = _Cand(a.names + b.names, np.hstack([a.X, b.X]), a.pnames + b.pnames, notes=a.notes + b.notes)
         _evaluate(pb, c, g.mods, g.ctx)
-        c.member_bics = [a.bic, b.bic]
+        # the members that explain the residual alone (every gate passed): a member that fails its
+        # own gates (e.g. a measured regressor moved beyond its u to imitate the other member's
+        # share) is no alternative to the pair, as for ``best_single_bic``
+        c.member_bics = [m.bic for m in (a, b) if m.passed]
         _gate(c, g, c.member_bics)
         pairs.append(c)
     best_pair: dict[tuple, _Cand] = {}

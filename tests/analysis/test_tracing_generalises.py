@@ -100,3 +100,41 @@ def test_variant_with_every_order_is_chosen_where_the_data_need_it():
     assert not out["unexplained"], (out["status"], out["residual_after"])
     (eff,) = out["identified_effects"]
     assert len(eff["params"]) > 2 * 20   # beyond the harmonic test's 20 orders
+
+
+def test_a_pair_is_judged_against_the_members_that_explain_alone():
+    # issue 32, the twin's selfa_graduation (seed 152 #0: X probes, shifts 0…14°, one rep): the
+    # division error and the measured tangential motion together left the noise (χ² 808 for 778
+    # dof), but the pair was rejected for not beating the tangential motion alone by ΔBIC ≥ 10 —
+    # a member that failed its own gate (its δX moved 5× beyond its u); a member that fails alone
+    # is no alternative to the pair (as for the best single effect the pair must beat)
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from benchtwin.analysis.tracing.selection import _Cand, _Candidates, _pairs, _screen
+
+    th_deg = np.tile(np.arange(23) * 360.0 / 23, 3)
+    th = np.deg2rad(th_deg)
+    rng = np.random.default_rng(7)
+    ev = Evidence(theta_deg=th_deg, alpha_arcsec=np.sin(2 * th) + np.cos(7 * th) + rng.normal(0.0, 0.05, th.size),
+                  u_arcsec=0.05, model_terms={}, rep=np.repeat(np.arange(3), 23))
+    pb = _Problem(ev, use_selfcal=False)
+    cen = lambda v: _center(v[:, None], ev.closure_group, pb.w ** 2)   # noqa: E731
+    a = _Cand(("graduation_error",), cen(np.sin(2 * th)), [["a2_arcsec"]])
+    b = _Cand(("tangential_motion",), cen(np.cos(7 * th)), [["gain"]])
+    mods = {"graduation_error": SimpleNamespace(SEEN_BY_SELFCAL=True),
+            "tangential_motion": SimpleNamespace(SEEN_BY_SELFCAL=True)}
+    cands = _Candidates(pb=pb, mods=mods, ctx={}, variants=[a, b], skipped={}, async_motion=None)
+    g = _screen(cands, 0.05)
+    a.passed = True
+    g = replace(g, best_single_bic=a.bic)
+
+    def pair(b_passed: bool, b_bic: float):
+        b.passed, b.bic = b_passed, b_bic
+        (c,) = _pairs([a, b], g)
+        return c
+
+    p = pair(False, -1e9)   # the member that fails its own gates, however low its BIC
+    assert p.passed, p.reasons
+    p = pair(True, p.bic)   # a member that explains alone as well as the pair: the pair is not needed
+    assert not p.passed and any("beat its members" in r for r in p.reasons)
