@@ -33,6 +33,11 @@ bench without X probes, which the draws cover). ``scenarios/hidden_templates/`` 
 effects) are not classes. Caveat: ``tilt_abbe``'s scenario also declares a worn bearing for ΔL1 to
 act on; the class applies only ``[hidden]``, so on the drawn benches (no waviness) ΔL1 has little
 motion to act on.
+A class also applies its scenario's sections that are the hidden effect's cause (``CAUSE_SECTIONS``:
+``[thermal]``): ``thermal_growth``'s lobes follow the hub's temperature rise, which is the
+``[thermal]`` section's (motor heat, lab air); without it the drawn bench has ΔT = 0 and the
+"effect" is exactly zero (truth/hidden.json: ``structure_rise_K_at_end`` 0.0), a null bench scored
+against an expectation of "unexplained".
 
 **Expected verdict.** ``app.score``'s own rule from truth/hidden.json (a library effect named alone
 or in an ambiguity set, an effect outside the library "unexplained", nothing on a null), except the
@@ -93,6 +98,9 @@ NOISE_FACTOR = (0.5, 2.0)
 ECCENTRICITY_UM = (0.5, 12.0)
 #: the reduced CCD sweep (not validated here; keeps a bench to seconds)
 FIXED = {"procedure.ccd_step": "12 deg", "procedure.radial_positions": 72}
+#: sections of a class's scenario that cause its hidden effect and go with it onto the drawn bench
+#: (the bench's thermal history: twin/hidden.py, thermal_growth is zero without a temperature change)
+CAUSE_SECTIONS = ("thermal",)
 #: hidden-suite scenarios whose decided outcome is "nothing" (benchmarks/hidden_suite.EXPECTED)
 EXPECT_NOTHING = ("ac_drift", "ac_nonlinearity", "ccd_pixel_scale_pixel_only", "polygon_pitch_ignored")
 ARCSEC_PER_RAD = 206264.80624709636
@@ -158,12 +166,21 @@ def draw_bench(seed: int, cls: str, index: int, base_noise: dict[str, float] | N
     return {"draw": draw, "overrides": ov}
 
 
+def class_causes(cls: str) -> dict[str, Any]:
+    """The class scenario's ``CAUSE_SECTIONS`` (raw TOML sections; {} for null or without them)."""
+    p = HIDDEN_DIR / f"{cls}.toml"
+    raw = tomllib.loads(p.read_text(encoding="utf-8")) if p.is_file() else {}
+    return {k: raw[k] for k in CAUSE_SECTIONS if k in raw}
+
+
 def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any]):
-    """The drawn bench with the class's [hidden] section, validated by the scenario schema."""
+    """The drawn bench with the class's [hidden] section and its causes (:func:`class_causes`),
+    validated by the scenario schema."""
     from benchtwin.twin.scenario import load_scenario
 
     b = draw_bench(seed, cls, index)
-    return load_scenario(BASE_SCENARIO).with_overrides({**b["overrides"], "hidden": hidden}), b
+    ov = {**b["overrides"], "hidden": hidden, **(class_causes(cls) if hidden else {})}
+    return load_scenario(BASE_SCENARIO).with_overrides(ov), b
 
 
 def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) -> dict[str, Any]:
