@@ -84,3 +84,19 @@ def test_every_dimension_within_the_issue_ranges_and_a_valid_scenario():
     assert seen["x"] == {True, False}
     assert seen["heads"] == {1, 2, 3, 12}
     assert len(seen["shifts"]) == 3 and len(seen["dirs"]) == 2 and seen["reps"] == {1, 2, 3}
+
+
+def test_a_class_takes_the_causes_of_its_hidden_effect_and_nothing_else():
+    # issue 32: thermal_growth's lobes follow the hub's temperature rise ([thermal]), tilt_abbe's ΔL1
+    # acts on the worn bearings' tilt motion (bearings.grade P0); drawn without them, both classes were
+    # null benches (ΔT = 0; 0.011″ of α) scored against expectations no analysis could meet
+    classes = lv.effect_classes()
+    causes = {c: lv.class_causes(c) for c in classes}
+    assert set(causes["thermal_growth"]) == {"thermal"} and causes["tilt_abbe"] == {"bearings.grade": "P0"}
+    assert all(not v for c, v in causes.items() if c not in ("thermal_growth", "tilt_abbe"))
+    sc, _ = lv.bench_scenario(3, "thermal_growth", 0, classes["thermal_growth"])
+    assert sc["thermal"]["motor_rise"] > 0
+    sc, _ = lv.bench_scenario(3, "tilt_abbe", 0, classes["tilt_abbe"])
+    assert sc["bearings"]["grade"] == "P0"
+    null, _ = lv.bench_scenario(3, "null", 0, classes["null"])
+    assert null["thermal"]["motor_rise"] == 0 and null["bearings"]["grade"] == "P4"
