@@ -161,6 +161,12 @@ SHARED_REFS: dict[tuple[str, str], str] = {
     ("thermal.probe_stand_growth", "0.2 um/K"):
         "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, table B.6) × 10 mm (the uncompensated "
         "length, ASSUMPTION) = 0.24 µm/K, rounded down to 0.2",
+    ("thermal.probe_stand_growth", "1.8 um/K"):
+        "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, table B.6) × 80 mm (the arm holding the "
+        "lever probes along their axis, ASSUMPTION) = 1.89 µm/K, rounded down to 1.8",
+    ("thermal.probe_stand_time_constant", "12 min"):
+        "derived: lumped capacitance τ = ρ·c·D/(4h) of a Ø 12 mm aluminium arm in still air (Incropera & "
+        "DeWitt ch. 5; h ≈ 10 W/m²K, ASSUMPTION): 2700·900·0.012/40 = 730 s",
     ("thermal.axis_drift", "0.1 um/K"):
         "ASSUMPTION, no source; as a lumped growth it is α_Al·ΔL with ΔL = 4.2 mm of uneven aluminium "
         "between the seats (α: Callister, table B.6), ΔL unsourced",

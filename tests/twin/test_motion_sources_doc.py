@@ -137,9 +137,9 @@ def test_shared_and_default_references_lapse_with_the_value(tmp_path):
     ms = _module()
     src = (ROOT / "scenarios" / "jia2019.toml").read_text(encoding="utf-8")
     assert 'microscope_stand_growth = "2.3 um/K"' in src and 'axis_drift = "0.1 um/K"' in src
-    assert "probe_stand_time_constant" not in src
+    assert 'probe_stand_time_constant = "12 min"' in src
     changed = src.replace('microscope_stand_growth = "2.3 um/K"', 'microscope_stand_growth = "3 um/K"').replace(
-        'axis_drift = "0.1 um/K"', 'probe_stand_time_constant = "20 min"\naxis_drift = "0.1 um/K"')
+        'probe_stand_time_constant = "12 min"', 'probe_stand_time_constant = "20 min"')
     p = tmp_path / "scenarios" / "jia2019.toml"
     p.parent.mkdir()
     p.write_text(changed, encoding="utf-8")
@@ -150,8 +150,12 @@ def test_shared_and_default_references_lapse_with_the_value(tmp_path):
     assert "`thermal.probe_stand_time_constant`: no source" in probe and "Incropera" not in probe
     shipped = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "jia2019.toml")}
     assert "Callister" in shipped["thermal: microscope_stand_growth"].size_source
-    assert "`thermal.probe_stand_time_constant`: schema default: within [12 min, 2.5 h]" in (
+    assert "`thermal.probe_stand_time_constant`: derived: lumped capacitance" in (
         shipped["thermal: probe_stand_growth"].size_source)
+    # a schema default carries its reference (hsieh2022 states no probe stand time constant)
+    hsieh = {r.source: r for r in ms.bench_rows(ROOT / "scenarios" / "hsieh2022.toml")}
+    assert "`thermal.probe_stand_time_constant`: schema default: within [12 min, 2.5 h]" in (
+        hsieh["thermal: probe_stand_growth"].size_source)
     twist = shipped["bearing friction: twist"].size_source
     assert "`bearings.shaft_torsional_stiffness`: ASSUMPTION, no source for the value" in twist
     # the same value on another bench carries the same reference
