@@ -723,7 +723,7 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
     out["residual_after"] = after.test
     cj = rep.json(chosen)
     effects = _effects_json(ev, chosen, after, cj)
-    out["ambiguous"] = _ambiguity(sel, rep, chosen, after.pred_arcsec, cj)
+    out["ambiguous"] = _ambiguity(sel, rep, chosen, cj)
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
                           time_ks=res.flagged_harmonics)
     left = _significant_parts(sig_after, ev.n, res.noise_floor_arcsec)
@@ -797,13 +797,12 @@ def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]
     return effects
 
 
-def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, pred: np.ndarray,
-               cj: dict[str, Any]) -> list[dict[str, Any]]:
+def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any]) -> list[dict[str, Any]]:
     """Stage 5, the ambiguity set of the chosen candidate: the passing (or equivalent) alternatives
     the data cannot tell apart from it (:func:`_collinear_alternatives`) and those forced by the
     design (:func:`_design_alternatives`), each with its reference fit, and the measurement that
     would separate them. Returns [] or [the set]."""
-    amb_cands, amb_fits = _collinear_alternatives(sel, rep, chosen, pred, cj)
+    amb_cands, amb_fits = _collinear_alternatives(sel, rep, chosen, cj)
     within, forced = _design_alternatives(sel, chosen, amb_cands)
     for alt in within:
         if alt not in amb_cands:
@@ -829,12 +828,20 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, pred: np.ndarray,
              "alternatives": ["+".join(sorted(a)) for a in amb_cands], "forced_by_design": sorted(forced)}]
 
 
-def _collinear_alternatives(sel: _Selection, rep: _Reporter, chosen: _Cand, pred: np.ndarray,
+def _collinear_alternatives(sel: _Selection, rep: _Reporter, chosen: _Cand,
                             cj: dict[str, Any]) -> tuple[list[set[str]], dict[str, dict[str, Any]]]:
     """The chosen candidate and the other passing (or equivalent) candidates within AMBIG_DBIC of
     its BIC whose predictions are nearly collinear with its own (cos² > COLLINEAR): (their member
-    sets, {key: reference fit JSON})."""
+    sets, {key: reference fit JSON}).
+
+    Both predictions are the same kind, columns × fitted parameters (as :func:`_representative`
+    compares them): not the chosen one's with its measured regressor's adjustment (errors in
+    variables) against the other's without. With the X probes' δX adjusted within its u, a
+    tangential motion's prediction moved far enough that three pairs of identical fit (a gain on
+    the model — ac_scale, optical_radius, ccd_pixel_scale — next to the same tangential motion)
+    had cos² 0.79 with the chosen one and no ambiguity set was reported (loop validation, issue 32)."""
     pb = sel.gates.pb
+    pred = pb.predict_rows(chosen.X, chosen.fit, nuisance=False)
     amb_cands, amb_fits = [set(chosen.names)], {chosen.key: cj}
     for c in [c for c in sel.passed if c is not chosen] + sel.equivalents:
         if c.bic - chosen.bic < AMBIG_DBIC and set(c.names) not in amb_cands:
