@@ -10,6 +10,8 @@ led to, each on a small evidence that can fail (fast).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from benchtwin.analysis.effects import graduation_error
@@ -138,3 +140,66 @@ def test_a_pair_is_judged_against_the_members_that_explain_alone():
     assert p.passed, p.reasons
     p = pair(True, p.bic)   # a member that explains alone as well as the pair: the pair is not needed
     assert not p.passed and any("beat its members" in r for r in p.reasons)
+
+
+def _amb_setup(chi2_chosen: float, chi2_alt: float):
+    """A chosen candidate (gain on the model + a quadratic reading term, 2 parameters) and one
+    alternative that is the gain alone (1 parameter), on one 24-face design: their fits as given."""
+    from types import SimpleNamespace
+
+    from benchtwin.analysis.effects import ALL
+    from benchtwin.analysis.tracing.selection import _Cand
+
+    d = _shift_design(3)
+    th = np.deg2rad(d["theta_deg"])
+    ecc = 60.0 * np.sin(th - 1.0)
+    ev = _ev(d, 0.01 * ecc)
+    pb = _Problem(ev, use_selfcal=False)
+    g = _center((ecc / 100.0)[:, None], ev.closure_group, pb.w ** 2)
+    q = _center((0.01 * np.cos(5 * th))[:, None], ev.closure_group, pb.w ** 2)
+    n = ev.n
+    fit = {"beta": np.array([3.0, 0.2]), "chi2": chi2_chosen, "dof": n - 2, "k": 2, "n": n, "S": pb.S}
+    chosen = _Cand(("ac_scale",), np.hstack([g, q]), [["gain_pct", "quad_per_arcsec"]], fit=fit)
+    alt = _Cand(("ccd_pixel_scale",), g, [["scale_error_pct"]],
+                fit={"beta": np.array([3.0]), "chi2": chi2_alt, "dof": n - 1, "k": 1, "n": n, "S": pb.S})
+    for c in (chosen, alt):
+        c.bic, c.aicc = pb.ic(c.fit)
+    gates = SimpleNamespace(pb=pb, mods=ALL, ctx={}, tie_tol_chi2=1e-9 * n)
+    sel = SimpleNamespace(gates=gates, passed=[chosen, alt], equivalents=[], singles=[chosen, alt])
+    rep = SimpleNamespace(report=lambda c: c, json=lambda c: {"names": list(c.names)})
+    return sel, rep, chosen, n
+
+
+def test_ambiguity_weighs_the_bic_difference_by_the_scatter_the_chosen_fit_leaves():
+    """An extra parameter that takes a share of a misfit the chosen fit leaves (χ²/dof ≫ 1) is not
+    evidence against the alternatives without it (loop validation seed 61, ccd_pixel_scale #0: a
+    quadratic autocollimator term took 17 χ² of an unmeasured motion's misfit, ac_scale was named
+    alone); where the chosen fit leaves only noise, the same χ² difference separates them."""
+    from benchtwin.analysis.tracing.selection import _ambiguity
+
+    n_probe = _amb_setup(1.0, 1.0)[3]
+    d_chi2 = 1.5 * (6.0 + math.log(n_probe))   # raw ΔBIC of the alternative: 1.5·(6 + ln n) − ln n > 6
+    misfit = 2.6 * (n_probe - 2)                # χ²/dof 2.6: the scaled ΔBIC is d_chi2/2.6 − ln n < 6
+    sel, rep, chosen, _ = _amb_setup(misfit, misfit + d_chi2)
+    assert sel.passed[1].bic - chosen.bic > 6.0            # the rule before: not in the set
+    (s,) = _ambiguity(sel, rep, chosen, {"names": ["ac_scale"]})
+    assert set(s["names"]) == {"ac_scale", "ccd_pixel_scale"}
+    quiet = 0.98 * (n_probe - 2)                # χ²/dof ≤ 1: the BIC difference as it is
+    sel, rep, chosen, _ = _amb_setup(quiet, quiet + d_chi2)
+    assert _ambiguity(sel, rep, chosen, {"names": ["ac_scale"]}) == []
+
+
+def test_ambiguity_compares_predictions_of_the_same_kind():
+    """The chosen candidate's prediction is compared with each alternative's as columns × parameters
+    (_representative's rule), whatever adjustment of a measured regressor the chosen one carries:
+    identical fits are one ambiguity set (loop validation seed 101, ac_scale #1: the X probes' δX
+    adjusted in the chosen fit made identical pairs cos² 0.79 apart and no set was reported)."""
+    from benchtwin.analysis.tracing.selection import _ambiguity
+
+    sel, rep, chosen, n = _amb_setup(1.0, 1.0)
+    twin = type(chosen)(("optical_radius",), chosen.X.copy(), [["delta_r_mm", "extra"]], fit=dict(chosen.fit))
+    twin.bic, twin.aicc = chosen.bic, chosen.aicc
+    chosen.extras = {"ac_scale": np.ones((chosen.X.shape[0], 1))}   # an adjusted regressor: not compared
+    sel.passed = [chosen, twin]
+    (s,) = _ambiguity(sel, rep, chosen, {"names": ["ac_scale"]})
+    assert set(s["names"]) == {"ac_scale", "optical_radius"}
