@@ -78,7 +78,8 @@ def step_radial_motion(ds: Dataset, order: int) -> RadialMotionResult:
         drift["u_dY_range_as_read_um"] = float(reduce(RadialMotionTable.from_table(ds.table("radial_motion")))
                                                ["u_dY_range_um"])
     # with the ISO 230-7 values and polar plots (issue 20)
-    return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order, table=t), probe_drift=drift)
+    return RadialMotionResult.from_radial_motion(rm, step_iso230_7(ds, rm, order, table=t), probe_drift=drift,
+                                                 readings=t)
 
 
 def radial_table(ds: Dataset) -> tuple[RadialMotionTable, dict[str, Any] | None]:
@@ -967,7 +968,7 @@ def _loop_evidence(ds: Dataset, a: BenchAnalysis) -> tuple[Any, dict[str, Any], 
     geo, ecc, pol = a.bench, cast(EccentricityResult, a.ecc), cast(PolygonAnalysis, a.pol)
     radial = None
     if a.rm is not None:
-        t = radial_table(ds)[0]
+        t = a.rm.readings if a.rm.readings is not None else radial_table(ds)[0]
         radial = RadialMotion(t.theta_deg, t.probe_top_um, t.probe_bottom_um, *geo.sphere_distances_mm,
                               top_x_um=t.probe_top_x_um, bottom_x_um=t.probe_bottom_x_um, rep=t.rep)
     notes = []

@@ -133,16 +133,28 @@ def common_theta_basis(theta_deg: np.ndarray, K: int) -> np.ndarray:
     return U[:, sv > sv[0] * max(F.shape) * np.finfo(float).eps]
 
 
-def fit_channel_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray, y: np.ndarray,
-                      p: float = DRIFT_P) -> ChannelDrift | None:
-    """The drift of one probe's readings (module docstring). None when the readings cannot carry
-    it: fewer than 2 revolutions, no spread of the reading times, or too few readings."""
-    from benchtwin.analysis.distributions import f_sf
+@dataclass(frozen=True)
+class _DriftDesign:
+    """What the probes of one run share: the θ model's basis, the identifiable Legendre orders of the
+    reading time (raw and with the θ model projected out) and the common θ basis. Built once per run
+    (:func:`fit_probe_drift`), not once per probe."""
 
+    K: int
+    Pmax: int
+    Q: np.ndarray
+    L: np.ndarray
+    Lp: np.ndarray
+    orders: tuple[int, ...]
+    th: np.ndarray
+
+
+def _drift_design(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray) -> _DriftDesign | None:
+    """The run's shared design (:class:`_DriftDesign`); None when the readings cannot carry a
+    drift: fewer than 2 revolutions, no spread of the reading times, too few readings per
+    revolution, or no identifiable order."""
     rep = np.asarray(rep).ravel()
     th = np.asarray(theta_deg, dtype=float).ravel()
     t = np.asarray(t_s, dtype=float).ravel()
-    yy = np.asarray(y, dtype=float).ravel()
     reps = np.unique(rep)
     R = reps.size
     if R < 2 or not np.all(np.isfinite(t)) or np.ptp(t) <= 0:
@@ -170,9 +182,24 @@ def fit_channel_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray, y
             kept.append(j)
     if not kept:
         return None
-    L, Lp = L_all[:, kept], Lp_all[:, kept]
-    orders = tuple(j + 1 for j in kept)
-    Pn = len(kept)   # the nested models: the first P of the identifiable orders, P = 0…Pn
+    return _DriftDesign(K, Pmax, Q, L_all[:, kept], Lp_all[:, kept], tuple(j + 1 for j in kept), th)
+
+
+def fit_channel_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray, y: np.ndarray,
+                      p: float = DRIFT_P) -> ChannelDrift | None:
+    """The drift of one probe's readings (module docstring). None when the readings cannot carry
+    it: fewer than 2 revolutions, no spread of the reading times, or too few readings."""
+    dz = _drift_design(rep, theta_deg, t_s)
+    return None if dz is None else _fit_channel(dz, y, p)
+
+
+def _fit_channel(dz: _DriftDesign, y: np.ndarray, p: float) -> ChannelDrift | None:
+    """:func:`fit_channel_drift` on the run's shared design."""
+    from benchtwin.analysis.distributions import f_sf
+
+    yy = np.asarray(y, dtype=float).ravel()
+    Q, L, Lp, orders, th, K, Pmax = dz.Q, dz.L, dz.Lp, dz.orders, dz.th, dz.K, dz.Pmax
+    Pn = len(orders)   # the nested models: the first P of the identifiable orders, P = 0…Pn
     yp = yy - Q @ (Q.T @ yy)
     dof_full = th.size - Q.shape[1] - Pn
     if dof_full < 1:
@@ -225,11 +252,14 @@ def fit_probe_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray | No
     reading times."""
     if t_s is None:
         return {}
+    dz = _drift_design(rep, theta_deg, t_s)
     out: dict[str, ChannelDrift] = {}
+    if dz is None:
+        return out
     for name, y in channels.items():
         if y is None:
             continue
-        f = fit_channel_drift(rep, theta_deg, t_s, y, p)
+        f = _fit_channel(dz, y, p)
         if f is not None:
             out[name] = f
     return out

@@ -87,11 +87,15 @@ class RadialMotionResult(_StepDetail):
     #: the probes' time-smooth drift removed before the reduction (analysis.probe_drift;
     #: :meth:`RadialMotionTable.drift_corrected`), None when no probe's drift passed the test
     probe_drift: dict[str, Any] | None = None
+    #: the readings the reduction used (drift-corrected where a drift was found), so that later
+    #: steps (the loop's radial evidence) read the same table without fitting the drift again
+    readings: RadialMotionTable | None = None
 
     @classmethod
     def from_radial_motion(cls, rm: dict[str, Any], iso230_7: dict[str, Any],
-                           probe_drift: dict[str, Any] | None = None) -> RadialMotionResult:
-        return cls.from_detail(rm, iso230_7=iso230_7, probe_drift=probe_drift)
+                           probe_drift: dict[str, Any] | None = None,
+                           readings: RadialMotionTable | None = None) -> RadialMotionResult:
+        return cls.from_detail(rm, iso230_7=iso230_7, probe_drift=probe_drift, readings=readings)
 
     @property
     def bandwidth(self) -> dict[str, Any]:

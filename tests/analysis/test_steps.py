@@ -50,7 +50,7 @@ def test_step_outputs_are_frozen_and_name_their_units(cls):
                 "budget_inputs", "notes", "en_max", "status", "identified_effects", "partial_effects", "ambiguous",
                 "unexplained", "residual_before", "residual_after", "reference_corrections", "model_file",
                 "selfcal_error_arcsec", "difference_arcsec", "setup_error_start_faces", "d_n", "u_h1_async_dof",
-                "u_source", "sweeps", "probe_drift"}
+                "u_source", "sweeps", "probe_drift", "readings"}
     units = ("_um", "_deg", "_arcsec", "_urad", "_px")
     bad = [f.name for f in dataclasses.fields(cls) if f.name not in unitless and not f.name.endswith(units)]
     assert not bad, bad
