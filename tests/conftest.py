@@ -215,3 +215,18 @@ def hsieh_results(datasets) -> Path:
 
     # simulated and analysed once per run, by one xdist worker (the modules reading it run on either)
     return datasets.shared("hsieh_results: hsieh2022 reduced, close_loop, no truth", make) / "out" / "results.json"
+
+
+@pytest.fixture
+def kill_env():
+    """The environment for a subprocess the test kills with SIGKILL. A killed process cannot remove its
+    multiprocessing listener folder (`pymp-*`), so its TMPDIR is a folder of its own, removed with what
+    is left in it when the test ends (two `pymp-*` stayed in /tmp per suite run before this). The folder
+    is short and in the system's temporary folder: a listener's AF_UNIX path must stay under 108 bytes,
+    which a folder inside tmp_path does not."""
+    import shutil
+    import tempfile
+
+    tmp = tempfile.mkdtemp(prefix="bt-kill-")
+    yield {**os.environ, "TMPDIR": tmp}
+    shutil.rmtree(tmp, ignore_errors=True)

@@ -387,7 +387,7 @@ def test_rerun_recomputes_nothing(tmp_path, fixed_code_version, monkeypatch):
     assert (r4["computed"], r4["cached"]) == (15, 0)
 
 
-def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_version):
+def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_version, kill_env):
     body = BASIC.replace('values = ["2 mm", "5 mm", "10 mm", "20 mm"]',
                          'values = ["1 mm", "2 mm", "3 mm", "4 mm", "5 mm", "6 mm", "7 mm", "8 mm"]')
     p = _write(tmp_path, body)
@@ -402,7 +402,7 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
         st.run_study({str(p)!r}, {str(out)!r}, workers=1, progress=False,
                   point_fn=functools.partial(counting_point, delay_s=0.4))
     """)
-    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True, env=kill_env)
     try:
         deadline = time.monotonic() + 40
         while time.monotonic() < deadline:
@@ -427,7 +427,7 @@ def test_interrupted_study_finishes_only_missing_points(tmp_path, fixed_code_ver
     assert r["rows"] == 16
 
 
-def test_killed_cli_study_resumes_with_only_the_missing_points(tmp_path):
+def test_killed_cli_study_resumes_with_only_the_missing_points(tmp_path, kill_env):
     """The real thing: ``benchtwin study`` with the physics point function on a local pool is
     killed (SIGKILL to its process group: the runner and its worker) midway; re-running the same
     command computes only the (point, repetition)s that were not cached."""
@@ -457,7 +457,7 @@ def test_killed_cli_study_resumes_with_only_the_missing_points(tmp_path):
         return [sys.executable, "-c", launcher, "study", str(p), "-o", str(out), "--workers", "1", *args]
 
     proc = subprocess.Popen(cli("--quiet"), start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+                            stderr=subprocess.PIPE, env=kill_env)
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:

@@ -178,7 +178,7 @@ def _journal_steps(path: Path) -> int:
 
 
 @pytest.mark.parametrize("run", ["jia2019"], indirect=True)  # one kill-and-resume run is enough
-def test_kill_and_resume_gives_the_uninterrupted_dataset(run, tmp_path):
+def test_kill_and_resume_gives_the_uninterrupted_dataset(run, tmp_path, kill_env):
     from benchtwin.hw.acquisition.acquire import acquire
     from benchtwin.twin.emulators.serve import EmulationSession
 
@@ -189,7 +189,7 @@ def test_kill_and_resume_gives_the_uninterrupted_dataset(run, tmp_path):
     with EmulationSession(run["scenario"], autocollimator="triangle", probes="tesa", camera="analytic") as session:
         bench = session.start(tmp_path / "emulator")
         proc = subprocess.Popen([sys.executable, "-c", code, str(bench), str(out)], cwd=ROOT,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=kill_env)
         try:
             deadline = time.monotonic() + 60
             while _journal_steps(out / "journal.jsonl") < 400 and proc.poll() is None:

@@ -91,11 +91,11 @@ SIMULATE = textwrap.dedent("""
 
 
 @needs_linux
-def test_killed_simulate_leaves_no_process_and_no_new_frame(tmp_path):
+def test_killed_simulate_leaves_no_process_and_no_new_frame(tmp_path, kill_env):
     script = tmp_path / "sim.py"
     script.write_text(SIMULATE)
     out = tmp_path / "ds"
-    env = {**os.environ, "BENCHTWIN_SIM_FRAMES": "pipeline", "BENCHTWIN_SIM_FRAME_WORKERS": "2"}
+    env = {**kill_env, "BENCHTWIN_SIM_FRAMES": "pipeline", "BENCHTWIN_SIM_FRAME_WORKERS": "2"}
     proc = subprocess.Popen([sys.executable, str(script), str(ROOT / "scenarios" / "jia2019.toml"), str(out)],
                             env=env, start_new_session=True, stderr=subprocess.PIPE)
     try:
@@ -141,7 +141,7 @@ values = ["1 mm", "2 mm", "3 mm", "4 mm", "5 mm", "6 mm", "7 mm", "8 mm", "9 mm"
 
 
 @needs_linux
-def test_killed_study_leaves_no_worker_and_no_new_entry(tmp_path):
+def test_killed_study_leaves_no_worker_and_no_new_entry(tmp_path, kill_env):
     study = tmp_path / "study.toml"
     study.write_text(STUDY)
     out, calls = tmp_path / "out", tmp_path / "calls"
@@ -157,7 +157,7 @@ def test_killed_study_leaves_no_worker_and_no_new_entry(tmp_path):
     """)
     (tmp_path / "run_study.py").write_text(script)
     proc = subprocess.Popen([sys.executable, str(tmp_path / "run_study.py")], start_new_session=True,
-                            stderr=subprocess.PIPE)
+                            stderr=subprocess.PIPE, env=kill_env)
     try:
         deadline = time.monotonic() + 120
         while not list((out / "cache").rglob("*.json")) if (out / "cache").exists() else True:
