@@ -118,9 +118,9 @@ REFS: dict[tuple[str, str, str], str] = {
 }
 
 
-#: Sources found by the sourcing pass of 2026-12-06 (issue 33), for every bench whose file states the
-#: same text value; each is written out with its full citation in docs/physics.md, "Sizes and their
-#: sources". "derived" = a formula from the model's geometry and a cited material property; "within"
+#: Sources found by the sourcing passes of 2026-12-06 (issue 33; pass 2 the same day), for every bench
+#: whose file states the same text value; each is written out with its full citation in docs/physics.md,
+#: "Sizes and their sources". "derived" = a formula from the model's geometry and a cited material property; "within"
 #: = a reference bounds the value without fixing it; "no source for the value" = the only published
 #: number found disagrees or does not apply (the doc says by how much).
 SHARED_REFS: dict[tuple[str, str], str] = {
@@ -142,7 +142,8 @@ SHARED_REFS: dict[tuple[str, str], str] = {
     ("bench.shaft_mass", "0.8 kg"):
         "ASSUMPTION, no source for the value; the model's own parts give 0.50 kg (models/bench.xml: Ø 20 × "
         "143 mm steel shaft 0.35 kg, polygon 0.10, polygon section 0.02, spheres 0.018, disk 0.005, "
-        "unbalance 0.002 kg); the other 0.3 kg (hub, inner rings, nuts, clamp) is unmodelled",
+        "unbalance 0.002 kg) and the rotating parts of its two bearings 0.06–0.07 kg (pass 2: 24 balls "
+        "Ø 6.35 mm 0.025 kg, inner rings 0.03–0.05 kg); the other 0.23–0.24 kg (hub, nuts, clamp) is unmodelled",
     ("bearings.friction_torque", "0.02 N*m"):
         "ASSUMPTION, no source for the value; the constant-μ estimate ½·μ·P·d (SKF rolling bearings "
         "catalogue, \"Estimating the frictional moment\", table 1: μ = 0.0020; Koyo, table 4-1: 0.0012–0.0020) "
@@ -150,11 +151,16 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "that (a floor, not a bound: at 50 N and near-zero speed load-independent and boundary "
         "friction dominate)",
     ("bearings.shaft_torsional_stiffness", "5000 N*m/rad"):
-        "ASSUMPTION, no source for the value; derived G·J/L of the model's Ø 20 mm steel shaft over the "
-        "130 mm from the disk plane to the polygon (G = 75–80 GPa for steel: Gere, Mechanics of "
-        "Materials, 5th ed., as in Moaveni, Engineering Fundamentals, 4th ed., table 17.1): 9.1e3–9.7e3 "
-        "N·m/rad, so 5000 needs an unsourced series compliance "
-        "(hub, polygon clamp) of 1.0e4–1.1e4 N·m/rad",
+        "ASSUMPTION; within [3.6e3, 9.7e3] N·m/rad (pass 2): the upper end G·J/L of the model's Ø 20 mm "
+        "steel shaft over the 130 mm from the disk plane to the polygon (G = 75–80 GPa: Gere, Mechanics of "
+        "Materials, 5th ed., as in Moaveni, Engineering Fundamentals, 4th ed., table 17.1), rigid joints; "
+        "the lower end that shaft in series with two clamp joints (disk hub, polygon clamp) each at the "
+        "least a maker's Ø 20 mm clamp-hub couplings allow, 2·C_T ≥ 1.2e4 N·m/rad (RINGFEDER GWB AKD/AKN "
+        "sizes 18–30, bores 8–30 mm: C_Tdyn = 6e3–35e3 N·m/rad per coupling of two hubs): bounded, not fixed",
+    ("thermal.motor_rise", "2 K"):
+        "ASSUMPTION, no source for the value (pass 2): a servo's winding rise at standstill is ≈ 100 K·(T/M0)² "
+        "(losses ∝ I², T = K_T·I; M0 rated at 100 K winding overtemperature: Beckhoff AM8000 \"Technical "
+        "terms\"), so 2 K from holding the 0.02 N·m friction needs M0 ≈ 0.14 N·m; Jia names no motor",
     ("thermal.microscope_stand_growth", "2.3 um/K"):
         "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, Fundamentals of Materials Science and "
         "Engineering, table B.6) × 100 mm (the arm's length, ASSUMPTION) = 2.36 µm/K",
@@ -176,6 +182,15 @@ SHARED_REFS: dict[tuple[str, str], str] = {
     ("vibration.microscope_stand_damping", "0.03"):
         "within [0.01, 0.04], the damping ratio of steel elements of EN 1998-6:2005 annex B (as quoted in "
         "SCIA Engineer 21.0 help, \"Annex A: numerical damping values\")",
+    ("bearings.cage_slip", "0.0"):
+        "a choice, not a size (pass 2): pure rolling, the cage at its kinematic (epicyclic) speed "
+        "(Harris & Kotzalas ch. 7, the model's kinematics); the cage-slip literature finds the cage lagging "
+        "that speed at high speed and light load (doi:10.1177/1475921719856826, introduction), not on a "
+        "slow, preloaded stop-and-go pair",
+    ("vibration.exposure_time", "5 ms"):
+        "ASSUMPTION; within, loosely (pass 2), the settable exposure of CCD microscope cameras: 1 ms–60 s "
+        "(Nikon DN100), 1/12000 s–170 s (Nikon DXM1200; MicroscopyU, \"Exposure control and camera "
+        "sensitivity\"); Jia sec. 4.2.2 names no camera: bounded, not fixed",
     ("bearings.air_clearance", "8 um"):
         "within [5, 10] µm: ~5 µm fly height (New Way Air Bearings, glossary \"Fly height\"; Steinmeyer "
         "glossary \"air bearing\"), ~10 µm for spindles (airbearings.co.uk, \"What is an air bearing?\"); "
