@@ -188,9 +188,9 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "that speed at high speed and light load (doi:10.1177/1475921719856826, introduction), not on a "
         "slow, preloaded stop-and-go pair",
     ("vibration.exposure_time", "5 ms"):
-        "ASSUMPTION; within, loosely (pass 2), the settable exposure of CCD microscope cameras: 1 ms–60 s "
-        "(Nikon DN100), 1/12000 s–170 s (Nikon DXM1200; MicroscopyU, \"Exposure control and camera "
-        "sensitivity\"); Jia sec. 4.2.2 names no camera: bounded, not fixed",
+        "ASSUMPTION, no source for the value: the only bound found, the settable exposure of CCD microscope "
+        "cameras, 1 ms–60 s (Nikon DN100), 1/12000 s–170 s (Nikon DXM1200; MicroscopyU, \"Exposure control "
+        "and camera sensitivity\"), spans 4–5 decades and does not size it; Jia sec. 4.2.2 names no camera",
     ("bearings.air_clearance", "8 um"):
         "within [5, 10] µm: ~5 µm fly height (New Way Air Bearings, glossary \"Fly height\"; Steinmeyer "
         "glossary \"air bearing\"), ~10 µm for spindles (airbearings.co.uk, \"What is an air bearing?\"); "
