@@ -53,9 +53,10 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.fourier import design_matrix
+from benchtwin.units import ARCSEC_PER_RAD
 
 __all__ = ["theta_model_basis", "common_theta_basis", "DRIFT_P", "DRIFT_IDENT_MIN", "DRIFT_MAX_ORDER_PER_REV", "DRIFT_MAX_ORDER", "DRIFT_SYNC_ORDER", "ChannelDrift",
-           "fit_channel_drift", "fit_probe_drift"]
+           "fit_channel_drift", "fit_probe_drift", "drift_summary"]
 
 #: significance of the nested F test that admits drift orders (per channel)
 DRIFT_P = 0.01
@@ -262,4 +263,39 @@ def fit_probe_drift(rep: np.ndarray, theta_deg: np.ndarray, t_s: np.ndarray | No
         f = _fit_channel(dz, y, p)
         if f is not None:
             out[name] = f
+    return out
+
+
+def drift_summary(fits: Mapping[str, ChannelDrift], t_s: np.ndarray, disk_weights: tuple[float, float],
+                  optical_radius_mm: float | None = None) -> dict[str, Any]:
+    """results.json's ``radial_motion.probe_drift``: the model, each probe's fit, and the drift carried
+    to the disk plane (``disk_weights``: the top and bottom probes' weights of the Abbe extrapolation,
+    analysis.radial_motion.disk_weights), µm, with its u from the two probes' independent fits."""
+    out: dict[str, Any] = {
+        "model": "y(θ, t) = m(θ) + d(t) + per-revolution orders 0, 1 + noise; d: Legendre orders 1…P in the "
+                 "reading time over the run, P by a nested F test against P_max = 2·revolutions (≤ 12)",
+        "test_p": DRIFT_P, "duration_s": float(np.ptp(np.asarray(t_s, dtype=float))),
+        "channels": {c: f.summary() for c, f in fits.items()},
+        "treated_as": "the probes' stand (a drift in time, not axis motion): removed from the readings less its "
+                      "part common to the revolutions, so the revolutions' asynchronous scatter loses it and the "
+                      "synchronous δY (the mean over revolutions) is unchanged; the common part (e.g. the "
+                      "sawtooth of a drift linear over the run) cannot be told from synchronous motion",
+    }
+    wt, wb = disk_weights
+    for key, (a, b) in (("disk_y", ("probe_top_um", "probe_bottom_um")),
+                        ("disk_x", ("probe_top_x_um", "probe_bottom_x_um"))):
+        if a not in fits or b not in fits:
+            continue
+        d = wt * fits[a].drift_um + wb * fits[b].drift_um
+        # u: the two probes' fits are independent (their noise is)
+        u = np.hypot(wt * fits[a].u_drift_um, wb * fits[b].u_drift_um)
+        out[key] = {"pv_um": float(np.ptp(d)), "rms_um": float(np.sqrt(np.mean(d ** 2))),
+                    "u_um": float(np.max(u)), "u_rms_um": float(np.sqrt(np.mean(u ** 2)))}
+        if key == "disk_x" and optical_radius_mm:
+            # if it were the axis's motion along X: α reads −δX/r (not added to any u; see the note)
+            out["as_axis_alpha_pv_arcsec"] = float(np.ptp(d)) / (optical_radius_mm * 1e3) * ARCSEC_PER_RAD
+            out["as_axis_note"] = (
+                "were the drift the axis's along X, α would move by as_axis_alpha_pv_arcsec over the radial "
+                "run's duration_s; a drift in time during the polygon run is what the loop's ac_drift effect "
+                "(autocollimator or bench drift ∝ reading time) tests, so it is not added to each reading's u")
     return out

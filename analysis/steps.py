@@ -30,7 +30,6 @@ from typing import Any, Self, cast
 
 import numpy as np
 
-from benchtwin.units import ARCSEC_PER_RAD
 from benchtwin.analysis.results import (ArcPeriod, AutocollimatorDeclared, Bench, BenchResults, BudgetInput, BudgetRow,
                                         BudgetSummary, CCDSection, CloseLoop, Comparison, CorrectedCurve, Curve,
                                         EncoderErrorCurve, ErrorCurveResults, Floats, IdentifiedEffect, Iso230_2, ModelPrediction, PolygonResults,
@@ -431,44 +430,16 @@ class RadialMotionTable:
         in the reading time fitted jointly with the θ-synchronous series, its order by a nested F
         test), and the drift's summary for results.json. Probes whose drift is not significant keep
         their readings bit for bit; (self, None) when none is (or there are no reading times)."""
-        from benchtwin.analysis.probe_drift import DRIFT_P, fit_probe_drift
+        from benchtwin.analysis.probe_drift import drift_summary, fit_probe_drift
         from benchtwin.analysis.radial_motion import disk_weights
 
-        cols = {"probe_top_um": self.probe_top_um, "probe_bottom_um": self.probe_bottom_um,
-                "probe_top_x_um": self.probe_top_x_um, "probe_bottom_x_um": self.probe_bottom_x_um}
+        cols = self.probes()
         fits = fit_probe_drift(self.rep, self.theta_deg, self.t_s, cols)
-        if not any(f.order > 0 for f in fits.values()):
+        if self.t_s is None or not any(f.order > 0 for f in fits.values()):
             return self, None
         new = {c: (np.asarray(v, dtype=float) - fits[c].removed_um if c in fits and fits[c].order > 0 else v)
                for c, v in cols.items()}
-        t = np.asarray(self.t_s, dtype=float)
-        out: dict[str, Any] = {
-            "model": "y(θ, t) = m(θ) + d(t) + per-revolution orders 0, 1 + noise; d: Legendre orders 1…P in the "
-                     "reading time over the run, P by a nested F test against P_max = 2·revolutions (≤ 12)",
-            "test_p": DRIFT_P, "duration_s": float(np.ptp(t)),
-            "channels": {c: f.summary() for c, f in fits.items()},
-            "treated_as": "the probes' stand (a drift in time, not axis motion): removed from the readings less its "
-                          "part common to the revolutions, so the revolutions' asynchronous scatter loses it and the "
-                          "synchronous δY (the mean over revolutions) is unchanged; the common part (e.g. the "
-                          "sawtooth of a drift linear over the run) cannot be told from synchronous motion",
-        }
-        wt, wb = disk_weights(L1_mm, L2_mm)
-        for key, (a, b) in (("disk_y", ("probe_top_um", "probe_bottom_um")),
-                            ("disk_x", ("probe_top_x_um", "probe_bottom_x_um"))):
-            if a not in fits or b not in fits:
-                continue
-            d = wt * fits[a].drift_um + wb * fits[b].drift_um
-            # u: the two probes' fits are independent (their noise is)
-            u = np.hypot(wt * fits[a].u_drift_um, wb * fits[b].u_drift_um)
-            out[key] = {"pv_um": float(np.ptp(d)), "rms_um": float(np.sqrt(np.mean(d ** 2))),
-                        "u_um": float(np.max(u)), "u_rms_um": float(np.sqrt(np.mean(u ** 2)))}
-            if key == "disk_x" and optical_radius_mm:
-                # if it were the axis's motion along X: α reads −δX/r (not added to any u; see the note)
-                out["as_axis_alpha_pv_arcsec"] = float(np.ptp(d)) / (optical_radius_mm * 1e3) * ARCSEC_PER_RAD
-                out["as_axis_note"] = (
-                    "were the drift the axis's along X, α would move by as_axis_alpha_pv_arcsec over the radial "
-                    "run's duration_s; a drift in time during the polygon run is what the loop's ac_drift effect "
-                    "(autocollimator or bench drift ∝ reading time) tests, so it is not added to each reading's u")
+        out = drift_summary(fits, self.t_s, disk_weights(L1_mm, L2_mm), optical_radius_mm)
         table = RadialMotionTable(rep=self.rep, theta_deg=self.theta_deg,
                                   probe_top_um=cast(np.ndarray, new["probe_top_um"]),
                                   probe_bottom_um=cast(np.ndarray, new["probe_bottom_um"]),
