@@ -369,6 +369,28 @@ def test_small_effect_below_the_noise_floor_is_not_a_finding():
     assert c["f_test_p"] < 1e-3  # the F-test alone would have passed it
 
 
+def test_chi2_after_is_held_to_the_practical_size_gate():
+    """The χ² after the chosen effect is read by the same rule as the χ² before ("anything to
+    explain?": p < P_SIG AND an excess RMS ≥ SIZE_GATE × the noise floor). A 1″ division error with
+    a reading scatter 0.06″ beyond the stated u (529 readings: χ²/dof ≈ 1.7 after, p ≪ 1e-3): against
+    a 0.25″ floor (u_c of one α) the excess, ≈ 0.05″ RMS, is below a calibration's resolution and
+    the division error is identified; with the floor at the readings' u (0.07″) the same excess is
+    of practical size and the verdict is "unexplained" (loop validation seed 71, ac_drift #0)."""
+    def scatter(th, t):
+        return np.random.default_rng(5).normal(0.0, 0.06, np.size(th))
+
+    kw = dict(inject={"graduation_error": {4: (1.0, 0.3)}}, extra=scatter, x_probes=True)
+    ev, _ = make_evidence(np.random.default_rng(84), **kw)
+    ev.u_floor_arcsec = 0.25
+    res = trace(ev)
+    assert res["residual_after"]["p_value"] < 1e-3  # resolved statistically
+    assert res["status"] == "explained", (res["status"], res["residual_after"].get("signature_left"))
+    assert [e["name"] for e in res["identified_effects"]] == ["graduation_error"]
+    ev2, _ = make_evidence(np.random.default_rng(84), **kw)
+    res2 = trace(ev2)
+    assert res2["status"] == "unexplained" and res2["residual_after"]["signature_left"][0].startswith("χ² after")
+
+
 def test_tangential_motion_without_x_probes_is_ambiguous_with_graduation():
     """An X motion the Y probes do not see (independent X lobes) reads like a division error: the
     answer is the set {graduation_error, tangential_motion} and the separating measurement names
