@@ -153,3 +153,29 @@ def forward(module, ev, params: dict, ctx=None, heads_deg=None) -> dict:
         else:
             out["heads"] = None
     return out
+
+
+#: a reference-chain effect whose column is (almost) a function of θ inside every run (closure group)
+#: is an encoder error at those stops to the data: below this share of the run-centred column's
+#: variance left after removing every function of θ it is declared unobservable (ac_drift: the
+#: reading time of forward sweeps from one start angle; torsion_hysteresis: the approach of
+#: forward-only runs, backward only at each run's first stop)
+MIN_FREE_FRACTION = 0.2
+
+
+def theta_free_fraction(ev, values) -> float:
+    """Share of the run-centred (per ``closure_group``) variance of the per-reading ``values`` that is
+    not explained by a function of θ (the stop position ``theta_bin``): what can tell an effect that
+    follows ``values`` from an encoder error. 0 when the centred values vanish."""
+    t = np.asarray(values, dtype=float)
+    g = np.asarray(ev.closure_group)
+    tc = t - (np.bincount(g, weights=t) / np.bincount(g))[g]
+    tot = float(np.sum(tc ** 2))
+    if tot <= 0:
+        return 0.0
+    cells = np.unique(np.asarray(ev.theta_bin), return_inverse=True)[1]
+    X = np.zeros((t.size, int(cells.max()) + 1))
+    X[np.arange(t.size), cells] = 1.0
+    Xc = X - np.vstack([np.bincount(g, weights=X[:, j]) / np.bincount(g) for j in range(X.shape[1])]).T[g]
+    beta, *_ = np.linalg.lstsq(Xc, tc, rcond=None)
+    return float(np.sum((tc - Xc @ beta) ** 2) / tot)

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import channels, linear_predictor, no_aux, no_term, within
+from ._base import MIN_FREE_FRACTION as _MIN_FREE
+from ._base import channels, linear_predictor, no_aux, no_term, theta_free_fraction, within
 
 NAME = "ac_drift"
 MEANING = (
@@ -34,25 +35,14 @@ SEPARATES_FROM = {
 #: that is not a function of θ: when every run reads the stops in the same θ order at the same pace
 #: (forward sweeps from the same start angle), t − t̄_run is a sawtooth in θ that any encoder error
 #: of that shape fits equally. Below this fraction of its variance left after removing every
-#: function of θ the drift is declared unobservable.
-MIN_FREE_FRACTION = 0.2
+#: function of θ the drift is declared unobservable (``_base.MIN_FREE_FRACTION``).
+MIN_FREE_FRACTION = _MIN_FREE
 
 
 def free_fraction(ev) -> float:
     """Share of the run-centred reading time's variance not explained by a function of θ (stop
-    position) — what can tell a drift from an encoder error."""
-    t = np.asarray(ev.t_s, dtype=float)
-    g = np.asarray(ev.closure_group)
-    tc = t - (np.bincount(g, weights=t) / np.bincount(g))[g]
-    tot = float(np.sum(tc ** 2))
-    if tot <= 0:
-        return 0.0
-    cells = np.unique(np.asarray(ev.theta_bin), return_inverse=True)[1]
-    X = np.zeros((t.size, int(cells.max()) + 1))
-    X[np.arange(t.size), cells] = 1.0
-    Xc = X - np.vstack([np.bincount(g, weights=X[:, j]) / np.bincount(g) for j in range(X.shape[1])]).T[g]
-    beta, *_ = np.linalg.lstsq(Xc, tc, rcond=None)
-    return float(np.sum((tc - Xc @ beta) ** 2) / tot)
+    position) — what can tell a drift from an encoder error (``_base.theta_free_fraction``)."""
+    return theta_free_fraction(ev, ev.t_s)
 
 
 def available(ev, ctx=None):

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import channels, linear_predictor, no_aux, no_term, within
+from ._base import MIN_FREE_FRACTION, channels, linear_predictor, no_aux, no_term, theta_free_fraction, within
 
 NAME = "torsion_hysteresis"
 MEANING = (
@@ -51,7 +51,21 @@ def _approach(ev):
 def available(ev, ctx=None):
     d = np.asarray(_approach(ev), dtype=float)
     ok = bool(np.any(d > 0) and np.any(d < 0))
-    return ok, "" if ok else "one direction of rotation only"
+    if not ok:
+        return False, "one direction of rotation only"
+    if hasattr(ev, "closure_group") and hasattr(ev, "theta_bin"):
+        # Forward-only runs approach backward only their first stop (the return to the start angle S),
+        # and that position is read as a first stop only: inside every run the approach is a
+        # function of θ, and h·approach is an encoder error of −2h at the start angles to the data
+        # (as ac_drift's reading time of forward sweeps). Observable only through the approach's part
+        # that no function of θ holds: a stop position reached from both sides.
+        f = theta_free_fraction(ev, d)
+        if f < MIN_FREE_FRACTION:
+            return False, (f"the approach direction follows θ in every run (only {f:.0%} of its variance is not a "
+                           "function of θ: backward only to the runs' first stops, which no run approaches "
+                           "forward): a hysteresis is an encoder error at those stops to these data; sweep "
+                           "backward as well, in the same mounting")
+    return True, ""
 
 
 def design(ev, ctx=None):

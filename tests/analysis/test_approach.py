@@ -74,3 +74,28 @@ def test_torsion_hysteresis_fitted_on_the_approach():
     ev_lab.approach = ev_lab.direction.copy()
     res_lab = trace(ev_lab)
     assert res["residual_after"]["rms_arcsec"] < res_lab["residual_after"]["rms_arcsec"]
+
+
+def test_forward_only_runs_cannot_show_a_hysteresis():
+    """Forward-only runs approach backward only their first stop (the return to the start angle), a
+    position no run approaches forward: the approach is a function of θ inside every run, and a
+    hysteresis there is an encoder error of −2h at the start angles to the data (loop validation
+    seed 71, torsion_hysteresis #0: forward only, shifts 0…14°). torsion_hysteresis is then not
+    available (as ac_drift on forward sweeps from one start angle); with backward sweeps it is."""
+    from benchtwin.analysis.effects import ALL
+
+    h = 0.4
+    ev, _ = make_evidence(np.random.default_rng(9), start_faces=range(1, 24, 2), shifts=(0.0, 5.0, 10.0),
+                          inject={"torsion_hysteresis": {"half_hysteresis_arcsec": h}})
+    appr = approach_direction(ev.theta_deg, ev.t_s, ev.direction)
+    assert np.any(appr < 0) and np.all(ev.direction > 0)   # the returns to the start angles
+    ev.alpha_arcsec = ev.alpha_arcsec + h * (appr - ev.direction)
+    ev.approach = appr
+    ok, why = ALL["torsion_hysteresis"].available(ev)
+    assert not ok and "follows θ" in why, why
+    res = trace(ev)
+    assert "torsion_hysteresis" in res["skipped"]
+    names = {e["name"] for e in res["identified_effects"]} | {n for a in res["ambiguous"] for n in a["names"]}
+    assert "torsion_hysteresis" not in names
+    # both directions in one mounting: every stop position approached from both sides
+    assert ALL["torsion_hysteresis"].available(_hysteresis_on_approach(7))[0]
