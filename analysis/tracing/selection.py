@@ -813,6 +813,9 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     design (:func:`_design_alternatives`), each with its reference fit, and the measurement that
     would separate them. Returns [] or [the set]."""
     amb_cands, amb_fits = _collinear_alternatives(sel, rep, chosen, cj)
+    for c in _nested_alternatives(sel, chosen, amb_cands):
+        amb_cands.append(set(c.names))
+        amb_fits[c.key] = rep.json(rep.report(c))
     within, forced = _design_alternatives(sel, chosen, amb_cands)
     for alt in within:
         if alt not in amb_cands:
@@ -860,6 +863,34 @@ def _collinear_alternatives(sel: _Selection, rep: _Reporter, chosen: _Cand,
                 amb_cands.append(set(c.names))
                 amb_fits[c.key] = rep.json(rep.report(c))
     return amb_cands, amb_fits
+
+
+def _nested_alternatives(sel: _Selection, chosen: _Cand, amb_cands: list[set[str]]) -> list[_Cand]:
+    """The equivalent pairs (every gate of a pair passed, but not ΔBIC ≥ DBIC_GATE below the best
+    single effect) made of the chosen effect's narrower variant and another effect whose columns
+    all lie inside the chosen candidate's span (:meth:`_Span.contains`).
+
+    The chosen fit with that other effect added is the same fit — its columns add nothing to the
+    chosen span: the same χ², rank and BIC, an exact tie that no criterion separates — and the
+    other effect has evidence of its own: next to the chosen effect's narrower variant it passes
+    every gate of a pair (z ≥ Z_GATE inside the pair, ΔBIC ≥ DBIC_GATE below each member, the size
+    gates, the cross-validation). The data then cannot tell whether that part of the chosen
+    prediction is the other effect: it belongs to the ambiguity set. E.g. graduation_error's
+    every-order variant (a value per stop position) is needed where an unmeasured tangential motion
+    fills many orders; it contains the alias of an interpolation error, which next to the
+    significant orders alone took 1232 of the residual's χ² (loop validation seed 71,
+    interpolation_error #0: Y probes only, shifts 0/5/10°, named {graduation_error,
+    tangential_motion} without it). A pair whose columns the chosen span does not contain was
+    judged by the BIC against the chosen one and is not one of these."""
+    if len(chosen.names) != 1 or not sel.equivalents:
+        return []
+    span = _Span(sel.gates.pb)
+    out = []
+    for c in sel.equivalents:
+        if (chosen.names[0] in c.names and set(c.names) not in amb_cands
+                and c.X.shape[1] < chosen.X.shape[1] and span.contains(chosen, c)):
+            out.append(c)
+    return out
 
 
 def _delta_bic_scaled(c: _Cand, chosen: _Cand) -> float:

@@ -203,3 +203,38 @@ def test_ambiguity_compares_predictions_of_the_same_kind():
     sel.passed = [chosen, twin]
     (s,) = _ambiguity(sel, rep, chosen, {"names": ["ac_scale"]})
     assert set(s["names"]) == {"ac_scale", "optical_radius"}
+
+
+def _broadband_with_interpolation(interp_arcsec: float, seed: int = 11):
+    """A revisited shift design (two reps, shifts 0…14°: 360 stop positions) whose residual is a
+    division error with content at every order (k^-1.5 to order 150: graduation_error's every-order
+    variant is needed) plus a head's interpolation error of ``interp_arcsec`` at the signal period
+    (7069 lines: on the 1° grid the alias of order 131, far above the harmonic test's 20)."""
+    rng = np.random.default_rng(seed)
+    d = _shift_design(2)
+    th = np.deg2rad(d["theta_deg"])
+    ks = np.arange(2, 151)
+    amp, ph = 1.0 * ks ** -1.5 / np.sqrt(np.sum(ks ** -3.0) / 2), rng.uniform(0, 2 * np.pi, ks.size)
+    grad = np.sum(amp[:, None] * np.sin(ks[:, None] * th[None, :] + ph[:, None]), axis=0)
+    interp = interp_arcsec * np.sin(7069 * th + 0.7)
+    return _ev(d, grad + interp + rng.normal(0.0, 0.05, th.size), encoder_lines=7069)
+
+
+def test_an_effect_inside_the_chosen_span_with_evidence_of_its_own_is_in_the_set():
+    """graduation_error's every-order variant contains any function of θ on the stop positions, an
+    interpolation error's alias too: that fit with the interpolation error added is the same fit. The
+    interpolation error is then an alternative reading of part of it when it has evidence of its own
+    — next to the significant orders alone it passes every gate of a pair (loop validation seed 71,
+    interpolation_error #0: named {graduation_error, tangential_motion} without it). Without an
+    interpolation error in the data that pair fails its gates and nothing is added."""
+    from benchtwin.analysis.tracing import trace
+
+    out = trace(_broadband_with_interpolation(0.3), candidates=["graduation_error", "interpolation_error"])
+    assert [e["name"] for e in out["identified_effects"]] == ["graduation_error"], out["status"]
+    assert len(out["identified_effects"][0]["params"]) > 2 * 20          # the every-order variant
+    (s,) = out["ambiguous"]
+    assert "interpolation_error" in s["names"], s
+    assert "graduation_error+interpolation_error" in s["alternatives"]
+    out0 = trace(_broadband_with_interpolation(0.0), candidates=["graduation_error", "interpolation_error"])
+    assert [e["name"] for e in out0["identified_effects"]] == ["graduation_error"]
+    assert all("interpolation_error" not in s["names"] for s in out0["ambiguous"]), out0["ambiguous"]
