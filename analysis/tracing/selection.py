@@ -813,9 +813,6 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     design (:func:`_design_alternatives`), each with its reference fit, and the measurement that
     would separate them. Returns [] or [the set]."""
     amb_cands, amb_fits = _collinear_alternatives(sel, rep, chosen, cj)
-    for c in _nested_alternatives(sel, chosen, amb_cands):
-        amb_cands.append(set(c.names))
-        amb_fits[c.key] = rep.json(rep.report(c))
     within, forced = _design_alternatives(sel, chosen, amb_cands)
     for alt in within:
         if alt not in amb_cands:
@@ -828,6 +825,11 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
         for c in sel.singles:
             if c.names == (other,):
                 amb_fits[c.key] = rep.json(rep.report(c))
+    # after the design's alternatives: a nested pair that holds a design-forced name (e.g.
+    # graduation_error + tangential_motion) does not replace that name's own alternative
+    for c in _nested_alternatives(sel, chosen, amb_cands):
+        amb_cands.append(set(c.names))
+        amb_fits[c.key] = rep.json(rep.report(c))
     # members shared by every alternative are identified whatever the choice: not part of the set,
     # unless the alternatives differ only by one optional member (then the set names both)
     common = set.intersection(*amb_cands)

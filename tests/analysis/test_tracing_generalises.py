@@ -233,8 +233,41 @@ def test_an_effect_inside_the_chosen_span_with_evidence_of_its_own_is_in_the_set
     assert [e["name"] for e in out["identified_effects"]] == ["graduation_error"], out["status"]
     assert len(out["identified_effects"][0]["params"]) > 2 * 20          # the every-order variant
     (s,) = out["ambiguous"]
-    assert "interpolation_error" in s["names"], s
+    assert set(s["names"]) == {"graduation_error", "interpolation_error", "tangential_motion"}, s
     assert "graduation_error+interpolation_error" in s["alternatives"]
     out0 = trace(_broadband_with_interpolation(0.0), candidates=["graduation_error", "interpolation_error"])
     assert [e["name"] for e in out0["identified_effects"]] == ["graduation_error"]
     assert all("interpolation_error" not in s["names"] for s in out0["ambiguous"]), out0["ambiguous"]
+
+
+def test_a_nested_pair_keeps_the_design_forced_alternative():
+    """A nested pair that holds the design-forced name (graduation_error + tangential_motion without
+    X probes) does not replace that name's own alternative: tangential_motion alone still replaces
+    graduation_error, so graduation_error stays in the set (it is not common to every alternative)."""
+    from types import SimpleNamespace
+
+    from benchtwin.analysis.effects import ALL
+    from benchtwin.analysis.tracing.selection import _ambiguity, _Cand
+
+    d = _shift_design(2)
+    th = np.deg2rad(d["theta_deg"])
+    ev = _ev(d, np.zeros(th.size))
+    pb = _Problem(ev, use_selfcal=False)
+    cols = _center(np.column_stack([f(k * th) for k in range(2, 31) for f in (np.sin, np.cos)]), ev.closure_group,
+                   pb.w ** 2)
+    n = ev.n
+
+    def cand(names, X, pn):
+        k = X.shape[1]
+        c = _Cand(names, X, pn, fit={"beta": np.full(k, 0.1), "chi2": float(n), "dof": n - k, "k": k, "n": n, "S": pb.S})
+        c.bic, c.aicc = pb.ic(c.fit)
+        return c
+
+    chosen = cand(("graduation_error",), cols, [[f"p{i}" for i in range(cols.shape[1])]])
+    nested = cand(("graduation_error", "tangential_motion"), cols[:, [0, 1, 40, 41]], [["a2", "b2"], ["g1", "g2"]])
+    gates = SimpleNamespace(pb=pb, mods=ALL, ctx={}, tie_tol_chi2=1e-9 * n)
+    sel = SimpleNamespace(gates=gates, passed=[chosen], equivalents=[nested], singles=[chosen])
+    rep = SimpleNamespace(report=lambda c: c, json=lambda c: {"names": list(c.names)})
+    (s,) = _ambiguity(sel, rep, chosen, {"names": ["graduation_error"]})
+    assert set(s["names"]) == {"graduation_error", "tangential_motion"}, s
+    assert "tangential_motion" in s["alternatives"] and "graduation_error+tangential_motion" in s["alternatives"]
