@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import MIN_FREE_FRACTION as _MIN_FREE
-from ._base import channels, linear_predictor, no_aux, no_term, theta_free_fraction, within
+from ._base import MIN_FREE_FRACTION, channels, linear_predictor, no_aux, no_term, theta_free_fraction, within
 
 NAME = "ac_drift"
 MEANING = (
@@ -31,14 +30,12 @@ SEPARATES_FROM = {
 }
 
 
-#: a drift is observable only through the part of the reading time, inside each run (closure group),
-#: that is not a function of θ: when every run reads the stops in the same θ order at the same pace
-#: (forward sweeps from the same start angle), t − t̄_run is a sawtooth in θ that any encoder error
-#: of that shape fits equally. Below this fraction of its variance left after removing every
-#: function of θ the drift is declared unobservable (``_base.MIN_FREE_FRACTION``).
-MIN_FREE_FRACTION = _MIN_FREE
-
-
+# a drift is observable only through the part of the reading time, inside each run (closure group),
+# that is not a function of θ: when every run reads the stops in the same θ order at the same pace
+# (forward sweeps from the same start angle), t − t̄_run is a sawtooth in θ that any encoder error
+# of that shape fits equally. Below this fraction of its variance left after removing every
+# function of θ the drift is declared unobservable (``_base.MIN_FREE_FRACTION``, shared with
+# torsion_hysteresis's approach direction).
 def free_fraction(ev) -> float:
     """Share of the run-centred reading time's variance not explained by a function of θ (stop
     position) — what can tell a drift from an encoder error (``_base.theta_free_fraction``)."""

@@ -434,3 +434,10 @@ def noise_floor(ev: Evidence) -> float:
 
 def _rms(x):
     return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
+
+
+def chi2_scale(fit: dict) -> float:
+    """max(1, χ²/dof) of a fit (:meth:`_Problem.fit`): the factor by which its covariance, and a χ²
+    difference judged against its scatter, are scaled when it leaves more scatter than the readings'
+    u explain (GUM type A with an honest scatter); 1 when it does not."""
+    return max(1.0, fit["chi2"] / fit["dof"])

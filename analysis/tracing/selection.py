@@ -34,7 +34,7 @@ from ..effects import ALL
 from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence, _replace_alpha, column
-from .problem import _Problem, _center, _rms, _z_from_chi2, noise_floor
+from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
 from .signature import _short_signature, _significant_parts, signature
 from .significance import harmonic_test, residual_test
 from .thresholds import (AMBIG_DBIC, COLLINEAR, DBIC_GATE, DEGENERATE_RATIO, F_SIG, P_SIG, SIZE_GATE, SPHERE_FORM_UM,
@@ -139,7 +139,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
                 if np.allclose(np.asarray(c.fit["beta"], dtype=float), P0, rtol=EIV_RTOL, atol=0.0):
                     break
     c.bic, c.aicc = pb.ic(c.fit)
-    scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+    scale = chi2_scale(c.fit)
     # joint z of each member: Δχ² when its columns are dropped, scaled by the reduced χ² if > 1
     i = 0
     for member, names in zip(c.names, c.pnames):
@@ -347,7 +347,7 @@ def _residual_stage(ev: Evidence) -> _Residual:
     before["noise_floor_arcsec"] = u_rms
     excess = _excess_rms(ev, before["chi2"], before["dof"])
     before["excess_rms_arcsec"] = excess
-    significant = bool((before["p_value"] < P_SIG and excess >= SIZE_GATE * u_rms) or _significant_parts(sig, ev.n, u_rms))
+    significant = bool(_chi2_matters(before["p_value"], excess, u_rms) or _significant_parts(sig, ev.n, u_rms))
     before["significant"] = significant
     return _Residual(before=before, signature=sig, flagged_harmonics=sig["significant_harmonics"],
                      noise_floor_arcsec=u_rms, significant=significant, alpha_problem=pa)
@@ -361,6 +361,13 @@ def _excess_rms(ev: Evidence, chi2: float, dof: int) -> float:
     what a calibration states (loop validation seed 71, ac_drift #0: χ² after 4017 for 3104 dof,
     p = 1e-26, an excess of 0.032″ RMS against a 0.158″ floor, read as "unexplained")."""
     return float(np.sqrt(np.mean(np.square(ev.u_arcsec)))) * math.sqrt(max(chi2 / dof - 1.0, 0.0))
+
+
+def _chi2_matters(p_value: float, excess_rms: float, noise_floor: float) -> bool:
+    """"Anything to explain?" for a χ²: significant (p < P_SIG) and of a size a calibration states
+    (an excess RMS ≥ SIZE_GATE × the noise floor). One rule for the residual before the candidates and
+    after the chosen one."""
+    return p_value < P_SIG and excess_rms >= SIZE_GATE * noise_floor
 
 
 def _candidate_stage(ev: Evidence, res: _Residual, mods: dict[str, Any]) -> _Candidates:
@@ -466,7 +473,7 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
         reasons.append(f"ΔBIC = {g.bic0 - c.bic:.1f} < {DBIC_GATE}")
     if member_bics and c.bic > min(member_bics) - DBIC_GATE:
         reasons.append("the pair does not beat its members by ΔBIC ≥ 10")
-    scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+    scale = chi2_scale(c.fit)
     P, U = _params_u(c, scale)
     # physically plausible: every module states the range its parameters can take on a real bench
     for member in c.names:
@@ -670,7 +677,7 @@ class _Reporter:
 
     def json(self, c: _Cand) -> dict[str, Any]:
         g = self.gates
-        scale = max(1.0, c.fit["chi2"] / c.fit["dof"])
+        scale = chi2_scale(c.fit)
         P, U = _params_u(c, scale)
         return {"names": list(c.names), "params": P, "u": U, "chi2": c.fit["chi2"], "dof": c.fit["dof"], "k": c.fit["k"],
                 "bic": c.bic, "aicc": c.aicc, "delta_bic": g.bic0 - c.bic, "delta_aicc": g.aicc0 - c.aicc, "z": c.z,
@@ -737,7 +744,7 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
                           time_ks=res.flagged_harmonics)
     left = _significant_parts(sig_after, ev.n, res.noise_floor_arcsec)
-    if after.test["p_value"] < P_SIG and _excess_rms(ev, after.test["chi2"], after.test["dof"]) >= SIZE_GATE * res.noise_floor_arcsec:
+    if _chi2_matters(after.test["p_value"], _excess_rms(ev, after.test["chi2"], after.test["dof"]), res.noise_floor_arcsec):
         left.insert(0, f"χ² after: p = {after.test['p_value']:.2g}")
     out["residual_after"] = {**after.test, "signature_left": left}
     if left:
@@ -752,7 +759,7 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
         out["status"] = "ambiguous" if out["ambiguous"] else "explained"
         out["unexplained_signature"] = None
     out["model_file"] = _payload(ev, effects if not out["unexplained"] else [], out["ambiguous"], out["status"], g.ctx)
-    scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
+    scale = chi2_scale(chosen.fit)
     out["reference_corrections"] = (_reference_corrections(g.pb, chosen, g.mods, scale)
                                     if not out["unexplained"] else {})
     return out
@@ -793,7 +800,7 @@ def _apply(ev: Evidence, res: _Residual, g: _Gates, chosen: _Cand) -> _After:
 def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]) -> list[dict[str, Any]]:
     """The chosen candidate's members as effects: parameters with u (× √(χ²/dof) when > 1), the
     regressor adjustment's Fourier coefficients, and the evidence for each."""
-    scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
+    scale = chi2_scale(chosen.fit)
     P, U = _params_u(chosen, scale)
     effects = []
     for member in chosen.names:
@@ -904,7 +911,7 @@ def _delta_bic_scaled(c: _Cand, chosen: _Cand) -> float:
     10.5 in BIC ahead of the gain on the eccentricity it shares with ccd_pixel_scale and
     optical_radius, so the set named ac_scale alone (loop validation seed 61, ccd_pixel_scale #0).
     Equal to the BIC difference when the chosen fit's χ²/dof ≤ 1."""
-    scale = max(1.0, chosen.fit["chi2"] / chosen.fit["dof"])
+    scale = chi2_scale(chosen.fit)
     dk = c.fit["k"] - chosen.fit["k"]
     return (c.fit["chi2"] - chosen.fit["chi2"]) / scale + dk * math.log(chosen.fit["n"])
 

@@ -15,7 +15,7 @@ from ..distributions import chi2_isf, chi2_sf, norm_isf, t_sf
 from ..fourier import evaluate_harmonics, fit_harmonics
 from ._blas import _one_blas_thread
 from .evidence import Evidence, column
-from .problem import _Problem, _center, _rms, _z_from_chi2
+from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale
 from .significance import _nested, _one_column, harmonic_test
 from .thresholds import DBIC_GATE, P_SIG, SIZE_GATE, Z_GATE
 
@@ -87,7 +87,7 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
     if k <= 0:
         return {"available": False, "reason": "the harmonics do not change inside the sampling"}
-    scale = max(1.0, f1["chi2"] / f1["dof"])
+    scale = chi2_scale(f1)
     z = _z_from_chi2(d / scale, k)
     beta = f1["beta"]
     amp0 = [float(math.hypot(beta[2 * i], beta[2 * i + 1])) for i in range(len(ks))]

@@ -12,7 +12,7 @@ import numpy as np
 from ..distributions import chi2_sf
 from ._blas import _one_blas_thread
 from .evidence import Evidence, column
-from .problem import _Problem, _center, _rms, _z_from_chi2
+from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale
 from .thresholds import P_SIG, Z_GATE
 
 
@@ -41,7 +41,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
     X = np.column_stack([f(k * th) for k in ks for f in (np.sin, np.cos)])
     X = _center(X, column(ev.closure_group), pb.w ** 2)
     fit = pb.fit(X)
-    scale = max(1.0, fit["chi2"] / fit["dof"])
+    scale = chi2_scale(fit)
     out = []
     for i, k in enumerate(ks):
         a, b = fit["beta"][2 * i], fit["beta"][2 * i + 1]
@@ -66,7 +66,7 @@ def _one_column(pb: _Problem, col: np.ndarray, name: str) -> dict:
     if not np.any(np.abs(X) > 1e-12 * (np.max(np.abs(col)) + 1e-300)):
         return {"available": False, "reason": f"{name}: no variation inside the closure groups"}
     fit = pb.fit(X)
-    scale = max(1.0, fit["chi2"] / fit["dof"])
+    scale = chi2_scale(fit)
     g = float(fit["beta"][0])
     u = float(math.sqrt(fit["cov"][0, 0] * scale))
     xw, yw = X[:, 0] * pb.w, pb.y * pb.w
