@@ -93,7 +93,8 @@ ORDER_RANGE = (1, 1000)
 TABLES: dict[str, TableSpec] = {
     "radial_motion": TableSpec(
         {"rep": int, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
-        {"probe_top_x_um": float, "probe_bottom_x_um": float, "theta_read_deg": float, "t_s": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float, "theta_read_deg": float, "t_s": float,
+         "probe_axial_um": float, "probe_face_um": float},
         ("rep", "theta_deg"),
         ranges={"rep": (0, 10000)},
     ),

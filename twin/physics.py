@@ -96,6 +96,7 @@ import numpy as np
 from benchtwin.units import ARCSEC
 
 from .air_bearing import AirBearings, build_air_bearings
+from .axial import Axial, build_axial
 from .ballsets import BallSets
 from .bearing import BallBearingGeometry, BallSet, generate_ball_set
 from .build import BEARING_TENDONS, UNBALANCE_RADIUS_M, Placement, build_model, template_path
@@ -219,6 +220,22 @@ class Bench:
         self._build(sc)
         self._index_model()
         self._linearise()
+        # The shaft's axial DOF ([axial], optional; twin/axial.py): solved after the radial statics
+        # and added to the posed shaft. None without the section: the poses as before, bit for bit.
+        self.axial: Axial | None = None
+        ax = sc.get("axial") if hasattr(sc, "get") else None
+        if ax:
+            self.axial = build_axial(dict(ax), self, _rng(self.seed, "axial"))
+            m = self.model
+            root = m.body("shaft_carrier").id
+            moving = []
+            for b in range(m.nbody):
+                a = b
+                while a not in (0, root):
+                    a = int(m.body_parentid[a])
+                if a == root:
+                    moving.append(b)
+            self._axial_bodies = np.array(moving, dtype=int)
 
     def _bearing_options(self, sc: Any) -> None:
         """The scenario's bench and bearing options the statics use (geometry checked), and the
@@ -1059,6 +1076,7 @@ class Bench:
         q = d.qpos
         axis_p, _ = self._axis_line()
         frames = (d.xpos.copy(), d.xmat.reshape(-1, 3, 3).copy())
+        axial_extra = {} if self.axial is None else self._apply_axial(frames, q, float(t_s))
         extra = {
             "shaft": self._body("shaft", frames),
             "polygon_section": self._body("polygon_section", frames),
@@ -1069,6 +1087,7 @@ class Bench:
             "polygon_face_normal_angle_rad": self.polygon_face_normal_angle_rad,
             **({"polygon_face_pyramidal_rad": self.polygon_pyramidal_rad}
                if self.polygon_pyramidal_rad is not None else {}),
+            **axial_extra,
             "settle_iterations": it,
             "rep": int(rep),
             "direction": int(direction),
@@ -1082,6 +1101,32 @@ class Bench:
             sphere_bottom=self._body("sphere_bottom", frames),
             extra=extra,
         )
+
+    def axial_z_m(self, q: np.ndarray, t_s: float) -> dict[str, float]:
+        """The shaft's axial displacement along its spin axis at the settled state q and time t
+        (twin/axial.py), by cause (m): the bearings' model (ball pair: Hertz equilibrium at this
+        pose's ball loads; air: the runner form at this angle), the supply pressure (time), the
+        structure's thermal growth (time)."""
+        ax = self.axial
+        assert ax is not None
+        th = float(q[4])
+        if ax.ball is not None:
+            u, th, cages, _rates = self._kernel_inputs(q)
+            bearing = ax.ball.solve_z_m(ax.ball.base_approaches_m(u, th, cages))
+            supply = 0.0
+        else:
+            assert ax.air is not None
+            bearing = ax.air.z0_m + ax.air.z_form_m(th)
+            supply = ax.air.z_supply_m(t_s)
+        thermal = ax.thermal_m(t_s)
+        return {"bearing": bearing, "supply": supply, "thermal": thermal, "total": bearing + supply + thermal}
+
+    def _apply_axial(self, frames: tuple[np.ndarray, np.ndarray], q: np.ndarray, t_s: float) -> dict:
+        """Translate the posed shaft (every body on the shaft carrier) by z along its spin axis."""
+        parts = self.axial_z_m(q, t_s)
+        n = frames[1][self._bid["shaft"]][:, 2]
+        frames[0][self._axial_bodies] += parts["total"] * n
+        return {"axial_m": parts["total"], "axial_parts_m": parts, "spin_axis_lab": n.copy()}
 
     def disk_plane_motion(self, angles_rad, rep: int = 0, direction: int = +1) -> tuple[np.ndarray, np.ndarray]:
         """True motion (dx, dy) of the axis of rotation (the shaft's spin axis) where it crosses
@@ -1167,6 +1212,8 @@ class Bench:
         }
         if self.thermal.active or self.thermal.loop_active:
             truth["thermal"] = self.thermal.truth()
+        if self.axial is not None:
+            truth["axial"] = self.axial.truth()
         if self.air_bearings is not None:
             truth["bearing_type"] = self.bearing_type
             truth["air_bearings"] = self.air_bearings.truth()

@@ -311,6 +311,29 @@ OPTIONAL_SCHEMA: dict[str, dict[str, Field]] = {
         "pyramidal_rms": Field("angle", 0.0, lo=0.0, hi=60 * ARCSEC,
                                doc="a seeded per-face draw N(0, rms) added to pyramidal_error (stream polygon_pyramidal)"),
     },
+    # The shaft's axial degree of freedom (twin/axial.py; docs/physics.md, "The shaft's axial degree
+    # of freedom"): z(θ, t) from the ball pair's Hertz contacts or the air thrust bearing, added to
+    # the posed shaft, and the ISO 230-7 axial / face probes that read it. Optional: a scenario that
+    # does not state it keeps its dataset's bytes (no axial DOF, no axial probes).
+    "axial": {
+        "load": Field("force", 0.0, lo=-1e4, hi=1e4,
+                      doc="external axial load on the shaft along +z (the weight along z is added from the masses)"),
+        "race_face_waviness_scale": Field("dimensionless", 1.0, lo=0.0, hi=100.0,
+                                          doc="ball bearings: the raceways' axial lobes relative to the grade's "
+                                              "(ASSUMPTION: the radial waviness spectrum; order 1 from ISO 492 S_ia)"),
+        "runner_flatness": Field("length", 0.2 * UM, lo=0.0, hi=10 * UM,
+                                 doc="air bearings: each thrust-runner face's peak-to-valley form (ASSUMPTION)"),
+        "thermal_growth": Field("length_per_kelvin", 0.0, lo=-1e-4, hi=1e-4,
+                                doc="target's axial growth per K of the structure node, relative to the axial "
+                                    "probe (CTE × effective length: 11.5 ppm/K × 20 mm = 0.23 um/K)"),
+        "sphere_probe": Field("bool", True, doc="an axial probe on the top sphere's pole (ISO 230-7 axial "
+                                                "error motion), column probe_axial_um"),
+        "face_probe_radius": Field("length", 0.0, lo=0.0, hi=1.0,
+                                   doc="a probe parallel to the axis on the disk's face at this radius "
+                                       "(ISO 230-7 face error motion), column probe_face_um; 0: none"),
+        "face_probe_azimuth": Field("angle", 0.0, lo=-360 * DEG, hi=360 * DEG,
+                                    doc="lab azimuth of the face probe from +x, CCW"),
+    },
     # A measured axis motion in the disk plane, replacing the bearings' race waviness (for replaying
     # a real spindle). Equal-length lists; missing motion columns count as 0.
     "motion_table": {

@@ -64,6 +64,7 @@ from benchtwin.hw.acquisition.tables import TableSink
 from benchtwin.hw.acquisition.runner import Runner, RunnerSettings, SimClock
 
 from .instruments.autocollimator import SimAutocollimator
+from .instruments.axial_probe import SimAxialProbe, face_truth_m
 from .instruments.drive import DriveServo
 from .instruments.encoder_head import SimEncoder
 from .instruments.probe import SimProbe
@@ -98,6 +99,7 @@ def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = Tr
         probes = ["probe_top", "probe_bottom"]
         if sc["instruments"]["probe"]["x_probes"]:
             probes += ["probe_top_x", "probe_bottom_x"]
+        probes += axial_probe_names(sc)
     dirs = list(pr["directions"])
     specs: list[dict[str, Any]] = [{"type": "radial_motion", "reps": int(pr["radial_reps"]),
                                     "positions": int(pr["radial_positions"]), "dwell": dwell,
@@ -114,6 +116,18 @@ def scenario_procedures(sc: Any, probes: list[str] | None = None, ccd: bool = Tr
         specs.append({"type": "selfcal", "step": _deg(pr["selfcal_step"]), "directions": dirs, "dwell": dwell,
                       "heads": [_deg(h) for h in b["heads"]]})
     return specs
+
+
+def axial_probe_names(sc: Any) -> list[str]:
+    """The ISO 230-7 axial / face probes a scenario's optional ``[axial]`` section asks for (none
+    without it)."""
+    ax = sc.get("axial") if hasattr(sc, "get") else None
+    if not ax:
+        return []
+    out = ["probe_axial"] if ax.get("sphere_probe", True) else []
+    if float(ax.get("face_probe_radius", 0.0) or 0.0) > 0:
+        out.append("probe_face")
+    return out
 
 
 def sim_procedure(sc: Any) -> list:
@@ -137,6 +151,8 @@ def sim_build(sc: Any, backend: str = "auto", bench: Bench | None = None, camera
             p = SimProbe.sim_from_scenario(sc, state, bench, s, ax, key=key)
             inst[p.name] = p
             key += 1
+    for name in axial_probe_names(sc):   # [axial] (optional): probes parallel to the axis
+        inst[name] = SimAxialProbe.axial_from_scenario(sc, state, bench, name)
     inst["autocollimator"] = SimAutocollimator.sim_from_scenario(sc, state, hidden=hidden)
     if camera:
         from .instruments.camera import SimCamera
@@ -169,6 +185,9 @@ def _manifest(sc: Any, enc: SimEncoder, cam: Any, bench: Bench | None = None) ->
             "encoder_resolution_arcsec": float(b["encoder_resolution"]) / ARCSEC,
         },
     }
+    if "probe_face" in axial_probe_names(sc):   # [axial]: where the face probe stands (ISO 230-7 face motion)
+        m["bench"]["face_probe_radius_mm"] = float(sc["axial"]["face_probe_radius"]) * 1e3
+        m["bench"]["face_probe_azimuth_deg"] = _deg(sc["axial"]["face_probe_azimuth"])
     ac = sc.get("instruments", {}).get("autocollimator") if hasattr(sc, "get") else None
     if ac:  # the declared instrument (its data sheet), the budget's type B inputs (Hsieh sec. 3.3)
         m["bench"]["autocollimator_resolution_arcsec"] = float(ac["resolution"]) / ARCSEC
@@ -329,6 +348,9 @@ class _RunTruth:
     rows: dict[int, tuple] = field(default_factory=dict)
     held_deg: dict[int, float] = field(default_factory=dict)
     ccd: dict[int, dict] = field(default_factory=dict)
+    #: [axial] only: per reading (axial z, its bearing / supply / thermal parts, face motion at the
+    #: face probe by the definition axial + R × tilt), m
+    axial: dict[int, tuple] = field(default_factory=dict)
 
 
 def _simulate(sc: Any, opts: _RunOptions) -> tuple[Path, ForkCall | None]:
@@ -384,6 +406,7 @@ class _RunObserver:
         self.enc: SimEncoder = run.inst["encoder"]
         self.ac: SimAutocollimator = run.inst["autocollimator"]
         self.cam = run.inst.get("ccd")
+        self.face = run.inst.get("probe_face")
         self.truth = _RunTruth()
 
     def on_step(self, i: int, step: Any, context: dict, replay: bool) -> None:
@@ -404,6 +427,13 @@ class _RunObserver:
             self.truth.rows[i] = _reading_truth(state, stage, self.enc,
                                                 self.ac if "autocollimator" in step.names else None)
             self.truth.held_deg[i] = float(stage.held_deg)
+            pose = state.posed()
+            if "axial_m" in pose.extra:   # [axial]: the shaft's axial DOF (twin/axial.py)
+                parts = pose.extra["axial_parts_m"]
+                face = (face_truth_m(pose, self.face.radius_m, self.face.azimuth_rad)
+                        if self.face is not None else float("nan"))
+                self.truth.axial[i] = (float(pose.extra["axial_m"]), float(parts["bearing"]),
+                                       float(parts["supply"]), float(parts["thermal"]), face)
         if isinstance(step, P.Capture) and self.cam is not None:
             self.truth.ccd[i] = self.cam.sim_frame_truth()
         self.bar.update(1)
@@ -545,7 +575,7 @@ def _theta(row) -> float:
 
 
 #: the radial-motion probes in the tables' column order (X probes only where the scenario has them)
-PROBES = ("probe_top", "probe_bottom", "probe_top_x", "probe_bottom_x")
+PROBES = ("probe_top", "probe_bottom", "probe_top_x", "probe_bottom_x", "probe_axial", "probe_face")
 
 
 def _write_tables(w: DatasetWriter, rows: list[dict], enc: SimEncoder) -> None:
@@ -697,6 +727,13 @@ def _write_radial_truth(w: DatasetWriter, rows: list[dict], truth: _RunTruth) ->
                 *(v * 1e6 for v in pos_m))
         for k, v in zip(t, vals):
             t[k].append(v)
+    if truth.axial:   # [axial] only: the columns are absent otherwise (the table's bytes as before)
+        names = ("axial_um", "axial_bearing_um", "axial_supply_um", "axial_thermal_um", "face_um")
+        for k in names:
+            t[k] = []
+        for r in radial:
+            for k, v in zip(names, truth.axial[r["i"]]):
+                t[k].append(v * 1e6)
     w.write_truth_table("radial_motion", t)
 
 

@@ -36,6 +36,7 @@ STREAMS: dict[str, int] = {
     "air_supply": 15,
     "polygon_pyramidal": 16,
     "cage_slip_process": 17,
+    "axial": 18,
     # the instruments (twin/instruments; keyed further by instrument, runner step and draw)
     "probe_noise": 101,
     "probe_linearity": 102,
