@@ -49,7 +49,8 @@ import numpy as np
 
 from .fourier import harmonic_columns
 
-__all__ = ["remove_fundamental", "error_motion", "radial_error_motion", "spectrum_orders", "bandwidth", "acquisition"]
+__all__ = ["remove_fundamental", "error_motion", "axial_error_motion", "axial_face_error_motion", "radial_error_motion",
+           "spectrum_orders", "bandwidth", "acquisition"]
 
 
 def _design01(theta_deg: np.ndarray) -> np.ndarray:
@@ -100,6 +101,83 @@ def error_motion(theta_deg: np.ndarray, revs_um: np.ndarray, sigma_um: float | N
         "n_revolutions": int(n),
         "theta_deg": th, "total_plot_um": total, "synchronous_plot_um": sync, "asynchronous_plot_um": asyn,
     }
+
+
+def axial_error_motion(theta_deg: np.ndarray, revs_um: np.ndarray, sigma_um: float | None = None) -> dict:
+    """ISO 230-7 axial (or face) error motion of one probe parallel to the axis.
+
+    Unlike the radial case the fundamental is PART of the error motion (ISO 230-7:2015 3.x / ASME
+    B89.3.4: a once-per-revolution axial motion at the axis is the axis moving, not a centring of the
+    target; at a radius R it holds the tilt motion times R, and the face target's squareness): the
+    values are about the polar chart centre (PC): total = max − min of all readings, synchronous =
+    max − min of the mean revolution, asynchronous = the largest width over the revolutions at one
+    angle (as the radial case). The ``residual_*`` values are the same with the fundamental removed
+    (:func:`error_motion`, about the LSC), and ``fundamental_um`` the amplitude of the mean
+    revolution's once-per-revolution term. u as :func:`error_motion` (a range is two readings)."""
+    th = np.asarray(theta_deg, dtype=float).ravel()
+    R = np.atleast_2d(np.asarray(revs_um, dtype=float))
+    res = error_motion(th, R, sigma_um)
+    n = R.shape[0]
+    sync = R.mean(axis=0)
+    _, coef = remove_fundamental(th, sync)
+    out = {
+        "total_um": float(np.ptp(R)),
+        "synchronous_um": float(np.ptp(sync)),
+        "asynchronous_um": res["asynchronous_um"],
+        "total_u_um": res["total_u_um"], "synchronous_u_um": res["synchronous_u_um"],
+        "asynchronous_u_um": res["asynchronous_u_um"],
+        "residual_total_um": res["total_um"], "residual_synchronous_um": res["synchronous_um"],
+        "fundamental_um": float(math.hypot(coef[1], coef[2])),
+        "fundamental_u_um": (math.sqrt(2.0 / (n * th.size)) * float(sigma_um)
+                             if sigma_um is not None and math.isfinite(sigma_um) else float("nan")),
+        "n_revolutions": int(n),
+        "theta_deg": th.tolist(), "synchronous_plot_um": (sync - sync.mean()).tolist(),
+    }
+    return out
+
+
+def _fourier_sigma(theta_deg: np.ndarray, R: np.ndarray, order: int) -> float | None:
+    """A reading's noise: the residual scatter of each revolution's Fourier series of order ``order``
+    (the radial case's σ, an upper estimate: it holds motion above that order too), pooled."""
+    th = np.asarray(theta_deg, dtype=float)
+    X = np.column_stack([np.ones(th.size), harmonic_columns(th, range(1, order + 1))[0]])
+    dof = th.size - X.shape[1]
+    if dof <= 0:
+        return None
+    ss = 0.0
+    for row in np.atleast_2d(R):
+        coef, *_ = np.linalg.lstsq(X, row, rcond=None)
+        ss += float(np.sum((row - X @ coef) ** 2))
+    return math.sqrt(ss / (dof * np.atleast_2d(R).shape[0]))
+
+
+def axial_face_error_motion(rep: np.ndarray, theta_deg: np.ndarray, axial_um: np.ndarray | None,
+                            face_um: np.ndarray | None, face_radius_mm: float | None, order: int = 10) -> dict | None:
+    """ISO 230-7 axial error motion (probe on the top sphere's pole, on the axis) and face error motion
+    (probe parallel to the axis on the disk's face at ``face_radius_mm``) from ``radial_motion.csv``'s
+    optional columns ``probe_axial_um`` / ``probe_face_um``; None when neither was read. JSON-ready."""
+    cols = {k: np.asarray(v, dtype=float).ravel() for k, v in (("probe_axial_um", axial_um), ("probe_face_um", face_um))
+            if v is not None}
+    if not cols:
+        return None
+    got = _revolutions(np.asarray(rep).ravel(), theta_deg, cols)
+    if got is None:
+        return {"standard": "ISO 230-7:2015", "locations": [],
+                "note": "revolutions read at different angles: no axial/face values (no per-angle mean)"}
+    th, revs = got
+    locs = []
+    for col, name, label in (("probe_axial_um", "axial", "axial, top sphere pole (on the axis)"),
+                             ("probe_face_um", "face", "face, disk at radius R")):
+        if col not in revs:
+            continue
+        em = axial_error_motion(th, revs[col], _fourier_sigma(th, revs[col], order))
+        d = {"name": name, "label": label, **em}
+        if name == "face":
+            d["radius_mm"] = None if face_radius_mm is None else float(face_radius_mm)
+        locs.append(d)
+    return {"standard": "ISO 230-7:2015", "fundamental_removed": False, "centre": "polar chart centre (PC)",
+            "sigma_from": f"residual of each revolution's Fourier series of order {order}",
+            "bandwidth": bandwidth(th, None), "locations": locs}
 
 
 #: locations: (name, label, probe column(s), combination)

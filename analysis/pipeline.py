@@ -99,10 +99,18 @@ def step_iso230_7(ds: Dataset, rm: dict[str, Any], order: int,
     ``table`` (default: :func:`radial_table`)."""
     from benchtwin.analysis.iso230_7 import radial_error_motion
 
+    from benchtwin.analysis.iso230_7 import axial_face_error_motion
+
     t = table if table is not None else radial_table(ds)[0]
     b = BenchGeometry.from_manifest(ds.bench)
     L1_mm, L2_mm = b.sphere_distances_mm
-    return radial_error_motion(t.rep, t.theta_deg, t.probes(), L1_mm, L2_mm, rm=rm, order=order)
+    out = radial_error_motion(t.rep, t.theta_deg, t.probes(), L1_mm, L2_mm, rm=rm, order=order)
+    raw = ds.table("radial_motion")
+    if "probe_axial_um" in raw or "probe_face_um" in raw:   # probes parallel to the axis (optional)
+        out["axial_face"] = axial_face_error_motion(raw["rep"], raw["theta_deg"], raw.get("probe_axial_um"),
+                                                    raw.get("probe_face_um"), ds.bench.get("face_probe_radius_mm"),
+                                                    order)
+    return out
 
 
 #: CCD frames: a frame whose line ends cannot be found (a scratch across the edge, dust on every

@@ -233,6 +233,13 @@ class RadialErrorMotion(TypedDict, total=False):
     locations: Annotated[list[dict[str, Any]], Key("µm", "per location: name, label, total_um, synchronous_um, "
                                                          "asynchronous_um and their _u_um, n_revolutions, theta_deg, "
                                                          "synchronous_plot_um")]
+    axial_face: NotRequired[Annotated[dict[str, Any], Key("µm", "ISO 230-7 axial and face error motion (present "
+                                                                "when radial_motion.csv has probe_axial_um / "
+                                                                "probe_face_um): locations axial, face with "
+                                                                "total_um, synchronous_um, asynchronous_um and "
+                                                                "their _u_um (fundamental included, about the PC), "
+                                                                "residual_total_um, residual_synchronous_um, "
+                                                                "fundamental_um, radius_mm (face)")]]
 
 
 class CCDSection(TypedDict):
