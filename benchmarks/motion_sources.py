@@ -58,7 +58,7 @@ class Row:
 
 def scenario_files() -> list[Path]:
     s = ROOT / "scenarios"
-    return ([s / "jia2019.toml", s / "hsieh2022.toml"] + sorted((s / "hidden").glob("*.toml"))
+    return ([s / "jia2019.toml", s / "hsieh2022.toml", s / "axial_face.toml"] + sorted((s / "hidden").glob("*.toml"))
             + sorted((s / "hidden_templates").glob("*.toml")))
 
 
@@ -412,6 +412,8 @@ def bench_rows(path: Path) -> list[Row]:
                 *(["hidden.torsion_hysteresis.extra_friction_torque"] if fx else []),
                 "bearings.shaft_torsional_stiffness"),
             "approach direction (sign of the last move)"))
+    if "axial" in sc:
+        rows += _axial_rows(sc, br, src)
     rows += _thermal_rows(sc, th, hid, src)
     if "vibration" in sc and float(sc["vibration"]["floor_velocity"]) > 0:
         v = sc["vibration"]
@@ -480,12 +482,73 @@ def _air_rows(sc, br, src) -> list[Row]:
             "p_s(t) → K(t): a journal under a static radial load W moves by W·(1/K(t) − 1/K₀) along it "
             "(twin/air_bearing.py `supply_offsets_m`)"
             + ("" if radial else "; this bench's axis is vertical with no unbalance: no radial load, so no radial "
-               "motion (the thrust bearing's axial motion is not a degree of freedom of the bench)"),
+               "motion (the thrust bearing's axial motion is a degree of freedom only with an [axial] section: "
+               "twin/axial.py)"),
             f"ripple ±{rp * 100:g} % over {_minutes(float(br['supply_ripple_period']))}, noise {rn * 100:g} % rms; "
             f"dK/K per dp/p = {dk / k0:.2f}",
             src("bearings.supply_ripple", "bearings.supply_ripple_period", "bearings.supply_noise"),
             KEY_TIME))
     return out
+
+
+def _axial_rows(sc, br, src) -> list[Row]:
+    """The shaft's axial DOF ([axial], twin/axial.py): stiffness, causes, probes."""
+    from twin.axial import AXIAL_RUNOUT_SIA_UM, build_axial
+    from twin.physics import Bench
+    from twin.streams import stream_rng
+
+    bench = Bench(sc)
+    ax = build_axial(dict(sc["axial"]), bench, stream_rng(bench.seed, "axial"))
+    a = sc["axial"]
+    rows: list[Row] = []
+    if ax.ball is not None:
+        t = ax.ball.truth()
+        rows.append(Row(
+            "axial DOF: ball pair's axial stiffness and load",
+            "Hertz axial equilibrium of both sets at each pose's ball approaches, solved after the radial statics "
+            "(decoupled: the radial solve does not see z); K_a = (3/2)·K_n·sin²a·Σ Z·δ0^½",
+            f"K_a = {t['axial_stiffness_linearised_N_m'] / 1e6:.3g} N/µm (Palmgren's closed form "
+            f"{t['palmgren_pair_stiffness_N_m'] / 1e6:.3g}); load {t['axial_load_N']:.3g} N along +z "
+            f"(weight + `axial.load`): {_um(t['static_deflection_linear_m'])}",
+            src("bearings.preload", "bearings.contact_angle", "axial.load") + "; the law: Harris & Kotzalas vol. 1 ch. 7",
+            "— (a stiffness and a constant offset)"))
+        _kia, _kea, w2 = RACE_GRADES[br["grade"]]
+        rows.append(Row(
+            "axial DOF: races' lobes through the ball sums",
+            "each ball's normal approach (radial waviness cos a·w, ball lot dD, the raceways' AXIAL lobes sin a·v) sums "
+            "to an axial force: only race orders q·Z move z, at q·Z·(1−ρ) and q·Z·ρ cycles/rev; the lot's order 1 "
+            "tilts (face motion via R × tilt)",
+            f"axial lobes ×{float(a['race_face_waviness_scale']):g} of the grade's radial spectrum "
+            f"({_um(w2 * 1e-6)} at order 2, ∝ 1/k), order 1 {RUNOUT_FRACTION:g}·S_ia/2 "
+            f"(S_ia {AXIAL_RUNOUT_SIA_UM[br['grade']]:g} µm)",
+            src("bearings.grade", "axial.race_face_waviness_scale") + "; S_ia: ISO 492:2014",
+            f"{KEY_ANGLE} × cage path (ball sets)"))
+    if ax.air is not None:
+        t = ax.air.truth()
+        rows.append(Row(
+            "axial DOF: air thrust under the weight, supply pressure (asynchronous)",
+            "the runner sits at z_0(p_s(t)) under the weight (non-linear pad law); the supply's fluctuation moves it "
+            "by ≈ W·(1/K(t) − 1/K₀)",
+            f"K = {t['axial_stiffness_N_m'] / 1e6:.3g} N/µm, z_0 = {_um(t['static_position_m'])}, "
+            f"dz/dp_s = {t['dz_dps_m_per_Pa'] * 1e6 * 1e5:.3g} µm/bar",
+            src("bearings.thrust_clearance", "bearings.supply_ripple", "bearings.supply_noise"),
+            KEY_TIME))
+        rows.append(Row(
+            "axial DOF: thrust runner's form through the feed sectors",
+            "orifices sense the gap at their hole, the outflow the sector's mean gap: only runner orders q·N move z",
+            f"flatness {_um(float(a['runner_flatness']))} P-V per face (orders 2…40 ∝ 1/k)",
+            src("axial.runner_flatness"), f"{KEY_ANGLE} (synchronous)"))
+    if float(a["thermal_growth"]):
+        rows.append(Row(
+            "axial DOF: thermal growth of the target", "the structure node's rise × `axial.thermal_growth`",
+            f"{float(a['thermal_growth']) * 1e6:.3g} µm/K", src("axial.thermal_growth"), KEY_TIME))
+    probes = (["top sphere pole (axial)"] if a["sphere_probe"] else []) + (
+        [f"disk face at R = {float(a['face_probe_radius']) * 1e3:g} mm (face)"] if float(a["face_probe_radius"]) > 0 else [])
+    if probes:
+        rows.append(Row(
+            "axial DOF: probes parallel to the axis", "exact geometry on the posed shaft; [instruments.probe]'s signal chain",
+            ", ".join(probes), src("axial.face_probe_radius"), "— (instruments)"))
+    return rows
 
 
 def _thermal_rows(sc, th: dict, hid: dict, src) -> list[Row]:

@@ -10,10 +10,12 @@ spin axis. It does not feed back into the radial solve. Neglected couplings, siz
 docs/physics.md ("The shaft's axial degree of freedom"):
 
 - an axial displacement z changes the two sets' approaches by ±sin(a)·z and so their radial
-  stiffness by ∓(z·sin a)/(2·δ0) (the (3/2)·K_n·δ^½ law): with z ≈ 10 nm, δ0 ≈ 1 µm, ±0.1 %,
-  opposite in the two sets — the radial motion it would change is 0.1 % of itself;
+  stiffness by ±(z·sin a)/(2·δ0) (the (3/2)·K_n·δ^½ law), opposite in the two sets: jia2019's pair
+  (δ0 = 1.62 µm) standing vertical sags 0.33–0.40 µm under its 7.85 N: ±2.7–3.2 % (a constant), and
+  its 0.55 µm P-V of axial motion over a revolution modulates them by ±2.2 % — the radial motion
+  would change by that fraction of itself (a few nm of its ~0.2 µm);
 - the contact angle's change with z (the 5-DOF Jones model): Δa ≈ z·cos(a)/(Dw·(f_i + f_o − 1))
-  ≈ 1e-5 rad for 10 nm: a 1e-5 relative change of the axial stiffness;
+  = 1.2e-3 rad at 0.4 µm: ≈ 2·cot(a)·Δa = 0.9 % of the axial stiffness;
 - the races' axial lobes of orders q·Z ± 1 (and the thrust runner's orders q·N ± 1) push a tilting
   MOMENT, not an axial force: that tilt is not added to the tilt DOF (its size is stated in truth).
 
