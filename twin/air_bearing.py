@@ -56,9 +56,10 @@ What is computed, and where each piece comes from:
 - **Thrust bearing** (double-acting, two annular pads of radii R_1 < R_2 fed by n_t orifices on
   the circle R_m, gaps h_t ∓ z): radial compressible flow between parallel plates,
   m = pi·h³·(p_d² − p_a²)/(12·μ·R·T·ln(r_2/r_1)) inward and outward (Powell ch. 4; van Beek
-  ch. 12), p(r)² log-linear in r, force = ∫(p − p_a)·2pi·r·dr. The bench has no axial degree of
-  freedom (issue 33 item 6): the thrust bearing's stiffness and its axial motion under the
-  supply-pressure fluctuation are stated in truth/ only.
+  ch. 12), p(r)² log-linear in r, force = ∫(p − p_a)·2pi·r·dr. Without an ``[axial]`` section the
+  bench has no axial degree of freedom: the thrust bearing's stiffness is stated in truth/ only;
+  with it (twin/axial.py, issue 33 item 6) the runner carries the shaft's weight at z_0(p_s(t)) and
+  its faces' form moves it through the feed sectors.
 
 Constants: air at 20 °C, μ = 1.81e-5 Pa·s, R = 287.05 J/(kg·K), κ = 1.4 (CRC Handbook of
 Chemistry and Physics, "Viscosity of gases", "Properties of air"); standard atmosphere

@@ -1212,8 +1212,6 @@ class Bench:
         }
         if self.thermal.active or self.thermal.loop_active:
             truth["thermal"] = self.thermal.truth()
-        if self.axial is not None:
-            truth["axial"] = self.axial.truth()
         if self.air_bearings is not None:
             truth["bearing_type"] = self.bearing_type
             truth["air_bearings"] = self.air_bearings.truth()
@@ -1226,4 +1224,9 @@ class Bench:
                 truth["cage_slip_time_s"] = self.cage_slip_time_s
                 truth["cage_slip_mean"] = self.cage_slip_mean
             truth["cage_start_rad"] = self._cage0.tolist()
+        if self.axial is not None:
+            truth["axial"] = self.axial.truth()
+            thrust = truth.get("air_bearings", {}).get("thrust")
+            if thrust is not None:   # with [axial] the thrust bearing's film does carry the shaft
+                thrust["note"] = "applied: the shaft's axial DOF of [axial] (twin/axial.py; truth axial.air_thrust)"
         return truth
