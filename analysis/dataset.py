@@ -3,7 +3,7 @@
 A dataset is a directory (documented in docs/dataset-format.md)::
 
     manifest.json          format, version, source, bench geometry, ccd geometry
-    radial_motion.csv      rep, theta_deg, probe_top_um, probe_bottom_um [, probe_*_x_um]
+    radial_motion.csv      rep, theta_deg, probe_top_um, probe_bottom_um [, probe_*_x_um, probe_axial_um, probe_face_um]
     ccd/index.csv          k, theta_deg, file          (+ the PNG images it names)
     polygon.csv            shift_deg, start_face, step, theta_deg, ac_arcsec, t_s [, rep, direction]
     heads.csv              theta_deg, head, delta_arcsec [, rep, direction]
@@ -101,7 +101,7 @@ TABLES: dict[str, TableSpec] = {
     # ISO 230-7 continuous-rotation run (twin/continuous.py): probes sampled in time while turning
     "radial_continuous": TableSpec(
         {"t_s": float, "theta_deg": float, "probe_top_um": float, "probe_bottom_um": float},
-        {"probe_top_x_um": float, "probe_bottom_x_um": float},
+        {"probe_top_x_um": float, "probe_bottom_x_um": float, "probe_axial_um": float, "probe_face_um": float},
         ("t_s",),
     ),
     "ccd/index": TableSpec({"k": int, "theta_deg": float, "file": str},

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-PROBES = ("probe_top", "probe_bottom", "probe_top_x", "probe_bottom_x")
+#: the axial / face probes only where the scenario's [axial] section builds them (twin/axial.py)
+PROBES = ("probe_top", "probe_bottom", "probe_top_x", "probe_bottom_x", "probe_axial", "probe_face")
 
 
 def continuous_run(bench: Any, state: Any, inst: dict, speed_rad_s: float, revolutions: int,
