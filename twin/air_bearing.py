@@ -292,12 +292,16 @@ class AerostaticThrust:
         if not 0 < self.inner_radius_m < self.feed_radius_m < self.outer_radius_m:
             raise ValueError("thrust pad: need 0 < R1 < R_feed < R2")
 
-    def pad_force_N(self, gap_m: float, p_s: float | None = None) -> float:
+    def pad_force_N(self, gap_m: float, p_s: float | None = None, gap_film_m: float | None = None) -> float:
+        """One pad's force at the gap ``gap_m``. With ``gap_film_m``, the orifices' curtain sees
+        ``gap_m`` (the gap at the holes) and the film's conductance ``gap_film_m`` (the sector's mean
+        gap: a runner whose form differs there, twin/axial.py); the same law, term for term."""
         p_s = self.supply_pressure_Pa if p_s is None else float(p_s)
         R1, Rm, R2, pa = self.inner_radius_m, self.feed_radius_m, self.outer_radius_m, self.ambient_Pa
         RT, mu = AIR_GAS_CONSTANT * AIR_TEMPERATURE_K, AIR_VISCOSITY_PA_S
         h = float(gap_m)
-        cond = math.pi * h**3 / (12.0 * mu * RT) * (1.0 / math.log(R2 / Rm) + 1.0 / math.log(Rm / R1))
+        hf = h if gap_film_m is None else float(gap_film_m)
+        cond = math.pi * hf**3 / (12.0 * mu * RT) * (1.0 / math.log(R2 / Rm) + 1.0 / math.log(Rm / R1))
 
         def excess(p_d):
             return (self.feed_holes * orifice_mass_flow(math.pi * self.orifice_diameter_m * h, p_s, p_d,

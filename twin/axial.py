@@ -67,8 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .air_bearing import (AIR_GAS_CONSTANT, AIR_TEMPERATURE_K, AIR_VISCOSITY_PA_S, AerostaticThrust,
-                          SupplyPressure, _bisect, generate_form, orifice_mass_flow)
+from .air_bearing import AerostaticThrust, SupplyPressure, generate_form
 from .bearing import MAX_WAVINESS_ORDER, RACE_GRADES, RUNOUT_FRACTION, BallSet, lobes_value
 
 TWO_PI = 2.0 * math.pi
@@ -184,31 +183,6 @@ class BallPairAxial:
                                     for s in self.face}}
 
 
-def thrust_pad_force_two_gaps_N(t: AerostaticThrust, gap_hole_m: float, gap_film_m: float,
-                                p_s: float | None = None) -> float:
-    """One pad's force with the orifices' curtain at ``gap_hole_m`` and the film's conductance at
-    ``gap_film_m`` (``AerostaticThrust.pad_force_N`` when both are equal: the same law, term for term)."""
-    p_s = t.supply_pressure_Pa if p_s is None else float(p_s)
-    R1, Rm, R2, pa = t.inner_radius_m, t.feed_radius_m, t.outer_radius_m, t.ambient_Pa
-    RT, mu = AIR_GAS_CONSTANT * AIR_TEMPERATURE_K, AIR_VISCOSITY_PA_S
-    hh, hf = float(gap_hole_m), float(gap_film_m)
-    cond = math.pi * hf**3 / (12.0 * mu * RT) * (1.0 / math.log(R2 / Rm) + 1.0 / math.log(Rm / R1))
-
-    def excess(p_d):
-        return (t.feed_holes * orifice_mass_flow(math.pi * t.orifice_diameter_m * hh, p_s, p_d,
-                                                 t.discharge_coefficient) - cond * (p_d**2 - pa**2))
-
-    p_d = float(_bisect(excess, np.array(pa), np.array(p_s)))
-    x, w = np.polynomial.legendre.leggauss(48)
-    total = 0.0
-    for a, b in ((R1, Rm), (Rm, R2)):
-        r = 0.5 * (b - a) * x + 0.5 * (b + a)
-        frac = np.log(r / Rm) / math.log((R2 if b == R2 else R1) / Rm)
-        p = np.sqrt(p_d**2 - (p_d**2 - pa**2) * frac)
-        total += 0.5 * (b - a) * float(np.sum(w * (p - pa) * TWO_PI * r))
-    return total
-
-
 class AirThrustAxial:
     """z of an aerostatic thrust runner: weight, supply pressure (time), runner form (angle)."""
 
@@ -228,8 +202,8 @@ class AirThrustAxial:
         dh = 1e-3 * h
         self.AB = {}
         for pad, gap in (("lower", h + self.z0_m), ("upper", h - self.z0_m)):
-            A = (thrust_pad_force_two_gaps_N(thrust, gap + dh, gap) - thrust_pad_force_two_gaps_N(thrust, gap - dh, gap)) / (2 * dh)
-            B = (thrust_pad_force_two_gaps_N(thrust, gap, gap + dh) - thrust_pad_force_two_gaps_N(thrust, gap, gap - dh)) / (2 * dh)
+            A = (thrust.pad_force_N(gap + dh, gap_film_m=gap) - thrust.pad_force_N(gap - dh, gap_film_m=gap)) / (2 * dh)
+            B = (thrust.pad_force_N(gap, gap_film_m=gap + dh) - thrust.pad_force_N(gap, gap_film_m=gap - dh)) / (2 * dh)
             self.AB[pad] = (A, B)
         N = thrust.feed_holes
         self._phi = TWO_PI * np.arange(N) / N
@@ -317,4 +291,4 @@ def build_axial(ax: dict, bench, rng: np.random.Generator) -> Axial:
 
 
 __all__ = ["Axial", "AirThrustAxial", "BallPairAxial", "build_axial", "generate_face_lobes",
-           "pair_axial_stiffness_N_m", "palmgren_axial_stiffness_N_m", "thrust_pad_force_two_gaps_N"]
+           "pair_axial_stiffness_N_m", "palmgren_axial_stiffness_N_m"]

@@ -14,7 +14,7 @@ import pytest
 from benchtwin.analysis.iso230_7 import axial_error_motion, axial_face_error_motion
 from benchtwin.twin.air_bearing import AerostaticThrust, SupplyPressure
 from benchtwin.twin.axial import (AirThrustAxial, BallPairAxial, pair_axial_stiffness_N_m,
-                                  palmgren_axial_stiffness_N_m, thrust_pad_force_two_gaps_N)
+                                  palmgren_axial_stiffness_N_m)
 from benchtwin.twin.bearing import BallBearingGeometry, BallSet
 from benchtwin.twin.instruments.axial_probe import SimAxialProbe, face_truth_m
 from benchtwin.twin.instruments.stage import SimBenchState
@@ -98,7 +98,7 @@ def _thrust():
 def test_thrust_two_gap_law_is_the_pad_law_and_z_follows_the_supply():
     t = _thrust()
     for h in (8e-6, 10e-6, 12e-6):
-        assert thrust_pad_force_two_gaps_N(t, h, h) == t.pad_force_N(h)
+        assert t.pad_force_N(h, gap_film_m=h) == t.pad_force_N(h)
     W = -50.0
     sup = SupplyPressure(t.supply_pressure_Pa, 0.005, 300.0, 0.002, np.random.default_rng(3))
     no_form = {f: (np.array([8.0]), np.array([0.0]), np.array([0.0])) for f in ("lower", "upper")}
