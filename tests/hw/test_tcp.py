@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
 import pytest
 import serial
@@ -18,8 +17,6 @@ from benchtwin.twin.emulators.tesa import TesaEmulator
 
 from tests.support.acquisition import Stub
 from tests.support.acquisition import compare_tables as _compare
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_socket_transport_contract_and_faults(monkeypatch):
@@ -70,20 +67,23 @@ def test_tcp_base_port_is_validated():
         TcpServer({"a": None}, base_port=80)
 
 
-def test_acquisition_over_tcp_equals_the_simulation(tmp_path):
+def test_acquisition_over_tcp_equals_the_simulation(tmp_path, simulated):
+    """``simulated``: the session's dataset of the resume tests' small jia2019 bench (tests/hw/conftest.py;
+    12 radial stops, 4 frames of 256×192 px, one polygon shift over 8 faces), simulated once per run.
+    This test simulated a bench of its own before, differing only by 6 polygon faces instead of 8 (a
+    simulation and an α grid more, ≈ 3 s of CPU, issue 35): the property, every reading over TCP with
+    faults equal to the direct simulation's, is the same on either bench, and the faults (the 3rd
+    encoder and 9th stage request) fall in the radial stops on both."""
     from benchtwin.analysis.dataset import open_dataset
     from benchtwin.hw.acquisition.acquire import acquire
     from benchtwin.twin.emulators.serve import EmulationSession
-    from benchtwin.twin.scenario import load_scenario
-    from benchtwin.twin.simulate import simulate
 
-    sc = load_scenario(ROOT / "scenarios" / "jia2019.toml").with_overrides({
-        "procedure.radial_positions": 12, "procedure.radial_reps": 1, "procedure.polygon_shifts": ["0 deg"],
-        "procedure.polygon_reps": 1, "procedure.directions": ["forward"], "bench.polygon_faces": 6,
-        "procedure.ccd_step": "90 deg", "instruments.ccd.width": "256 px", "instruments.ccd.height": "192 px"})
+    from tests.support.resume import small_scenario
+
+    sc = small_scenario()
     faults = [{"port": "encoder", "request": 3, "action": "garble"},
               {"port": "stage", "request": 9, "action": "disconnect"}]
-    sim = simulate(sc, tmp_path / "sim", progress=False, backend="analytic")
+    sim = simulated
     with EmulationSession(sc, faults=faults, tcp=True) as session:
         bench = session.start(tmp_path / "emu")
         text = bench.read_text()
@@ -93,7 +93,7 @@ def test_acquisition_over_tcp_equals_the_simulation(tmp_path):
         assert sorted(f["action"] for f in session.server.fired()) == ["disconnect", "garble"]
     assert json.loads((out / "manifest.json").read_text())["source"] == "emulated"
     a, b = open_dataset(sim), open_dataset(out)
-    assert len(b.table("radial_motion")["rep"]) == 12 and len(b.table("polygon")["ac_arcsec"]) == 6 * 6   # N start faces x N faces (one shift)
+    assert len(b.table("radial_motion")["rep"]) == 12 and len(b.table("polygon")["ac_arcsec"]) == 8 * 8   # N start faces x N faces (one shift)
     # the same readings as the direct simulation (the emulators draw the twin's noise of the same steps)
     tables = ("radial_motion", "polygon")
     _compare({n: a.table(n) for n in tables}, {n: b.table(n) for n in tables})
