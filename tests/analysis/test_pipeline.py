@@ -119,8 +119,12 @@ def test_external_source_works(jia_small, tmp_path):
 def test_disk_radial_motion_matches_truth_noise_free(tmp_path):
     """Issue 5: with noise-free probes δY (eq. 9) matches the twin's true disk-plane motion along Y
     (its harmonics 2…10, as eq. 7 keeps) within 5 nm RMS."""
+    # Only the radial-motion table and its truth are read: the CCD sweep is cut to 2 frames (was 6 of
+    # 2048×1536 px) and the polygon to 8 faces (64 readings instead of 529), ≈ 4 s of CPU less (issue 35).
+    # Neither enters eq. 9's δY or the truth it is held to (both are this bench's disk motion at the radial
+    # stops, whatever the polygon's size or the frames' number), so the 5 nm criterion checks the same thing.
     sc = load_scenario().with_overrides({**REDUCED, **NOISE_FREE_PROBES, "procedure.radial_positions": 72,
-                                         "procedure.ccd_step": "60 deg"})
+                                         "procedure.ccd_step": "180 deg", "bench.polygon_faces": 8})
     ds = simulate(sc, tmp_path / "ds", progress=False, backend="analytic")
     from benchtwin.analysis.dataset import open_dataset
     from benchtwin.analysis.pipeline import step_radial_motion
@@ -133,6 +137,7 @@ def test_disk_radial_motion_matches_truth_noise_free(tmp_path):
     reps = t["rep"].astype(float).astype(int)
     truth_sync = np.mean([remove_harmonics(th[reps == r], dy[reps == r], order=10)[0] for r in np.unique(reps)], axis=0)
     err = np.asarray(rm.dY_um) - truth_sync
+    print(f"δY − truth RMS {np.sqrt(np.mean(err**2)) * 1e3:.3f} nm")
     assert np.sqrt(np.mean(err**2)) < 0.005, np.sqrt(np.mean(err**2))
 
 
