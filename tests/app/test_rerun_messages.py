@@ -10,9 +10,11 @@ import json
 from benchtwin.cli import main
 from tests.support.interrupt import power_cut_after
 
+# the frames of tests/support/resume.py's small bench (256×192 px, was 128×96): this bench is that one outside
+# [procedure] and reads its α grid from the run's memo (twin/alpha_grid_memo.py; ≈ 2 s of CPU, issue 35)
 SMALL = ["--set", "procedure.radial_reps=2", "--set", "procedure.radial_positions=24", "--set",
-         'procedure.ccd_step="90 deg"', "--set", "bench.polygon_faces=8", "--set", "instruments.ccd.width=128 px",
-         "--set", "instruments.ccd.height=96 px", "--set", 'procedure.directions=["forward"]']
+         'procedure.ccd_step="90 deg"', "--set", "bench.polygon_faces=8", "--set", "instruments.ccd.width=256 px",
+         "--set", "instruments.ccd.height=192 px", "--set", 'procedure.directions=["forward"]']
 
 
 def _sim(out, *extra: str) -> list[str]:
