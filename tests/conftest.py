@@ -23,6 +23,14 @@ import pytest
 # Same platform for MuJoCo and PyOpenGL (they must match; EGL is Mesa's software path here).
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+# One OpenBLAS thread per test process (set before anything imports NumPy; the xdist workers, the forked
+# children and the tests' subprocesses inherit it). The suite's processes already fill the cores (two xdist
+# workers, their children), and OpenBLAS's own threads then spin waiting for each other on the shared
+# cores: tests/analysis/test_probe_drift.py took 12.6 s of CPU with the default threads and 1.9 s with one
+# (-n 0, load 4-6), a close-loop analysis 11-13.5 s and 10.6 s (issue 35). A value the caller sets is kept.
+# The tests' results do not depend on it: no test holds a BLAS result to its last bit across
+# configurations (CI runs the whole suite under another OpenBLAS kernel as well, .ci/run).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
