@@ -894,6 +894,8 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
                          unobservable_arcsec: float | None = None,
                          tangential_arcsec: float | None = None) -> dict[str, Any]:
     """Named alone / in an ambiguity set / not named; 'unexplained' for an out-of-library effect;
+    'nothing' where no name is given and nothing is flagged (right where ``accept`` holds it: nothing
+    hidden, or an expected effect a bench cannot show, benchmarks/loop_validation.py);
     spurious = every name neither expected nor a set-mate of an expected name, nor
     tangential_motion where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (a real
     tangential motion of the bench's bearings), nor graduation_error in a set with it where that
@@ -923,8 +925,11 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
         inset = all(e in named or any(e in s for s in sets) for e in exp)
         out["named"] = "alone" if alone else ("in ambiguity set" if inset else "not named")
         outcome = {"alone": "named", "in ambiguity set": "ambiguous", "not named": "missed"}[out["named"]]
+        if outcome == "missed" and "nothing" in acc and not extra and not unexpl:
+            outcome = "nothing"  # an expected effect the bench cannot show (expected.json accepts nothing)
     elif "unexplained" in acc:
-        outcome = "unexplained" if unexpl else ("spurious" if extra else "missed")
+        outcome = "unexplained" if unexpl else ("spurious" if extra else
+                                                "nothing" if "nothing" in acc else "missed")
     else:
         outcome = "nothing" if not extra and not unexpl else ("spurious" if extra else "unexplained")
     out["outcome"] = outcome

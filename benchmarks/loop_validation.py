@@ -69,6 +69,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -104,8 +105,21 @@ FIXED = {"procedure.ccd_step": "12 deg", "procedure.radial_positions": 72}
 #: thermal_growth is zero without a temperature change) and the bearings' grade (tilt_abbe's ΔL1 acts
 #: on the axis's tilt motion, which its scenario makes with a worn, ISO 492 class 0, pair)
 CAUSE_SECTIONS = ("thermal", "bearings.grade")
-#: hidden-suite scenarios whose decided outcome is "nothing" (benchmarks/hidden_suite.EXPECTED)
-EXPECT_NOTHING = ("ac_drift", "ac_nonlinearity", "ccd_pixel_scale_pixel_only", "polygon_pitch_ignored")
+#: the observability rule's one number not taken from the analysis (fixed before any verdict was
+#: looked at): an imprint must reach OBSERVABLE_MARGIN × the analysis's "anything to explain?" gate
+#: (in amplitude: the noise-free imprint's χ² ≥ OBSERVABLE_MARGIN² × the gate's) before the effect
+#: MUST be named; below 1× it is not observable on the bench; between, both verdicts are right.
+#: Why 1.5: the χ² gate is the analysis's coarser route to "something to explain"; its sharper route,
+#: one harmonic's χ²₂ past z ≥ Z_GATE and ΔBIC ≥ DBIC_GATE (signature._significant_parts), needs at
+#: most 1.25× less amplitude on the smallest benches (22 readings: λ ≈ 25 against ≈ 16) and the same
+#: size gate on every bench; and at 1.5× the expected statistic lies ≳ 3 of its standard deviations
+#: above the gate, so a bench the rule calls observable is one where the gate passes ≳ 99 % of the time.
+OBSERVABLE_MARGIN = 1.5
+#: the rule before the observability rule, kept only to score each bench by it too (the record's
+#: ``old_*``): hidden-suite scenarios whose decided outcome is "nothing" (benchmarks/hidden_suite.EXPECTED)
+OLD_EXPECT_NOTHING = ("ac_drift", "ac_nonlinearity", "ccd_pixel_scale_pixel_only", "polygon_pitch_ignored")
+OLD_EXPECTED_NOTHING = {"expect": [], "accept": ["nothing"],
+                        "why": "absorbed by the measurement / below the floor (benchmarks/hidden_suite.EXPECTED)"}
 ARCSEC_PER_RAD = 206264.80624709636
 
 
@@ -185,18 +199,161 @@ def class_causes(cls: str) -> dict[str, Any]:
     return {k: get(raw, k) for k in CAUSE_SECTIONS if get(raw, k) is not None and get(raw, k) != get(base, k)}
 
 
-def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any]):
+# ------------------------------------------------------------------ what a drawn bench can show
+def gate_chi2(dof: int, u_rms_arcsec: float, noise_floor_arcsec: float) -> float:
+    """The smallest χ² of the residual before (``dof`` degrees of freedom) that the analysis's own
+    "anything to explain?" rule passes (analysis/tracing/selection.py ``_chi2_matters``: p < P_SIG
+    and an excess RMS, ``_excess_rms`` = RMS(u)·√(χ²/dof − 1), ≥ SIZE_GATE × the noise floor), for a
+    bench whose readings' u has RMS ``u_rms_arcsec``. Found by bisection on those two functions
+    themselves (not a copy of their formulas), so the rule follows the analysis's gates."""
+    from types import SimpleNamespace
+
+    from benchtwin.analysis.distributions import chi2_sf
+    from benchtwin.analysis.tracing.selection import _chi2_matters, _excess_rms
+
+    if dof < 1:
+        return math.inf
+    ev = SimpleNamespace(u_arcsec=np.array([float(u_rms_arcsec)]))
+
+    def passes(c: float) -> bool:
+        return bool(_chi2_matters(float(chi2_sf(c, dof)), _excess_rms(ev, c, dof), noise_floor_arcsec))  # type: ignore[arg-type]
+
+    lo, hi = float(dof), 2.0 * dof + 50.0
+    while not passes(hi):
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if passes(mid) else (mid, hi)
+        if hi - lo <= 1e-9 * hi:
+            break
+    return hi
+
+
+def observability(lam: float, dof: int, u_rms_arcsec: float, noise_floor_arcsec: float,
+                  null_scale: float = 1.0, signature_passes: tuple[bool, bool] = (False, False),
+                  margin: float = OBSERVABLE_MARGIN) -> dict[str, Any]:
+    """The rule, for a noise-free imprint whose χ² against the analysis's uncertainties is ``lam``.
+
+    Two routes, the two of the analysis's "anything to explain?" (``_residual_stage``):
+
+    - the χ² route (``_chi2_matters``): with the bench's own scatter on top, the residual's χ² has
+      expectation s²·dof + lam (s² = ``null_scale``, the bench's χ²/dof without the effect, ≥ 1),
+      so the effect opens the gate (:func:`gate_chi2`) on average when s²·dof < gate ≤ s²·dof + lam;
+      ``ratio_chi2`` = √(lam / (gate − s²·dof)) is the imprint's amplitude in units of the gate's
+      (0 where the gate is open without the effect: that route then says nothing about it);
+    - the signature route (``_significant_parts``: a harmonic, drift, direction or face pattern that
+      would pass as an effect itself, z ≥ Z_GATE, ΔBIC ≥ DBIC_GATE and SIZE_GATE × the noise floor):
+      ``signature_passes`` = (passes at the imprint's amplitude, passes at 1/margin of it), computed
+      by the caller on the noise-free imprint (:func:`imprint`).
+
+    Tier: "observable" (either route passes at 1/``margin`` of the amplitude: the effect must be
+    named), "marginal" (passes at the amplitude only: named or nothing both right), "not
+    observable" (neither passes)."""
+    gate = gate_chi2(dof, u_rms_arcsec, noise_floor_arcsec)
+    base = max(1.0, float(null_scale)) * dof
+    lam_star = gate - base
+    ratio = math.sqrt(max(lam, 0.0) / lam_star) if math.isfinite(lam_star) and lam_star > 0 else 0.0
+    sig1, sig_m = bool(signature_passes[0]), bool(signature_passes[1])
+    tier = ("observable" if ratio >= margin or sig_m else
+            "marginal" if ratio >= 1.0 or sig1 else "not observable")
+    return {"lambda": float(lam), "dof": int(dof), "null_scale": max(1.0, float(null_scale)), "gate_chi2": gate,
+            "lambda_gate": lam_star, "ratio_chi2": ratio, "signature_at_1": sig1, "signature_at_1_over_margin": sig_m,
+            "margin": margin, "tier": tier}
+
+
+def expected_verdict(base: dict[str, Any], obs: dict[str, Any] | None) -> dict[str, Any]:
+    """truth/expected.json of a drawn bench: the scorer's rule from truth/hidden.json (``base``:
+    app.score.expected_from_hidden) where the hidden effect is observable on the bench (or where no
+    imprint could be computed: ``obs`` None), and where it is not (or marginally), the same with
+    "nothing" accepted too (no name, not unexplained; a name outside the expected ones and their
+    set-mates stays spurious)."""
+    out = {"expect": list(base.get("expect") or []), "accept": list(base.get("accept") or []),
+           "why": str(base.get("why") or "")}
+    if obs is None:
+        out["why"] += "; observability not computed: the hidden effect's rule unchanged"
+        return out
+    fig = (f"imprint {obs['ratio_chi2']:.2f}× the χ² gate (χ² {obs['lambda']:.4g} against "
+           f"{obs['lambda_gate']:.4g}, {obs['dof']} dof); signature parts pass at 1×: "
+           f"{'yes' if obs['signature_at_1'] else 'no'}, at 1/{obs['margin']:g}×: "
+           f"{'yes' if obs['signature_at_1_over_margin'] else 'no'}")
+    out["observability"] = {k: obs[k] for k in ("tier", "ratio_chi2", "lambda", "lambda_gate", "dof", "null_scale",
+                                                  "signature_at_1", "signature_at_1_over_margin", "margin")}
+    if obs["tier"] == "observable" or "nothing" in out["accept"]:
+        out["why"] += f"; {fig}: {obs['tier']}"
+        return out
+    out["accept"].append("nothing")
+    out["why"] += f"; {fig}: {obs['tier']} on this bench, nothing accepted too (benchmarks/loop_validation.py)"
+    return out
+
+
+def base_evidence(dataset: Path) -> Any:
+    """The close-loop's evidence of a dataset (analysis.pipeline's steps 1-4 and ``_loop_evidence``:
+    the polygon's α less the base model, with the analysis's u, nuisance columns and closure groups),
+    without tracing anything."""
+    from benchtwin.analysis.pipeline import _jia_model, _loop_evidence, _measure, open_dataset
+
+    ds = open_dataset(dataset, 10)
+    ds.check_tables()
+    a = _jia_model(_measure(ds, 10, False), None)
+    if a.cmp is None or a.ecc is None or a.pol is None or a.model is None:
+        raise ValueError(f"{dataset}: no base-model comparison (polygon, CCD and model needed)")
+    return _loop_evidence(ds, a)[0]
+
+
+def imprint(ds_effect: Path, ds_null: Path) -> dict[str, Any]:
+    """The hidden effect's noise-free imprint on what the base model cannot absorb: the difference
+    of the base model's per-reading residuals (α − Jia's model with the measured e, θ0 and ∫δY) of
+    the same bench simulated with and without the effect (same seed: every noise stream the same),
+    put through the analysis's own "anything to explain?" test (``residual_test``: closure-centred,
+    the model's uncertainties as nuisance columns, the effect bench's u) as a noise-free residual;
+    its χ² is the non-centrality the effect adds to the residual's χ²."""
+    from benchtwin.analysis.tracing import _significant_parts, harmonic_test, noise_floor, residual_test, signature
+    from benchtwin.analysis.tracing.evidence import _replace_alpha
+
+    ev, ev0 = base_evidence(ds_effect), base_evidence(ds_null)
+    keys = ("step", "rep", "shift_deg", "direction", "start_face")
+    if ev.n != ev0.n or any(not np.array_equal(getattr(ev, k), getattr(ev0, k)) for k in keys):
+        raise ValueError("the bench with and without the effect read different stops")
+    d = ev.residual_arcsec - ev0.residual_arcsec
+    rt = residual_test(_replace_alpha(ev, ev.model_arcsec + d))
+    rt0 = residual_test(ev0)
+    s2 = max(1.0, float(rt0["chi2"]) / max(int(rt0["dof"]), 1))  # the analysis's chi2_scale of the bench
+    u_rms = float(np.sqrt(np.mean(np.square(ev.u_arcsec))))
+    floor = float(noise_floor(ev))
+    # the signature route on the noise-free imprint, its u scaled by the bench's own scatter (s)
+    evs = _replace_alpha(ev, ev.model_arcsec)
+    evs.u_arcsec = ev.u_arcsec * math.sqrt(s2)
+    passes, parts, hk = [], [], []
+    for g in (1.0, 1.0 / OBSERVABLE_MARGIN):
+        e = _replace_alpha(evs, ev.model_arcsec + g * d)
+        h = harmonic_test(e)
+        parts.append(_significant_parts(signature(e, h), e.n, floor))
+        passes.append(bool(parts[-1]))
+        if g == 1.0:
+            hk = sorted(h, key=lambda x: -x["chi2"])[:3]
+    obs = observability(float(rt["chi2"]), int(rt["dof"]), u_rms, floor, s2, (passes[0], passes[1]))
+    return {**obs, "signature_parts": parts[0],
+            "top_harmonics": [{"k": x["k"], "chi2": round(float(x["chi2"]), 2),
+                               "amplitude_arcsec": round(float(x["amplitude_arcsec"]), 4)} for x in hk],
+            "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms, "noise_floor_arcsec": floor,
+            "n_readings": int(ev.n), "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
+
+def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any], keep_causes: bool = False):
     """The drawn bench with the class's [hidden] section and its causes (:func:`class_causes`),
-    validated by the scenario schema."""
+    validated by the scenario schema. ``keep_causes``: the causes even with an empty ``hidden`` (the
+    same bench with the effect removed, for its imprint: :func:`imprint`)."""
     from benchtwin.twin.scenario import load_scenario
 
     b = draw_bench(seed, cls, index)
-    ov = {**b["overrides"], "hidden": hidden, **(class_causes(cls) if hidden else {})}
+    ov = {**b["overrides"], "hidden": hidden, **(class_causes(cls) if hidden or keep_causes else {})}
     return load_scenario(BASE_SCENARIO).with_overrides(ov), b
 
 
 def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) -> dict[str, Any]:
-    """Simulate, analyse with truth deleted, score: the bench's record (never raises)."""
+    """Simulate the bench with its hidden effect and without it, compute the effect's imprint
+    (:func:`imprint`) and the expected verdict (:func:`expected_verdict`, written to
+    truth/expected.json), analyse with truth deleted, score with the new rule and with the old one
+    (:data:`OLD_EXPECT_NOTHING`): the bench's record (never raises)."""
     rec: dict[str, Any] = {"class": cls, "index": index, "seed": seed}
     d = Path(work) / cls / f"b{index:03d}"
     shutil.rmtree(d, ignore_errors=True)
@@ -210,19 +367,29 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
         rec["simulate_s"] = round(time.time() - t0, 1)
         truth = d / "truth"
         shutil.move(str(ds / "truth"), str(truth))  # the analysis runs with the truth deleted
-        if cls in EXPECT_NOTHING:
-            (truth / "expected.json").write_text(json.dumps({
-                "expect": [], "accept": ["nothing"],
-                "why": "absorbed by the measurement / below the floor (benchmarks/hidden_suite.EXPECTED)"}) + "\n",
-                encoding="utf-8")
+        obs = None
+        if hidden:
+            t0 = time.time()
+            sc0, _ = bench_scenario(seed, cls, index, {}, keep_causes=True)
+            ds0 = Path(simulate(sc0, d / "without_effect", progress=False, backend="analytic"))
+            shutil.move(str(ds0 / "truth"), str(d / "truth_without_effect"))
+            try:
+                obs = imprint(ds, ds0)
+            except Exception as exc:  # noqa: BLE001 - recorded; the hidden effect's rule then applies
+                rec["imprint_error"] = f"{type(exc).__name__}: {exc}"
+            rec["imprint"] = obs
+            rec["imprint_s"] = round(time.time() - t0, 1)
+        from app.score import read_results, read_truth, score_files, score_results
+
+        base = read_truth(truth, ds)["expected"]  # the scorer's rule from truth/hidden.json
+        (truth / "expected.json").write_text(json.dumps(expected_verdict(base, obs), indent=1) + "\n",
+                                             encoding="utf-8")
         from benchtwin.analysis.pipeline import analyze
 
         t0 = time.time()
         analyze(ds, d / "analysis", progress=False, close_loop=True)
         rec["analyze_s"] = round(time.time() - t0, 1)
-        from app.score import read_results, score_files
-
-        s = score_files(d / "analysis" / "results.json", ds, truth)
+        s = score_files(d / "analysis" / "results.json", ds, truth)  # reads truth/expected.json
         res = read_results(d / "analysis" / "results.json")
         ident = s.get("identification") or {}
         rec.update(correct=bool(s.get("identification_correct")), outcome=ident.get("outcome"),
@@ -232,6 +399,10 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
                    residual_before_arcsec=s.get("residual_before_arcsec"),
                    residual_after_arcsec=s.get("residual_after_arcsec"),
                    after_over_floor=s.get("residual_after_over_floor"))
+        t_old = read_truth(truth, ds)
+        t_old["expected"] = OLD_EXPECTED_NOTHING if cls in OLD_EXPECT_NOTHING else base
+        old = score_results(res, t_old).get("identification") or {}
+        rec.update(old_correct=bool(old.get("correct")), old_outcome=old.get("outcome"), old_accept=old.get("accept"))
     except Exception as exc:  # noqa: BLE001 - recorded in the table
         rec["error"] = f"{type(exc).__name__}: {exc}"
         rec["traceback"] = traceback.format_exc()
