@@ -40,14 +40,29 @@ scored against "unexplained"; ``tilt_abbe``'s worn bearings (``bearings.grade`` 
 ΔL1 moved α by 0.011″ RMS on seed 61 #0, 1/16 of the noise floor. Every other class's scenario
 equals the base in these keys: its benches are unchanged.
 
-**Expected verdict.** ``app.score``'s own rule from truth/hidden.json (a library effect named alone
-or in an ambiguity set, an effect outside the library "unexplained", nothing on a null), except the
-classes the hidden suite decides are absorbed by the measurement or too small to identify
-(``benchmarks/hidden_suite.EXPECTED`` expects "none": ``ac_drift``, ``ac_nonlinearity``,
-``ccd_pixel_scale_pixel_only``, ``polygon_pitch_ignored``): for them ``truth/expected.json`` is
-written (expect nothing), as ``app/suite.py`` does for its scenarios. The expectation does not
-know whether a drawn bench can observe the effect (e.g. ``torsion_hysteresis`` on a forward-only
-bench): such benches count as wrong here and show up in the per-bench list.
+**Expected verdict: what the drawn bench can show.** One rule for every class, decided from truth
+and simulation, never from the analysis's verdict on the bench being scored. Each bench with a
+hidden effect is simulated a second time with the same seed and the effect removed (empty
+``[hidden]``, the class's causes kept: :func:`bench_scenario` ``keep_causes``); the twin's hidden
+effects draw from their own random streams (twin/streams.py ``HIDDEN_STREAMS``), so every noise
+stream of the two benches is the same. The difference of the base model's per-reading residuals
+(α − Jia's model with the measured e, θ0 and ∫δY; :func:`base_evidence`, no tracing) is the
+effect's noise-free **imprint** on what the base model cannot absorb (:func:`imprint`). It goes
+through the analysis's own "anything to explain?" routes (:func:`observability`): the χ² gate
+(``_chi2_matters``: p < P_SIG and an excess ≥ SIZE_GATE × the noise floor; the imprint's χ² is
+the non-centrality it adds to the bench's own) and the signature parts (``_significant_parts``: a
+harmonic, drift, direction or face pattern passing Z_GATE, DBIC_GATE and the size gate), with the
+readings' u scaled by the bench's χ²/dof without the effect where that exceeds 1 (the analysis's
+``chi2_scale``). Where a route passes at 1/``OBSERVABLE_MARGIN`` (1.5) of the imprint's amplitude
+the effect is **observable** and must be named (alone or in an ambiguity set; an effect outside the
+library: "unexplained"); where neither passes even at its full amplitude it is **not observable**,
+and between **marginal**: both then accept "nothing" besides the effect's name
+(:func:`expected_verdict`). The decision is written to ``truth/expected.json``, which the scorer
+reads (``app.score.read_truth``). The hidden suite's four "nothing" classes (``ac_drift``,
+``ac_nonlinearity``, ``ccd_pixel_scale_pixel_only``, ``polygon_pitch_ignored``) are no longer listed:
+the rule decides them bench by bench; each bench is also scored by the old rule
+(:data:`OLD_EXPECT_NOTHING`) for comparison (``old_correct``). A spurious name stays wrong, and so
+does an observable effect the loop misses. Nulls need no second simulation (nothing hidden).
 
 **Truth deleted.** After simulating, ``DATASET/truth`` is moved out of the dataset before the
 analysis runs (``analysis.pipeline.analyze(..., close_loop=True)``) and given to the scorer from
@@ -307,10 +322,15 @@ def imprint(ds_effect: Path, ds_null: Path) -> dict[str, Any]:
     put through the analysis's own "anything to explain?" test (``residual_test``: closure-centred,
     the model's uncertainties as nuisance columns, the effect bench's u) as a noise-free residual;
     its χ² is the non-centrality the effect adds to the residual's χ²."""
+    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null))
+
+
+def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
+    """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
+    ``ev``, and without it, ``ev0``; the same stops)."""
     from benchtwin.analysis.tracing import _significant_parts, harmonic_test, noise_floor, residual_test, signature
     from benchtwin.analysis.tracing.evidence import _replace_alpha
 
-    ev, ev0 = base_evidence(ds_effect), base_evidence(ds_null)
     keys = ("step", "rep", "shift_deg", "direction", "start_face")
     if ev.n != ev0.n or any(not np.array_equal(getattr(ev, k), getattr(ev0, k)) for k in keys):
         raise ValueError("the bench with and without the effect read different stops")
@@ -420,6 +440,18 @@ def _draw_text(dr: dict[str, Any]) -> str:
             f"noise ×{dr['noise_factor']}, e {dr['eccentricity_um']} µm, seed {dr['scenario_seed']}")
 
 
+def _imprint_text(r: dict[str, Any]) -> str:
+    im = r.get("imprint")
+    if not im:
+        return f" — imprint: {r['imprint_error']}" if r.get("imprint_error") else ""
+    th = ", ".join(f"k={h['k']} {h['amplitude_arcsec']:.3f}″ χ² {h['chi2']:.1f}" for h in im.get("top_harmonics") or [])
+    return (f" — imprint **{im['tier']}**: RMS {im['imprint_rms_arcsec']:.3f}″ (noise floor "
+            f"{im['noise_floor_arcsec']:.3f}″), χ² {im['lambda']:.4g} for {im['dof']} dof, "
+            f"{im['ratio_chi2']:.2f}× the χ² gate (bench χ²/dof without the effect {im['null_scale']:.2f}); "
+            f"signature parts {', '.join(im.get('signature_parts') or []) or 'none'} "
+            f"(at 1/{im['margin']:g}: {'pass' if im['signature_at_1_over_margin'] else 'fail'}); top harmonics {th}")
+
+
 def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> str:
     by: dict[str, list[dict[str, Any]]] = {}
     for r in sorted(records, key=lambda r: (r["class"], r["index"])):
@@ -430,9 +462,13 @@ def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> st
              f"{', '.join(f'`{c}`' for c in by)}  ",
              f"Date: {meta['date']}; commit: {meta['commit']}; wall time {meta['elapsed_min']:.1f} min "
              f"on {meta['jobs']} worker(s).", "",
-             "| class | benches | right verdicts | false positives (null) | unexplained | errors | "
-             "residual before → after ″ (median) |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+             "Right verdicts by the observability rule (expected verdict from the effect's imprint on the "
+             "bench: named where observable, named or nothing otherwise) and, on the same benches, by the "
+             "old rule (the hidden effect always named, except the hidden suite's four 'nothing' classes). "
+             "Imprint tiers: observable / marginal / not observable.", "",
+             "| class | benches | right verdicts | right (old rule) | imprint tiers o/m/n | false positives (null) | "
+             "unexplained | errors | residual before → after ″ (median) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for cls, rs in by.items():
         ok = [r for r in rs if "error" not in r]
         right = sum(1 for r in ok if r.get("correct"))
@@ -441,7 +477,12 @@ def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> st
         une = sum(1 for r in ok if r.get("unexplained"))
         rb = [r["residual_before_arcsec"] for r in ok if isinstance(r.get("residual_before_arcsec"), (int, float))]
         ra = [r["residual_after_arcsec"] for r in ok if isinstance(r.get("residual_after_arcsec"), (int, float))]
-        lines.append(f"| `{cls}` | {len(rs)} | {right}/{len(ok)} | {fp} | {une} | {len(rs) - len(ok)} | "
+        old_right = sum(1 for r in ok if r.get("old_correct"))
+        tiers = [(r.get("imprint") or {}).get("tier") for r in ok]
+        tier_txt = "/".join(str(tiers.count(t)) for t in ("observable", "marginal", "not observable")) \
+            if any(tiers) else "–"
+        lines.append(f"| `{cls}` | {len(rs)} | {right}/{len(ok)} | {old_right}/{len(ok)} | {tier_txt} | {fp} | {une} | "
+                     f"{len(rs) - len(ok)} | "
                      f"{_f(float(np.median(rb)) if rb else None)} → {_f(float(np.median(ra)) if ra else None)} |")
     lines += ["", "Per bench (class, index: the draw; the scorer's outcome; named / spurious; residual before → "
               "after ″, after/floor). Reproduce one with the same `--seed` and `--classes CLASS` "
@@ -458,7 +499,8 @@ def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> st
                              f"spurious {', '.join(r.get('spurious') or []) or '—'}"
                              f"{', unexplained' if r.get('unexplained') else ''}; "
                              f"{_f(r.get('residual_before_arcsec'))} → {_f(r.get('residual_after_arcsec'))}, "
-                             f"after/floor {_f(r.get('after_over_floor'))})")
+                             f"after/floor {_f(r.get('after_over_floor'))}; "
+                             f"old rule: {'right' if r.get('old_correct') else 'WRONG'}){_imprint_text(r)}")
     lines += ["", END]
     return "\n".join(lines)
 
