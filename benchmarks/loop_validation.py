@@ -51,9 +51,10 @@ effect's noise-free **imprint** on what the base model cannot absorb (:func:`imp
 through the analysis's own "anything to explain?" routes (:func:`observability`): the χ² gate
 (``_chi2_matters``: p < P_SIG and an excess ≥ SIZE_GATE × the noise floor; the imprint's χ² is
 the non-centrality it adds to the bench's own) and the signature parts (``_significant_parts``: a
-harmonic, drift, direction or face pattern passing Z_GATE, DBIC_GATE and the size gate), with the
-readings' u scaled by the bench's χ²/dof without the effect where that exceeds 1 (the analysis's
-``chi2_scale``). Where a route passes at 1/``OBSERVABLE_MARGIN`` (1.5) of the imprint's amplitude
+harmonic, drift, direction or face pattern passing Z_GATE, DBIC_GATE and the size gate). The
+bench's own scatter is the bench without the effect, where it exceeds its u (the analysis's
+``chi2_scale``): the χ² route adds the imprint to that bench's χ² (and says nothing where the gate
+is open without the effect), the signature route scales the u by its χ²/dof after harmonics. Where a route passes at 1/``OBSERVABLE_MARGIN`` (1.5) of the imprint's amplitude
 the effect is **observable** and must be named (alone or in an ambiguity set; an effect outside the
 library: "unexplained"); where neither passes even at its full amplitude it is **not observable**,
 and between **marginal**: both then accept "nothing" besides the effect's name
@@ -325,6 +326,18 @@ def imprint(ds_effect: Path, ds_null: Path) -> dict[str, Any]:
     return imprint_of(base_evidence(ds_effect), base_evidence(ds_null))
 
 
+def _harmonic_scale(ev: Any) -> float:
+    """max(1, χ²/dof) of the bench's residual after harmonics 1…kmax (the scale ``harmonic_test``
+    puts on its u: analysis/tracing/significance.py, the same columns and centring)."""
+    from benchtwin.analysis.tracing import _center, _Problem, column
+    from benchtwin.analysis.tracing.problem import chi2_scale
+
+    pb = _Problem(ev, use_selfcal=False)
+    th = np.deg2rad(ev.theta_deg)
+    X = np.column_stack([f(k * th) for k in range(1, ev.kmax + 1) for f in (np.sin, np.cos)])
+    return float(chi2_scale(pb.fit(_center(X, column(ev.closure_group), pb.w ** 2))))
+
+
 def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
     """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
     ``ev``, and without it, ``ev0``; the same stops)."""
@@ -340,9 +353,11 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
     s2 = max(1.0, float(rt0["chi2"]) / max(int(rt0["dof"]), 1))  # the analysis's chi2_scale of the bench
     u_rms = float(np.sqrt(np.mean(np.square(ev.u_arcsec))))
     floor = float(noise_floor(ev))
-    # the signature route on the noise-free imprint, its u scaled by the bench's own scatter (s)
+    # the signature route on the noise-free imprint, its u scaled by the bench's own scatter left by
+    # the harmonic fit (harmonic_test's chi2_scale on the bench without the effect)
+    s2h = _harmonic_scale(ev0)
     evs = _replace_alpha(ev, ev.model_arcsec)
-    evs.u_arcsec = ev.u_arcsec * math.sqrt(s2)
+    evs.u_arcsec = ev.u_arcsec * math.sqrt(s2h)
     passes, parts, hk = [], [], []
     for g in (1.0, 1.0 / OBSERVABLE_MARGIN):
         e = _replace_alpha(evs, ev.model_arcsec + g * d)
@@ -352,7 +367,7 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
         if g == 1.0:
             hk = sorted(h, key=lambda x: -x["chi2"])[:3]
     obs = observability(float(rt["chi2"]), int(rt["dof"]), u_rms, floor, s2, (passes[0], passes[1]))
-    return {**obs, "signature_parts": parts[0],
+    return {**obs, "signature_parts": parts[0], "null_scale_harmonics": s2h,
             "top_harmonics": [{"k": x["k"], "chi2": round(float(x["chi2"]), 2),
                                "amplitude_arcsec": round(float(x["amplitude_arcsec"]), 4)} for x in hk],
             "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms, "noise_floor_arcsec": floor,
