@@ -25,7 +25,7 @@ def test_gate_chi2_is_where_the_analysis_gate_opens():
     for dof, u, floor in ((20, 0.1, 0.1), (500, 0.05, 0.15), (3000, 0.1, 0.1)):
         c = lv.gate_chi2(dof, u, floor)
 
-        def passes(x):
+        def passes(x, dof=dof, u=u, floor=floor):
             return _chi2_matters(float(chi2_sf(x, dof)), u * math.sqrt(max(x / dof - 1, 0)), floor)
 
         assert passes(c * (1 + 1e-6)) and not passes(c * (1 - 1e-6))
