@@ -53,8 +53,7 @@ through the analysis's own "anything to explain?" routes (:func:`observability`)
 the non-centrality it adds to the bench's own) and the signature parts (``_significant_parts``: a
 harmonic, drift, direction or face pattern passing Z_GATE, DBIC_GATE and the size gate). The
 bench's own scatter is the bench without the effect, where it exceeds its u (the analysis's
-``chi2_scale``): the χ² route adds the imprint to that bench's χ² (and says nothing where the gate
-is open without the effect), the signature route scales the u by its χ²/dof after harmonics. Where a route passes at 1/``OBSERVABLE_MARGIN`` (1.5) of the imprint's amplitude
+``chi2_scale``, after harmonics 1…kmax): both routes scale the u by it. Where a route passes at 1/``OBSERVABLE_MARGIN`` (1.5) of the imprint's amplitude
 the effect is **observable** and must be named (alone or in an ambiguity set; an effect outside the
 library: "unexplained"); where neither passes even at its full amplitude it is **not observable**,
 and between **marginal**: both then accept "nothing" besides the effect's name
@@ -250,25 +249,27 @@ def observability(lam: float, dof: int, u_rms_arcsec: float, noise_floor_arcsec:
                   margin: float = OBSERVABLE_MARGIN) -> dict[str, Any]:
     """The rule, for a noise-free imprint whose χ² against the analysis's uncertainties is ``lam``.
 
-    Two routes, the two of the analysis's "anything to explain?" (``_residual_stage``):
+    Two routes, the two of the analysis's "anything to explain?" (``_residual_stage``), each with the
+    bench's own scatter s² (``null_scale``: the bench without the effect, χ²/dof after harmonics 1…kmax,
+    ≥ 1: the analysis's ``chi2_scale``; the twin's benches carry bearing motion and friction the base
+    model lacks, so s² is 1.5–6 on drawn benches, and an imprint is judged against that scatter):
 
-    - the χ² route (``_chi2_matters``): with the bench's own scatter on top, the residual's χ² has
-      expectation s²·dof + lam (s² = ``null_scale``, the bench's χ²/dof without the effect, ≥ 1),
-      so the effect opens the gate (:func:`gate_chi2`) on average when s²·dof < gate ≤ s²·dof + lam;
-      ``ratio_chi2`` = √(lam / (gate − s²·dof)) is the imprint's amplitude in units of the gate's
-      (0 where the gate is open without the effect: that route then says nothing about it);
+    - the χ² route (``_chi2_matters``): the imprint alone, its χ² lam / s² against u·s, would open
+      the gate (:func:`gate_chi2`) on average when dof + lam/s² ≥ the gate; ``ratio_chi2`` =
+      √(lam/s² / (gate − dof)) is its amplitude in units of the gate's (an effect twice as large
+      has twice the ratio);
     - the signature route (``_significant_parts``: a harmonic, drift, direction or face pattern that
       would pass as an effect itself, z ≥ Z_GATE, ΔBIC ≥ DBIC_GATE and SIZE_GATE × the noise floor):
       ``signature_passes`` = (passes at the imprint's amplitude, passes at 1/margin of it), computed
-      by the caller on the noise-free imprint (:func:`imprint`).
+      by the caller on the noise-free imprint with the u scaled by s (:func:`imprint_of`).
 
     Tier: "observable" (either route passes at 1/``margin`` of the amplitude: the effect must be
     named), "marginal" (passes at the amplitude only: named or nothing both right), "not
     observable" (neither passes)."""
-    gate = gate_chi2(dof, u_rms_arcsec, noise_floor_arcsec)
-    base = max(1.0, float(null_scale)) * dof
-    lam_star = gate - base
-    ratio = math.sqrt(max(lam, 0.0) / lam_star) if math.isfinite(lam_star) and lam_star > 0 else 0.0
+    s2 = max(1.0, float(null_scale))
+    gate = gate_chi2(dof, u_rms_arcsec * math.sqrt(s2), noise_floor_arcsec)
+    lam_star = gate - dof
+    ratio = math.sqrt(max(lam, 0.0) / s2 / lam_star) if math.isfinite(lam_star) and lam_star > 0 else 0.0
     sig1, sig_m = bool(signature_passes[0]), bool(signature_passes[1])
     tier = ("observable" if ratio >= margin or sig_m else
             "marginal" if ratio >= 1.0 or sig1 else "not observable")
@@ -288,8 +289,8 @@ def expected_verdict(base: dict[str, Any], obs: dict[str, Any] | None) -> dict[s
     if obs is None:
         out["why"] += "; observability not computed: the hidden effect's rule unchanged"
         return out
-    fig = (f"imprint {obs['ratio_chi2']:.2f}× the χ² gate (χ² {obs['lambda']:.4g} against "
-           f"{obs['lambda_gate']:.4g}, {obs['dof']} dof); signature parts pass at 1×: "
+    fig = (f"imprint {obs['ratio_chi2']:.2f}× the χ² gate (χ² {obs['lambda']:.4g}, bench scatter s² "
+           f"{obs['null_scale']:.3g}, gate {obs['lambda_gate']:.4g} above {obs['dof']} dof); signature parts pass at 1×: "
            f"{'yes' if obs['signature_at_1'] else 'no'}, at 1/{obs['margin']:g}×: "
            f"{'yes' if obs['signature_at_1_over_margin'] else 'no'}")
     out["observability"] = {k: obs[k] for k in ("tier", "ratio_chi2", "lambda", "lambda_gate", "dof", "null_scale",
@@ -350,7 +351,6 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
     d = ev.residual_arcsec - ev0.residual_arcsec
     rt = residual_test(_replace_alpha(ev, ev.model_arcsec + d))
     rt0 = residual_test(ev0)
-    s2 = max(1.0, float(rt0["chi2"]) / max(int(rt0["dof"]), 1))  # the analysis's chi2_scale of the bench
     u_rms = float(np.sqrt(np.mean(np.square(ev.u_arcsec))))
     floor = float(noise_floor(ev))
     # the signature route on the noise-free imprint, its u scaled by the bench's own scatter left by
@@ -366,8 +366,8 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
         passes.append(bool(parts[-1]))
         if g == 1.0:
             hk = sorted(h, key=lambda x: -x["chi2"])[:3]
-    obs = observability(float(rt["chi2"]), int(rt["dof"]), u_rms, floor, s2, (passes[0], passes[1]))
-    return {**obs, "signature_parts": parts[0], "null_scale_harmonics": s2h,
+    obs = observability(float(rt["chi2"]), int(rt["dof"]), u_rms, floor, s2h, (passes[0], passes[1]))
+    return {**obs, "signature_parts": parts[0],
             "top_harmonics": [{"k": x["k"], "chi2": round(float(x["chi2"]), 2),
                                "amplitude_arcsec": round(float(x["amplitude_arcsec"]), 4)} for x in hk],
             "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms, "noise_floor_arcsec": floor,

@@ -47,9 +47,10 @@ def test_signature_route_and_open_gate():
     # the signature route alone decides when the χ² route does not pass
     assert lv.observability(0.0, dof, u, u, signature_passes=(True, True))["tier"] == "observable"
     assert lv.observability(0.0, dof, u, u, signature_passes=(True, False))["tier"] == "marginal"
-    # a bench whose scatter without the effect already opens the χ² gate: that route says nothing
-    o = lv.observability(1e6, dof, u, u, null_scale=10.0)
-    assert o["ratio_chi2"] == 0.0 and o["tier"] == "not observable"
+    # the bench's own scatter (s² = 4 without the effect): the imprint is judged against u·s
+    lam_star = lv.gate_chi2(dof, 2 * u, u) - dof
+    assert lv.observability(4 * 1.6 ** 2 * lam_star, dof, u, u, null_scale=4.0)["tier"] == "observable"
+    assert lv.observability(1.6 ** 2 * lam_star, dof, u, u, null_scale=4.0)["tier"] == "not observable"
 
 
 def test_expected_verdict_accepts_nothing_only_where_the_bench_cannot_show_it():
