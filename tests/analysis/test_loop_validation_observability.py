@@ -108,3 +108,26 @@ def test_synthetic_imprints_below_between_above(amp, tier):
     assert o["tier"] == tier
     if amp == 0.0:
         assert o["lambda"] == 0.0  # identical noise streams cancel exactly
+
+
+def test_a_tiny_drawn_bench_with_and_without_its_effect(tmp_path):
+    """Seed 1, ac_drift #72: one head, shift 0, forward, one rep (23 stops). The effect acts on the
+    autocollimator only and draws from its own stream: the probes' table of the bench without it is
+    the same bytes (every noise stream the same), and its imprint is the drift the base model leaves."""
+    from benchtwin.twin.simulate import simulate
+
+    cls, idx = "ac_drift", 72
+    d = lv.draw_bench(1, cls, idx)["draw"]
+    assert (d["n_heads"], d["shifts_deg"], d["directions"], d["polygon_reps"]) == (1, [0.0], ["forward"], 1)
+    hidden = lv.effect_classes()[cls]
+    sc, _ = lv.bench_scenario(1, cls, idx, hidden)
+    sc0, _ = lv.bench_scenario(1, cls, idx, {}, keep_causes=True)
+    a = Path(simulate(sc, tmp_path / "with", progress=False, backend="analytic"))
+    b = Path(simulate(sc0, tmp_path / "without", progress=False, backend="analytic"))
+    assert (a / "radial_motion.csv").read_bytes() == (b / "radial_motion.csv").read_bytes()
+    assert (a / "polygon.csv").read_bytes() != (b / "polygon.csv").read_bytes()
+    o = lv.imprint(a, b)
+    assert o["lambda"] > 0 and o["imprint_rms_arcsec"] > 0
+    assert o["tier"] in ("observable", "marginal", "not observable")
+    e = lv.expected_verdict({"expect": ["ac_drift"], "accept": ["named", "ambiguous"], "why": ""}, o)
+    assert ("nothing" in e["accept"]) == (o["tier"] != "observable")
