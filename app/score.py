@@ -17,7 +17,8 @@ docs/scoring.md; in short:
 - **identification**: whether the hidden effect was named alone or in an ambiguity set, whether an
   out-of-library effect was flagged as unexplained, and which names are spurious.
 - **residual**: before and after the traced effect, against a floor computed from the truth: the
-  autocollimator's own error in α (as the closure averages it), and on a bench without X probes the
+  autocollimator's own error in α (as the closure averages it), the drive servo's stop-to-stop twist
+  (truth/polygon.csv ``twist_arcsec``, each run-row's mean removed), and on a bench without X probes the
   tangential motion −δX/r that Jia eq. 5's ∫δY dθ / r does not hold (no Y-probe analysis can
   attribute it to the axis).
 
@@ -713,6 +714,21 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
                 groups.setdefault(g, []).append(j)
             per = np.concatenate([err[g] - err[g].mean() for g in groups.values()])
             per_reading["ac_reading_arcsec"] = float(np.sqrt(np.mean(per**2)))
+            # 1b. the servo's stick-slip (truth/polygon.csv twist_arcsec): the held friction twists
+            #     the shaft between disk and polygon by an amount that differs from stop to stop and
+            #     that no instrument reads. Its mean per run-row is not the floor (a constant is the
+            #     closure's U; a difference between directions is torsion_hysteresis, an effect):
+            #     per run-row the mean removed, then per stop / per reading as the AC's error.
+            if "twist_arcsec" in t:
+                _numeric(td / "polygon.csv", t, "twist_arcsec")
+                tw_by = {key(t, i): float(t["twist_arcsec"][i]) for i in range(t["theta_deg"].size)}
+                tw = np.array([tw_by[key(d, i)] for i in idx])
+                for g in groups.values():
+                    tw[g] = tw[g] - tw[g].mean()
+                if np.any(tw != 0.0):
+                    mt = np.array([tw[th == k].mean() for k in np.unique(th)])
+                    parts["servo_twist_arcsec"] = float(np.sqrt(np.mean((mt - mt.mean()) ** 2)))
+                    per_reading["servo_twist_reading_arcsec"] = float(np.sqrt(np.mean(tw**2)))
     # 2. the probes' own error in the model's radial term: per stop the reading − the true sphere
     #    centre along Y (truth/radial_motion.csv: repeatability, linearity, the spheres' form),
     #    averaged over the revolutions, extrapolated to the disk plane as Jia eq. 9 does
@@ -763,7 +779,7 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
     # division error), it cannot tell which it is (hence an ambiguity set)
     unattributable = parts.pop("unseen_tangential_arcsec", None)
     total = float(math.sqrt(sum(v * v for v in parts.values()))) if parts else None
-    common = {k: v for k, v in parts.items() if k != "alpha_measurement_arcsec"}
+    common = {k: v for k, v in parts.items() if k not in ("alpha_measurement_arcsec", "servo_twist_arcsec")}
     total_r = float(math.sqrt(sum(v * v for v in {**common, **per_reading}.values()))) if per_reading else None
     return {"floor_arcsec": total, "floor_per_reading_arcsec": total_r, "parts": {**parts, **per_reading},
             "unattributable_arcsec": unattributable, "tangential_arcsec": tangential, "x_probes": x_probes}

@@ -129,6 +129,25 @@ def test_residual_against_floor(truth):
     assert s["residual_after_over_floor"] == pytest.approx(0.5)
 
 
+def test_floor_holds_the_servo_twist_scatter_not_its_mean_per_run(truth):
+    """truth/polygon.csv's twist (the servo's stick-slip) joins the floor with its mean per run-row
+    removed: a constant or a direction offset is no floor (U; torsion_hysteresis), the scatter is."""
+    head = "theta_deg,alpha_arcsec,ac_exact_arcsec,start_face,step,direction,twist_arcsec\n"
+    rows = ["0,0,10,1,1,1,{}", "90,0,3,1,2,1,{}", "0,0,10,1,1,-1,{}", "90,0,3,1,2,-1,{}"]
+    (truth / "polygon.csv").write_text("theta_deg,ac_arcsec,start_face,step,direction\n0,10,1,1,1\n90,3,1,2,1\n"
+                                       "0,10,1,1,-1\n90,3,1,2,-1\n")
+    # a direction offset only (±0.4″): no floor part
+    (truth / "truth" / "polygon.csv").write_text(head + "\n".join(r.format(v) for r, v in zip(rows, (.4, .4, -.4, -.4))))
+    s = _score(truth, _min(residual_before_arcsec=0.9, residual_after_arcsec=0.1))
+    assert "servo_twist_arcsec" not in s["floor_parts"]
+    # stop-to-stop scatter ±0.3″ within each direction's run: per stop ±0.3 → RMS 0.3
+    (truth / "truth" / "polygon.csv").write_text(head + "\n".join(r.format(v) for r, v in zip(rows, (.7, .1, -.1, -.7))))
+    s = _score(truth, _min(residual_before_arcsec=0.9, residual_after_arcsec=0.1))
+    assert s["floor_parts"]["servo_twist_arcsec"] == pytest.approx(0.3)
+    assert s["floor_parts"]["servo_twist_reading_arcsec"] == pytest.approx(0.3)
+    assert s["floor_arcsec"] == pytest.approx(0.3)  # the AC reads the exact faces here
+
+
 def test_csv_results_score_like_json(truth, tmp_path):
     j = _min(e_um=E_UM + 0.05, e_u_um=0.02, alpha={"theta_deg": STOPS.tolist(),
                                                    "value_arcsec": (alpha_true(STOPS) + [0.1, 0, 0, -0.1]).tolist(),
