@@ -372,6 +372,7 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
             "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms, "noise_floor_arcsec": floor,
             "n_readings": int(ev.n), "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
 
+
 def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any], keep_causes: bool = False):
     """The drawn bench with the class's [hidden] section and its causes (:func:`class_causes`),
     validated by the scenario schema. ``keep_causes``: the causes even with an empty ``hidden`` (the
