@@ -723,8 +723,8 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
                 _numeric(td / "polygon.csv", t, "twist_arcsec")
                 tw_by = {key(t, i): float(t["twist_arcsec"][i]) for i in range(t["theta_deg"].size)}
                 tw = np.array([tw_by[key(d, i)] for i in idx])
-                for g in groups.values():
-                    tw[g] = tw[g] - tw[g].mean()
+                for run_rows in groups.values():
+                    tw[run_rows] = tw[run_rows] - tw[run_rows].mean()
                 if np.any(tw != 0.0):
                     mt = np.array([tw[th == k].mean() for k in np.unique(th)])
                     parts["servo_twist_arcsec"] = float(np.sqrt(np.mean((mt - mt.mean()) ** 2)))
