@@ -242,16 +242,13 @@ def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb:
 
 def _form_lobes(eff: dict[str, Any], sphere: str, fits: list | None = None) -> dict[int, tuple[float, float]]:
     """{k: (sin, cos) µm} of a traced sphere form in that sphere's Y reading (analysis/effects/
-    sphere_form.py: explicit lobes, the lobes read by the X probes ``{sphere}_xh{k}``, given as the Y
-    reading's coefficients too, or ``form_fraction`` × the reading's own lobes 2…10)."""
+    sphere_form.py: explicit lobes, or ``form_fraction`` × the reading's own lobes 2…10)."""
     p = eff["params"]
     out: dict[int, tuple[float, float]] = {}
-    for tag in ("h", "xh"):
-        for name in p:
-            if name.startswith(f"{sphere}_{tag}") and name.endswith("_sin_um"):
-                k = int(name[len(sphere) + 1 + len(tag):-len("_sin_um")])
-                a, b = out.get(k, (0.0, 0.0))
-                out[k] = (a + float(p[name]), b + float(p.get(f"{sphere}_{tag}{k}_cos_um", 0.0)))
+    for name in p:
+        if name.startswith(f"{sphere}_h") and name.endswith("_sin_um"):
+            k = int(name[len(sphere) + 2:-len("_sin_um")])
+            out[k] = (float(p[name]), float(p.get(f"{sphere}_h{k}_cos_um", 0.0)))
     fr = float(p.get("form_fraction", 0.0))
     if fr and fits:
         m = sum(x.params for x in fits) / len(fits)

@@ -192,13 +192,3 @@ def test_reference_chain_effect_round_trip(tmp_path):
     before = simulate(load_scenario(tmp_path / "base.toml"), tmp_path / "before", progress=False, backend="analytic")
     c_after, c_before = compare(bench, twin), compare(bench, before)
     assert c_after["alpha_arcsec"]["rms"] < 0.5 * c_before["alpha_arcsec"]["rms"], (c_after, c_before)
-
-
-def test_form_lobes_include_the_lobes_read_by_the_x_probes():
-    """sphere_form's ``x`` variant (the form beside the tangential motion, read by the X probes) gives
-    the lobes as the Y reading's coefficients, like the explicit lobes: the twin takes both."""
-    from benchtwin.app.calibrate_twin import _form_lobes
-
-    eff = {"params": {"top_h3_sin_um": 0.1, "top_h3_cos_um": 0.2, "top_xh5_sin_um": 0.3, "top_xh5_cos_um": -0.1}}
-    assert _form_lobes(eff, "top") == {3: (0.1, 0.2), 5: (0.3, -0.1)}
-    assert _form_lobes(eff, "bottom") == {}
