@@ -13,7 +13,7 @@ parameters: the residual is ``X @ params`` with ``X`` from ``design``.
 
 Optional (:class:`EffectOptions`; the callers test for them with ``hasattr``/``getattr``, so a
 module that does not need one leaves it out): ``plausible``, ``heads``, ``regressor_perturbations``,
-``ambiguous_with``, ``variants``, ``requires`` and ``SUBSETS``.
+``ambiguous_with``, ``variants`` and ``SUBSETS``.
 
 The shared implementations (the linear ``predict``, the empty ``aux``, the absent ``term`` of a
 reference-chain effect, the ``CHANNELS`` builder) are in :mod:`benchtwin.analysis.effects._base`.
@@ -92,10 +92,7 @@ class EffectOptions(Protocol):
     - ``regressor_perturbations(ev, params, ctx)``: the regressors' own uncertainty as columns
       (errors in variables);
     - ``ambiguous_with(ev) -> [names]``: effects it cannot be told from with these data;
-    - ``variants(names, ev, ctx) -> [[names]]`` or ``SUBSETS``: the parameter subsets tried;
-    - ``requires(names) -> [effects]``: the effects a variant (its parameter names) describes the
-      effect beside, [] for none: its columns assume one of them in the model (a sphere form read by
-      the X probes, in the δX that only the tangential motion takes); tried only in a pair with one.
+    - ``variants(names, ev, ctx) -> [[names]]`` or ``SUBSETS``: the parameter subsets tried.
     """
 
     SUBSETS: list[list[str]]
@@ -107,7 +104,6 @@ class EffectOptions(Protocol):
     def regressor_perturbations(self, ev: Evidence, params: Mapping[str, float], ctx: Context = None) -> np.ndarray: ...
     def ambiguous_with(self, ev: Evidence) -> list[str]: ...
     def variants(self, names: list[str], ev: Evidence = None, ctx: Context = None) -> list[list[str]]: ...
-    def requires(self, names: list[str]) -> list[str]: ...
 
 
 def _members(proto: type) -> tuple[dict[str, type], dict[str, inspect.Signature]]:

@@ -14,21 +14,6 @@ than 3u (a form larger than the reading would need a motion cancelling it exactl
 With polygon and self-calibration data only, a form harmonic and a division harmonic are the same
 function of θ: sphere_form is separable only by probe-side measurements (reversal), so it ends in
 an ambiguity set with graduation_error — by design, documented.
-
-With X probes the same form is also read by the sphere's X probe, 90° further round the sphere:
-f_X(θ) = f_Y(θ + 90°) (docs/conventions.md: the Y probe on +Y, the X probe on +X, both readings
-positive towards their axis, the shaft turning CCW). Its X reading enters the disk's δX by eq. 9
-with the same weight w, so the tangential motion, which takes that δX as its regressor (gain g on
-−δX/r, radial gain h on −∫δY/r; g = h = 1 in the exact geometry), carries −g·w·f_X/r that the encoder
-does not have, and h·∫δY takes the model's −w·∫f_Y/r. Beside it the form's whole imprint on the
-residual is +w·f_X/r at g = h = 1: k times the ∫f_Y/r of the Y-bench template per µm (loop
-validation lv93 sphere_form #0: 0.15 µm at k = 3 is 1.37″ of −δX/r; the tangential motion alone fails its
-errors-in-variables gate, and the form read as ∫f_Y/r needs 5× the reading). The ``x`` variant
-(``{sphere}_xh{k}_sin_um``, ``_cos_um``: the form's coefficients as the Y probe sees them) holds that
-imprint; it describes the effect only beside the tangential motion (``requires``). In θ its columns
-are harmonics k, as a division error's: only their size, bounded by the sphere's readings
-(``plausible``), tells the two apart; any g and h give the same column space (the µm scale assumes
-g = h = 1).
 """
 
 from __future__ import annotations
@@ -44,8 +29,7 @@ MEANING = (
     "not have. Only harmonics present in one sphere's reading qualify; for a rigid shaft they would "
     "have to appear, consistently, as motion in the other channels (other sphere, X probes)."
 )
-PARAMS = {"{sphere}_h{k}_sin_um": "µm", "{sphere}_h{k}_cos_um": "µm",
-          "{sphere}_xh{k}_sin_um": "µm", "{sphere}_xh{k}_cos_um": "µm"}
+PARAMS = {"{sphere}_h{k}_sin_um": "µm", "{sphere}_h{k}_cos_um": "µm"}
 MIN_LOBE_UM = 0.01
 CHANNELS = channels(
     alpha="−w_s/r·∫(f_s sin kθ + g_s cos kθ) dθ (the model's spurious share)",
@@ -82,38 +66,6 @@ def _plan(ev, ctx):
     return plan
 
 
-def _has_x(ev):
-    return ev.radial is not None and getattr(ev.radial, "has_x", False)
-
-
-def _x_plan(ev, ctx):
-    """[(sphere, k, weight, bound µm)] of the ``x`` variant (X probes only): the harmonics flagged in the
-    residual that a sphere's Y or X reading shows (≥ ``MIN_LOBE_UM``), for the sphere with the larger
-    weight × reading; the bound is that sphere's larger reading amplitude at k (the form is in both
-    readings, the motion may cancel part of it in one)."""
-    if not _has_x(ev):
-        return []
-    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
-    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
-    flagged = set(ctx["harmonics"]) if ctx and ctx.get("harmonics") is not None else None
-    c = {(s, ch): ev.radial.coefs(f"{s}{ch}_um") for s in ("top", "bottom") for ch in ("", "_x")}
-    plan = []
-    for k in sorted(set(c[("top", "")]) & set(c[("top", "_x")])):
-        if flagged is not None and k not in flagged:
-            continue
-        amp = {s: max(float(np.hypot(*c[(s, ch)].get(k, (0.0, 0.0)))) for ch in ("", "_x")) for s in w}
-        wa, s, a = max((w[s] * amp[s], s, amp[s]) for s in w)
-        if a >= MIN_LOBE_UM:
-            plan.append((s, k, w[s], a))
-    return plan
-
-
-def _x_lobe(th, k, w, r, fs, fc):
-    """+w·f_X/r (arcsec) of a lobe whose Y-probe coefficients are (fs, fc) µm: f_X(θ) = f_Y(θ + 90°)."""
-    ph = k * np.pi / 2
-    return w * (fs * np.sin(k * th + ph) + fc * np.cos(k * th + ph)) / r * ARCSEC_PER_RAD
-
-
 def available(ev, ctx=None):
     if ev.radial is None:
         return False, "no radial-motion data"
@@ -140,9 +92,6 @@ def design(ev, ctx=None):
     if plan:
         cols.append(_fraction_column(ev, _fraction_plan(ev, ctx)))
         names.append("form_fraction")
-    for s, k, w, _ in _x_plan(ev, ctx):
-        cols += [_x_lobe(th, k, w, r, 1.0, 0.0), _x_lobe(th, k, w, r, 0.0, 1.0)]
-        names += [f"{s}_xh{k}_sin_um", f"{s}_xh{k}_cos_um"]
     return (np.column_stack(cols) if cols else np.zeros((th.size, 0))), names
 
 
@@ -165,31 +114,10 @@ def _fraction_column(ev, fplan):
     return out
 
 
-def _is_x(name):
-    return "_xh" in name
-
-
 def variants(names, ev=None, ctx=None):
-    """Parameter subsets tried (tracing): per-harmonic form, one fraction of the reading, and with X
-    probes the form read by them beside the tangential motion (``x``)."""
-    per = [n for n in names if n != "form_fraction" and not _is_x(n)]
-    out = [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]
-    # the form read by the X probes: the largest lobes of the sphere's readings first, nested (a form
-    # is lobes of the reading; which of them are form and which the axis's motion the polygon decides,
-    # the information criterion choosing among the nested sets); a variant only with all its lobes
-    lobes = [(a, s, k) for s, k, _, a in (_x_plan(ev, ctx) if ev is not None else [])]
-    lobes.sort(key=lambda t: (-t[0], t[2]))
-    for i in range(1, len(lobes) + 1):
-        v = [f"{s}_xh{k}_{sc}_um" for _, s, k in lobes[:i] for sc in ("sin", "cos")]
-        if all(n in names for n in v):
-            out.append(v)
-    return out
-
-
-def requires(names):
-    """The effects a variant describes the form beside: the ``x`` variant is the form in the X probes'
-    δX, which only the tangential motion takes into the model."""
-    return ["tangential_motion"] if any(_is_x(n) for n in names) else []
+    """Parameter subsets tried (tracing): per-harmonic form, or one fraction of the reading."""
+    per = [n for n in names if n != "form_fraction"]
+    return [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]
 
 
 predict = linear_predictor(design)
@@ -202,13 +130,12 @@ def plausible(ev, params, u, ctx=None):
         f, uf = float(params["form_fraction"]), float(u.get("form_fraction", 0.0))
         if not -3 * uf <= f <= 1 + 3 * uf:
             return False, f"form fraction {f:.3g} ± {uf:.2g} outside 0…1 of the reading"
-    for tag, plan in (("h", _plan(ev, ctx)), ("xh", _x_plan(ev, ctx))):
-        for s, k, w, a in plan:
-            fs, fc = params.get(f"{s}_{tag}{k}_sin_um", 0.0), params.get(f"{s}_{tag}{k}_cos_um", 0.0)
-            amp = float(np.hypot(fs, fc))
-            ua = float(np.hypot(u.get(f"{s}_{tag}{k}_sin_um", 0.0), u.get(f"{s}_{tag}{k}_cos_um", 0.0)))
-            if amp > a + 3 * ua + 1e-12:
-                return False, f"form {amp:.3f} µm in harmonic {k} exceeds the {s} sphere's reading {a:.3f} µm"
+    for s, k, w, a in _plan(ev, ctx):
+        fs, fc = params.get(f"{s}_h{k}_sin_um", 0.0), params.get(f"{s}_h{k}_cos_um", 0.0)
+        amp = float(np.hypot(fs, fc))
+        ua = float(np.hypot(u.get(f"{s}_h{k}_sin_um", 0.0), u.get(f"{s}_h{k}_cos_um", 0.0)))
+        if amp > a + 3 * ua + 1e-12:
+            return False, f"form {amp:.3f} µm in harmonic {k} exceeds the {s} sphere's reading {a:.3f} µm"
     return True, ""
 
 
@@ -216,7 +143,6 @@ def aux(ev, ctx=None):
     plan = _plan(ev, ctx)
     fplan = _fraction_plan(ev, ctx) if plan else []
     return {"r_um": radius_um(ev), "plan": [[s, k, w] for s, k, w, _ in plan],
-            "x_plan": [[s, k, w] for s, k, w, _ in _x_plan(ev, ctx)],
             "fraction_plan": [[s, k, w] for s, k, w in fplan],
             "reading": [list(ev.radial.coefs(f"{s}_um")[k]) for s, k, w in fplan]}
 
@@ -236,7 +162,5 @@ def term(params, aux, base_terms=None):
         lobes += [(s, k, w, fr * ra, fr * rb) for (s, k, w), (ra, rb) in zip(fplan, reading)]
         for s, k, w, fs, fc in lobes:
             out += (w * fs * np.cos(k * th) - w * fc * np.sin(k * th)) / (k * r) * ARCSEC_PER_RAD
-        for s, k, w in aux.get("x_plan") or []:
-            out += _x_lobe(th, k, w, r, params.get(f"{s}_xh{k}_sin_um", 0.0), params.get(f"{s}_xh{k}_cos_um", 0.0))
         return out
     return fn

@@ -64,7 +64,6 @@ class _Cand:
     f_p: float | None = None
     equivalent: bool = False
     member_bics: list[float] | None = None    # a pair's members' BIC (its gate compares with them)
-    requires: tuple[str, ...] = ()            # a variant that describes its effect only beside one of these
 
     @property
     def key(self):
@@ -108,8 +107,7 @@ def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
         for sub in subsets:
             idx = [i for i, n in enumerate(names) if n in sub]
             if idx and len(idx) == len(sub):  # a variant only with all its parameters observable
-                req = tuple(module.requires(list(sub))) if hasattr(module, "requires") else ()
-                out.append(_Cand((name,), X[:, idx], [[names[i] for i in idx]], notes=list(notes), requires=req))
+                out.append(_Cand((name,), X[:, idx], [[names[i] for i in idx]], notes=list(notes)))
     else:
         out.append(_Cand((name,), X, [names], notes=list(notes)))
     return out, ""
@@ -436,9 +434,6 @@ def _gate(c: _Cand, g: _Gates, member_bics: list[float] | None = None) -> None:
     equivalent alternative. Sets ``c.reasons``, ``c.passed``, ``c.equivalent``, ``c.f_p``, ``c.cv``."""
     c.reasons = []
     c.equivalent = False
-    if c.requires and len(c.names) == 1:
-        # its columns assume another effect's regressor in the model: alone it describes nothing
-        c.reasons.append(f"this variant describes {c.names[0]} only beside {' or '.join(c.requires)}")
     c.reasons += _fit_gates(c, g, member_bics)
     c.reasons += _size_gates(c, g)
     if not c.reasons:
@@ -591,8 +586,6 @@ def _pairs(variants: list[_Cand], g: _Gates) -> list[_Cand]:
     pairs = []
     for a, b in itertools.combinations(variants, 2):
         if a.names[0] == b.names[0] or max(a.z[a.names[0]], b.z[b.names[0]]) < Z_PAIR:
-            continue
-        if (a.requires and b.names[0] not in a.requires) or (b.requires and a.names[0] not in b.requires):
             continue
         if span.inside(a, b) or span.inside(b, a):
             continue

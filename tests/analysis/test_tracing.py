@@ -448,21 +448,3 @@ def test_async_motion_from_the_rep_to_rep_scatter():
     ev.model_terms["radial_motion_integral"] = ev.radial.integral_at(ev.theta_deg, "dY_um") / 22000.0 * 206264.8
     pb = _Problem(ev, use_selfcal=False)
     assert pb.async_info["sigma_um"] > 0 and pb._async_cache.shape[1] == np.unique(ev.theta_bin).size  # one per stop
-
-
-def test_sphere_form_read_by_the_x_probes_is_named_beside_the_tangential_motion():
-    """A 3-lobed form of the top sphere is read by its Y probe and, 90° further round, by its X probe:
-    the X probes' δX then holds w·f_X that α does not have, so the tangential motion alone fails its
-    errors-in-variables gate, and the form read as the model's ∫f_Y/r would need k× the reading.
-    Beside the tangential motion the form enters as +w·f_X/r (sphere_form's ``x`` variant): it is
-    named, not a division error (loop validation lv93 / lv91 sphere_form #0 named graduation_error)."""
-    kw = dict(x_probes=True, noise_arcsec=0.05, inject={"tangential_motion": {"gain": 1.0},
-                                                         "sphere_form": {"k": 3, "amplitude_um": 0.15, "phase_rad": 0.5}})
-    ev, _ = make_evidence(np.random.default_rng(7), form_in_x=True, **kw)
-    res = trace(ev)
-    named = {e["name"] for e in res["identified_effects"]}
-    assert "sphere_form" in named | {n for s in res["ambiguous"] for n in s["names"]}, (named, res["ambiguous"])
-    assert "graduation_error" not in named
-    # the x variant holds the form only beside the tangential motion: never alone
-    alone = _cands(res, ["sphere_form"])
-    assert all(not any("_xh" in n for n in c["params"]["sphere_form"]) or not c["passed"] for c in alone)

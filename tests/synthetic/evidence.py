@@ -54,7 +54,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
                   lobe_um: float = 0.1, bottom_lobe_um: float | None = None, x_probes: bool = False,
                   x_whirl: bool = False, selfcal: bool = False, n_heads: int = 3, encoder_lines: int = 36000,
                   jitter_arcsec: float = 2.0, dwell_s: float = 10.0, inject: dict | None = None,
-                  extra=None, form_in_x: bool = False):
+                  extra=None):
     """Build ``(Evidence, truth)``. ``inject``: {effect name: physical parameters}:
 
     - ``graduation_error``: {k: (amplitude_arcsec, phase_rad)}, g = A sin(kθ + φ)
@@ -70,8 +70,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
     - ``interpolation_error``: {"c1_arcsec", "phase_rad"} (first order of the grating period)
 
     ``extra``: optional callable(theta_deg, t_s) -> arcsec added to the measured α (an effect
-    outside the library). ``form_in_x``: the top sphere's X probe reads the injected sphere form
-    too, 90° further round the sphere: f_X(θ) = f_Y(θ + 90°) (docs/conventions.md's probe geometry).
+    outside the library).
     """
     inj = dict(inject or {})
     N = int(n_faces)
@@ -123,8 +122,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
         g_all.append(grid)
         t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(np.deg2rad(grid)) + rng.normal(0, 0.01, grid.size))
         b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(np.deg2rad(grid)) + rng.normal(0, 0.01, grid.size))
-        fx = fourier_eval(grid + 90.0, form) if form_in_x else 0.0
-        tx_all.append(fourier_eval(grid, top_x) + fx + rng.normal(0, 0.01, grid.size))
+        tx_all.append(fourier_eval(grid, top_x) + rng.normal(0, 0.01, grid.size))
         bx_all.append(fourier_eval(grid, bot_x) + rng.normal(0, 0.01, grid.size))
     radial = RadialMotion(np.concatenate(g_all), np.concatenate(t_all), np.concatenate(b_all), L1_MM, L2_MM,
                           np.concatenate(tx_all) if x_probes else None, np.concatenate(bx_all) if x_probes else None)
