@@ -47,7 +47,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .fourier import harmonic_columns
+from .fourier import fit_fourier, harmonic_columns
 
 __all__ = ["remove_fundamental", "error_motion", "axial_error_motion", "axial_face_error_motion", "radial_error_motion",
            "spectrum_orders", "bandwidth", "acquisition"]
@@ -137,18 +137,14 @@ def axial_error_motion(theta_deg: np.ndarray, revs_um: np.ndarray, sigma_um: flo
 
 
 def _fourier_sigma(theta_deg: np.ndarray, R: np.ndarray, order: int) -> float | None:
-    """A reading's noise: the residual scatter of each revolution's Fourier series of order ``order``
-    (the radial case's σ, an upper estimate: it holds motion above that order too), pooled."""
+    """A reading's noise: the residual σ of each revolution's Fourier series of order ``order``
+    (analysis/fourier.py, as the radial case's fits; an upper estimate: it holds motion above that
+    order too), pooled as :func:`radial_error_motion` pools them (RMS over the revolutions)."""
     th = np.asarray(theta_deg, dtype=float)
-    X = np.column_stack([np.ones(th.size), harmonic_columns(th, range(1, order + 1))[0]])
-    dof = th.size - X.shape[1]
-    if dof <= 0:
+    if th.size <= 2 * order + 1:
         return None
-    ss = 0.0
-    for row in np.atleast_2d(R):
-        coef, *_ = np.linalg.lstsq(X, row, rcond=None)
-        ss += float(np.sum((row - X @ coef) ** 2))
-    return math.sqrt(ss / (dof * np.atleast_2d(R).shape[0]))
+    s = [fit_fourier(th, row, order).sigma for row in np.atleast_2d(R)]
+    return float(np.sqrt(np.mean(np.square(s))))
 
 
 def axial_face_error_motion(rep: np.ndarray, theta_deg: np.ndarray, axial_um: np.ndarray | None,

@@ -136,15 +136,10 @@ class BallPairAxial:
 
     def base_approaches_m(self, u4, theta_rad: float, cages) -> list[np.ndarray]:
         """δ_j at z = 0 of each set: the radial model's approach plus the axial lobes."""
-        out = []
-        for i, (side, bs) in enumerate(zip(("top", "bottom"), self.sets)):
-            psi = bs.ball_azimuths(float(cages[i]))
-            u = np.asarray(u4, dtype=float)[2 * i:2 * i + 2]
-            d = (bs.delta0_m + bs.cos_a * (u[0] * np.cos(psi) + u[1] * np.sin(psi))
-                 + bs.interference_m(theta_rad, float(cages[i]))
-                 + self.face_interference_m(side, theta_rad, float(cages[i])))
-            out.append(d)
-        return out
+        u4 = np.asarray(u4, dtype=float)
+        return [bs.approaches_m(u4[2 * i:2 * i + 2], theta_rad, float(cages[i]))
+                + self.face_interference_m(side, theta_rad, float(cages[i]))
+                for i, (side, bs) in enumerate(zip(("top", "bottom"), self.sets))]
 
     def axial_force_N(self, z_m: float, base: list[np.ndarray]) -> tuple[float, float]:
         """F_z on the shaft from both sets at z, and dF_z/dz (N, N/m)."""

@@ -241,11 +241,15 @@ class BallSet:
         K = np.array([[kc @ c, kc @ s], [kc @ s, ks @ s]])
         return F, K
 
-    def ball_loads_N(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> np.ndarray:
+    def approaches_m(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> np.ndarray:
+        """delta_j: each ball's normal approach with the journal displaced by u (the preload's, the
+        displacement's along the ball's contact direction, waviness and diameter deviation)."""
         psi = self.ball_azimuths(cage_rad)
-        delta = (self.delta0_m + self.cos_a * (u_m[0] * np.cos(psi) + u_m[1] * np.sin(psi))
-                 + self.interference_m(theta_rad, cage_rad))
-        return self.Kn * np.maximum(delta, 0.0) ** 1.5
+        return (self.delta0_m + self.cos_a * (u_m[0] * np.cos(psi) + u_m[1] * np.sin(psi))
+                + self.interference_m(theta_rad, cage_rad))
+
+    def ball_loads_N(self, u_m: np.ndarray, theta_rad: float, cage_rad: float) -> np.ndarray:
+        return self.Kn * np.maximum(self.approaches_m(u_m, theta_rad, cage_rad), 0.0) ** 1.5
 
     def kinematic_orders(self) -> dict[str, float]:
         """Frequencies (cycles per shaft revolution) at which the set's imperfections move the
