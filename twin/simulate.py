@@ -124,8 +124,9 @@ def axial_probe_names(sc: Any) -> list[str]:
     ax = sc.get("axial") if hasattr(sc, "get") else None
     if not ax:
         return []
-    out = ["probe_axial"] if ax.get("sphere_probe", True) else []
-    if float(ax.get("face_probe_radius", 0.0) or 0.0) > 0:
+    # the schema fills the section's defaults (twin/scenario_schema.py "axial"): none re-applied here
+    out = ["probe_axial"] if ax["sphere_probe"] else []
+    if float(ax["face_probe_radius"]) > 0:
         out.append("probe_face")
     return out
 
