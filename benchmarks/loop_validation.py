@@ -416,7 +416,8 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
             rec["imprint_s"] = round(time.time() - t0, 1)
         from app.score import read_results, read_truth, score_files, score_results
 
-        base = read_truth(truth, ds)["expected"]  # the scorer's rule from truth/hidden.json
+        tr = read_truth(truth, ds)     # before expected.json exists: its "expected" is the scorer's rule
+        base = tr["expected"]          # from truth/hidden.json
         (truth / "expected.json").write_text(json.dumps(expected_verdict(base, obs), indent=1) + "\n",
                                              encoding="utf-8")
         from benchtwin.analysis.pipeline import analyze
@@ -434,8 +435,7 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
                    residual_before_arcsec=s.get("residual_before_arcsec"),
                    residual_after_arcsec=s.get("residual_after_arcsec"),
                    after_over_floor=s.get("residual_after_over_floor"))
-        t_old = read_truth(truth, ds)
-        t_old["expected"] = OLD_EXPECTED_NOTHING if cls in OLD_EXPECT_NOTHING else base
+        t_old = {**tr, "expected": OLD_EXPECTED_NOTHING if cls in OLD_EXPECT_NOTHING else base}
         old = score_results(res, t_old).get("identification") or {}
         rec.update(old_correct=bool(old.get("correct")), old_outcome=old.get("outcome"), old_accept=old.get("accept"))
     except Exception as exc:  # noqa: BLE001 - recorded in the table
