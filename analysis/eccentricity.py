@@ -596,7 +596,7 @@ def _edge_at(ys_f: np.ndarray, xe: np.ndarray, y_cent: float) -> tuple[float, fl
 
 
 def _measure_end(grey: np.ndarray, ys: np.ndarray, xb: np.ndarray, hw: int, lev: int,
-                 edge_method: str) -> tuple[float, ...] | None:
+                 edge_method: str, threshold: float | None = None) -> tuple[float, ...] | None:
     """One line end measured: (x_mid, y_centre, centre column, rows used, scatter, glass level, line
     level), or None when it is not usable (too close to the border, too little contrast, ...)."""
     W = grey.shape[1]
@@ -614,6 +614,12 @@ def _measure_end(grey: np.ndarray, ys: np.ndarray, xb: np.ndarray, hw: int, lev:
         return None
     ys_f, xe, C_f = edges
     C = float(_median(C_f))
+    if threshold is not None and not abs(G - C) >= abs(G - threshold):
+        # the segmentation took this end's pixels for line (beyond the frame's threshold), but the line
+        # level measured lev pixels inside it is not: the part is narrower than the edge window (a
+        # thin scratch, a speck), not a line end. Its chrome fraction would divide by G − C ≈ 0
+        # (seed 660 of issue 32's validation: G = C = 177.25, a NaN point, the frame lost)
+        return None
     centre = _centre_row(grey, (y_lo, y_hi), xe, (G, C), hw, lev)
     if centre is None:
         return None
@@ -658,8 +664,9 @@ def edge_details(image: np.ndarray, name: str | int | None = None, options: Imag
         if reject_outliers and not (0.5 * med_h <= y_hi - y_lo + 1 <= 1.5 * med_h):
             rejected.append((float(xb.max()), 0.5 * (y_lo + y_hi)))
             continue
-        m = _measure_end(grey, ys, xb, hw, lev, edge_method)
-        if m is not None:
+        m = _measure_end(grey, ys, xb, hw, lev, edge_method, seg.threshold)
+        # an end whose edge or centre row is not a finite number is not a measured point
+        if m is not None and np.all(np.isfinite(m[:2])):
             rows_out.append(m)
     if len(rows_out) < min_lines:
         raise ImageAnalysisError(

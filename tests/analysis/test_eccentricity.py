@@ -437,3 +437,28 @@ def test_repeated_sweeps_phase_floor_and_errors():
     bad = [dict(fits[0]), dict(fits[1], camera_azimuth_deg=90.0)]
     with pytest.raises(ValueError, match="camera azimuths"):
         eccentricity_from_sweeps(bad)
+
+
+def test_a_thin_scratch_end_is_not_a_line_end():
+    # Seed 660 of issue 32's validation, img_008: a thin scratch joined to the grating was segmented
+    # as a line end (its pixels beyond the frame's threshold), but the level measured lev pixels
+    # inside it was glass, a few grey levels either side of it: the line level's median equalled the
+    # glass level (177.25), the chrome fraction divided by zero and the end became a NaN point that
+    # cost the frame. A line end's measured line level must lie beyond the frame's threshold.
+    from benchtwin.analysis.eccentricity import _measure_end
+
+    hw, lev, xb0 = ImageOptions().half_window_px, 6, 40
+    grey = np.full((32, 80), 177.0)
+    ys = np.arange(10, 22)
+    xb = np.full(ys.size, xb0)
+    grey[ys, xb0 - 1:xb0 + 1] = 30.0  # the scratch: 2 px of "line", then glass again inside it
+    c_cols = xb0 - hw - 1 - np.arange(lev)
+    for i, y in enumerate(ys):
+        grey[y, c_cols] = 175.0 if i % 2 else 179.0  # glass either side of 177: median 177 = G
+    with np.errstate(all="raise"):
+        assert _measure_end(grey, ys, xb, int(hw), lev, "area", threshold=103.5) is None
+    # a real line end (line level 30 inside, beyond the threshold) is still measured
+    grey_line = np.full((32, 80), 177.0)
+    grey_line[ys, : xb0 + 1] = 30.0
+    m = _measure_end(grey_line, ys, xb, int(hw), lev, "area", threshold=103.5)
+    assert m is not None and np.all(np.isfinite(m[:2])) and m[0] == pytest.approx(xb0 + 0.5, abs=0.01)
