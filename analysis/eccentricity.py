@@ -1134,13 +1134,21 @@ def with_async_motion(ecc: dict, u_h1_um: float, dof: float | None = None) -> di
     across it: ``u(e)² = u_fit(e)² + u²``, ``u(θ0)² = u_fit(θ0)² + (u/e)²``. Returns a copy with
     e_u_um, theta0_u_deg updated and e_u_fit_um, theta0_u_fit_deg (the fit alone), u_async_h1_um,
     u_async_h1_dof added. NaN or None ``u_h1_um`` (one repetition): returned unchanged but for the
-    keys, with a note."""
+    keys, with a note and a u_source saying that part is not in u.
+
+    e itself is about the axis of rotation: a synchronous first harmonic of the axis (a journal's
+    run-out, an inner race's eccentricity) turns with the shaft and is centring (ISO 230-7), part
+    of e for the sweep and for the encoder alike, not a term of u (docs/scoring.md "e: which truth")."""
     out = dict(ecc)
     out.setdefault("e_u_fit_um", ecc["e_u_um"])
     out.setdefault("theta0_u_fit_deg", ecc["theta0_u_deg"])
     if u_h1_um is None or not math.isfinite(u_h1_um):
         out["u_async_h1_um"], out["u_async_h1_dof"] = float("nan"), 0
         out["async_note"] = "no repeated revolutions: the asynchronous motion's share in e and θ0 is not estimated"
+        # u_source says what u(e) includes, and so what it does not
+        out["u_source"] = (f"one sweep: the eq. 10 fit (u = {ecc['e_u_um']:.3g} µm) alone; the axis's asynchronous "
+                           "1st harmonic during the sweep is not in u (the radial run has one revolution: no "
+                           "repetitions to measure it)")
         return out
     if u_h1_um < 0:
         raise ValueError(f"u_h1_um must be >= 0, got {u_h1_um}")

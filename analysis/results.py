@@ -439,8 +439,12 @@ class BenchResults(_Common, PolygonResults, total=False):
     eccentricity_u_fit_um: Annotated[Num, Key("µm", "u(e) from the eq. 10 fit alone")]
     eccentricity_phase_u_fit_deg: Annotated[Num, Key("deg", "u(θ0) from the fit alone")]
     eccentricity_u_async_um: Annotated[float | None, Key("µm", "the async motion's part of u(e), null without probes")]
-    eccentricity_u_source: Annotated[str, Key("", "where u(e) comes from: one sweep's fit ⊕ the probes' async part "
-                                                 "(type B), or type A from repeated sweeps")]
+    eccentricity_u_source: Annotated[str, Key("", "where u(e) comes from and what it includes: one sweep's fit ⊕ "
+                                                 "the probes' async part (type B); the fit alone, saying the async "
+                                                 "part is not in u, when the radial run has one revolution; or type "
+                                                 "A from repeated sweeps. e is about the axis of rotation: a "
+                                                 "synchronous first harmonic of the axis is part of e, not of u "
+                                                 "(docs/scoring.md)")]
     eccentricity_sweeps: Annotated[dict[str, Any], Key("µm", "repeated CCD sweeps: n_sweeps, dof, e_sweeps_um, "
                                                              "theta0_sweeps_deg, e_sweep_sd_um (s of one sweep), "
                                                              "e_range_u_um (Jia's range/d_n), ...")]

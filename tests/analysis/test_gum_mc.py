@@ -96,6 +96,7 @@ def test_with_async_motion_adds_in_quadrature_and_flags_one_revolution():
     assert r["e_u_fit_um"] == 0.003 and r["u_async_h1_dof"] == 4
     one = with_async_motion(ecc, float("nan"))
     assert one["e_u_um"] == 0.003 and "no repeated revolutions" in one["async_note"]
+    assert "alone" in one["u_source"] and "not in u" in one["u_source"]  # says what u leaves out
     with pytest.raises(ValueError):
         with_async_motion(ecc, -1.0)
 
