@@ -173,7 +173,10 @@ a range is over the three seeds.
   bearings: e within 0.015 µm and θ0 0.6–0.8° off the installed values, right against the sweep,
   with a u so small that |z| is 13–75. `ccd_pixel_scale` (a grating period 3 % off the datasheet)
   is the one image-scale miss: −0.21 µm against the sweep at every seed; the tracer puts it in an
-  ambiguity set and the reported e is not corrected.
+  ambiguity set and the reported e is not corrected. Since 2026-12-06 the scorer compares e and θ0
+  with the disk's eccentricity about the axis of rotation (installed ⊕ the axis's synchronous first
+  harmonic, docs/scoring.md), which the synchronous part of that motion belongs to; the figures
+  here were measured against the installed e before that and await the full re-run.
 - **α RMS** is dominated by `ac_scale` (0.46–0.50″: the autocollimator's hidden gain error is in α
   itself; the tracer puts ac_scale in an ambiguity set and α is not corrected) and `jia2019`
   (0.24–0.25″), then `torsion_hysteresis` (0.14–0.15″), `interpolation_error` and `null_b`
