@@ -115,8 +115,9 @@ def test_a_tiny_drawn_bench_with_and_without_its_effect(tmp_path):
     autocollimator only and draws from its own stream: the probes' table of the bench without it is
     the same bytes (every noise stream the same), and its imprint is the drift the base model leaves.
 
-    Both benches' CCD frames are 256×192 px instead of the drawn 2048×1536 (tests/support/resume.py's
-    size; the suite's time, issue 35): the frames only give the base model's e and θ0, which the two
+    Both benches' CCD frames are 512×384 px instead of the drawn 2048×1536 (the suite's time, issue 35;
+    at 256×192 too few frames show enough line ends of this grating): the frames only give the base
+    model's e and θ0, which the two
     benches share (the same frames, the same noise), so the imprint (the difference of their
     residuals) and every assertion here are about the polygon and the probes, not the frames' size."""
     from benchtwin.twin.simulate import simulate
