@@ -85,6 +85,10 @@ def pytest_configure(config: pytest.Config) -> None:
         import tempfile
 
         _grid_memo_made = os.environ[GRID_MEMO_ENV] = tempfile.mkdtemp(prefix="benchtwin-alpha-grids-")
+    if not hasattr(config, "workerinput") and (getattr(config.option, "numprocesses", None) or 0) > 0:
+        from tests.support.gl import probe_for_workers
+
+        probe_for_workers()     # one GL probe for the run, not one per worker (tests/support/gl.py)
     from tests.support import simlog
 
     if os.environ.get(simlog.LOG_ENV) and not config.pluginmanager.has_plugin("tests.support.simlog"):
