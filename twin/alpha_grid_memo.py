@@ -12,7 +12,10 @@ With ``BENCHTWIN_ALPHA_GRID_CACHE=DIR`` a grid is written to ``DIR/KEY.json`` on
 later runs of the same bench, in any process. Without the variable nothing changes. The key is the
 SHA-256 of:
 
-- the scenario's values (``Scenario.raw``, overrides applied) without ``[procedure]``;
+- the scenario's values (``Scenario.raw``, overrides applied) without ``[procedure]`` and without
+  ``[instruments.ccd]`` (:data:`NOT_READ`: the camera's sensor, read by the camera alone,
+  ``twin/instruments/camera.py``, which the grid's stops never build: a bench, a state, the encoder,
+  a stage; the test suite's benches differ there more than anywhere else, issue 35);
 - the source of every module the grid can depend on (the ``benchtwin`` floor, ``twin/``, ``hw/``,
   ``analysis/``) and the MuJoCo models (``models/*.xml``): any code change is a new key, so a stale
   grid is never read;
@@ -38,6 +41,12 @@ from .code_digest import update_with_sources
 
 ENV = "BENCHTWIN_ALPHA_GRID_CACHE"
 
+#: the scenario's tables the α grid does not read, as (section, table): the CCD's sensor (frame size,
+#: pixel pitch, optics, noise), read only by ``SimCamera.sim_from_scenario`` (the camera's position
+#: is ``[bench]``'s, and a hidden effect on the camera ``[hidden]``'s: both stay in the key).
+#: tests/twin/test_alpha_grid_memo.py computes the grid of two such benches and compares the bits.
+NOT_READ = (("instruments", "ccd"),)
+
 
 @functools.cache
 def _code_digest() -> str:
@@ -56,6 +65,9 @@ def grid_key(sc: Any) -> str:
     import scipy
 
     raw = {k: v for k, v in dict(sc.raw).items() if k != "procedure"}
+    for section, table in NOT_READ:
+        if isinstance(raw.get(section), dict) and table in raw[section]:
+            raw[section] = {k: v for k, v in raw[section].items() if k != table}
     blob = json.dumps({"raw": raw, "code": _code_digest(),
                        "versions": [numpy.__version__, scipy.__version__, mujoco.__version__]},
                       sort_keys=True, default=str, ensure_ascii=True)

@@ -1,5 +1,6 @@
 """The α grid's memo (twin/alpha_grid_memo.py): a stored grid is the computed one to the last bit, its
-key follows the bench and the code but not the procedure, and a damaged file is computed again."""
+key follows the bench and the code but not the procedure nor the CCD's sensor, and a damaged file is
+computed again."""
 
 from __future__ import annotations
 
@@ -46,8 +47,29 @@ def test_the_key_follows_the_bench_the_seed_and_the_code(monkeypatch):
     assert M.grid_key(small_scenario(**PATH, **{"scenario.seed": 3})) != k
     assert M.grid_key(small_scenario(**{**PATH, "bearings.type": "ball"})) != k
     assert M.grid_key(small_scenario(**{**PATH, "errors.eccentricity": "2 um"})) != k
+    assert M.grid_key(small_scenario(**PATH, **{"instruments.encoder.interpolation_error": "0.2 arcsec"})) != k
+    assert M.grid_key(small_scenario(**PATH, **{"bench.ccd_position": "90 deg"})) != k
     monkeypatch.setattr(M, "_code_digest", lambda: "another version of the twin")
     assert M.grid_key(sc) != k
+
+
+def test_the_ccd_sensor_is_not_in_the_key_and_not_in_the_grid(monkeypatch):
+    """``[instruments.ccd]`` (M.NOT_READ) leaves the key: the grid of a bench whose camera differs in
+    every sensor value is computed here (no memo) and is the same bits as the grid of the bench."""
+    monkeypatch.delenv(M.ENV, raising=False)
+    sc = small_scenario(**PATH)
+    other = small_scenario(**PATH, **{"instruments.ccd.width": "128 px", "instruments.ccd.height": "96 px",
+                                      "instruments.ccd.pixel_pitch": "0.6 um/px", "instruments.ccd.read_noise": "30 e-",
+                                      "instruments.ccd.defocus": "3 um", "instruments.ccd.dust_count": 0})
+    assert other["instruments"]["ccd"] != sc["instruments"]["ccd"]
+    assert M.grid_key(other) == M.grid_key(sc)
+    grids = []
+    for s in (sc, other):
+        bench, _, _ = S.sim_build(s, "analytic", camera=True)
+        grids.append(S._alpha_grid(s, copy.deepcopy(bench)))
+    assert grids[0].keys() == grids[1].keys()
+    for k in grids[0]:
+        assert np.asarray(grids[0][k], dtype=float).tobytes() == np.asarray(grids[1][k], dtype=float).tobytes(), k
 
 
 def test_no_variable_no_memo_and_a_damaged_file_is_computed_again(tmp_path, monkeypatch):
