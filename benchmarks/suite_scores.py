@@ -321,6 +321,13 @@ def expectations(run: dict, seed: int) -> str:
     small = {e.name for e in entries("small")}
     per = {run["labels"][n]["label"]: {k: run["scores"][n].get(k) for k in STORED}
            for n in run["scores"] if run["labels"][n]["label"] in small}
+    for n, s in run["scores"].items():
+        # a run scored before the scorer compared e and θ0 with the disk's eccentricity about the
+        # axis of rotation (its scores have no ``e_reference``) measured them against the installed
+        # offset: not what the scorer computes now, so no expectation for them (the slow test skips a
+        # None) until benchmarks/suite_scores.py is run again (docs/scoring.md "e: which truth")
+        if run["labels"][n]["label"] in small and s.get("e_reference") is None:
+            per[run["labels"][n]["label"]].update(e_error_um=None, theta0_error_deg=None)
     sub = {n: s for n, s in run["scores"].items() if run["labels"][n]["label"] in small}
     return json.dumps(public({"seed": seed, "size": "small", "datasets": per, "overall": overall(sub)}),
                       indent=1, sort_keys=True) + "\n"
