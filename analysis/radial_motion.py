@@ -144,6 +144,7 @@ class RadialMotion:
     rep: np.ndarray | None = None
     _coefs: dict = field(default_factory=dict, init=False, repr=False)
     _u: dict = field(default_factory=dict, init=False, repr=False)
+    _o1: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
         th = np.asarray(self.theta_deg, dtype=float)
@@ -165,6 +166,11 @@ class RadialMotion:
                     self._coefs[name + "@x"], self._u[name + "@x"] = fit_harmonics(
                         th, raw[name], xks, nuisance_ks=(1,), return_u=True)
                 self.combos["dX_um"] = {"top_x_um@x": wt, "bottom_x_um@x": wb}
+            # order 1 of each sphere's X and Y readings (eq. 7 drops it as the centring), for the
+            # backward whirl (``order1_model_error``): the same orders as δX, type-A u
+            for name in ("top_um", "bottom_um", "top_x_um", "bottom_x_um"):
+                c1, u1 = fit_harmonics(th, raw[name], (1,) + xks, return_u=True)
+                self._o1[name] = (c1[1], u1[1])
         self.combos["bottom_minus_top_um"] = {"bottom_um": 1.0, "top_um": -1.0}
         for out, combo in self.combos.items():
             if out not in self._coefs:
@@ -182,6 +188,51 @@ class RadialMotion:
         kmax = int(min(X_ORDERS_MAX, (n - 1) // 3))
         top = max(self.orders) if len(self.orders) else 0
         return tuple(self.orders) + tuple(range(top + 1, kmax + 1)) if kmax > top else tuple(self.orders)
+
+    def _order1_map(self, camera_azimuth_deg: float) -> tuple[list[str], np.ndarray]:
+        """The linear map from the order-1 coefficients (a sin θ + b cos θ) of the four sphere
+        channels to (a₁, b₁) of :meth:`order1_model_error`: (channels, 2 × 8 matrix acting on
+        [a, b] of each channel in that order)."""
+        wt, wb = disk_weights(self.L1_mm, self.L2_mm)
+        f = 1.0 + np.exp(-2j * math.radians(camera_azimuth_deg))
+        names = ["top_x_um", "top_um", "bottom_x_um", "bottom_um"]
+        M = np.zeros((2, 8))
+        for i, (w, sx) in enumerate(((wt, 0), (wb, 4))):
+            # B = ((b_x − a_y) + i(b_y + a_x))/2 per unit of each coefficient [a_x, b_x, a_y, b_y]
+            for j, dB in enumerate((0.5j, 0.5, -0.5, 0.5j)):
+                G = w * dB * f
+                M[0, sx + j], M[1, sx + j] = G.imag, G.real
+        return names, M
+
+    def order1_model_error(self, camera_azimuth_deg: float = 180.0) -> dict[int, tuple[float, float]]:
+        """{1: (a₁, b₁)} µm: the order-1 error, in δX at the disk, of a model that takes the disk
+        centre's order-1 motion as one forward circle measured by a CCD at ``camera_azimuth_deg``
+        from the head (Jia eqs. 3, 10–12: e and θ0), for a head on +Y reading −c_x/r. The lab-fixed
+        order-1 motion c = F e^{iθ} + B e^{−iθ} (c = x + iy) has a forward part F (eccentricity,
+        sphere centring, an orbit with the shaft: one circle, which the CCD measures) and a backward
+        part B, which no centring produces; only the X and Y probes of one sphere together separate
+        them (B = ((b_x − a_y) + i(b_y + a_x))/2 of their order-1 coefficients), at the disk by
+        eq. 9. The CCD reads c's radial component at its azimuth ψ and takes all of it as forward,
+        F' = F + conj(B)·e^{2iφ_c}, so the head's error less the model's is
+        −Re(B e^{−iθ}(1 + e^{−2iψ}))/r: −2B_x/r with the camera opposite the head (Jia's set-up),
+        0 at ψ = 90°. Empty without X probes (B is then unmeasured)."""
+        if not self._o1:
+            return {}
+        names, M = self._order1_map(camera_azimuth_deg)
+        v = np.array([x for n in names for x in self._o1[n][0]])
+        a1, b1 = M @ v
+        return {1: (float(a1), float(b1))}
+
+    def order1_model_error_perturbations(self, theta_deg, camera_azimuth_deg: float = 180.0) -> np.ndarray:
+        """(n × 8) change of :meth:`order1_model_error` at θ for a 1-u change of each order-1
+        coefficient of the four sphere channels (type A); (n × 0) without X probes."""
+        th = np.asarray(theta_deg, dtype=float)
+        if not self._o1:
+            return np.zeros((th.size, 0))
+        names, M = self._order1_map(camera_azimuth_deg)
+        u = np.array([x for n in names for x in self._o1[n][1]])
+        t = np.deg2rad(th)
+        return np.outer(np.sin(t), M[0] * u) + np.outer(np.cos(t), M[1] * u)
 
     def _combo_orders(self, combo: dict) -> list:
         return [k for k in self._coefs[next(iter(combo))] if all(k in self._coefs[c] for c in combo)]

@@ -88,6 +88,24 @@ def x_orders(ev) -> list[int]:
     return list(ev.radial.coefs("dX_um"))
 
 
+def order1(ev) -> dict:
+    """{1: (a, b)} µm: the order-1 δX the model misreads (RadialMotion.order1_model_error: the
+    backward whirl of the disk centre, which the CCD's eccentricity, read as one forward circle,
+    takes with the wrong sign), for the polygon's rows (head 1 against the CCD's eq. 3 term); {}
+    for the self-calibration grid (its order 1 comes from the head differences, not from the CCD)
+    and without X probes."""
+    if getattr(ev, "parent", None) is not None or not _has_x(ev):
+        return {}
+    return ev.radial.order1_model_error(float(getattr(ev, "ccd_azimuth_deg", 180.0)))
+
+
+def _dx(ev):
+    """δX at the disk at the readings (µm): orders 2…X_ORDERS_MAX and the order-1 part :func:`order1`."""
+    dx = ev.radial.at(ev.theta_deg, "dX_um", x_orders(ev))
+    o1 = order1(ev)
+    return dx + fourier_eval(ev.theta_deg, o1) if o1 else dx
+
+
 def _k(ev):
     return ARCSEC_PER_RAD / radius_um(ev)
 
@@ -96,8 +114,7 @@ def design(ev, ctx=None):
     k = _k(ev)
     radial = -ev.radial.integral_at(ev.theta_deg, "dY_um") * k
     if _has_x(ev):
-        dx = ev.radial.at(ev.theta_deg, "dX_um", x_orders(ev))
-        return np.column_stack([-dx * k, radial]), ["gain", "radial_gain"]
+        return np.column_stack([-_dx(ev) * k, radial]), ["gain", "radial_gain"]
     c = ev.radial.coefs("dY_um")
     X = np.column_stack([-fourier_eval(ev.theta_deg, c) * k, -fourier_eval(ev.theta_deg, quadrature(c)) * k, radial])
     return X, ["inphase_gain", "quadrature_gain", "radial_gain"]
@@ -112,6 +129,8 @@ def regressor_perturbations(ev, params, ctx=None):
         g = float(params.get("gain", 0.0))
         ks = x_orders(ev)
         cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
+        if order1(ev):
+            cols.append(k * g * ev.radial.order1_model_error_perturbations(ev.theta_deg, float(ev.ccd_azimuth_deg)))
         form = getattr(ev, "sphere_form_um", None)
         if form and g and ks:
             # the spheres' form bound (Jia: 0.014 µm) is a bound on eq. 7's orders, as for δY
@@ -160,7 +179,7 @@ predict = linear_predictor(design)
 def aux(ev, ctx=None):
     cx = ev.radial.coefs("dX_um" if _has_x(ev) else "dY_um")
     if _has_x(ev):
-        cx = {k: v for k, v in cx.items() if k in x_orders(ev)}
+        cx = {**order1(ev), **{k: v for k, v in cx.items() if k in x_orders(ev)}}
     return {"r_um": radius_um(ev), "coefs": coefs_to_json(cx),
             "coefs_dY": coefs_to_json(ev.radial.coefs("dY_um")), "x_probes": _has_x(ev)}
 

@@ -115,6 +115,9 @@ class Evidence:
     radial_term: str | None = "radial_motion_integral"
     sphere_form_um: float | None = SPHERE_FORM_UM
     u_floor_arcsec: float | None = None
+    #: azimuth of the CCD from head 1 (deg, manifest ``ccd.position_deg``): where the eccentricity
+    #: e, θ0 of the model's eq. 3 term was read (RadialMotion.order1_model_error)
+    ccd_azimuth_deg: float = 180.0
     #: per reading: the α that ε² added to every autocollimator reading produces after the
     #: shift-angle analysis (the closure puts its face-fixed part into β, its per-run mean into U);
     #: the exact column of a quadratic autocollimator non-linearity (ac_scale). None: ε² itself
@@ -312,6 +315,7 @@ class BenchContext:
     radial_term: str | None = Evidence.radial_term
     sphere_form_um: float | None = Evidence.sphere_form_um
     u_floor_arcsec: float | None = Evidence.u_floor_arcsec
+    ccd_azimuth_deg: float = Evidence.ccd_azimuth_deg
 
 
 def evidence_from_polygon(columns: dict[str, Any], beta_arcsec: ArrayLike, setup_error_arcsec: SetupErrors,
@@ -358,7 +362,7 @@ def evidence_from_polygon(columns: dict[str, Any], beta_arcsec: ArrayLike, setup
                     optical_radius_mm=bench.optical_radius_mm, L1_mm=bench.L1_mm, L2_mm=bench.L2_mm,
                     grating_period_um=bench.grating_period_um, encoder_lines=bench.encoder_lines,
                     radial_term=bench.radial_term, sphere_form_um=bench.sphere_form_um,
-                    u_floor_arcsec=bench.u_floor_arcsec)
+                    u_floor_arcsec=bench.u_floor_arcsec, ccd_azimuth_deg=float(bench.ccd_azimuth_deg))
 
 
 def _replace_alpha(ev: Evidence, alpha: np.ndarray) -> Evidence:

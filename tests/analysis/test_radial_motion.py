@@ -210,3 +210,33 @@ def test_keep_residual_keeps_content_above_the_order():
     with pytest.raises(ValueError, match="same angles"):
         radial_motion(ProbeReadings(**cols), SphereSpacing(L1, L2),
                       RadialOptions(keep_residual=True, grid_deg=np.arange(0, 360, 2.0)))
+
+
+def test_order1_model_error_is_the_backward_whirl_the_ccd_misreads():
+    """RadialMotion.order1_model_error: a forward circle (centring, eccentricity) gives nothing; a
+    backward one, B·e^{−iθ} at both spheres, gives 2·Re(B e^{−iθ}) with the CCD opposite the head
+    and nothing with the CCD at 90°; its perturbation columns are the coefficients' type-A u."""
+    from benchtwin.analysis.radial_motion import RadialMotion
+
+    rng = np.random.default_rng(3)
+    th = np.tile(np.arange(0.0, 360.0, 5.0), 3)
+    t = np.deg2rad(th)
+    lobes = 0.1 * np.sin(3 * t + 0.4)
+    fwd_top, fwd_bot = 2.0 * np.exp(1j * (t + 0.7)), 3.0 * np.exp(1j * (t - 1.1))
+    B = 0.12 - 0.05j
+    bw = B * np.exp(-1j * t)
+    noise = lambda: rng.normal(0, 0.002, th.size)  # noqa: E731
+    top, bot = fwd_top + bw, fwd_bot + bw
+    rm = RadialMotion(th, top.imag + lobes + noise(), bot.imag + noise(), 6.81, 122.96,
+                      top_x_um=top.real + noise(), bottom_x_um=bot.real + lobes + noise(), rep=np.repeat([0, 1, 2], 72))
+    a1, b1 = rm.order1_model_error(180.0)[1]
+    # 2·Re(B e^{−iθ}) = 2·(Re B cos θ + Im B sin θ)
+    assert a1 == pytest.approx(2 * B.imag, abs=2e-3) and b1 == pytest.approx(2 * B.real, abs=2e-3)
+    a1, b1 = rm.order1_model_error(90.0)[1]
+    assert abs(a1) < 1e-12 and abs(b1) < 1e-12
+    P = rm.order1_model_error_perturbations(th, 180.0)
+    assert P.shape == (th.size, 8) and 0 < np.abs(P).max() < 0.01
+    fwd_only = RadialMotion(th, fwd_top.imag + noise(), fwd_bot.imag + noise(), 6.81, 122.96,
+                            top_x_um=fwd_top.real + noise(), bottom_x_um=fwd_bot.real + noise())
+    assert np.hypot(*fwd_only.order1_model_error(180.0)[1]) < 2e-3
+    assert RadialMotion(th, top.imag, bot.imag, 6.81, 122.96).order1_model_error() == {}

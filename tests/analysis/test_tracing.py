@@ -448,3 +448,21 @@ def test_async_motion_from_the_rep_to_rep_scatter():
     ev.model_terms["radial_motion_integral"] = ev.radial.integral_at(ev.theta_deg, "dY_um") / 22000.0 * 206264.8
     pb = _Problem(ev, use_selfcal=False)
     assert pb.async_info["sigma_um"] > 0 and pb._async_cache.shape[1] == np.unique(ev.theta_bin).size  # one per stop
+
+
+def test_backward_whirl_of_order_1_is_taken_by_the_tangential_motion():
+    """An order-1 motion of the axis against the rotation (B·e^{−iθ}: no centring makes it; the
+    ball-bearing benches of issue 32, e.g. 0.13 µm at seed 581 tilt_abbe #0) is read by head 1 as
+    −B_x/r, and the CCD opposite the head, which reads c_y's order 1 as one forward circle, puts
+    another −B_x/r into the model's eccentricity: −2B_x/r left, 1.6″ RMS there. The X and Y probes
+    together measure B, so tangential_motion's regressor carries it; without it the loop said
+    "unexplained" (χ² ≈ 85 000 for 500 dof on this evidence)."""
+    ev, _ = make_evidence(np.random.default_rng(5), start_faces=range(1, 24, 2), x_probes=True,
+                          inject={"tangential_motion": {"gain": 1.0}}, backward_whirl_um=0.08 - 0.05j)
+    res = trace(ev)
+    assert res["status"] == "explained" and not res["unexplained"], res["status"]
+    assert [e["name"] for e in res["identified_effects"]] == ["tangential_motion"]
+    g = res["identified_effects"][0]["params"]["gain"]
+    assert abs(g - 1.0) < 0.1, g
+    ra = res["residual_after"]
+    assert ra["chi2"] < 1.3 * ra["dof"], (ra["chi2"], ra["dof"])

@@ -54,7 +54,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
                   lobe_um: float = 0.1, bottom_lobe_um: float | None = None, x_probes: bool = False,
                   x_whirl: bool = False, selfcal: bool = False, n_heads: int = 3, encoder_lines: int = 36000,
                   jitter_arcsec: float = 2.0, dwell_s: float = 10.0, inject: dict | None = None,
-                  extra=None):
+                  extra=None, backward_whirl_um: complex = 0j):
     """Build ``(Evidence, truth)``. ``inject``: {effect name: physical parameters}:
 
     - ``graduation_error``: {k: (amplitude_arcsec, phase_rad)}, g = A sin(kθ + φ)
@@ -71,6 +71,11 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
 
     ``extra``: optional callable(theta_deg, t_s) -> arcsec added to the measured α (an effect
     outside the library).
+
+    ``backward_whirl_um``: B (µm, complex) of an order-1 motion of the axis, the same at both
+    spheres and the disk, c = x + iy = B·e^{−iθ} (against the rotation: no centring makes it). The
+    probes read it (X: Re, Y: Im), head 1 reads −c_x/r, and the model's eccentricity is that of a
+    CCD opposite the head: it reads c_y's order 1 and takes it for one forward circle.
     """
     inj = dict(inject or {})
     N = int(n_faces)
@@ -101,6 +106,7 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
         """True reading error of head 1 (arcsec): Jia eq. 5 with the true quantities + encoder effects."""
         th = np.deg2rad(th_deg)
         a = (E_UM * np.sin(th - math.radians(THETA0_DEG)) + fourier_integral(th_deg, dY_true)) / r_true * ARCSEC_PER_RAD
+        a = a - np.real(backward_whirl_um * np.exp(-1j * th)) / r_true * ARCSEC_PER_RAD
         for k, (A, ph) in inj.get("graduation_error", {}).items():
             a = a + A * np.sin(int(k) * th + ph)
         if "tangential_motion" in inj:
@@ -120,16 +126,20 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
     g_all, t_all, b_all, tx_all, bx_all = [], [], [], [], []
     for _ in range(max(reps, 1)):
         g_all.append(grid)
-        t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(np.deg2rad(grid)) + rng.normal(0, 0.01, grid.size))
-        b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(np.deg2rad(grid)) + rng.normal(0, 0.01, grid.size))
-        tx_all.append(fourier_eval(grid, top_x) + rng.normal(0, 0.01, grid.size))
-        bx_all.append(fourier_eval(grid, bot_x) + rng.normal(0, 0.01, grid.size))
+        # each sphere's centring: one forward circle, seen by its Y probe (sin, cos) and X probe (cos, −sin)
+        gr = np.deg2rad(grid)
+        bw = backward_whirl_um * np.exp(-1j * gr)
+        t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(gr) + bw.imag + rng.normal(0, 0.01, grid.size))
+        b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(gr) + bw.imag + rng.normal(0, 0.01, grid.size))
+        tx_all.append(fourier_eval(grid, top_x) + 0.3 * np.cos(gr) + bw.real + rng.normal(0, 0.01, grid.size))
+        bx_all.append(fourier_eval(grid, bot_x) - 0.4 * np.sin(gr) + bw.real + rng.normal(0, 0.01, grid.size))
     radial = RadialMotion(np.concatenate(g_all), np.concatenate(t_all), np.concatenate(b_all), L1_MM, L2_MM,
                           np.concatenate(tx_all) if x_probes else None, np.concatenate(bx_all) if x_probes else None)
 
     def model_terms(th_deg):
         th = np.deg2rad(th_deg)
-        return {"eccentricity": e_model * np.sin(th - math.radians(THETA0_DEG)) / r_um * ARCSEC_PER_RAD,
+        return {"eccentricity": (e_model * np.sin(th - math.radians(THETA0_DEG))
+                                 + np.real(backward_whirl_um * np.exp(-1j * th))) / r_um * ARCSEC_PER_RAD,
                 "radial_motion_integral": radial.integral_at(th_deg, "dY_um") / r_um * ARCSEC_PER_RAD}
 
     # --- polygon sweep ----------------------------------------------------------------------
