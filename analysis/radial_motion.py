@@ -65,6 +65,12 @@ ASYNC_BAND = 10
 #: Y channels stay at eq. 7's orders.
 X_ORDERS_MAX = ASYNC_NOISE_ORDER
 
+#: The order-1 backward whirl (RadialMotion.order1_model_error) enters the tangential regressor
+#: only where the probes resolve it: |B| ≥ 3 u(|B|), the z ≥ 3 of ``significant_orders`` (the orders
+#: of δX "the X probes resolve", docs/effects.md); below, its noise (≈ 0.1″ per component at 0.17 µm
+#: repeatability) would enter α's model for nothing.
+BACKWARD_WHIRL_Z_MIN = 3.0
+
 # d_n of the range method (mean range of n normal samples / σ), n = 2…25 (the d2 constants of
 # control-chart tables, e.g. Montgomery, Introduction to Statistical Quality Control, app. VI).
 # Jia uses 1.69 for n = 3. The scenario schema allows radial_reps ≤ 25 to match (issue #13).
@@ -204,6 +210,27 @@ class RadialMotion:
                 M[0, sx + j], M[1, sx + j] = G.imag, G.real
         return names, M
 
+    def backward_whirl_z(self) -> float:
+        """|B| / u(|B|) of the disk's order-1 backward whirl (:meth:`order1_model_error`), u from
+        the order-1 coefficients' type-A u (first order, as :meth:`significant_orders`); 0 without
+        X probes."""
+        if not self._o1:
+            return 0.0
+        names = ["top_x_um", "top_um", "bottom_x_um", "bottom_um"]   # the order of _order1_map
+        wt, wb = disk_weights(self.L1_mm, self.L2_mm)
+        re = np.zeros(8)
+        im = np.zeros(8)
+        for i, w in enumerate((wt, wb)):   # B = ((b_x − a_y) + i(b_y + a_x))/2 per [a_x, b_x, a_y, b_y]
+            re[4 * i:4 * i + 4] = w * np.array([0.0, 0.5, -0.5, 0.0])
+            im[4 * i:4 * i + 4] = w * np.array([0.5, 0.0, 0.0, 0.5])
+        v = np.array([x for n in names for x in self._o1[n][0]])
+        u = np.array([x for n in names for x in self._o1[n][1]])
+        br, bi = float(re @ v), float(im @ v)
+        ur, ui = float(np.sqrt(np.sum((re * u) ** 2))), float(np.sqrt(np.sum((im * u) ** 2)))
+        amp = math.hypot(br, bi)
+        ua = math.hypot(br * ur, bi * ui) / amp if amp > 0 else 0.0
+        return amp / ua if ua > 0 else (math.inf if amp > 0 else 0.0)
+
     def order1_model_error(self, camera_azimuth_deg: float = 180.0) -> dict[int, tuple[float, float]]:
         """{1: (a₁, b₁)} µm: the order-1 error, in δX at the disk, of a model that takes the disk
         centre's order-1 motion as one forward circle measured by a CCD at ``camera_azimuth_deg``
@@ -216,7 +243,7 @@ class RadialMotion:
         F' = F + conj(B)·e^{2iφ_c}, so the head's error less the model's is
         −Re(B e^{−iθ}(1 + e^{−2iψ}))/r: −2B_x/r with the camera opposite the head (Jia's set-up),
         0 at ψ = 90°. Empty without X probes (B is then unmeasured)."""
-        if not self._o1:
+        if not self._o1 or self.backward_whirl_z() < BACKWARD_WHIRL_Z_MIN:
             return {}
         names, M = self._order1_map(camera_azimuth_deg)
         v = np.array([x for n in names for x in self._o1[n][0]])
@@ -227,7 +254,7 @@ class RadialMotion:
         """(n × 8) change of :meth:`order1_model_error` at θ for a 1-u change of each order-1
         coefficient of the four sphere channels (type A); (n × 0) without X probes."""
         th = np.asarray(theta_deg, dtype=float)
-        if not self._o1:
+        if not self.order1_model_error():
             return np.zeros((th.size, 0))
         names, M = self._order1_map(camera_azimuth_deg)
         u = np.array([x for n in names for x in self._o1[n][1]])

@@ -234,6 +234,25 @@ def test_forward_channels():
     # reference-chain effects: nothing in the self-calibration or the heads
     d = forward(ALL["ac_drift"], ev, {"drift_arcsec_per_s": 1e-3}, None, heads)
     assert np.all(d["selfcal"] == 0) and np.all(d["heads"] == 0) and np.ptp(d["alpha"]) > 0
-    # tangential motion: head j sees −g·cos ψ_j·δX/r, head 1 the whole −g·δX/r
+    # tangential motion: head j sees −g·cos ψ_j·δX/r, head 1 the whole −g·δX/r (the generator's
+    # spheres have a centring only, no backward whirl: no order-1 part, RadialMotion.order1_model_error)
     t = forward(ALL["tangential_motion"], ev, {"gain": 1.0}, None, [0.0, 180.0])
+    assert ALL["tangential_motion"].order1(ev) == {}
     np.testing.assert_allclose(t["heads"][:, 1], 2 * t["alpha"])
+
+
+def test_tangential_backward_whirl_columns_on_alpha_and_selfcal_rows():
+    """With a resolved order-1 backward whirl the regressor's EIV columns have the same count on
+    the polygon's rows and on the self-calibration grid (zeros there: its order 1 does not come
+    from the CCD), which the tracing stacks."""
+    ev, _ = make_evidence(np.random.default_rng(9), x_probes=True, selfcal=True, backward_whirl_um=0.1 + 0.05j)
+    tm = ALL["tangential_motion"]
+    o1 = tm.order1(ev)
+    a1, b1 = o1[1]
+    assert a1 == pytest.approx(2 * 0.05, abs=0.01) and b1 == pytest.approx(2 * 0.1, abs=0.01)  # 2·Re(B e^{−iθ})
+    view = ev.selfcal_view()
+    assert tm.order1(view) == {}
+    Ra = tm.regressor_perturbations(ev, {"gain": 1.0}, None)
+    Rs = tm.regressor_perturbations(view, {"gain": 1.0}, None)
+    zero = lambda R: int(np.sum(np.all(R == 0, axis=0)))  # noqa: E731
+    assert Ra.shape[1] == Rs.shape[1] and zero(Rs) == zero(Ra) + 8

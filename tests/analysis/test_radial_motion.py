@@ -238,5 +238,8 @@ def test_order1_model_error_is_the_backward_whirl_the_ccd_misreads():
     assert P.shape == (th.size, 8) and 0 < np.abs(P).max() < 0.01
     fwd_only = RadialMotion(th, fwd_top.imag + noise(), fwd_bot.imag + noise(), 6.81, 122.96,
                             top_x_um=fwd_top.real + noise(), bottom_x_um=fwd_bot.real + noise())
-    assert np.hypot(*fwd_only.order1_model_error(180.0)[1]) < 2e-3
+    # no backward whirl: |B| below 3 u(|B|) (the probes' noise only): nothing enters
+    assert fwd_only.backward_whirl_z() < 3.0 and fwd_only.order1_model_error(180.0) == {}
+    assert fwd_only.order1_model_error_perturbations(th).shape == (th.size, 0)
+    assert rm.backward_whirl_z() > 30.0
     assert RadialMotion(th, top.imag, bot.imag, 6.81, 122.96).order1_model_error() == {}
