@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from benchtwin.analysis.fourier import (FourierFit, design_matrix, evaluate, evaluate_harmonics, fit_fourier,
-                                        fit_harmonics, integrate_harmonics, perturbation_columns)
+                                        fit_harmonics, harmonic_columns, integrate_harmonics, perturbation_columns)
 
 __all__ = ["D_N", "range_method_u", "error_motion_values", "radial_motion", "disk_weights", "RadialMotion",
            "RADIAL_ORDERS", "ASYNC_P", "ASYNC_NOISE_ORDER", "ASYNC_BAND",
@@ -195,20 +195,30 @@ class RadialMotion:
         top = max(self.orders) if len(self.orders) else 0
         return tuple(self.orders) + tuple(range(top + 1, kmax + 1)) if kmax > top else tuple(self.orders)
 
-    def _order1_map(self, camera_azimuth_deg: float) -> tuple[list[str], np.ndarray]:
-        """The linear map from the order-1 coefficients (a sin θ + b cos θ) of the four sphere
-        channels to (a₁, b₁) of :meth:`order1_model_error`: (channels, 2 × 8 matrix acting on
-        [a, b] of each channel in that order)."""
+    #: the order of the four sphere channels in the order-1 maps below
+    _O1_NAMES = ("top_x_um", "top_um", "bottom_x_um", "bottom_um")
+
+    def _backward_whirl_map(self) -> np.ndarray:
+        """(2 × 8) map from the order-1 coefficients [a, b] (a sin θ + b cos θ) of the four sphere
+        channels (:data:`_O1_NAMES`) to (Re B, Im B) of the disk's backward whirl: per sphere
+        B = ((b_x − a_y) + i(b_y + a_x))/2, carried to the disk plane by eq. 9's weights."""
         wt, wb = disk_weights(self.L1_mm, self.L2_mm)
-        f = 1.0 + np.exp(-2j * math.radians(camera_azimuth_deg))
-        names = ["top_x_um", "top_um", "bottom_x_um", "bottom_um"]
         M = np.zeros((2, 8))
-        for i, (w, sx) in enumerate(((wt, 0), (wb, 4))):
-            # B = ((b_x − a_y) + i(b_y + a_x))/2 per unit of each coefficient [a_x, b_x, a_y, b_y]
-            for j, dB in enumerate((0.5j, 0.5, -0.5, 0.5j)):
-                G = w * dB * f
-                M[0, sx + j], M[1, sx + j] = G.imag, G.real
-        return names, M
+        for i, w in enumerate((wt, wb)):  # [a_x, b_x, a_y, b_y] of the sphere
+            M[0, 4 * i:4 * i + 4] = w * np.array([0.0, 0.5, -0.5, 0.0])
+            M[1, 4 * i:4 * i + 4] = w * np.array([0.5, 0.0, 0.0, 0.5])
+        return M
+
+    def _order1_values(self, which: int) -> np.ndarray:
+        """The order-1 coefficients (``which`` = 0) or their type-A u (1) of the four channels."""
+        return np.array([x for n in self._O1_NAMES for x in self._o1[n][which]])
+
+    def _order1_map(self, camera_azimuth_deg: float) -> np.ndarray:
+        """(2 × 8) map from the four channels' order-1 coefficients to (a₁, b₁) of
+        :meth:`order1_model_error`: G = B·(1 + e^{−2iψ}), a₁ = Im G, b₁ = Re G."""
+        re, im = self._backward_whirl_map()
+        G = (re + 1j * im) * (1.0 + np.exp(-2j * math.radians(camera_azimuth_deg)))
+        return np.vstack([G.imag, G.real])
 
     def backward_whirl_z(self) -> float:
         """|B| / u(|B|) of the disk's order-1 backward whirl (:meth:`order1_model_error`), u from
@@ -216,15 +226,8 @@ class RadialMotion:
         X probes."""
         if not self._o1:
             return 0.0
-        names = ["top_x_um", "top_um", "bottom_x_um", "bottom_um"]   # the order of _order1_map
-        wt, wb = disk_weights(self.L1_mm, self.L2_mm)
-        re = np.zeros(8)
-        im = np.zeros(8)
-        for i, w in enumerate((wt, wb)):   # B = ((b_x − a_y) + i(b_y + a_x))/2 per [a_x, b_x, a_y, b_y]
-            re[4 * i:4 * i + 4] = w * np.array([0.0, 0.5, -0.5, 0.0])
-            im[4 * i:4 * i + 4] = w * np.array([0.5, 0.0, 0.0, 0.5])
-        v = np.array([x for n in names for x in self._o1[n][0]])
-        u = np.array([x for n in names for x in self._o1[n][1]])
+        re, im = self._backward_whirl_map()
+        v, u = self._order1_values(0), self._order1_values(1)
         br, bi = float(re @ v), float(im @ v)
         ur, ui = float(np.sqrt(np.sum((re * u) ** 2))), float(np.sqrt(np.sum((im * u) ** 2)))
         amp = math.hypot(br, bi)
@@ -245,9 +248,7 @@ class RadialMotion:
         0 at ψ = 90°. Empty without X probes (B is then unmeasured)."""
         if not self._o1 or self.backward_whirl_z() < BACKWARD_WHIRL_Z_MIN:
             return {}
-        names, M = self._order1_map(camera_azimuth_deg)
-        v = np.array([x for n in names for x in self._o1[n][0]])
-        a1, b1 = M @ v
+        a1, b1 = self._order1_map(camera_azimuth_deg) @ self._order1_values(0)
         return {1: (float(a1), float(b1))}
 
     def order1_model_error_perturbations(self, theta_deg, camera_azimuth_deg: float = 180.0) -> np.ndarray:
@@ -256,10 +257,9 @@ class RadialMotion:
         th = np.asarray(theta_deg, dtype=float)
         if not self.order1_model_error():
             return np.zeros((th.size, 0))
-        names, M = self._order1_map(camera_azimuth_deg)
-        u = np.array([x for n in names for x in self._o1[n][1]])
-        t = np.deg2rad(th)
-        return np.outer(np.sin(t), M[0] * u) + np.outer(np.cos(t), M[1] * u)
+        Mu = self._order1_map(camera_azimuth_deg) * self._order1_values(1)
+        sc, _ = harmonic_columns(th, (1,))  # [sin θ, cos θ]
+        return np.outer(sc[:, 0], Mu[0]) + np.outer(sc[:, 1], Mu[1])
 
     def _combo_orders(self, combo: dict) -> list:
         return [k for k in self._coefs[next(iter(combo))] if all(k in self._coefs[c] for c in combo)]
