@@ -234,6 +234,11 @@ class RadialMotion:
         ua = math.hypot(br * ur, bi * ui) / amp if amp > 0 else 0.0
         return amp / ua if ua > 0 else (math.inf if amp > 0 else 0.0)
 
+    def resolves_backward_whirl(self) -> bool:
+        """Whether the probes resolve the backward whirl (X probes, |B| ≥ BACKWARD_WHIRL_Z_MIN·u):
+        the one gate of :meth:`order1_model_error` and its perturbations."""
+        return bool(self._o1) and self.backward_whirl_z() >= BACKWARD_WHIRL_Z_MIN
+
     def order1_model_error(self, camera_azimuth_deg: float = 180.0) -> dict[int, tuple[float, float]]:
         """{1: (a₁, b₁)} µm: the order-1 error, in δX at the disk, of a model that takes the disk
         centre's order-1 motion as one forward circle measured by a CCD at ``camera_azimuth_deg``
@@ -246,7 +251,7 @@ class RadialMotion:
         F' = F + conj(B)·e^{2iφ_c}, so the head's error less the model's is
         −Re(B e^{−iθ}(1 + e^{−2iψ}))/r: −2B_x/r with the camera opposite the head (Jia's set-up),
         0 at ψ = 90°. Empty without X probes (B is then unmeasured)."""
-        if not self._o1 or self.backward_whirl_z() < BACKWARD_WHIRL_Z_MIN:
+        if not self.resolves_backward_whirl():
             return {}
         a1, b1 = self._order1_map(camera_azimuth_deg) @ self._order1_values(0)
         return {1: (float(a1), float(b1))}
@@ -255,7 +260,7 @@ class RadialMotion:
         """(n × 8) change of :meth:`order1_model_error` at θ for a 1-u change of each order-1
         coefficient of the four sphere channels (type A); (n × 0) without X probes."""
         th = np.asarray(theta_deg, dtype=float)
-        if not self.order1_model_error():
+        if not self.resolves_backward_whirl():
             return np.zeros((th.size, 0))
         Mu = self._order1_map(camera_azimuth_deg) * self._order1_values(1)
         sc, _ = harmonic_columns(th, (1,))  # [sin θ, cos θ]

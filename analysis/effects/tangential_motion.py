@@ -129,7 +129,7 @@ def regressor_perturbations(ev, params, ctx=None):
         g = float(params.get("gain", 0.0))
         ks = x_orders(ev)
         cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
-        if ev.radial.order1_model_error():   # X probes: the order-1 part, zero on the self-calibration grid
+        if ev.radial.resolves_backward_whirl():   # the order-1 part, zero on the self-calibration grid
             P1 = ev.radial.order1_model_error_perturbations(ev.theta_deg, float(getattr(ev, "ccd_azimuth_deg", 180.0)))
             cols.append(k * g * (P1 if order1(ev) else np.zeros_like(P1)))
         form = getattr(ev, "sphere_form_um", None)
