@@ -97,16 +97,6 @@ def file_comments(path: Path) -> dict[str, str]:
 #: (bench, key, the file's text value): when a value changes its entry stops applying and the table
 #: says "no source" until someone reads the new value's source.
 REFS: dict[tuple[str, str, str], str] = {
-    ("jia2019", "thermal.ambient_amplitude", "1 K"):
-        "ASSUMPTION: the ±1 °C band of Hsieh 2022 sec. 3 taken for Jia's lab (Jia names none, sec. 6)",
-    ("jia2019", "thermal.hvac_amplitude", "0.5 K"):
-        "ASSUMPTION for the size; the mechanism: Bryan 1990 (CIRP Annals 39/2), ISO 230-3 ETVE",
-    ("jia2019", "thermal.microscope_stand_time_constant", "25 min"):
-        "derived: ρ·c·D/(4h) of a Ø 25 mm aluminium arm (lumped capacitance, Incropera & DeWitt ch. 5; h ≈ 10 W/m²K assumed)",
-    ("jia2019", "vibration.floor_velocity", "50 um/s"):
-        "the VC-A criterion (Gordon 1991, Proc. SPIE 1619; Amick et al. 2005, Proc. SPIE 5933); the class is an ASSUMPTION",
-    ("jia2019", "vibration.microscope_stand_frequency", "59 Hz"):
-        "derived: cantilever with tip mass (twin/vibration.py) of an ASSUMED column, camera and arm",
     ("hsieh2022", "thermal.ambient_amplitude", "1 K"): "Hsieh 2022 sec. 3 (20 ± 1 °C)",
     ("hidden/null_paper", "bearings.async_rms", "0.06 um"): "Jia 2019 fig. 13 (0.3 µm range over 3 reps)",
     ("hsieh2022", "bearings.air_orifice_diameter", "0.15 mm"):
@@ -128,8 +118,8 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "a choice (ASSUMPTION): ISO 492:2014 tolerance class 4 (ABEC 7), the class of super-precision "
         "angular-contact bearings (SKF, \"Bearing tolerance class\": classes better than P5 are its "
         "super-precision range); its limits as twin/bearing.py takes them from ISO 492:2014 (class 4: "
-        "Kia 3 µm, Kea 5 µm; not re-read; its class-2 row agrees with SKF's \"Class P2 (ABEC 9) "
-        "tolerances\" table)",
+        "Kia 3 µm, Kea 5 µm; its class-2 row agrees with SKF's \"Class P2 (ABEC 9) "
+        "tolerances\" table; pass 3: class 4 at d 18–30 mm K_ia 3 µm, S_ia 4 µm in IBC TI-I-5050.0/E, table 4.3)",
     ("bearings.grade", "P0"):
         "a choice (ASSUMPTION: a worn pair stands in as ISO 492 Normal class); its limits as twin/bearing.py "
         "takes them from ISO 492:2014 (Normal: Kia 13 µm, Kea 20 µm; not re-read)",
@@ -220,6 +210,76 @@ SHARED_REFS: dict[tuple[str, str], str] = {
     ("hidden.torsion_hysteresis.extra_friction_torque", "0.03 N*m"):
         "no source; it is this bench's whole bearing friction (friction_torque = 0): 5–25× the "
         "constant-μ estimate for the open pair (1.2–5.9 mN·m; `bearings.friction_torque` above)",
+    # pass 3 (2026-12-06): jia2019's sources of these five values were keyed to jia2019 alone, so
+    # axial_face (jia2019's joint, value for value) printed "no source" for the same values
+    ("thermal.ambient_amplitude", "1 K"):
+        "ASSUMPTION for Jia's lab (Jia names none, sec. 6): the ±1 °C band of Hsieh 2022 sec. 3; within the "
+        "band dimensional laboratories keep at 20 °C (\"sometimes require a tighter specification of +/-1C\": "
+        "Branca IdealAir, \"Temperature close control in metrology\")",
+    ("thermal.hvac_amplitude", "0.5 K"):
+        "ASSUMPTION for the size; the mechanism: Bryan 1990 (CIRP Annals 39/2), ISO 230-3 ETVE; disagrees "
+        "with the band it is said to cycle in (pass 3): with the ±1 K lab cycle the air reaches ±1.5 K, "
+        "outside ±1 °C (value kept)",
+    ("thermal.microscope_stand_time_constant", "25 min"):
+        "derived: ρ·c·D/(4h) of a Ø 25 mm aluminium arm (lumped capacitance, Incropera & DeWitt ch. 5; h ≈ 10 W/m²K assumed)",
+    ("vibration.floor_velocity", "50 um/s"):
+        "the VC-A criterion (Gordon 1991, Proc. SPIE 1619; Amick et al. 2005, Proc. SPIE 5933); the class is an ASSUMPTION",
+    ("vibration.microscope_stand_frequency", "59 Hz"):
+        "derived: cantilever with tip mass (twin/vibration.py) of an ASSUMED column, camera and arm",
+    # pass 3: the ASSUMED 7004 pair against makers' tables
+    ("bearings.contact_angle", "15 deg"):
+        "a choice (ASSUMPTION) among the makers' standard angles, their \"C\" code: IBC high-precision "
+        "angular-contact bearings C = 15°, E = 25°, A = 30° (IBC TI-I-5050.0/E, 2010, sec. 2.1); spindle "
+        "bearings 15° (C) or 25° (E) (ikc-bearing.com, \"Precision spindle bearings\")",
+    ("bearings.preload", "50 N"):
+        "within the makers' standard preloads of a 15° 7004 (20 × 42 × 12 mm) set: IBC 7004.C X 18, L 35, "
+        "M 80, H 160 N (TI-I-5050.0/E, sec. 2.4, p. 73); TPI 7004C L 35, N 65, M 180, H 345 N (CAT. No. "
+        "2260/TE, table 5-9(1)); the file calls 50 N \"light\": the makers' light class is 35 N, so 50 N "
+        "lies between light and the next class (65–80 N) (class name disagrees, value kept)",
+    ("axial.load", "0 N"):
+        "a choice, not a size: no external axial load (Jia 2019 lists the axial error motion δZ but names no "
+        "axial load); the weight comes from the masses",
+    ("axial.face_probe_radius", "20 mm"):
+        "derived from the file's geometry: inside the graduation lines, which run from r = 22.5 − 1.2 = "
+        "21.3 mm (`bench.scale_edge_radius` − `bench.grating_line_length`) outward; where on that face is a "
+        "choice",
+    ("axial.thermal_growth", "0.23 um/K"):
+        "derived: α·L with α = 11.3–12.3 µm/(m·K) (plain-carbon and low-alloy steels 1020, 1040, 4140: "
+        "Callister, table B.6) × 20 mm (the length, ASSUMPTION) = 0.23–0.25 µm/K",
+    ("axial.race_face_waviness_scale", "1.0"):
+        "ASSUMPTION, no source for the size (pass 3): the only related figures found are class 4's run-out "
+        "limits at d 18–30 mm, S_ia 4 µm against K_ia 3 µm (IBC TI-I-5050.0/E, table 4.3), a ratio of 1.33 "
+        "between tolerances, not a waviness spectrum",
+    ("bearings.unbalance", "0 g*mm"):
+        "a choice, not a size: the ideal (balanced) limit, inside any ISO 21940-11 grade's permissible "
+        "residual unbalance U_per = m·G/Ω",
+    ("bearings.supply_ripple_period", "5 min"):
+        "within [2, 8] min, a fixed-speed compressor's load/unload cycle through its receiver: loading "
+        "more often than every 2 min is short-cycling, the design target is 6–8 min between loads "
+        "(industrialairtoday.com, \"Sizing an air receiver tank\")",
+    ("bearings.supply_ripple", "0.005"):
+        "ASSUMPTION, no source for the size (pass 3): consistent with a precision regulator's repeatability "
+        "±0.5 % of full span (≥ ±0.025 bar at any span that reaches 5 bar), SMC IR1000-A/2000-A/3000-A as a "
+        "distributor lists it (truncated, span not read): not a citable bound",
+    ("bearings.supply_noise", "0.001"):
+        "ASSUMPTION, no source for the size (pass 3): below a precision regulator's sensitivity 0.2 % of full "
+        "span (≥ 0.01 bar), SMC IR1000-A/2000-A/3000-A as a distributor lists it (truncated): not a citable bound",
+    ("thermal.motor_rise", "7 K"):
+        "within [0, 80] K, a loose bound: a hybrid stepper's winding rise at rated current, both phases on "
+        "(holding), is ≤ 80 K (Songyang SY28STH45-0674A data sheet, as Pololu ships it); the value itself "
+        "is an ASSUMPTION",
+    ("thermal.motor_rise", "1 K"):
+        "ASSUMPTION, no source for the size (pass 3): a servo's winding rise is ≈ 100 K·(T/M0)² (Beckhoff "
+        "AM8000 \"Technical terms\"), ≈ 0 for the almost torque-free air-bearing table: the 1 K needs other losses",
+    ("hidden.tangential_motion.race_waviness_top",
+     "[{'order': 3, 'amplitude': '0.12 um', 'phase': '60 deg'}, {'order': 5, 'amplitude': '0.08 um', 'phase': '140 deg'}]"):
+        "within, a loose bound (pass 3): the lobes' peak-to-valley (0.24 µm at k = 3, 0.16 µm at k = 5) is "
+        "below class 4's inner-ring radial run-out limit K_ia = 3 µm at d 18–30 mm (IBC TI-I-5050.0/E, "
+        "table 4.3); the amplitudes equal twin/bearing.py's P4 waviness level at those orders (an ASSUMPTION)",
+    ("hidden.tangential_motion.race_waviness_bottom",
+     "[{'order': 3, 'amplitude': '0.12 um', 'phase': '60 deg'}, {'order': 5, 'amplitude': '0.08 um', 'phase': '140 deg'}]"):
+        "within, a loose bound (pass 3): as `race_waviness_top` (P-V 0.24 / 0.16 µm < K_ia = 3 µm, IBC "
+        "TI-I-5050.0/E, table 4.3)",
 }
 
 #: Sources of schema defaults (the file omits the key), keyed by the resolved value in SI units.
