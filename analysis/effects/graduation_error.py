@@ -5,16 +5,18 @@ cause angle measurement error" — one of the candidate causes of the ±6″ (9 
 does not contain. Hsieh et al. 2022, eqs. 8–9: a multi-head self-calibration sees the division
 error of head 1 directly (except the harmonics that are multiples of the number of heads).
 
-Order set: k = 2…20, capped by the sampling (the evidence's ``kmax``: < half the distinct stop
-positions; 11 for one 23-face sweep, 20 with shift sets).
+Order set: k = 2…40 (the tracing's ``KMAX``), capped by the sampling (the evidence's ``kmax``: < half
+the distinct stop positions; 11 for one 23-face sweep, 34 for shifts 0/5/10°, 40 for 0…14°).
 - k = 1 is excluded: a first-order division error is indistinguishable from the eccentricity of the
   ruling with respect to the disk (it is what the CCD's edge fit of eqs. 10–12 measures as e), so
   it belongs to the eccentricity term (see ``ccd_pixel_scale``, ``optical_radius``).
-- k ≤ 20: a single 23-face sweep resolves up to 11 (11.5 harmonics on a 23-point grid); shift sets
+- k ≤ 40: a single 23-face sweep resolves up to 11 (11.5 harmonics on a 23-point grid); shift sets
   resolve more, and a real disk's division error has a broad spectrum (Hsieh 2022 fig. 9/11: the
   12-head self-calibration curve carries orders well above 10). Limited to 10 (Jia's series), the
   hsieh2022 twin's declared 0.6″ RMS division error left 0.2″ RMS at orders 12…20 and the loop
-  ended "unexplained" (issue 16). Periodic errors at the grating pitch are ``interpolation_error``.
+  ended "unexplained" (issue 16); limited to 20, the bearings' −δX/r at orders 21…30 did the same on
+  drawn benches without a hidden effect (thresholds.py, KMAX). Periodic errors at the grating pitch
+  are ``interpolation_error``.
 - Inside that set the fit uses only the harmonics that the harmonic-by-harmonic test of the
   residual found significant (context key ``harmonics``), so that the effect costs two parameters
   per harmonic actually seen, not 18 — otherwise the information criterion punishes it for
@@ -38,6 +40,8 @@ listed by the residual's signature (what is left, and why: no revisits to test t
 
 from __future__ import annotations
 
+from benchtwin.analysis.radial_motion import ASYNC_NOISE_ORDER
+
 from ._base import amplitudes_within, channels, disk_fixed_heads_of, harmonic_columns, linear_predictor
 
 NAME = "graduation_error"
@@ -49,7 +53,7 @@ MEANING = (
     "multiples of the number of heads. Low orders (2…10) dominate for ruled or replicated disks."
 )
 PARAMS = {"a{k}_arcsec": "arcsec", "b{k}_arcsec": "arcsec"}
-ORDERS = tuple(range(2, 21))
+ORDERS = tuple(range(2, ASYNC_NOISE_ORDER + 1))   # 2…40: the tracing's KMAX (thresholds.py)
 CHANNELS = channels(
     alpha="Σ_k a_k sin kθ + b_k cos kθ added to the encoder error",
     selfcal="the same harmonics, identical amplitude and phase (multiples of the head count are blind)",

@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 
 from benchtwin.units import ARCSEC_PER_RAD
 from ..radial_motion import RadialMotion
-from .thresholds import SPHERE_FORM_UM, THETA_BIN_DEG
+from .thresholds import KMAX, SPHERE_FORM_UM, THETA_BIN_DEG
 
 
 # ----------------------------------------------------------------------------------------------
@@ -162,7 +162,7 @@ class Evidence:
         # stop positions to THETA_BIN_DEG (stop jitter of a few arcsec is not a new position)
         self.theta_bin = np.round((self.theta_deg % 360.0) / THETA_BIN_DEG).astype(int) % int(round(360 / THETA_BIN_DEG))
         n_theta = np.unique(self.theta_bin).size
-        self.kmax = int(min(20, max(1, (n_theta - 1) // 2)))
+        self.kmax = int(min(KMAX, max(1, (n_theta - 1) // 2)))
         # every order the sampling resolves (graduation_error's broadband variant, issue 32 item 5),
         # and whether every stop position was read at least twice (the design leaves degrees of
         # freedom for a value per position: repetitions, both directions, several start faces)

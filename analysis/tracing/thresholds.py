@@ -43,6 +43,17 @@ SPHERE_FORM_UM = 0.014
 #: −105 % on the whole model for 0.05″ of ∫δY). Physical pairs may cancel partly — a wrong ∫δY term
 #: against the tilt-extrapolated motion, 3:1 — and are not rejected for it.
 DEGENERATE_RATIO = 0.1
+#: Highest harmonic of θ the residual's harmonic test and the harmonic candidates (graduation_error's
+#: significant orders) reach, capped further by the sampling ((distinct stop positions − 1)/2). The
+#: analysis's own bound on a smooth axis motion: the radial motion is a series to ASYNC_NOISE_ORDER
+#: (40) before its residual counts as probe noise, and δX is taken up to that order (X_ORDERS_MAX).
+#: Cut at 20, a shift-angle design that resolves far more (0…14°: 345 positions) left the orders
+#: 21…40 of the encoder error outside every candidate: on the twin's base benches (loop validation
+#: seeds 660-663, truth: α less the base model, per stop) the ball bearings' −δX/r there is
+#: 0.11…0.29″ RMS against a 0.07…0.09″ u per reading, the bench's χ²/dof after harmonics 1…20 was
+#: 2.2…10.6, and the loop ended "unexplained" with no effect hidden. Above 40 the truth holds
+#: 0.01…0.03″ RMS.
+KMAX = ASYNC_NOISE_ORDER
 THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
 #: Ties. Two information criteria (BIC, AICc, held-out χ²) closer than TIE_REL × the scale of the
 #: problem's χ² (max(χ² of no effect, number of rows)) are equal: the comparison is decided by the

@@ -16,6 +16,7 @@ import numpy as np
 
 from benchtwin.analysis.effects import graduation_error
 from benchtwin.analysis.tracing import Evidence, _Problem, _center
+from benchtwin.analysis.tracing.thresholds import KMAX
 
 
 def _shift_design(reps: int, directions=(1,)) -> dict:
@@ -39,7 +40,7 @@ def _ev(design: dict, alpha: np.ndarray, **kw) -> Evidence:
 def test_broadband_orders_where_every_stop_is_revisited():
     one = _shift_design(1)
     ev1 = _ev(one, np.zeros(one["theta_deg"].size))
-    assert ev1.kmax == 20 and ev1.kmax_resolved == 179
+    assert ev1.kmax == KMAX == 40 and ev1.kmax_resolved == 179
     assert not ev1.revisited and graduation_error.broadband_orders(ev1) == []   # single readings per stop
     two = _shift_design(2)
     ev2 = _ev(two, np.zeros(two["theta_deg"].size))
