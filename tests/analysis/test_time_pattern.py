@@ -81,3 +81,67 @@ def test_a_change_below_practical_size_is_not_left_unexplained():
         assert (tp["rms_arcsec"] >= SIZE_GATE * noise_floor(ev)) == left_expected, (tp["rms_arcsec"], noise_floor(ev))
         parts = _significant_parts(sig, ev.n, noise_floor(ev))
         assert any("changes with time" in x for x in parts) == left_expected, parts
+
+
+def _shift_sweeps(reps: int, alpha, seed: int = 181, noise: float = 0.07):
+    """23 faces × shifts 0…14° (one start face each), ``reps`` repetitions as the outer loop (the
+    twin's order: every shift of rep 0, then every shift of rep 1), 10 s a stop; α = alpha(θ, t) +
+    white noise. Too few readings per sweep for 12 harmonics: the reading-by-reading form."""
+    from benchtwin.analysis.tracing import Evidence
+
+    th, sh, rp, ts = [], [], [], []
+    t = 0.0
+    for r in range(reps):
+        for s in range(15):
+            for i in range(23):
+                t += 10.0
+                th.append((i * 360.0 / 23 + s) % 360.0)
+                sh.append(float(s))
+                rp.append(r)
+                ts.append(t)
+    th, ts = np.array(th), np.array(ts)
+    a = alpha(th, ts) + np.random.default_rng(seed).normal(0.0, noise, th.size)
+    return Evidence(theta_deg=th, alpha_arcsec=a, u_arcsec=noise, model_terms={}, t_s=ts, rep=np.array(rp),
+                    shift_deg=np.array(sh), radial=None)
+
+
+def _high_orders(th, t):
+    """A stationary pattern above the tested harmonics 2…20 (orders 21…31, 0.3″ RMS: a ball
+    bearing's −δX/r there on the twin's benches)."""
+    g = np.deg2rad(th)
+    return sum(a * np.sin(k * g + p) for k, a, p in ((21, 0.2, 0.3), (22, 0.15, 1.0), (24, 0.15, 0.4), (27, 0.12, 1.1),
+                                                   (31, 0.1, 2.0)))
+
+
+def _k7_flip(th, t):
+    tt = (t - t.mean()) / np.ptp(t)
+    return 0.5 * 2.0 * tt * np.sin(7 * np.deg2rad(th) + 0.3)
+
+
+def test_a_stationary_pattern_above_the_tested_orders_is_no_change_with_time():
+    """Shift-angle sweeps read once per position, the shifts in time order: a stationary pattern at
+    orders the test does not hold (21…31) reads, sweep by sweep, as orders 23 − k (2, 1, 1, 4, 8)
+    with a phase that turns with the shift, i.e. with time. Nested over the tested harmonics alone
+    that was "the θ pattern changes with time" (z = 5.2, 0.22″: the twin's base benches, seeds
+    660-663, the bearings' −δX/r above order 20); nested over every function of θ, a single reading
+    per position leaves no change to see, and two repetitions see none."""
+    from benchtwin.analysis.tracing.signature import signature
+
+    ks = list(range(2, 21))
+    tp = signature(_shift_sweeps(1, _high_orders), time_ks=ks)["time_pattern"]
+    assert not tp["available"] and "different times" in tp["reason"], tp
+    tp = signature(_shift_sweeps(2, _high_orders), time_ks=ks)["time_pattern"]
+    assert tp["available"] and not tp["significant"], tp
+
+
+def test_a_pattern_that_changes_between_repetitions_is_still_seen():
+    """The same design with two repetitions (each position read twice, half a session apart) and a
+    7th harmonic that changes sign during the session (0.5″ at the ends): the revisits see it."""
+    from benchtwin.analysis.tracing.selection import noise_floor
+    from benchtwin.analysis.tracing.signature import _significant_parts, signature
+
+    ev = _shift_sweeps(2, _k7_flip)
+    sig = signature(ev, time_ks=list(range(2, 14)))
+    tp = sig["time_pattern"]
+    assert tp["available"] and tp["significant"] and tp["z"] >= 4, tp
+    assert any("changes with time" in x for x in _significant_parts(sig, ev.n, noise_floor(ev)))
