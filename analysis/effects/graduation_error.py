@@ -6,7 +6,8 @@ does not contain. Hsieh et al. 2022, eqs. 8–9: a multi-head self-calibration s
 error of head 1 directly (except the harmonics that are multiples of the number of heads).
 
 Order set: k = 2…40 (the tracing's ``KMAX``), capped by the sampling (the evidence's ``kmax``: < half
-the distinct stop positions; 11 for one 23-face sweep, 34 for shifts 0/5/10°, 40 for 0…14°).
+the distinct stop positions, above 20 a third of them; 11 for one 23-face sweep, 22 for shifts
+0/5/10°, 40 for 0…14°).
 - k = 1 is excluded: a first-order division error is indistinguishable from the eccentricity of the
   ruling with respect to the disk (it is what the CCD's edge fit of eqs. 10–12 measures as e), so
   it belongs to the eccentricity term (see ``ccd_pixel_scale``, ``optical_radius``).
