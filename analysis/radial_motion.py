@@ -151,6 +151,7 @@ class RadialMotion:
     _coefs: dict = field(default_factory=dict, init=False, repr=False)
     _u: dict = field(default_factory=dict, init=False, repr=False)
     _o1: dict = field(default_factory=dict, init=False, repr=False)
+    _bw: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
         th = np.asarray(self.theta_deg, dtype=float)
@@ -226,6 +227,11 @@ class RadialMotion:
         X probes."""
         if not self._o1:
             return 0.0
+        if "z" not in self._bw:   # the order-1 coefficients are fixed at construction: once per instance
+            self._bw["z"] = self._backward_whirl_z()
+        return self._bw["z"]
+
+    def _backward_whirl_z(self) -> float:
         re, im = self._backward_whirl_map()
         v, u = self._order1_values(0), self._order1_values(1)
         br, bi = float(re @ v), float(im @ v)

@@ -97,9 +97,17 @@ def order1(ev) -> dict:
     takes with the wrong sign), for the polygon's rows (head 1 against the CCD's eq. 3 term); {}
     for the self-calibration grid (its order 1 comes from the head differences, not from the CCD)
     and without X probes."""
-    if getattr(ev, "parent", None) is not None or not _has_x(ev):
-        return {}
-    return ev.radial.order1_model_error(float(getattr(ev, "ccd_azimuth_deg", 180.0)))
+    return ev.radial.order1_model_error(_ccd_azimuth(ev)) if _order1_applies(ev) else {}
+
+
+def _order1_applies(ev) -> bool:
+    """Whether :func:`order1` is non-empty on these rows: the polygon's (not the self-calibration
+    grid's), with X probes that resolve the backward whirl (RadialMotion.resolves_backward_whirl)."""
+    return getattr(ev, "parent", None) is None and _has_x(ev) and ev.radial.resolves_backward_whirl()
+
+
+def _ccd_azimuth(ev) -> float:
+    return float(getattr(ev, "ccd_azimuth_deg", 180.0))
 
 
 def _dx(ev):
@@ -133,8 +141,8 @@ def regressor_perturbations(ev, params, ctx=None):
         ks = x_orders(ev)
         cols.append(k * g * ev.radial.perturbations(ev.theta_deg, "dX_um", "value", ks))
         if ev.radial.resolves_backward_whirl():   # the order-1 part, zero on the self-calibration grid
-            P1 = ev.radial.order1_model_error_perturbations(ev.theta_deg, float(getattr(ev, "ccd_azimuth_deg", 180.0)))
-            cols.append(k * g * (P1 if order1(ev) else np.zeros_like(P1)))
+            P1 = ev.radial.order1_model_error_perturbations(ev.theta_deg, _ccd_azimuth(ev))
+            cols.append(k * g * (P1 if _order1_applies(ev) else np.zeros_like(P1)))
         form = getattr(ev, "sphere_form_um", None)
         if form and g and ks:
             # the spheres' form bound (Jia: 0.014 µm) is a bound on eq. 7's orders, as for δY
