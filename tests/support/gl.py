@@ -15,21 +15,22 @@ import pytest
 PROBE_ENV = "BENCHTWIN_TEST_GL_PROBE"
 
 
+def _measure() -> str:
+    """The probe itself, as ``PROBE_ENV`` holds it: "1 <status>" or "0 <status>"."""
+    from benchtwin.twin.render.gl import gl_available, gl_status
+
+    return f"{int(gl_available())} {gl_status()}"
+
+
 def probe_for_workers() -> None:
     """Probe once and put the answer where the workers (and the tests' subprocesses) inherit it."""
     if PROBE_ENV not in os.environ:
-        from benchtwin.twin.render.gl import gl_available, gl_status
-
-        os.environ[PROBE_ENV] = f"{int(gl_available())} {gl_status()}"
+        os.environ[PROBE_ENV] = _measure()
 
 
 def _probe() -> tuple[bool, str]:
-    memo = os.environ.get(PROBE_ENV)
-    if memo:
-        return memo[0] == "1", memo[2:]
-    from benchtwin.twin.render.gl import gl_available, gl_status
-
-    return gl_available(), gl_status()
+    memo = os.environ.get(PROBE_ENV) or _measure()
+    return memo[0] == "1", memo[2:]
 
 
 GL, _STATUS = _probe()
