@@ -108,11 +108,12 @@ REFS: dict[tuple[str, str, str], str] = {
 }
 
 
-#: Sources found by the sourcing passes of 2026-12-06 (issue 33; pass 2 the same day), for every bench
+#: Sources found by the sourcing passes of 2026-12-06 (issue 33; passes 2–4 the same day), for every bench
 #: whose file states the same text value; each is written out with its full citation in docs/physics.md,
 #: "Sizes and their sources". "derived" = a formula from the model's geometry and a cited material property; "within"
 #: = a reference bounds the value without fixing it; "no source for the value" = the only published
-#: number found disagrees or does not apply (the doc says by how much).
+#: number found disagrees or does not apply (the doc says by how much); "disagrees (pass N)" names a
+#: published number that applies and contradicts the value (kept).
 SHARED_REFS: dict[tuple[str, str], str] = {
     ("bearings.grade", "P4"):
         "a choice (ASSUMPTION): ISO 492:2014 tolerance class 4 (ABEC 7), the class of super-precision "
@@ -139,7 +140,10 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "catalogue, \"Estimating the frictional moment\", table 1: μ = 0.0020; Koyo, table 4-1: 0.0012–0.0020) "
         "gives 1.2–2.9 mN·m for the open pair at 50 N preload, ≤ 5.9 mN·m at start-up: the value is 3.4–17× "
         "that (a floor, not a bound: at 50 N and near-zero speed load-independent and boundary "
-        "friction dominate)",
+        "friction dominate); disagrees (pass 4): NSK's start-up torque of a preloaded 15° DB/DF pair, "
+        "2·M with M = Ms·Z·sin α, Ms = (3/8)·μs·Q·a·E(k), μs = 0.15 (NSK CAT. E1102m, sec. 15.4 (2)), is "
+        "1.5–1.8 mN·m at 50 N with the model's Hertz contacts: the value is 11–13× it (value kept; grease "
+        "or seal drag, outside that model, would have to supply the rest)",
     ("bearings.shaft_torsional_stiffness", "5000 N*m/rad"):
         "ASSUMPTION; within [3.6e3, 9.7e3] N·m/rad (pass 2): the upper end G·J/L of the model's Ø 20 mm "
         "steel shaft over the 130 mm from the disk plane to the polygon (G = 75–80 GPa: Gere, Mechanics of "
@@ -148,9 +152,11 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "least a maker's Ø 20 mm clamp-hub couplings allow, 2·C_T ≥ 1.2e4 N·m/rad (RINGFEDER GWB AKD/AKN "
         "sizes 18–30, bores 8–30 mm: C_Tdyn = 6e3–35e3 N·m/rad per coupling of two hubs): bounded, not fixed",
     ("thermal.motor_rise", "2 K"):
-        "ASSUMPTION, no source for the value (pass 2): a servo's winding rise at standstill is ≈ 100 K·(T/M0)² "
-        "(losses ∝ I², T = K_T·I; M0 rated at 100 K winding overtemperature: Beckhoff AM8000 \"Technical "
-        "terms\"), so 2 K from holding the 0.02 N·m friction needs M0 ≈ 0.14 N·m; Jia names no motor",
+        "ASSUMPTION; within [0, 100] K, a loose bound only (pass 4): a servo held within its rated standstill "
+        "torque M0 stays at or below the 100 K winding overtemperature its data are rated at (Beckhoff AM8100 "
+        "\"Technical data\"); the size needs the motor (pass 2): the rise at standstill is ≈ 100 K·(T/M0)² "
+        "(losses ∝ I², T = K_T·I; Beckhoff AM8000 \"Technical terms\"), so 2 K from holding the 0.02 N·m "
+        "friction needs M0 ≈ 0.14 N·m; Jia names no motor",
     ("thermal.microscope_stand_growth", "2.3 um/K"):
         "derived: α·L = 23.6 µm/(m·K) (aluminium 6061: Callister, Fundamentals of Materials Science and "
         "Engineering, table B.6) × 100 mm (the arm's length, ASSUMPTION) = 2.36 µm/K",
@@ -178,9 +184,9 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "that speed at high speed and light load (doi:10.1177/1475921719856826, introduction), not on a "
         "slow, preloaded stop-and-go pair",
     ("vibration.exposure_time", "5 ms"):
-        "ASSUMPTION, no source for the value: the only bound found, the settable exposure of CCD microscope "
-        "cameras, 1 ms–60 s (Nikon DN100), 1/12000 s–170 s (Nikon DXM1200; MicroscopyU, \"Exposure control "
-        "and camera sensitivity\"), spans 4–5 decades and does not size it; Jia sec. 4.2.2 names no camera",
+        "ASSUMPTION; within [0.1, 20] ms, a loose bound (pass 4): the typical exposure times of industrial "
+        "area-scan cameras (\"In practice, typical values often range between 0.1 and 20 ms\": Vision-Doctor, "
+        "\"Exposure time of area scan cameras\"); bounded, not fixed: Jia sec. 4.2.2 names no camera",
     ("bearings.air_clearance", "8 um"):
         "within [5, 10] µm: ~5 µm fly height (New Way Air Bearings, glossary \"Fly height\"; Steinmeyer "
         "glossary \"air bearing\"), ~10 µm for spindles (airbearings.co.uk, \"What is an air bearing?\"); "
@@ -208,8 +214,10 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "derived in the file: a transverse gradient bends the 300 mm aluminium tube, α·ΔT_g·L²/(2D) "
         "(D = 60 mm); the gradient's share of the rise (25 %) is an ASSUMPTION",
     ("hidden.torsion_hysteresis.extra_friction_torque", "0.03 N*m"):
-        "no source; it is this bench's whole bearing friction (friction_torque = 0): 5–25× the "
-        "constant-μ estimate for the open pair (1.2–5.9 mN·m; `bearings.friction_torque` above)",
+        "no source for the value; it is this bench's whole bearing friction (friction_torque = 0): 5–25× the "
+        "constant-μ estimate for the open pair (1.2–5.9 mN·m; `bearings.friction_torque` above); disagrees "
+        "(pass 4): 17–20× NSK's start-up torque of the preloaded pair, 1.5–1.8 mN·m at 50 N (NSK CAT. "
+        "E1102m, sec. 15.4 (2); `bearings.friction_torque` above) (value kept)",
     # pass 3 (2026-12-06): jia2019's sources of these five values were keyed to jia2019 alone, so
     # axial_face (jia2019's joint, value for value) printed "no source" for the same values
     ("thermal.ambient_amplitude", "1 K"):
@@ -258,19 +266,24 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "more often than every 2 min is short-cycling, the design target is 6–8 min between loads "
         "(industrialairtoday.com, \"Sizing an air receiver tank\")",
     ("bearings.supply_ripple", "0.005"):
-        "ASSUMPTION, no source for the size (pass 3): consistent with a precision regulator's repeatability "
-        "±0.5 % of full span (≥ ±0.025 bar at any span that reaches 5 bar), SMC IR1000-A/2000-A/3000-A as a "
-        "distributor lists it (truncated, span not read): not a citable bound",
+        "ASSUMPTION, no source for the value; disagrees (pass 4): a precision regulator moves its outlet by "
+        "< 0.2 psig for a 25 psig supply change (Marsh Bellofram Type 40 data sheet), so a compressor's "
+        "load/unload swing of up to 25 psi reaches the 6.0 bar (abs) supply as < ±0.1 psi = ±0.11 %, and a "
+        "2–3 bar swing (scaled linearly) as < ±0.2 %; the value's ±0.5 % (±0.44 psi) is 2.5–4.4× that (value kept)",
     ("bearings.supply_noise", "0.001"):
         "ASSUMPTION, no source for the size (pass 3): below a precision regulator's sensitivity 0.2 % of full "
-        "span (≥ 0.01 bar), SMC IR1000-A/2000-A/3000-A as a distributor lists it (truncated): not a citable bound",
+        "span (≥ 0.01 bar), SMC IR1000-A/2000-A/3000-A as a distributor lists it (truncated): not a citable bound; "
+        "pass 4: 2.4× the sensitivity of another, 1 inch of water = 2.5 mbar (Marsh Bellofram Type 40): the same "
+        "order, not a bound",
     ("thermal.motor_rise", "7 K"):
         "within [0, 80] K, a loose bound: a hybrid stepper's winding rise at rated current, both phases on "
         "(holding), is ≤ 80 K (Songyang SY28STH45-0674A data sheet, as Pololu ships it); the value itself "
         "is an ASSUMPTION",
     ("thermal.motor_rise", "1 K"):
-        "ASSUMPTION, no source for the size (pass 3): a servo's winding rise is ≈ 100 K·(T/M0)² (Beckhoff "
-        "AM8000 \"Technical terms\"), ≈ 0 for the almost torque-free air-bearing table: the 1 K needs other losses",
+        "ASSUMPTION; within [0, 100] K, a loose bound only (pass 4): the 100 K winding overtemperature servo "
+        "data are rated at (Beckhoff AM8100 \"Technical data\"); the size needs other losses (pass 3): a "
+        "servo's winding rise is ≈ 100 K·(T/M0)² (Beckhoff AM8000 \"Technical terms\"), ≈ 0 for the almost "
+        "torque-free air-bearing table",
     ("hidden.tangential_motion.race_waviness_top",
      "[{'order': 3, 'amplitude': '0.12 um', 'phase': '60 deg'}, {'order': 5, 'amplitude': '0.08 um', 'phase': '140 deg'}]"):
         "within, a loose bound (pass 3): the lobes' peak-to-valley (0.24 µm at k = 3, 0.16 µm at k = 5) is "
