@@ -687,10 +687,30 @@ def _sweep_truth(td: Path, ds: Path) -> tuple[float, float] | None:
 
 def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
            hidden: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The residual floor no analysis of this bench's data can beat (docs/scoring.md)."""
+    """The residual floor no analysis of this bench's data can beat (docs/scoring.md): the
+    autocollimator's and the servo twist's part (``_floor_polygon``), the probes' part
+    (``_floor_probes``) and, reported beside it, the tangential motion (``_floor_tangential``)."""
     hidden = hidden or {}
     parts: dict[str, float] = {}
     per_reading: dict[str, float] = {}
+    _floor_polygon(td, ds, hidden, parts, per_reading)
+    man = _manifest(ds) if (ds / "manifest.json").exists() else {}
+    r_mm = _get(man, "bench", "optical_radius_mm")
+    _floor_probes(td, ds, man, hidden, parts)
+    x_probes, tangential = _floor_tangential(td, ds, ee, r_mm, parts)
+    # what a Y-probe bench cannot attribute is reported, not floored: an analysis can fit it (as a
+    # division error), it cannot tell which it is (hence an ambiguity set)
+    unattributable = parts.pop("unseen_tangential_arcsec", None)
+    total = float(math.sqrt(sum(v * v for v in parts.values()))) if parts else None
+    common = {k: v for k, v in parts.items() if k not in ("alpha_measurement_arcsec", "servo_twist_arcsec")}
+    total_r = float(math.sqrt(sum(v * v for v in {**common, **per_reading}.values()))) if per_reading else None
+    return {"floor_arcsec": total, "floor_per_reading_arcsec": total_r, "parts": {**parts, **per_reading},
+            "unattributable_arcsec": unattributable, "tangential_arcsec": tangential, "x_probes": x_probes}
+
+
+def _floor_polygon(td: Path, ds: Path, hidden: Mapping[str, Any], parts: dict[str, float],
+                   per_reading: dict[str, float]) -> None:
+    """The floor's autocollimator and servo-twist parts, into ``parts`` (per stop) and ``per_reading``."""
     # 1. the autocollimator's own error: per reading the displayed reading − the exact face angle
     #    (truth/polygon.csv). A hidden effect that acts on the autocollimator (ac_scale, ac_drift) is
     #    not the floor: its form (gain·A + q·A², rate·t) is fitted to that error and removed.
@@ -742,11 +762,15 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
                     mt = np.array([tw[th == k].mean() for k in np.unique(th)])
                     parts["servo_twist_arcsec"] = float(np.sqrt(np.mean((mt - mt.mean()) ** 2)))
                     per_reading["servo_twist_reading_arcsec"] = float(np.sqrt(np.mean(tw**2)))
+
+
+def _floor_probes(td: Path, ds: Path, man: Mapping[str, Any], hidden: Mapping[str, Any],
+                  parts: dict[str, float]) -> None:
+    """The floor's probe part (``radial_probes_arcsec``), into ``parts``."""
     # 2. the probes' own error in the model's radial term: per stop the reading − the true sphere
     #    centre along Y (truth/radial_motion.csv: repeatability, linearity, the spheres' form),
     #    averaged over the revolutions, extrapolated to the disk plane as Jia eq. 9 does
     #    (δY = top + (top − bottom)·L1/L2), its orders 2…10 integrated as in eq. 5 (∫ dθ / r).
-    man = _manifest(ds) if (ds / "manifest.json").exists() else {}
     r_mm = _get(man, "bench", "optical_radius_mm")
     L1, L2 = _get(man, "bench", "L1_mm"), _get(man, "bench", "L2_mm")
     if (td / "radial_motion.csv").exists() and (ds / "radial_motion.csv").exists() and r_mm and L1 and L2:
@@ -771,6 +795,12 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
             if ths.size > 2 * max(RADIAL_ORDERS):
                 m = np.array([e_disk[th_all == k].mean() for k in ths])
                 parts["radial_probes_arcsec"] = _integral_rms_arcsec(ths, np.zeros_like(m), m, float(r_mm))
+
+
+def _floor_tangential(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None, r_mm: Any,
+                      parts: dict[str, float]) -> tuple[bool | None, float | None]:
+    """Whether the bench has X probes, and the truth's tangential motion (−δX/r, orders 2…10);
+    without X probes its unseen part goes into ``parts`` (popped by ``_floor``: reported, not floored)."""
     # 3. (reported beside the floor) a bench without X probes: the tangential motion the Y probes
     #    cannot see. The head reads
     #    −δX/r of the axis; Jia eq. 5 holds ∫δY dθ / r (radial orders 2…10): what is left of the
@@ -788,14 +818,7 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
         if x_probes is False:
             parts["unseen_tangential_arcsec"] = _integral_rms_arcsec(ee["theta_deg"], ee["axis_dx_um"],
                                                                      ee["axis_dy_um"], float(r_mm))
-    # what a Y-probe bench cannot attribute is reported, not floored: an analysis can fit it (as a
-    # division error), it cannot tell which it is (hence an ambiguity set)
-    unattributable = parts.pop("unseen_tangential_arcsec", None)
-    total = float(math.sqrt(sum(v * v for v in parts.values()))) if parts else None
-    common = {k: v for k, v in parts.items() if k not in ("alpha_measurement_arcsec", "servo_twist_arcsec")}
-    total_r = float(math.sqrt(sum(v * v for v in {**common, **per_reading}.values()))) if per_reading else None
-    return {"floor_arcsec": total, "floor_per_reading_arcsec": total_r, "parts": {**parts, **per_reading},
-            "unattributable_arcsec": unattributable, "tangential_arcsec": tangential, "x_probes": x_probes}
+    return x_probes, tangential
 
 
 def _integral_rms_arcsec(theta_deg: np.ndarray, dx_um: np.ndarray, dy_um: np.ndarray, r_mm: float) -> float:
