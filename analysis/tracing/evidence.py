@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 
 from benchtwin.units import ARCSEC_PER_RAD
 from ..radial_motion import RadialMotion
-from .thresholds import KMAX, SPHERE_FORM_UM, THETA_BIN_DEG
+from .thresholds import KMAX, KMAX_NYQUIST, SPHERE_FORM_UM, THETA_BIN_DEG
 
 
 # ----------------------------------------------------------------------------------------------
@@ -162,13 +162,13 @@ class Evidence:
         # stop positions to THETA_BIN_DEG (stop jitter of a few arcsec is not a new position)
         self.theta_bin = np.round((self.theta_deg % 360.0) / THETA_BIN_DEG).astype(int) % int(round(360 / THETA_BIN_DEG))
         n_theta = np.unique(self.theta_bin).size
-        # harmonics 1…kmax: below 20, every order under the Nyquist of the positions (as always);
+        # harmonics 1…kmax: below KMAX_NYQUIST (20), every order under the Nyquist of the positions (as always);
         # above, up to KMAX where the positions leave redundancy for each order: (P − 1)/3, the rule
         # of the probes' grid (RadialMotion's δX orders). A joint fit of (P − 1)/2 harmonics on P
         # positions is nearly a value per position, and each order's test loses its power to the
         # others (loop validation 662, interpolation_error: shifts 0/5/10°, 69 positions, kmax 34
         # missed the aliased order 8 that kmax 20 had flagged)
-        self.kmax = int(min(KMAX, max(1, min(20, (n_theta - 1) // 2), (n_theta - 1) // 3)))
+        self.kmax = int(min(KMAX, max(1, min(KMAX_NYQUIST, (n_theta - 1) // 2), (n_theta - 1) // 3)))
         # every order the sampling resolves (graduation_error's broadband variant, issue 32 item 5),
         # and whether every stop position was read at least twice (the design leaves degrees of
         # freedom for a value per position: repetitions, both directions, several start faces)

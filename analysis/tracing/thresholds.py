@@ -54,6 +54,10 @@ DEGENERATE_RATIO = 0.1
 #: 2.2…10.6, and the loop ended "unexplained" with no effect hidden. Above 40 the truth holds
 #: 0.01…0.03″ RMS.
 KMAX = ASYNC_NOISE_ORDER
+#: Below this order the harmonic test takes every order under the Nyquist of the stop positions
+#: ((P − 1)/2), as it did before KMAX reached 40; above it only where the positions leave redundancy
+#: for each order ((P − 1)/3: tracing/evidence.py ``Evidence.kmax``).
+KMAX_NYQUIST = 20
 THETA_BIN_DEG = 0.05  # readings closer than this in θ count as one stop position (harmonic Nyquist, cells)
 #: Ties. Two information criteria (BIC, AICc, held-out χ²) closer than TIE_REL × the scale of the
 #: problem's χ² (max(χ² of no effect, number of rows)) are equal: the comparison is decided by the
