@@ -24,16 +24,23 @@ from .thresholds import DBIC_GATE, P_SIG, SIZE_GATE, Z_GATE
 # 2. signature
 # ----------------------------------------------------------------------------------------------
 
-def _free_of_theta(pb: _Problem, col: np.ndarray) -> np.ndarray:
-    """The closure-centred column with every function of the stop position θ removed (weighted)."""
+def _free_of_theta(pb: _Problem, col: np.ndarray, D: np.ndarray | None = None) -> np.ndarray:
+    """The closure-centred column with every function of the stop position θ removed (weighted).
+    ``D``: :func:`_theta_dummies` of ``pb``, when the caller removes θ from several columns."""
     ev = pb.ev
     w2 = pb.w[: ev.n] ** 2
     x = _center(col, column(ev.closure_group), w2)
-    D = _center(_dummies(ev.theta_bin), column(ev.closure_group), w2)
+    D = _theta_dummies(pb) if D is None else D
     sw = np.sqrt(w2)
     beta, *_ = np.linalg.lstsq(D * sw[:, None], x * sw, rcond=None)
     out = x - D @ beta
     return np.where(np.abs(out) > 1e-9 * (np.max(np.abs(x)) + 1e-300), out, 0.0)
+
+
+def _theta_dummies(pb: _Problem) -> np.ndarray:
+    """One closure-centred indicator column per stop position (every function of θ), weighted."""
+    ev = pb.ev
+    return _center(_dummies(ev.theta_bin), column(ev.closure_group), pb.w[: ev.n] ** 2)
 
 
 def _dummies(keys: np.ndarray) -> np.ndarray:
@@ -105,7 +112,8 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     amp0 = [float(math.hypot(bh[2 * i], bh[2 * i + 1])) for i in range(len(ks))]
     # the size of the pattern's change: RMS over the readings of the fitted harmonics × (t − t̄)/T
     # part beyond every function of θ (what the revisits see)
-    x1 = np.column_stack([_free_of_theta(pb, X1[:, j]) for j in range(X1.shape[1])])
+    D = _theta_dummies(pb)   # built and centred once for every column (each was building its own)
+    x1 = np.column_stack([_free_of_theta(pb, X1[:, j], D) for j in range(X1.shape[1])])
     rms = float(np.sqrt(np.mean((x1 @ np.asarray(beta[n0:n0 + 2 * len(ks)])) ** 2)))
     return {"available": True, "test": "harmonics × (t − t̄)/T, nested over every function of θ", "harmonics": ks,
             "amplitude_arcsec": amp0, "change_over_session_arcsec": slope, "rms_arcsec": rms,
