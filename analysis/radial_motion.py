@@ -392,6 +392,13 @@ class RadialMotion:
     def coefs(self, name: str) -> dict[int, tuple[float, float]]:
         return self._coefs[name]
 
+    @property
+    def highest_order(self) -> int:
+        """The highest harmonic order of any series the channels and their perturbations are made
+        of (eq. 7's 2…10, δX's up to X_ORDERS_MAX, the order 1 of the backward whirl): every
+        function of θ built from this motion (value, integral, quadrature) is band-limited to it."""
+        return max([1] + [max(c) for c in self._coefs.values() if c])
+
     def at(self, theta_deg, name: str, orders=None) -> np.ndarray:
         c = self._coefs[name]
         return evaluate_harmonics(theta_deg, c if orders is None else {k: c[k] for k in orders if k in c})

@@ -63,7 +63,7 @@ from .problem import _center, noise_floor, _Problem, _rms, _z_from_chi2
 from .significance import harmonic_test, _nested, _one_column, residual_test
 from .signature import (_dummies, _free_of_theta, _selfcal_signature, _short_signature, signature, _significant_parts,
                         _time_pattern)
-from .selection import (_better, _Cand, _cos2, _cos_signed, _evaluate, _harmonic_coefs, _member_predictions, _ordered,
+from .selection import (_better, _Cand, _cos2, _cos_signed, _adjustment_coefs, _evaluate, _member_predictions, _ordered,
                         _params_u, _prefer, _prepare, _prior_rank, _reference_corrections, _regressor_adjustments,
                         _sep_text, trace)
 from .traced_model import (add_to_error_model, _jsonable, load_model, model_terms_from_payload, _payload, _read,

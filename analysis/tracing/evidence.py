@@ -233,6 +233,21 @@ class _View:
         raise AttributeError(name)
 
 
+@dataclass
+class _AtAngles:
+    """The polygon's evidence at other angles θ (θ-functions only): a measured regressor's
+    perturbation columns (``regressor_perturbations``) evaluated where the polygon did not stop, as
+    the polygon's own rows see them (no ``parent``: not the self-calibration grid)."""
+
+    theta_deg: np.ndarray
+    source: Evidence
+
+    def __getattr__(self, name):
+        if name in ("optical_radius_mm", "L1_mm", "L2_mm", "radial", "sphere_form_um", "ccd_azimuth_deg"):
+            return getattr(self.source, name)
+        raise AttributeError(name)
+
+
 def column(values: np.ndarray | float | None) -> np.ndarray:
     """A per-reading column of an :class:`Evidence` (``closure_group``, ``rep``, ``face``,
     ``u_arcsec``, ...): an array once ``Evidence.__post_init__`` has run. The dataclass types its

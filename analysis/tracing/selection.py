@@ -33,7 +33,7 @@ from ..distributions import chi2_isf, chi2_sf, f_sf
 from ..effects import ALL
 from ..fourier import fit_harmonics
 from ._blas import _one_blas_thread
-from .evidence import Evidence, _replace_alpha, column
+from .evidence import Evidence, _AtAngles, _replace_alpha, column
 from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
 from .signature import _short_signature, _significant_parts, signature
 from .significance import harmonic_test, residual_test
@@ -313,6 +313,8 @@ class _After:
     adjust_arcsec: dict[str, np.ndarray]
     residual_arcsec: np.ndarray
     test: dict[str, Any]
+    #: the adjustments as functions of θ: {member: {order: [a, b]}} (:func:`_adjustment_coefs`)
+    adjust_coefs: dict[str, dict[str, list[float]]] = field(default_factory=dict)
 
 
 @_one_blas_thread
@@ -794,7 +796,8 @@ def _apply(ev: Evidence, res: _Residual, g: _Gates, chosen: _Cand) -> _After:
     test = {"rms_arcsec": _rms(r1), "pv_arcsec": float(np.ptp(r1)),
             "fraction_of_error": _rms(r1) / max(total_err, 1e-300), "chi2": chi2_a, "dof": dof_a,
             "p_value": float(chi2_sf(chi2_a, dof_a))}
-    return _After(pred_arcsec=pred, adjust_arcsec=adjust, residual_arcsec=r1, test=test)
+    return _After(pred_arcsec=pred, adjust_arcsec=adjust, residual_arcsec=r1, test=test,
+                  adjust_coefs=_adjustment_coefs(pb, chosen, g.mods, g.ctx))
 
 
 def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]) -> list[dict[str, Any]]:
@@ -804,8 +807,7 @@ def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]
     P, U = _params_u(chosen, scale)
     effects = []
     for member in chosen.names:
-        adjust = after.adjust_arcsec
-        adj_c = _harmonic_coefs(ev.theta_deg, adjust[member], ev.kmax) if member in adjust else None
+        adj_c = after.adjust_coefs.get(member)
         effects.append({"name": member, "params": P[member], "u": U[member],
                         **({"regressor_adjustment_coefs": adj_c} if adj_c else {}),
                         "evidence": {"delta_bic": cj["delta_bic"], "delta_aicc": cj["delta_aicc"], "cv_gain": cj["cv_gain"],
@@ -962,13 +964,15 @@ def _reference_corrections(pb: _Problem, c: _Cand, mods: dict, scale: float) -> 
     return out
 
 
-def _regressor_adjustments(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> dict[str, np.ndarray]:
+def _regressor_adjustments(pb: _Problem, c: _Cand, mods: dict, ctx: dict, at: Any = None) -> dict[str, np.ndarray]:
     """{member: change of its contribution at the polygon readings (arcsec)} from the joint fit's
     adjustment of its measured regressor (errors in variables): the regressor-perturbation columns
-    (uncentred) times their fitted nuisance values."""
+    (uncentred) times their fitted nuisance values. ``at``: the evidence at other angles
+    (:class:`~.evidence._AtAngles`) to evaluate the same adjustment there."""
     out: dict[str, np.ndarray] = {}
     if not c.extras:
         return out
+    ev = pb.ev if at is None else at
     q = pb.S.shape[1]
     nuis = c.fit["nuis"][q:]
     P, _ = _params_u(c, 1.0)
@@ -978,17 +982,30 @@ def _regressor_adjustments(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> dic
             continue
         m = c.extras[member].shape[1]
         if m:
-            R = np.asarray(mods[member].regressor_perturbations(pb.ev, P[member], ctx), dtype=float)
+            R = np.asarray(mods[member].regressor_perturbations(ev, P[member], ctx), dtype=float)
             if R.shape[1] == m:
                 out[member] = R @ nuis[i:i + m]
         i += m
     return out
 
 
-def _harmonic_coefs(theta_deg, values, kmax: int) -> dict[str, list[float]] | None:
-    """Fourier coefficients {k: [a_k, b_k]} (orders 1…min(10, kmax)) of a harmonic function sampled at θ."""
-    ks = list(range(1, min(10, int(kmax)) + 1))
-    if not ks:
-        return None
-    c = fit_harmonics(np.asarray(theta_deg, dtype=float), np.asarray(values, dtype=float), ks)
-    return {str(k): [float(a), float(b)] for k, (a, b) in c.items()}
+def _adjustment_coefs(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> dict[str, dict[str, list[float]]]:
+    """{member: {k: [a_k, b_k]}}: each member's regressor adjustment (:func:`_regressor_adjustments`)
+    as the function of θ it is, for the model file and the report. The perturbation columns are
+    harmonics of the radial motion's series, band-limited to its highest order K (δX to
+    X_ORDERS_MAX, beyond the polygon's Nyquist): the adjustment is evaluated on 4K + 4 equally
+    spaced angles, where orders 1…K are exactly determined (no aliasing below half the samples), and
+    its Fourier coefficients are fitted there. Fitting them on the polygon's own stops instead (as
+    before 2026-12-06: orders 1…min(10, kmax)) folded every order above the stops' Nyquist onto lower
+    ones and dropped orders 11…K, so the model file's term differed from the fitted one between the
+    stops, and on X-probe benches at the stops too."""
+    if not c.extras or pb.ev.radial is None:
+        return {}
+    K = int(pb.ev.radial.highest_order)
+    grid = np.arange(4 * K + 4) * (360.0 / (4 * K + 4))
+    adjust = _regressor_adjustments(pb, c, mods, ctx, at=_AtAngles(theta_deg=grid, source=pb.ev))
+    out = {}
+    for member, values in adjust.items():
+        coefs = fit_harmonics(grid, np.asarray(values, dtype=float), range(1, K + 1))
+        out[member] = {str(k): [float(a), float(b)] for k, (a, b) in coefs.items()}
+    return out

@@ -466,3 +466,23 @@ def test_backward_whirl_of_order_1_is_taken_by_the_tangential_motion():
     assert abs(g - 1.0) < 0.1, g
     ra = res["residual_after"]
     assert ra["chi2"] < 1.3 * ra["dof"], (ra["chi2"], ra["dof"])
+
+
+def test_reported_effect_with_its_regressor_adjustment_reproduces_the_residual_after():
+    """The identified effect as reported (its parameters and ``regressor_adjustment_coefs``, what
+    the model file and the report's figure use) gives back the residual after that the fit left,
+    at the polygon's stops: the adjustment is stored as the function of θ it is (every order of the
+    X probes' δX series), not as a 10-order fit of its samples at the stops."""
+    from benchtwin.analysis.report.figures_loop import _centred_residual, effect_contribution
+
+    ev, _ = make_evidence(np.random.default_rng(5), start_faces=range(1, 24, 2), x_probes=True,
+                          inject={"tangential_motion": {"gain": 1.0}}, backward_whirl_um=0.08 - 0.05j)
+    K = ev.radial.highest_order
+    assert K > 10, K  # δX beyond eq. 7's orders: what a 10-order fit dropped
+    res = trace(ev)
+    (eff,) = res["identified_effects"]
+    coefs = eff["regressor_adjustment_coefs"]
+    assert sorted(int(k) for k in coefs) == list(range(1, K + 1))
+    left = _centred_residual(ev) - effect_contribution(ev, res)
+    rms = float(np.sqrt(np.mean(left ** 2)))
+    assert rms == pytest.approx(res["residual_after"]["rms_arcsec"], rel=1e-9, abs=1e-12)
