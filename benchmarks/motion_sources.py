@@ -275,6 +275,20 @@ SHARED_REFS: dict[tuple[str, str], str] = {
         "span (≥ 0.01 bar), SMC IR1000-A/2000-A/3000-A as a distributor lists it (truncated): not a citable bound; "
         "pass 4: 2.4× the sensitivity of another, 1 inch of water = 2.5 mbar (Marsh Bellofram Type 40): the same "
         "order, not a bound",
+    # pass 5 (2026-12-06): figures found that neither fix nor bound the size; the statuses stay "no source"
+    ("bearings.cage_slip", "0.02"):
+        "ASSUMPTION, no source for the size (pass 5): the one figure found is a condition-monitoring note, "
+        "\"Real bearings experience 1–3% slip under light load\" (Fault Ledger, iotbearings.com, \"Bearing defect "
+        "frequency calculator\"), a mean lag of running bearings with no measurement cited: the same order as "
+        "σ = 0.02 per stop, from running machines: not a bound",
+    ("bench.shaft_mass", "5 kg"):
+        "ASSUMPTION, no source for the size (pass 5): a design parameter, the whole rotating assembly (twin/build.py); "
+        "Hsieh 2022 gives no mass; the rated axial loads of three Aerotech rotary stages, 8 kg (ABRS-150MP, an "
+        "air-bearing stage), 18 kg (ABS2000 spindle), 66 kg (ABS250MP) (APS 2-BM docs, \"Sample motor stack\"), "
+        "bound a payload, not a rotor: consistent, not a bound",
+    ("bearings.air_journal_diameter", "50 mm"):
+        "ASSUMPTION, no source for the size (pass 5): a design parameter; Hsieh 2022 gives no bearing data, and no "
+        "air-bearing table's data read (PI, Aerotech as listed by APS 2-BM) states a journal diameter",
     ("thermal.motor_rise", "7 K"):
         "within [0, 80] K, a loose bound: a hybrid stepper's winding rise at rated current, both phases on "
         "(holding), is ≤ 80 K (Songyang SY28STH45-0674A data sheet, as Pololu ships it); the value itself "
