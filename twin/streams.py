@@ -6,7 +6,7 @@ never changes the others for a given scenario seed, and a draw keyed by (instrum
 draw count) is the same in an interrupted and resumed run as in an uninterrupted one.
 
 The ids are grouped by who draws: the bench's physics 1…17 (``twin/physics.py``), the instruments
-101…110 (``twin/instruments``: noise, calibration errors, the servo; ``INSTRUMENT_STREAMS`` is what
+101…111 (``twin/instruments``: noise, calibration errors, the servo; ``INSTRUMENT_STREAMS`` is what
 ``truth/seeds.json`` lists), the hidden quantities of the hidden suite 201…204 (``twin/hidden.py``).
 An id never changes meaning: a new quantity takes a new id.
 """
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["STREAMS", "INSTRUMENT_STREAMS", "HIDDEN_STREAMS", "stream_rng", "stream_key", "rng_from_key"]
+__all__ = ["STREAMS", "INSTRUMENT_STREAMS", "HIDDEN_STREAMS", "stream_rng", "stream_key", "rng_from_key", "restream"]
 
 STREAMS: dict[str, int] = {
     # the bench's physics (twin/physics.py)
@@ -48,6 +48,9 @@ STREAMS: dict[str, int] = {
     "polygon_setup": 108,
     "ccd": 109,
     "servo": 110,
+    # the phase of the servo's free-running sample clock at a move's stop (twin/instruments/drive.py):
+    # keyed as the move's "servo" draw (``restream``), so the amplifier noise keeps its draws
+    "servo_clock": 111,
     # the hidden suite's quantities (twin/hidden.py)
     "polygon_pitch_pattern": 201,
     "graduation_walk": 202,
@@ -65,6 +68,13 @@ def stream_key(seed: int, stream: str, *keys: int) -> tuple[int, ...]:
     """The entropy of ``stream_rng(seed, stream, keys…)``: a plain tuple, for a draw made elsewhere
     (twin/instruments/settle_ahead.py: the servo's noise of a settle computed in a worker)."""
     return (int(seed), STREAMS[stream], *map(int, keys))
+
+
+def restream(key: tuple[int, ...], stream: str) -> tuple[int, ...]:
+    """``key`` (a ``stream_key``) on ``stream`` instead: the same seed and keys, so a second quantity
+    of one draw (the servo's clock phase of the stop whose amplifier noise ``key`` draws) gets its
+    own independent stream and leaves the first one's draws as they were."""
+    return (int(key[0]), STREAMS[stream], *map(int, key[2:]))
 
 
 def rng_from_key(key: tuple[int, ...]) -> np.random.Generator:

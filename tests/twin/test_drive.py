@@ -20,13 +20,13 @@ CELL_SIGMA = RES / math.sqrt(12.0)          # rectangular distribution over one 
 
 
 def stops(servo: DriveServo, n: int, seed: int, distance_deg: float = 1.0, direction: int = +1):
-    """n moves of ``distance_deg`` in ``direction``, at bench times that do not repeat modulo the
-    servo's sample period, each with its own amplifier-noise draw."""
+    """n moves of ``distance_deg`` in ``direction``, each at its own sample-clock phase (uniform on
+    [0, Ts), as ``settle_keyed`` draws it) and with its own amplifier-noise draw."""
     rng = np.random.default_rng(seed)
-    t, out = 0.0, []
+    out = []
     for _ in range(n):
-        t += 1.0 + rng.uniform(0.0, 0.37)
-        out.append(servo.settle(direction * math.radians(distance_deg), math.radians(20.0), math.radians(40.0), t,
+        phase = rng.uniform(0.0, servo.Ts)
+        out.append(servo.settle(direction * math.radians(distance_deg), math.radians(20.0), math.radians(40.0), phase,
                                 rng))
     return out
 
@@ -81,6 +81,38 @@ def test_servo_is_reproducible_and_the_noise_stream_matters():
     b = [r.offset_rad for r in stops(DriveServo(p), 5, seed=4)]
     c = [r.offset_rad for r in stops(DriveServo(p), 5, seed=5)]
     assert a == b and a != c
+
+
+def test_the_sample_clock_phase_is_the_moves_own_draw():
+    """Issue #33 (an honest servo): the free-running sample clock's phase at a stop is drawn per
+    move, uniform on [0, Ts), from the move's ``servo_clock`` stream: the same key gives the same
+    phase and rest (settle_ahead.py's workers), the bench time no longer enters, the amplifier
+    noise keeps its own draws, and a phase outside [0, Ts) is refused."""
+    from scipy import stats
+
+    from benchtwin.twin.streams import restream, rng_from_key, stream_key
+
+    p = DriveParams(shaft_inertia=5.57e-5, friction_torque=0.02, torque_noise=2e-5, resolution_rad=RES)
+    servo = DriveServo(p)
+    keys = [stream_key(7, "servo", 0, i + 1, 0) for i in range(400)]
+    ph = np.array([servo.clock_phase_s(k) for k in keys])
+    assert np.all((ph >= 0.0) & (ph < servo.Ts))
+    assert stats.kstest(ph / servo.Ts, "uniform").pvalue > 1e-3
+    assert servo.clock_phase_s(keys[0]) == ph[0]
+    # the clock's stream is not the noise's: the noise is drawn from the move's key as before
+    assert restream(keys[0], "servo_clock") == (7, 111, 0, 1, 0) != keys[0]
+    d, v, a = math.radians(1.0), math.radians(20.0), math.radians(40.0)
+    assert servo.settle_keyed((d, v, a, 1.0, keys[1])) == servo.settle(d, v, a, ph[1], rng=rng_from_key(keys[1]))
+    # one move at two bench times a whole number of samples apart, and 0.35 sample apart: the same rest
+    # (before: the first pair repeated, the second did not), the key alone decides
+    r0 = servo.settle_keyed((d, v, a, 10.0, keys[3]))
+    assert servo.settle_keyed((d, v, a, 10.5, keys[3])) == r0
+    assert servo.settle_keyed((d, v, a, 10.50007, keys[3])) == r0
+    assert servo.settle_keyed((d, v, a, 10.0, keys[4])) != r0
+    with pytest.raises(ValueError):
+        servo.settle(d, v, a, servo.Ts)
+    with pytest.raises(ValueError):
+        servo.settle(d, v, a, -1e-9)
 
 
 def test_shaft_inertia_is_the_bench_models():

@@ -26,9 +26,34 @@ feed-forward, a first-order filtered count-difference velocity for the D term, a
 clamped to the torque limit (anti-windup). Gains from the bandwidth ω_c and the total inertia J
 (pole placement for a rigid inertia: K_p = J·ω_c², K_d = 2ζJ·ω_c with ζ = 0.7, K_i = K_p·ω_c/2 (a fast integrator: it, not K_p, carries the friction);
 e.g. Franklin, Powell, Workman, *Digital Control of Dynamic Systems*, 3rd ed., ch. 8).
-Amplifier current noise (``torque_noise``, white at the sample rate, seeded per stop) is the one
-random input: it and the free-running sample clock (its phase at the move's end is the bench time
-modulo the sample period) set where in the cell the shaft sticks.
+Amplifier current noise (``torque_noise``, white at the sample rate, seeded per stop) and the phase of
+the free-running sample clock at the move's end are the random inputs: they set where in the cell
+the shaft sticks.
+
+The sample clock's phase (issue #33, "an honest servo"): drawn per move, uniform on [0, Ts), from
+the move's own stream (``servo_clock``, keyed as the move's amplifier-noise draw:
+twin/streams.py ``restream``), not derived from the bench time. Why: the drive's sample clock runs
+free on the controller, and the host's move command reaches it through a link whose delay varies by
+far more than one sample (Ts = 200 µs at 5 kHz), so at the scale of one sample the phase at which a
+profile starts (and ends) is unrelated to the host's clock. Sources read for the link's time scales:
+USB full and low speed schedule every transaction in 1 ms frames ("The host schedules transactions
+within 1mS frames for low and full speed", Freescale TWR-MCF52259 user manual p. 110, "Frames in
+More Detail", https://freescale-semiconductor.manymanuals.es/hardware/TWR-MCF52259-Ethenet/user-manual-35038/110;
+a full-speed host's frame counter is 12000 at 12 MHz "to ensure a SOF generation every
+1 ms", Microchip online docs, "37.12.5 Host Frame Length",
+https://onlinedocs.microchip.com/oxy/GUID-23E87D1E-D394-4999-8B0C-DC4246E39160-en-US-3/GUID-C530CF47-FFDE-488D-B3B1-C47B04AAEFC7.html);
+an FTDI USB-serial bridge holds a short reply (the controller's "move done" the host waits for
+before its next command) until its latency timer expires, "The default value of the timer is set
+to 16 milliseconds" (FTDI AN232B-04 "Data Throughput, Latency and Handshaking", "Small Amounts of
+Data and End of Buffer Conditions", https://www.ftdichip.com/Support/Knowledgebase/an232b_04smalldataend.htm;
+settable 1…255 ms, 1 ms "the same as the USB frame length",
+https://www.ftdichip.com/Support/Knowledgebase/settingacustomdefaultlaten.htm). A character at
+8N1 takes 10 bits, 1.04 ms at 9600 baud (87 µs at 115200), so a command's transfer alone varies with
+its length by several samples. With every delay many samples long and varying by up to a USB frame (5 samples) or more, the phase
+modulo 200 µs is uniform for all practical purposes and independent between moves. (Before: the
+phase was the bench time modulo Ts; the twin's bench time is exact, so whenever a repetition's
+period was a whole number of samples every stop repeated its phase, and the friction-held twist
+repeated between repetitions: docs/loop-validation.md, "Eq. 3's lack of fit against pure error".)
 
 What is simulated per move: only the tail of the trapezoidal profile (the last
 ``DRIVE_TAIL_S`` of the deceleration, starting on the reference with the steady tracking state:
@@ -61,6 +86,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from benchtwin.twin.streams import restream
 from benchtwin.units import ARCSEC
 
 from .stage import sim_rng_from_key
@@ -154,7 +180,9 @@ def _section(sc: Any, name: str) -> dict:
 
 
 #: every input of one settle: (distance rad, speed rad/s, acceleration rad/s², bench time the profile
-#: stops s, entropy of its amplifier-noise stream): the rest is a pure function of it
+#: stops s, entropy of its amplifier-noise stream): the rest is a pure function of it. The bench time
+#: identifies the move (settle_ahead.py matches keys bit for bit) but no longer enters the physics:
+#: the sample clock's phase is drawn from the entropy's ``servo_clock`` twin (``clock_phase_s``).
 SettleKey = tuple[float, float, float, float, tuple[int, ...]]
 
 
@@ -249,17 +277,25 @@ class DriveServo:
             return 0.0
         return p.friction_torque + (self.f_static - p.friction_torque) * math.exp(-(w / p.stribeck_speed) ** 2)
 
+    def clock_phase_s(self, rng_key: tuple[int, ...]) -> float:
+        """The sample clock's phase at the tail's start of the move whose amplifier-noise entropy is
+        ``rng_key``: uniform on [0, Ts), one draw of its ``servo_clock`` stream (module docstring)."""
+        return float(sim_rng_from_key(restream(rng_key, "servo_clock")).uniform(0.0, self.Ts))
+
     def settle_keyed(self, key: SettleKey) -> Rest:
         """``settle`` of a move given by its key (``SimRotaryStage.settle_key``): the noise stream
-        made from its entropy here, so a worker computes the same rest (settle_ahead.py)."""
-        distance, speed, accel, t_end, rng_key = key
-        return self.settle(distance, speed, accel, t_end, rng=sim_rng_from_key(rng_key))
+        and the clock's phase made from its entropy here, so a worker computes the same rest
+        (settle_ahead.py)."""
+        distance, speed, accel, _t_end, rng_key = key
+        return self.settle(distance, speed, accel, self.clock_phase_s(rng_key), rng=sim_rng_from_key(rng_key))
 
-    def settle(self, distance_rad: float, speed_rad_s: float, accel_rad_s2: float, t_end_s: float,
+    def settle(self, distance_rad: float, speed_rad_s: float, accel_rad_s2: float, clock_phase_s: float,
                rng: np.random.Generator | None = None, friction_scale: float = 1.0) -> Rest:
         """Simulate the end of a move of ``distance_rad`` (signed, in reading units) whose profile
-        stops at bench time ``t_end_s`` on the centre of the commanded count's cell, and the
-        settling after it. ``rng``: the stop's amplifier-noise stream (None: no noise)."""
+        stops on the centre of the commanded count's cell, and the settling after it.
+        ``clock_phase_s``: time from the simulated tail's start to the servo's first sample, in
+        [0, Ts) (taken to the physics step below it). ``rng``: the stop's amplifier-noise stream
+        (None: no noise)."""
         p, m, d = self.p, self.model, self.data
         res = p.resolution_rad
         sgn = 1.0 if distance_rad >= 0 else -1.0
@@ -286,10 +322,12 @@ class DriveServo:
         d.qpos[self._qc] = x0 - (Tf0 / self.k_ps if self.k_ps else 0.0)
         d.qvel[self._js] = d.qvel[self._jr] = d.qvel[self._jc] = v0
         integ = Tf0
-        # First sample: the free-running sample clock's phase at the tail's start.
-        t_start = float(t_end_s) - tau
-        phase = (math.ceil(t_start / self.Ts) * self.Ts - t_start) if self.Ts > 0 else 0.0
-        n_pre = int(round(phase / m.opt.timestep))
+        # First sample: the free-running sample clock's phase at the tail's start (drawn per move,
+        # module docstring), to the physics step: 0 … substeps − 1 steps before it.
+        phase = float(clock_phase_s)
+        if not 0.0 <= phase < self.Ts:
+            raise ValueError(f"clock phase {phase!r} s outside [0, {self.Ts!r})")
+        n_pre = min(self.substeps - 1, int(phase / m.opt.timestep))
         if n_pre:
             m.dof_frictionloss[self._jc] = self._friction(v0)
             mujoco.mj_step(m, d, nstep=n_pre)

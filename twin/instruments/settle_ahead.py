@@ -1,9 +1,10 @@
 """The drive servo's settles computed ahead, on the other core (issue #17).
 
 Why it is exact, not an approximation: a settle (``DriveServo.settle_keyed``, drive.py) is a pure
-function of its move: the signed distance, the profile's speed and acceleration, the bench time
-its profile stops, and its amplifier-noise stream, keyed by step (``SimBenchState.rng_key``). It
-starts from a freshly reset ``MjData``. And the bench clock never depends on how the servo settled
+function of its move: the signed distance, the profile's speed and acceleration, and its
+amplifier-noise stream, keyed by step (``SimBenchState.rng_key``), from whose key the sample
+clock's phase is drawn too (stream ``servo_clock``, drive.py); the bench time its profile stops is
+in the key to match the move, no longer an input. It starts from a freshly reset ``MjData``. And the bench clock never depends on how the servo settled
 (``SimRotaryStage.move_duration_s``: a move takes its profile plus the controller's fixed
 in-position wait); only the procedure's moves and waits advance it (``hw.acquisition.runner``). So
 every settle of a procedure is known from its list of steps before it runs (``settle_plan``).
