@@ -289,6 +289,15 @@ class DriveServo:
         distance, speed, accel, _t_end, rng_key = key
         return self.settle(distance, speed, accel, self.clock_phase_s(rng_key), rng=sim_rng_from_key(rng_key))
 
+    def _steps_before_first_sample(self, clock_phase_s: float) -> int:
+        """Physics steps from the simulated tail's start to the servo's first sample: the
+        free-running sample clock's phase there (drawn per move, module docstring), taken to the
+        physics step below it, 0 … substeps − 1."""
+        phase = float(clock_phase_s)
+        if not 0.0 <= phase < self.Ts:
+            raise ValueError(f"clock phase {phase!r} s outside [0, {self.Ts!r})")
+        return min(self.substeps - 1, int(phase / self.model.opt.timestep))
+
     def settle(self, distance_rad: float, speed_rad_s: float, accel_rad_s2: float, clock_phase_s: float,
                rng: np.random.Generator | None = None, friction_scale: float = 1.0) -> Rest:
         """Simulate the end of a move of ``distance_rad`` (signed, in reading units) whose profile
@@ -322,12 +331,7 @@ class DriveServo:
         d.qpos[self._qc] = x0 - (Tf0 / self.k_ps if self.k_ps else 0.0)
         d.qvel[self._js] = d.qvel[self._jr] = d.qvel[self._jc] = v0
         integ = Tf0
-        # First sample: the free-running sample clock's phase at the tail's start (drawn per move,
-        # module docstring), to the physics step: 0 … substeps − 1 steps before it.
-        phase = float(clock_phase_s)
-        if not 0.0 <= phase < self.Ts:
-            raise ValueError(f"clock phase {phase!r} s outside [0, {self.Ts!r})")
-        n_pre = min(self.substeps - 1, int(phase / m.opt.timestep))
+        n_pre = self._steps_before_first_sample(clock_phase_s)
         if n_pre:
             m.dof_frictionloss[self._jc] = self._friction(v0)
             mujoco.mj_step(m, d, nstep=n_pre)
