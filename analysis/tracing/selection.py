@@ -70,6 +70,21 @@ class _Cand:
         return "+".join(self.names)
 
 
+def _params(c: _Cand) -> dict[str, dict[str, float]]:
+    """{member: {parameter: value}} of a candidate's fit: :func:`_params_u`'s values without the
+    uncertainties, so that a fit whose covariance is computed only when read (the reference's, a
+    pseudo-inverse of its whole stacked matrix) is not asked for it (the errors-in-variables
+    re-linearisation reads the parameters of every pass and never their uncertainties)."""
+    out_p, i = {}, 0
+    for member, names in zip(c.names, c.pnames):
+        P = {}
+        for n in names:
+            P[n] = float(c.fit["beta"][i])
+            i += 1
+        out_p[member] = P
+    return out_p
+
+
 def _params_u(c: _Cand, scale: float):
     out_p, out_u, i = {}, {}, 0
     for member, names in zip(c.names, c.pnames):
@@ -122,7 +137,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
     c.fit = pb.fit(c.X)
     members = [mods[n] for n in c.names]
     if any(hasattr(m, "regressor_perturbations") for m in members):
-        P, _ = _params_u(c, 1.0)
+        P = _params(c)
         c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
         c.extra = np.hstack(list(c.extras.values()))
         if c.extra.shape[1]:
@@ -132,7 +147,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
             # fit's parameters until they settle (the errors-in-variables fixed point)
             for _ in range(EIV_ITER):
                 P0 = np.asarray(c.fit["beta"], dtype=float)
-                P, _u = _params_u(c, 1.0)
+                P = _params(c)
                 c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
                 c.extra = np.hstack(list(c.extras.values()))
                 c.fit = pb.fit(c.X, extra=c.extra)
@@ -975,7 +990,7 @@ def _regressor_adjustments(pb: _Problem, c: _Cand, mods: dict, ctx: dict, at: An
     ev = pb.ev if at is None else at
     q = pb.S.shape[1]
     nuis = c.fit["nuis"][q:]
-    P, _ = _params_u(c, 1.0)
+    P = _params(c)
     i = 0
     for member in c.names:
         if member not in c.extras:
