@@ -29,8 +29,11 @@ The reference truncates small singular values (``lstsq``: below ε·max(m, n)·�
 least-squares answer only when no σ is that small; :func:`block_fit` therefore bounds the condition
 number of the reference's own column-scaled matrix (block upper-triangular R factor: ‖R⁻¹‖ ≤ a + d
 + a·c·d, a = ‖R_N⁻¹‖ of the nuisance block, d = ‖R_X⁻¹‖ of the projected X block, c ≥ ‖Q_Nᵀ·X‖;
-σ₁ ≤ √columns) and returns None when the bound exceeds ``KAPPA_MAX``: the caller then uses the
-reference. Within the bound both answer the same problem to ~κ·ε (measured on the default dataset:
+σ₁ ≤ √columns) and, where that product of norms exceeds ``KAPPA_MAX``, a sharper bound from the
+same factorisations (:func:`_kappa_blocks`: the norms of R⁻¹'s and A_s's block columns, not products
+of their blocks' norms; a nuisance block with one column per stop and rep is nearly singular along
+directions no candidate follows, and the product bound was 10²–10⁵ × the true condition number
+there); it returns None when both exceed ``KAPPA_MAX``: the caller then uses the reference. Within the bound both answer the same problem to ~κ·ε (measured on the default dataset:
 χ² within 1e-15, β and cov(β) within ~1e-11 relative; tests/analysis/test_tracing_blockfit.py).
 """
 
@@ -106,14 +109,18 @@ class NuisanceFactor:
         b = np.concatenate([y[rows] * self.w, np.zeros(q)])
         if q:
             A = np.vstack([self.Sw, np.eye(q)])
-            self.Q, R = np.linalg.qr(A / np.linalg.norm(A, axis=0))
-            sv = np.linalg.svd(R, compute_uv=False)
+            self.Q, self.R = np.linalg.qr(A / np.linalg.norm(A, axis=0))
+            sv = np.linalg.svd(self.R, compute_uv=False)
             self.a = 1.0 / sv[-1] if sv[-1] > 0 else math.inf
+            self.s1 = float(sv[0])      # ‖S_s‖₂ = ‖R_S‖₂ (the scaled nuisance block with its prior rows)
         else:
-            self.Q, self.a = np.zeros((self.m, 0)), 0.0
+            self.Q, self.R, self.a, self.s1 = np.zeros((self.m, 0)), np.zeros((0, 0)), 0.0, 0.0
         self.bt = _project(self.Q, b[:, None])[0][:, 0]
         self._U: tuple[int, np.ndarray, np.ndarray, float] | None = None
+        self._GU: tuple[int, np.ndarray] | None = None
+        self._Rinv: np.ndarray | None = None
         self._cols: dict[bytes, tuple[float, np.ndarray, np.ndarray]] = {}
+        self._g: dict[bytes, np.ndarray] = {}
 
     def columns(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """X's columns weighted on these rows, their norms s_x, the scaled columns X_s and their
@@ -145,6 +152,32 @@ class NuisanceFactor:
             self._U = (basis.version, Uw, Ut, float(np.linalg.norm(C, 2)) if C.size else 0.0)
         return self._U[1], self._U[2], self._U[3]
 
+    def _r_inv(self) -> np.ndarray:
+        """R_S⁻¹ (q × q), formed once per training set, when a bound first needs it."""
+        if self._Rinv is None:
+            self._Rinv = np.linalg.inv(self.R) if self.q else np.zeros((0, 0))
+        return self._Rinv
+
+    def coupling(self, X: np.ndarray) -> np.ndarray:
+        """R_S⁻¹·Q_Sᵀ·[X_s; 0] (q × p): the coefficients of X's scaled columns on the scaled nuisance
+        block (the block R_S⁻¹·C of the reference's R⁻¹), computed once per column."""
+        keys = [X[:, j].tobytes() for j in range(X.shape[1])]
+        new = [k for k in dict.fromkeys(keys) if k not in self._g]
+        if new:
+            Xs = np.column_stack([self._cols[k][1] for k in new])
+            G = self._r_inv() @ (self.Q.T @ self.pad(Xs)) if self.q else np.zeros((0, len(new)))
+            for i, k in enumerate(new):
+                self._g[k] = G[:, i]
+        return np.column_stack([self._g[k] for k in keys]) if keys else np.zeros((self.q, 0))
+
+    def basis_coupling(self, basis: RangeBasis) -> np.ndarray:
+        """R_S⁻¹·Q_Sᵀ·[U_w; 0] (q × basis size), cached per version of the basis."""
+        if self._GU is None or self._GU[0] != basis.version:
+            Uw = basis.U[self.rows] * self.w[:, None]
+            G = self._r_inv() @ (self.Q.T @ self.pad(Uw)) if self.q else np.zeros((0, Uw.shape[1]))
+            self._GU = (basis.version, G)
+        return self._GU[1]
+
 
 def _kappa(ncols: int, p: int, a_S: float, a_E: float, c_E: float, d: float, c_X: float | None = None) -> float:
     """Upper bound on the condition number of the reference's column-scaled matrix [X, S, E] (with
@@ -156,10 +189,61 @@ def _kappa(ncols: int, p: int, a_S: float, a_E: float, c_E: float, d: float, c_X
     return math.sqrt(max(ncols, 1)) * (a_N + d + a_N * c * d)
 
 
+def _kappa_blocks(F: NuisanceFactor, Bd: np.ndarray, prior_B: np.ndarray, RB: np.ndarray, G: np.ndarray) -> float:
+    """A sharper upper bound on the condition number of the reference's column-scaled matrix
+    A_s = [S_s, B_s] (with the prior rows; B = [E, X], the columns after the nuisance block S), for
+    when :func:`_kappa`'s product of norms exceeds KAPPA_MAX. The singular values of A_s do not depend
+    on the order of its columns; with A_s = [Q_S, Q_B]·R, R = [[R_S, C], [0, R_B]], C = Q_Sᵀ·B_s and
+    Q_B·R_B = (I − Q_S·Q_Sᵀ)·B_s (the block solver's own factorisations, see the module's docstring):
+
+    - σ₁(A_s) ≤ √(‖S_s‖₂² + ‖B_s‖₂²): for any partition into column blocks M = [M₁, M₂],
+      ‖M·v‖ ≤ ‖M₁‖·‖v₁‖ + ‖M₂‖·‖v₂‖ ≤ √(‖M₁‖² + ‖M₂‖²)·‖v‖ (triangle and Cauchy–Schwarz inequalities);
+      ‖S_s‖₂ = σ₁(R_S) (``F.s1``), ‖B_s‖₂² the largest eigenvalue of B_sᵀ·B_s (a small matrix);
+    - 1/σ_min(A_s) = ‖R⁻¹‖₂ (A_s = Q·R, Q with orthonormal columns), and the inverse of a block upper
+      triangular matrix is R⁻¹ = [[R_S⁻¹, −G·R_B⁻¹], [0, R_B⁻¹]] with G = R_S⁻¹·C (verified by
+      multiplying out; e.g. "Inverse of partitioned matrices", math.techqa.club/inverse-of-partitioned-
+      matrices-1377634, read 2026-12-06). The same partition into block columns gives
+      ‖R⁻¹‖₂ ≤ √(‖R_S⁻¹‖₂² + ‖[G; I]·R_B⁻¹‖₂²), the second term's square the largest eigenvalue of
+      R_B⁻ᵀ·(I + Gᵀ·G)·R_B⁻¹ (a matrix of B's size).
+
+    :func:`_kappa` bounds the same ‖R⁻¹‖₂ by a + d + a·c·d (‖G·R_B⁻¹‖ ≤ a·c·d): this bound is never
+    larger, and much smaller when X's share in the nuisance span avoids its ill-conditioned
+    directions (the async motion's one column per stop and rep: S_s is nearly singular along sums
+    of columns the closure centring cancels, which no candidate's harmonics follow).
+    ``Bd``: B's scaled data rows; ``prior_B``: the diagonal of B's own prior rows (1/s_e per E
+    column, 0 per X column); ``RB``: R_B; ``G``: R_S⁻¹·Q_Sᵀ·[Bd; 0]. inf when R_B is singular."""
+    if not np.all(np.diag(RB) != 0):
+        return math.inf
+    gram = Bd.T @ Bd + np.diag(prior_B ** 2)
+    b1 = float(np.linalg.eigvalsh(0.5 * (gram + gram.T))[-1])
+    Gi = np.linalg.inv(RB)
+    M = Gi.T @ ((G.T @ G + np.eye(G.shape[1])) @ Gi)
+    r2 = float(np.linalg.eigvalsh(0.5 * (M + M.T))[-1])
+    return math.sqrt(F.s1 ** 2 + max(b1, 0.0)) * math.sqrt(F.a ** 2 + max(r2, 0.0))
+
+
 def _qr_r(a: np.ndarray) -> np.ndarray:
     """R of the QR factorisation of ``a`` (numpy's ``mode="r"``, which returns the array R; numpy's
     stubs type every mode as the (Q, R) result)."""
     return cast(np.ndarray, np.linalg.qr(a, mode="r"))
+
+
+def _sharper(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, Xs: np.ndarray, Xt: np.ndarray, Rx: np.ndarray,
+             K: np.ndarray | None, se: np.ndarray | None, Ut: np.ndarray | None) -> float:
+    """:func:`_kappa_blocks` for a fit of X (scaled data rows Xs, projected Xt, R_X = Rx of the block
+    solver's own factorisation) and, with a regressor block E = U·K (column norms se over data and
+    prior rows), the reference's E columns [U_w·K/se; 0; diag(1/se)] as the first columns of B."""
+    G_X = F.coupling(X)
+    if K is None or se is None or Ut is None:
+        return _kappa_blocks(F, Xs, np.zeros(Xs.shape[1]), Rx, G_X)
+    Ks = K / se
+    mE, p = Ks.shape[1], Xs.shape[1]
+    Uw = F.basis(basis)[0]
+    Bd = np.hstack([Uw @ Ks, Xs])
+    # (I − P_S) of B's columns: the data and S-prior rows projected, E's own prior rows unchanged
+    Z = np.vstack([np.hstack([Ut @ Ks, Xt]), np.hstack([np.diag(1.0 / se), np.zeros((mE, p))])])
+    G = np.hstack([F.basis_coupling(basis) @ Ks, G_X])
+    return _kappa_blocks(F, Bd, np.concatenate([1.0 / se, np.zeros(p)]), _qr_r(Z), G)
 
 
 def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.ndarray | None) -> dict | None:
@@ -174,6 +258,8 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
     else:
         sx, Xs, Xt = np.zeros(0), np.zeros((F.m, 0)), np.zeros((F.m + F.q, 0))
     a_E, c_E, K, Ks, Uw, gain = 0.0, 0.0, None, None, None, 0.0
+    se: np.ndarray | None = None
+    Ut: np.ndarray | None = None
     if extra is not None and mE:
         K = basis.coefficients(extra)
         if K is None:
@@ -216,7 +302,8 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
             # the Frobenius norms may overstate by up to √(rank): the 2-norms (small SVDs) decide
             c_E = gain * float(np.linalg.norm(Ks, 2)) if Ks is not None else 0.0      # Ks: with E (mE > 0)
             c_X = math.sqrt(float(np.linalg.eigvalsh(Xs.T @ Xs)[-1]))      # ‖X_s‖₂ ≤ √p
-            if not _kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX:
+            if not (_kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX
+                    or _sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut) <= KAPPA_MAX):
                 return None
         cov = (Gx @ Gx.T) / np.outer(sx, sx)
     elif not _kappa(ncols, 0, F.a, a_E, c_E, 0.0) <= KAPPA_MAX:

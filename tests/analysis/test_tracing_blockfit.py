@@ -126,3 +126,69 @@ def test_screening_changes_no_decision_and_no_reported_number(seed, kw, monkeypa
     ref = trace(ev)
     assert _without_candidates(fast) == _without_candidates(ref)
     assert [c["names"] for c in fast["candidates"]] == [c["names"] for c in ref["candidates"]]
+
+
+def _indicator_problem(rng, amp):
+    """A nuisance block like the async motion's (one column per stop and rep, closure-centred): its
+    scaled matrix is nearly singular along the sum of its columns (the centring cancels it in the data
+    rows; only the prior rows keep it), a direction no harmonic design follows."""
+    stops, reps = 40, 3
+    theta = np.tile(np.repeat(np.arange(stops) * 360.0 / stops, 4), reps)
+    stop = np.tile(np.repeat(np.arange(stops), 4), reps)
+    rep = np.repeat(np.arange(reps), stops * 4)
+    m = theta.size
+    S = np.column_stack([amp * ((stop == b) & (rep == r)).astype(float) for r in range(reps) for b in range(stops)])
+    S = S - S.mean(axis=0)          # one closure group: the column sums cancel in the data rows
+    w = np.full(m, 2.0)
+    th = np.deg2rad(theta)
+    X = np.column_stack([f(k * th) for k in (2, 3, 5) for f in (np.sin, np.cos)])
+    E = np.column_stack([f(k * th) for k in (1, 4) for f in (np.sin, np.cos)]) * 0.3
+    y = X @ rng.normal(size=X.shape[1]) + rng.normal(size=m) * 0.5
+    return S, w, y, X, E
+
+
+def _dense(S, w, y, X, E):
+    """The reference's problem, densely: [X, S, E] weighted with the unit prior rows, scaled columns,
+    lstsq; its β, χ² and the scaled matrix's condition number."""
+    N = S if E is None else np.hstack([S, E])
+    p, q = X.shape[1], N.shape[1]
+    A = np.vstack([np.hstack([X, N]) * w[:, None], np.hstack([np.zeros((q, p)), np.eye(q)])])
+    b = np.concatenate([y * w, np.zeros(q)])
+    scale = np.linalg.norm(A, axis=0)
+    sol = np.linalg.lstsq(A / scale, b, rcond=None)[0] / scale
+    sv = np.linalg.svd(A / scale, compute_uv=False)
+    return sol[:p], float(np.sum((b - A @ sol) ** 2)), float(sv[0] / sv[-1])
+
+
+@pytest.mark.parametrize("with_e", [False, True])
+def test_sharper_bound_accepts_only_well_conditioned_problems(with_e):
+    """The block bound of the nuisance-heavy problems (blockfit._kappa_blocks): never below the
+    reference matrix's condition number; where the product of norms (_kappa) exceeds KAPPA_MAX and the
+    matrix is well conditioned, the block solver answers, and answers the reference's problem."""
+    from benchtwin.analysis.tracing import blockfit as bf
+    rng = np.random.default_rng(3)
+    for amp in (30.0, 300.0, 3e4):
+        S, w, y, X, E = _indicator_problem(rng, amp)
+        E = E if with_e else None
+        F = bf.NuisanceFactor(S, w, y, np.ones(y.size, bool))
+        basis = bf.RangeBasis(y.size)
+        beta, chi2, kappa = _dense(S, w, y, X, E)
+        sx, Xs, Xt = F.columns(X)
+        K = se = Ut = None
+        if E is not None:
+            K = basis.coefficients(E)
+            Uw, Ut, _ = F.basis(basis)
+            se = np.sqrt(np.sum((Uw @ K) ** 2, axis=0) + 1.0)
+        bound = bf._sharper(F, basis, X, Xs, Xt, bf._qr_r(Xt), K, se, Ut)
+        assert bound >= kappa * (1.0 - 1e-9)
+        product = bf._kappa(X.shape[1] + S.shape[1] + (0 if E is None else E.shape[1]), X.shape[1], F.a, 0.0, 0.0,
+                            float(np.linalg.norm(np.linalg.inv(bf._qr_r(Xt)), 2)))
+        fit = bf.block_fit(F, basis, X, E)
+        if bound <= bf.KAPPA_MAX:
+            assert fit is not None
+            assert abs(fit["chi2"] - chi2) <= 1e-9 * chi2
+            _close(fit["beta"], beta, 1e-8)
+        else:
+            assert fit is None
+        if amp == 300.0:        # the case the sharper bound is for: the product declines, the matrix is fine
+            assert product > bf.KAPPA_MAX and bound <= bf.KAPPA_MAX
