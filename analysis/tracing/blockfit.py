@@ -32,8 +32,11 @@ number of the reference's own column-scaled matrix (block upper-triangular R fac
 σ₁ ≤ √columns) and, where that product of norms exceeds ``KAPPA_MAX``, a sharper bound from the
 same factorisations (:func:`_kappa_blocks`: the norms of R⁻¹'s and A_s's block columns, not products
 of their blocks' norms; a nuisance block with one column per stop and rep is nearly singular along
-directions no candidate follows, and the product bound was 10²–10⁵ × the true condition number
-there); it returns None when both exceed ``KAPPA_MAX``: the caller then uses the reference. Within the bound both answer the same problem to ~κ·ε (measured on the default dataset:
+directions no candidate follows: on the seed-666 loop-validation graduation_error bench, 764 nuisance
+columns, ‖R_S⁻¹‖ = 70–81, the product bound was 1.6·10⁴–10²⁰ (median 2·10⁷, the a·c·d term largest
+in all 789 fits it declined) where 27 of 28 sampled reference matrices had κ = 170–2500 and one was
+rank-deficient, κ 5·10¹⁶); it returns None when both exceed ``KAPPA_MAX``: the caller then uses the
+reference. Within the bound both answer the same problem to ~κ·ε (measured on the default dataset:
 χ² within 1e-15, β and cov(β) within ~1e-11 relative; tests/analysis/test_tracing_blockfit.py).
 """
 
