@@ -86,15 +86,16 @@ def _params(c: _Cand) -> dict[str, dict[str, float]]:
 
 
 def _params_u(c: _Cand, scale: float):
-    out_p, out_u, i = {}, {}, 0
+    """:func:`_params` and, with the same layout, each parameter's u (√ of its covariance diagonal
+    × ``scale``): the one place that reads the fit's covariance."""
+    out_u, i = {}, 0
     for member, names in zip(c.names, c.pnames):
-        P, U = {}, {}
+        U = {}
         for n in names:
-            P[n] = float(c.fit["beta"][i])
             U[n] = float(math.sqrt(max(c.fit["cov"][i, i], 0.0) * scale))
             i += 1
-        out_p[member], out_u[member] = P, U
-    return out_p, out_u
+        out_u[member] = U
+    return _params(c), out_u
 
 
 def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
@@ -756,7 +757,7 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
     out = dict(head)
     out["residual_after"] = after.test
     cj = rep.json(chosen)
-    effects = _effects_json(ev, chosen, after, cj)
+    effects = _effects_json(chosen, after, cj)
     out["ambiguous"] = _ambiguity(sel, rep, chosen, cj)
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
                           time_ks=res.flagged_harmonics)
@@ -815,7 +816,7 @@ def _apply(ev: Evidence, res: _Residual, g: _Gates, chosen: _Cand) -> _After:
                   adjust_coefs=_adjustment_coefs(pb, chosen, g.mods, g.ctx))
 
 
-def _effects_json(ev: Evidence, chosen: _Cand, after: _After, cj: dict[str, Any]) -> list[dict[str, Any]]:
+def _effects_json(chosen: _Cand, after: _After, cj: dict[str, Any]) -> list[dict[str, Any]]:
     """The chosen candidate's members as effects: parameters with u (× √(χ²/dof) when > 1), the
     regressor adjustment's Fourier coefficients, and the evidence for each."""
     scale = chi2_scale(chosen.fit)
