@@ -447,7 +447,7 @@ def render_stored(doc_input: dict, doc: Path) -> None:
     """The document from its stored input (``--store``): the one renderer of the run and the test."""
     write_doc(doc, doc_input["records"], doc_input["seeds"], doc_input.get("elapsed_s") or float("nan"),
               doc_input.get("previous"),
-              doc_input.get("previous_note", ""), doc_input.get("preface", ""))
+              doc_input.get("previous_note", ""), doc_input.get("preface", ""), doc_input.get("jobs"))
 
 
 def previous_rows(old_doc: Path, skip: set[str]) -> list[str]:
@@ -462,7 +462,8 @@ def previous_rows(old_doc: Path, skip: set[str]) -> list[str]:
 
 
 def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float,
-              previous: list[str] | None = None, previous_note: str = "", preface: str = "") -> None:
+              previous: list[str] | None = None, previous_note: str = "", preface: str = "",
+              jobs: int | None = None) -> None:
     by: dict[str, dict[int, dict]] = {}
     for r in records:
         by.setdefault(r["scenario"], {})[r["seed"]] = r
@@ -498,7 +499,8 @@ def write_doc(doc: Path, records: list[dict], seeds: list[int], elapsed_s: float
         f"  issue 7 asks after/floor ≤ {FLOOR_FACTOR} where an effect is identified (named or ambiguous).",
         "",
         f"Seeds: {', '.join(map(str, seeds))}."
-        + (f" Wall time {elapsed_s / 60:.1f} min (2 workers)." if math.isfinite(elapsed_s) else "")
+        + (f" Wall time {elapsed_s / 60:.1f} min" + (f" ({jobs} worker{'s' if jobs != 1 else ''})." if jobs else ".")
+           if math.isfinite(elapsed_s) else "")
         + (f" Datasets of {sum(1 for r in records if r.get('dataset_reused'))} of {len(records)} runs reused from "
            "an earlier run on the same twin (`--datasets-from`; analysed anew)."
            if any(r.get("dataset_reused") for r in records) else ""),
@@ -667,7 +669,8 @@ def main(argv=None) -> int:
             print(f"[{len(records)}/{len(jobs)}] {r['scenario']} seed {r['seed']}: "
                   f"{r.get('outcome', r.get('error'))}", flush=True)
             out_json.write_text(json.dumps(records, indent=1, default=str))
-    doc_input = {"records": records, "seeds": seeds, "elapsed_s": time.time() - t0, "preface": a.preface}
+    doc_input = {"records": records, "seeds": seeds, "elapsed_s": time.time() - t0, "preface": a.preface,
+                 "jobs": max(1, a.jobs)}
     render_stored(doc_input, Path(a.doc))
     if a.store:
         Path(a.store).write_text(json.dumps(doc_input, indent=1, default=str) + "\n")
