@@ -156,7 +156,10 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
                     break
     c.bic, c.aicc = pb.ic(c.fit)
     scale = chi2_scale(c.fit)
-    # joint z of each member: Δχ² when its columns are dropped, scaled by the reduced χ² if > 1
+    # joint z of each member: Δχ² when its columns are dropped, scaled by the scatter of the readings
+    # that determine the member (:func:`_member_scale`: the reduced χ² if > 1, or the larger
+    # leverage-weighted mean square of the residual in the rows that carry its own columns)
+    rw = (pb.y - pb.predict_rows(c.X, c.fit, nuisance=True)) * pb.w
     i = 0
     for member, names in zip(c.names, c.pnames):
         idx = list(range(i, i + len(names)))
@@ -164,9 +167,39 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
         others = [c.extras[n] for n in c.names if n != member and n in c.extras]
         ex = np.hstack(others) if others else None
         f0 = pb.fit(c.X[:, rest], extra=ex) if rest else pb.null
-        d = (f0["chi2"] - c.fit["chi2"]) / scale
+        d = (f0["chi2"] - c.fit["chi2"]) / max(scale, _member_scale(pb, c.X[:, idx], c.X[:, rest], rw))
         c.z[member] = _z_from_chi2(d, max(c.fit["k"] - f0["k"], 1))
         i += len(names)
+
+
+def _member_scale(pb: _Problem, Xm: np.ndarray, Xrest: np.ndarray, rw: np.ndarray) -> float:
+    """The scatter a member's Δχ² is judged against: the mean square of the fit's weighted residual
+    ``rw`` over the rows, weighted by their leverage h_i on the member's own columns (those columns
+    with the other members' span removed; Σ h_i = their rank). Under the fit's model every weighted
+    residual has the same variance and this equals the reduced χ² (a little below it: the fit took its
+    share); where the readings that determine the member scatter more than the rest, the member's Δχ²
+    must be read against their scatter, not the average's. E.g. 23 start faces at shift 0 and one run
+    at 5° and at 10° (loop validation lv669 tilt_abbe #0): an interpolation error is graduation
+    harmonics 8 and 7 at shift 0, so next to them 98 % of its leverage is in the 46 shifted readings,
+    which alone see the worn bearing's motion above the flagged orders (truth: 0.27″ at orders 23…40,
+    folded onto orders ≤ 11 at shift 0): residual 2.8 u there, 0.94 u at shift 0, χ²/dof 1.46; its
+    z fell from 7.7 to 3.3. A heteroscedasticity-consistent (sandwich) reading of the member's
+    covariance restricted to its own direction; 0 when the member has no column of its own (its gates
+    say so elsewhere)."""
+    w = pb.w[:, None]
+    B = Xm * w
+    if Xrest.shape[1]:
+        A = Xrest * w
+        Q = np.linalg.qr(A)[0]
+        B = B - Q @ (Q.T @ B)
+    if not B.shape[1]:
+        return 0.0
+    U, sv, _ = np.linalg.svd(B, full_matrices=False)
+    keep = sv > 1e-8 * max(float(sv[0]), 1e-300) if sv.size else sv.astype(bool)
+    if not np.any(keep):
+        return 0.0
+    h = np.sum(U[:, keep] ** 2, axis=1)
+    return float(h @ (rw ** 2) / h.sum())
 
 
 def _member_predictions(pb: _Problem, c: _Cand) -> list[np.ndarray]:
