@@ -195,7 +195,7 @@ def _member_scale(pb: _Problem, Xm: np.ndarray, Xrest: np.ndarray, rw: np.ndarra
     if not B.shape[1]:
         return 0.0
     U, sv, _ = np.linalg.svd(B, full_matrices=False)
-    keep = sv > 1e-8 * max(float(sv[0]), 1e-300) if sv.size else sv.astype(bool)
+    keep = sv > 1e-8 * sv[0]        # B has a column here, so sv[0] exists; all False when B = 0
     if not np.any(keep):
         return 0.0
     h = np.sum(U[:, keep] ** 2, axis=1)
