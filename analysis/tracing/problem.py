@@ -403,6 +403,12 @@ class _Problem:
         uncertainty is what its u says. (0, 0) without E."""
         if extra is None or extra.shape[1] == 0:
             return 0.0, 0.0
+        nu, p = self.eiv_posterior(X, fit, extra)
+        return float(nu @ nu), p
+
+    def eiv_posterior(self, X: np.ndarray, fit: dict, extra: np.ndarray) -> tuple[np.ndarray, float]:
+        """(ν̂, p) of :meth:`eiv_adjustment`: ν̂ per column of ``extra`` (each in units of that
+        column's u: a per-direction test reads it), p the number of directions the readings determine."""
         w2 = self.w ** 2
         r = self.y - (X @ np.asarray(fit["beta"], dtype=float) if X.shape[1] else 0.0)
         A = np.hstack([self.S, extra])
@@ -416,7 +422,7 @@ class _Problem:
         else:
             G = extra.T @ We
         lam = np.clip(np.linalg.eigvalsh(0.5 * (G + G.T)), 0.0, None)
-        return float(nu @ nu), float(np.sum(lam / (1.0 + lam)))
+        return nu, float(np.sum(lam / (1.0 + lam)))
 
     def ic(self, fit) -> tuple[float, float]:
         n, k, chi2 = fit["n"], fit["k"], fit["chi2"]

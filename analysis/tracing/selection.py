@@ -31,7 +31,7 @@ from benchtwin.units import ARCSEC_PER_RAD
 
 from ..distributions import chi2_isf, chi2_sf, f_sf
 from ..effects import ALL
-from ..fourier import fit_harmonics
+from ..fourier import fit_harmonics, harmonic_columns
 from ._blas import _one_blas_thread
 from .evidence import Evidence, _AtAngles, _replace_alpha, column
 from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
@@ -883,6 +883,10 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
         for c in sel.singles:
             if c.names == (other,):
                 amb_fits[c.key] = rep.json(rep.report(c))
+    motion = _measured_motion_alternative(sel, chosen)
+    if motion is not None and motion[0] not in amb_cands:
+        amb_cands.append(motion[0])
+        amb_fits["+".join(sorted(motion[0])) + " (exact geometry)"] = motion[1]
     # after the design's alternatives: a nested pair that holds a design-forced name (e.g.
     # graduation_error + tangential_motion) does not replace that name's own alternative
     for c in _nested_alternatives(sel, chosen, amb_cands):
@@ -899,6 +903,122 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     names = sorted(amb_names)
     return [{"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
              "alternatives": ["+".join(sorted(a)) for a in amb_cands], "forced_by_design": sorted(forced)}]
+
+
+def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[str], dict[str, Any]] | None:
+    """With X probes, a division error the probes' own error in δX could stand for: the chosen
+    candidate with graduation_error (and a fitted tangential_motion) replaced by the measured motion
+    at its geometric gain, tangential_motion's design at g = 1 (and h = 1 where eq. 5's ∫δY term is
+    in the model: the head reads −δX/r, not ∫δY/r; docs/conventions.md), with the probes' δX free
+    within its u (the unit-prior errors-in-variables nuisance every fit of the regressor carries).
+
+    Why: the X probes determine each δX Fourier coefficient to a type-A u (0.016 µm = 0.148″ at
+    r = 22 mm on the drawn twin benches) that is 5–40× the polygon's u per harmonic (0.004–0.03″), so
+    a fitted gain on that regressor is shrunk (0.1–0.3 beside its own nuisance) and the real motion
+    it leaves reads as a division error at the same orders; above the orders the probes resolve
+    (``tangential_motion.x_orders``) δX is not measured at all (docs/loop-validation.md, the X-probe
+    rounds: spurious graduation_error on null, ac_drift and polygon_pitch_ignored benches). The
+    motion at its known gain is an explanation of the same readings that fits nothing: the
+    alternative keeps the chosen's other members and graduation_error's columns above those orders
+    (an unmeasured motion there reads as a division error, as without X probes:
+    ``graduation_error.ambiguous_with``), and drops the division error at the orders the probes
+    resolve. The data cannot tell the two apart where
+
+    - no such order is evidenced beside the motion: each order's columns added to the alternative
+      (nested) reach z < Z_GATE, their Δχ² in units of the scatter that fit leaves (as a member's z);
+    - the motion needs its δX moved within its u: each order's share of the adjustment within the
+      Šidák bound of χ²₂ at P_SIG (:func:`_adjustment_by_order`), and the whole within χ²(p) at
+      P_SIG (the errors-in-variables gate of :func:`_fit_gates`).
+
+    Returns the alternative's member set (the chosen's other members and tangential_motion) and its
+    figures, else None. It is an alternative only: nothing is named on it. On synthetic X-probe
+    evidence (probes 0.05 µm, δX u ≈ 0.08″ per order): a motion read as a division error gives the
+    set; a 1″ division error at order 3 does not (z 7–8.5); one of 0.5″ (≈ 6 u of δX) is at the
+    edge (z 3.1–4.1)."""
+    g = sel.gates
+    pb, ev = g.pb, g.pb.ev
+    tm = g.mods.get("tangential_motion")
+    if tm is None or "graduation_error" not in chosen.names or ev.radial is None or not ev.radial.has_x:
+        return None
+    Xt, tnames = pb.columns(tm, g.ctx)
+    h = 1.0 if ev.radial_term and ev.radial_term in ev.model_terms else 0.0
+    p0 = Xt[:, tnames.index("gain")] + h * Xt[:, tnames.index("radial_gain")]
+    cols, extras, rest = [], [], []
+    i = 0
+    x_max = max(tm.x_orders(ev), default=0)
+    n_unmeasured = 0
+    low_orders: dict[int, list[int]] = {}
+    for member, names in zip(chosen.names, chosen.pnames):
+        if member == "graduation_error":
+            # its orders above those the probes resolve stay: there δX is unmeasured, and a motion
+            # reads as a division error exactly as without X probes (graduation_error.ambiguous_with)
+            keep = [i + j for j, n in enumerate(names) if int(n[1:].split("_")[0]) > x_max]
+            cols.append(chosen.X[:, keep])
+            n_unmeasured = len(keep)
+            for j, n in enumerate(names):
+                if i + j not in keep:
+                    low_orders.setdefault(int(n[1:].split("_")[0]), []).append(i + j)
+        elif member != "tangential_motion":
+            rest.append(member)
+            cols.append(chosen.X[:, i:i + len(names)])
+            if member in chosen.extras:
+                extras.append(chosen.extras[member])
+        i += len(names)
+    E_motion = pb.regressor_nuisance([tm], [{"gain": 1.0}], g.ctx)
+    E = np.hstack([E_motion] + extras)
+    Xr = np.hstack(cols) if cols else np.zeros((pb.n_rows, 0))
+    y0 = pb.y
+    try:
+        pb.y = y0 - p0
+        f = pb.fit(Xr, extra=E)
+        nu, p_eff = pb.eiv_posterior(Xr, f, E)
+        # the division error at each order the probes resolve, tested beside the motion: the fit
+        # with that order's columns added (nested), Δχ² in units of the scatter that fit leaves
+        z_div = {}
+        for k, idx in low_orders.items():
+            fk = pb.fit(np.hstack([Xr, chosen.X[:, idx]]), extra=E)
+            z_div[k] = _z_from_chi2((f["chi2"] - fk["chi2"]) / chi2_scale(fk), max(fk["k"] - f["k"], 1))
+    finally:
+        pb.y = y0
+    n_motion = E_motion.shape[1]
+    orders = tm.x_orders(ev)
+    d2 = _adjustment_by_order(pb, E_motion, nu[:n_motion], orders)
+    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / max(len(orders), 1)), 2))
+    adj = float(nu @ nu)
+    z_max = max(z_div.values(), default=0.0)
+    members = sorted(set(rest) | {"tangential_motion"})
+    figures: dict[str, Any] = {"members": members,
+               "meaning": f"tangential_motion at its geometric gain (g = 1, h = {h:g}), the X probes' δX within its u",
+               "unmeasured_orders_above": x_max, "unmeasured_columns": n_unmeasured,
+               "chi2": float(f["chi2"]), "k": int(f["k"]), "division_error_z_max": float(z_max),
+               "division_error_z": {str(k): float(v) for k, v in sorted(z_div.items())},
+               "max_order_adjustment_chi2": float(d2.max()) if d2.size else 0.0,
+               "order_bound_chi2": bound, "sum_nu2": adj, "determined_directions": p_eff}
+    if z_max >= Z_GATE or (d2.size and d2.max() > bound) or (p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff))):
+        return None
+    return set(members), figures
+
+
+def _adjustment_by_order(pb: _Problem, E: np.ndarray, nu: np.ndarray, orders: list[int]) -> np.ndarray:
+    """Each order's share of a measured regressor's adjustment E·ν̂ at the polygon's readings, as a
+    χ²₂ against what the regressor's u allows there: the order's (sin, cos) coefficients c of E·ν̂
+    (weighted least squares on the closure-centred harmonics of ``orders``) against their
+    covariance C·Cᵀ under ν ~ N(0, I) (C: the same fit of E's columns). A division error the
+    probes' δX would have to absorb reads as one order moved by many u, whatever the number of
+    columns (per sphere, per coefficient, the form bound) that share it."""
+    ev = pb.ev
+    n = ev.n
+    if not orders or E.shape[1] == 0:
+        return np.zeros(0)
+    w = pb.w[:n]
+    H = _center(harmonic_columns(ev.theta_deg, orders)[0], column(ev.closure_group), w ** 2) * w[:, None]
+    B = np.linalg.lstsq(H, np.column_stack([E[:n] @ nu, E[:n]]) * w[:, None], rcond=None)[0]
+    c, C = B[:, 0], B[:, 1:]
+    out = []
+    for i in range(len(orders)):
+        ck, Ck = c[2 * i:2 * i + 2], C[2 * i:2 * i + 2]
+        out.append(float(ck @ np.linalg.pinv(Ck @ Ck.T, rcond=1e-10, hermitian=True) @ ck))
+    return np.asarray(out)
 
 
 def _collinear_alternatives(sel: _Selection, rep: _Reporter, chosen: _Cand,

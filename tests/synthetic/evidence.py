@@ -54,13 +54,14 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
                   lobe_um: float = 0.1, bottom_lobe_um: float | None = None, x_probes: bool = False,
                   x_whirl: bool = False, selfcal: bool = False, n_heads: int = 3, encoder_lines: int = 36000,
                   jitter_arcsec: float = 2.0, dwell_s: float = 10.0, inject: dict | None = None,
-                  extra=None, backward_whirl_um: complex = 0j):
+                  extra=None, backward_whirl_um: complex = 0j, probe_noise_um: float = 0.01):
     """Build ``(Evidence, truth)``. ``inject``: {effect name: physical parameters}:
 
     - ``graduation_error``: {k: (amplitude_arcsec, phase_rad)}, g = A sin(kθ + φ)
     - ``optical_radius``: {"delta_r_mm"} (true radius r + Δr)
     - ``ccd_pixel_scale``: {"scale_error_pct"} (e_true = e_model·(1 + s/100))
-    - ``tangential_motion``: {"gain"} (reading error −g·δX_disk/r)
+    - ``tangential_motion``: {"gain", optional "radial_gain"} (reading error −(g·δX_disk + h·∫δY dθ)/r:
+      g = h = 1 is the exact geometry, the head reading −δX/r and not eq. 5's ∫δY/r)
     - ``tilt_abbe``: {"dL1_mm"} (true L1 = nominal + ΔL1)
     - ``ac_drift``: {"drift_arcsec_per_s"}
     - ``ac_scale``: {"gain_pct", "quad_per_arcsec"} (ε_read = (1+k)ε + qε², propagated to α)
@@ -76,6 +77,8 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
     spheres and the disk, c = x + iy = B·e^{−iθ} (against the rotation: no centring makes it). The
     probes read it (X: Re, Y: Im), head 1 reads −c_x/r, and the model's eccentricity is that of a
     CCD opposite the head: it reads c_y's order 1 and takes it for one forward circle.
+
+    ``probe_noise_um``: the probes' noise per reading (σ, µm; each probe, each 6° stop).
     """
     inj = dict(inject or {})
     N = int(n_faces)
@@ -110,7 +113,9 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
         for k, (A, ph) in inj.get("graduation_error", {}).items():
             a = a + A * np.sin(int(k) * th + ph)
         if "tangential_motion" in inj:
-            a = a - inj["tangential_motion"]["gain"] * fourier_eval(th_deg, dX_true) / r_true * ARCSEC_PER_RAD
+            tm = inj["tangential_motion"]
+            a = a - (tm["gain"] * fourier_eval(th_deg, dX_true)
+                     + tm.get("radial_gain", 0.0) * fourier_integral(th_deg, dY_true)) / r_true * ARCSEC_PER_RAD
         if "interpolation_error" in inj:
             ip = inj["interpolation_error"]
             ph = 2 * np.pi * ((np.asarray(th_deg) * encoder_lines / 360.0) % 1.0)
@@ -129,10 +134,11 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
         # each sphere's centring: one forward circle, seen by its Y probe (sin, cos) and X probe (cos, −sin)
         gr = np.deg2rad(grid)
         bw = backward_whirl_um * np.exp(-1j * gr)
-        t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(gr) + bw.imag + rng.normal(0, 0.01, grid.size))
-        b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(gr) + bw.imag + rng.normal(0, 0.01, grid.size))
-        tx_all.append(fourier_eval(grid, top_x) + 0.3 * np.cos(gr) + bw.real + rng.normal(0, 0.01, grid.size))
-        bx_all.append(fourier_eval(grid, bot_x) - 0.4 * np.sin(gr) + bw.real + rng.normal(0, 0.01, grid.size))
+        sn = probe_noise_um
+        t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(gr) + bw.imag + rng.normal(0, sn, grid.size))
+        b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(gr) + bw.imag + rng.normal(0, sn, grid.size))
+        tx_all.append(fourier_eval(grid, top_x) + 0.3 * np.cos(gr) + bw.real + rng.normal(0, sn, grid.size))
+        bx_all.append(fourier_eval(grid, bot_x) - 0.4 * np.sin(gr) + bw.real + rng.normal(0, sn, grid.size))
     radial = RadialMotion(np.concatenate(g_all), np.concatenate(t_all), np.concatenate(b_all), L1_MM, L2_MM,
                           np.concatenate(tx_all) if x_probes else None, np.concatenate(bx_all) if x_probes else None)
 
