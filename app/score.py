@@ -932,13 +932,16 @@ def excused_names(sets: Sequence[Sequence[str]], unobservable_arcsec: float | No
       unobservable (no X probes: ``unobservable_arcsec``) or measured by X probes
       (``tangential_arcsec``): a real tangential motion of the bearings;
     - ``graduation_error`` only inside an ambiguity set with ``tangential_motion`` and only where that
-      motion is unobservable (without X probes the two are each other's design-forced alternative).
+      motion is there (≥ UNOBSERVABLE_MIN_ARCSEC): the set then holds the bench's real cause. Without
+      X probes the two are each other's design-forced alternative; with them, the analysis reports
+      the set where the probes' δX, within its u and at the orders they resolve, explains what the
+      division error does (analysis/tracing/selection.py ``_measured_motion_alternative``).
     """
     unseen: set[str] = set()
     if max(unobservable_arcsec or 0.0, tangential_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
         unseen = {"tangential_motion"}
-    if (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC and any("tangential_motion" in s for s in sets):
-        unseen |= {"graduation_error"}
+        if any("tangential_motion" in s for s in sets):
+            unseen |= {"graduation_error"}
     return unseen
 
 
@@ -951,7 +954,7 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     spurious = every name neither expected nor a set-mate of an expected name, nor
     tangential_motion where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (a real
     tangential motion of the bench's bearings), nor graduation_error in a set with it where that
-    motion is unobservable (no X probes: ``unobservable_arcsec``)."""
+    motion is there (:func:`excused_names`)."""
     out: dict[str, Any] = {"expected": None, "accept": None, "named": None, "spurious": None, "unexplained": None,
                            "correct": None}
     if expected is None or expected.get("accept") is None:

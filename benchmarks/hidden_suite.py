@@ -171,7 +171,9 @@ than most hidden effects. So on a Y-probe bench the set {tangential_motion, grad
 what the data allow, and on a null naming the bearings' own tangential motion (or that set, without
 X probes) is no false positive: the rule `benchtwin.app.score.excused_names`, shared with the
 scorer and the reference generator ("ok (the bearings' −δX/r named)"). With X probes the motion is
-measured and named. Only `tilt_abbe` keeps a worn bottom bearing, since ΔL1 needs a tilt motion to
+measured and named; the set is reported there too where the probes' δX, within its u, explains
+what a division error would (analysis/tracing/selection.py `_measured_motion_alternative`), and is
+then no false positive either. Only `tilt_abbe` keeps a worn bottom bearing, since ΔL1 needs a tilt motion to
 act on.
 
 **The noise floor.** Every scenario shares the declared bench of `null_a` and, for one seed, its
@@ -301,8 +303,9 @@ def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplai
              unobservable_arcsec: float | None = None, tangential_arcsec: float | None = None) -> str:
     """The outcome against the expected effect. On a null, tangential_motion is no false positive
     where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (``tangential_arcsec``: the
-    bearings' real X motion), nor its set with graduation_error where no X probes can see that
-    motion (``unobservable_arcsec``): ``benchtwin.app.score.excused_names``, the scorer's one rule."""
+    bearings' real X motion, or ``unobservable_arcsec`` where no X probes see it), nor its set with
+    graduation_error where that motion is there: ``benchtwin.app.score.excused_names``, the
+    scorer's one rule."""
     in_amb = any(expect in s for s in ambiguous)
     if expect == "none":
         if named or ambiguous:

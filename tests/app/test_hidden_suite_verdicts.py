@@ -1,7 +1,7 @@
-"""The hidden suite's verdict rule (benchmarks/hidden_suite.py ``classify``): on a bench without X
-probes, the truth's unobservable −δX/r ≥ 0.1″ makes tangential_motion, or the set {tangential_motion,
-graduation_error}, no false positive on a null — the independent reference generator's rule — and
-nothing else."""
+"""The hidden suite's verdict rule (benchmarks/hidden_suite.py ``classify``): where the truth's axis
+holds ≥ 0.1″ of −δX/r (unobservable without X probes, or measured by them), tangential_motion, or the
+set {tangential_motion, graduation_error}, is no false positive on a null — without X probes the
+independent reference generator's rule — and nothing else."""
 
 from __future__ import annotations
 
@@ -47,15 +47,25 @@ def test_the_suite_and_the_scorer_share_the_rule():
     assert not alone["correct"] and alone["spurious"] == ["graduation_error"]
 
 
-def test_with_x_probes_the_bearings_real_tangential_motion_may_be_named_but_not_a_division_error():
+def test_with_x_probes_the_bearings_real_tangential_motion_may_be_named_but_not_a_division_error_alone():
+    """With X probes the set {graduation_error, tangential_motion} is reported where the probes' δX,
+    within its u, explains what the division error does (analysis/tracing/selection.py
+    ``_measured_motion_alternative``); where the truth's axis holds that motion (≥ 0.1″) the set
+    holds the bench's real cause and is no false positive. A division error named alone stays one."""
     from benchtwin.app.score import score_identification
 
     # X probes: nothing unobservable, but the truth's axis holds 0.6″ of −δX/r
     assert hs.classify("none", ["tangential_motion"], [], False, None, 0.6) == hs.OK_UNOBSERVABLE
     assert hs.classify("none", ["tangential_motion"], [], False, None, 0.05).startswith("FALSE")
-    assert hs.classify("none", [], SET, False, None, 0.6).startswith("FALSE")   # the set needs an unseen motion
+    assert hs.classify("none", [], SET, False, None, 0.6) == hs.OK_UNOBSERVABLE
+    assert hs.classify("none", [], SET, False, None, 0.05).startswith("FALSE")   # no motion to stand for
+    assert hs.classify("none", ["graduation_error"], [], False, None, 0.6).startswith("FALSE")   # alone: not the set
     null = {"expect": [], "accept": ["nothing"]}
     assert score_identification({"named": ["tangential_motion"], "ambiguous": [], "unexplained": False},
                                 null, None, 0.6)["correct"]
-    s = score_identification({"named": [], "ambiguous": SET, "unexplained": False}, null, None, 0.6)
+    assert score_identification({"named": ["graduation_error"], "ambiguous": SET, "unexplained": False},
+                                null, None, 0.6)["correct"]
+    s = score_identification({"named": [], "ambiguous": SET, "unexplained": False}, null, None, 0.05)
+    assert not s["correct"] and s["spurious"] == ["graduation_error", "tangential_motion"]
+    s = score_identification({"named": ["graduation_error"], "ambiguous": [], "unexplained": False}, null, None, 0.6)
     assert not s["correct"] and s["spurious"] == ["graduation_error"]
