@@ -407,8 +407,9 @@ class _Problem:
         return float(nu @ nu), p
 
     def eiv_posterior(self, X: np.ndarray, fit: dict, extra: np.ndarray) -> tuple[np.ndarray, float]:
-        """(ν̂, p) of :meth:`eiv_adjustment`: ν̂ per column of ``extra`` (each in units of that
-        column's u: a per-direction test reads it), p the number of directions the readings determine."""
+        """(ν̂, p) of :meth:`eiv_adjustment`: ν̂ per column of ``extra``, each in units of that
+        column's u (selection._adjustment_by_order reads it order by order), p the number of
+        directions the readings determine."""
         w2 = self.w ** 2
         r = self.y - (X @ np.asarray(fit["beta"], dtype=float) if X.shape[1] else 0.0)
         A = np.hstack([self.S, extra])

@@ -932,9 +932,9 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
 
     Returns the alternative's member set (the chosen's other members and tangential_motion) and its
     figures, else None. It is an alternative only: nothing is named on it. On synthetic X-probe
-    evidence (probes 0.05 µm, δX u ≈ 0.08″ per order): a motion read as a division error gives the
-    set; a 1″ division error at order 3 does not (z 7–8.5); one of 0.5″ (≈ 6 u of δX) is at the
-    edge (z 3.1–4.1)."""
+    evidence (probes 0.05 µm, δX u ≈ 0.08″ per order; 15 shifts × 4 start faces, seeds 1–3): a
+    motion read as a division error gives the set (z ≤ 0.8); a 1″ division error at order 3 does
+    not (z 7.2–8.5); one of 0.5″ (≈ 6 u of δX) is at the edge (z 3.1–4.1)."""
     g = sel.gates
     pb, ev = g.pb, g.pb.ev
     tm = g.mods.get("tangential_motion")
