@@ -520,6 +520,10 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
         if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
             reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
                            f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
+        worst = _worst_delta_x_order(c, g)
+        if worst is not None:
+            reasons.append(f"the X probes' δX moved beyond its uncertainty at order {worst[0]}: χ²₂ = {worst[1]:.1f} "
+                           f"> {worst[2]:.1f} (Šidák over the probes' orders at p < {P_SIG:g})")
     if g.bic0 - c.bic < DBIC_GATE:
         reasons.append(f"ΔBIC = {g.bic0 - c.bic:.1f} < {DBIC_GATE}")
     if member_bics and c.bic > min(member_bics) - DBIC_GATE:
@@ -542,6 +546,32 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
     if c.f_p >= F_SIG:
         reasons.append(f"F-test of the improvement: p = {c.f_p:.2g} ≥ {F_SIG}")
     return reasons
+
+
+def _worst_delta_x_order(c: _Cand, g: _Gates) -> tuple[int, float, float] | None:
+    """With X probes, the order at which a fitted tangential_motion moves the probes' δX beyond its
+    u (its share of the errors-in-variables adjustment, :func:`_adjustment_by_order`, above the
+    Šidák bound of χ²₂ at P_SIG over the probes' orders): (order, χ²₂, bound), or None. The pooled
+    Σν² gate lets one order carry a division error among ~40 directions (loop validation seeds 668
+    and 773, selfa_graduation: order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7,
+    the division error missed)."""
+    pb, ev = g.pb, g.pb.ev
+    if "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
+        return None
+    nu, _ = pb.eiv_posterior(c.X, c.fit, c.extra)
+    off = 0
+    for n in c.names:
+        if n == "tangential_motion":
+            break
+        off += c.extras[n].shape[1] if n in c.extras else 0
+    E = c.extras["tangential_motion"]
+    orders = g.mods["tangential_motion"].x_orders(ev)
+    d2 = _adjustment_by_order(pb, E, nu[off:off + E.shape[1]], orders)
+    if not d2.size:
+        return None
+    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / len(orders)), 2))
+    i = int(np.argmax(d2))
+    return (int(orders[i]), float(d2[i]), bound) if d2[i] > bound else None
 
 
 def _size_gates(c: _Cand, g: _Gates) -> list[str]:

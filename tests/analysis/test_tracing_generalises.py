@@ -367,3 +367,22 @@ def test_a_division_error_the_x_probes_own_delta_x_could_stand_for_is_in_a_set_w
     real = trace(_x_probe_bench(1, {3: (1.0, 0.4), 5: (0.6, 1.1)}), candidates=CANDS)
     assert [e["name"] for e in real["identified_effects"]] == ["graduation_error"]
     assert not any("tangential_motion" in a["names"] for a in real["ambiguous"]), real["ambiguous"]
+
+
+def test_a_motion_that_moves_one_order_of_the_probes_delta_x_beyond_its_u_does_not_stand_for_a_division_error():
+    """The pooled errors-in-variables gate (Σν² within χ²(p)) let a fitted tangential_motion carry a
+    real division error at one order among ~40 directions (loop validation seeds 668 and 773,
+    selfa_graduation: order 2 moved by χ²₂ 28–34, the division error missed). Per order, the
+    probes' δX may move only within its u (Šidák over the orders): with a 1″ division error at
+    order 2 and the motion in the exact geometry, tangential_motion alone is refused and the division
+    error is named."""
+    from benchtwin.analysis.tracing import trace
+    from tests.synthetic.evidence import make_evidence
+
+    ev, _ = make_evidence(np.random.default_rng(1), x_probes=True, shifts=tuple(float(s) for s in range(15)),
+                          start_faces=[1, 13], probe_noise_um=0.05, lobe_um=0.1, noise_arcsec=0.05,
+                          inject={"tangential_motion": {"gain": 1.0, "radial_gain": 1.0}, "graduation_error": {2: (1.0, 0.7)}})
+    res = trace(ev, candidates=CANDS)
+    assert "graduation_error" in [e["name"] for e in res["identified_effects"]], res["identified_effects"]
+    (tm,) = [c for c in res["candidates"] if c["names"] == ["tangential_motion"]]
+    assert not tm["passed"] and any("at order 2" in r for r in tm["rejected_because"]), tm
