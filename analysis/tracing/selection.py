@@ -556,7 +556,7 @@ def _worst_delta_x_order(c: _Cand, g: _Gates) -> tuple[int, float, float] | None
     and 773, selfa_graduation: order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7,
     the division error missed)."""
     pb, ev = g.pb, g.pb.ev
-    if "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
+    if c.extra is None or "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
         return None
     nu, _ = pb.eiv_posterior(c.X, c.fit, c.extra)
     off = 0
