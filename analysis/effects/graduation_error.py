@@ -97,13 +97,18 @@ def _all_orders(ev, ctx) -> list[int]:
     return sorted(set(_orders(ev, ctx)) | set(broadband_orders(ev)))
 
 
+def param_order(name: str) -> int:
+    """The harmonic order of one of :func:`design`'s parameters (``a{k}_arcsec`` / ``b{k}_arcsec``)."""
+    return int(name[1:].split("_")[0])
+
+
 def variants(names, ev=None, ctx=None):
     """The significant orders (``harmonics``, as before) and, where the design allows it, every
     resolved order (``broadband``); one variant when they are the same columns."""
     if ev is None or not broadband_orders(ev):
         return [list(names)]
     sig = set(_orders(ev, ctx))
-    out = [[n for n in names if int(n[1:].split("_")[0]) in sig]]
+    out = [[n for n in names if param_order(n) in sig]]
     return [v for v in out if v] + [list(names)]
 
 
@@ -133,7 +138,7 @@ MAX_ARCSEC = 20.0
 
 
 def plausible(ev, params, u, ctx=None):
-    ks = sorted({int(n[1:].split("_")[0]) for n in params} | set(ORDERS))
+    ks = sorted({param_order(n) for n in params} | set(ORDERS))
     return amplitudes_within(params, [(f"harmonic {k}", f"a{k}_arcsec", f"b{k}_arcsec") for k in ks], MAX_ARCSEC)
 
 

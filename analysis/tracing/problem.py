@@ -395,21 +395,13 @@ class _Problem:
             cache[key] = all(int(np.linalg.matrix_rank(Xs[self.folds != f], tol=1e-8)) >= full for f in folds)
         return bool(cache[key])
 
-    def eiv_adjustment(self, X: np.ndarray, fit: dict, extra: np.ndarray | None) -> tuple[float, float]:
-        """Errors in variables, checked: (Σ ν̂², p) for the measured-regressor nuisance E (unit prior,
-        ``extra``) of a fit of X: ν̂ its posterior mean given the residual y − X·β (with the model
-        nuisance S), p = Σ λ/(1 + λ) over the eigenvalues λ of Eᵀ Σ₀⁻¹ E (Σ₀ = W⁻¹ + S Sᵀ), the
-        number of E's directions the readings determine: Σ ν̂² is ~χ²(p) when the regressor's
-        uncertainty is what its u says. (0, 0) without E."""
-        if extra is None or extra.shape[1] == 0:
-            return 0.0, 0.0
-        nu, p = self.eiv_posterior(X, fit, extra)
-        return float(nu @ nu), p
-
     def eiv_posterior(self, X: np.ndarray, fit: dict, extra: np.ndarray) -> tuple[np.ndarray, float]:
-        """(ν̂, p) of :meth:`eiv_adjustment`: ν̂ per column of ``extra``, each in units of that
-        column's u (selection._adjustment_by_order reads it order by order), p the number of
-        directions the readings determine."""
+        """Errors in variables, checked: (ν̂, p) for the measured-regressor nuisance E (unit prior,
+        ``extra``, at least one column) of a fit of X: ν̂ its posterior mean given the residual
+        y − X·β (with the model nuisance S), per column of E in units of that column's u
+        (selection._adjustment_by_order reads it order by order); p = Σ λ/(1 + λ) over the
+        eigenvalues λ of Eᵀ Σ₀⁻¹ E (Σ₀ = W⁻¹ + S Sᵀ), the number of E's directions the readings
+        determine: Σ ν̂² is ~χ²(p) when the regressor's uncertainty is what its u says."""
         w2 = self.w ** 2
         r = self.y - (X @ np.asarray(fit["beta"], dtype=float) if X.shape[1] else 0.0)
         A = np.hstack([self.S, extra])

@@ -516,11 +516,12 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
         # errors in variables: the fit may move a measured regressor only within its u; a fit
         # that needs it moved by more (Σν̂² beyond χ²(p) at P_SIG) explains the residual with a
         # motion (or form) the probes did not measure
-        adj, p_eff = pb.eiv_adjustment(c.X, c.fit, c.extra)
+        nu, p_eff = pb.eiv_posterior(c.X, c.fit, c.extra)
+        adj = float(nu @ nu)
         if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
             reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
                            f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
-        worst = _worst_delta_x_order(c, g)
+        worst = _worst_delta_x_order(c, g, nu)
         if worst is not None:
             reasons.append(f"the X probes' δX moved beyond its uncertainty at order {worst[0]}: χ²₂ = {worst[1]:.1f} "
                            f"> {worst[2]:.1f} (Šidák over the probes' orders at p < {P_SIG:g})")
@@ -548,28 +549,24 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
     return reasons
 
 
-def _worst_delta_x_order(c: _Cand, g: _Gates) -> tuple[int, float, float] | None:
+def _worst_delta_x_order(c: _Cand, g: _Gates, nu: np.ndarray) -> tuple[int, float, float] | None:
     """With X probes, the order at which a fitted tangential_motion moves the probes' δX beyond its
-    u (its share of the errors-in-variables adjustment, :func:`_adjustment_by_order`, above the
-    Šidák bound of χ²₂ at P_SIG over the probes' orders): (order, χ²₂, bound), or None. The pooled
-    Σν² gate lets one order carry a division error among ~40 directions (loop validation seeds 668
-    and 773, selfa_graduation: order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7,
-    the division error missed)."""
+    u (:func:`_delta_x_by_order` on its share of the errors-in-variables adjustment ``nu``, the
+    posterior of ``c.extra``): (order, χ²₂, bound), or None. The pooled Σν² gate lets one order carry
+    a division error among ~40 directions (loop validation seeds 668 and 773, selfa_graduation:
+    order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7, the division error missed)."""
     pb, ev = g.pb, g.pb.ev
-    if c.extra is None or "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
+    if "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
         return None
-    nu, _ = pb.eiv_posterior(c.X, c.fit, c.extra)
-    off = 0
+    off = 0   # c.extra is c.extras stacked in member order
     for n in c.names:
         if n == "tangential_motion":
             break
         off += c.extras[n].shape[1] if n in c.extras else 0
     E = c.extras["tangential_motion"]
-    orders = g.mods["tangential_motion"].x_orders(ev)
-    d2 = _adjustment_by_order(pb, E, nu[off:off + E.shape[1]], orders)
+    orders, d2, bound = _delta_x_by_order(pb, g.mods["tangential_motion"], E, nu[off:off + E.shape[1]])
     if not d2.size:
         return None
-    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / len(orders)), 2))
     i = int(np.argmax(d2))
     return (int(orders[i]), float(d2[i]), bound) if d2[i] > bound else None
 
@@ -975,6 +972,7 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
     p0 = Xt[:, tnames.index("gain")] + h * Xt[:, tnames.index("radial_gain")]
     cols, extras, rest = [], [], []
     i = 0
+    grad = g.mods["graduation_error"]
     x_max = max(tm.x_orders(ev), default=0)
     n_unmeasured = 0
     low_orders: dict[int, list[int]] = {}
@@ -982,12 +980,12 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
         if member == "graduation_error":
             # its orders above those the probes resolve stay: there δX is unmeasured, and a motion
             # reads as a division error exactly as without X probes (graduation_error.ambiguous_with)
-            keep = [i + j for j, n in enumerate(names) if int(n[1:].split("_")[0]) > x_max]
+            keep = [i + j for j, n in enumerate(names) if grad.param_order(n) > x_max]
             cols.append(chosen.X[:, keep])
             n_unmeasured = len(keep)
             for j, n in enumerate(names):
                 if i + j not in keep:
-                    low_orders.setdefault(int(n[1:].split("_")[0]), []).append(i + j)
+                    low_orders.setdefault(grad.param_order(n), []).append(i + j)
         elif member != "tangential_motion":
             rest.append(member)
             cols.append(chosen.X[:, i:i + len(names)])
@@ -1010,10 +1008,7 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
             z_div[k] = _z_from_chi2((f["chi2"] - fk["chi2"]) / chi2_scale(fk), max(fk["k"] - f["k"], 1))
     finally:
         pb.y = y0
-    n_motion = E_motion.shape[1]
-    orders = tm.x_orders(ev)
-    d2 = _adjustment_by_order(pb, E_motion, nu[:n_motion], orders)
-    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / max(len(orders), 1)), 2))
+    _, d2, bound = _delta_x_by_order(pb, tm, E_motion, nu[:E_motion.shape[1]])
     adj = float(nu @ nu)
     z_max = max(z_div.values(), default=0.0)
     members = sorted(set(rest) | {"tangential_motion"})
@@ -1027,6 +1022,15 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
     if z_max >= Z_GATE or (d2.size and d2.max() > bound) or (p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff))):
         return None
     return set(members), figures
+
+
+def _delta_x_by_order(pb: _Problem, tm: Any, E: np.ndarray, nu: np.ndarray) -> tuple[list[int], np.ndarray, float]:
+    """The X probes' δX adjustment E·ν̂ order by order (:func:`_adjustment_by_order` over
+    tangential_motion's ``x_orders``) and the Šidák bound of χ²₂ at P_SIG over those orders:
+    (orders, χ²₂ per order, bound)."""
+    orders = tm.x_orders(pb.ev)
+    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / max(len(orders), 1)), 2))
+    return orders, _adjustment_by_order(pb, E, nu, orders), bound
 
 
 def _adjustment_by_order(pb: _Problem, E: np.ndarray, nu: np.ndarray, orders: list[int]) -> np.ndarray:
