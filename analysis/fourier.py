@@ -27,7 +27,8 @@ Covariance of the coefficients (GUM, linear least squares):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections import OrderedDict
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,7 @@ __all__ = [
     "amplitude_phase_ab",
     "param_index",
     "harmonic_columns",
+    "harmonic_rows",
     "fit_harmonics",
     "evaluate_harmonics",
     "integrate_harmonics",
@@ -77,6 +79,37 @@ def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[float], prefix: str = "
         names += pair_names[::-1] if cos_first else pair_names
     X = np.column_stack(cols) if cols else np.zeros((th.size, 0))
     return X, names
+
+
+#: the last few (θ, orders) of :func:`harmonic_rows`: a model term is evaluated again and again at
+#: the same stops (the central differences of pipeline.traced_columns: two evaluations of every
+#: order per parameter; the residual's signature), and the sines were most of the close-loop's time
+#: (a 12-head shift-angle bench, 172 orders: 16 of 90 s)
+_ROWS: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+_ROWS_KEPT = 4
+
+
+def harmonic_rows(theta_rad: np.ndarray, ks: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """(sin kθ, cos kθ) at ``theta_rad`` (radians, any shape), one row per order of ``ks``
+    (len(ks) × θ.shape), each row computed as ``np.sin(k * θ)`` is, so the same bits as the
+    one-order expression. Read-only arrays, kept for the last few θ and orders asked for."""
+    th = np.asarray(theta_rad, dtype=float)
+    key = (tuple(int(k) for k in ks), th.shape, th.tobytes())
+    hit = _ROWS.get(key)
+    if hit is not None:
+        _ROWS.move_to_end(key)
+        return hit
+    S = np.empty((len(key[0]),) + th.shape)
+    C = np.empty_like(S)
+    for i, k in enumerate(key[0]):
+        S[i] = np.sin(k * th)
+        C[i] = np.cos(k * th)
+    S.flags.writeable = False
+    C.flags.writeable = False
+    _ROWS[key] = (S, C)
+    while len(_ROWS) > _ROWS_KEPT:
+        _ROWS.popitem(last=False)
+    return S, C
 
 
 def _solve(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, yw: np.ndarray,

@@ -41,6 +41,7 @@ listed by the residual's signature (what is left, and why: no revisits to test t
 
 from __future__ import annotations
 
+from benchtwin.analysis.fourier import harmonic_rows
 from benchtwin.analysis.radial_motion import ASYNC_NOISE_ORDER
 
 from ._base import amplitudes_within, channels, disk_fixed_heads_of, harmonic_columns, linear_predictor
@@ -153,8 +154,11 @@ def term(params, aux, base_terms=None):
 
     def fn(theta_rad):
         th = np.asarray(theta_rad, dtype=float)
-        return sum(params.get(f"a{k}_arcsec", 0.0) * np.sin(k * th) + params.get(f"b{k}_arcsec", 0.0) * np.cos(k * th)
-                   for k in ks) + 0.0 * th
+        S, C = harmonic_rows(th, ks)     # the sines once per θ: this term is evaluated again and again
+        total = 0
+        for i, k in enumerate(ks):       # term by term, in the order of ks (the same sum, the same bits)
+            total = total + (params.get(f"a{k}_arcsec", 0.0) * S[i] + params.get(f"b{k}_arcsec", 0.0) * C[i])
+        return total + 0.0 * th
     return fn
 
 

@@ -173,3 +173,30 @@ def test_series_over_chosen_harmonics_is_minimum_norm_where_undetermined():
     coefs = fit_harmonics(th, y, [3, 5], with_mean=False)
     np.testing.assert_allclose(evaluate_harmonics(th, coefs), y, atol=1e-12)
     assert all(np.isfinite(v).all() for v in map(np.asarray, coefs.values()))
+
+
+def test_harmonic_rows_are_the_bits_of_each_orders_own_sine():
+    """fourier.harmonic_rows (kept for the last few θ): each row the bits np.sin(k·θ) / np.cos(k·θ)
+    gives for that order alone, read-only, and the same arrays when asked again."""
+    from benchtwin.analysis.fourier import harmonic_rows
+    th = np.random.default_rng(5).uniform(0, 2 * np.pi, size=(3, 37))
+    ks = [2, 3, 17, 40]
+    S, C = harmonic_rows(th, ks)
+    assert S.shape == C.shape == (4, 3, 37)
+    for i, k in enumerate(ks):
+        assert np.array_equal(S[i], np.sin(k * th)) and np.array_equal(C[i], np.cos(k * th))
+    assert not S.flags.writeable and harmonic_rows(th.copy(), ks)[0] is S
+    assert harmonic_rows(th + 1e-12, ks)[0] is not S
+
+
+def test_graduation_term_is_the_order_by_order_sum():
+    """The graduation error's model term (analysis/effects/graduation_error.py), evaluated from the
+    kept rows, equals the sum of a_k sin kθ + b_k cos kθ taken order by order, bit for bit."""
+    from benchtwin.analysis.effects import graduation_error as g
+    rng = np.random.default_rng(6)
+    ks = list(range(2, 30))
+    params = {f"{c}{k}_arcsec": float(v) for k in ks for c, v in zip("ab", rng.normal(size=2))}
+    th = rng.uniform(0, 2 * np.pi, size=200)
+    want = sum(params[f"a{k}_arcsec"] * np.sin(k * th) + params[f"b{k}_arcsec"] * np.cos(k * th) for k in ks) + 0.0 * th
+    fn = g.term(params, {"orders": ks})
+    assert np.array_equal(fn(th), want) and np.array_equal(fn(th), want)
