@@ -11,6 +11,7 @@ the same with the screening as with the reference alone.
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -192,3 +193,30 @@ def test_sharper_bound_accepts_only_well_conditioned_problems(with_e):
             assert fit is None
         if amp == 300.0:        # the case the sharper bound is for: the product declines, the matrix is fine
             assert product > bf.KAPPA_MAX and bound <= bf.KAPPA_MAX
+
+
+@pytest.mark.parametrize("n_combos", [0, 4, 9])
+def test_sharper_bound_from_the_solvers_own_r_equals_the_bound_from_all_the_rows(n_combos):
+    """blockfit._sharper's R_B from the block solver's R of Z (a small QR) is the R of B's projected
+    matrix over all the rows (the Gram matrices are equal): the same bound to rounding, whether E has
+    as many columns as its range basis (Q_K square) or more (``n_combos`` extra combinations of them)."""
+    from benchtwin.analysis.tracing import blockfit as bf
+    rng = np.random.default_rng(11)
+    for amp in (30.0, 300.0):
+        S, w, y, X, E = _indicator_problem(rng, amp)
+        E = np.hstack([E, E @ rng.normal(size=(E.shape[1], n_combos))])
+        F = bf.NuisanceFactor(S, w, y, np.ones(y.size, bool))
+        basis = bf.RangeBasis(y.size)
+        sx, Xs, Xt = F.columns(X)
+        K = basis.coefficients(E)
+        Uw, Ut, _ = F.basis(basis)
+        se = np.sqrt(np.sum((Uw @ K) ** 2, axis=0) + 1.0)
+        QK, RK = np.linalg.qr(K.T)      # as block_fit factorises them
+        r, p = RK.shape[0], X.shape[1]
+        Z = np.vstack([np.hstack([Ut @ RK.T, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
+        RZ = bf._qr_r(Z)
+        Rx = RZ[r:, r:]
+        rows = bf._sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut)
+        small = bf._sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut, RZ, QK)
+        assert QK.shape == (E.shape[1], min(E.shape[1], 4))
+        assert math.isfinite(rows) and abs(small - rows) <= 1e-12 * rows
