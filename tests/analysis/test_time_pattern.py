@@ -145,3 +145,21 @@ def test_a_pattern_that_changes_between_repetitions_is_still_seen():
     tp = sig["time_pattern"]
     assert tp["available"] and tp["significant"] and tp["z"] >= 4, tp
     assert any("changes with time" in x for x in _significant_parts(sig, ev.n, noise_floor(ev)))
+
+
+def test_removing_every_function_of_theta_is_linear():
+    """signature._time_pattern projects the fitted combination of its harmonics × (t − t̄)/T once
+    (it projected each column): the removal of every function of θ is a linear projection, so both
+    give the same part beyond θ, to rounding, and none of a function of θ alone is left."""
+    from benchtwin.analysis.tracing import _Problem
+    from benchtwin.analysis.tracing.signature import _free_of_theta
+
+    ev = _shift_sweeps(2, _k7_flip)
+    pb = _Problem(ev)
+    th, tt = np.deg2rad(ev.theta_deg), (ev.t_s - ev.t_s.mean()) / np.ptp(ev.t_s)
+    X = np.column_stack([f(k * th) * tt for k in (3, 7, 11) for f in (np.sin, np.cos)])
+    b = np.random.default_rng(4).normal(size=X.shape[1])
+    each = np.column_stack([_free_of_theta(pb, X[:, j]) for j in range(X.shape[1])]) @ b
+    once = _free_of_theta(pb, X @ b)
+    assert np.ptp(once) > 0.1 and np.max(np.abs(once - each)) <= 1e-12 * np.max(np.abs(each))
+    assert np.max(np.abs(_free_of_theta(pb, np.cos(5 * th)))) <= 1e-9
