@@ -530,14 +530,18 @@ def traced_columns(payload: Mapping[str, Any], base_terms: Mapping[str, Any], th
     th = np.deg2rad(np.asarray(theta_deg, dtype=float))
     cols, names = [], []
     for i, eff in enumerate(ModelFileEffect.effects_of(payload)):
-        if not model_terms_from_payload(payload_with_params(payload, {}, only=i), dict(base_terms)):
+        alone = payload_with_params(payload, {}, only=i)     # one deep copy per effect, read only below
+        if not model_terms_from_payload(alone, dict(base_terms)):
             continue
+        e0 = alone["effects"][0]
         for name, v in eff.params.items():
             uu = eff.u.get(name)
             h = float(uu) if uu is not None and math.isfinite(float(uu)) and float(uu) > 0 else 1e-3 * max(1.0, abs(float(v)))
             vals = []
             for sgn in (1.0, -1.0):
-                q = payload_with_params(payload, {(i, name): float(v) + sgn * h}, only=i)
+                # the effect with this one parameter moved: a new params dict, the rest shared (the
+                # terms only read it; a deep copy per evaluation was 2.7 s of a 35 s close-loop)
+                q = {**alone, "effects": [{**e0, "params": {**e0["params"], name: float(v) + sgn * h}}]}
                 terms = model_terms_from_payload(q, dict(base_terms))
                 vals.append(sum(np.asarray(fn(th), dtype=float) for fn in terms.values()))
             cols.append((vals[0] - vals[1]) / (2.0 * h))

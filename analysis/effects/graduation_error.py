@@ -155,10 +155,11 @@ def term(params, aux, base_terms=None):
     def fn(theta_rad):
         th = np.asarray(theta_rad, dtype=float)
         S, C = harmonic_rows(th, ks)     # the sines once per θ: this term is evaluated again and again
-        total = 0
-        for i, k in enumerate(ks):       # term by term, in the order of ks (the same sum, the same bits)
-            total = total + (params.get(f"a{k}_arcsec", 0.0) * S[i] + params.get(f"b{k}_arcsec", 0.0) * C[i])
-        return total + 0.0 * th
+        a = np.array([params.get(f"a{k}_arcsec", 0.0) for k in ks], dtype=float).reshape((-1,) + (1,) * th.ndim)
+        b = np.array([params.get(f"b{k}_arcsec", 0.0) for k in ks], dtype=float).reshape(a.shape)
+        # Σ_k over the first axis: numpy reduces a leading axis one row after another, 0 + t₁ + t₂ + …
+        # in the order of ks, as a loop over the orders would (the same bits; tests/analysis/test_fourier.py)
+        return np.add.reduce(a * S + b * C, axis=0, initial=0.0) + 0.0 * th
     return fn
 
 
