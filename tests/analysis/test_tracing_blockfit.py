@@ -220,3 +220,24 @@ def test_sharper_bound_from_the_solvers_own_r_equals_the_bound_from_all_the_rows
         small = bf._sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut, RZ, QK)
         assert QK.shape == (E.shape[1], min(E.shape[1], 4))
         assert math.isfinite(rows) and abs(small - rows) <= 1e-12 * rows
+
+
+def test_the_gram_count_never_exceeds_what_the_svd_finds():
+    """blockfit._surely_above, the shortcut RangeBasis.coefficients takes before an SVD to decline an
+    E with more new directions than room: never more singular values than the SVD finds above the
+    floor (any spectrum, down to 1e-20 of the largest), and all of them where the spectrum has no
+    value within 1e-4 of the largest's scale of the floor."""
+    from benchtwin.analysis.tracing import blockfit as bf
+    rng = np.random.default_rng(12)
+    for trial in range(40):
+        m, c = int(rng.integers(50, 400)), int(rng.integers(1, 40))
+        r = min(m, c)
+        sv = 10.0 ** rng.uniform(-20, 0, size=r) if trial % 2 else np.r_[np.ones(r // 2), np.full(r - r // 2, 1e-18)]
+        U = np.linalg.qr(rng.normal(size=(m, r)))[0]
+        V = np.linalg.qr(rng.normal(size=(c, r)))[0]
+        R = (U * sv) @ V.T * float(10.0 ** rng.uniform(-3, 3))
+        floor = 1e-13 * float(np.linalg.norm(R)) * float(10.0 ** rng.uniform(0, 2))
+        by_svd = int(np.count_nonzero(np.linalg.svd(R, compute_uv=False) > floor))
+        assert bf._surely_above(R, floor) <= by_svd
+        if trial % 2 == 0:
+            assert bf._surely_above(R, floor) == by_svd == r // 2
