@@ -87,6 +87,9 @@ def harmonic_columns(theta_deg: np.ndarray, ks: Iterable[float], prefix: str = "
 #: (a 12-head shift-angle bench, 172 orders: 16 of 90 s)
 _ROWS: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
 _ROWS_KEPT = 4
+#: and no more than this many bytes beside the newest entry (a long-lived process, e.g. a study's
+#: worker, keeps them: the hsieh2022 default's readings × 178 orders are 31 MB)
+_ROWS_BYTES = 64 * 2 ** 20
 
 
 def harmonic_rows(theta_rad: np.ndarray, ks: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -107,7 +110,7 @@ def harmonic_rows(theta_rad: np.ndarray, ks: Sequence[int]) -> tuple[np.ndarray,
     S.flags.writeable = False
     C.flags.writeable = False
     _ROWS[key] = (S, C)
-    while len(_ROWS) > _ROWS_KEPT:
+    while len(_ROWS) > 1 and (len(_ROWS) > _ROWS_KEPT or sum(a.nbytes + b.nbytes for a, b in _ROWS.values()) > _ROWS_BYTES):
         _ROWS.popitem(last=False)
     return S, C
 

@@ -200,3 +200,17 @@ def test_graduation_term_is_the_order_by_order_sum():
     want = sum(params[f"a{k}_arcsec"] * np.sin(k * th) + params[f"b{k}_arcsec"] * np.cos(k * th) for k in ks) + 0.0 * th
     fn = g.term(params, {"orders": ks})
     assert np.array_equal(fn(th), want) and np.array_equal(fn(th), want)
+
+
+def test_harmonic_rows_keep_a_bounded_number_of_bytes():
+    """The kept rows stay within ``_ROWS_KEPT`` entries and ``_ROWS_BYTES`` beside the newest entry
+    (a long-lived process keeps them)."""
+    from benchtwin.analysis import fourier as fo
+    big = int(fo._ROWS_BYTES / (2 * 8 * 40)) // 2 + 1      # an entry of 40 orders: a little over half the cap
+    for j in range(3):
+        fo.harmonic_rows(np.linspace(0.0, 1.0 + j, big), range(1, 41))
+    assert len(fo._ROWS) <= fo._ROWS_KEPT
+    assert sum(a.nbytes + b.nbytes for a, b in fo._ROWS.values()) <= fo._ROWS_BYTES
+    for j in range(6):
+        fo.harmonic_rows(np.linspace(0.0, 1.0 + j, 7), [2, 3])
+    assert len(fo._ROWS) == fo._ROWS_KEPT
