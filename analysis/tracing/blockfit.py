@@ -247,38 +247,43 @@ def _qr_r(a: np.ndarray) -> np.ndarray:
     return cast(np.ndarray, np.linalg.qr(a, mode="r"))
 
 
-def _sharper(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, Xs: np.ndarray, Xt: np.ndarray, Rx: np.ndarray,
-             K: np.ndarray | None, se: np.ndarray | None, Ut: np.ndarray | None,
-             RZ: np.ndarray | None = None, QK: np.ndarray | None = None) -> float:
-    """:func:`_kappa_blocks` for a fit of X (scaled data rows Xs, projected Xt, R_X = Rx of the block
-    solver's own factorisation) and, with a regressor block E = U·K (column norms se over data and
-    prior rows), the reference's E columns [U_w·K/se; 0; diag(1/se)] as the first columns of B.
+def _regressor_stack(K: np.ndarray, Ut: np.ndarray, Xt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Q_K, Z) for a regressor block E = U·K beside X: Kᵀ = Q_K·Lᵀ (so L·Lᵀ = K·Kᵀ and K = L·Q_Kᵀ), and
+    the block solver's projected matrix Z = [U_t·L, X_t; I, 0] (E replaced by U·L: the same β, χ² and
+    cov(β); the module's docstring)."""
+    mE, p = K.shape[1], Xt.shape[1]
+    QK, RK = np.linalg.qr(K.T) if K.size else (np.zeros((mE, 0)), np.zeros((0, K.shape[0])))
+    Et = Ut @ RK.T
+    r = Et.shape[1]
+    return QK, np.vstack([np.hstack([Et, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
 
-    ``RZ``, ``QK``: the block solver's R of Z = [U_t·L, X_t; I, 0] and the Q of Kᵀ = Q_K·Lᵀ (orthonormal
-    columns). B's projected matrix is Z_B = [U_t·K·D, X_t; D, 0] with D = diag(1/se) and K = L·Q_Kᵀ, and
-    an R factor is fixed by the Gram matrix alone (up to the signs of its rows, which no singular value
-    sees): with T = diag(Q_Kᵀ·D, I), Z_Bᵀ·Z_B = Tᵀ·RZᵀ·RZ·T + [D·P·D, 0; 0, 0], P = I − Q_K·Q_Kᵀ (the
-    prior rows: D² where T gives D·Q_K·Q_Kᵀ·D), i.e. the Gram matrix of the small stack
-    [RZ·T; P·D, 0]. Its QR replaces a QR of all the rows again (a 12-head bench: ≈ 16 ms a fit,
-    9 of its 65 s)."""
+
+def _sharper(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, Xs: np.ndarray, Rx: np.ndarray,
+             K: np.ndarray | None, se: np.ndarray | None, RZ: np.ndarray | None, QK: np.ndarray | None) -> float:
+    """:func:`_kappa_blocks` for a fit of X (scaled data rows Xs, R_X = Rx of the block solver's own
+    factorisation) and, with a regressor block E = U·K (column norms se over data and prior rows), the
+    reference's E columns [U_w·K/se; 0; diag(1/se)] as the first columns of B.
+
+    ``RZ``, ``QK``: the block solver's R of Z = [U_t·L, X_t; I, 0] and the Q of Kᵀ = Q_K·Lᵀ
+    (orthonormal columns; :func:`_regressor_stack`). B's projected matrix is Z_B = [U_t·K·D, X_t; D, 0]
+    with D = diag(1/se) and K = L·Q_Kᵀ, and an R factor is fixed by the Gram matrix alone (up to the
+    signs of its rows, which no singular value sees): with T = diag(Q_Kᵀ·D, I),
+    Z_Bᵀ·Z_B = Tᵀ·RZᵀ·RZ·T + [D·P·D, 0; 0, 0], P = I − Q_K·Q_Kᵀ (the prior rows: D² where T gives
+    D·Q_K·Q_Kᵀ·D), i.e. the Gram matrix of the small stack [RZ·T; P·D, 0]. Its QR replaces a QR of
+    all the rows of Z_B (a 12-head bench: ≈ 16 ms a fit, 9 of its 65 s; the test compares the two)."""
     G_X = F.coupling(X)
-    if K is None or se is None or Ut is None:
+    if K is None or se is None or RZ is None or QK is None:
         return _kappa_blocks(F, Xs, np.zeros(Xs.shape[1]), Rx, G_X)
     Ks = K / se
     mE, p = Ks.shape[1], Xs.shape[1]
     Uw = F.basis(basis)[0]
     Bd = np.hstack([Uw @ Ks, Xs])
-    if RZ is not None and QK is not None:
-        r = QK.shape[1]
-        T = np.zeros((r + p, mE + p))
-        T[:r, :mE] = QK.T / se[None, :]
-        T[r:, mE:] = np.eye(p)
-        PD = (np.eye(mE) - QK @ QK.T) / se[None, :]
-        RB = _qr_r(np.vstack([RZ @ T, np.hstack([PD, np.zeros((mE, p))])]))
-    else:
-        # (I − P_S) of B's columns: the data and S-prior rows projected, E's own prior rows unchanged
-        Z = np.vstack([np.hstack([Ut @ Ks, Xt]), np.hstack([np.diag(1.0 / se), np.zeros((mE, p))])])
-        RB = _qr_r(Z)
+    r = QK.shape[1]
+    T = np.zeros((r + p, mE + p))
+    T[:r, :mE] = QK.T / se[None, :]
+    T[r:, mE:] = np.eye(p)
+    PD = (np.eye(mE) - QK @ QK.T) / se[None, :]
+    RB = _qr_r(np.vstack([RZ @ T, np.hstack([PD, np.zeros((mE, p))])]))
     G = np.hstack([F.basis_coupling(basis) @ Ks, G_X])
     return _kappa_blocks(F, Bd, np.concatenate([1.0 / se, np.zeros(p)]), RB, G)
 
@@ -310,11 +315,8 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
         a_E = float(se.max())
         Ks = K / se
         c_E = gain * float(np.linalg.norm(Ks))      # ‖·‖₂ ≤ ‖·‖_F
-        QK, RK = np.linalg.qr(K.T) if K.size else (np.zeros((mE, 0)), np.zeros((0, K.shape[0])))
-        L = RK.T     # L·Lᵀ = K·Kᵀ (K = L·Q_Kᵀ)
-        Et = Ut @ L
-        r = Et.shape[1]
-        Z = np.vstack([np.hstack([Et, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
+        QK, Z = _regressor_stack(K, Ut, Xt)
+        r = QK.shape[1]
         bt = np.concatenate([F.bt, np.zeros(r)])
     else:
         r, Z, bt = 0, Xt, F.bt
@@ -341,7 +343,7 @@ def block_fit(F: NuisanceFactor, basis: RangeBasis, X: np.ndarray, extra: np.nda
             c_E = gain * float(np.linalg.norm(Ks, 2)) if Ks is not None else 0.0      # Ks: with E (mE > 0)
             c_X = math.sqrt(float(np.linalg.eigvalsh(Xs.T @ Xs)[-1]))      # ‖X_s‖₂ ≤ √p
             if not (_kappa(ncols, p, F.a, a_E, c_E, float(np.linalg.norm(Gx, 2)), c_X) <= KAPPA_MAX
-                    or _sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut, R2, QK) <= KAPPA_MAX):
+                    or _sharper(F, basis, X, Xs, Rx, K, se, R2, QK) <= KAPPA_MAX):
                 return None
         cov = (Gx @ Gx.T) / np.outer(sx, sx)
     elif not _kappa(ncols, 0, F.a, a_E, c_E, 0.0) <= KAPPA_MAX:

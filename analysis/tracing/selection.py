@@ -69,6 +69,16 @@ class _Cand:
     def key(self):
         return "+".join(self.names)
 
+    def extra_slices(self) -> dict[str, slice]:
+        """{member: its columns in ``extra``} (``extras`` stacked in member order)."""
+        out, i = {}, 0
+        for n in self.names:
+            if n in self.extras:
+                m = self.extras[n].shape[1]
+                out[n] = slice(i, i + m)
+                i += m
+        return out
+
 
 def _params(c: _Cand) -> dict[str, dict[str, float]]:
     """{member: {parameter: value}} of a candidate's fit: :func:`_params_u`'s values without the
@@ -564,13 +574,8 @@ def _worst_delta_x_order(c: _Cand, g: _Gates, nu: np.ndarray) -> tuple[int, floa
     pb, ev = g.pb, g.pb.ev
     if "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
         return None
-    off = 0   # c.extra is c.extras stacked in member order
-    for n in c.names:
-        if n == "tangential_motion":
-            break
-        off += c.extras[n].shape[1] if n in c.extras else 0
     E = c.extras["tangential_motion"]
-    orders, d2, bound = _delta_x_by_order(pb, g.mods["tangential_motion"], E, nu[off:off + E.shape[1]])
+    orders, d2, bound = _delta_x_by_order(pb, g.mods["tangential_motion"], E, nu[c.extra_slices()["tangential_motion"]])
     if not d2.size:
         return None
     i = int(np.argmax(d2))
@@ -1185,16 +1190,12 @@ def _regressor_adjustments(pb: _Problem, c: _Cand, mods: dict, ctx: dict, at: An
     q = pb.S.shape[1]
     nuis = c.fit["nuis"][q:]
     P = _params(c)
-    i = 0
-    for member in c.names:
-        if member not in c.extras:
-            continue
-        m = c.extras[member].shape[1]
+    for member, cols in c.extra_slices().items():
+        m = cols.stop - cols.start
         if m:
             R = np.asarray(mods[member].regressor_perturbations(ev, P[member], ctx), dtype=float)
             if R.shape[1] == m:
-                out[member] = R @ nuis[i:i + m]
-        i += m
+                out[member] = R @ nuis[cols]
     return out
 
 

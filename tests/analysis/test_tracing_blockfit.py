@@ -175,12 +175,14 @@ def test_sharper_bound_accepts_only_well_conditioned_problems(with_e):
         basis = bf.RangeBasis(y.size)
         beta, chi2, kappa = _dense(S, w, y, X, E)
         sx, Xs, Xt = F.columns(X)
-        K = se = Ut = None
+        K = se = RZ = QK = None
         if E is not None:
             K = basis.coefficients(E)
             Uw, Ut, _ = F.basis(basis)
             se = np.sqrt(np.sum((Uw @ K) ** 2, axis=0) + 1.0)
-        bound = bf._sharper(F, basis, X, Xs, Xt, bf._qr_r(Xt), K, se, Ut)
+            QK, Z = bf._regressor_stack(K, Ut, Xt)      # as block_fit stacks them
+            RZ = bf._qr_r(Z)
+        bound = bf._sharper(F, basis, X, Xs, bf._qr_r(Xt), K, se, RZ, QK)
         assert bound >= kappa * (1.0 - 1e-9)
         product = bf._kappa(X.shape[1] + S.shape[1] + (0 if E is None else E.shape[1]), X.shape[1], F.a, 0.0, 0.0,
                             float(np.linalg.norm(np.linalg.inv(bf._qr_r(Xt)), 2)))
@@ -211,13 +213,16 @@ def test_sharper_bound_from_the_solvers_own_r_equals_the_bound_from_all_the_rows
         K = basis.coefficients(E)
         Uw, Ut, _ = F.basis(basis)
         se = np.sqrt(np.sum((Uw @ K) ** 2, axis=0) + 1.0)
-        QK, RK = np.linalg.qr(K.T)      # as block_fit factorises them
-        r, p = RK.shape[0], X.shape[1]
-        Z = np.vstack([np.hstack([Ut @ RK.T, Xt]), np.hstack([np.eye(r), np.zeros((r, p))])])
+        QK, Z = bf._regressor_stack(K, Ut, Xt)      # as block_fit stacks them
+        r, p, mE = QK.shape[1], X.shape[1], E.shape[1]
         RZ = bf._qr_r(Z)
         Rx = RZ[r:, r:]
-        rows = bf._sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut)
-        small = bf._sharper(F, basis, X, Xs, Xt, Rx, K, se, Ut, RZ, QK)
+        # the bound from all the rows: R of B's projected matrix [U_t·K/se, X_t; diag(1/se), 0] itself
+        Ks = K / se
+        ZB = np.vstack([np.hstack([Ut @ Ks, Xt]), np.hstack([np.diag(1.0 / se), np.zeros((mE, p))])])
+        G = np.hstack([F.basis_coupling(basis) @ Ks, F.coupling(X)])
+        rows = bf._kappa_blocks(F, np.hstack([Uw @ Ks, Xs]), np.concatenate([1.0 / se, np.zeros(p)]), bf._qr_r(ZB), G)
+        small = bf._sharper(F, basis, X, Xs, Rx, K, se, RZ, QK)
         assert QK.shape == (E.shape[1], min(E.shape[1], 4))
         assert math.isfinite(rows) and abs(small - rows) <= 1e-12 * rows
 
