@@ -57,7 +57,12 @@ bench's own scatter is the bench without the effect, where it exceeds its u (the
 the effect is **observable** and must be named (alone or in an ambiguity set; an effect outside the
 library: "unexplained"); where neither passes even at its full amplitude it is **not observable**,
 and between **marginal**: both then accept "nothing" besides the effect's name
-(:func:`expected_verdict`). The decision is written to ``truth/expected.json``, which the scorer
+(:func:`expected_verdict`). **Aliased** (since 2026-12-07): on a bench without X probes whose axis
+holds a tangential motion the Y probes cannot see (the scorer's excused set, ≥ 0.1″ of −δX/r in
+truth), any pattern of the stop angle at that motion's orders (2…10) can be the motion; the tier is
+then the lesser of the whole imprint's and of the imprint less that part (:func:`motion_part`,
+:func:`imprint_of` ``stationary_stands_for``): what only repeats with the angle at those orders
+cannot be told from the motion on that bench, whatever the effect's shape. The decision is written to ``truth/expected.json``, which the scorer
 reads (``app.score.read_truth``). The hidden suite's four "nothing" classes (``ac_drift``,
 ``ac_nonlinearity``, ``ccd_pixel_scale_pixel_only``, ``polygon_pitch_ignored``) are no longer listed:
 the rule decides them bench by bench; each bench is also scored by the old rule
@@ -88,6 +93,7 @@ import math
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import tomllib
 import traceback
@@ -294,6 +300,11 @@ def expected_verdict(base: dict[str, Any], obs: dict[str, Any] | None) -> dict[s
            f"{'yes' if obs['signature_at_1_over_margin'] else 'no'}")
     out["observability"] = {k: obs[k] for k in ("tier", "ratio_chi2", "lambda", "lambda_gate", "dof", "null_scale",
                                                   "signature_at_1", "signature_at_1_over_margin", "margin")}
+    if obs.get("aliased"):
+        rest = obs["remainder"]
+        out["observability"].update(tier_whole=obs["tier_whole"], aliased=obs["aliased"], remainder=rest)
+        fig += (f"; {obs['tier_whole']} as a whole, but {obs['aliased']}: the rest is {rest['ratio_chi2']:.2f}× the "
+                f"χ² gate, signature parts {', '.join(rest['signature_parts']) or 'none'}")
     if obs["tier"] == "observable" or "nothing" in out["accept"]:
         out["why"] += f"; {fig}: {obs['tier']}"
         return out
@@ -316,14 +327,15 @@ def base_evidence(dataset: Path) -> Any:
     return _loop_evidence(ds, a)[0]
 
 
-def imprint(ds_effect: Path, ds_null: Path) -> dict[str, Any]:
+def imprint(ds_effect: Path, ds_null: Path, stationary_stands_for: str | None = None) -> dict[str, Any]:
     """The hidden effect's noise-free imprint on what the base model cannot absorb: the difference
     of the base model's per-reading residuals (α − Jia's model with the measured e, θ0 and ∫δY) of
     the same bench simulated with and without the effect (same seed: every noise stream the same),
     put through the analysis's own "anything to explain?" test (``residual_test``: closure-centred,
     the model's uncertainties as nuisance columns, the effect bench's u) as a noise-free residual;
-    its χ² is the non-centrality the effect adds to the residual's χ²."""
-    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null))
+    its χ² is the non-centrality the effect adds to the residual's χ². ``stationary_stands_for``:
+    :func:`imprint_of`."""
+    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null), stationary_stands_for)
 
 
 def _harmonic_scale(ev: Any) -> float:
@@ -338,23 +350,39 @@ def _harmonic_scale(ev: Any) -> float:
     return float(chi2_scale(pb.fit(_center(X, column(ev.closure_group), pb.w ** 2))))
 
 
-def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
-    """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
-    ``ev``, and without it, ``ev0``; the same stops)."""
-    from benchtwin.analysis.tracing import _significant_parts, harmonic_test, noise_floor, residual_test, signature
+def motion_part(ev: Any, d: np.ndarray) -> np.ndarray:
+    """The part of a per-reading pattern ``d`` that the axis's unseen tangential motion could be on
+    this bench: the weighted least-squares fit (weights 1/u²) of the harmonics of the stop angle θ
+    of the orders the scorer counts in that motion (``app.score.RADIAL_ORDERS``, 2…10: a bearing's
+    error motion; eq. 5's orders), jointly with one constant per closure group (each group's setup
+    error U, which the residual test removes anyway). What repeats at the same θ at those orders;
+    what changes with time, direction or the polygon's face, and the first harmonic and the orders
+    above 10 (at the orders the stops sample: a one-shift bench's 23 angles fold order 13 onto 10), are
+    left out. No effect's shape enters: only the bench's design and the motion's orders."""
+    from app.score import RADIAL_ORDERS
+    from benchtwin.analysis.fourier import harmonic_columns
+    from benchtwin.analysis.tracing import column
+
+    n = int(ev.n)
+    H = harmonic_columns(ev.theta_deg, list(RADIAL_ORDERS))[0]
+    _, gi = np.unique(column(ev.closure_group), return_inverse=True)
+    G = np.zeros((n, int(gi.max()) + 1))
+    G[np.arange(n), gi.ravel()] = 1.0
+    A = np.hstack([H, G])
+    w = 1.0 / np.broadcast_to(np.asarray(ev.u_arcsec, dtype=float), (n,))
+    coef = np.linalg.lstsq(A * w[:, None], d * w, rcond=None)[0]
+    return H @ coef[:H.shape[1]]
+
+
+def _routes(ev: Any, d: np.ndarray, s2h: float, floor: float) -> dict[str, Any]:
+    """Both routes of :func:`observability` for a noise-free pattern ``d`` on the bench of ``ev``."""
+    from benchtwin.analysis.tracing import _significant_parts, harmonic_test, residual_test, signature
     from benchtwin.analysis.tracing.evidence import _replace_alpha
 
-    keys = ("step", "rep", "shift_deg", "direction", "start_face")
-    if ev.n != ev0.n or any(not np.array_equal(getattr(ev, k), getattr(ev0, k)) for k in keys):
-        raise ValueError("the bench with and without the effect read different stops")
-    d = ev.residual_arcsec - ev0.residual_arcsec
     rt = residual_test(_replace_alpha(ev, ev.model_arcsec + d))
-    rt0 = residual_test(ev0)
     u_rms = float(np.sqrt(np.mean(np.square(ev.u_arcsec))))
-    floor = float(noise_floor(ev))
     # the signature route on the noise-free imprint, its u scaled by the bench's own scatter left by
     # the harmonic fit (harmonic_test's chi2_scale on the bench without the effect)
-    s2h = _harmonic_scale(ev0)
     evs = _replace_alpha(ev, ev.model_arcsec)
     evs.u_arcsec = ev.u_arcsec * math.sqrt(s2h)
     passes, parts, hk = [], [], []
@@ -369,8 +397,49 @@ def imprint_of(ev: Any, ev0: Any) -> dict[str, Any]:
     return {**obs, "signature_parts": parts[0],
             "top_harmonics": [{"k": x["k"], "chi2": round(float(x["chi2"]), 2),
                                "amplitude_arcsec": round(float(x["amplitude_arcsec"]), 4)} for x in hk],
-            "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms, "noise_floor_arcsec": floor,
-            "n_readings": int(ev.n), "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
+            "imprint_rms_arcsec": float(rt["rms_arcsec"]), "u_rms_arcsec": u_rms}
+
+
+#: the tiers from least to most: an imprint's tier is the lesser of its own and its remainder's
+TIERS = ("not observable", "marginal", "observable")
+
+
+def imprint_of(ev: Any, ev0: Any, stationary_stands_for: str | None = None) -> dict[str, Any]:
+    """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
+    ``ev``, and without it, ``ev0``; the same stops).
+
+    ``stationary_stands_for``: what, on this bench, a pattern of the stop angle at orders 2…10
+    already stands for (None: nothing). On a bench without X probes whose axis has a tangential
+    motion the Y probes cannot see (truth: ≥ ``app.score.UNOBSERVABLE_MIN_ARCSEC`` of −δX/r, orders
+    2…10), that motion is in α as such a pattern, which no measurement on the bench constrains, and
+    the scorer excuses the set {graduation_error, tangential_motion} that stands for it
+    (``app.score.excused_names``). The imprint's part of that kind (:func:`motion_part`) can then be
+    that motion: the bench cannot tell the effect from it, whatever the effect's shape. Its tier is
+    then the lesser of the whole imprint's and of its remainder's (what changes with time, direction
+    or face; the first harmonic; orders above 10), and ``aliased`` says why. This is the independent reference generator's judgement made from the
+    design (its sphere_form_error on Y probes: ``detectable: false``), not from any effect template."""
+    keys = ("step", "rep", "shift_deg", "direction", "start_face")
+    if ev.n != ev0.n or any(not np.array_equal(getattr(ev, k), getattr(ev0, k)) for k in keys):
+        raise ValueError("the bench with and without the effect read different stops")
+    from benchtwin.analysis.tracing import noise_floor, residual_test
+
+    d = ev.residual_arcsec - ev0.residual_arcsec
+    rt0 = residual_test(ev0)
+    floor = float(noise_floor(ev))
+    s2h = _harmonic_scale(ev0)
+    out = {**_routes(ev, d, s2h, floor), "noise_floor_arcsec": floor, "n_readings": int(ev.n),
+           "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
+    if stationary_stands_for is None:
+        return out
+    rest = _routes(ev, d - motion_part(ev, d), s2h, floor)
+    tier = min(out["tier"], rest["tier"], key=TIERS.index)
+    out["remainder"] = {**{k: rest[k] for k in ("tier", "lambda", "ratio_chi2", "signature_parts", "imprint_rms_arcsec",
+                                                   "signature_at_1", "signature_at_1_over_margin")},
+                        "what": "the imprint less its part at the motion's orders that repeats at the same θ (motion_part)"}
+    out["aliased"] = (f"its part at orders 2…10 of θ can be {stationary_stands_for}"
+                      if tier != out["tier"] else None)
+    out["tier_whole"], out["tier"] = out["tier"], tier
+    return out
 
 
 def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any], keep_causes: bool = False):
@@ -382,6 +451,20 @@ def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any], keep
     b = draw_bench(seed, cls, index)
     ov = {**b["overrides"], "hidden": hidden, **(class_causes(cls) if hidden or keep_causes else {})}
     return load_scenario(BASE_SCENARIO).with_overrides(ov), b
+
+
+def stationary_stands_for(floor: dict[str, Any]) -> str | None:
+    """What a pattern of the stop angle at orders 2…10 stands for on a bench (:func:`imprint_of`), from the
+    scorer's floor of its truth (``app.score.read_truth``: ``x_probes``, ``unattributable_arcsec``):
+    on a bench without X probes whose axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r, the motion the Y
+    probes cannot see (the scorer's excused set); else None."""
+    from app.score import UNOBSERVABLE_MIN_ARCSEC
+
+    un = floor.get("unattributable_arcsec")
+    if floor.get("x_probes") is False and isinstance(un, (int, float)) and un >= UNOBSERVABLE_MIN_ARCSEC:
+        return (f"the axis's tangential motion the Y probes cannot see ({un:.3f}″ of −δX/r, orders 2…10; "
+                "the excused set {graduation_error, tangential_motion})")
+    return None
 
 
 def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) -> dict[str, Any]:
@@ -402,6 +485,10 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
         rec["simulate_s"] = round(time.time() - t0, 1)
         truth = d / "truth"
         shutil.move(str(ds / "truth"), str(truth))  # the analysis runs with the truth deleted
+        from app.score import read_results, read_truth, score_files, score_results
+
+        tr = read_truth(truth, ds)     # before expected.json exists: its "expected" is the scorer's rule
+        base = tr["expected"]          # from truth/hidden.json
         obs = None
         if hidden:
             t0 = time.time()
@@ -409,15 +496,11 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
             ds0 = Path(simulate(sc0, d / "without_effect", progress=False, backend="analytic"))
             shutil.move(str(ds0 / "truth"), str(d / "truth_without_effect"))
             try:
-                obs = imprint(ds, ds0)
+                obs = imprint(ds, ds0, stationary_stands_for(tr.get("floor") or {}))
             except Exception as exc:  # noqa: BLE001 - recorded; the hidden effect's rule then applies
                 rec["imprint_error"] = f"{type(exc).__name__}: {exc}"
             rec["imprint"] = obs
             rec["imprint_s"] = round(time.time() - t0, 1)
-        from app.score import read_results, read_truth, score_files, score_results
-
-        tr = read_truth(truth, ds)     # before expected.json exists: its "expected" is the scorer's rule
-        base = tr["expected"]          # from truth/hidden.json
         (truth / "expected.json").write_text(json.dumps(expected_verdict(base, obs), indent=1) + "\n",
                                              encoding="utf-8")
         from benchtwin.analysis.pipeline import analyze
@@ -464,7 +547,10 @@ def _imprint_text(r: dict[str, Any]) -> str:
             f"{im['noise_floor_arcsec']:.3f}″), χ² {im['lambda']:.4g} for {im['dof']} dof, "
             f"{im['ratio_chi2']:.2f}× the χ² gate (bench χ²/dof without the effect {im['null_scale']:.2f}); "
             f"signature parts {', '.join(im.get('signature_parts') or []) or 'none'} "
-            f"(at 1/{im['margin']:g}: {'pass' if im['signature_at_1_over_margin'] else 'fail'}); top harmonics {th}")
+            f"(at 1/{im['margin']:g}: {'pass' if im['signature_at_1_over_margin'] else 'fail'}); top harmonics {th}"
+            + (f"; {im['tier_whole']} as a whole, but {im['aliased']}: the rest {im['remainder']['ratio_chi2']:.2f}× "
+               f"the χ² gate, signature parts {', '.join(im['remainder']['signature_parts']) or 'none'}"
+               if im.get("aliased") else ""))
 
 
 def generated_section(records: list[dict[str, Any]], meta: dict[str, Any]) -> str:
@@ -575,6 +661,59 @@ def reference_run(gen_dirs: list[str], work: str) -> list[dict[str, Any]]:
     return out
 
 
+def _rescore_one(args: tuple[str, dict[str, Any], bool]) -> dict[str, Any]:
+    """One saved bench of an earlier run (:func:`rescore`): its imprint and expected verdict under
+    the current rule, and its saved (or, with ``reanalyse``, the current) analysis scored by it."""
+    work, r, reanalyse = args
+    from app.score import read_results, read_truth, score_results
+
+    d = Path(work) / r["class"] / f"b{int(r['index']):03d}"
+    out = {k: r.get(k) for k in ("class", "index", "draw", "correct", "outcome", "accept", "named", "ambiguous")}
+    try:
+        ds, truth = d / "dataset", d / "truth"
+        with tempfile.TemporaryDirectory() as tmp:
+            # the truth without the decision written by the run: its "expected" is the scorer's rule
+            t = Path(tmp) / "truth"
+            shutil.copytree(truth, t, ignore=shutil.ignore_patterns("expected.json"))
+            tr = read_truth(t, ds)
+        obs = r.get("imprint")
+        stands = stationary_stands_for(tr.get("floor") or {})
+        if r["class"] != "null" and (d / "without_effect").is_dir() and (stands is not None or obs is None):
+            obs = imprint(ds, d / "without_effect", stands)
+        exp = expected_verdict(tr["expected"], obs) if r["class"] != "null" else tr["expected"]
+        res_dir = d / "analysis"
+        if reanalyse:
+            from benchtwin.analysis.pipeline import analyze
+
+            res_dir = d / "analysis_now"
+            shutil.rmtree(res_dir, ignore_errors=True)
+            analyze(ds, res_dir, progress=False, close_loop=True)
+        res = read_results(res_dir / "results.json")
+        ident = score_results(res, {**tr, "expected": exp}).get("identification") or {}
+        out.update(imprint_now=obs, now_correct=bool(ident.get("correct")), now_outcome=ident.get("outcome"),
+                   now_accept=ident.get("accept"), now_named=list(res.get("named") or []),
+                   now_ambiguous=[list(x) for x in res.get("ambiguous") or []], analysis=str(res_dir))
+    except Exception as exc:  # noqa: BLE001 - recorded
+        out["error"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def rescore(work: str, reanalyse: bool = False, jobs: int = 1) -> list[dict[str, Any]]:
+    """The benches of an earlier run (WORK/outcomes.json and its kept folders: dataset, the bench
+    without the effect, truth) decided again by the current expected-verdict rule, and their saved
+    analysis (or, with ``reanalyse``, the current analysis, into ``bNNN/analysis_now``) scored by it.
+    Writes WORK/outcomes_rescored.json; each record keeps the run's verdict beside the new one."""
+    saved = json.loads((Path(work) / "outcomes.json").read_text(encoding="utf-8"))
+    recs = [r for r in saved["records"] if "error" not in r]
+    with ProcessPoolExecutor(max_workers=max(1, jobs)) as ex:
+        out = list(ex.map(_rescore_one, [(work, r, reanalyse) for r in recs]))
+    (Path(work) / "outcomes_rescored.json").write_text(
+        json.dumps({"meta": {**saved["meta"], "rescored": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+                             "rescored_commit": _commit(), "reanalysed": reanalyse}, "records": out},
+                   indent=1, default=str), encoding="utf-8")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, default=1)
@@ -584,9 +723,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", default="/tmp/loop_validation")
     ap.add_argument("--doc", default=str(DOC))
     ap.add_argument("--from-json", default=None, help="rewrite the doc from an earlier outcomes.json")
+    ap.add_argument("--rescore", nargs="+", default=None, metavar="WORK",
+                    help="decide and score again the kept benches of earlier runs (their outcomes.json) by the "
+                         "current rule; with --reanalyse, by the current analysis too")
+    ap.add_argument("--reanalyse", action="store_true")
     ap.add_argument("--reference", nargs="+", default=None, metavar="GEN_OUT",
                     help="score the reference generator's outputs (gen.py --out GEN_OUT) instead of drawing benches")
     a = ap.parse_args(argv)
+    if a.rescore:
+        for w in a.rescore:
+            rs = rescore(w, a.reanalyse, a.jobs)
+            for r in rs:
+                if r.get("error") or r["correct"] != r.get("now_correct"):
+                    print(f"{w} {r['class']} #{r['index']}: {r.get('error') or ''}"
+                          f"{'right' if r['correct'] else 'WRONG'} {r['outcome']} -> "
+                          f"{'right' if r.get('now_correct') else 'WRONG'} {r.get('now_outcome')}", flush=True)
+            print(f"{w}: right {sum(bool(r['correct']) for r in rs)}/{len(rs)} as run, "
+                  f"{sum(bool(r.get('now_correct')) for r in rs)}/{len(rs)} now", flush=True)
+        return 0
     if a.reference:
         recs = reference_run(a.reference, a.work)
         kinds = sorted({r["kind"] for r in recs})

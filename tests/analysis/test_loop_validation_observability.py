@@ -138,3 +138,62 @@ def test_a_tiny_drawn_bench_with_and_without_its_effect(tmp_path):
     assert o["tier"] in ("observable", "marginal", "not observable")
     e = lv.expected_verdict({"expect": ["ac_drift"], "accept": ["named", "ambiguous"], "why": ""}, o)
     assert ("nothing" in e["accept"]) == (o["tier"] != "observable")
+
+
+def _faces(pattern, u: float = 0.1, seed: int = 5):
+    """Hsieh eq. 3's design at one shift: 23 start faces × 23 steps (529 readings), each start
+    face a closure group read 20 s a reading; ``pattern(theta_deg, t_s)`` the imprint."""
+    from benchtwin.analysis.tracing import Evidence
+
+    j, i = np.divmod(np.arange(23 * 23), 23)
+    th = i * 360.0 / 23
+    t = 20.0 * np.arange(th.size)
+    noise = np.random.default_rng(seed).normal(0.0, u, th.size)
+    kw = dict(theta_deg=th, u_arcsec=u, model_terms={}, shift_deg=np.zeros(th.size), start_face=j + 1,
+              step=i + 1, t_s=t, radial=None, radial_term=None)
+    return Evidence(alpha_arcsec=noise + pattern(th, t), **kw), Evidence(alpha_arcsec=noise, **kw)
+
+
+def test_the_motion_part_is_what_repeats_at_the_same_angle_at_the_motions_orders():
+    ev, _ = _faces(lambda th, t: 0 * th)
+    th = np.deg2rad(ev.theta_deg)
+    k3 = 0.4 * np.sin(3 * th) + 0.2 * np.cos(10 * th)
+    assert np.allclose(lv.motion_part(ev, k3), k3, atol=1e-12)
+    # the first harmonic (eccentricity's order, not a bearing's error motion) stays out
+    assert np.allclose(lv.motion_part(ev, 0.4 * np.sin(th)), 0.0, atol=1e-12)
+    # a constant per start face (its setup error U_j) is not the motion either
+    assert np.allclose(lv.motion_part(ev, 0.1 * ev.start_face.astype(float)), 0.0, atol=1e-12)
+    # a temperature cycle of the measuring loop (period 1.5 start faces) does not repeat at the same
+    # θ: nearly all of it stays
+    cyc = 0.3 * np.sin(2 * np.pi * ev.t_s / (1.5 * 23 * 20.0))
+    left = cyc - lv.motion_part(ev, cyc)
+    assert np.std(left) > 0.9 * np.std(cyc)
+
+
+def test_an_imprint_fixed_to_the_angle_is_aliased_only_where_something_stands_for_it():
+    ev, ev0 = _faces(lambda th, t: 0.4 * np.sin(3 * np.deg2rad(th)))
+    whole = lv.imprint_of(ev, ev0)
+    assert whole["tier"] == "observable" and "aliased" not in whole
+    al = lv.imprint_of(ev, ev0, "the unseen motion")
+    assert al["tier_whole"] == "observable" and al["tier"] == "not observable"
+    assert al["aliased"] and "the unseen motion" in al["aliased"] and al["remainder"]["tier"] == "not observable"
+    e = lv.expected_verdict({"expect": ["sphere_form"], "accept": ["named", "ambiguous"], "why": ""}, al)
+    assert "nothing" in e["accept"] and e["observability"]["tier_whole"] == "observable"
+    # a temperature cycle does not repeat at the same angle, and a first harmonic is not at the
+    # motion's orders: observable whatever stands for the motion
+    for pattern in (lambda th, t: 0.3 * np.sin(2 * np.pi * t / (1.5 * 23 * 20.0)),
+                    lambda th, t: 0.4 * np.sin(np.deg2rad(th))):
+        ev, ev0 = _faces(pattern)
+        w = lv.imprint_of(ev, ev0, "the unseen motion")
+        assert w["tier"] == "observable" and w["aliased"] is None
+        e = lv.expected_verdict({"expect": [], "accept": ["unexplained"], "why": ""}, w)
+        assert e["accept"] == ["unexplained"]
+
+
+def test_what_a_function_of_the_angle_stands_for_comes_from_the_scorers_floor():
+    from app.score import UNOBSERVABLE_MIN_ARCSEC
+
+    assert lv.stationary_stands_for({"x_probes": False, "unattributable_arcsec": UNOBSERVABLE_MIN_ARCSEC})
+    assert lv.stationary_stands_for({"x_probes": False, "unattributable_arcsec": 0.5 * UNOBSERVABLE_MIN_ARCSEC}) is None
+    assert lv.stationary_stands_for({"x_probes": True, "unattributable_arcsec": 1.0}) is None
+    assert lv.stationary_stands_for({"x_probes": None, "unattributable_arcsec": None}) is None
