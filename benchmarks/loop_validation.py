@@ -61,10 +61,11 @@ and between **marginal**: both then accept "nothing" besides the effect's name
 holds a tangential motion the Y probes cannot see (the scorer's excused set, ≥ 0.1″ of −δX/r in
 truth), any pattern of the stop angle at that motion's orders (2…10) can be the motion; the tier is
 then the lesser of the whole imprint's and of the imprint less that part (:func:`motion_part`,
-:func:`imprint_of` ``stationary_stands_for``): what only repeats with the angle at those orders
-cannot be told from the motion on that bench, whatever the effect's shape. The decision is written to ``truth/expected.json``, which the scorer
-reads (``app.score.read_truth``). The hidden suite's four "nothing" classes (``ac_drift``,
-``ac_nonlinearity``, ``ccd_pixel_scale_pixel_only``, ``polygon_pitch_ignored``) are no longer listed:
+:func:`imprint_of` ``unseen``): what only repeats with the angle at those orders cannot be told
+from the motion on that bench, whatever the effect's shape. The decision is written to
+``truth/expected.json``, which the scorer reads (``app.score.read_truth``). The hidden suite's four
+"nothing" classes (``ac_drift``, ``ac_nonlinearity``, ``ccd_pixel_scale_pixel_only``,
+``polygon_pitch_ignored``) are no longer listed:
 the rule decides them bench by bench; each bench is also scored by the old rule
 (:data:`OLD_EXPECT_NOTHING`) for comparison (``old_correct``). A spurious name stays wrong, and so
 does an observable effect the loop misses. Nulls need no second simulation (nothing hidden).
@@ -327,15 +328,14 @@ def base_evidence(dataset: Path) -> Any:
     return _loop_evidence(ds, a)[0]
 
 
-def imprint(ds_effect: Path, ds_null: Path, stationary_stands_for: str | None = None) -> dict[str, Any]:
+def imprint(ds_effect: Path, ds_null: Path, unseen: str | None = None) -> dict[str, Any]:
     """The hidden effect's noise-free imprint on what the base model cannot absorb: the difference
     of the base model's per-reading residuals (α − Jia's model with the measured e, θ0 and ∫δY) of
     the same bench simulated with and without the effect (same seed: every noise stream the same),
     put through the analysis's own "anything to explain?" test (``residual_test``: closure-centred,
     the model's uncertainties as nuisance columns, the effect bench's u) as a noise-free residual;
-    its χ² is the non-centrality the effect adds to the residual's χ². ``stationary_stands_for``:
-    :func:`imprint_of`."""
-    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null), stationary_stands_for)
+    its χ² is the non-centrality the effect adds to the residual's χ². ``unseen``: :func:`imprint_of`."""
+    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null), unseen)
 
 
 def _harmonic_scale(ev: Any) -> float:
@@ -404,20 +404,21 @@ def _routes(ev: Any, d: np.ndarray, s2h: float, floor: float) -> dict[str, Any]:
 TIERS = ("not observable", "marginal", "observable")
 
 
-def imprint_of(ev: Any, ev0: Any, stationary_stands_for: str | None = None) -> dict[str, Any]:
+def imprint_of(ev: Any, ev0: Any, unseen: str | None = None) -> dict[str, Any]:
     """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
     ``ev``, and without it, ``ev0``; the same stops).
 
-    ``stationary_stands_for``: what, on this bench, a pattern of the stop angle at orders 2…10
-    already stands for (None: nothing). On a bench without X probes whose axis has a tangential
+    ``unseen``: what, on this bench, a pattern of the stop angle at orders 2…10 already stands for
+    (:func:`unseen_motion`; None: nothing). On a bench without X probes whose axis has a tangential
     motion the Y probes cannot see (truth: ≥ ``app.score.UNOBSERVABLE_MIN_ARCSEC`` of −δX/r, orders
     2…10), that motion is in α as such a pattern, which no measurement on the bench constrains, and
     the scorer excuses the set {graduation_error, tangential_motion} that stands for it
     (``app.score.excused_names``). The imprint's part of that kind (:func:`motion_part`) can then be
     that motion: the bench cannot tell the effect from it, whatever the effect's shape. Its tier is
     then the lesser of the whole imprint's and of its remainder's (what changes with time, direction
-    or face; the first harmonic; orders above 10), and ``aliased`` says why. This is the independent reference generator's judgement made from the
-    design (its sphere_form_error on Y probes: ``detectable: false``), not from any effect template."""
+    or face; the first harmonic; orders above 10), and ``aliased`` says why. This is the independent
+    reference generator's judgement made from the design (its sphere_form_error on Y probes:
+    ``detectable: false``), not from any effect template."""
     keys = ("step", "rep", "shift_deg", "direction", "start_face")
     if ev.n != ev0.n or any(not np.array_equal(getattr(ev, k), getattr(ev0, k)) for k in keys):
         raise ValueError("the bench with and without the effect read different stops")
@@ -429,15 +430,15 @@ def imprint_of(ev: Any, ev0: Any, stationary_stands_for: str | None = None) -> d
     s2h = _harmonic_scale(ev0)
     out = {**_routes(ev, d, s2h, floor), "noise_floor_arcsec": floor, "n_readings": int(ev.n),
            "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
-    if stationary_stands_for is None:
+    if unseen is None:
         return out
     rest = _routes(ev, d - motion_part(ev, d), s2h, floor)
     tier = min(out["tier"], rest["tier"], key=TIERS.index)
-    out["remainder"] = {**{k: rest[k] for k in ("tier", "lambda", "ratio_chi2", "signature_parts", "imprint_rms_arcsec",
-                                                   "signature_at_1", "signature_at_1_over_margin")},
-                        "what": "the imprint less its part at the motion's orders that repeats at the same θ (motion_part)"}
-    out["aliased"] = (f"its part at orders 2…10 of θ can be {stationary_stands_for}"
-                      if tier != out["tier"] else None)
+    kept = ("tier", "lambda", "ratio_chi2", "signature_parts", "imprint_rms_arcsec", "signature_at_1",
+            "signature_at_1_over_margin")
+    out["remainder"] = {**{k: rest[k] for k in kept},
+                        "what": "the imprint less its part at the motion's orders (motion_part)"}
+    out["aliased"] = f"its part at orders 2…10 of θ can be {unseen}" if tier != out["tier"] else None
     out["tier_whole"], out["tier"] = out["tier"], tier
     return out
 
@@ -453,9 +454,9 @@ def bench_scenario(seed: int, cls: str, index: int, hidden: dict[str, Any], keep
     return load_scenario(BASE_SCENARIO).with_overrides(ov), b
 
 
-def stationary_stands_for(floor: dict[str, Any]) -> str | None:
-    """What a pattern of the stop angle at orders 2…10 stands for on a bench (:func:`imprint_of`), from the
-    scorer's floor of its truth (``app.score.read_truth``: ``x_probes``, ``unattributable_arcsec``):
+def unseen_motion(floor: dict[str, Any]) -> str | None:
+    """What a pattern of the stop angle at orders 2…10 stands for on a bench (:func:`imprint_of`),
+    from the scorer's floor of its truth (``app.score.read_truth``: ``x_probes``, ``unattributable_arcsec``):
     on a bench without X probes whose axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r, the motion the Y
     probes cannot see (the scorer's excused set); else None."""
     from app.score import UNOBSERVABLE_MIN_ARCSEC
@@ -496,7 +497,7 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
             ds0 = Path(simulate(sc0, d / "without_effect", progress=False, backend="analytic"))
             shutil.move(str(ds0 / "truth"), str(d / "truth_without_effect"))
             try:
-                obs = imprint(ds, ds0, stationary_stands_for(tr.get("floor") or {}))
+                obs = imprint(ds, ds0, unseen_motion(tr.get("floor") or {}))
             except Exception as exc:  # noqa: BLE001 - recorded; the hidden effect's rule then applies
                 rec["imprint_error"] = f"{type(exc).__name__}: {exc}"
             rec["imprint"] = obs
@@ -677,7 +678,7 @@ def _rescore_one(args: tuple[str, dict[str, Any], bool]) -> dict[str, Any]:
             shutil.copytree(truth, t, ignore=shutil.ignore_patterns("expected.json"))
             tr = read_truth(t, ds)
         obs = r.get("imprint")
-        stands = stationary_stands_for(tr.get("floor") or {})
+        stands = unseen_motion(tr.get("floor") or {})
         if r["class"] != "null" and (d / "without_effect").is_dir() and (stands is not None or obs is None):
             obs = imprint(ds, d / "without_effect", stands)
         exp = expected_verdict(tr["expected"], obs) if r["class"] != "null" else tr["expected"]

@@ -193,7 +193,7 @@ def test_an_imprint_fixed_to_the_angle_is_aliased_only_where_something_stands_fo
 def test_what_a_function_of_the_angle_stands_for_comes_from_the_scorers_floor():
     from app.score import UNOBSERVABLE_MIN_ARCSEC
 
-    assert lv.stationary_stands_for({"x_probes": False, "unattributable_arcsec": UNOBSERVABLE_MIN_ARCSEC})
-    assert lv.stationary_stands_for({"x_probes": False, "unattributable_arcsec": 0.5 * UNOBSERVABLE_MIN_ARCSEC}) is None
-    assert lv.stationary_stands_for({"x_probes": True, "unattributable_arcsec": 1.0}) is None
-    assert lv.stationary_stands_for({"x_probes": None, "unattributable_arcsec": None}) is None
+    assert lv.unseen_motion({"x_probes": False, "unattributable_arcsec": UNOBSERVABLE_MIN_ARCSEC})
+    assert lv.unseen_motion({"x_probes": False, "unattributable_arcsec": 0.5 * UNOBSERVABLE_MIN_ARCSEC}) is None
+    assert lv.unseen_motion({"x_probes": True, "unattributable_arcsec": 1.0}) is None
+    assert lv.unseen_motion({"x_probes": None, "unattributable_arcsec": None}) is None
