@@ -361,17 +361,15 @@ def motion_part(ev: Any, d: np.ndarray) -> np.ndarray:
     left out. No effect's shape enters: only the bench's design and the motion's orders."""
     from app.score import RADIAL_ORDERS
     from benchtwin.analysis.fourier import harmonic_columns
-    from benchtwin.analysis.tracing import column
+    from benchtwin.analysis.tracing import _center, column
 
-    n = int(ev.n)
     H = harmonic_columns(ev.theta_deg, list(RADIAL_ORDERS))[0]
-    _, gi = np.unique(column(ev.closure_group), return_inverse=True)
-    G = np.zeros((n, int(gi.max()) + 1))
-    G[np.arange(n), gi.ravel()] = 1.0
-    A = np.hstack([H, G])
-    w = 1.0 / np.broadcast_to(np.asarray(ev.u_arcsec, dtype=float), (n,))
-    coef = np.linalg.lstsq(A * w[:, None], d * w, rcond=None)[0]
-    return H @ coef[:H.shape[1]]
+    w = 1.0 / np.broadcast_to(np.asarray(ev.u_arcsec, dtype=float), (int(ev.n),))
+    g = column(ev.closure_group)
+    # the joint fit's coefficients of H are those of the group-centred H and d (Frisch–Waugh): the
+    # closure-centring every test of the tracing uses
+    coef = np.linalg.lstsq(_center(H, g, w ** 2) * w[:, None], _center(d, g, w ** 2) * w, rcond=None)[0]
+    return H @ coef
 
 
 def _routes(ev: Any, d: np.ndarray, s2h: float, floor: float) -> dict[str, Any]:

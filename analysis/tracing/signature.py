@@ -24,13 +24,12 @@ from .thresholds import DBIC_GATE, P_SIG, SIZE_GATE, Z_GATE
 # 2. signature
 # ----------------------------------------------------------------------------------------------
 
-def _free_of_theta(pb: _Problem, col: np.ndarray, D: np.ndarray | None = None) -> np.ndarray:
-    """The closure-centred column with every function of the stop position θ removed (weighted).
-    ``D``: :func:`_theta_dummies` of ``pb``, when the caller removes θ from several columns."""
+def _free_of_theta(pb: _Problem, col: np.ndarray) -> np.ndarray:
+    """The closure-centred column with every function of the stop position θ removed (weighted)."""
     ev = pb.ev
     w2 = pb.w[: ev.n] ** 2
     x = _center(col, column(ev.closure_group), w2)
-    D = _theta_dummies(pb) if D is None else D
+    D = _theta_dummies(pb)
     sw = np.sqrt(w2)
     beta, *_ = np.linalg.lstsq(D * sw[:, None], x * sw, rcond=None)
     out = x - D @ beta
@@ -96,7 +95,7 @@ def _time_pattern(pb: _Problem, ks: list[int]) -> dict:
     # start face per shift, 1 rep) the bearings' −δX/r above order 20 (0.1…0.3″ RMS, truth) did
     # exactly that, at z ≈ 9 for the noise-free true α (loop validation seeds 660-663).
     Xh = _center(H, column(ev.closure_group), pb.w ** 2)
-    X0 = _center(_dummies(ev.theta_bin), column(ev.closure_group), pb.w ** 2)
+    X0 = _theta_dummies(pb)
     X1 = _center(H * tt[:, None], column(ev.closure_group), pb.w ** 2)
     f0, f1 = pb.fit(X0), pb.fit(np.hstack([X0, X1]))
     d, k = f0["chi2"] - f1["chi2"], f1["k"] - f0["k"]
