@@ -225,11 +225,13 @@ def _local_level_trend(C: np.ndarray, tg: np.ndarray) -> tuple[np.ndarray, float
     (z 0.8, thermal_growth missed), and a curve tested against independent sweeps takes the slow
     part of a real walk for a drift (z 7.6 on the jia2019 default). Within this model a walk
     stays noise whatever its path, and the curvature is a trend of the increments, which a walk's
-    independent increments do not have. ρ is estimated by restricted maximum likelihood jointly
-    over the coefficients (each its own σ²): the walk is one process, the cage's, and a warm-up
+    independent increments do not have. ρ comes from the restricted likelihood of all the
+    coefficients together (each its own σ²): the walk is one process, the cage's, and a warm-up
     that bends one harmonic is not rough in the others. (Each coefficient's own ρ took a 0.5″ cage
     walk for a drift at z 3.6–3.8 in tests/analysis/test_time_pattern.py's synthetic sweeps; a
-    cubic drift, at z 6.2.) The choice of ρ is not propagated into the F-tests.
+    cubic drift, at z 6.2.) ρ is taken at the upper end of its 95 % profile interval, the
+    conservative side: the F-tests do not carry ρ's own uncertainty, and at the point estimate
+    they were anti-conservative (Monte Carlo, below).
 
     Returns (the fitted drift per sweep and coefficient, G × m; Σ over the coefficients of each
     F-test of (b, c) as its χ²₂ equivalent; its dof 2m; each coefficient's sweep-to-sweep scatter,
@@ -255,7 +257,12 @@ def _local_level_trend(C: np.ndarray, tg: np.ndarray) -> tuple[np.ndarray, float
         return ll, B, A, s2
 
     fits = [gls(float(rho)) for rho in WALK_SHARES]
-    best = int(np.argmax([f[0] for f in fits]))
+    ll = np.array([f[0] for f in fits])
+    # the largest ρ inside its 95 % profile interval (restricted log-likelihood within χ²₁(0.95)/2
+    # of its maximum), not the maximum itself: with ρ at its point estimate, 1500 null series per
+    # ρ = 0.3…1 (23 sweeps, 6 or 16 coefficients, serial ones only) went to z ≥ 4 in 0.1–1.5 % of
+    # them, a slow stretch of the walk read as a drift; at the interval's upper end, in none
+    best = int(np.nonzero(ll >= ll.max() - 0.5 * float(chi2_isf(0.05, 1)))[0].max())
     _, B, A, s2 = fits[best]
     rho = float(WALK_SHARES[best])
     F = np.einsum("ij,ik,kj->j", B, A, B) / p / np.where(s2 > 0, s2, np.inf)

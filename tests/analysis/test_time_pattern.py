@@ -175,21 +175,51 @@ def _warm_up(amplitude_arcsec: float, k: int = 7, tau_of_session: float = 0.25, 
 
 
 def test_a_warm_up_is_not_taken_for_a_random_walk():
-    """A 0.6″ 7-lobe pattern that grows with a warm-up (τ a quarter of the session) over 23 sweeps of
+    """A 1″ 7-lobe pattern that grows with a warm-up (τ a quarter of the session) over 23 sweeps of
     0.07″ readings: a straight line leaves its curvature in the sweeps' deviations, which look serial.
-    Tested as a pure random walk with drift (first differences) it was z 1.2–1.9 on these five seeds;
+    Tested as a pure random walk with drift (first differences) it was z 2.1–2.8 on these five seeds;
     within the local-level model (a walk plus the sweeps' own scatter, the curved drift tested) it is
-    seen (z ≥ 4) with about its size, and a stationary division error under the same noise is not."""
+    seen (z ≥ 4, 4.3–5.1) with about its size. (0.6″ was seen at the walk share's point estimate,
+    z 4.4–6.0, and is not at the conservative end of its interval, z 3.2–4.3.)"""
     from benchtwin.analysis.tracing.signature import signature
 
     for seed in range(201, 206):
         ev, _ = make_evidence(np.random.default_rng(seed), inject={"graduation_error": {3: (0.5, 0.7), 7: (0.3, 0.1)}},
-                              extra=_warm_up(0.6))
+                              extra=_warm_up(1.0))
         tp = signature(ev, time_ks=[3, 5, 7])["time_pattern"]
         assert tp["n_sweeps"] == 23 and tp["random_walk"] and tp["significant"] and tp["z"] >= 4, (seed, tp)
-        # the change from the first sweep to the last: 0.6·(1 − e^(−x/τ)) between the sweeps' mean times
-        assert 0.45 <= tp["change_over_session_arcsec"][2] <= 0.65, (seed, tp)
-        assert max(tp["change_over_session_arcsec"][:2]) < 0.1, (seed, tp)
+        # the change from the first sweep to the last: 1.0·(1 − e^(−x/τ)) between the sweeps' mean times
+        assert 0.75 <= tp["change_over_session_arcsec"][2] <= 1.05, (seed, tp)
+        assert max(tp["change_over_session_arcsec"][:2]) < 0.15, (seed, tp)
+
+
+def test_the_local_level_test_keeps_its_false_alarm_rate_under_a_walk():
+    """Monte Carlo of the null: 23 sweeps × 6 coefficients, each a random walk plus the sweep's own
+    scatter (walk share ρ = 0.3, 0.5 and 1; scales 0.5…2 per coefficient), no drift, kept where the
+    sweeps look serial (the case that reaches the test). z ≥ 3 has probability 0.00135 for a
+    calibrated test: ≤ 3 of the 816 series here. With ρ at its point estimate (not the upper end of
+    its 95 % interval) it was 17 of them, 2.1 %."""
+    import math
+
+    from benchtwin.analysis.distributions import norm_isf
+    from benchtwin.analysis.tracing.problem import _z_from_chi2
+    from benchtwin.analysis.tracing.signature import _local_level_trend
+    from benchtwin.analysis.tracing.thresholds import P_SIG
+
+    G, m = 23, 6
+    tg = (np.arange(G) - (G - 1) / 2) / G
+    rng = np.random.default_rng(7)
+    zs = []
+    for rho in (0.3, 0.5, 1.0):
+        sw, se = (math.sqrt(rho / (1 - rho)), 1.0) if rho < 1 else (1.0, 0.0)
+        for _ in range(400):
+            C = (np.cumsum(rng.normal(0, sw, (G, m)), axis=0) + rng.normal(0, se, (G, m))) * rng.uniform(0.5, 2.0, m)
+            res = C - C.mean(0) - np.outer(tg, (tg @ (C - C.mean(0))) / (tg @ tg))
+            if np.sum(res[1:] * res[:-1]) / np.sum(res ** 2) * math.sqrt(res.size) <= norm_isf(P_SIG):
+                continue
+            _, q, k2, _, _ = _local_level_trend(C, tg)
+            zs.append(_z_from_chi2(q, k2))
+    assert len(zs) >= 800 and sum(z >= 3 for z in zs) <= 3, (len(zs), sorted(zs)[-5:])
 
 
 def test_the_creeping_cage_stays_noise_over_seeds():
