@@ -1,7 +1,7 @@
 """The hidden suite's verdict rule (benchmarks/hidden_suite.py ``classify``): where the truth's axis
-holds ≥ 0.1″ of −δX/r (unobservable without X probes, or measured by them), tangential_motion, or the
-set {tangential_motion, graduation_error}, is no false positive on a null — without X probes the
-independent reference generator's rule — and nothing else."""
+holds ≥ 0.1″ of −δX/r (unobservable without X probes, or measured by them), tangential_motion, or an
+ambiguity set that holds it (such as {tangential_motion, graduation_error}), is no false positive on a
+null — without X probes the independent reference generator's rule — and nothing else."""
 
 from __future__ import annotations
 
@@ -27,9 +27,30 @@ def test_below_the_floor_or_with_x_probes_or_another_name_it_stays_false():
     assert hs.classify("none", [], SET, False, None).startswith("FALSE")          # X probes: nothing unobservable
     assert hs.classify("none", ["graduation_error"], [], False, 0.3).startswith("FALSE")   # alone: not the set
     assert hs.classify("none", ["ac_scale"], SET, False, 0.3).startswith("FALSE")
+    # a set without the motion excuses nothing, nor does the motion's set-mate below the floor
+    assert hs.classify("none", [], [["graduation_error", "sphere_form"]], False, 0.3).startswith("FALSE")
+    assert hs.classify("none", [], [["sphere_form", "tangential_motion"]], False, 0.05).startswith("FALSE")
     assert hs.classify("none", [], [], False, 0.3) == "ok (nothing)"
     # an effect that is expected is never satisfied by the rule
     assert not hs.is_correct("graduation_error", hs.OK_UNOBSERVABLE)
+
+
+def test_every_set_mate_of_the_unseen_motion_is_excused_as_an_expected_effects_are():
+    """lv779's null (Y probes, 0.1″ or more of unseen −δX/r): the set {graduation_error, sphere_form,
+    tangential_motion, tilt_abbe}, three one-parameter rescalings of ∫δY tied within 5 BIC. It holds
+    the bench's real cause, as a set that holds an expected effect is right on an effect bench; the
+    same names outside such a set stay false positives."""
+    from benchtwin.app.score import score_identification
+
+    lv779 = [["graduation_error", "sphere_form", "tangential_motion", "tilt_abbe"]]
+    assert hs.classify("none", ["graduation_error", "tangential_motion"], lv779, False, 0.39) == hs.OK_UNOBSERVABLE
+    null = {"expect": [], "accept": ["nothing"]}
+    s = score_identification({"named": ["graduation_error", "tangential_motion"], "ambiguous": lv779,
+                              "unexplained": False}, null, unobservable_arcsec=0.39)
+    assert s["correct"] and s["spurious"] == [] and s["outcome"] == "nothing", s
+    s = score_identification({"named": ["sphere_form"], "ambiguous": [["graduation_error", "tangential_motion"]],
+                              "unexplained": False}, null, unobservable_arcsec=0.39)
+    assert not s["correct"] and s["spurious"] == ["sphere_form"], s
 
 
 def test_the_suite_and_the_scorer_share_the_rule():
