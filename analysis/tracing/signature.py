@@ -205,7 +205,8 @@ def _time_pattern_between_groups(pb: _Problem, ks: list[int], t: np.ndarray, T: 
 #: the walk's share ρ of the sweeps' noise tried by :func:`_local_level_trend` (0: independent
 #: sweeps; 1: a pure random walk; between, walk variance ρ/(1 − ρ) × a sweep's own), a fixed grid
 #: so that the choice cannot turn on rounding
-WALK_SHARES = np.concatenate([[0.0], (lam := np.logspace(-3.0, 3.0, 61)) / (1.0 + lam), [1.0]])
+_WALK_TO_SCATTER = np.logspace(-3.0, 3.0, 61)     # the walk's variance per step ÷ a sweep's own
+WALK_SHARES = np.concatenate([[0.0], _WALK_TO_SCATTER / (1.0 + _WALK_TO_SCATTER), [1.0]])
 
 
 def _local_level_trend(C: np.ndarray, tg: np.ndarray) -> tuple[np.ndarray, float, int, np.ndarray, float] | None:
@@ -223,9 +224,9 @@ def _local_level_trend(C: np.ndarray, tg: np.ndarray) -> tuple[np.ndarray, float
     leaves a warm-up's curvature in the sweeps' deviations, where it looks serial; tested as a pure
     random walk with drift (first differences) a smooth 1″ change was then only its mean increment
     (z 0.8, thermal_growth missed), and a curve tested against independent sweeps takes the slow
-    part of a real walk for a drift (z 7.6 on the jia2019 default). Within this model a walk
-    stays noise whatever its path, and the curvature is a trend of the increments, which a walk's
-    independent increments do not have. ρ comes from the restricted likelihood of all the
+    part of a real walk for a drift (z 7.6 on the jia2019 default). Within this model a walk is
+    noise of the size its increments show, and a curvature is a trend of the increments, which a
+    walk's independent increments do not have. ρ comes from the restricted likelihood of all the
     coefficients together (each its own σ²): the walk is one process, the cage's, and a warm-up
     that bends one harmonic is not rough in the others. (Each coefficient's own ρ took a 0.5″ cage
     walk for a drift at z 3.6–3.8 in tests/analysis/test_time_pattern.py's synthetic sweeps; a
