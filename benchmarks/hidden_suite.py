@@ -170,7 +170,10 @@ own whirls leave 0.58″ RMS of −δX/r at the head (the truth's `floor.tangent
 than most hidden effects. So on a Y-probe bench the set {tangential_motion, graduation_error} is
 what the data allow, and on a null naming the bearings' own tangential motion (or that set, without
 X probes) is no false positive: the rule `benchtwin.app.score.excused_names`, shared with the
-scorer and the reference generator ("ok (the bearings' −δX/r named)"). With X probes the motion is
+scorer and the reference generator ("ok (the bearings' −δX/r named)"). Since 2026-12-07 that covers
+every ambiguity set that holds tangential_motion, as a set that holds an expected effect is right on
+an effect bench: without X probes a one-parameter rescaling of ∫δY (sphere_form, tilt_abbe) can tie
+with the motion (the twin's null of loop-validation seed 779). With X probes the motion is
 measured and named; the set is reported there too where the probes' δX, within its u, explains
 what a division error would (analysis/tracing/selection.py `_measured_motion_alternative`), and is
 then no false positive either. Only `tilt_abbe` keeps a worn bottom bearing, since ΔL1 needs a tilt motion to
