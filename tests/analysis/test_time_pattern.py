@@ -179,8 +179,8 @@ def test_a_warm_up_is_not_taken_for_a_random_walk():
     0.07″ readings: a straight line leaves its curvature in the sweeps' deviations, which look serial.
     Tested as a pure random walk with drift (first differences) it was z 2.1–2.8 on these five seeds;
     within the local-level model (a walk plus the sweeps' own scatter, the curved drift tested) it is
-    seen (z ≥ 4, 4.3–5.1) with about its size. (0.6″ was seen at the walk share's point estimate,
-    z 4.4–6.0, and is not at the conservative end of its interval, z 3.2–4.3.)"""
+    seen (z ≥ 4, 4.3–5.1) with about its size. (0.6″ was seen on all five at the walk share's point
+    estimate, z 4.4–6.0, and on two of them at the conservative end of its interval, z 3.2–4.3.)"""
     from benchtwin.analysis.tracing.signature import signature
 
     for seed in range(201, 206):
@@ -223,9 +223,9 @@ def test_the_local_level_test_keeps_its_false_alarm_rate_under_a_walk():
 
 
 def test_the_creeping_cage_stays_noise_over_seeds():
-    """The creeping cage of the first test on five more seeds: whatever path the walk takes, the
-    curved drift within the local-level model does not take it for a change of the pattern (each
-    coefficient's own walk share did, at z 3.6–3.8, and a cubic drift at z 6.2)."""
+    """The creeping cage of the first test on five more seeds: the curved drift within the
+    local-level model does not take its walk for a change of the pattern (with each coefficient's
+    own walk share it did on two of these seeds, z 3.6–3.8; with a cubic drift on one, z 6.2)."""
     from benchtwin.analysis.tracing.signature import signature
 
     for seed in range(151, 156):
