@@ -923,6 +923,17 @@ def _score_curve(curve: Mapping[str, Any] | None, truth_vals: np.ndarray | None,
             "coverage": _coverage(err, curve.get("u")), "_err": err, "_u": curve.get("u")}
 
 
+def with_set_mates(names: Sequence[str], sets: Sequence[Sequence[str]]) -> set[str]:
+    """``names`` and every member of an ambiguity set that holds one of them: a set says "one of
+    these", so it is right where it holds a name the bench has, and its mates are then no spurious
+    names. The one set-mate rule of the scorer, for the expected effects
+    (:func:`score_identification`) and for the bearings' real motion (:func:`excused_names`). Mates
+    of mates are not added (a set that shares only a mate says nothing about the name), so the
+    order of the sets does not matter."""
+    out = set(names)
+    return out | {n for s in sets if out & set(s) for n in s}
+
+
 def excused_names(sets: Sequence[Sequence[str]], unobservable_arcsec: float | None,
                   tangential_arcsec: float | None) -> set[str]:
     """The names a bench's own bearing motion excuses — the one rule of the scorer and of
@@ -942,13 +953,9 @@ def excused_names(sets: Sequence[Sequence[str]], unobservable_arcsec: float | No
       reference generator's scorer judges only the names outside the sets: ``extra`` in
       ../shared/reference-generator/score.py.)
     """
-    unseen: set[str] = set()
     if max(unobservable_arcsec or 0.0, tangential_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC:
-        unseen = {"tangential_motion"}
-        for s in sets:
-            if "tangential_motion" in s:
-                unseen |= set(s)
-    return unseen
+        return with_set_mates(["tangential_motion"], sets)
+    return set()
 
 
 def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | None,
@@ -972,10 +979,7 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     acc = list(expected.get("accept") or [])
     named, sets, unexpl = list(res["named"]), [list(s) for s in res.get("ambiguous") or []], bool(res["unexplained"])
     out.update(expected=exp, accept=acc, unexplained=unexpl)
-    ok_names = set(exp)
-    for s in sets:
-        if ok_names & set(s):
-            ok_names |= set(s)
+    ok_names = with_set_mates(exp, sets)
     unseen = excused_names(sets, unobservable_arcsec, tangential_arcsec)
     mentioned = named + [n for s in sets for n in s]
     extra = [n for n in mentioned if n not in unseen]   # what the unobservable motion does not excuse

@@ -58,7 +58,7 @@ the effect is **observable** and must be named (alone or in an ambiguity set; an
 library: "unexplained"); where neither passes even at its full amplitude it is **not observable**,
 and between **marginal**: both then accept "nothing" besides the effect's name
 (:func:`expected_verdict`). **Aliased** (since 2026-12-07): on a bench without X probes whose axis
-holds a tangential motion the Y probes cannot see (the scorer's excused set, ≥ 0.1″ of −δX/r in
+holds a tangential motion the Y probes cannot see (the scorer excuses it, ≥ 0.1″ of −δX/r in
 truth), any pattern of the stop angle at that motion's orders (2…10) can be the motion; the tier is
 then the lesser of the whole imprint's and of the imprint less that part (:func:`motion_part`,
 :func:`imprint_of` ``unseen``): what only repeats with the angle at those orders cannot be told
@@ -410,7 +410,7 @@ def imprint_of(ev: Any, ev0: Any, unseen: str | None = None) -> dict[str, Any]:
     (:func:`unseen_motion`; None: nothing). On a bench without X probes whose axis has a tangential
     motion the Y probes cannot see (truth: ≥ ``app.score.UNOBSERVABLE_MIN_ARCSEC`` of −δX/r, orders
     2…10), that motion is in α as such a pattern, which no measurement on the bench constrains, and
-    the scorer excuses the set {graduation_error, tangential_motion} that stands for it
+    the scorer excuses tangential_motion and every ambiguity set that holds it
     (``app.score.excused_names``). The imprint's part of that kind (:func:`motion_part`) can then be
     that motion: the bench cannot tell the effect from it, whatever the effect's shape. Its tier is
     then the lesser of the whole imprint's and of its remainder's (what changes with time, direction
@@ -456,13 +456,13 @@ def unseen_motion(floor: dict[str, Any]) -> str | None:
     """What a pattern of the stop angle at orders 2…10 stands for on a bench (:func:`imprint_of`),
     from the scorer's floor of its truth (``app.score.read_truth``: ``x_probes``, ``unattributable_arcsec``):
     on a bench without X probes whose axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r, the motion the Y
-    probes cannot see (the scorer's excused set); else None."""
+    probes cannot see (what the scorer excuses: ``app.score.excused_names``); else None."""
     from app.score import UNOBSERVABLE_MIN_ARCSEC
 
     un = floor.get("unattributable_arcsec")
     if floor.get("x_probes") is False and isinstance(un, (int, float)) and un >= UNOBSERVABLE_MIN_ARCSEC:
         return (f"the axis's tangential motion the Y probes cannot see ({un:.3f}″ of −δX/r, orders 2…10; "
-                "the excused set {graduation_error, tangential_motion})")
+                "excused with its ambiguity sets)")
     return None
 
 

@@ -53,6 +53,21 @@ def test_every_set_mate_of_the_unseen_motion_is_excused_as_an_expected_effects_a
     assert not s["correct"] and s["spurious"] == ["sphere_form"], s
 
 
+def test_set_mates_do_not_depend_on_the_order_of_the_sets():
+    """One set-mate rule (``app.score.with_set_mates``) for expected effects and the unseen motion:
+    a set that shares only a mate with the expected effect's set excuses nothing, in either order
+    (the expected effect's loop grew its names set by set, so a second set was excused only when it
+    came after the first)."""
+    from benchtwin.app.score import score_identification, with_set_mates
+
+    a, b = ["sphere_form", "graduation_error"], ["graduation_error", "ac_scale"]
+    exp = {"expect": ["sphere_form"], "accept": ["named", "ambiguous"]}
+    for sets in ([a, b], [b, a]):
+        assert with_set_mates(["sphere_form"], sets) == {"sphere_form", "graduation_error"}
+        s = score_identification({"named": [], "ambiguous": sets, "unexplained": False}, exp)
+        assert s["spurious"] == ["ac_scale"] and not s["correct"], s
+
+
 def test_the_suite_and_the_scorer_share_the_rule():
     from benchtwin.app import score
     from benchtwin.app.score import score_identification
