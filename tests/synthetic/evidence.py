@@ -65,7 +65,9 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
     - ``tilt_abbe``: {"dL1_mm"} (true L1 = nominal + ΔL1)
     - ``ac_drift``: {"drift_arcsec_per_s"}
     - ``ac_scale``: {"gain_pct", "quad_per_arcsec"} (ε_read = (1+k)ε + qε², propagated to α)
-    - ``sphere_form``: {"k", "amplitude_um", "phase_rad"} on the top sphere
+    - ``sphere_form``: {"k", "amplitude_um", "phase_rad"} on the top sphere, in its Y probe's reading
+      (amplitude·(cos φ, sin φ) as (sin kθ, cos kθ) coefficients) and, with X probes, in its X probe's
+      a quarter turn earlier
     - ``torsion_hysteresis``: {"half_hysteresis_arcsec"}
     - ``polygon_pitch_ignored``: {"rms_arcsec"} (leftover pitch Δβ, Σ = 0)
     - ``interpolation_error``: {"c1_arcsec", "phase_rad"} (first order of the grating period)
@@ -137,7 +139,10 @@ def make_evidence(rng: np.random.Generator, *, n_faces: int = 23, start_faces=No
         sn = probe_noise_um
         t_all.append(fourier_eval(grid, top) + fourier_eval(grid, form) + 0.5 + 0.3 * np.sin(gr) + bw.imag + rng.normal(0, sn, grid.size))
         b_all.append(fourier_eval(grid, bot) - 0.2 + 0.4 * np.cos(gr) + bw.imag + rng.normal(0, sn, grid.size))
-        tx_all.append(fourier_eval(grid, top_x) + 0.3 * np.cos(gr) + bw.real + rng.normal(0, sn, grid.size))
+        # the X probe (at 0°, a quarter turn before the Y probe at 90°) reads the same form a quarter
+        # turn earlier: X(θ) = Y(θ + 90°)
+        tx_all.append(fourier_eval(grid, top_x) + fourier_eval(grid + 90.0, form) + 0.3 * np.cos(gr) + bw.real
+                      + rng.normal(0, sn, grid.size))
         bx_all.append(fourier_eval(grid, bot_x) - 0.4 * np.sin(gr) + bw.real + rng.normal(0, sn, grid.size))
     radial = RadialMotion(np.concatenate(g_all), np.concatenate(t_all), np.concatenate(b_all), L1_MM, L2_MM,
                           np.concatenate(tx_all) if x_probes else None, np.concatenate(bx_all) if x_probes else None)
