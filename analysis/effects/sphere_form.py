@@ -11,9 +11,22 @@ the basis is: the harmonics flagged in the residual (context ``harmonics``) that
 reading shows (amplitude ≥ ``MIN_LOBE_UM``), for the sphere with the larger weight × amplitude.
 Plausibility: the fitted form cannot exceed the sphere's reading amplitude in that harmonic by more
 than 3u (a form larger than the reading would need a motion cancelling it exactly).
+
+With X probes the form is read twice: the X probe, a quarter turn before the Y probe, reads the
+same lobes, X(θ) = Y(θ + 90°). The X readings make δX at the disk (eq. 9's weights), the regressor
+of ``tangential_motion``, so δX is too large by w·f_x, and the tangential term at its geometric
+gain (−g·δX/r, g = 1) takes that share for motion; with h = 1 it also cancels eq. 5's ∫f_y term.
+The readings then need +w·f_x/r: the variant ``{sphere}_x_h{k}`` (one sin/cos pair per flagged
+order of eq. 7's 2…10 that the X reading shows), to be fitted beside tangential_motion. Its
+plausibility is looser than the Y variant's: the form may exceed the X reading, because the motion
+at the same order cancels part of it (loop validation lv785: 0.10 µm of form at order 5 under an
+X reading of 0.033 µm and a Y reading of 0.082 µm), but not the two readings together, which needs
+a motion cancelling it in both channels at once. Without this variant the X-probe benches named
+graduation_error for a sphere form (lv783, lv785).
+
 With polygon and self-calibration data only, a form harmonic and a division harmonic are the same
-function of θ: sphere_form is separable only by probe-side measurements (reversal), so it ends in
-an ambiguity set with graduation_error — by design, documented.
+function of θ: sphere_form is separable only by probe-side measurements (reversal), so a named
+sphere_form carries graduation_error in its ambiguity set (``ambiguous_with``).
 """
 
 from __future__ import annotations
@@ -29,12 +42,15 @@ MEANING = (
     "not have. Only harmonics present in one sphere's reading qualify; for a rigid shaft they would "
     "have to appear, consistently, as motion in the other channels (other sphere, X probes)."
 )
-PARAMS = {"{sphere}_h{k}_sin_um": "µm", "{sphere}_h{k}_cos_um": "µm"}
+PARAMS = {"{sphere}_h{k}_sin_um": "µm", "{sphere}_h{k}_cos_um": "µm",
+          "{sphere}_x_h{k}_sin_um": "µm (the form as the X probe reads it)",
+          "{sphere}_x_h{k}_cos_um": "µm (the form as the X probe reads it)"}
 MIN_LOBE_UM = 0.01
 CHANNELS = channels(
-    alpha="−w_s/r·∫(f_s sin kθ + g_s cos kθ) dθ (the model's spurious share)",
+    alpha="−w_s/r·∫(f_s sin kθ + g_s cos kθ) dθ (the model's spurious share); with X probes also "
+          "+w_s/r·(f_x sin kθ + g_x cos kθ), the form in δX that the tangential term takes for motion",
     selfcal="the same (the model is wrong, the encoder is not)",
-    radial="the sphere's reading contains f; δY at the disk is too large by w_s·f",
+    radial="the sphere's readings contain f (X a quarter turn before Y); δY and δX at the disk are too large by w_s·f",
     heads="none beyond the model",
 )
 SEEN_BY_SELFCAL = True
@@ -66,10 +82,39 @@ def _plan(ev, ctx):
     return plan
 
 
+def _plan_x(ev, ctx):
+    """[(sphere, k, weight, X reading amplitude)] of the X-channel basis (X probes only): the
+    harmonics flagged in the residual, of eq. 7's orders 2…10 as in :func:`_plan`, that a sphere's
+    X reading shows (amplitude ≥ ``MIN_LOBE_UM``), for the sphere with the larger weight × amplitude."""
+    if ev.radial is None or not ev.radial.has_x:
+        return []
+    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
+    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
+    flagged = set(ctx["harmonics"]) if ctx and ctx.get("harmonics") is not None else None
+    cx = {s: ev.radial.coefs(f"{s}_x_um") for s in ("top", "bottom")}
+    plan = []
+    for k in sorted(set(cx["top"]) & set(cx["bottom"])):
+        if flagged is not None and k not in flagged:
+            continue
+        cand = [(w[s] * float(np.hypot(*cx[s][k])), s, float(np.hypot(*cx[s][k]))) for s in ("top", "bottom")]
+        wa, s, a = max(cand)
+        if a >= MIN_LOBE_UM:
+            plan.append((s, k, w[s], a))
+    return plan
+
+
+def ambiguous_with(ev):
+    """A form harmonic and a division harmonic are the same function of θ on the polygon and the
+    self-calibration, with or without X probes: only a probe-side measurement (Donaldson reversal,
+    or re-clamping the sphere) separates them, so a named sphere_form always carries
+    graduation_error in its set."""
+    return ["graduation_error"]
+
+
 def available(ev, ctx=None):
     if ev.radial is None:
         return False, "no radial-motion data"
-    ok = bool(_plan(ev, ctx))
+    ok = bool(_plan(ev, ctx)) or bool(_plan_x(ev, ctx))
     return ok, "" if ok else "no residual harmonic that a sphere reading shows"
 
 
@@ -92,6 +137,11 @@ def design(ev, ctx=None):
     if plan:
         cols.append(_fraction_column(ev, _fraction_plan(ev, ctx)))
         names.append("form_fraction")
+    for s, k, w, _ in _plan_x(ev, ctx):
+        # the X probe reads the form too: δX at the disk is too large by w·f_x, and the tangential
+        # term (−g·δX/r, g = 1 in the exact geometry) takes it for motion: +w·f_x/r is missing
+        cols += [w * np.sin(k * th) / r * ARCSEC_PER_RAD, w * np.cos(k * th) / r * ARCSEC_PER_RAD]
+        names += [f"{s}_x_h{k}_sin_um", f"{s}_x_h{k}_cos_um"]
     return (np.column_stack(cols) if cols else np.zeros((th.size, 0))), names
 
 
@@ -115,9 +165,11 @@ def _fraction_column(ev, fplan):
 
 
 def variants(names, ev=None, ctx=None):
-    """Parameter subsets tried (tracing): per-harmonic form, or one fraction of the reading."""
-    per = [n for n in names if n != "form_fraction"]
-    return [v for v in (per, ["form_fraction"]) if v and all(n in names for n in v)]
+    """Parameter subsets tried (tracing): per-harmonic form in eq. 7's ∫δY term, one fraction of the
+    reading, or (X probes) per-harmonic form in the X probe's δX."""
+    per = [n for n in names if n != "form_fraction" and "_x_h" not in n]
+    per_x = [n for n in names if "_x_h" in n]
+    return [v for v in (per, ["form_fraction"], per_x) if v and all(n in names for n in v)]
 
 
 predict = linear_predictor(design)
@@ -136,15 +188,29 @@ def plausible(ev, params, u, ctx=None):
         ua = float(np.hypot(u.get(f"{s}_h{k}_sin_um", 0.0), u.get(f"{s}_h{k}_cos_um", 0.0)))
         if amp > a + 3 * ua + 1e-12:
             return False, f"form {amp:.3f} µm in harmonic {k} exceeds the {s} sphere's reading {a:.3f} µm"
+    for s, k, w, a in _plan_x(ev, ctx):
+        fs, fc = params.get(f"{s}_x_h{k}_sin_um", 0.0), params.get(f"{s}_x_h{k}_cos_um", 0.0)
+        amp = float(np.hypot(fs, fc))
+        ua = float(np.hypot(u.get(f"{s}_x_h{k}_sin_um", 0.0), u.get(f"{s}_x_h{k}_cos_um", 0.0)))
+        # both probes read the same form (X a quarter turn before Y): a form larger than the two
+        # readings together needs a motion that cancels it in both channels at once
+        a_y = float(np.hypot(*ev.radial.coefs(f"{s}_um")[k]))
+        if amp > a + a_y + 3 * ua + 1e-12:
+            return False, (f"form {amp:.3f} µm in harmonic {k} exceeds the {s} sphere's X and Y readings "
+                           f"together ({a:.3f} + {a_y:.3f} µm)")
     return True, ""
 
 
 def aux(ev, ctx=None):
     plan = _plan(ev, ctx)
     fplan = _fraction_plan(ev, ctx) if plan else []
-    return {"r_um": radius_um(ev), "plan": [[s, k, w] for s, k, w, _ in plan],
-            "fraction_plan": [[s, k, w] for s, k, w in fplan],
-            "reading": [list(ev.radial.coefs(f"{s}_um")[k]) for s, k, w in fplan]}
+    out = {"r_um": radius_um(ev), "plan": [[s, k, w] for s, k, w, _ in plan],
+           "fraction_plan": [[s, k, w] for s, k, w in fplan],
+           "reading": [list(ev.radial.coefs(f"{s}_um")[k]) for s, k, w in fplan]}
+    plan_x = _plan_x(ev, ctx)
+    if plan_x:   # only with X probes (the model file of a Y-probe bench keeps its keys)
+        out["plan_x"] = [[s, k, w] for s, k, w, _ in plan_x]
+    return out
 
 
 def term(params, aux, base_terms=None):
@@ -162,5 +228,8 @@ def term(params, aux, base_terms=None):
         lobes += [(s, k, w, fr * ra, fr * rb) for (s, k, w), (ra, rb) in zip(fplan, reading)]
         for s, k, w, fs, fc in lobes:
             out += (w * fs * np.cos(k * th) - w * fc * np.sin(k * th)) / (k * r) * ARCSEC_PER_RAD
+        for s, k, w in aux.get("plan_x") or []:
+            fs, fc = params.get(f"{s}_x_h{k}_sin_um", 0.0), params.get(f"{s}_x_h{k}_cos_um", 0.0)
+            out += w * (fs * np.sin(k * th) + fc * np.cos(k * th)) / r * ARCSEC_PER_RAD
         return out
     return fn

@@ -369,6 +369,32 @@ def test_a_division_error_the_x_probes_own_delta_x_could_stand_for_is_in_a_set_w
     assert not any("tangential_motion" in a["names"] for a in real["ambiguous"]), real["ambiguous"]
 
 
+def test_a_sphere_form_the_x_probes_read_is_in_a_set_with_a_division_error():
+    """A test sphere's form is in both its probes' readings (the X probe reads it a quarter turn
+    before the Y probe), so with X probes δX at the disk carries w·f_x, which the motion term at its
+    geometric gain takes for motion: the readings need +w·f_x/r, a harmonic of θ that a division
+    error at the same order gives as well (only reversing the sphere separates them). With a 0.1 µm
+    form at order 3 the analysis named graduation_error alone, on three seeds here as on the loop
+    validation's X-probe sphere_form benches (lv783, lv785). sphere_form's X-channel variant puts
+    the form in the set with it; without a form, sphere_form is not named."""
+    from benchtwin.analysis.tracing import trace
+    from tests.synthetic.evidence import make_evidence
+
+    for seed in (1, 2, 3):
+        for form in (True, False):
+            inj: dict = {"tangential_motion": {"gain": 1.0, "radial_gain": 1.0}}
+            if form:
+                inj["sphere_form"] = {"k": 3, "amplitude_um": 0.1, "phase_rad": 0.7}
+            ev, _ = make_evidence(np.random.default_rng(seed), x_probes=True, shifts=tuple(float(s) for s in range(15)),
+                                  start_faces=[1, 13], lobe_um=0.1, noise_arcsec=0.05, inject=inj)
+            res = trace(ev, candidates=CANDS)
+            named = [e["name"] for e in res["identified_effects"]]
+            assert "sphere_form" not in named or form, (seed, named)
+            if form:
+                assert any({"graduation_error", "sphere_form"} <= set(a["names"]) for a in res["ambiguous"]), \
+                    (seed, named, res["ambiguous"])
+
+
 def test_a_motion_that_moves_one_order_of_the_probes_delta_x_beyond_its_u_does_not_stand_for_a_division_error():
     """The pooled errors-in-variables gate (Σν² within χ²(p)) let a fitted tangential_motion carry a
     real division error at one order among ~40 directions (loop validation seeds 668 and 773,
