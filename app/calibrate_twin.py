@@ -242,13 +242,21 @@ def _significant_curve(theta_deg: np.ndarray, fa: list, fb: list, wa: float, wb:
 
 def _form_lobes(eff: dict[str, Any], sphere: str, fits: list | None = None) -> dict[int, tuple[float, float]]:
     """{k: (sin, cos) µm} of a traced sphere form in that sphere's Y reading (analysis/effects/
-    sphere_form.py: explicit lobes, or ``form_fraction`` × the reading's own lobes 2…10)."""
+    sphere_form.py: explicit lobes, or ``form_fraction`` × the reading's own lobes 2…10, or the
+    lobes as the X probe reads them, a quarter turn before the Y probe: Y(θ) = X(θ − 90°))."""
     p = eff["params"]
     out: dict[int, tuple[float, float]] = {}
     for name in p:
         if name.startswith(f"{sphere}_h") and name.endswith("_sin_um"):
             k = int(name[len(sphere) + 2:-len("_sin_um")])
             out[k] = (float(p[name]), float(p.get(f"{sphere}_h{k}_cos_um", 0.0)))
+    for name in p:
+        if name.startswith(f"{sphere}_x_h") and name.endswith("_sin_um"):
+            k = int(name[len(sphere) + 4:-len("_sin_um")])
+            ax, bx = float(p[name]), float(p.get(f"{sphere}_x_h{k}_cos_um", 0.0))
+            c, s = math.cos(math.radians(90.0 * k)), math.sin(math.radians(90.0 * k))
+            a0, b0 = out.get(k, (0.0, 0.0))
+            out[k] = (a0 + ax * c + bx * s, b0 - ax * s + bx * c)
     fr = float(p.get("form_fraction", 0.0))
     if fr and fits:
         m = sum(x.params for x in fits) / len(fits)
@@ -365,6 +373,11 @@ def _learn_radial(ds: Any, res: Mapping[str, Any], raw: dict[str, Any], order: i
     reps = int(rm["n_reps"])
     src = f"{reps} revolution{'s' if reps > 1 else ''} × {th.size} positions of radial_motion.csv"
     dX, tilt_y, kTy, dx_src = _learn_x_motion(th, f, dY, (w_top, w_bot, L2), order, lr)
+    if form is not None and has_x:
+        # the X probes read the same form a quarter turn before the Y probes: out of δX and ε_Y too
+        fxt, fxb = (_form_curve(th + 90.0, form, s_, f[s_]) for s_ in ("top", "bottom"))
+        dX = dX - (w_top * fxt + w_bot * fxb)
+        tilt_y = tilt_y - (fxt - fxb) / L2 * 1e3
     raw["motion_table"] = {
         "theta": [_q(t, "deg", 9) for t in th],
         "dx": [_q(v, "um", 5) for v in dX],

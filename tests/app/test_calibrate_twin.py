@@ -192,3 +192,25 @@ def test_reference_chain_effect_round_trip(tmp_path):
     before = simulate(load_scenario(tmp_path / "base.toml"), tmp_path / "before", progress=False, backend="analytic")
     c_after, c_before = compare(bench, twin), compare(bench, before)
     assert c_after["alpha_arcsec"]["rms"] < 0.5 * c_before["alpha_arcsec"]["rms"], (c_after, c_before)
+
+
+def test_a_sphere_form_traced_through_the_x_probe_is_written_as_the_spheres_lobes():
+    """sphere_form's X-channel variant gives the form as the X probe reads it. The probes touch the
+    sphere at the body polar angle −θ (+X probe) and 90° − θ (+Y probe) (twin/instruments/probe.py),
+    so a lobe R·cos(k·g − p) reads R·cos(kθ + p) on X and R·cos(kθ − (k·90° − p)) on Y. Written back,
+    [hidden.sphere_form] holds the lobe's own (k, R, p), whichever probe's variant was traced."""
+    from benchtwin.app.calibrate_twin import _sphere_form
+
+    lobes = [(3, 0.15, 10.0), (5, 0.10, 200.0), (4, 0.05, 77.0)]
+    params = {}
+    for k, R, p in lobes:
+        # R·cos(kθ + p) = a sin kθ + b cos kθ with a = −R sin p, b = R cos p
+        params[f"top_x_h{k}_sin_um"] = -R * np.sin(np.radians(p))
+        params[f"top_x_h{k}_cos_um"] = R * np.cos(np.radians(p))
+    hidden: dict = {}
+    _sphere_form({"params": params}, {}, hidden, {}, [])
+    got = {d["order"]: d for d in hidden["sphere_form"]["top"]}
+    for k, R, p in lobes:
+        amp, ph = got[k]["amplitude"], got[k]["phase"]
+        assert abs(float(str(amp).split()[0]) - R) < 1e-9, (k, amp)
+        assert abs((float(str(ph).split()[0]) - p + 180.0) % 360.0 - 180.0) < 1e-6, (k, ph)
