@@ -22,7 +22,8 @@ plausibility is looser than the Y variant's: the form may exceed the X reading, 
 at the same order cancels part of it (loop validation lv785: 0.10 µm of form at order 5 under an
 X reading of 0.033 µm and a Y reading of 0.082 µm), but not the two readings together, which needs
 a motion cancelling it in both channels at once. Without this variant the X-probe benches named
-graduation_error for a sphere form (lv783, lv785).
+graduation_error for a sphere form (lv783, lv785); with it lv783 names the form, lv785 still not
+(docs/loop-validation.md, "sphere_form read through the X probes").
 
 With polygon and self-calibration data only, a form harmonic and a division harmonic are the same
 function of θ: sphere_form is separable only by probe-side measurements (reversal), so a named
