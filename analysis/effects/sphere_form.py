@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..radial_motion import disk_weights
 from ._base import ARCSEC_PER_RAD, channels, linear_predictor, radius_um
 
 NAME = "sphere_form"
@@ -63,14 +64,22 @@ SEPARATES_FROM = {
 }
 
 
-def _plan(ev, ctx):
-    """[(sphere, k, weight, reading amplitude)] of the basis."""
-    if ev.radial is None:
+def _weights(ev) -> dict[str, float]:
+    """Each sphere's weight at the disk (eq. 9)."""
+    wt, wb = disk_weights(float(ev.L1_mm), float(ev.L2_mm))
+    return {"top": wt, "bottom": wb}
+
+
+def _plan(ev, ctx, axis: str = ""):
+    """[(sphere, k, weight, reading amplitude)] of the basis: the harmonics flagged in the residual,
+    of eq. 7's orders 2…10, that a sphere's reading shows (amplitude ≥ ``MIN_LOBE_UM``), for the
+    sphere with the larger weight × amplitude. ``axis`` "_x": the X probes' readings (the X-channel
+    variant; [] without X probes)."""
+    if ev.radial is None or (axis and not ev.radial.has_x):
         return []
-    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
-    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
+    w = _weights(ev)
     flagged = set(ctx["harmonics"]) if ctx and ctx.get("harmonics") is not None else None
-    ct, cb = ev.radial.coefs("top_um"), ev.radial.coefs("bottom_um")
+    ct, cb = ev.radial.coefs(f"top{axis}_um"), ev.radial.coefs(f"bottom{axis}_um")
     plan = []
     for k in sorted(ct):
         if flagged is not None and k not in flagged:
@@ -84,24 +93,8 @@ def _plan(ev, ctx):
 
 
 def _plan_x(ev, ctx):
-    """[(sphere, k, weight, X reading amplitude)] of the X-channel basis (X probes only): the
-    harmonics flagged in the residual, of eq. 7's orders 2…10 as in :func:`_plan`, that a sphere's
-    X reading shows (amplitude ≥ ``MIN_LOBE_UM``), for the sphere with the larger weight × amplitude."""
-    if ev.radial is None or not ev.radial.has_x:
-        return []
-    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
-    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
-    flagged = set(ctx["harmonics"]) if ctx and ctx.get("harmonics") is not None else None
-    cx = {s: ev.radial.coefs(f"{s}_x_um") for s in ("top", "bottom")}
-    plan = []
-    for k in sorted(set(cx["top"]) & set(cx["bottom"])):
-        if flagged is not None and k not in flagged:
-            continue
-        cand = [(w[s] * float(np.hypot(*cx[s][k])), s, float(np.hypot(*cx[s][k]))) for s in ("top", "bottom")]
-        wa, s, a = max(cand)
-        if a >= MIN_LOBE_UM:
-            plan.append((s, k, w[s], a))
-    return plan
+    """:func:`_plan` of the X probes' readings."""
+    return _plan(ev, ctx, "_x")
 
 
 def ambiguous_with(ev):
@@ -150,8 +143,7 @@ def _fraction_plan(ev, ctx):
     """[(sphere, k, w)] of the fraction variant: every order of eq. 7's series (2…10) of each sphere the
     plan uses — a form is the whole reading's lobes, not only the ones the residual happens to flag."""
     spheres = sorted({s for s, *_ in _plan(ev, ctx)})
-    L1, L2 = float(ev.L1_mm), float(ev.L2_mm)
-    w = {"top": (L2 - L1) / L2, "bottom": L1 / L2}
+    w = _weights(ev)
     return [(s, k, w[s]) for s in spheres for k in sorted(ev.radial.coefs(f"{s}_um"))]
 
 
@@ -176,6 +168,12 @@ def variants(names, ev=None, ctx=None):
 predict = linear_predictor(design)
 
 
+def _amplitude(params, u, lobe: str) -> tuple[float, float]:
+    """(amplitude, its u) of the fitted lobe ``lobe`` (µm): the hypot of its sin and cos parameters."""
+    return (float(np.hypot(params.get(f"{lobe}_sin_um", 0.0), params.get(f"{lobe}_cos_um", 0.0))),
+            float(np.hypot(u.get(f"{lobe}_sin_um", 0.0), u.get(f"{lobe}_cos_um", 0.0))))
+
+
 def plausible(ev, params, u, ctx=None):
     """(ok, reason): the fitted form may not exceed the sphere reading's amplitude by more than 3u;
     the fraction of the reading that is form lies in 0…1 (within 3u)."""
@@ -184,15 +182,11 @@ def plausible(ev, params, u, ctx=None):
         if not -3 * uf <= f <= 1 + 3 * uf:
             return False, f"form fraction {f:.3g} ± {uf:.2g} outside 0…1 of the reading"
     for s, k, w, a in _plan(ev, ctx):
-        fs, fc = params.get(f"{s}_h{k}_sin_um", 0.0), params.get(f"{s}_h{k}_cos_um", 0.0)
-        amp = float(np.hypot(fs, fc))
-        ua = float(np.hypot(u.get(f"{s}_h{k}_sin_um", 0.0), u.get(f"{s}_h{k}_cos_um", 0.0)))
+        amp, ua = _amplitude(params, u, f"{s}_h{k}")
         if amp > a + 3 * ua + 1e-12:
             return False, f"form {amp:.3f} µm in harmonic {k} exceeds the {s} sphere's reading {a:.3f} µm"
     for s, k, w, a in _plan_x(ev, ctx):
-        fs, fc = params.get(f"{s}_x_h{k}_sin_um", 0.0), params.get(f"{s}_x_h{k}_cos_um", 0.0)
-        amp = float(np.hypot(fs, fc))
-        ua = float(np.hypot(u.get(f"{s}_x_h{k}_sin_um", 0.0), u.get(f"{s}_x_h{k}_cos_um", 0.0)))
+        amp, ua = _amplitude(params, u, f"{s}_x_h{k}")
         # both probes read the same form (X a quarter turn before Y): a form larger than the two
         # readings together needs a motion that cancels it in both channels at once
         a_y = float(np.hypot(*ev.radial.coefs(f"{s}_um")[k]))
