@@ -37,7 +37,7 @@ from .evidence import Evidence, _AtAngles, _replace_alpha, column
 from .problem import _digest, _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
 from .signature import _short_signature, _significant_parts, signature
 from .significance import harmonic_test, residual_test
-from .thresholds import (AMBIG_DBIC, COLLINEAR, DBIC_GATE, DEGENERATE_RATIO, F_SIG, P_SIG, SIZE_GATE, SPHERE_FORM_UM,
+from .thresholds import (AMBIG_DBIC, COLLINEAR, DBIC_GATE, DEGENERATE_RATIO, F_SIG, P_DOUBT, P_SIG, SIZE_GATE, SPHERE_FORM_UM,
                          TIE_REL, Z_GATE, Z_PAIR)
 from .traced_model import _jsonable, _payload
 
@@ -925,6 +925,10 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     if motion is not None and motion[0] not in amb_cands:
         amb_cands.append(motion[0])
         amb_fits["+".join(sorted(motion[0])) + " (exact geometry)"] = motion[1]
+    division = _division_error_alternative(sel, chosen)
+    if division is not None and set(division.names) not in amb_cands:
+        amb_cands.append(set(division.names))
+        amb_fits[division.key] = rep.json(rep.report(division))
     # after the design's alternatives: a nested pair that holds a design-forced name (e.g.
     # graduation_error + tangential_motion) does not replace that name's own alternative
     for c in _nested_alternatives(sel, chosen, amb_cands):
@@ -941,6 +945,47 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     names = sorted(amb_names)
     return [{"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
              "alternatives": ["+".join(sorted(a)) for a in amb_cands], "forced_by_design": sorted(forced)}]
+
+
+def _division_error_alternative(sel: _Selection, chosen: _Cand) -> _Cand | None:
+    """With X probes, the division error that a chosen tangential motion's moved δX could stand for:
+    the converse of :func:`_measured_motion_alternative`. graduation_error's best variant, where
+
+    - it passes every gate alone;
+    - the motion needed the probes' δX moved beyond its u at the P_DOUBT level, though within the
+      P_SIG gate of :func:`_fit_gates`: Σν̂² beyond χ²(p) at P_DOUBT, or one order's χ²₂ beyond the
+      Šidák bound at P_DOUBT (:func:`_delta_x_by_order`);
+    - next to the division error the motion is not evidenced: in the pair graduation_error +
+      tangential_motion (their best variants, :func:`_pairs`) the motion's z < Z_GATE.
+
+    Why: the fitted motion carries the probes' δX with every coefficient free within its type-A u
+    (the unit-prior errors-in-variables nuisance, which no information criterion counts), and with
+    0.1 µm probes that u is 5–40× the polygon's per harmonic. On a 2-head, one-shift bench (loop
+    validation seed 788, graduation_error #0: 23 stops, 3 repetitions, both directions) the motion
+    at gains g 0.58, h 1.49 explained a 0.70″ division error down to χ²/dof 1.00 (0.885″ → 0.157″),
+    78 % of that reduction carried by the moved δX (Σν̂² 38.3 for 19.0 directions, p ≈ 0.005), and
+    won the BIC by 94 over the division error's 18 harmonic parameters; next to the division error
+    the motion's z was 0.6. Where the motion explains with δX as measured (Σν̂² within its
+    distribution), a saturated division error beside it proves nothing (on 23 stops it spans every
+    function of the stop) and the motion stays alone. The data then hold one of the two, not which:
+    the set. Nothing is named on the alternative. Returns graduation_error's candidate, else None."""
+    g = sel.gates
+    pb, ev = g.pb, g.pb.ev
+    tm = g.mods.get("tangential_motion")
+    if (tm is None or chosen.names != ("tangential_motion",) or ev.radial is None or not ev.radial.has_x
+            or chosen.extra is None or not chosen.extra.shape[1]):
+        return None
+    grad = [c for c in sel.singles if c.names == ("graduation_error",) and c.passed]
+    pair = [c for c in sel.pairs if set(c.names) == {"graduation_error", "tangential_motion"}]
+    if not grad or not pair or pair[0].z["tangential_motion"] >= Z_GATE:
+        return None
+    nu, p_eff = pb.eiv_posterior(chosen.X, chosen.fit, chosen.extra)
+    orders, d2, _ = _delta_x_by_order(pb, tm, chosen.extras["tangential_motion"],
+                                      nu[chosen.extra_slices()["tangential_motion"]])
+    pooled = p_eff > 0 and float(nu @ nu) > float(chi2_isf(P_DOUBT, p_eff))
+    bound = float(chi2_isf(1.0 - (1.0 - P_DOUBT) ** (1.0 / max(len(orders), 1)), 2))
+    by_order = bool(d2.size) and float(np.max(d2)) > bound
+    return grad[0] if (pooled or by_order) else None
 
 
 def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[str], dict[str, Any]] | None:

@@ -12,6 +12,10 @@ from ..radial_motion import ASYNC_NOISE_ORDER as ASYNC_NOISE_ORDER
 from ..radial_motion import ASYNC_P as ASYNC_P
 
 P_SIG = 1e-3        # χ² tests (residual before/after, nested signature tests)
+#: a measured regressor moved beyond its u at this level (but within P_SIG's gate) keeps the
+#: candidate and puts beside it what the moved regressor could stand for (selection.
+#: _division_error_alternative): the conventional 5 % level of doubt, not of refusal
+P_DOUBT = 0.05
 Z_GATE = 4.0        # a candidate's parameters must be ≥ 4 standard uncertainties from zero (jointly)
 DBIC_GATE = 10.0    # ... and lower the BIC by ≥ 10 ("very strong" on Kass & Raftery's scale)
 AMBIG_DBIC = 6.0    # candidates within 6 BIC units (less than "strong" evidence, Kass & Raftery) ...

@@ -369,6 +369,38 @@ def test_a_division_error_the_x_probes_own_delta_x_could_stand_for_is_in_a_set_w
     assert not any("tangential_motion" in a["names"] for a in real["ambiguous"]), real["ambiguous"]
 
 
+def test_a_motion_that_needs_the_probes_delta_x_moved_is_in_a_set_with_the_division_error_it_could_be():
+    """The converse of the measured-motion alternative: a division error (0.8″ at order 2 and three
+    more orders) on a one-shift bench with coarse X probes (0.3 µm) is taken by tangential_motion,
+    whose fit moves the probes' δX within the gate's u (p > 0.001) but beyond it at the 5 % level,
+    and which wins the BIC because the nuisance is counted by no criterion (loop validation seed
+    788, graduation_error #0). Beside the division error the motion is not evidenced (z < 4): the set
+    {graduation_error, tangential_motion} (selection._division_error_alternative); before, the
+    motion was named alone. With the same motion and fine probes (0.05 µm) and no division error,
+    the motion explains with δX as measured and stays alone, although a division error free at
+    every order the 23 stops resolve fits as well."""
+    from benchtwin.analysis.tracing import trace
+    from tests.synthetic.evidence import make_evidence
+
+    def bench(seed: int, probe_noise_um: float, division: dict | None):
+        inj: dict = {"tangential_motion": {"gain": 1.0, "radial_gain": 1.0}}
+        if division:
+            inj["graduation_error"] = division
+        ev, _ = make_evidence(np.random.default_rng(seed), x_probes=True, shifts=(0.0,), reps=2, directions=(1, -1),
+                              probe_noise_um=probe_noise_um, lobe_um=0.15, noise_arcsec=0.1, inject=inj)
+        return trace(ev, candidates=["graduation_error", "tangential_motion"])
+
+    division = {2: (0.8, 0.3), 3: (0.45, 1.9), 4: (0.4, 4.0), 6: (0.3, 2.2)}
+    for seed in (1, 2):
+        res = bench(seed, 0.3, division)
+        assert [e["name"] for e in res["identified_effects"]] == ["tangential_motion"], (seed, res["identified_effects"])
+        assert [a["names"] for a in res["ambiguous"]] == [["graduation_error", "tangential_motion"]], (seed, res["ambiguous"])
+    for seed in (1, 2, 3):
+        res = bench(seed, 0.05, None)
+        assert [e["name"] for e in res["identified_effects"]] == ["tangential_motion"], (seed, res["identified_effects"])
+        assert res["ambiguous"] == [], (seed, res["ambiguous"])
+
+
 def test_a_sphere_form_the_x_probes_read_is_in_a_set_with_a_division_error():
     """A test sphere's form is in both its probes' readings (the X probe reads it a quarter turn
     before the Y probe), so with X probes δX at the disk carries w·f_x, which the motion term at its
