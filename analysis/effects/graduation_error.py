@@ -74,6 +74,14 @@ SEPARATES_FROM = {
     "interpolation_error": "polygon shift angles S that are not multiples of the grating pitch, or "
                            "self-calibration on a grid finer than the pitch",
 }
+#: with X probes on the bench the set {graduation_error, tangential_motion} stands where the probes'
+#: δX, moved within its u, could carry either (selection._measured_motion_alternative and
+#: _division_error_alternative): advising the probes it has would be wrong
+SEPARATES_WITH_X_PROBES = {
+    "tangential_motion": "re-mount the disk rotated on the shaft: a division error moves with the disk, motion "
+                         "stays with the bearing (the X probes were there, but their δX u per order is too large "
+                         "to tell the two apart: finer probes or more probe repetitions narrow it)",
+}
 
 
 def _orders(ev, ctx):

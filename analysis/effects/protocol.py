@@ -13,7 +13,7 @@ parameters: the residual is ``X @ params`` with ``X`` from ``design``.
 
 Optional (:class:`EffectOptions`; the callers test for them with ``hasattr``/``getattr``, so a
 module that does not need one leaves it out): ``plausible``, ``heads``, ``regressor_perturbations``,
-``ambiguous_with``, ``variants`` and ``SUBSETS``.
+``ambiguous_with``, ``variants``, ``SUBSETS`` and ``SEPARATES_WITH_X_PROBES``.
 
 The shared implementations (the linear ``predict``, the empty ``aux``, the absent ``term`` of a
 reference-chain effect, the ``CHANNELS`` builder) are in :mod:`benchtwin.analysis.effects._base`.
@@ -92,10 +92,13 @@ class EffectOptions(Protocol):
     - ``regressor_perturbations(ev, params, ctx)``: the regressors' own uncertainty as columns
       (errors in variables);
     - ``ambiguous_with(ev) -> [names]``: effects it cannot be told from with these data;
-    - ``variants(names, ev, ctx) -> [[names]]`` or ``SUBSETS``: the parameter subsets tried.
+    - ``variants(names, ev, ctx) -> [[names]]`` or ``SUBSETS``: the parameter subsets tried;
+    - ``SEPARATES_WITH_X_PROBES``: other effect → the separating measurement on a bench that has X
+      probes, where ``SEPARATES_FROM``'s would advise the probes it already has.
     """
 
     SUBSETS: list[list[str]]
+    SEPARATES_WITH_X_PROBES: dict[str, str]
 
     def plausible(self, ev: Evidence, params: Mapping[str, float], u: Mapping[str, float],
                   ctx: Context = None) -> tuple[bool, str]: ...

@@ -240,15 +240,23 @@ def _cos2(pb, a, b):
     return float((wa @ wb) ** 2 / (na * nb)) if na > 0 and nb > 0 else 0.0
 
 
-def _sep_text(names) -> str:
+def _sep_text(names, has_x: bool = False) -> str:
+    """The measurement that would separate each pair of ``names``; on a bench with X probes a
+    module's ``SEPARATES_WITH_X_PROBES`` first (its ``SEPARATES_FROM`` may advise those probes)."""
     texts = []
     for a, b in itertools.combinations(names, 2):
-        t = ALL[a].SEPARATES_FROM.get(b) if a in ALL else None
-        t = t or (ALL[b].SEPARATES_FROM.get(a) if b in ALL else None)
+        t = _separation(a, b, has_x) or _separation(b, a, has_x)
         if not t:
             t = f"{a}: {ALL[a].SEPARATED_BY} / {b}: {ALL[b].SEPARATED_BY}"
         texts.append(f"{a} vs {b}: {t}")
     return "; ".join(texts)
+
+
+def _separation(a: str, b: str, has_x: bool) -> str | None:
+    if a not in ALL:
+        return None
+    t = getattr(ALL[a], "SEPARATES_WITH_X_PROBES", {}).get(b) if has_x else None
+    return t or ALL[a].SEPARATES_FROM.get(b)
 
 
 def _prior_rank(names, order) -> tuple:
@@ -943,7 +951,8 @@ def _ambiguity(sel: _Selection, rep: _Reporter, chosen: _Cand, cj: dict[str, Any
     if not (len(amb_cands) > 1 and len(amb_names) > 1):
         return []
     names = sorted(amb_names)
-    return [{"names": names, "separating_measurement": _sep_text(names), "fits": amb_fits,
+    has_x = sel.gates.pb.ev.radial is not None and sel.gates.pb.ev.radial.has_x
+    return [{"names": names, "separating_measurement": _sep_text(names, has_x), "fits": amb_fits,
              "alternatives": ["+".join(sorted(a)) for a in amb_cands], "forced_by_design": sorted(forced)}]
 
 

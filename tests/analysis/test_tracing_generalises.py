@@ -362,6 +362,7 @@ def test_a_division_error_the_x_probes_own_delta_x_could_stand_for_is_in_a_set_w
     assert "graduation_error" in named, named   # what the analysis names without the alternative
     assert any({"graduation_error", "tangential_motion"} <= set(s) for s in sets), sets
     fits = res["ambiguous"][0]["fits"]
+    assert "X probes on both spheres" not in res["ambiguous"][0]["separating_measurement"]
     alt = next(v for k, v in fits.items() if k.endswith("(exact geometry)"))
     assert alt["division_error_z_max"] < 4.0 and alt["max_order_adjustment_chi2"] < alt["order_bound_chi2"]
     real = trace(_x_probe_bench(1, {3: (1.0, 0.4), 5: (0.6, 1.1)}), candidates=CANDS)
@@ -396,6 +397,9 @@ def test_a_motion_that_needs_the_probes_delta_x_moved_is_in_a_set_with_the_divis
         # Σν² 30.7 against 30.0 and the worst order 12.6 against 11.7, on seed 2 35.4 / 28.7 and 15.2 / 11.7)
         res = bench(seed, 0.3, division)
         assert [a["names"] for a in res["ambiguous"]] == [["graduation_error", "tangential_motion"]], (seed, res["ambiguous"])
+        # the bench has X probes: the separating measurement is the disk re-mounted, not the probes it has
+        sep = res["ambiguous"][0]["separating_measurement"]
+        assert "re-mount the disk" in sep and "X probes on both spheres" not in sep, sep
     for seed in (1, 2, 3):
         res = bench(seed, 0.05, None)
         assert [e["name"] for e in res["identified_effects"]] == ["tangential_motion"], (seed, res["identified_effects"])
