@@ -64,6 +64,7 @@ class _Cand:
     f_p: float | None = None
     equivalent: bool = False
     member_bics: list[float] | None = None    # a pair's members' BIC (its gate compares with them)
+    eiv: "_EivMove | None" = None           # its measured regressors' adjustment (set by the fit gates)
 
     @property
     def key(self):
@@ -540,15 +541,15 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
         # errors in variables: the fit may move a measured regressor only within its u; a fit
         # that needs it moved by more (Σν̂² beyond χ²(p) at P_SIG) explains the residual with a
         # motion (or form) the probes did not measure
-        nu, p_eff = pb.eiv_posterior(c.X, c.fit, c.extra)
-        adj = float(nu @ nu)
-        if p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff)):
-            reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {adj:.1f} for "
-                           f"{p_eff:.1f} determined directions (p < {P_SIG:g})")
-        worst = _worst_delta_x_order(c, g, nu)
-        if worst is not None:
-            reasons.append(f"the X probes' δX moved beyond its uncertainty at order {worst[0]}: χ²₂ = {worst[1]:.1f} "
-                           f"> {worst[2]:.1f} (Šidák over the probes' orders at p < {P_SIG:g})")
+        c.eiv = m = _eiv_move(g, c.X, c.fit, c.extra, c.extras.get("tangential_motion"),
+                              c.extra_slices().get("tangential_motion"))
+        if m.pooled_beyond(P_SIG):
+            reasons.append(f"the measured regressor moved beyond its uncertainty: Σν² = {m.sum_nu2:.1f} for "
+                           f"{m.p_eff:.1f} determined directions (p < {P_SIG:g})")
+        if m.order_beyond(P_SIG):
+            k, d2 = m.worst_order()
+            reasons.append(f"the X probes' δX moved beyond its uncertainty at order {k}: χ²₂ = {d2:.1f} "
+                           f"> {m.order_bound(P_SIG):.1f} (Šidák over the probes' orders at p < {P_SIG:g})")
     if g.bic0 - c.bic < DBIC_GATE:
         reasons.append(f"ΔBIC = {g.bic0 - c.bic:.1f} < {DBIC_GATE}")
     if member_bics and c.bic > min(member_bics) - DBIC_GATE:
@@ -573,21 +574,54 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
     return reasons
 
 
-def _worst_delta_x_order(c: _Cand, g: _Gates, nu: np.ndarray) -> tuple[int, float, float] | None:
-    """With X probes, the order at which a fitted tangential_motion moves the probes' δX beyond its
-    u (:func:`_delta_x_by_order` on its share of the errors-in-variables adjustment ``nu``, the
-    posterior of ``c.extra``): (order, χ²₂, bound), or None. The pooled Σν² gate lets one order carry
-    a division error among ~40 directions (loop validation seeds 668 and 773, selfa_graduation:
-    order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7, the division error missed)."""
-    pb, ev = g.pb, g.pb.ev
-    if "tangential_motion" not in c.extras or ev.radial is None or not ev.radial.has_x:
-        return None
-    E = c.extras["tangential_motion"]
-    orders, d2, bound = _delta_x_by_order(pb, g.mods["tangential_motion"], E, nu[c.extra_slices()["tangential_motion"]])
-    if not d2.size:
-        return None
-    i = int(np.argmax(d2))
-    return (int(orders[i]), float(d2[i]), bound) if d2[i] > bound else None
+@dataclass(frozen=True)
+class _EivMove:
+    """How far a fit moved its measured regressors (errors in variables): Σν̂² of the unit-prior
+    nuisance's posterior mean over the ``p_eff`` directions the readings determine
+    (:meth:`_Problem.eiv_posterior`), and, with X probes and a tangential_motion among the members,
+    that motion's share order by order (:func:`_adjustment_by_order` over tangential_motion's
+    ``x_orders``: ``orders``, χ²₂ each in ``d2``). One set of figures, read at two levels: the fit
+    gates refuse beyond P_SIG; a chosen motion beyond P_DOUBT has the division error beside it
+    (:func:`_division_error_alternative`)."""
+
+    sum_nu2: float
+    p_eff: float
+    orders: list[int]
+    d2: np.ndarray
+
+    def pooled_beyond(self, p: float) -> bool:
+        return self.p_eff > 0 and self.sum_nu2 > float(chi2_isf(p, self.p_eff))
+
+    def order_bound(self, p: float) -> float:
+        """The Šidák bound of χ²₂ at ``p`` over the probes' orders."""
+        return float(chi2_isf(1.0 - (1.0 - p) ** (1.0 / max(len(self.orders), 1)), 2))
+
+    def worst_order(self) -> tuple[int, float]:
+        i = int(np.argmax(self.d2))
+        return int(self.orders[i]), float(self.d2[i])
+
+    def order_beyond(self, p: float) -> bool:
+        """One order moved beyond the Šidák bound at ``p``: the pooled Σν² lets one order carry a
+        division error among ~40 directions (loop validation seeds 668 and 773, selfa_graduation:
+        order 2 moved by χ²₂ 28–34 with Σν² 44.4 for 20.1 and 73.8 for 40.7, the division error missed)."""
+        return bool(self.d2.size) and float(np.max(self.d2)) > self.order_bound(p)
+
+    def beyond(self, p: float) -> bool:
+        return self.pooled_beyond(p) or self.order_beyond(p)
+
+
+def _eiv_move(g: _Gates, X: np.ndarray, fit: dict, extra: np.ndarray, E_motion: np.ndarray | None,
+              motion: slice | None) -> _EivMove:
+    """:class:`_EivMove` of a fit of ``X`` with the nuisance ``extra``; ``E_motion``: the columns of
+    ``extra`` (at ``motion``) that are tangential_motion's δX, or None."""
+    pb = g.pb
+    nu, p_eff = pb.eiv_posterior(X, fit, extra)
+    orders: list[int] = []
+    d2 = np.zeros(0)
+    if E_motion is not None and motion is not None and pb.ev.radial is not None and pb.ev.radial.has_x:
+        orders = g.mods["tangential_motion"].x_orders(pb.ev)
+        d2 = _adjustment_by_order(pb, E_motion, nu[motion], orders)
+    return _EivMove(sum_nu2=float(nu @ nu), p_eff=p_eff, orders=orders, d2=d2)
 
 
 def _size_gates(c: _Cand, g: _Gates) -> list[str]:
@@ -962,8 +996,8 @@ def _division_error_alternative(sel: _Selection, chosen: _Cand) -> _Cand | None:
 
     - it passes every gate alone;
     - the motion needed the probes' δX moved beyond its u at the P_DOUBT level, though within the
-      P_SIG gate of :func:`_fit_gates`: Σν̂² beyond χ²(p) at P_DOUBT, or one order's χ²₂ beyond the
-      Šidák bound at P_DOUBT (:func:`_delta_x_by_order`);
+      P_SIG gate of :func:`_fit_gates`: its :class:`_EivMove`, Σν̂² beyond χ²(p) or one order's χ²₂
+      beyond the Šidák bound, at P_DOUBT;
     - next to the division error the motion is not evidenced: in the pair graduation_error +
       tangential_motion (their best variants, :func:`_pairs`) the motion's z < Z_GATE.
 
@@ -978,23 +1012,15 @@ def _division_error_alternative(sel: _Selection, chosen: _Cand) -> _Cand | None:
     distribution), a saturated division error beside it proves nothing (on 23 stops it spans every
     function of the stop) and the motion stays alone. The data then hold one of the two, not which:
     the set. Nothing is named on the alternative. Returns graduation_error's candidate, else None."""
-    g = sel.gates
-    pb, ev = g.pb, g.pb.ev
-    tm = g.mods.get("tangential_motion")
-    if (tm is None or chosen.names != ("tangential_motion",) or ev.radial is None or not ev.radial.has_x
-            or chosen.extra is None or not chosen.extra.shape[1]):
+    ev = sel.gates.pb.ev
+    if ("tangential_motion" not in sel.gates.mods or chosen.names != ("tangential_motion",) or ev.radial is None
+            or not ev.radial.has_x):
         return None
     grad = [c for c in sel.singles if c.names == ("graduation_error",) and c.passed]
     pair = [c for c in sel.pairs if set(c.names) == {"graduation_error", "tangential_motion"}]
     if not grad or not pair or pair[0].z["tangential_motion"] >= Z_GATE:
         return None
-    nu, p_eff = pb.eiv_posterior(chosen.X, chosen.fit, chosen.extra)
-    orders, d2, _ = _delta_x_by_order(pb, tm, chosen.extras["tangential_motion"],
-                                      nu[chosen.extra_slices()["tangential_motion"]])
-    pooled = p_eff > 0 and float(nu @ nu) > float(chi2_isf(P_DOUBT, p_eff))
-    bound = float(chi2_isf(1.0 - (1.0 - P_DOUBT) ** (1.0 / max(len(orders), 1)), 2))
-    by_order = bool(d2.size) and float(np.max(d2)) > bound
-    return grad[0] if (pooled or by_order) else None
+    return grad[0] if chosen.eiv is not None and chosen.eiv.beyond(P_DOUBT) else None
 
 
 def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[str], dict[str, Any]] | None:
@@ -1064,7 +1090,7 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
     try:
         pb.y = y0 - p0
         f = pb.fit(Xr, extra=E)
-        nu, p_eff = pb.eiv_posterior(Xr, f, E)
+        m = _eiv_move(g, Xr, f, E, E_motion, slice(0, E_motion.shape[1]))
         # the division error at each order the probes resolve, tested beside the motion: the fit
         # with that order's columns added (nested), Δχ² in units of the scatter that fit leaves
         z_div = {}
@@ -1073,8 +1099,6 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
             z_div[k] = _z_from_chi2((f["chi2"] - fk["chi2"]) / chi2_scale(fk), max(fk["k"] - f["k"], 1))
     finally:
         pb.y = y0
-    _, d2, bound = _delta_x_by_order(pb, tm, E_motion, nu[:E_motion.shape[1]])
-    adj = float(nu @ nu)
     z_max = max(z_div.values(), default=0.0)
     members = sorted(set(rest) | {"tangential_motion"})
     figures: dict[str, Any] = {"members": members,
@@ -1082,20 +1106,11 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
                "unmeasured_orders_above": x_max, "unmeasured_columns": n_unmeasured,
                "chi2": float(f["chi2"]), "k": int(f["k"]), "division_error_z_max": float(z_max),
                "division_error_z": {str(k): float(v) for k, v in sorted(z_div.items())},
-               "max_order_adjustment_chi2": float(d2.max()) if d2.size else 0.0,
-               "order_bound_chi2": bound, "sum_nu2": adj, "determined_directions": p_eff}
-    if z_max >= Z_GATE or (d2.size and d2.max() > bound) or (p_eff > 0 and adj > float(chi2_isf(P_SIG, p_eff))):
+               "max_order_adjustment_chi2": float(m.d2.max()) if m.d2.size else 0.0,
+               "order_bound_chi2": m.order_bound(P_SIG), "sum_nu2": m.sum_nu2, "determined_directions": m.p_eff}
+    if z_max >= Z_GATE or m.beyond(P_SIG):
         return None
     return set(members), figures
-
-
-def _delta_x_by_order(pb: _Problem, tm: Any, E: np.ndarray, nu: np.ndarray) -> tuple[list[int], np.ndarray, float]:
-    """The X probes' δX adjustment E·ν̂ order by order (:func:`_adjustment_by_order` over
-    tangential_motion's ``x_orders``) and the Šidák bound of χ²₂ at P_SIG over those orders:
-    (orders, χ²₂ per order, bound)."""
-    orders = tm.x_orders(pb.ev)
-    bound = float(chi2_isf(1.0 - (1.0 - P_SIG) ** (1.0 / max(len(orders), 1)), 2))
-    return orders, _adjustment_by_order(pb, E, nu, orders), bound
 
 
 def _adjustment_by_order(pb: _Problem, E: np.ndarray, nu: np.ndarray, orders: list[int]) -> np.ndarray:
