@@ -449,3 +449,55 @@ def test_a_motion_that_moves_one_order_of_the_probes_delta_x_beyond_its_u_does_n
     assert "graduation_error" in [e["name"] for e in res["identified_effects"]], res["identified_effects"]
     (tm,) = [c for c in res["candidates"] if c["names"] == ["tangential_motion"]]
     assert not tm["passed"] and any("at order 2" in r for r in tm["rejected_because"]), tm
+
+
+def test_a_size_carried_by_a_parameter_the_data_do_not_need_does_not_pass():
+    """A member's practical size must rest on parameters the data need (selection._size_from_needed).
+    Loop validation seeds 790 and 791, ac_drift #0: beside the division error ac_scale's quadratic
+    term was significant but below the size gate; with the gain added (z 1.7, a χ² drop of ≈ 2.9 on
+    ≈ 2150 dof, not needed) the gain's share of the model's first harmonic carried the pair over the
+    gate, and graduation_error + ac_scale took the place of the division error alone. The pair with
+    the gain fails as its nested version without it does; where the data need the gain (a χ² drop of
+    35), or where the nested version failed on something other than its size, or where the two are
+    not nested (another partner variant), nothing changes."""
+    from benchtwin.analysis.tracing.selection import _Cand, _size_from_needed
+
+    grad = [f"{ab}{k}_arcsec" for k in range(2, 12) for ab in "ab"]
+
+    def cand(ac_params: list[str], chi2: float, size_reasons: list[str] | None = None, passed: bool = True,
+             partner: list[str] = grad) -> _Cand:
+        k = len(partner) + len(ac_params)
+        c = _Cand(("graduation_error", "ac_scale"), np.zeros((1, k)), [list(partner), list(ac_params)],
+                  fit={"chi2": chi2, "k": k, "dof": 2150})
+        c.size_reasons = list(size_reasons or [])
+        c.reasons = list(c.size_reasons) + ([] if passed or size_reasons else ["z = 3.1 < 4.0"])
+        c.passed = passed
+        return c
+
+    small = ["ac_scale: contribution 0.046″ RMS < 0.5 × the noise floor (0.151″): below what the measurement "
+             "can resolve in practice"]
+    both = ["gain_pct", "quad_per_arcsec"]
+
+    c, b = cand(both, 2064.8), cand(["quad_per_arcsec"], 2067.7, small, passed=False)
+    _size_from_needed([c, b])
+    assert not c.passed and not c.equivalent
+    assert "gain_pct" in c.reasons[0] and "0.046″ RMS" in c.reasons[0], c.reasons
+    # the gain needed: a χ² drop of 35 on 2150 dof (F-test p ≈ 2e-9 < 0.001)
+    c, b = cand(both, 2064.8), cand(["quad_per_arcsec"], 2099.8, small, passed=False)
+    _size_from_needed([c, b])
+    assert c.passed and c.reasons == []
+    # the nested version failed on its z, not on its size: the rule is about size only
+    c, b = cand(both, 2064.8), cand(["quad_per_arcsec"], 2067.7, None, passed=False)
+    _size_from_needed([c, b])
+    assert c.passed
+    # another partner variant (orders 2…10 and 12 beside 2…11): not nested
+    c, b = cand(both, 2064.8), cand(["quad_per_arcsec"], 2067.7, small, passed=False,
+                                    partner=grad[:-2] + ["a12_arcsec", "b12_arcsec"])
+    _size_from_needed([c, b])
+    assert c.passed
+    # a pair that passed the gates but only equals the best single effect is demoted the same way
+    c, b = cand(both, 2064.8), cand(["quad_per_arcsec"], 2067.7, small, passed=False)
+    c.passed, c.equivalent = False, True
+    c.reasons = ["the pair does not beat the best single effect by ΔBIC ≥ 10 (an equivalent alternative)"]
+    _size_from_needed([c, b])
+    assert not c.equivalent and "gain_pct" in c.reasons[0]
