@@ -526,6 +526,17 @@ def _gate(c: _Cand, g: _Gates, member_bics: list[float] | None = None) -> None:
     c.passed = not c.reasons
 
 
+def _improvement_p(chi2_before: float, dk: int, fit: dict) -> float:
+    """p of the F-test of a fit's χ² improvement over ``chi2_before`` for its ``dk`` more
+    parameters, against the scatter the fit leaves (χ²/dof); 1 where it does not improve. The one
+    test of an improvement: a candidate against no effect (:func:`_fit_gates`), a superset variant
+    against its nested one (:func:`_needed_superset`, :func:`_size_from_needed`)."""
+    d_chi2 = chi2_before - fit["chi2"]
+    if d_chi2 <= 0:
+        return 1.0
+    return float(f_sf((d_chi2 / dk) / max(fit["chi2"] / fit["dof"], 1e-300), dk, fit["dof"]))
+
+
 def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str]:
     """The fit's gates: identifiable, each member's z, the measured regressors moved within their
     u, ΔBIC against no effect (and a pair against its members that pass alone), physically plausible parameters,
@@ -567,10 +578,7 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
                 reasons.append(f"{member}: implausible: {why}")
     # the χ² improvement against the scatter the candidate leaves (F-test): an effect must
     # bring the residual down by more than the noise would by chance, whatever u was assumed
-    k_c = max(c.fit["k"], 1)
-    d_chi2 = pb.null["chi2"] - c.fit["chi2"]
-    F = (d_chi2 / k_c) / max(c.fit["chi2"] / c.fit["dof"], 1e-300)
-    c.f_p = float(f_sf(F, k_c, c.fit["dof"])) if d_chi2 > 0 else 1.0
+    c.f_p = _improvement_p(pb.null["chi2"], max(c.fit["k"], 1), c.fit)
     if c.f_p >= F_SIG:
         reasons.append(f"F-test of the improvement: p = {c.f_p:.2g} ≥ {F_SIG}")
     return reasons
@@ -688,19 +696,14 @@ def _best_variants(variants: list[_Cand], g: _Gates) -> list[_Cand]:
 
 
 def _nested_extra_needed(b: _Cand, c: _Cand) -> float | None:
-    """p of the nested F-test of ``c``'s extra parameters over ``b`` (the gates' own test of an
-    improvement, as :func:`_needed_superset`) when ``b`` is ``c`` less some of its parameters: the
+    """p of the nested F-test of ``c``'s extra parameters over ``b`` (:func:`_improvement_p`) when ``b`` is ``c`` less some of its parameters: the
     same effects, each member's parameters in ``b`` among its parameters in ``c``, fewer in all;
     else None."""
     if b is c or b.names != c.names or b.fit["k"] >= c.fit["k"]:
         return None
     if not all(set(pb_) <= set(pc_) for pb_, pc_ in zip(b.pnames, c.pnames)):
         return None
-    dk = c.fit["k"] - b.fit["k"]
-    d_chi2 = b.fit["chi2"] - c.fit["chi2"]
-    if d_chi2 <= 0:
-        return 1.0
-    return float(f_sf((d_chi2 / dk) / max(c.fit["chi2"] / c.fit["dof"], 1e-300), dk, c.fit["dof"]))
+    return _improvement_p(b.fit["chi2"], c.fit["k"] - b.fit["k"], c.fit)
 
 
 def _size_from_needed(cands: list[_Cand]) -> None:
@@ -745,11 +748,7 @@ def _needed_superset(b: _Cand, variants: list[_Cand], g: _Gates, span: "_Span") 
         dk = c.fit["k"] - b.fit["k"]
         if c is b or not c.passed or dk <= 0 or not span.contains(c, b):
             continue
-        d_chi2 = b.fit["chi2"] - c.fit["chi2"]
-        if d_chi2 <= 0:
-            continue
-        p = float(f_sf((d_chi2 / dk) / max(c.fit["chi2"] / c.fit["dof"], 1e-300), dk, c.fit["dof"]))
-        if p < F_SIG:
+        if _improvement_p(b.fit["chi2"], dk, c.fit) < F_SIG:
             needed.append(c)
     return _ordered(needed, lambda c: c.bic, g.tie_tol_chi2, g.order)[0] if needed else b
 
