@@ -967,7 +967,8 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     spurious = every name neither expected nor a set-mate of an expected name, nor
     tangential_motion where the truth's axis holds ≥ UNOBSERVABLE_MIN_ARCSEC of −δX/r (a real
     tangential motion of the bench's bearings), nor a set-mate of it where that motion is there
-    (:func:`excused_names`)."""
+    (:func:`excused_names`); without X probes, where that unseen motion is there, "unexplained" is not
+    penalised where nothing is expected to be named (``unexplained_by_unseen_motion``)."""
     out: dict[str, Any] = {"expected": None, "accept": None, "named": None, "spurious": None, "unexplained": None,
                            "correct": None}
     if expected is None or expected.get("accept") is None:
@@ -979,6 +980,13 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     acc = list(expected.get("accept") or [])
     named, sets, unexpl = list(res["named"]), [list(s) for s in res.get("ambiguous") or []], bool(res["unexplained"])
     out.update(expected=exp, accept=acc, unexplained=unexpl)
+    # "unexplained" where the bench's own unseen motion is there (no X probes, the truth's −δX/r ≥
+    # UNOBSERVABLE_MIN_ARCSEC): the residual an exact analysis cannot remove, so an unexplained
+    # residual is not penalised where nothing is expected to be named — the reference generator's
+    # rule (its score.py docstring). Loop validation seed 794, tilt_abbe #0 (Y probes, worn bearings,
+    # the effect not observable): 3.84″ of −δX/r unseen, 1.54″ left and reported as unexplained.
+    unexpl_unseen = unexpl and (unobservable_arcsec or 0.0) >= UNOBSERVABLE_MIN_ARCSEC
+    out["unexplained_by_unseen_motion"] = unexpl_unseen
     ok_names = with_set_mates(exp, sets)
     unseen = excused_names(sets, unobservable_arcsec, tangential_arcsec)
     mentioned = named + [n for s in sets for n in s]
@@ -990,13 +998,14 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
         inset = all(e in named or any(e in s for s in sets) for e in exp)
         out["named"] = "alone" if alone else ("in ambiguity set" if inset else "not named")
         outcome = {"alone": "named", "in ambiguity set": "ambiguous", "not named": "missed"}[out["named"]]
-        if outcome == "missed" and "nothing" in acc and not extra and not unexpl:
+        if outcome == "missed" and "nothing" in acc and not extra and (not unexpl or unexpl_unseen):
             outcome = "nothing"  # an expected effect the bench cannot show (expected.json accepts nothing)
     elif "unexplained" in acc:
         outcome = "unexplained" if unexpl else ("spurious" if extra else
                                                 "nothing" if "nothing" in acc else "missed")
     else:
-        outcome = "nothing" if not extra and not unexpl else ("spurious" if extra else "unexplained")
+        outcome = ("nothing" if not extra and (not unexpl or unexpl_unseen) else
+                   ("spurious" if extra else "unexplained"))
     out["outcome"] = outcome
     out["correct"] = bool(outcome in acc and not out["spurious"])
     return out

@@ -105,3 +105,26 @@ def test_with_x_probes_the_bearings_real_tangential_motion_may_be_named_but_not_
     assert not s["correct"] and s["spurious"] == ["graduation_error", "tangential_motion"]
     s = score_identification({"named": ["graduation_error"], "ambiguous": [], "unexplained": False}, null, None, 0.6)
     assert not s["correct"] and s["spurious"] == ["graduation_error"]
+
+
+def test_an_unexplained_residual_is_not_penalised_where_the_unseen_motion_is_there():
+    """Without X probes, where the truth's axis holds ≥ 0.1″ of −δX/r, that motion is the residual
+    an exact analysis cannot remove: "unexplained" is not penalised where nothing is expected to be
+    named (the reference generator's rule, its score.py docstring). Loop validation seed 794,
+    tilt_abbe #0 (Y probes, worn bearings, the effect not observable): 3.84″ unseen, 1.54″ left and
+    reported unexplained beside the set {graduation_error, tangential_motion}. Controls: below the
+    floor, with X probes (the motion measured), an observable effect, a spurious name."""
+    from benchtwin.app.score import score_identification
+
+    not_obs = {"expect": ["tilt_abbe"], "accept": ["named", "ambiguous", "nothing"]}
+    lv794 = {"named": [], "ambiguous": SET, "unexplained": True}
+    s = score_identification(lv794, not_obs, 3.84)
+    assert s["correct"] and s["outcome"] == "nothing" and s["unexplained_by_unseen_motion"], s
+    assert not score_identification(lv794, not_obs, 0.05)["correct"]
+    assert not score_identification(lv794, not_obs, None, 3.84)["correct"]          # X probes: measured
+    assert not score_identification(lv794, {"expect": ["tilt_abbe"], "accept": ["named", "ambiguous"]}, 3.84)["correct"]
+    assert not score_identification({**lv794, "named": ["ac_scale"]}, not_obs, 3.84)["correct"]
+    null = {"expect": [], "accept": ["nothing"]}
+    bare = {"named": [], "ambiguous": [], "unexplained": True}
+    assert score_identification(bare, null, 0.64)["correct"]
+    assert not score_identification(bare, null, 0.05)["correct"]
