@@ -989,11 +989,8 @@ def score_identification(res: Mapping[str, Any], expected: Mapping[str, Any] | N
     acc = list(expected.get("accept") or [])
     named, sets, unexpl = list(res["named"]), [list(s) for s in res.get("ambiguous") or []], bool(res["unexplained"])
     out.update(expected=exp, accept=acc, unexplained=unexpl)
-    # "unexplained" where the bench's own unseen motion is there (no X probes, the truth's −δX/r ≥
-    # UNOBSERVABLE_MIN_ARCSEC): the residual an exact analysis cannot remove, so an unexplained
-    # residual is not penalised where nothing is expected to be named — the reference generator's
-    # rule (its score.py docstring). Loop validation seed 794, tilt_abbe #0 (Y probes, worn bearings,
-    # the effect not observable): 3.84″ of −δX/r unseen, 1.54″ left and reported as unexplained.
+    # loop validation seed 794, tilt_abbe #0 (Y probes, worn bearings, the effect not observable):
+    # 3.84″ of −δX/r unseen, 1.54″ left and reported as unexplained
     unexpl_unseen = unexplained_by_unseen_motion(unexpl, unobservable_arcsec)
     out["unexplained_by_unseen_motion"] = unexpl_unseen
     ok_names = with_set_mates(exp, sets)

@@ -321,9 +321,9 @@ def classify(expect: str, named: list[str], ambiguous: list[list[str]], unexplai
             if allowed and set(named) | {n for st in ambiguous for n in st} <= allowed:
                 return OK_UNOBSERVABLE
             return "FALSE: " + ",".join(named + [n for s in ambiguous for n in s])
-        if unexplained:
-            return OK_UNSEEN_UNEXPLAINED if unexplained_by_unseen_motion(True, unobservable_arcsec) else "unexplained"
-        return "ok (nothing)"
+        if unexplained_by_unseen_motion(unexplained, unobservable_arcsec):
+            return OK_UNSEEN_UNEXPLAINED
+        return "unexplained" if unexplained else "ok (nothing)"
     if expect == "unexplained":
         if unexplained:
             return "ok (unexplained)"
