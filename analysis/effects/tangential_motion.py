@@ -86,7 +86,9 @@ def ambiguous_with(ev):
 #: against χ²(p) by selection._fit_gates); the information criterion counts only the gains (problem.py
 #: ``ic``: k = rank of the design), no Occam factor of the nuisance. Where the probes' u per
 #: coefficient far exceeds the polygon's (e.g. 0.016 µm = 0.148″ against 0.004…0.03″ per harmonic,
-#: loop validation seed 660 null #0), the gain fitted beside its own nuisance is shrunk (0.1…0.3).
+#: loop validation seed 660 null #0), the gain fitted beside its own nuisance is shrunk (0.1…0.3):
+#: regression dilution by the probes' noise, which selection._evaluate's fixed point does not undo
+#: (docs/loop-validation.md, "The measured motion's gain, attenuated by the probes' own noise").
 def x_orders(ev) -> list[int]:
     return list(ev.radial.coefs("dX_um"))
 

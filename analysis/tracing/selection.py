@@ -156,8 +156,12 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
         if c.extra.shape[1]:
             c.fit = pb.fit(c.X, extra=c.extra)
             # the nuisance columns are scaled by the parameters (g·δX's u): linearised at the fit
-            # without them, whose g the regressor's own noise attenuates; re-linearised at the joint
-            # fit's parameters until they settle (the errors-in-variables fixed point)
+            # without them, then re-linearised at the joint fit's parameters until they settle.
+            # The gain's column stays the *measured* regressor, so this fixed point is the fit of
+            # the measured regressor (xᵀW·r = 0): the nuisance widens the gain's u but does not undo
+            # the attenuation by the regressor's own noise (regression dilution; X-probe benches
+            # fit g = 0.4–0.85 where the truth's is 1). docs/loop-validation.md, "The measured
+            # motion's gain, attenuated by the probes' own noise": a Gauss–Newton step measured.
             for _ in range(EIV_ITER):
                 P0 = np.asarray(c.fit["beta"], dtype=float)
                 P = _params(c)
@@ -1079,7 +1083,8 @@ def _measured_motion_alternative(sel: _Selection, chosen: _Cand) -> tuple[set[st
 
     Why: the X probes determine each δX Fourier coefficient to a type-A u (0.016 µm = 0.148″ at
     r = 22 mm on the drawn twin benches) that is 5–40× the polygon's u per harmonic (0.004–0.03″), so
-    a fitted gain on that regressor is shrunk (0.1–0.3 beside its own nuisance) and the real motion
+    a fitted gain on that regressor is shrunk (0.1–0.3 beside its own nuisance: regression dilution,
+    which the errors-in-variables fixed point of :func:`_evaluate` does not undo) and the real motion
     it leaves reads as a division error at the same orders; above the orders the probes resolve
     (``tangential_motion.x_orders``) δX is not measured at all (docs/loop-validation.md, the X-probe
     rounds: spurious graduation_error on null, ac_drift and polygon_pitch_ignored benches). The
