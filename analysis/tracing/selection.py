@@ -160,7 +160,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
             # The gain's column stays the *measured* regressor, so this fixed point is the fit of
             # the measured regressor (xᵀW·r = 0): the nuisance widens the gain's u but does not undo
             # the attenuation by the regressor's own noise (regression dilution; X-probe benches
-            # fit g = 0.4–0.85 where the truth's is 1). docs/loop-validation.md, "The measured
+            # fit g = 0.38–0.85 where the truth's is 1). docs/loop-validation.md, "The measured
             # motion's gain, attenuated by the probes' own noise": a Gauss–Newton step measured.
             for _ in range(EIV_ITER):
                 P0 = np.asarray(c.fit["beta"], dtype=float)
