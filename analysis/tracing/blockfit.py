@@ -42,6 +42,7 @@ reference. Within the bound both answer the same problem to ~κ·ε (measured on
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import cast
 
@@ -140,6 +141,17 @@ class NuisanceFactor:
         self._Rinv: np.ndarray | None = None
         self._cols: dict[bytes, tuple[float, np.ndarray, np.ndarray]] = {}
         self._g: dict[bytes, np.ndarray] = {}
+
+    def retarget(self, y: np.ndarray) -> "NuisanceFactor":
+        """The same factorisation for another target ``y`` (the errors-in-variables Gauss–Newton step
+        of analysis/tracing/selection.py fits a shifted residual): only b's projection is new. The
+        copy's column caches start as copies of this one's, so the step's adjusted regressors, used
+        once, are not kept here."""
+        G = copy.copy(self)
+        b = np.concatenate([np.asarray(y, dtype=float)[self.rows] * self.w, np.zeros(self.q)])
+        G.bt = _project(self.Q, b[:, None])[0][:, 0]
+        G._cols, G._g = dict(self._cols), dict(self._g)
+        return G
 
     def columns(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """X's columns weighted on these rows, their norms s_x, the scaled columns X_s and their

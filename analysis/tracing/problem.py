@@ -262,12 +262,18 @@ class _Problem:
         return np.vstack([X_a, X_s]), list(names)
 
     # -- fits --------------------------------------------------------------------------------
-    def fit(self, X: np.ndarray, train: np.ndarray | None = None, extra: np.ndarray | None = None) -> dict:
+    def fit(self, X: np.ndarray, train: np.ndarray | None = None, extra: np.ndarray | None = None,
+            target: np.ndarray | None = None) -> dict:
         """The weighted fit of X (and E = ``extra``) with the model nuisance, on ``train`` rows (all
         rows by default): beta, cov, nuis, chi2, dof, k (rank of X), n, S. Memoised on the exact
-        bytes of its inputs and y; the block solver when ``fast`` is set, else the reference."""
+        bytes of its inputs and y; the block solver when ``fast`` is set, else the reference.
+        ``target``: fit that vector instead of y (the errors-in-variables Gauss–Newton step, used
+        once: not memoised)."""
         if extra is not None and extra.shape[1] == 0:
             extra = None
+        if target is not None:
+            return (self._fit_block(X, train, extra, target) if self.fast else None) or \
+                self._fit_reference(X, train, extra, target)
         if extra is not None:
             # a regressor block belongs to one candidate's parameters: such a fit is not asked for
             # twice (measured: 188 of 188 distinct on the default dataset); no memo, no hashing
@@ -288,12 +294,14 @@ class _Problem:
             super().__setattr__("_y_key", _digest(value))
         super().__setattr__(name, value)
 
-    def _fit_block(self, X, train, extra) -> dict | None:
+    def _fit_block(self, X, train, extra, target=None) -> dict | None:
         rows = np.ones(self.n_rows, bool) if train is None else train
         fkey = (_digest(train), self._y_key)
         F = self._factors.get(fkey)
         if F is None:
             F = self._factors[fkey] = NuisanceFactor(self.S, self.w, self.y, rows)
+        if target is not None:
+            F = F.retarget(target)
         out = block_fit(F, self._basis, X, extra)
         if out is None:
             return None
@@ -304,15 +312,16 @@ class _Problem:
             return out
         return _Fit(out, {"S": lambda: {"S": np.hstack([self.S, extra])}})
 
-    def _fit_reference(self, X, train, extra) -> dict:
+    def _fit_reference(self, X, train, extra, target=None) -> dict:
         """The reference solver: SVD least squares (lstsq) of the column-scaled stacked matrix,
         covariance from its pseudo-inverse, small singular values truncated."""
         w = self.w
+        y = self.y if target is None else np.asarray(target, dtype=float)
         rows = np.ones(self.n_rows, bool) if train is None else train
         S = self.S if extra is None or extra.shape[1] == 0 else np.hstack([self.S, extra])
         p, q = X.shape[1], S.shape[1]
         A = np.hstack([X, S])[rows] * w[rows, None]
-        b = self.y[rows] * w[rows]
+        b = y[rows] * w[rows]
         if q:
             prior = np.hstack([np.zeros((q, p)), np.eye(q)])
             A = np.vstack([A, prior])
