@@ -362,6 +362,10 @@ class IdentifiedEffect(TypedDict, total=False):
     params: Annotated[dict[str, Num], Key("", "fitted parameters, unit in each name")]
     u: Annotated[dict[str, Num], Key("", "their standard uncertainties")]
     evidence: Annotated[dict[str, Any], Key("", "z, delta_bic, delta_aicc, cv_gain, chi2, dof, with, notes")]
+    estimator: Annotated[dict[str, Any], Key("", "where its regressor is measured (δX, ∫δY, the tilt motion): the "
+                                                 "consistent estimate's method, steps, converged, "
+                                                 "objective_chi2 (and _selection), params_selection: the "
+                                                 "selection's fit, attenuated by the regressor's noise")]
 
 
 class Ambiguity(TypedDict, total=False):

@@ -33,6 +33,7 @@ from ..distributions import chi2_isf, chi2_sf, f_sf
 from ..effects import ALL
 from ..fourier import fit_harmonics, harmonic_columns
 from ._blas import _one_blas_thread
+from .errors_in_variables import gauss_newton
 from .evidence import Evidence, _AtAngles, _replace_alpha, column
 from .problem import _digest, _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
 from .signature import _short_signature, _significant_parts, signature
@@ -144,6 +145,65 @@ def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
 #: errors-in-variables re-linearisation: at most EIV_ITER passes, until the parameters change by < EIV_RTOL
 EIV_ITER = 10
 EIV_RTOL = 1e-6
+
+
+def _eiv_extras(pb: _Problem, c: _Cand, mods: dict, ctx: dict, P: dict) -> np.ndarray:
+    """E(β): each member's regressor-perturbation columns scaled by its parameters ``P``, stacked."""
+    return np.hstack([pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names])
+
+
+def _eiv_units(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> list[np.ndarray] | None:
+    """U_j = ∂E/∂β_j, one matrix per parameter (E's shape), for the Gauss–Newton estimate
+    (errors_in_variables.py). E(β) is linear in each parameter (its perturbation columns are scaled
+    by it), so E at β_j doubled less E at β is exactly β_j·U_j. None where a parameter is 0 or
+    doubling one changes E's columns (a parameter that switches a block on or off)."""
+    P = _params(c)
+    E = _eiv_extras(pb, c, mods, ctx, P)
+    if c.extra is None or E.shape != c.extra.shape:
+        return None
+    out = []
+    for member, names in zip(c.names, c.pnames):
+        for n in names:
+            if not c.extras.get(member, E[:, :0]).shape[1]:
+                out.append(np.zeros_like(E))   # a member whose regressor is not measured: E does not hold it
+                continue
+            b = P[member][n]
+            if b == 0.0:
+                return None
+            P2 = {m: dict(v) for m, v in P.items()}
+            P2[member][n] = 2.0 * b
+            E2 = _eiv_extras(pb, c, mods, ctx, P2)
+            if E2.shape != E.shape:
+                return None
+            out.append((E2 - E) / b)
+    return out
+
+
+def _consistent(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> tuple[_Cand, dict[str, Any] | None]:
+    """The chosen candidate re-estimated consistently where a member's regressor is measured (δX,
+    ∫δY, the tilt motion): Deming's joint least squares (errors_in_variables.gauss_newton) from the
+    selection's fit, whose fixed point is the attenuated fit of the measured regressor. A copy, so
+    the selection's figures (gates, z, BIC, ambiguity) stay those the gates were derived on; the
+    effects' parameters, u, regressor adjustments, residual after and corrections are the copy's.
+    Returns (the copy, the estimator's record for results.json) or (``c``, None) where nothing is
+    measured."""
+    if not c.extras or c.extra is None or not c.extra.shape[1]:
+        return c, None
+    units = _eiv_units(pb, c, mods, ctx)
+    if units is None:
+        return c, None
+    q = pb.S.shape[1]
+    d = gauss_newton(pb.fit, pb.y, c.X, units, np.asarray(c.fit["beta"], dtype=float),
+                     np.asarray(c.fit["nuis"], dtype=float)[q:], q)
+    sl = c.extra_slices()
+    est = replace(c, fit=d.fit, extra=d.extra, extras={n: d.extra[:, sl[n]] for n in sl})
+    P0 = _params(c)
+    record = {"method": "errors in variables, Gauss–Newton on the joint least squares (Deming; "
+                        "analysis/tracing/errors_in_variables.py)",
+              "steps": d.steps, "converged": d.converged,
+              "objective_chi2_selection": d.objective_start, "objective_chi2": d.objective,
+              "params_selection": {m: P0[m] for m, E in c.extras.items() if E.shape[1]}}
+    return est, record
 
 
 def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
@@ -917,11 +977,18 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
     when the residual after shows no signature left (the same tests as "anything to explain?"),
     else "unexplained" with the chosen candidate's effects as partial ones."""
     g = sel.gates
-    after = _apply(ev, res, g, chosen)
+    # the selection's figures (cj, the ambiguity) are the chosen candidate's as gated; its estimate
+    # (parameters, u, adjustment, residual after, corrections) the consistent one (_consistent)
+    est, eiv_record = _consistent(g.pb, chosen, g.mods, g.ctx)
+    after = _apply(ev, res, g, est)
     out = dict(head)
     out["residual_after"] = after.test
     cj = rep.json(chosen)
-    effects = _effects_json(chosen, after, cj)
+    effects = _effects_json(est, after, cj)
+    if eiv_record is not None:
+        for e in effects:
+            if e["name"] in eiv_record["params_selection"]:
+                e["estimator"] = {**eiv_record, "params_selection": eiv_record["params_selection"][e["name"]]}
     out["ambiguous"] = _ambiguity(sel, rep, chosen, cj)
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
                           time_ks=res.flagged_harmonics)
@@ -941,8 +1008,8 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
         out["status"] = "ambiguous" if out["ambiguous"] else "explained"
         out["unexplained_signature"] = None
     out["model_file"] = _payload(ev, effects if not out["unexplained"] else [], out["ambiguous"], out["status"], g.ctx)
-    scale = chi2_scale(chosen.fit)
-    out["reference_corrections"] = (_reference_corrections(g.pb, chosen, g.mods, scale)
+    scale = chi2_scale(est.fit)
+    out["reference_corrections"] = (_reference_corrections(g.pb, est, g.mods, scale)
                                     if not out["unexplained"] else {})
     return out
 
