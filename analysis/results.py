@@ -365,7 +365,9 @@ class IdentifiedEffect(TypedDict, total=False):
     estimator: Annotated[dict[str, Any], Key("", "where its regressor is measured (δX, ∫δY, the tilt motion): the "
                                                  "consistent estimate's method, steps, converged, "
                                                  "objective_chi2 (and _selection), params_selection: the "
-                                                 "selection's fit, attenuated by the regressor's noise")]
+                                                 "selection's fit, attenuated by the regressor's noise; "
+                                                 "adopted (false: implausible, why_not, "
+                                                 "params_consistent; the selection's fit reported)")]
 
 
 class Ambiguity(TypedDict, total=False):

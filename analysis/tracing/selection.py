@@ -185,8 +185,12 @@ def _consistent(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> tuple[_Cand, d
     selection's fit, whose fixed point is the attenuated fit of the measured regressor. A copy, so
     the selection's figures (gates, z, BIC, ambiguity) stay those the gates were derived on; the
     effects' parameters, u, regressor adjustments, residual after and corrections are the copy's.
-    Returns (the copy, the estimator's record for results.json) or (``c``, None) where nothing is
-    measured."""
+    Where the estimate is implausible for a member (its module's ``plausible``, the bound the gates
+    applied to the selection's fit), ``c`` is kept and the record says why: along a direction the
+    data leave flat the joint minimum can lie far out (loop validation seed 803, ac_nonlinearity:
+    graduation_error + tilt_abbe on Y probes, ΔL1 19.8 mm at the selection's fit, 287 ± 348 mm at
+    the joint minimum, χ² 1670.7 → 1658.8). Returns (the estimate, the estimator's record for
+    results.json) or (``c``, None) where nothing is measured."""
     if not c.extras or c.extra is None or not c.extra.shape[1]:
         return c, None
     units = _eiv_units(pb, c, mods, ctx)
@@ -198,11 +202,21 @@ def _consistent(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> tuple[_Cand, d
     sl = c.extra_slices()
     est = replace(c, fit=d.fit, extra=d.extra, extras={n: d.extra[:, sl[n]] for n in sl})
     P0 = _params(c)
-    record = {"method": "errors in variables, Gauss–Newton on the joint least squares (Deming; "
-                        "analysis/tracing/errors_in_variables.py)",
-              "steps": d.steps, "converged": d.converged,
-              "objective_chi2_selection": d.objective_start, "objective_chi2": d.objective,
-              "params_selection": {m: P0[m] for m, E in c.extras.items() if E.shape[1]}}
+    measured = [m for m, E in c.extras.items() if E.shape[1]]
+    record: dict[str, Any] = {
+        "method": "errors in variables, Gauss–Newton on the joint least squares (Deming; "
+                  "analysis/tracing/errors_in_variables.py)",
+        "steps": d.steps, "converged": d.converged,
+        "objective_chi2_selection": d.objective_start, "objective_chi2": d.objective,
+        "params_selection": {m: P0[m] for m in measured}, "adopted": True}
+    P1, U1 = _params_u(est, chi2_scale(est.fit))
+    for member in est.names:
+        pl = getattr(mods[member], "plausible", None)
+        ok, why = pl(pb.ev, P1[member], U1[member], ctx) if pl else (True, "")
+        if not ok:
+            record.update(adopted=False, why_not=f"{member}: implausible: {why}",
+                          params_consistent={m: P1[m] for m in measured})
+            return c, record
     return est, record
 
 
@@ -988,7 +1002,9 @@ def _explained(head: dict[str, Any], ev: Evidence, res: _Residual, sel: _Selecti
     if eiv_record is not None:
         for e in effects:
             if e["name"] in eiv_record["params_selection"]:
-                e["estimator"] = {**eiv_record, "params_selection": eiv_record["params_selection"][e["name"]]}
+                e["estimator"] = {**eiv_record, "params_selection": eiv_record["params_selection"][e["name"]],
+                                  **({"params_consistent": eiv_record["params_consistent"][e["name"]]}
+                                     if "params_consistent" in eiv_record else {})}
     out["ambiguous"] = _ambiguity(sel, rep, chosen, cj)
     sig_after = signature(_replace_alpha(ev, ev.alpha_arcsec - after.pred_arcsec[g.pb.alpha_rows]),
                           time_ks=res.flagged_harmonics)
