@@ -19,8 +19,9 @@ it; the estimate reported for the chosen candidate is this module's.
 X + J(ν₀), J_j = U_j·ν₀, and the nuisance E(β₀) (its unit prior rows). E is linear in β, so J is
 exact. A step is kept only where the objective profiled over ν at its β, φ(β) = min_ν ‖y − X·β −
 E(β)·ν‖²_W + ‖ν‖² (with the model nuisance S), falls; else it is halved. φ never rises, so the
-iteration cannot oscillate; it stops when β changes by less than ``RTOL`` (converged) or after
-``MAX_STEPS`` (reported as not converged, at the lowest φ found). The covariance is the
+iteration cannot oscillate; it stops when β changes by less than ``RTOL`` or no halving of a step
+lowers φ (both reported as converged), or after ``MAX_STEPS`` (reported as not converged, at the
+lowest φ found). The covariance is the
 Gauss–Newton one of the last linearisation: the regressor's uncertainty enters through J and E.
 """
 
