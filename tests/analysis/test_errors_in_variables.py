@@ -5,6 +5,7 @@ the readings y (σ_y) and the regressor x = x* + σ_x·ν measured, the variance
 import math
 
 import numpy as np
+import pytest
 
 from benchtwin.analysis.tracing.errors_in_variables import gauss_newton
 
@@ -51,7 +52,7 @@ def test_gauss_newton_is_demings_estimate_and_undoes_the_attenuation():
         u = math.sqrt(d.fit["cov"][0, 0])
         assert d.converged and d.objective <= d.objective_start
         # the closed form, to the iteration's tolerance
-        assert g == __import__("pytest").approx(_deming_through_origin(x, y, sigma_x, sigma_y), rel=1e-5)
+        assert g == pytest.approx(_deming_through_origin(x, y, sigma_x, sigma_y), rel=1e-5)
         assert abs(g - g_true) < 3 * u, (g, u)
         # the fit of the measured regressor is attenuated by the reliability ratio 1/(1 + σ_x²) = 0.8
         n_attenuated += g_ols < g_true - 0.1

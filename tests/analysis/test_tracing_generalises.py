@@ -538,22 +538,22 @@ def test_an_implausible_consistent_estimate_is_not_adopted(monkeypatch):
     """Where the joint minimum lies beyond a member's physical bound (its module's ``plausible``, the
     bound the gates applied to the selection's fit), the selection's fit is reported and the record
     says so (loop validation seed 803, ac_nonlinearity: ΔL1 19.8 mm selected, 287 ± 348 mm at the
-    joint minimum). Here the bound is moved so that the consistent gain (≈ 1) is beyond it and the
-    selection's attenuated one (≈ 0.6) within."""
+    joint minimum). Here the bound is moved to 0.9, so that the consistent gain (1.17 on this bench)
+    is beyond it and the selection's attenuated one (0.75) within."""
     from benchtwin.analysis.effects import tangential_motion
     from benchtwin.analysis.tracing import trace
     from tests.synthetic.evidence import make_evidence
 
     def plausible(ev, params, u, ctx=None):
         g = float(params.get("gain", 0.0))
-        return (g < 0.8, f"gain {g:.3g} ≥ 0.8 (this test's bound)")
+        return (g < 0.9, f"gain {g:.3g} ≥ 0.9 (this test's bound)")
 
     monkeypatch.setattr(tangential_motion, "plausible", plausible, raising=False)
-    ev, _ = make_evidence(np.random.default_rng(1), x_probes=True, shifts=(0.0,), reps=2, directions=(1, -1),
+    ev, _ = make_evidence(np.random.default_rng(4), x_probes=True, shifts=(0.0,), reps=2, directions=(1, -1),
                           probe_noise_um=0.3, lobe_um=0.15, noise_arcsec=0.1,
                           inject={"tangential_motion": {"gain": 1.0, "radial_gain": 1.0}})
     (eff,) = trace(ev, candidates=["tangential_motion"])["identified_effects"]
     est = eff["estimator"]
     assert not est["adopted"] and "implausible" in est["why_not"], est
-    assert eff["params"] == est["params_selection"] and eff["params"]["gain"] < 0.8, eff["params"]
-    assert est["params_consistent"]["gain"] >= 0.8, est
+    assert eff["params"] == est["params_selection"] and eff["params"]["gain"] < 0.9, eff["params"]
+    assert est["params_consistent"]["gain"] >= 0.9, est
