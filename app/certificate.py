@@ -791,6 +791,20 @@ def _residual_test(r: Mapping[str, Any]) -> str:
             "without it: " + ("no such fit" if loo is None else f"{loo:.3g} arcsec RMS") + ")")
 
 
+def _estimator_clause(e: Mapping[str, Any]) -> str:
+    """How an identified effect whose regressor is measured was estimated (its results'
+    ``estimator``, analysis/tracing/errors_in_variables.py), as the analysis did it: "" for the
+    others."""
+    est = e.get("estimator")
+    if not isinstance(est, Mapping):
+        return ""
+    if est.get("adopted"):
+        return ("; estimated with its measured regressor's own uncertainty (errors in variables, Deming's "
+                "joint least squares)")
+    return ("; the selection's fit of the measured regressor: the errors-in-variables estimate was not adopted ("
+            f"{est.get('why_not', 'implausible')})")
+
+
 def effects_statement(res: Mapping[str, Any]) -> str:
     """What the analysis concluded about the causes of the error, in sentences a reader can check:
     only the models it ran, the effects it identified and the ambiguities it reported."""
@@ -809,7 +823,7 @@ def effects_statement(res: Mapping[str, Any]) -> str:
     parts = []
     for e in eff:
         ps = ", ".join(f"{k} = {v:.4g} ± {e.get('u', {}).get(k, float('nan')):.2g}" for k, v in e.get("params", {}).items())
-        parts.append(f"{e['name']} ({ps}; standard uncertainties)")
+        parts.append(f"{e['name']} ({ps}; standard uncertainties{_estimator_clause(e)})")
     s = "The loop identified: " + "; ".join(parts) + "."
     if rb.get("rms_arcsec") is not None and ra.get("rms_arcsec") is not None:
         s += (f" With it the residual of the error model went from {rb['rms_arcsec']:.3f} arcsec RMS "

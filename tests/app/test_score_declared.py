@@ -51,3 +51,20 @@ def test_certificate_quotes_what_the_residual_tests():
     s = effects_statement(res)
     assert "23 stops, 23 parameters fitted, 0 degrees of freedom" in s and "31.5 arcsec RMS" in s
     assert note in s and "4.19 arcsec RMS" in s
+
+
+def test_certificate_says_how_a_measured_regressors_effect_was_estimated():
+    """A certificate states only what happened: where the analysis estimated an effect by errors in
+    variables (results' ``estimator``), the statement says so, and where it reported the selection's
+    fit instead (``adopted`` false), it says that and why."""
+    est = {"method": "errors in variables", "steps": 6, "converged": True, "adopted": True,
+           "params_selection": {"gain": 0.62}}
+    res = {"identified_effects": [{"name": "tangential_motion", "params": {"gain": 1.025}, "u": {"gain": 0.171},
+                                   "estimator": est},
+                                  {"name": "graduation_error", "params": {"a2_arcsec": 1.0}, "u": {"a2_arcsec": 0.1}}]}
+    s = effects_statement(res)
+    assert "gain = 1.025 ± 0.17; standard uncertainties; estimated with its measured regressor's own uncertainty" in s
+    assert "a2_arcsec = 1 ± 0.1; standard uncertainties)" in s
+    res["identified_effects"][0]["estimator"] = {**est, "adopted": False, "why_not": "tangential_motion: implausible"}
+    s = effects_statement(res)
+    assert "not adopted (tangential_motion: implausible)" in s and "estimated with its" not in s
