@@ -147,9 +147,28 @@ EIV_ITER = 10
 EIV_RTOL = 1e-6
 
 
+def _regressor_extras(pb: _Problem, c: _Cand, mods: dict, ctx: dict, P: dict) -> dict[str, np.ndarray]:
+    """{member: its regressor-perturbation columns scaled by its parameters ``P``} (0 columns for a
+    member whose regressor is not measured): the errors-in-variables nuisance E(β), per member."""
+    return {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
+
+
 def _eiv_extras(pb: _Problem, c: _Cand, mods: dict, ctx: dict, P: dict) -> np.ndarray:
-    """E(β): each member's regressor-perturbation columns scaled by its parameters ``P``, stacked."""
-    return np.hstack([pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names])
+    """E(β): :func:`_regressor_extras` stacked in member order."""
+    return np.hstack(list(_regressor_extras(pb, c, mods, ctx, P).values()))
+
+
+def _implausible(mods: dict, ev: Evidence, c: _Cand, P: dict, U: dict, ctx: dict) -> list[str]:
+    """Each member's parameters beyond the range its module states a real bench can take
+    (``plausible``): the fit gates' reasons, and why a consistent estimate is not adopted."""
+    out = []
+    for member in c.names:
+        pl = getattr(mods[member], "plausible", None)
+        if pl:
+            ok, why = pl(ev, P[member], U[member], ctx)
+            if not ok:
+                out.append(f"{member}: implausible: {why}")
+    return out
 
 
 def _eiv_units(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> list[np.ndarray] | None:
@@ -210,13 +229,10 @@ def _consistent(pb: _Problem, c: _Cand, mods: dict, ctx: dict) -> tuple[_Cand, d
         "objective_chi2_selection": d.objective_start, "objective_chi2": d.objective,
         "params_selection": {m: P0[m] for m in measured}, "adopted": True}
     P1, U1 = _params_u(est, chi2_scale(est.fit))
-    for member in est.names:
-        pl = getattr(mods[member], "plausible", None)
-        ok, why = pl(pb.ev, P1[member], U1[member], ctx) if pl else (True, "")
-        if not ok:
-            record.update(adopted=False, why_not=f"{member}: implausible: {why}",
-                          params_consistent={m: P1[m] for m in measured})
-            return c, record
+    why_not = _implausible(mods, pb.ev, est, P1, U1, ctx)
+    if why_not:
+        record.update(adopted=False, why_not=why_not[0], params_consistent={m: P1[m] for m in measured})
+        return c, record
     return est, record
 
 
@@ -225,7 +241,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
     members = [mods[n] for n in c.names]
     if any(hasattr(m, "regressor_perturbations") for m in members):
         P = _params(c)
-        c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
+        c.extras = _regressor_extras(pb, c, mods, ctx, P)
         c.extra = np.hstack(list(c.extras.values()))
         if c.extra.shape[1]:
             c.fit = pb.fit(c.X, extra=c.extra)
@@ -239,7 +255,7 @@ def _evaluate(pb: _Problem, c: _Cand, mods: dict, ctx: dict):
             for _ in range(EIV_ITER):
                 P0 = np.asarray(c.fit["beta"], dtype=float)
                 P = _params(c)
-                c.extras = {n: pb.regressor_nuisance([mods[n]], [P[n]], ctx) for n in c.names}
+                c.extras = _regressor_extras(pb, c, mods, ctx, P)
                 c.extra = np.hstack(list(c.extras.values()))
                 c.fit = pb.fit(c.X, extra=c.extra)
                 if np.allclose(np.asarray(c.fit["beta"], dtype=float), P0, rtol=EIV_RTOL, atol=0.0):
@@ -648,12 +664,7 @@ def _fit_gates(c: _Cand, g: _Gates, member_bics: list[float] | None) -> list[str
     scale = chi2_scale(c.fit)
     P, U = _params_u(c, scale)
     # physically plausible: every module states the range its parameters can take on a real bench
-    for member in c.names:
-        pl = getattr(g.mods[member], "plausible", None)
-        if pl:
-            ok, why = pl(pb.ev, P[member], U[member], g.ctx)
-            if not ok:
-                reasons.append(f"{member}: implausible: {why}")
+    reasons.extend(_implausible(g.mods, pb.ev, c, P, U, g.ctx))
     # the χ² improvement against the scatter the candidate leaves (F-test): an effect must
     # bring the residual down by more than the noise would by chance, whatever u was assumed
     c.f_p = _improvement_p(pb.null["chi2"], max(c.fit["k"], 1), c.fit)
