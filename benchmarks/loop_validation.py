@@ -62,7 +62,11 @@ holds a tangential motion the Y probes cannot see (the scorer excuses it, ≥ 0.
 truth), any pattern of the stop angle at that motion's orders (2…10) can be the motion; the tier is
 then the lesser of the whole imprint's and of the imprint less that part (:func:`motion_part`,
 :func:`imprint_of` ``unseen``): what only repeats with the angle at those orders cannot be told
-from the motion on that bench, whatever the effect's shape. The decision is written to
+from the motion on that bench, whatever the effect's shape. **The servo's twist** (since
+2026-12-08): the part of the imprint that the scorer's floor counts as noise, the servo's
+stop-to-stop twist of the shaft (truth/polygon.csv ``twist_arcsec``, each run-row's mean removed:
+``app.score._floor_polygon``), is removed before either route (:func:`servo_twist_part`); a
+forward-only torsion is then judged on what it adds beyond that scatter. The decision is written to
 ``truth/expected.json``, which the scorer reads (``app.score.read_truth``). The hidden suite's four
 "nothing" classes (``ac_drift``, ``ac_nonlinearity``, ``ccd_pixel_scale_pixel_only``,
 ``polygon_pitch_ignored``) are no longer listed:
@@ -301,6 +305,10 @@ def expected_verdict(base: dict[str, Any], obs: dict[str, Any] | None) -> dict[s
            f"{'yes' if obs['signature_at_1_over_margin'] else 'no'}")
     out["observability"] = {k: obs[k] for k in ("tier", "ratio_chi2", "lambda", "lambda_gate", "dof", "null_scale",
                                                   "signature_at_1", "signature_at_1_over_margin", "margin")}
+    if obs.get("servo_twist_removed_rms_arcsec") is not None:
+        out["observability"]["servo_twist_removed_rms_arcsec"] = obs["servo_twist_removed_rms_arcsec"]
+        fig += (f"; the servo's stop-to-stop twist the scorer's floor holds ({obs['servo_twist_removed_rms_arcsec']:.3f}″ "
+                "RMS) not counted")
     if obs.get("aliased"):
         rest = obs["remainder"]
         out["observability"].update(tier_whole=obs["tier_whole"], aliased=obs["aliased"], remainder=rest)
@@ -328,14 +336,79 @@ def base_evidence(dataset: Path) -> Any:
     return _loop_evidence(ds, a)[0]
 
 
-def imprint(ds_effect: Path, ds_null: Path, unseen: str | None = None) -> dict[str, Any]:
+def imprint(ds_effect: Path, ds_null: Path, unseen: str | None = None,
+            truths: tuple[Path, Path] | None = None) -> dict[str, Any]:
     """The hidden effect's noise-free imprint on what the base model cannot absorb: the difference
     of the base model's per-reading residuals (α − Jia's model with the measured e, θ0 and ∫δY) of
     the same bench simulated with and without the effect (same seed: every noise stream the same),
     put through the analysis's own "anything to explain?" test (``residual_test``: closure-centred,
     the model's uncertainties as nuisance columns, the effect bench's u) as a noise-free residual;
-    its χ² is the non-centrality the effect adds to the residual's χ². ``unseen``: :func:`imprint_of`."""
-    return imprint_of(base_evidence(ds_effect), base_evidence(ds_null), unseen)
+    its χ² is the non-centrality the effect adds to the residual's χ². ``unseen``: :func:`imprint_of`.
+    ``truths``: the two benches' truth folders (with and without the effect), whose servo twist
+    the scorer's floor counts as noise (:func:`servo_twist_part`)."""
+    ev, ev0 = base_evidence(ds_effect), base_evidence(ds_null)
+    return imprint_of(ev, ev0, unseen, servo_twist_part(ev, *truths) if truths is not None else None)
+
+
+#: a polygon reading's key in truth/polygon.csv and in the evidence (the scorer's floor keys)
+_READING = ("shift_deg", "start_face", "step", "rep", "direction")
+
+
+def _twists(truth: Path, truth0: Path) -> tuple[dict[tuple, float], dict[tuple, float]] | None:
+    """truth/polygon.csv's ``twist_arcsec`` per reading (key :data:`_READING`) of the bench with the
+    effect (``truth``) and without it (``truth0``); None where either lacks the column or the two
+    are the same (the effect does not move the servo's rest: most classes)."""
+    from app.score import _numeric, _read_csv
+
+    out = []
+    for td in (truth, truth0):
+        p = td / "polygon.csv"
+        if not p.exists():
+            return None
+        t = _read_csv(p)
+        if "twist_arcsec" not in t:
+            return None
+        _numeric(p, t, "shift_deg", "start_face", "step", "rep", "twist_arcsec")
+        out.append({(round(float(t["shift_deg"][i]), 6), int(t["start_face"][i]), int(t["step"][i]),
+                     int(t["rep"][i]), str(t["direction"][i])): float(t["twist_arcsec"][i])
+                    for i in range(t["twist_arcsec"].size)})
+    return None if out[0] == out[1] else (out[0], out[1])
+
+
+def servo_twist_part(ev: Any, truth: Path, truth0: Path) -> np.ndarray | None:
+    """The part of an effect's imprint that the scorer's floor counts as noise, per reading of ``ev``:
+    the servo's stop-to-stop twist (truth/polygon.csv ``twist_arcsec``: the friction the servo holds
+    at rest twists the shaft between disk and polygon by an amount that changes from stop to stop and
+    that no instrument reads) of the bench with the effect less that of the bench without it, each
+    run-row's (shift, start face, repetition, direction) mean removed: exactly what
+    ``app.score._floor_polygon`` (1b) puts in the floor. A run-row's mean is kept in the imprint (a
+    constant is the closure's U, a difference between directions is torsion_hysteresis's signature).
+    In α as the twin writes Hsieh's eq. 3 (ε = U + Σβ + (θ − θ_true) − twist:
+    ``twin/simulate.py`` ``_write_polygon_truth``), hence the sign. None where the twist is the same
+    on both benches (:func:`_twists`).
+
+    Why: on a forward-only bench a torsion's wind-up is the same at every stop but the runs' first
+    (approached from the other side, by the return to the start angle), so all it adds beyond that
+    stop-to-stop scatter is a deviation at the first stops, which the scorer's floor holds too. The
+    rule and the scorer then agree on what is noise; before, the rule called the scatter an imprint
+    ("observable") that the scorer's after/floor counted as floor (seed 804, torsion_hysteresis #0:
+    2.05× the χ² gate with the scatter, 0.49× without it)."""
+    tw = _twists(truth, truth0)
+    if tw is None:
+        return None
+    names = {1: "forward", -1: "backward"}
+    keys = [(round(float(ev.shift_deg[i]), 6), int(ev.start_face[i]), int(ev.step[i]), int(ev.rep[i]),
+             names[int(ev.direction[i])]) for i in range(int(ev.n))]
+    missing = [k for k in keys if k not in tw[0] or k not in tw[1]]
+    if missing:
+        raise ValueError(f"{truth}/polygon.csv: no twist for the reading {dict(zip(_READING, missing[0]))}")
+    x = np.array([tw[0][k] - tw[1][k] for k in keys])
+    rows: dict[tuple, list[int]] = {}
+    for i, k in enumerate(keys):
+        rows.setdefault((k[0], k[1], k[3], k[4]), []).append(i)
+    for r in rows.values():
+        x[r] -= x[r].mean()
+    return -x
 
 
 def _harmonic_scale(ev: Any) -> float:
@@ -402,9 +475,10 @@ def _routes(ev: Any, d: np.ndarray, s2h: float, floor: float) -> dict[str, Any]:
 TIERS = ("not observable", "marginal", "observable")
 
 
-def imprint_of(ev: Any, ev0: Any, unseen: str | None = None) -> dict[str, Any]:
+def imprint_of(ev: Any, ev0: Any, unseen: str | None = None, noise: np.ndarray | None = None) -> dict[str, Any]:
     """:func:`imprint` from the two benches' evidence (analysis.tracing.Evidence: with the effect,
-    ``ev``, and without it, ``ev0``; the same stops).
+    ``ev``, and without it, ``ev0``; the same stops). ``noise``: the per-reading part of the
+    difference that the scorer counts as noise (:func:`servo_twist_part`), removed first.
 
     ``unseen``: what, on this bench, a pattern of the stop angle at orders 2…10 already stands for
     (:func:`unseen_motion`; None: nothing). On a bench without X probes whose axis has a tangential
@@ -423,11 +497,15 @@ def imprint_of(ev: Any, ev0: Any, unseen: str | None = None) -> dict[str, Any]:
     from benchtwin.analysis.tracing import noise_floor, residual_test
 
     d = ev.residual_arcsec - ev0.residual_arcsec
+    if noise is not None:
+        d = d - noise
     rt0 = residual_test(ev0)
     floor = float(noise_floor(ev))
     s2h = _harmonic_scale(ev0)
     out = {**_routes(ev, d, s2h, floor), "noise_floor_arcsec": floor, "n_readings": int(ev.n),
            "null_bench_chi2": float(rt0["chi2"]), "null_bench_dof": int(rt0["dof"])}
+    if noise is not None:
+        out["servo_twist_removed_rms_arcsec"] = float(np.sqrt(np.mean(np.square(noise))))
     if unseen is None:
         return out
     rest = _routes(ev, d - motion_part(ev, d), s2h, floor)
@@ -495,7 +573,7 @@ def run_one(seed: int, cls: str, index: int, hidden: dict[str, Any], work: str) 
             ds0 = Path(simulate(sc0, d / "without_effect", progress=False, backend="analytic"))
             shutil.move(str(ds0 / "truth"), str(d / "truth_without_effect"))
             try:
-                obs = imprint(ds, ds0, unseen_motion(tr.get("floor") or {}))
+                obs = imprint(ds, ds0, unseen_motion(tr.get("floor") or {}), (truth, d / "truth_without_effect"))
             except Exception as exc:  # noqa: BLE001 - recorded; the hidden effect's rule then applies
                 rec["imprint_error"] = f"{type(exc).__name__}: {exc}"
             rec["imprint"] = obs
@@ -677,8 +755,10 @@ def _rescore_one(args: tuple[str, dict[str, Any], bool]) -> dict[str, Any]:
             tr = read_truth(t, ds)
         obs = r.get("imprint")
         stands = unseen_motion(tr.get("floor") or {})
-        if r["class"] != "null" and (d / "without_effect").is_dir() and (stands is not None or obs is None):
-            obs = imprint(ds, d / "without_effect", stands)
+        truths = (truth, d / "truth_without_effect")
+        if r["class"] != "null" and (d / "without_effect").is_dir() and (
+                stands is not None or obs is None or _twists(*truths) is not None):
+            obs = imprint(ds, d / "without_effect", stands, truths)
         exp = expected_verdict(tr["expected"], obs) if r["class"] != "null" else tr["expected"]
         res_dir = d / "analysis"
         if reanalyse:

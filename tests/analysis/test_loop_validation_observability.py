@@ -197,3 +197,61 @@ def test_what_a_function_of_the_angle_stands_for_comes_from_the_scorers_floor():
     assert lv.unseen_motion({"x_probes": False, "unattributable_arcsec": 0.5 * UNOBSERVABLE_MIN_ARCSEC}) is None
     assert lv.unseen_motion({"x_probes": True, "unattributable_arcsec": 1.0}) is None
     assert lv.unseen_motion({"x_probes": None, "unattributable_arcsec": None}) is None
+
+
+def _twist_bench(tmp_path: Path, directions: tuple[int, ...], h: float, seed: int = 7):
+    """Hsieh eq. 3's design at one shift (23 start faces × 23 steps per direction), and two truth
+    folders whose ``twist_arcsec`` differ by a friction wind-up: ``h`` at every stop but a run's first
+    (approached from the other side: −h), with the sign of the run's direction, plus a stop-to-stop
+    scatter (the servo's rest). The evidence's α holds that difference as eq. 3 does (−twist)."""
+    from benchtwin.analysis.tracing import Evidence
+
+    rng = np.random.default_rng(seed)
+    rows = [(d, j, i) for d in directions for j in range(1, 24) for i in range(1, 24)]
+    dirn = np.array([d for d, _, _ in rows])
+    face = np.array([j for _, j, _ in rows])
+    step = np.array([i for _, _, i in rows])
+    th = (step - 1) * 360.0 / 23
+    wind = h * dirn * np.where(step == 1, -1.0, 1.0)
+    scatter = rng.normal(0.0, 0.5, dirn.size)
+    base = rng.normal(0.0, 0.05, dirn.size)   # the twist both benches share
+    for name, tw in (("with", base + wind + scatter), ("without", base)):
+        (tmp_path / name).mkdir()
+        lines = ["shift_deg,start_face,step,rep,direction,twist_arcsec"]
+        lines += [f"0.0,{j},{i},0,{'forward' if d > 0 else 'backward'},{float(x)!r}" for (d, j, i), x in zip(rows, tw)]
+        (tmp_path / name / "polygon.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    noise = rng.normal(0.0, 0.1, dirn.size)
+    kw = dict(theta_deg=th, u_arcsec=0.1, model_terms={}, shift_deg=np.zeros(th.size), start_face=face,
+              step=step, rep=np.zeros(th.size, dtype=int), direction=dirn, t_s=20.0 * np.arange(th.size),
+              radial=None, radial_term=None)
+    ev = Evidence(alpha_arcsec=noise - (wind + scatter), **kw)
+    return ev, Evidence(alpha_arcsec=noise, **kw), (tmp_path / "with", tmp_path / "without"), wind + scatter
+
+
+def test_the_servo_twist_the_scorers_floor_holds_is_not_counted_as_imprint(tmp_path):
+    """A forward-only wind-up is the same at every stop but the runs' first: beyond each run-row's
+    mean (the closure's U) it is the stop-to-stop scatter and the first stops' deviation, which the
+    scorer's floor holds (app.score ``_floor_polygon`` 1b). Counted, it makes the imprint observable;
+    not counted, nothing is left."""
+    ev, ev0, truths, twist = _twist_bench(tmp_path, (1,), 0.5)
+    part = lv.servo_twist_part(ev, *truths)
+    assert part is not None
+    row = twist.reshape(23, 23)
+    assert np.allclose(part, -(row - row.mean(axis=1, keepdims=True)).ravel(), atol=1e-12)
+    assert lv.imprint_of(ev, ev0)["tier"] == "observable"
+    o = lv.imprint_of(ev, ev0, noise=part)
+    assert o["tier"] == "not observable" and o["lambda"] < 1e-9
+    assert o["servo_twist_removed_rms_arcsec"] == pytest.approx(float(np.sqrt(np.mean(part**2))))
+    e = lv.expected_verdict({"expect": ["torsion_hysteresis"], "accept": ["named", "ambiguous"], "why": ""}, o)
+    assert "nothing" in e["accept"] and "servo's stop-to-stop twist" in e["why"]
+    # the same twist on both benches: nothing to remove
+    (truths[1] / "polygon.csv").write_bytes((truths[0] / "polygon.csv").read_bytes())
+    assert lv.servo_twist_part(ev, *truths) is None
+
+
+def test_a_wind_up_that_flips_with_the_direction_stays_in_the_imprint(tmp_path):
+    """Forward and backward runs in one mounting: the run-rows' means differ by ±h (torsion
+    hysteresis's signature), which the floor does not hold: observable with the scatter removed."""
+    ev, ev0, truths, _ = _twist_bench(tmp_path, (1, -1), 0.5)
+    o = lv.imprint_of(ev, ev0, noise=lv.servo_twist_part(ev, *truths))
+    assert o["tier"] == "observable" and o["servo_twist_removed_rms_arcsec"] > 0.4
