@@ -244,9 +244,13 @@ def test_the_servo_twist_the_scorers_floor_holds_is_not_counted_as_imprint(tmp_p
     assert o["servo_twist_removed_rms_arcsec"] == pytest.approx(float(np.sqrt(np.mean(part**2))))
     e = lv.expected_verdict({"expect": ["torsion_hysteresis"], "accept": ["named", "ambiguous"], "why": ""}, o)
     assert "nothing" in e["accept"] and "servo's stop-to-stop twist" in e["why"]
-    # the same twist on both benches: nothing to remove
-    (truths[1] / "polygon.csv").write_bytes((truths[0] / "polygon.csv").read_bytes())
-    assert lv.servo_twist_part(ev, *truths) is None
+    # the same twist on both benches (to the pose solve's last bits): nothing to remove
+    text = (truths[0] / "polygon.csv").read_text(encoding="utf-8").splitlines()
+    head, first = text[1].rsplit(",", 1)
+    for dx, same in ((0.0, True), (0.5 * lv.TWIST_SAME_ARCSEC, True), (1e-3, False)):
+        moved = [text[0], f"{head},{float(first) + dx!r}", *text[2:]]
+        (truths[1] / "polygon.csv").write_text("\n".join(moved) + "\n", encoding="utf-8")
+        assert (lv.servo_twist_part(ev, *truths) is None) == same
 
 
 def test_a_wind_up_that_flips_with_the_direction_stays_in_the_imprint(tmp_path):
