@@ -66,6 +66,21 @@ class _Fit(dict):
         return self[key]
 
 
+#: a column the closure keeps: its weighted norm after the per-group centring (:func:`_center`) above
+#: this fraction of its norm before. Below it the per-run constants (Hsieh eq. 3's U_j) hold the
+#: column and no reading constrains its coefficient: e.g. order N of an N-face polygon, whose kθ is
+#: the same at every stop of a run at any shift.
+CLOSURE_KEEP = 1e-6
+
+
+def closure_kept(centred: np.ndarray, raw: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Which columns of a design survive the closure: ``centred`` (the columns after :func:`_center`,
+    on the problem's rows) against ``raw`` (before, on the polygon's rows), both weighted by ``w``."""
+    norms = np.linalg.norm(centred * w[: centred.shape[0], None], axis=0)
+    before = np.linalg.norm(raw * w[: raw.shape[0], None], axis=0)
+    return norms > CLOSURE_KEEP * np.maximum(before, 1e-300)
+
+
 def _center(x: np.ndarray, groups: np.ndarray, w2: np.ndarray) -> np.ndarray:
     """Remove the w²-weighted mean of each group from each column of x."""
     x2 = x if x.ndim == 2 else x[:, None]

@@ -35,7 +35,7 @@ from ..fourier import fit_harmonics, harmonic_columns
 from ._blas import _one_blas_thread
 from .errors_in_variables import gauss_newton
 from .evidence import Evidence, _AtAngles, _replace_alpha, column
-from .problem import _digest, _Problem, _center, _rms, _z_from_chi2, chi2_scale, noise_floor
+from .problem import _digest, _Problem, _center, _rms, _z_from_chi2, chi2_scale, closure_kept, noise_floor
 from .signature import _short_signature, _significant_parts, signature
 from .significance import harmonic_test, residual_test
 from .thresholds import (AMBIG_DBIC, COLLINEAR, DBIC_GATE, DEGENERATE_RATIO, F_SIG, P_DOUBT, P_SIG, SIZE_GATE, SPHERE_FORM_UM,
@@ -118,9 +118,7 @@ def _prepare(pb: _Problem, name: str, module, ctx) -> tuple[list[_Cand], str]:
     X, names = pb.columns(module, ctx)
     if not names:
         return [], reason or "no columns"
-    norms = np.linalg.norm(X * pb.w[:, None], axis=0)
-    raw = np.linalg.norm(np.asarray(module.design(pb.ev, ctx)[0]).reshape(pb.ev.n, -1) * pb.w[: pb.ev.n, None], axis=0)
-    keep = norms > 1e-6 * np.maximum(raw, 1e-300)
+    keep = closure_kept(X, np.asarray(module.design(pb.ev, ctx)[0]).reshape(pb.ev.n, -1), pb.w)
     if not np.any(keep):
         return [], "unobservable with this sampling: the closure (per-run constant) removes it"
     notes = [reason] if reason else []

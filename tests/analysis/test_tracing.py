@@ -63,6 +63,23 @@ def test_harmonic_test_finds_an_injected_harmonic():
     assert abs(h[4]["a_arcsec"] - 0.15 * math.cos(2.0)) < 3 * h[4]["u_arcsec"]
 
 
+def test_an_order_the_closure_removes_is_not_tested():
+    """Shifts 0…14° (345 positions: kmax 40) reach order 23 of the 23-face polygon, whose kθ is the
+    same at every stop of a run: the per-run constants hold it and no reading constrains it. It is
+    not listed; every order listed has a finite amplitude and u, and the injected one is found. θ
+    is the commanded stop, as in a dataset's polygon table (no jitter)."""
+    ev, _ = make_evidence(np.random.default_rng(8), start_faces=range(1, 24, 6), shifts=tuple(float(s) for s in range(15)),
+                          jitter_arcsec=0.0, inject={"graduation_error": {4: (0.15, 2.0)}})
+    assert ev.kmax >= 23
+    h = {x["k"]: x for x in harmonic_test(ev)}
+    assert 23 not in h and set(h) == set(range(1, ev.kmax + 1)) - {23}
+    assert all(x["amplitude_arcsec"] < 1.0 and x["u_arcsec"] < 1.0 for x in h.values())
+    assert [k for k, x in h.items() if x["significant"]] == [4]
+    # the first-order graduation prior is the RMS of these components (it was 10¹⁰–10¹²″ with order N in)
+    from benchtwin.analysis.pipeline import k1_prior
+    assert 0.0 < k1_prior({"harmonics": list(h.values())})[0] < 0.1
+
+
 def test_residual_within_model_uncertainty_is_nothing_to_explain():
     """A 1 % error of e is inside u(e) = 0.24 µm (3.4 %, Jia sec. 5): with the model's uncertainty
     in the evidence, nothing is significant; without it, it is."""
