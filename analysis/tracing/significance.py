@@ -44,7 +44,7 @@ def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
     th = np.deg2rad(ev.theta_deg)
     raw = np.column_stack([f(k * th) for k in range(1, ev.kmax + 1) for f in (np.sin, np.cos)])
     X = _center(raw, column(ev.closure_group), pb.w ** 2)
-    keep = closure_kept(X, raw, pb.w).reshape(-1, 2).all(axis=1)
+    keep: np.ndarray = np.asarray(closure_kept(X, raw, pb.w).reshape(-1, 2).all(axis=1), dtype=bool)
     ks = [k for k, kept in zip(range(1, ev.kmax + 1), keep) if kept]
     if not keep.all():
         X = X[:, np.repeat(keep, 2)]
