@@ -708,6 +708,22 @@ def _floor(td: Path, ds: Path, ee: Mapping[str, np.ndarray] | None,
             "unattributable_arcsec": unattributable, "tangential_arcsec": tangential, "x_probes": x_probes}
 
 
+def run_row_centred(x: np.ndarray, runs: Sequence[tuple]) -> np.ndarray:
+    """``x`` (one value per polygon reading) with each run-row's mean removed; ``runs[i]`` names
+    reading i's run-row (its shift, start face, repetition and direction: every key but the step).
+    A run-row's constant is the closure's U (Hsieh eq. 3) and a difference between directions is
+    torsion_hysteresis, an effect: what is left is the part of the servo's twist the floor holds
+    (:func:`_floor_polygon`), and the part of an effect's imprint the loop validation's expected
+    verdict does not count (benchmarks/loop_validation.py ``servo_twist_part``)."""
+    out = np.array(x, dtype=float)
+    groups: dict[tuple, list[int]] = {}
+    for i, g in enumerate(runs):
+        groups.setdefault(g, []).append(i)
+    for rows in groups.values():
+        out[rows] = out[rows] - out[rows].mean()
+    return out
+
+
 def _floor_polygon(td: Path, ds: Path, hidden: Mapping[str, Any], parts: dict[str, float],
                    per_reading: dict[str, float]) -> None:
     """The floor's autocollimator and servo-twist parts, into ``parts`` (per stop) and ``per_reading``."""
@@ -755,9 +771,7 @@ def _floor_polygon(td: Path, ds: Path, hidden: Mapping[str, Any], parts: dict[st
             if "twist_arcsec" in t:
                 _numeric(td / "polygon.csv", t, "twist_arcsec")
                 tw_by = {key(t, i): float(t["twist_arcsec"][i]) for i in range(t["theta_deg"].size)}
-                tw = np.array([tw_by[key(d, i)] for i in idx])
-                for run_rows in groups.values():
-                    tw[run_rows] = tw[run_rows] - tw[run_rows].mean()
+                tw = run_row_centred(np.array([tw_by[key(d, i)] for i in idx]), run)
                 if np.any(tw != 0.0):
                     mt = np.array([tw[th == k].mean() for k in np.unique(th)])
                     parts["servo_twist_arcsec"] = float(np.sqrt(np.mean((mt - mt.mean()) ** 2)))

@@ -387,8 +387,8 @@ def servo_twist_part(ev: Any, truth: Path, truth0: Path) -> np.ndarray | None:
     the servo's stop-to-stop twist (truth/polygon.csv ``twist_arcsec``: the friction the servo holds
     at rest twists the shaft between disk and polygon by an amount that changes from stop to stop and
     that no instrument reads) of the bench with the effect less that of the bench without it, each
-    run-row's (shift, start face, repetition, direction) mean removed: exactly what
-    ``app.score._floor_polygon`` (1b) puts in the floor. A run-row's mean is kept in the imprint (a
+    run-row's (shift, start face, repetition, direction) mean removed by the scorer's own
+    ``app.score.run_row_centred``: exactly what ``app.score._floor_polygon`` (1b) puts in the floor. A run-row's mean is kept in the imprint (a
     constant is the closure's U, a difference between directions is torsion_hysteresis's signature).
     In α as the twin writes Hsieh's eq. 3 (ε = U + Σβ + (θ − θ_true) − twist:
     ``twin/simulate.py`` ``_write_polygon_truth``), hence the sign. None where the twist is the same
@@ -409,25 +409,20 @@ def servo_twist_part(ev: Any, truth: Path, truth0: Path) -> np.ndarray | None:
     missing = [k for k in keys if k not in tw[0] or k not in tw[1]]
     if missing:
         raise ValueError(f"{truth}/polygon.csv: no twist for the reading {dict(zip(_READING, missing[0]))}")
-    x = np.array([tw[0][k] - tw[1][k] for k in keys])
-    rows: dict[tuple, list[int]] = {}
-    for i, k in enumerate(keys):
-        rows.setdefault((k[0], k[1], k[3], k[4]), []).append(i)
-    for r in rows.values():
-        x[r] -= x[r].mean()
-    return -x
+    from app.score import run_row_centred
+
+    return -run_row_centred(np.array([tw[0][k] - tw[1][k] for k in keys]), [(k[0], k[1], k[3], k[4]) for k in keys])
 
 
 def _harmonic_scale(ev: Any) -> float:
     """max(1, χ²/dof) of the bench's residual after harmonics 1…kmax (the scale ``harmonic_test``
     puts on its u: analysis/tracing/significance.py, the same columns and centring)."""
-    from benchtwin.analysis.tracing import _center, _Problem, column
+    from benchtwin.analysis.tracing import _Problem
     from benchtwin.analysis.tracing.problem import chi2_scale
+    from benchtwin.analysis.tracing.significance import resolved_harmonics
 
     pb = _Problem(ev, use_selfcal=False)
-    th = np.deg2rad(ev.theta_deg)
-    X = np.column_stack([f(k * th) for k in range(1, ev.kmax + 1) for f in (np.sin, np.cos)])
-    return float(chi2_scale(pb.fit(_center(X, column(ev.closure_group), pb.w ** 2))))
+    return float(chi2_scale(pb.fit(resolved_harmonics(ev, pb)[1])))
 
 
 def motion_part(ev: Any, d: np.ndarray) -> np.ndarray:

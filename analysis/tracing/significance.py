@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ..distributions import chi2_sf
+from ..fourier import harmonic_columns
 from ._blas import _one_blas_thread
 from .evidence import Evidence, column
 from .problem import _Problem, _center, _rms, _z_from_chi2, chi2_scale, closure_kept
@@ -31,23 +32,28 @@ def residual_test(ev: Evidence) -> dict:
             "chi2": chi2, "dof": dof, "p_value": float(chi2_sf(chi2, dof))}
 
 
-@_one_blas_thread
-def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
-    """Each harmonic 1…kmax of θ fitted jointly; amplitude, its u and a χ²_2 test (Bonferroni over
-    the harmonics tested; u scaled by √(χ²/dof) when that exceeds 1). An order whose columns the
-    closure removes (:func:`closure_kept`: order N of an N-face polygon, which the shift-angle
-    designs reach with kmax up to 40) is not tested and not listed: no reading constrains it, and
-    fitted beside the others its coefficient was the solver's round-off (10¹⁰–10¹³″ ± as much on the
-    0…14° benches of loop validation seeds 804–806), and so was its χ² (the hsieh2022 default
-    flagged order 24)."""
-    pb = pb or _Problem(ev, use_selfcal=False)
-    th = np.deg2rad(ev.theta_deg)
-    raw = np.column_stack([f(k * th) for k in range(1, ev.kmax + 1) for f in (np.sin, np.cos)])
+def resolved_harmonics(ev: Evidence, pb: _Problem) -> tuple[list[int], np.ndarray]:
+    """The orders 1…kmax of θ the closure leaves and their closure-centred columns
+    (``fourier.harmonic_columns``, [sin kθ, cos kθ] per order): the design of :func:`harmonic_test`
+    and of every scale taken "after harmonics 1…kmax". An order whose columns the closure removes
+    (:func:`closure_kept`: order N of an N-face polygon, which the shift-angle designs reach with
+    kmax up to 40) is left out: no reading constrains it, and fitted beside the others its
+    coefficient was the solver's round-off (10¹⁰–10¹³″ ± as much on the 0…14° benches of loop
+    validation seeds 804–806), and so was its χ² (the hsieh2022 default flagged order 24)."""
+    raw = harmonic_columns(ev.theta_deg, range(1, ev.kmax + 1))[0]
     X = _center(raw, column(ev.closure_group), pb.w ** 2)
     keep: np.ndarray = np.asarray(closure_kept(X, raw, pb.w).reshape(-1, 2).all(axis=1), dtype=bool)
     ks = [k for k, kept in zip(range(1, ev.kmax + 1), keep) if kept]
-    if not keep.all():
-        X = X[:, np.repeat(keep, 2)]
+    return ks, (X if keep.all() else X[:, np.repeat(keep, 2)])
+
+
+@_one_blas_thread
+def harmonic_test(ev: Evidence, pb: _Problem | None = None) -> list[dict]:
+    """Each harmonic of :func:`resolved_harmonics` fitted jointly; amplitude, its u and a χ²_2 test
+    (Bonferroni over the harmonics tested; u scaled by √(χ²/dof) when that exceeds 1). The orders
+    the closure removes are not tested and not listed."""
+    pb = pb or _Problem(ev, use_selfcal=False)
+    ks, X = resolved_harmonics(ev, pb)
     fit = pb.fit(X)
     scale = chi2_scale(fit)
     out = []
